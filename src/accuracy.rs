@@ -1,0 +1,159 @@
+//! How far `A + c` is from `T`: per-pixel distance in scan pixels over an
+//! output grid, summarised as the seeds publish it (mean abs, RMS, max,
+//! share of pixels under 0.1 / 0.25 / 0.5 / 1 px), with the time the GCM took.
+
+use crate::gcm::{Gcm, GcmStats};
+use crate::transform::Mapped;
+use rayon::prelude::*;
+use std::time::{Duration, Instant};
+
+pub const THRESHOLDS: [f64; 4] = [0.1, 0.25, 0.5, 1.0];
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ErrorStats {
+    /// Pixels compared (both `T` and `A + c` valid).
+    pub count: u64,
+    pub mean_abs: f64,
+    pub rms: f64,
+    pub max: f64,
+    /// Percent of pixels under each of `THRESHOLDS`.
+    pub pct_under: [f64; 4],
+    /// Every `step`-th row and column was evaluated (1 = all pixels).
+    pub step: u32,
+    /// Where the maximum is (output column, row).
+    pub argmax: [u32; 2],
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Acc {
+    n: u64,
+    sum: f64,
+    sum2: f64,
+    max: f64,
+    argmax: [u32; 2],
+    under: [u64; 4],
+}
+
+impl Acc {
+    fn push(&mut self, e: f64, x: u32, y: u32) {
+        self.n += 1;
+        self.sum += e;
+        self.sum2 += e * e;
+        if e > self.max {
+            self.max = e;
+            self.argmax = [x, y];
+        }
+        for (k, t) in THRESHOLDS.iter().enumerate() {
+            if e < *t {
+                self.under[k] += 1;
+            }
+        }
+    }
+    fn merge(mut self, o: Acc) -> Acc {
+        self.n += o.n;
+        self.sum += o.sum;
+        self.sum2 += o.sum2;
+        if o.max > self.max {
+            self.max = o.max;
+            self.argmax = o.argmax;
+        }
+        for k in 0..4 {
+            self.under[k] += o.under[k];
+        }
+        self
+    }
+}
+
+/// The result of one evaluation.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Evaluation {
+    pub errors: ErrorStats,
+    pub gcm: GcmStats,
+    /// Wall time to prepare the GCM (nodes, checks) for all rows.
+    pub prepare: Duration,
+    /// Wall time to fill all rows (every row, not only the sampled ones).
+    pub fill: Duration,
+}
+
+/// Compares `A + c` with `T` on every `step`-th row and column. `error_map`,
+/// when given, receives the per-pixel error of the sampled pixels (NaN
+/// elsewhere), row-major over the sampled grid ⌈W/step⌉ × ⌈H/step⌉.
+pub fn evaluate(gcm: &Gcm<'_>, step: u32, mut error_map: Option<&mut Vec<f32>>) -> Evaluation {
+    let grid = gcm.t.grid;
+    let band = 256u32;
+    let bands: Vec<u32> = (0..grid.height.div_ceil(band)).collect();
+    let sw = grid.width.div_ceil(step) as usize;
+    let sh = grid.height.div_ceil(step) as usize;
+    if let Some(m) = error_map.as_deref_mut() {
+        m.clear();
+        m.resize(sw * sh, f32::NAN);
+    }
+    // Timing pass: prepare and fill every row, as rectify would.
+    let t0 = Instant::now();
+    let prepared: Vec<_> = bands
+        .par_iter()
+        .map(|&b| gcm.prepare(b * band, ((b + 1) * band).min(grid.height)))
+        .collect();
+    let prepare = t0.elapsed();
+    let t1 = Instant::now();
+    prepared.par_iter().zip(&bands).for_each(|(g, &b)| {
+        let mut cols = vec![0.0; grid.width as usize];
+        let mut rows = vec![0.0; grid.width as usize];
+        let mut miss = None;
+        for y in b * band..((b + 1) * band).min(grid.height) {
+            gcm.fill_row(g, y, 0, &mut cols, &mut rows, &mut miss);
+        }
+    });
+    let fill = t1.elapsed();
+    let mut stats = GcmStats::default();
+    for g in &prepared {
+        stats.add(&g.stats);
+    }
+    // Error pass on the sampled pixels.
+    let per_band: Vec<(Acc, Vec<(usize, f32)>)> = prepared
+        .par_iter()
+        .zip(&bands)
+        .map(|(g, &b)| {
+            let mut acc = Acc::default();
+            let mut map = Vec::new();
+            let mut cols = vec![0.0; grid.width as usize];
+            let mut rows = vec![0.0; grid.width as usize];
+            let mut miss = None;
+            for y in (b * band..((b + 1) * band).min(grid.height)).filter(|y| y % step == 0) {
+                gcm.fill_row(g, y, 0, &mut cols, &mut rows, &mut miss);
+                for x in (0..grid.width).step_by(step as usize) {
+                    if let Mapped::Px(c, r) = gcm.t.exact(x as f64 + 0.5, y as f64 + 0.5) {
+                        let (ac, ar) = (cols[x as usize], rows[x as usize]);
+                        if ac.is_nan() {
+                            continue;
+                        }
+                        let e = (c - ac).hypot(r - ar);
+                        acc.push(e, x, y);
+                        map.push(((y / step) as usize * sw + (x / step) as usize, e as f32));
+                    }
+                }
+            }
+            (acc, map)
+        })
+        .collect();
+    let mut acc = Acc::default();
+    for (a, map) in per_band {
+        acc = acc.merge(a);
+        if let Some(m) = error_map.as_deref_mut() {
+            for (i, e) in map {
+                m[i] = e;
+            }
+        }
+    }
+    let n = acc.n.max(1) as f64;
+    let errors = ErrorStats {
+        count: acc.n,
+        mean_abs: acc.sum / n,
+        rms: (acc.sum2 / n).sqrt(),
+        max: acc.max,
+        pct_under: acc.under.map(|u| 100.0 * u as f64 / n),
+        step,
+        argmax: acc.argmax,
+    };
+    Evaluation { errors, gcm: stats, prepare, fill }
+}

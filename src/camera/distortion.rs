@@ -1,0 +1,84 @@
+//! Lens distortion in the ground → image direction: an ideal photo point
+//! (mm from the principal point, y up) moves to where the lens puts it.
+//! Thesis §2.3: radial `σ(r) = b1 r + b2 r² + b3 r³` (r, σ in mm; `σ = E r³`
+//! is `b3 = E`). Brown–Conrady on normalised coordinates `x/f, y/f`.
+//! Small enough to live in the GCM, never in `A`.
+
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Brown {
+    #[serde(default)]
+    pub k1: f64,
+    #[serde(default)]
+    pub k2: f64,
+    #[serde(default)]
+    pub k3: f64,
+    #[serde(default)]
+    pub p1: f64,
+    #[serde(default)]
+    pub p2: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Distortion {
+    None,
+    /// `[b1, b2, b3]`, mm.
+    Radial([f64; 3]),
+    Brown(Brown),
+}
+
+impl Distortion {
+    /// Ideal photo point → distorted photo point (mm), focal length `f` (mm).
+    #[inline]
+    #[must_use]
+    pub fn apply(&self, x: f64, y: f64, f: f64) -> (f64, f64) {
+        match *self {
+            Distortion::None => (x, y),
+            Distortion::Radial([b1, b2, b3]) => {
+                let r = x.hypot(y);
+                if r == 0.0 {
+                    return (x, y);
+                }
+                // σ/r = b1 + b2 r + b3 r²
+                let s = 1.0 + b1 + b2 * r + b3 * r * r;
+                (x * s, y * s)
+            }
+            Distortion::Brown(b) => {
+                let (xn, yn) = (x / f, y / f);
+                let r2 = xn * xn + yn * yn;
+                let radial = 1.0 + r2 * (b.k1 + r2 * (b.k2 + r2 * b.k3));
+                let xd = xn * radial + 2.0 * b.p1 * xn * yn + b.p2 * (r2 + 2.0 * xn * xn);
+                let yd = yn * radial + b.p1 * (r2 + 2.0 * yn * yn) + 2.0 * b.p2 * xn * yn;
+                (xd * f, yd * f)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn radial_moves_along_the_radius_by_sigma() {
+        // r = 100 mm: σ = 1e-4·100 + 2e-6·100² + (−3e-9)·100³ = 0.01 + 0.02 − 0.003 = 0.027 mm.
+        let d = Distortion::Radial([1e-4, 2e-6, -3e-9]);
+        let (x, y) = d.apply(60.0, 80.0, 152.0);
+        let r = x.hypot(y);
+        assert!((r - 100.027).abs() < 1e-12);
+        assert!((y / x - 80.0 / 60.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn brown_matches_hand_values() {
+        // f = 100, point (10, 0): xn = 0.1, r² = 0.01; k1 = 0.1 → radial 1.001;
+        // p2 = 0.001 → +p2·(r² + 2 xn²) = 0.001·0.03 = 3e-5;
+        // p1 = 0.002 → y: p1·(r² + 0) = 2e-5.
+        let d = Distortion::Brown(Brown { k1: 0.1, k2: 0.0, k3: 0.0, p1: 0.002, p2: 0.001 });
+        let (x, y) = d.apply(10.0, 0.0, 100.0);
+        assert!((x - (0.1 * 1.001 + 3e-5) * 100.0).abs() < 1e-12);
+        assert!((y - 2e-5 * 100.0).abs() < 1e-12);
+    }
+}

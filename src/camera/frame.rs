@@ -1,0 +1,189 @@
+//! The frame camera: ground (X east, Y north, Z up; metres) → scan pixel by
+//! the collinearity equations (thesis 2.4.2 with the DEM height, 2.4.12)
+//! followed by refraction, lens distortion and the interior orientation.
+//! Earth curvature is applied to the ground point first.
+
+use super::atmosphere::{curvature_drop, Refraction};
+use super::distortion::Distortion;
+use super::interior::InteriorOrientation;
+use super::{Plane, SensorModel};
+use crate::geom::OutputGrid;
+use nalgebra::{Matrix3, Vector3};
+
+#[derive(Clone, Debug)]
+pub struct FrameCamera {
+    /// Focal length, mm.
+    pub focal_mm: f64,
+    /// Projection centre (Xs, Ys, Zs), ground CRS, metres.
+    pub centre: Vector3<f64>,
+    /// Photo → ground rotation (see `rotation`).
+    pub r: Matrix3<f64>,
+    pub interior: InteriorOrientation,
+    pub distortion: Distortion,
+    pub refraction: Refraction,
+    pub earth_curvature: bool,
+    /// Photo coordinates of the nadir point (mm), where refraction is radial from.
+    nadir_mm: (f64, f64),
+}
+
+impl FrameCamera {
+    pub fn new(
+        focal_mm: f64,
+        centre: Vector3<f64>,
+        r: Matrix3<f64>,
+        interior: InteriorOrientation,
+        distortion: Distortion,
+        refraction: Refraction,
+        earth_curvature: bool,
+    ) -> Self {
+        let q = r.transpose() * Vector3::new(0.0, 0.0, -1.0);
+        let nadir_mm = (-focal_mm * q.x / q.z, -focal_mm * q.y / q.z);
+        FrameCamera { focal_mm, centre, r, interior, distortion, refraction, earth_curvature, nadir_mm }
+    }
+
+    /// Ground point → ideal photo point (mm from the principal point, y up),
+    /// before refraction and distortion. `None` behind the camera.
+    #[inline]
+    pub fn collinearity(&self, x: f64, y: f64, z: f64) -> Option<(f64, f64)> {
+        let dx = x - self.centre.x;
+        let dy = y - self.centre.y;
+        let mut dz = z - self.centre.z;
+        if self.earth_curvature {
+            dz -= curvature_drop(dx * dx + dy * dy);
+        }
+        let p = self.r.tr_mul(&Vector3::new(dx, dy, dz));
+        if !(p.z < 0.0) {
+            return None;
+        }
+        let s = -self.focal_mm / p.z;
+        Some((p.x * s, p.y * s))
+    }
+
+    /// Ideal photo point → photo point with refraction and distortion.
+    #[inline]
+    fn photo_corrections(&self, x: f64, y: f64, ground: (f64, f64, f64)) -> (f64, f64) {
+        let (mut x, mut y) = (x, y);
+        if self.refraction != Refraction::None {
+            let dx = ground.0 - self.centre.x;
+            let dy = ground.1 - self.centre.y;
+            let h = self.centre.z - ground.2;
+            if h > 0.0 {
+                let tan_z = (dx * dx + dy * dy).sqrt() / h;
+                let lambda = self.refraction.angle(self.centre.z, ground.2, tan_z);
+                let dr = lambda * self.focal_mm * (1.0 + tan_z * tan_z);
+                let (ex, ey) = (x - self.nadir_mm.0, y - self.nadir_mm.1);
+                let e = ex.hypot(ey);
+                if e > 0.0 {
+                    x += dr * ex / e;
+                    y += dr * ey / e;
+                }
+            }
+        }
+        self.distortion.apply(x, y, self.focal_mm)
+    }
+}
+
+impl SensorModel for FrameCamera {
+    #[inline]
+    fn project(&self, x: f64, y: f64, z: f64) -> Option<(f64, f64)> {
+        let (px, py) = self.collinearity(x, y, z)?;
+        let (px, py) = self.photo_corrections(px, py, (x, y, z));
+        Some(self.interior.mm_to_px(px, py))
+    }
+
+    fn locate_approx(&self, col: f64, row: f64, z: f64) -> Option<(f64, f64)> {
+        let (x, y) = self.interior.px_to_mm(col, row);
+        let d = self.r * Vector3::new(x, y, -self.focal_mm);
+        if d.z.abs() < 1e-12 {
+            return None;
+        }
+        let t = (z - self.centre.z) / d.z;
+        if !(t > 0.0) {
+            return None;
+        }
+        Some((self.centre.x + t * d.x, self.centre.y + t * d.y))
+    }
+
+    /// Exact for collinearity + interior orientation on the plane: the ground
+    /// point of output pixel (u, v) is affine in (u, v), so scan = H·(u, v, 1).
+    fn plane_homography(&self, grid: &OutputGrid, plane: &Plane) -> Option<Matrix3<f64>> {
+        // (ΔX, ΔY, ΔZ) as an affine function of (u, v, 1). Earth curvature is
+        // left to the GCM (it is quadratic).
+        let g = grid.gsd;
+        let cx = grid.x0 - self.centre.x;
+        let cy = grid.y0 - self.centre.y;
+        let l = Matrix3::new(
+            g, 0.0, cx,
+            0.0, -g, cy,
+            plane.b * g, -plane.c * g, plane.a + plane.b * grid.x0 + plane.c * grid.y0 - self.centre.z,
+        );
+        let f = self.focal_mm;
+        // Photo (x, y, w) homogeneous = (−f p.x, −f p.y, p.z) with p = Rᵀ L (u, v, 1).
+        let k = Matrix3::new(-f, 0.0, 0.0, 0.0, -f, 0.0, 0.0, 0.0, 1.0);
+        let a = self.interior.affine();
+        let aff = Matrix3::new(a.m[(0, 0)], a.m[(0, 1)], a.t.x, a.m[(1, 0)], a.m[(1, 1)], a.t.y, 0.0, 0.0, 1.0);
+        Some(aff * k * self.r.transpose() * l)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::rotation::AngleConvention;
+
+    fn vertical(centre: Vector3<f64>) -> FrameCamera {
+        let io = InteriorOrientation::digital(0.01, [5000.0, 5000.0]).unwrap();
+        FrameCamera::new(150.0, centre, Matrix3::identity(), io, Distortion::None, Refraction::None, false)
+    }
+
+    #[test]
+    fn vertical_photo_has_scale_f_over_h() {
+        // H = 1500 m above the ground, f = 150 mm: scale 1:10000, so 100 m on
+        // the ground east of the nadir is 10 mm = 1000 px (0.01 mm pixels) to
+        // the right, and 100 m north is 1000 px up.
+        let cam = vertical(Vector3::new(1000.0, 2000.0, 1700.0));
+        let (c, r) = cam.project(1100.0, 2100.0, 200.0).unwrap();
+        assert!((c - 6000.0).abs() < 1e-9 && (r - 4000.0).abs() < 1e-9, "{c} {r}");
+    }
+
+    #[test]
+    fn tilted_photo_hand_derivation() {
+        // ω-φ-κ with only φ = 10°: R = R_y(φ), Rᵀ = [[c,0,−s],[0,1,0],[s,0,c]].
+        // The point straight below, ΔG = (0, 0, −H): p = Rᵀ ΔG = (sH, 0, −cH),
+        // so x = −f·p.x/p.z = f·tan φ and y = 0.
+        let phi = 10f64.to_radians();
+        let r = AngleConvention::OmegaPhiKappa.matrix([0.0, phi, 0.0]);
+        let io = InteriorOrientation::digital(0.01, [5000.0, 5000.0]).unwrap();
+        let cam = FrameCamera::new(150.0, Vector3::new(0.0, 0.0, 1000.0), r, io, Distortion::None, Refraction::None, false);
+        let (x, y) = cam.collinearity(0.0, 0.0, 0.0).unwrap();
+        assert!((x - 150.0 * phi.tan()).abs() < 1e-12 && y.abs() < 1e-12);
+        // A point 200 m east at height 0: ΔG = (200, 0, −1000);
+        // p.x = c·200 + s·1000, p.z = s·200 − c·1000; x = −f p.x/p.z.
+        let (s, c) = phi.sin_cos();
+        let want = -150.0 * (c * 200.0 + s * 1000.0) / (s * 200.0 - c * 1000.0);
+        let (x, _) = cam.collinearity(200.0, 0.0, 0.0).unwrap();
+        assert!((x - want).abs() < 1e-12);
+    }
+
+    #[test]
+    fn behind_the_camera_fails() {
+        let cam = vertical(Vector3::new(0.0, 0.0, 1000.0));
+        assert!(cam.project(0.0, 0.0, 1200.0).is_none());
+    }
+
+    #[test]
+    fn homography_matches_collinearity_on_a_plane() {
+        let r = AngleConvention::AlphaOmegaKappa.matrix([0.02, -0.03, 0.7]);
+        let io = InteriorOrientation::digital(0.01, [5000.0, 5000.0]).unwrap();
+        let cam = FrameCamera::new(150.0, Vector3::new(500.0, 500.0, 1500.0), r, io, Distortion::None, Refraction::None, false);
+        let grid = OutputGrid { x0: 0.0, y0: 1000.0, gsd: 1.0, width: 1000, height: 1000 };
+        let plane = Plane { a: 100.0, b: 0.05, c: -0.02 };
+        let h = cam.plane_homography(&grid, &plane).unwrap();
+        for (u, v) in [(0.5, 0.5), (300.5, 700.5), (999.5, 10.5)] {
+            let (x, y) = grid.ground(u, v);
+            let want = cam.project(x, y, plane.height(x, y)).unwrap();
+            let p = h * Vector3::new(u, v, 1.0);
+            assert!((p.x / p.z - want.0).abs() < 1e-8 && (p.y / p.z - want.1).abs() < 1e-8);
+        }
+    }
+}

@@ -1,0 +1,71 @@
+//! Sensor models: each maps a ground point (X east, Y north, Z up, in the
+//! ground CRS) to a scan pixel (column, row; continuous, pixel centres at +½).
+
+pub mod atmosphere;
+pub mod distortion;
+pub mod file;
+pub mod frame;
+pub mod interior;
+pub mod rotation;
+
+pub use file::{CameraFile, Crs};
+pub use frame::FrameCamera;
+
+use crate::geom::OutputGrid;
+use nalgebra::Matrix3;
+
+/// A plane `Z = a + b·X + c·Y` in ground coordinates (the trend of the DEM).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Plane {
+    pub a: f64,
+    pub b: f64,
+    pub c: f64,
+}
+
+impl Plane {
+    pub fn flat(z: f64) -> Plane {
+        Plane { a: z, b: 0.0, c: 0.0 }
+    }
+    #[inline]
+    pub fn height(&self, x: f64, y: f64) -> f64 {
+        self.a + self.b * x + self.c * y
+    }
+}
+
+/// The mapping `T` from ground to image, without the DEM.
+pub trait SensorModel: Send + Sync {
+    /// Ground (X, Y, Z) → scan pixel (column, row), `None` where the point
+    /// cannot be imaged (behind the camera, outside the model's domain).
+    fn project(&self, x: f64, y: f64, z: f64) -> Option<(f64, f64)>;
+
+    /// An approximate inverse: ground (X, Y) at height `z` seen at the scan
+    /// pixel (column, row). Within a few pixels of the truth is enough; the
+    /// callers refine it against `project`.
+    fn locate_approx(&self, col: f64, row: f64, z: f64) -> Option<(f64, f64)>;
+
+    /// The homography `H` with scan ≈ H·(u, v, 1) for output pixels (u, v) on
+    /// `plane`: the analytic approximation `A` of thesis 2.4.5–2.4.7 for
+    /// every output row at once.
+    fn plane_homography(&self, grid: &OutputGrid, plane: &Plane) -> Option<Matrix3<f64>>;
+}
+
+/// Refines `locate_approx` by Newton steps on `project`: ground (X, Y) at
+/// height `z` whose image is (col, row), to `tol_px`.
+pub fn locate(model: &dyn SensorModel, col: f64, row: f64, z: f64, tol_px: f64) -> Option<(f64, f64)> {
+    let (mut x, mut y) = model.locate_approx(col, row, z)?;
+    for _ in 0..20 {
+        let (c, r) = model.project(x, y, z)?;
+        let (ec, er) = (col - c, row - r);
+        if ec.hypot(er) < tol_px {
+            return Some((x, y));
+        }
+        let h = 0.01;
+        let (cx, rx) = model.project(x + h, y, z)?;
+        let (cy, ry) = model.project(x, y + h, z)?;
+        let j = nalgebra::Matrix2::new((cx - c) / h, (cy - c) / h, (rx - r) / h, (ry - r) / h);
+        let step = j.try_inverse()? * nalgebra::Vector2::new(ec, er);
+        x += step.x;
+        y += step.y;
+    }
+    None
+}

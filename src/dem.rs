@@ -1,0 +1,335 @@
+//! Terrain heights: a regular height grid looked up bilinearly (textbook eq.
+//! 9.35), a constant "flat" DEM, and the policy for holes and for points
+//! outside the grid. The rest of the program sees only `Dem::height`.
+
+use crate::camera::Plane;
+use crate::error::{Error, Result};
+use crate::io::geotiff::{read_georef, GeoRef};
+use std::path::{Path, PathBuf};
+
+/// What a raw lookup found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Lookup {
+    Height(f64),
+    /// Inside the grid, but a sample needed for the interpolation is nodata.
+    Hole,
+    Outside,
+}
+
+/// What to do when a lookup finds no height.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub enum Miss {
+    /// Stop the run with an error naming the point.
+    Error,
+    /// Leave the output pixel as nodata.
+    Nodata,
+    /// Use this height instead.
+    Height(f64),
+}
+
+impl std::str::FromStr for Miss {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Miss, String> {
+        match s {
+            "error" => Ok(Miss::Error),
+            "nodata" => Ok(Miss::Nodata),
+            h => h
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .map(Miss::Height)
+                .ok_or_else(|| format!("'{s}' is neither error, nodata nor a height")),
+        }
+    }
+}
+
+/// A height grid, north-up, heights at pixel centres.
+pub struct GridDem {
+    pub width: usize,
+    pub height: usize,
+    data: Vec<f32>,
+    /// GDAL geotransform (north-up: gt2 = gt4 = 0).
+    pub transform: [f64; 6],
+    pub nodata: Option<f64>,
+    pub epsg: Option<u32>,
+}
+
+impl GridDem {
+    pub fn new(width: usize, height: usize, data: Vec<f32>, transform: [f64; 6], nodata: Option<f64>, epsg: Option<u32>) -> GridDem {
+        assert_eq!(data.len(), width * height);
+        GridDem { width, height, data, transform, nodata, epsg }
+    }
+
+    pub fn data(&self) -> &[f32] {
+        &self.data
+    }
+
+    #[inline]
+    fn is_nodata(&self, v: f32) -> bool {
+        v.is_nan() || self.nodata.is_some_and(|nd| v as f64 == nd)
+    }
+
+    /// Bilinear height at ground (X, Y) (textbook 9.35).
+    #[inline]
+    pub fn lookup(&self, x: f64, y: f64) -> Lookup {
+        let gt = &self.transform;
+        // Continuous pixel-centre coordinates: sample (i, j) at (i, j).
+        let c = (x - gt[0]) / gt[1] - 0.5;
+        let r = (y - gt[3]) / gt[5] - 0.5;
+        let (w, h) = (self.width as f64, self.height as f64);
+        // The grid covers its pixels' whole area: accept the outer half pixel.
+        if !(c >= -0.5 && c <= w - 0.5 && r >= -0.5 && r <= h - 0.5) {
+            return Lookup::Outside;
+        }
+        let c = c.clamp(0.0, w - 1.0);
+        let r = r.clamp(0.0, h - 1.0);
+        let i0 = (c.floor() as usize).min(self.width.saturating_sub(2));
+        let j0 = (r.floor() as usize).min(self.height.saturating_sub(2));
+        let i1 = (i0 + 1).min(self.width - 1);
+        let j1 = (j0 + 1).min(self.height - 1);
+        let (fx, fy) = (c - i0 as f64, r - j0 as f64);
+        let v = |i: usize, j: usize| self.data[j * self.width + i];
+        let (z00, z10, z01, z11) = (v(i0, j0), v(i1, j0), v(i0, j1), v(i1, j1));
+        let need = |z: f32, wgt: f64| wgt > 0.0 && self.is_nodata(z);
+        if need(z00, (1.0 - fx) * (1.0 - fy))
+            || need(z10, fx * (1.0 - fy))
+            || need(z01, (1.0 - fx) * fy)
+            || need(z11, fx * fy)
+        {
+            return Lookup::Hole;
+        }
+        let z = |z: f32, wgt: f64| if wgt > 0.0 { z as f64 * wgt } else { 0.0 };
+        Lookup::Height(
+            z(z00, (1.0 - fx) * (1.0 - fy)) + z(z10, fx * (1.0 - fy)) + z(z01, (1.0 - fx) * fy) + z(z11, fx * fy),
+        )
+    }
+
+    /// Ground bounds `[minx, miny, maxx, maxy]`.
+    pub fn bounds(&self) -> [f64; 4] {
+        let gt = &self.transform;
+        let (x1, y1) = (gt[0] + gt[1] * self.width as f64, gt[3] + gt[5] * self.height as f64);
+        [gt[0].min(x1), gt[3].min(y1), gt[0].max(x1), gt[3].max(y1)]
+    }
+
+    /// Reads a single-band GeoTIFF (Int16, UInt16, Int32, Float32, Float64, ...)
+    /// or an SRTM `.hgt` tile.
+    pub fn read(path: &Path) -> Result<GridDem> {
+        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("hgt")) {
+            return read_hgt(path);
+        }
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file))
+            .map_err(|e| Error::from_tiff(path, e))?
+            .with_limits(crate::io::source::decoder_limits());
+        let (w, h) = dec.dimensions().map_err(|e| Error::from_tiff(path, e))?;
+        let ct = dec.colortype().map_err(|e| Error::from_tiff(path, e))?;
+        let bands = match ct {
+            tiff::ColorType::Gray(_) => 1,
+            tiff::ColorType::RGB(_) => 3,
+            tiff::ColorType::RGBA(_) => 4,
+            tiff::ColorType::GrayA(_) => 2,
+            _ => 0,
+        };
+        if bands != 1 {
+            return Err(Error::format(path, format!("a DEM must be a single-band raster, this one is {ct:?}")));
+        }
+        let geo = read_georef(&mut dec, path)?
+            .ok_or_else(|| Error::format(path, "the DEM has no georeferencing (no ModelPixelScale/ModelTiepoint)"))?;
+        check_north_up(&geo, path)?;
+        let pixels = (w as u64) * (h as u64);
+        if pixels > 1 << 31 {
+            return Err(Error::limits(path, format!("DEM of {w}×{h} samples is larger than this version reads into memory")));
+        }
+        use tiff::decoder::DecodingResult as D;
+        let img = dec.read_image().map_err(|e| Error::from_tiff(path, e))?;
+        let data: Vec<f32> = match img {
+            D::U8(v) => v.into_iter().map(f32::from).collect(),
+            D::U16(v) => v.into_iter().map(f32::from).collect(),
+            D::I8(v) => v.into_iter().map(f32::from).collect(),
+            D::I16(v) => v.into_iter().map(f32::from).collect(),
+            D::U32(v) => v.into_iter().map(|x| x as f32).collect(),
+            D::I32(v) => v.into_iter().map(|x| x as f32).collect(),
+            D::F32(v) => v,
+            D::F64(v) => v.into_iter().map(|x| x as f32).collect(),
+            _ => return Err(Error::unsupported(path, "DEM sample type")),
+        };
+        if data.len() != pixels as usize {
+            return Err(Error::format(path, "DEM data size does not match its dimensions"));
+        }
+        Ok(GridDem::new(w as usize, h as usize, data, geo.transform, geo.nodata, geo.epsg))
+    }
+}
+
+fn check_north_up(geo: &GeoRef, path: &Path) -> Result<()> {
+    let gt = geo.transform;
+    if gt[2] != 0.0 || gt[4] != 0.0 || !(gt[1] > 0.0) || !(gt[5] < 0.0) {
+        return Err(Error::unsupported(path, format!("only north-up DEMs are supported (geotransform {gt:?})")));
+    }
+    Ok(())
+}
+
+/// An SRTM `.hgt` tile: big-endian Int16, 1201² (3″) or 3601² (1″) samples on
+/// whole-degree lines, named after its south-west corner (e.g. N44E005).
+fn read_hgt(path: &Path) -> Result<GridDem> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let n = match bytes.len() {
+        l if l == 1201 * 1201 * 2 => 1201,
+        l if l == 3601 * 3601 * 2 => 3601,
+        l => return Err(Error::format(path, format!("{l} bytes is not the size of a 1201² or 3601² SRTM tile"))),
+    };
+    let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("").to_ascii_uppercase();
+    let parse = || -> Option<(f64, f64)> {
+        let (ns, rest) = name.split_at(1);
+        let lat_end = rest.find(['E', 'W'])?;
+        let lat: f64 = rest[..lat_end].parse().ok()?;
+        let (ew, lon) = rest[lat_end..].split_at(1);
+        let lon: f64 = lon.parse().ok()?;
+        let lat = if ns == "S" { -lat } else if ns == "N" { lat } else { return None };
+        let lon = if ew == "W" { -lon } else { lon };
+        Some((lat, lon))
+    };
+    let (lat, lon) = parse().ok_or_else(|| Error::format(path, "an .hgt file must be named like N44E005.hgt"))?;
+    let d = 1.0 / (n - 1) as f64;
+    let data = bytes.chunks_exact(2).map(|b| i16::from_be_bytes([b[0], b[1]]) as f32).collect();
+    Ok(GridDem::new(n, n, data, [lon - 0.5 * d, d, 0.0, lat + 1.0 + 0.5 * d, 0.0, -d], Some(-32768.0), Some(4326)))
+}
+
+/// Where heights come from.
+pub enum HeightModel {
+    Flat(f64),
+    Grid(GridDem),
+}
+
+/// A height model with its hole/outside policy.
+pub struct Dem {
+    pub model: HeightModel,
+    pub on_hole: Miss,
+    pub on_outside: Miss,
+    /// For error messages.
+    pub path: PathBuf,
+}
+
+/// The height at a ground point after the policy, or why there is none.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Height {
+    Value(f64),
+    /// No height; the pixel becomes nodata.
+    Nodata,
+    /// No height and the policy says the run must stop.
+    Missing(Lookup),
+}
+
+impl Dem {
+    pub fn flat(z: f64) -> Dem {
+        Dem { model: HeightModel::Flat(z), on_hole: Miss::Error, on_outside: Miss::Error, path: PathBuf::from("(flat)") }
+    }
+
+    pub fn grid(g: GridDem, path: &Path) -> Dem {
+        Dem { model: HeightModel::Grid(g), on_hole: Miss::Error, on_outside: Miss::Error, path: path.to_path_buf() }
+    }
+
+    #[inline]
+    pub fn height(&self, x: f64, y: f64) -> Height {
+        let found = match &self.model {
+            HeightModel::Flat(z) => return Height::Value(*z),
+            HeightModel::Grid(g) => g.lookup(x, y),
+        };
+        let policy = match found {
+            Lookup::Height(z) => return Height::Value(z),
+            Lookup::Hole => self.on_hole,
+            Lookup::Outside => self.on_outside,
+        };
+        match policy {
+            Miss::Error => Height::Missing(found),
+            Miss::Nodata => Height::Nodata,
+            Miss::Height(z) => Height::Value(z),
+        }
+    }
+
+    /// Least-squares plane `Z = a + bX + cY` through the valid heights inside
+    /// `[minx, miny, maxx, maxy]` (thesis 2.4.8), on at most ~65 000 samples.
+    pub fn trend_plane(&self, b: [f64; 4]) -> Option<Plane> {
+        self.fit(b, true)
+    }
+
+    /// The mean height inside the bounds, as a horizontal plane.
+    pub fn mean_plane(&self, b: [f64; 4]) -> Option<Plane> {
+        self.fit(b, false)
+    }
+
+    fn fit(&self, b: [f64; 4], tilted: bool) -> Option<Plane> {
+        let n = 256;
+        let (cx, cy) = ((b[0] + b[2]) / 2.0, (b[1] + b[3]) / 2.0);
+        let mut ata = nalgebra::Matrix3::<f64>::zeros();
+        let mut atz = nalgebra::Vector3::<f64>::zeros();
+        let mut count = 0usize;
+        for j in 0..n {
+            for i in 0..n {
+                let x = b[0] + (b[2] - b[0]) * (i as f64 + 0.5) / n as f64;
+                let y = b[1] + (b[3] - b[1]) * (j as f64 + 0.5) / n as f64;
+                if let Height::Value(z) = self.height(x, y) {
+                    let row = nalgebra::Vector3::new(1.0, x - cx, y - cy);
+                    ata += row * row.transpose();
+                    atz += row * z;
+                    count += 1;
+                }
+            }
+        }
+        if count == 0 {
+            return None;
+        }
+        if !tilted || count < 3 {
+            let mean = atz[0] / count as f64;
+            return Some(Plane::flat(mean));
+        }
+        let s = ata.try_inverse().map(|inv| inv * atz)?;
+        Some(Plane { a: s[0] - s[1] * cx - s[2] * cy, b: s[1], c: s[2] })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp() -> GridDem {
+        // 4×3 samples, 10 m posting, origin (1000, 2000): z = 100 + col + 10·row.
+        let data = (0..12).map(|k| 100.0 + (k % 4) as f32 + 10.0 * (k / 4) as f32).collect();
+        GridDem::new(4, 3, data, [1000.0, 10.0, 0.0, 2000.0, 0.0, -10.0], Some(-9999.0), None)
+    }
+
+    #[test]
+    fn bilinear_at_centres_and_between() {
+        let g = ramp();
+        // Centre of sample (0, 0) is (1005, 1995).
+        assert_eq!(g.lookup(1005.0, 1995.0), Lookup::Height(100.0));
+        // Halfway between columns 1 and 2 and rows 0 and 1: 100 + 1.5 + 5.
+        assert_eq!(g.lookup(1020.0, 1990.0), Lookup::Height(106.5));
+        // The outer half pixel clamps to the edge sample.
+        assert_eq!(g.lookup(1001.0, 1999.0), Lookup::Height(100.0));
+        assert_eq!(g.lookup(999.0, 1995.0), Lookup::Outside);
+    }
+
+    #[test]
+    fn holes_and_policies() {
+        let mut g = ramp();
+        g.data[5] = -9999.0; // (1, 1)
+        assert_eq!(g.lookup(1020.0, 1990.0), Lookup::Hole);
+        // Exactly on sample (2, 0) the hole at (1, 1) has zero weight.
+        assert_eq!(g.lookup(1025.0, 1995.0), Lookup::Height(102.0));
+        let mut dem = Dem::grid(g, Path::new("dem.tif"));
+        assert_eq!(dem.height(1020.0, 1990.0), Height::Missing(Lookup::Hole));
+        dem.on_hole = Miss::Height(55.0);
+        dem.on_outside = Miss::Nodata;
+        assert_eq!(dem.height(1020.0, 1990.0), Height::Value(55.0));
+        assert_eq!(dem.height(0.0, 0.0), Height::Nodata);
+    }
+
+    #[test]
+    fn trend_plane_of_a_ramp_is_the_ramp() {
+        let dem = Dem::grid(ramp(), Path::new("dem.tif"));
+        let p = dem.trend_plane([1005.0, 1975.0, 1035.0, 1995.0]).unwrap();
+        // z = 100 + (X − 1005)/10 + 10·(1995 − Y)/10
+        assert!((p.b - 0.1).abs() < 1e-9 && (p.c + 1.0).abs() < 1e-9);
+        assert!((p.height(1015.0, 1985.0) - 111.0).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,92 @@
+//! Typed errors of the library. Every variant that concerns a file names it, so
+//! the binary can print one readable line; the binary maps them to exit codes.
+
+use std::path::{Path, PathBuf};
+
+/// Everything that can go wrong inside gcm-ortho.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The operating system refused a read or a write.
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A file is not what its format promises (truncated, inconsistent, corrupt).
+    #[error("{path}: {msg}")]
+    Format { path: PathBuf, msg: String },
+    /// A well-formed file uses a feature we do not support.
+    #[error("{path}: unsupported: {msg}")]
+    Unsupported { path: PathBuf, msg: String },
+    /// A configuration file (camera, manifest) has a bad or missing field.
+    #[error("{path}: {field}: {msg}")]
+    Config {
+        path: PathBuf,
+        field: String,
+        msg: String,
+    },
+    /// A size or count is beyond what we accept (protects memory).
+    #[error("{path}: limit exceeded: {msg}")]
+    Limits { path: PathBuf, msg: String },
+    /// The geometry cannot be solved (degenerate camera, empty footprint, ...).
+    #[error("geometry: {0}")]
+    Geometry(String),
+    /// Arguments that contradict each other or are out of range.
+    #[error("{0}")]
+    Usage(String),
+    /// The run was cancelled (signal, or another stage failed first).
+    #[error("cancelled")]
+    Cancelled,
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl Error {
+    pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.as_ref().to_path_buf(),
+            source,
+        }
+    }
+    pub fn format(path: impl AsRef<Path>, msg: impl Into<String>) -> Self {
+        Error::Format {
+            path: path.as_ref().to_path_buf(),
+            msg: msg.into(),
+        }
+    }
+    pub fn unsupported(path: impl AsRef<Path>, msg: impl Into<String>) -> Self {
+        Error::Unsupported {
+            path: path.as_ref().to_path_buf(),
+            msg: msg.into(),
+        }
+    }
+    pub fn config(path: impl AsRef<Path>, field: impl Into<String>, msg: impl Into<String>) -> Self {
+        Error::Config {
+            path: path.as_ref().to_path_buf(),
+            field: field.into(),
+            msg: msg.into(),
+        }
+    }
+    pub fn limits(path: impl AsRef<Path>, msg: impl Into<String>) -> Self {
+        Error::Limits {
+            path: path.as_ref().to_path_buf(),
+            msg: msg.into(),
+        }
+    }
+
+    /// Converts an error of the `tiff` crate met while reading `path`.
+    pub fn from_tiff(path: impl AsRef<Path>, e: tiff::TiffError) -> Self {
+        use tiff::TiffError as T;
+        match e {
+            T::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+                Error::format(path, "file is truncated (unexpected end of file)")
+            }
+            T::IoError(io) => Error::io(path, io),
+            T::UnsupportedError(u) => Error::unsupported(path, u.to_string()),
+            T::LimitsExceeded => Error::limits(path, "the TIFF decoder's memory limits"),
+            T::IntSizeError => Error::limits(path, "a size does not fit the platform's integers"),
+            other => Error::format(path, other.to_string()),
+        }
+    }
+}

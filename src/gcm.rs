@@ -1,0 +1,400 @@
+//! The generalized correction matrix (GCM, thesis §2.4, eq. 2.4.15): exact
+//! corrections `c = T − A` at sparse nodes every `k` output pixels, so that
+//! `T ≈ A + c` costs one reciprocal per pixel plus `1/k²` exact evaluations.
+//!
+//! Nodes sit at continuous output coordinates `(k(i+½), k(j+½))`. In `cell`
+//! mode (the thesis) a node's value serves its whole k×k cell, node indices
+//! `0..⌈W/k⌉`. In `bilinear` mode corrections are interpolated between the
+//! four surrounding nodes; node indices run from −1 to ⌈W/k⌉ so that every
+//! pixel lies between nodes and nothing is extrapolated.
+//!
+//! With `max_error` (bilinear only) each cell between four nodes is checked
+//! against `T` at 13 interior points and split as a quadtree where it misses
+//! the bound; cells that still miss at size < 2 px are evaluated exactly.
+//!
+//! Everything is computed a band of rows at a time (`prepare`), so a caller
+//! never holds the whole matrix.
+
+use crate::dem::{Height, Lookup};
+use crate::transform::{Approx, Mapped, Transform};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CorrectionMode {
+    Cell,
+    Bilinear,
+}
+
+impl std::str::FromStr for CorrectionMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "cell" => Ok(CorrectionMode::Cell),
+            "bilinear" => Ok(CorrectionMode::Bilinear),
+            _ => Err(format!("'{s}' is neither cell nor bilinear")),
+        }
+    }
+}
+
+/// What the caller chose: sparsity, mode, optional error bound (source px).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct GcmSpec {
+    pub k: u32,
+    pub mode: CorrectionMode,
+    pub max_error: Option<f64>,
+}
+
+/// One row of nodes: corrections in scan pixels, NaN where `T` or `A` has no
+/// value (those pixels fall back to `T`).
+#[derive(Clone, Debug)]
+pub struct NodeRow {
+    pub j: i64,
+    pub dc: Vec<f64>,
+    pub dr: Vec<f64>,
+}
+
+/// The quadtree of one refined cell.
+#[derive(Clone, Debug)]
+struct Quad {
+    u0: f64,
+    v0: f64,
+    size: f64,
+    /// Corrections (dc, dr) at the corners (u0,v0), (u0+s,v0), (u0,v0+s), (u0+s,v0+s).
+    corners: [[f64; 2]; 4],
+    kids: Option<Box<[Quad; 4]>>,
+    /// Too fine to split further and still over the bound: use `T` itself.
+    exact: bool,
+}
+
+/// Counters for the report: how much the GCM cost.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct GcmStats {
+    /// Exact evaluations of `T` at nodes.
+    pub nodes: u64,
+    /// Exact evaluations of `T` to check and refine cells.
+    pub checks: u64,
+    pub cells: u64,
+    pub refined_cells: u64,
+    /// Pixels filled by `T` itself (invalid nodes, or refined to the bottom).
+    pub exact_pixels: u64,
+}
+
+impl GcmStats {
+    pub fn add(&mut self, o: &GcmStats) {
+        self.nodes += o.nodes;
+        self.checks += o.checks;
+        self.cells += o.cells;
+        self.refined_cells += o.refined_cells;
+        self.exact_pixels += o.exact_pixels;
+    }
+}
+
+/// The node rows (and refined cells) covering a band of output rows.
+pub struct BandGcm {
+    first_j: i64,
+    rows: Vec<NodeRow>,
+    /// `cells[n][i]`: the refinement of the cell between node rows n, n+1
+    /// and node columns i, i+1 (index from the first node).
+    cells: Vec<Vec<Option<Quad>>>,
+    pub stats: GcmStats,
+    /// The first DEM miss met under the `error` policy.
+    pub miss: Option<(f64, f64, Lookup)>,
+}
+
+/// The GCM for one output grid.
+pub struct Gcm<'a> {
+    pub t: &'a Transform<'a>,
+    pub a: Approx,
+    pub spec: GcmSpec,
+    first_node: i64,
+    nodes_x: usize,
+    inv_k: f64,
+}
+
+const CHECK_POINTS: [(f64, f64); 13] = [
+    (0.25, 0.25), (0.5, 0.25), (0.75, 0.25),
+    (0.25, 0.5), (0.5, 0.5), (0.75, 0.5),
+    (0.25, 0.75), (0.5, 0.75), (0.75, 0.75),
+    (0.5, 0.0), (0.0, 0.5), (1.0, 0.5), (0.5, 1.0),
+];
+
+impl<'a> Gcm<'a> {
+    pub fn new(t: &'a Transform<'a>, a: Approx, spec: GcmSpec) -> Gcm<'a> {
+        assert!(spec.k >= 1);
+        let k = spec.k as usize;
+        let w = t.grid.width as usize;
+        let (first_node, nodes_x) = match spec.mode {
+            CorrectionMode::Cell => (0, w.div_ceil(k)),
+            CorrectionMode::Bilinear => (-1, w.div_ceil(k) + 2),
+        };
+        Gcm { t, a, spec, first_node, nodes_x, inv_k: 1.0 / spec.k as f64 }
+    }
+
+    #[inline]
+    fn node_pos(&self, i: i64) -> f64 {
+        self.spec.k as f64 * (i as f64 + 0.5)
+    }
+
+    /// Correction `T − A` at (u, v), NaN where either has no value.
+    #[inline]
+    fn correction(&self, u: f64, v: f64, miss: &mut Option<(f64, f64, Lookup)>) -> [f64; 2] {
+        match (self.t.exact(u, v), self.a.at(u, v)) {
+            (Mapped::Px(c, r), Some((ac, ar))) => [c - ac, r - ar],
+            (Mapped::DemMiss(x, y, l), _) => {
+                miss.get_or_insert((x, y, l));
+                [f64::NAN; 2]
+            }
+            _ => [f64::NAN; 2],
+        }
+    }
+
+    /// Heights at the nodes of node row `j` (the pipeline's DEM stage).
+    pub fn node_heights(&self, j: i64) -> Vec<Height> {
+        let v = self.node_pos(j);
+        (0..self.nodes_x)
+            .map(|i| {
+                let (x, y) = self.t.grid.ground(self.node_pos(self.first_node + i as i64), v);
+                self.t.dem.height(x, y)
+            })
+            .collect()
+    }
+
+    /// Node row `j` from its heights (the pipeline's GCM stage).
+    pub fn node_row(&self, j: i64, heights: &[Height], miss: &mut Option<(f64, f64, Lookup)>) -> NodeRow {
+        let v = self.node_pos(j);
+        let mut dc = vec![f64::NAN; self.nodes_x];
+        let mut dr = vec![f64::NAN; self.nodes_x];
+        for (i, h) in heights.iter().enumerate() {
+            let u = self.node_pos(self.first_node + i as i64);
+            let (x, y) = self.t.grid.ground(u, v);
+            let z = match *h {
+                Height::Value(z) => z,
+                Height::Nodata => continue,
+                Height::Missing(l) => {
+                    miss.get_or_insert((x, y, l));
+                    continue;
+                }
+            };
+            if let (Some((c, r)), Some((ac, ar))) = (self.t.model.project(x, y, z), self.a.at(u, v)) {
+                dc[i] = c - ac;
+                dr[i] = r - ar;
+            }
+        }
+        NodeRow { j, dc, dr }
+    }
+
+    /// Node rows `(j0, j1)` and the weight of `j1` for output row `y`.
+    #[inline]
+    pub fn rows_for(&self, y: u32) -> (i64, i64, f64) {
+        match self.spec.mode {
+            CorrectionMode::Cell => {
+                let j = (y / self.spec.k) as i64;
+                (j, j, 0.0)
+            }
+            CorrectionMode::Bilinear => {
+                let t = (y as f64 + 0.5) * self.inv_k - 0.5;
+                let j0 = t.floor() as i64;
+                (j0, j0 + 1, t - j0 as f64)
+            }
+        }
+    }
+
+    /// Everything needed to fill output rows `[y0, y1)`.
+    pub fn prepare(&self, y0: u32, y1: u32) -> BandGcm {
+        let (j_first, _, _) = self.rows_for(y0);
+        let (_, j_last, _) = self.rows_for(y1 - 1);
+        let mut miss = None;
+        let rows: Vec<NodeRow> = (j_first..=j_last)
+            .map(|j| {
+                let h = self.node_heights(j);
+                self.node_row(j, &h, &mut miss)
+            })
+            .collect();
+        self.finish_band(j_first, rows, miss)
+    }
+
+    /// Builds the band from prepared node rows (refines cells if asked).
+    pub fn finish_band(&self, first_j: i64, rows: Vec<NodeRow>, mut miss: Option<(f64, f64, Lookup)>) -> BandGcm {
+        let mut stats = GcmStats { nodes: (rows.len() * self.nodes_x) as u64, ..Default::default() };
+        let mut cells = Vec::new();
+        if let (Some(bound), CorrectionMode::Bilinear) = (self.spec.max_error, self.spec.mode) {
+            for n in 0..rows.len().saturating_sub(1) {
+                let (a, b) = (&rows[n], &rows[n + 1]);
+                let row_cells = (0..self.nodes_x - 1)
+                    .map(|i| {
+                        stats.cells += 1;
+                        let corners = [[a.dc[i], a.dr[i]], [a.dc[i + 1], a.dr[i + 1]], [b.dc[i], b.dr[i]], [b.dc[i + 1], b.dr[i + 1]]];
+                        if corners.iter().flatten().any(|v| v.is_nan()) {
+                            return None;
+                        }
+                        let mut q = Quad {
+                            u0: self.node_pos(self.first_node + i as i64),
+                            v0: self.node_pos(a.j),
+                            size: self.spec.k as f64,
+                            corners,
+                            kids: None,
+                            exact: false,
+                        };
+                        let refined = self.refine(&mut q, bound, &mut stats, &mut miss);
+                        if refined {
+                            stats.refined_cells += 1;
+                            Some(q)
+                        } else {
+                            None
+                        }
+                    })
+                    .collect();
+                cells.push(row_cells);
+            }
+        }
+        BandGcm { first_j, rows, cells, stats, miss }
+    }
+
+    /// Checks `q` against `T`; splits it where it misses `bound`. Returns
+    /// whether it had to be refined.
+    fn refine(&self, q: &mut Quad, bound: f64, stats: &mut GcmStats, miss: &mut Option<(f64, f64, Lookup)>) -> bool {
+        // Checking at a few points cannot see every pixel: hold them to half
+        // the bound so that the pixels between them stay under it.
+        let limit = 0.5 * bound;
+        let mut exact = [[0.0f64; 2]; 13];
+        let mut worst = 0.0f64;
+        for (p, &(fu, fv)) in CHECK_POINTS.iter().enumerate() {
+            let c = self.correction(q.u0 + fu * q.size, q.v0 + fv * q.size, miss);
+            stats.checks += 1;
+            exact[p] = c;
+            let interp = bilerp(&q.corners, fu, fv);
+            let err = (c[0] - interp[0]).hypot(c[1] - interp[1]);
+            worst = if err.is_nan() { f64::INFINITY } else { worst.max(err) };
+        }
+        if worst <= limit {
+            return false;
+        }
+        if q.size < 2.0 {
+            q.exact = true;
+            return true;
+        }
+        // Children's corners: parent corners, edge midpoints (check points
+        // 9..13: top, left, right, bottom) and the centre (check point 4).
+        let [c00, c10, c01, c11] = q.corners;
+        let (top, left, right, bottom, centre) = (exact[9], exact[10], exact[11], exact[12], exact[4]);
+        let h = q.size / 2.0;
+        let mk = |u0: f64, v0: f64, corners: [[f64; 2]; 4]| Quad { u0, v0, size: h, corners, kids: None, exact: false };
+        let mut kids = Box::new([
+            mk(q.u0, q.v0, [c00, top, left, centre]),
+            mk(q.u0 + h, q.v0, [top, c10, centre, right]),
+            mk(q.u0, q.v0 + h, [left, centre, c01, bottom]),
+            mk(q.u0 + h, q.v0 + h, [centre, right, bottom, c11]),
+        ]);
+        for kid in kids.iter_mut() {
+            if kid.corners.iter().flatten().any(|v| v.is_nan()) {
+                kid.exact = true;
+                continue;
+            }
+            self.refine(kid, bound, stats, miss);
+        }
+        q.kids = Some(kids);
+        true
+    }
+
+    /// Fills output row `y` (columns `x0..x0+cols.len()`) with scan
+    /// coordinates `A + c`, NaN where there is no value. Returns the number
+    /// of pixels that fell back to `T`.
+    pub fn fill_row(&self, band: &BandGcm, y: u32, x0: u32, cols: &mut [f64], rows: &mut [f64], miss: &mut Option<(f64, f64, Lookup)>) -> u64 {
+        let (j0, j1, fy) = self.rows_for(y);
+        let a = &band.rows[(j0 - band.first_j) as usize];
+        let b = &band.rows[(j1 - band.first_j) as usize];
+        let v = y as f64 + 0.5;
+        let ra = self.a.row(v);
+        let cells = band.cells.get((j0 - band.first_j) as usize);
+        let mut exact_px = 0;
+        let last = self.nodes_x as i64 - 2;
+        for (n, (oc, or)) in cols.iter_mut().zip(rows.iter_mut()).enumerate() {
+            let u = (x0 as usize + n) as f64 + 0.5;
+            // A: one reciprocal.
+            let den = ra.e * u + ra.f;
+            let inv = 1.0 / den;
+            let ac = (ra.m * u + ra.n) * inv;
+            let ar = (ra.p * u + ra.q) * inv;
+            let (dc, dr) = match self.spec.mode {
+                CorrectionMode::Cell => {
+                    let i = (x0 as usize + n) / self.spec.k as usize;
+                    (a.dc[i], a.dr[i])
+                }
+                CorrectionMode::Bilinear => {
+                    let t = u * self.inv_k - 0.5;
+                    let i0 = (t.floor() as i64).clamp(-1, last - 1);
+                    let fx = t - i0 as f64;
+                    let i = (i0 - self.first_node) as usize;
+                    if let Some(Some(q)) = cells.map(|c| &c[i]) {
+                        match leaf(q, u, v) {
+                            Some(leaf) => {
+                                let c = bilerp(&leaf.corners, (u - leaf.u0) / leaf.size, (v - leaf.v0) / leaf.size);
+                                (c[0], c[1])
+                            }
+                            None => (f64::NAN, f64::NAN),
+                        }
+                    } else {
+                        let w00 = (1.0 - fx) * (1.0 - fy);
+                        let w10 = fx * (1.0 - fy);
+                        let w01 = (1.0 - fx) * fy;
+                        let w11 = fx * fy;
+                        (
+                            a.dc[i] * w00 + a.dc[i + 1] * w10 + b.dc[i] * w01 + b.dc[i + 1] * w11,
+                            a.dr[i] * w00 + a.dr[i + 1] * w10 + b.dr[i] * w01 + b.dr[i + 1] * w11,
+                        )
+                    }
+                }
+            };
+            let (c, r) = (ac + dc, ar + dr);
+            if c.is_nan() || r.is_nan() || !(den > 0.0) {
+                exact_px += 1;
+                match self.t.exact(u, v) {
+                    Mapped::Px(c, r) => {
+                        *oc = c;
+                        *or = r;
+                    }
+                    Mapped::Nodata => {
+                        *oc = f64::NAN;
+                        *or = f64::NAN;
+                    }
+                    Mapped::DemMiss(x, y, l) => {
+                        miss.get_or_insert((x, y, l));
+                        *oc = f64::NAN;
+                        *or = f64::NAN;
+                    }
+                }
+            } else {
+                *oc = c;
+                *or = r;
+            }
+        }
+        exact_px
+    }
+}
+
+#[inline]
+fn bilerp(c: &[[f64; 2]; 4], fu: f64, fv: f64) -> [f64; 2] {
+    let w = [(1.0 - fu) * (1.0 - fv), fu * (1.0 - fv), (1.0 - fu) * fv, fu * fv];
+    [
+        c[0][0] * w[0] + c[1][0] * w[1] + c[2][0] * w[2] + c[3][0] * w[3],
+        c[0][1] * w[0] + c[1][1] * w[1] + c[2][1] * w[2] + c[3][1] * w[3],
+    ]
+}
+
+/// The leaf of `q` containing (u, v); `None` for a leaf marked exact.
+fn leaf(q: &Quad, u: f64, v: f64) -> Option<&Quad> {
+    let mut q = q;
+    loop {
+        if q.exact {
+            return None;
+        }
+        match &q.kids {
+            None => return Some(q),
+            Some(k) => {
+                let h = q.size / 2.0;
+                let i = usize::from(u >= q.u0 + h) + 2 * usize::from(v >= q.v0 + h);
+                q = &k[i];
+            }
+        }
+    }
+}

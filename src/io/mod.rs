@@ -1,0 +1,4 @@
+//! Reading scans and rasters, writing the tiled GeoTIFF.
+
+pub mod geotiff;
+pub mod source;

@@ -1,0 +1,153 @@
+//! The inverse mapping of orthorectification: output pixel (u, v) → ground
+//! (X, Y) → height Z from the DEM → scan pixel. `exact` is the operator `T`
+//! of thesis eq. 2.1.1; `Approx` is its analytic approximation `A`
+//! (2.4.5–2.4.7): collinearity on a plane, fractional-linear along each row.
+//!
+//! Coordinates: (u, v) are continuous output coordinates (pixel centres at
+//! +½, see `geom::grid`); scan coordinates are continuous (column, row),
+//! pixel centres at +½.
+
+use crate::camera::{Plane, SensorModel};
+use crate::dem::{Dem, Height, Lookup};
+use crate::geom::OutputGrid;
+use nalgebra::{Matrix3, Vector3};
+
+/// Result of the exact mapping of one point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Mapped {
+    Px(f64, f64),
+    /// Not imaged, or no height and the policy says nodata.
+    Nodata,
+    /// No height and the policy says stop: the ground point and what was found.
+    DemMiss(f64, f64, Lookup),
+}
+
+/// The exact operator `T` for one output grid.
+pub struct Transform<'a> {
+    pub model: &'a dyn SensorModel,
+    pub dem: &'a Dem,
+    pub grid: OutputGrid,
+}
+
+impl<'a> Transform<'a> {
+    pub fn new(model: &'a dyn SensorModel, dem: &'a Dem, grid: OutputGrid) -> Self {
+        Transform { model, dem, grid }
+    }
+
+    /// `T(u, v)`.
+    #[inline]
+    pub fn exact(&self, u: f64, v: f64) -> Mapped {
+        let (x, y) = self.grid.ground(u, v);
+        match self.dem.height(x, y) {
+            Height::Value(z) => match self.model.project(x, y, z) {
+                Some((c, r)) => Mapped::Px(c, r),
+                None => Mapped::Nodata,
+            },
+            Height::Nodata => Mapped::Nodata,
+            Height::Missing(l) => Mapped::DemMiss(x, y, l),
+        }
+    }
+
+    /// `T` over one output row `v` for the columns `u0 + i` (i < out.len()),
+    /// scan columns/rows into `cols`/`rows`, NaN where there is no value.
+    /// Returns the first DEM miss, if any.
+    pub fn exact_row(&self, v: f64, u0: f64, cols: &mut [f64], rows: &mut [f64]) -> Option<(f64, f64, Lookup)> {
+        let mut miss = None;
+        for (i, (c, r)) in cols.iter_mut().zip(rows.iter_mut()).enumerate() {
+            match self.exact(u0 + i as f64, v) {
+                Mapped::Px(x, y) => {
+                    *c = x;
+                    *r = y;
+                }
+                Mapped::Nodata => {
+                    *c = f64::NAN;
+                    *r = f64::NAN;
+                }
+                Mapped::DemMiss(x, y, l) => {
+                    *c = f64::NAN;
+                    *r = f64::NAN;
+                    miss.get_or_insert((x, y, l));
+                }
+            }
+        }
+        miss
+    }
+}
+
+/// How the plane of `A` is chosen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Trend {
+    /// Least-squares trend plane of the DEM (thesis 2.4.8–2.4.12).
+    Plane,
+    /// Horizontal plane at the mean height.
+    Mean,
+}
+
+/// Coefficients of `A` along one output row `v`:
+/// `col = (M u + N)/(E u + F)`, `row = (P u + Q)/(E u + F)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RowApprox {
+    pub m: f64,
+    pub n: f64,
+    pub p: f64,
+    pub q: f64,
+    pub e: f64,
+    pub f: f64,
+}
+
+impl RowApprox {
+    #[inline]
+    pub fn at(&self, u: f64) -> (f64, f64) {
+        let inv = 1.0 / (self.e * u + self.f);
+        ((self.m * u + self.n) * inv, (self.p * u + self.q) * inv)
+    }
+}
+
+/// The analytic approximation `A`: a plane homography output → scan.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Approx {
+    pub h: Matrix3<f64>,
+    pub plane: Plane,
+}
+
+impl Approx {
+    /// `A` for `grid` on `plane`, normalised so that its denominator is
+    /// positive at the grid centre.
+    pub fn new(model: &dyn SensorModel, grid: &OutputGrid, plane: Plane) -> Option<Approx> {
+        let mut h = model.plane_homography(grid, &plane)?;
+        let centre = h * Vector3::new(grid.width as f64 / 2.0, grid.height as f64 / 2.0, 1.0);
+        if !(centre.z.abs() > 0.0) || !h.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        // Scale to a unit denominator at the centre: keeps the numbers O(1).
+        h /= centre.z;
+        Some(Approx { h, plane })
+    }
+
+    /// The six coefficients of row `v` (2.4.5–2.4.7): `M, P, E` are the same
+    /// for every row, `N, Q, F` change.
+    #[inline]
+    pub fn row(&self, v: f64) -> RowApprox {
+        let h = &self.h;
+        RowApprox {
+            m: h[(0, 0)],
+            n: h[(0, 1)] * v + h[(0, 2)],
+            p: h[(1, 0)],
+            q: h[(1, 1)] * v + h[(1, 2)],
+            e: h[(2, 0)],
+            f: h[(2, 1)] * v + h[(2, 2)],
+        }
+    }
+
+    /// `A(u, v)`; `None` where the denominator is not positive (the plane
+    /// point is behind the camera).
+    #[inline]
+    pub fn at(&self, u: f64, v: f64) -> Option<(f64, f64)> {
+        let r = self.row(v);
+        if r.e * u + r.f <= 0.0 {
+            return None;
+        }
+        Some(r.at(u))
+    }
+}
