@@ -96,16 +96,20 @@ pub fn evaluate(gcm: &Gcm<'_>, step: u32, mut error_map: Option<&mut Vec<f32>>) 
         .collect();
     let prepare = t0.elapsed();
     let t1 = Instant::now();
-    prepared.par_iter().zip(&bands).for_each(|(g, &b)| {
-        let mut cols = vec![0.0; grid.width as usize];
-        let mut rows = vec![0.0; grid.width as usize];
-        let mut miss = None;
-        for y in b * band..((b + 1) * band).min(grid.height) {
-            gcm.fill_row(g, y, 0, &mut cols, &mut rows, &mut miss);
-        }
-    });
+    let exact_pixels: u64 = prepared
+        .par_iter()
+        .zip(&bands)
+        .map(|(g, &b)| {
+            let mut cols = vec![0.0; grid.width as usize];
+            let mut rows = vec![0.0; grid.width as usize];
+            let mut miss = None;
+            (b * band..((b + 1) * band).min(grid.height))
+                .map(|y| gcm.fill_row(g, y, 0, &mut cols, &mut rows, &mut miss))
+                .sum::<u64>()
+        })
+        .sum();
     let fill = t1.elapsed();
-    let mut stats = GcmStats::default();
+    let mut stats = GcmStats { exact_pixels, ..Default::default() };
     for g in &prepared {
         stats.add(&g.stats);
     }

@@ -10,7 +10,8 @@
 //!
 //! With `max_error` (bilinear only) each cell between four nodes is checked
 //! against `T` at 13 interior points and split as a quadtree where it misses
-//! the bound; cells that still miss at size < 2 px are evaluated exactly.
+//! the bound; cells that would cost more to split than to compute (≤ 52 px) are
+//! evaluated exactly.
 //!
 //! Everything is computed a band of rows at a time (`prepare`), so a caller
 //! never holds the whole matrix.
@@ -269,7 +270,9 @@ impl<'a> Gcm<'a> {
         if worst <= limit {
             return false;
         }
-        if q.size < 2.0 {
+        // Splitting costs 4 × 13 checks; below that many pixels, computing
+        // every pixel exactly is cheaper (and exact).
+        if q.size * q.size <= (4 * CHECK_POINTS.len()) as f64 {
             q.exact = true;
             return true;
         }

@@ -10,6 +10,7 @@ pub mod error;
 pub mod gcm;
 pub mod geom;
 pub mod io;
+pub mod resample;
 pub mod transform;
 
 pub use error::{Error, Result};

@@ -2,3 +2,4 @@
 
 pub mod geotiff;
 pub mod source;
+pub mod tiff_out;

@@ -1,4 +1,20 @@
-//! Input rasters.
+//! The scan: a TIFF or BigTIFF, striped or tiled, chunky or planar, read a
+//! window at a time. Uncompressed files are memory-mapped and copied from in
+//! place (the only `unsafe` of the program); compressed ones are decoded
+//! chunk by chunk by the `tiff` crate into a small cache. After each window
+//! the mapped pages are handed back to the kernel, so resident memory does
+//! not grow with the scan, whatever the read pattern (a swing of 90° reads
+//! source columns).
+
+use crate::error::{Error, Result};
+use crate::io::geotiff::{read_georef, GeoRef};
+use std::collections::HashMap;
+use std::fs::File;
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use tiff::decoder::{Decoder, DecodingResult};
+use tiff::tags::Tag;
 
 /// The `tiff` decoder limits we use everywhere: generous for real scans,
 /// but a header claiming an absurd size must not allocate.
@@ -8,4 +24,469 @@ pub fn decoder_limits() -> tiff::decoder::Limits {
     l.ifd_value_size = 64 << 20;
     l.intermediate_buffer_size = 256 << 20;
     l
+}
+
+/// Sample types we read and write.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum SampleType {
+    U8,
+    U16,
+    F32,
+}
+
+impl SampleType {
+    pub fn bytes(self) -> usize {
+        match self {
+            SampleType::U8 => 1,
+            SampleType::U16 => 2,
+            SampleType::F32 => 4,
+        }
+    }
+}
+
+/// What the header says about the raster.
+#[derive(Clone, Debug)]
+pub struct SourceInfo {
+    pub width: u32,
+    pub height: u32,
+    pub bands: u32,
+    pub sample: SampleType,
+    pub planar: bool,
+    /// (width, height) of a chunk: a tile, or a strip (image width × rows per strip).
+    pub chunk: (u32, u32),
+    pub tiled: bool,
+    pub compression: u16,
+    pub photometric: u16,
+    /// An alpha channel among the bands (ExtraSamples = associated/unassociated alpha).
+    pub has_alpha: bool,
+    pub georef: Option<GeoRef>,
+    offsets: Vec<u64>,
+    byte_counts: Vec<u64>,
+}
+
+impl SourceInfo {
+    pub fn pixel_bytes(&self) -> usize {
+        self.bands as usize * self.sample.bytes()
+    }
+    fn chunks_across(&self) -> u32 {
+        self.width.div_ceil(self.chunk.0)
+    }
+    fn chunks_down(&self) -> u32 {
+        self.height.div_ceil(self.chunk.1)
+    }
+    fn chunks_per_plane(&self) -> u32 {
+        self.chunks_across() * self.chunks_down()
+    }
+    /// Bytes of one (full) chunk of one plane, uncompressed.
+    fn chunk_plane_bytes(&self) -> u64 {
+        let spp = if self.planar { 1 } else { self.bands as u64 };
+        self.chunk.0 as u64 * self.chunk.1 as u64 * spp * self.sample.bytes() as u64
+    }
+    pub fn data_bytes(&self) -> u64 {
+        self.width as u64 * self.height as u64 * self.pixel_bytes() as u64
+    }
+}
+
+/// A window of the scan, chunky (band-interleaved), native-endian samples.
+/// The bytes live in a `u64` buffer so that they can be viewed as any
+/// sample type without misalignment.
+#[derive(Default)]
+pub struct Window {
+    pub x0: u32,
+    pub y0: u32,
+    pub w: u32,
+    pub h: u32,
+    buf: Vec<u64>,
+    len: usize,
+}
+
+impl Window {
+    /// A window holding `bytes` (for tests and small rasters).
+    pub fn from_bytes(x0: u32, y0: u32, w: u32, h: u32, bytes: &[u8]) -> Window {
+        let mut win = Window { x0, y0, w, h, ..Default::default() };
+        win.resize(bytes.len());
+        win.bytes_mut().copy_from_slice(bytes);
+        win
+    }
+    fn resize(&mut self, len: usize) {
+        self.buf.clear();
+        self.buf.resize(len.div_ceil(8), 0);
+        self.len = len;
+    }
+    pub fn bytes(&self) -> &[u8] {
+        &bytemuck::cast_slice(&self.buf[..])[..self.len]
+    }
+    pub fn bytes_mut(&mut self) -> &mut [u8] {
+        &mut bytemuck::cast_slice_mut(&mut self.buf[..])[..self.len]
+    }
+    /// Bytes held (for memory accounting).
+    pub fn capacity_bytes(&self) -> usize {
+        self.buf.capacity() * 8
+    }
+}
+
+enum Backend {
+    /// Uncompressed: read in place from the mapping (or by `pread` where
+    /// the file cannot be mapped).
+    Raw { map: Option<memmap2::Mmap>, file: File },
+    /// Compressed: decoders (one per concurrent reader) and a chunk cache.
+    Coded { decoders: Mutex<Vec<Decoder<BufReader<File>>>>, cache: Mutex<ChunkCache> },
+}
+
+/// Decoded chunks kept for the next window, bounded in bytes.
+struct ChunkCache {
+    map: HashMap<u32, (Arc<Vec<u8>>, u64)>,
+    bytes: usize,
+    budget: usize,
+    tick: u64,
+}
+
+impl ChunkCache {
+    fn get(&mut self, k: u32) -> Option<Arc<Vec<u8>>> {
+        self.tick += 1;
+        let t = self.tick;
+        self.map.get_mut(&k).map(|e| {
+            e.1 = t;
+            e.0.clone()
+        })
+    }
+    fn put(&mut self, k: u32, v: Arc<Vec<u8>>) {
+        self.tick += 1;
+        self.bytes += v.len();
+        if let Some(old) = self.map.insert(k, (v, self.tick)) {
+            self.bytes -= old.0.len();
+        }
+        while self.bytes > self.budget && self.map.len() > 1 {
+            let (&oldest, _) = self.map.iter().min_by_key(|(_, e)| e.1).expect("non-empty");
+            let (v, _) = self.map.remove(&oldest).expect("present");
+            self.bytes -= v.len();
+        }
+    }
+}
+
+pub struct SourceImage {
+    pub path: PathBuf,
+    pub info: SourceInfo,
+    backend: Backend,
+}
+
+fn tag_u64s(dec: &mut Decoder<BufReader<File>>, tag: Tag, path: &Path) -> Result<Vec<u64>> {
+    dec.get_tag_u64_vec(tag).map_err(|e| Error::from_tiff(path, e))
+}
+
+fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_len: u64) -> Result<SourceInfo> {
+    let tf = |e| Error::from_tiff(path, e);
+    let (width, height) = dec.dimensions().map_err(tf)?;
+    if width == 0 || height == 0 {
+        return Err(Error::format(path, format!("image of {width}×{height} pixels is empty")));
+    }
+    let bands = dec.find_tag_unsigned::<u32>(Tag::SamplesPerPixel).map_err(tf)?.unwrap_or(1);
+    if !(1..=4).contains(&bands) {
+        return Err(Error::unsupported(path, format!("{bands} samples per pixel (1 to 4 are supported)")));
+    }
+    let bits = dec.find_tag_unsigned_vec::<u16>(Tag::BitsPerSample).map_err(tf)?.unwrap_or_else(|| vec![1]);
+    if bits.iter().any(|&b| b != bits[0]) {
+        return Err(Error::unsupported(path, format!("mixed bits per sample {bits:?}")));
+    }
+    let format = dec.find_tag_unsigned_vec::<u16>(Tag::SampleFormat).map_err(tf)?.unwrap_or_else(|| vec![1]);
+    let sample = match (bits[0], format[0]) {
+        (8, 1) => SampleType::U8,
+        (16, 1) => SampleType::U16,
+        (32, 3) => SampleType::F32,
+        (b, f) => {
+            let kind = match f {
+                1 => "unsigned",
+                2 => "signed",
+                3 => "float",
+                _ => "unknown-format",
+            };
+            return Err(Error::unsupported(path, format!("{b}-bit {kind} samples (8/16-bit unsigned and 32-bit float are supported)")));
+        }
+    };
+    let photometric = dec.find_tag_unsigned::<u16>(Tag::PhotometricInterpretation).map_err(tf)?.unwrap_or(1);
+    match photometric {
+        0 | 1 | 2 => {}
+        3 => return Err(Error::unsupported(path, "palette (colour-mapped) images")),
+        6 => return Err(Error::unsupported(path, "YCbCr images (convert to RGB first)")),
+        p => return Err(Error::unsupported(path, format!("photometric interpretation {p}"))),
+    }
+    let extra = dec.find_tag_unsigned_vec::<u16>(Tag::ExtraSamples).map_err(tf)?.unwrap_or_default();
+    let has_alpha = extra.iter().any(|&e| e == 1 || e == 2);
+    let planar = dec.find_tag_unsigned::<u16>(Tag::PlanarConfiguration).map_err(tf)?.unwrap_or(1) == 2;
+    let compression = dec.find_tag_unsigned::<u16>(Tag::Compression).map_err(tf)?.unwrap_or(1);
+    let tiled = dec.find_tag(Tag::TileWidth).map_err(tf)?.is_some();
+    let (chunk, offsets, byte_counts) = if tiled {
+        let tw = dec.get_tag_u32(Tag::TileWidth).map_err(tf)?;
+        let th = dec.get_tag_u32(Tag::TileLength).map_err(tf)?;
+        if tw == 0 || th == 0 {
+            return Err(Error::format(path, format!("tile size {tw}×{th} is zero")));
+        }
+        ((tw, th), tag_u64s(dec, Tag::TileOffsets, path)?, tag_u64s(dec, Tag::TileByteCounts, path)?)
+    } else {
+        let rps = dec.find_tag_unsigned::<u32>(Tag::RowsPerStrip).map_err(tf)?.unwrap_or(height).clamp(1, height);
+        ((width, rps), tag_u64s(dec, Tag::StripOffsets, path)?, tag_u64s(dec, Tag::StripByteCounts, path)?)
+    };
+    let georef = read_georef(dec, path)?;
+    let info = SourceInfo {
+        width,
+        height,
+        bands,
+        sample,
+        planar: planar && bands > 1,
+        chunk,
+        tiled,
+        compression,
+        photometric,
+        has_alpha,
+        georef,
+        offsets,
+        byte_counts,
+    };
+    // Sizes that overflow or chunk tables that do not match are refused
+    // before anything is allocated or mapped.
+    let pixels = (width as u64).checked_mul(height as u64);
+    if pixels.and_then(|p| p.checked_mul(info.pixel_bytes() as u64)).is_none_or(|b| b > 1 << 46) {
+        return Err(Error::limits(path, format!("{width}×{height}×{bands} samples is too large")));
+    }
+    let planes = if info.planar { bands } else { 1 };
+    let want = info.chunks_per_plane() as u64 * planes as u64;
+    if info.offsets.len() as u64 != want || info.byte_counts.len() as u64 != want {
+        return Err(Error::format(
+            path,
+            format!("{} chunk offsets and {} byte counts, the image needs {want}", info.offsets.len(), info.byte_counts.len()),
+        ));
+    }
+    for (k, (&o, &n)) in info.offsets.iter().zip(&info.byte_counts).enumerate() {
+        if o.checked_add(n).is_none_or(|end| end > file_len) {
+            return Err(Error::format(
+                path,
+                format!("chunk {k} ({n} bytes at offset {o}) runs past the end of the {file_len}-byte file: truncated?"),
+            ));
+        }
+    }
+    if compression == 1 {
+        for (k, &n) in info.byte_counts.iter().enumerate() {
+            if n < info.chunk_data_bytes(k as u32) {
+                return Err(Error::format(path, format!("chunk {k} has {n} bytes, fewer than its pixels need")));
+            }
+        }
+    }
+    Ok(info)
+}
+
+impl SourceInfo {
+    /// Uncompressed bytes that chunk `k` must hold (a last strip may be short).
+    fn chunk_data_bytes(&self, k: u32) -> u64 {
+        if self.tiled {
+            return self.chunk_plane_bytes();
+        }
+        let strip = k % self.chunks_per_plane();
+        let rows = (self.height - strip * self.chunk.1).min(self.chunk.1) as u64;
+        self.chunk_plane_bytes() / self.chunk.1 as u64 * rows
+    }
+}
+
+impl SourceImage {
+    /// Opens a scan; `cache_bytes` bounds the decoded-chunk cache of
+    /// compressed files.
+    pub fn open(path: &Path, cache_bytes: usize) -> Result<SourceImage> {
+        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        let mut dec = Decoder::new(BufReader::new(file.try_clone().map_err(|e| Error::io(path, e))?))
+            .map_err(|e| Error::from_tiff(path, e))?
+            .with_limits(decoder_limits());
+        let info = read_info(&mut dec, path, len)?;
+        let backend = if info.compression == 1 {
+            // SAFETY: the mapping is read-only; every chunk's extent was
+            // checked against the file's length in `read_info`, so no slice
+            // we take reaches past the end. The remaining hazard is another
+            // process truncating the file while we read it (SIGBUS); the
+            // file is opened read-only and we never write through the map.
+            let map = unsafe { memmap2::MmapOptions::new().map(&file) }.ok();
+            if let Some(m) = &map {
+                let _ = m.advise(memmap2::Advice::Sequential);
+            }
+            Backend::Raw { map, file }
+        } else {
+            match info.compression {
+                5 | 8 | 32946 | 32773 | 7 | 50000 => {}
+                c => return Err(Error::unsupported(path, format!("TIFF compression {c}"))),
+            }
+            Backend::Coded {
+                decoders: Mutex::new(vec![dec]),
+                cache: Mutex::new(ChunkCache { map: HashMap::new(), bytes: 0, budget: cache_bytes, tick: 0 }),
+            }
+        };
+        Ok(SourceImage { path: path.to_path_buf(), info, backend })
+    }
+
+    pub fn is_mapped(&self) -> bool {
+        matches!(self.backend, Backend::Raw { map: Some(_), .. })
+    }
+
+    /// Reads `[x0, x0+w) × [y0, y0+h)` (clipped to the image by the caller)
+    /// into `win`, chunky.
+    pub fn read_window(&self, x0: u32, y0: u32, w: u32, h: u32, win: &mut Window) -> Result<()> {
+        let info = &self.info;
+        debug_assert!(x0 + w <= info.width && y0 + h <= info.height);
+        let pb = info.pixel_bytes();
+        win.x0 = x0;
+        win.y0 = y0;
+        win.w = w;
+        win.h = h;
+        win.resize(w as usize * h as usize * pb);
+        if w == 0 || h == 0 {
+            return Ok(());
+        }
+        let (cw, ch) = info.chunk;
+        let (cx0, cx1) = (x0 / cw, (x0 + w - 1) / cw);
+        let (cy0, cy1) = (y0 / ch, (y0 + h - 1) / ch);
+        for cy in cy0..=cy1 {
+            for cx in cx0..=cx1 {
+                // Intersection of the chunk with the window.
+                let (ix0, ix1) = ((cx * cw).max(x0), ((cx + 1) * cw).min(x0 + w));
+                let (iy0, iy1) = ((cy * ch).max(y0), ((cy + 1) * ch).min(y0 + h));
+                let planes = if info.planar { info.bands } else { 1 };
+                for plane in 0..planes {
+                    let k = plane * info.chunks_per_plane() + cy * info.chunks_across() + cx;
+                    self.copy_chunk(k, plane, (cx * cw, cy * ch), (ix0, ix1, iy0, iy1), win)?;
+                }
+            }
+            // Hand the rows of this chunk row back to the kernel.
+            self.release(cy, cx0, cx1);
+        }
+        Ok(())
+    }
+
+    fn copy_chunk(&self, k: u32, plane: u32, origin: (u32, u32), r: (u32, u32, u32, u32), win: &mut Window) -> Result<()> {
+        let info = &self.info;
+        let sb = info.sample.bytes();
+        let pb = info.pixel_bytes();
+        let spp_in_chunk = if info.planar { 1 } else { info.bands as usize };
+        let chunk_row_bytes = info.chunk.0 as usize * spp_in_chunk * sb;
+        let (ix0, ix1, iy0, iy1) = r;
+        let n = (ix1 - ix0) as usize;
+        let mut put = |src: &[u8]| {
+            for y in iy0..iy1 {
+                let s = (y - origin.1) as usize * chunk_row_bytes + (ix0 - origin.0) as usize * spp_in_chunk * sb;
+                let d = ((y - win.y0) as usize * win.w as usize + (ix0 - win.x0) as usize) * pb;
+                if info.planar {
+                    let dst = &mut win.bytes_mut()[d..d + n * pb];
+                    for i in 0..n {
+                        dst[i * pb + plane as usize * sb..][..sb].copy_from_slice(&src[s + i * sb..][..sb]);
+                    }
+                } else {
+                    win.bytes_mut()[d..d + n * pb].copy_from_slice(&src[s..s + n * pb]);
+                }
+            }
+        };
+        match &self.backend {
+            Backend::Raw { map: Some(m), .. } => {
+                let o = info.offsets[k as usize] as usize;
+                let len = info.byte_counts[k as usize] as usize;
+                put(&m[o..o + len]);
+            }
+            Backend::Raw { map: None, file } => {
+                use std::os::unix::fs::FileExt;
+                // Read only the rows we need.
+                let o = info.offsets[k as usize];
+                let first = (iy0 - origin.1) as u64 * chunk_row_bytes as u64;
+                let last = (iy1 - origin.1) as u64 * chunk_row_bytes as u64;
+                let mut buf = vec![0u8; (last - first) as usize];
+                file.read_exact_at(&mut buf, o + first).map_err(|e| Error::io(&self.path, e))?;
+                // Re-base: `put` indexes from the chunk start.
+                let mut full = vec![0u8; last as usize];
+                full[first as usize..].copy_from_slice(&buf);
+                put(&full);
+            }
+            Backend::Coded { .. } => {
+                let data = self.decoded(k)?;
+                put(&data);
+            }
+        }
+        Ok(())
+    }
+
+    /// A decoded chunk (full chunk width, native-endian), from the cache.
+    fn decoded(&self, k: u32) -> Result<Arc<Vec<u8>>> {
+        let Backend::Coded { decoders, cache } = &self.backend else { unreachable!("only for coded files") };
+        if let Some(v) = cache.lock().expect("cache lock").get(k) {
+            return Ok(v);
+        }
+        let mut dec = match decoders.lock().expect("decoder lock").pop() {
+            Some(d) => d,
+            None => {
+                let f = File::open(&self.path).map_err(|e| Error::io(&self.path, e))?;
+                Decoder::new(BufReader::new(f)).map_err(|e| Error::from_tiff(&self.path, e))?.with_limits(decoder_limits())
+            }
+        };
+        let result = dec.read_chunk(k);
+        decoders.lock().expect("decoder lock").push(dec);
+        let result = result.map_err(|e| Error::from_tiff(&self.path, e))?;
+        let info = &self.info;
+        let spp = if info.planar { 1 } else { info.bands as usize };
+        let (cw, ch) = info.chunk;
+        let rows = (info.chunk_data_bytes(k) / (cw as u64 * spp as u64 * info.sample.bytes() as u64)) as u32;
+        let data_w = if info.tiled { cw } else { info.width };
+        let bytes = decoding_bytes(result, info.sample).ok_or_else(|| {
+            Error::format(&self.path, format!("chunk {k} decodes to a sample type other than the header's"))
+        })?;
+        // Tiles at the right edge decode cropped: re-pad them to the chunk
+        // width so that every chunk has the same row stride.
+        let sb = info.sample.bytes();
+        let want_rows = if info.tiled { ch } else { rows };
+        let got_w = if info.tiled { (info.width - (k % info.chunks_per_plane() % info.chunks_across()) * cw).min(cw) } else { data_w };
+        let got_h = if info.tiled { (info.height - (k % info.chunks_per_plane() / info.chunks_across()) * ch).min(ch) } else { rows };
+        if bytes.len() < got_w as usize * got_h as usize * spp * sb {
+            return Err(Error::format(&self.path, format!("chunk {k} decodes to fewer bytes than its pixels need")));
+        }
+        let stride = cw as usize * spp * sb;
+        let padded = if got_w == cw && got_h == want_rows {
+            bytes
+        } else {
+            let mut p = vec![0u8; stride * want_rows as usize];
+            let row = got_w as usize * spp * sb;
+            for y in 0..got_h as usize {
+                p[y * stride..y * stride + row].copy_from_slice(&bytes[y * row..(y + 1) * row]);
+            }
+            p
+        };
+        let v = Arc::new(padded);
+        cache.lock().expect("cache lock").put(k, v.clone());
+        Ok(v)
+    }
+
+    /// Gives the mapped pages of chunk row `cy` (columns cx0..=cx1) back.
+    fn release(&self, cy: u32, cx0: u32, cx1: u32) {
+        let Backend::Raw { map: Some(m), .. } = &self.backend else { return };
+        let info = &self.info;
+        let planes = if info.planar { info.bands } else { 1 };
+        for plane in 0..planes {
+            let base = plane * info.chunks_per_plane() + cy * info.chunks_across();
+            let (a, b) = ((base + cx0) as usize, (base + cx1) as usize);
+            let start = info.offsets[a..=b].iter().min().copied().unwrap_or(0) as usize;
+            let end = info.offsets[a..=b].iter().zip(&info.byte_counts[a..=b]).map(|(o, n)| o + n).max().unwrap_or(0) as usize;
+            let page = 4096;
+            let s = start / page * page;
+            let e = end.div_ceil(page) * page;
+            let e = e.min(m.len());
+            if e > s {
+                // SAFETY: the range lies inside the mapping (clamped above)
+                // and no slice into it is alive: `copy_chunk` has finished
+                // copying this chunk row. MADV_DONTNEED on a read-only file
+                // mapping only drops our page-table entries; a later access
+                // refaults the same bytes from the file.
+                let _ = unsafe { m.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, s, e - s) };
+            }
+        }
+    }
+}
+
+fn decoding_bytes(r: DecodingResult, s: SampleType) -> Option<Vec<u8>> {
+    match (r, s) {
+        (DecodingResult::U8(v), SampleType::U8) => Some(v),
+        (DecodingResult::U16(v), SampleType::U16) => Some(v.iter().flat_map(|x| x.to_ne_bytes()).collect()),
+        (DecodingResult::F32(v), SampleType::F32) => Some(v.iter().flat_map(|x| x.to_ne_bytes()).collect()),
+        _ => None,
+    }
 }

@@ -1,0 +1,283 @@
+//! The orthophoto file: a tiled TIFF or BigTIFF with GeoTIFF georeferencing,
+//! written on the `tiff` crate's `DirectoryEncoder` (tiles through
+//! `write_data`, the tile tables and tags through `write_tag`). Tiles are
+//! compressed by the caller's threads (`encode_tile`) and appended in order
+//! by one writer. The file is born under a temporary name in the target
+//! folder and renamed into place only after it has been re-read and checked.
+
+use crate::error::{Error, Result};
+use crate::io::geotiff::write_georef;
+use crate::io::source::SampleType;
+use std::path::{Path, PathBuf};
+use tiff::encoder::compression::{CompressionAlgorithm, Deflate, Lzw};
+use tiff::encoder::{TiffEncoder, TiffKind, TiffKindBig, TiffKindStandard};
+use tiff::tags::Tag;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Compression {
+    None,
+    Deflate,
+    Lzw,
+    Zstd,
+}
+
+impl std::str::FromStr for Compression {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "none" => Ok(Compression::None),
+            "deflate" => Ok(Compression::Deflate),
+            "lzw" => Ok(Compression::Lzw),
+            "zstd" => Ok(Compression::Zstd),
+            _ => Err(format!("'{s}' is not one of none, deflate, lzw, zstd")),
+        }
+    }
+}
+
+impl Compression {
+    fn tag(self) -> u16 {
+        match self {
+            Compression::None => 1,
+            Compression::Lzw => 5,
+            Compression::Deflate => 8,
+            Compression::Zstd => 50000,
+        }
+    }
+}
+
+/// Everything about the output file but its pixels.
+#[derive(Clone, Debug)]
+pub struct OutputSpec {
+    pub width: u32,
+    pub height: u32,
+    /// Samples per pixel, alpha included.
+    pub bands: u32,
+    pub sample: SampleType,
+    pub tile: u32,
+    pub compression: Compression,
+    pub bigtiff: bool,
+    /// Photometric: 1 grey, 2 RGB.
+    pub photometric: u16,
+    /// The last band is (unassociated) alpha.
+    pub alpha: bool,
+    pub x0: f64,
+    pub y0: f64,
+    pub gsd: f64,
+    pub epsg: u32,
+    pub nodata: Option<f64>,
+}
+
+impl OutputSpec {
+    pub fn tiles_across(&self) -> u32 {
+        self.width.div_ceil(self.tile)
+    }
+    pub fn tiles_down(&self) -> u32 {
+        self.height.div_ceil(self.tile)
+    }
+    pub fn tile_bytes(&self) -> usize {
+        self.tile as usize * self.tile as usize * self.bands as usize * self.sample.bytes()
+    }
+    /// Horizontal differencing for integer samples under compression.
+    fn predictor(&self) -> u16 {
+        if self.compression != Compression::None && self.sample != SampleType::F32 {
+            2
+        } else {
+            1
+        }
+    }
+    /// Would a classic TIFF overflow its 32-bit offsets? (uncompressed size
+    /// plus tables, with a margin; compressed output is assumed no larger).
+    pub fn needs_bigtiff(&self) -> bool {
+        let data = self.tile_bytes() as u64 * self.tiles_across() as u64 * self.tiles_down() as u64;
+        data + (data >> 6) + (1 << 20) > u32::MAX as u64
+    }
+}
+
+/// Applies the predictor and compression to one tile (chunky, native-endian
+/// samples, full tile size). Consumes the buffer.
+pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>) -> Result<Vec<u8>> {
+    if spec.predictor() == 2 {
+        let per_row = spec.tile as usize * spec.bands as usize;
+        let b = spec.bands as usize;
+        match spec.sample {
+            SampleType::U8 => {
+                for row in tile.chunks_exact_mut(per_row) {
+                    for i in (b..per_row).rev() {
+                        row[i] = row[i].wrapping_sub(row[i - b]);
+                    }
+                }
+            }
+            SampleType::U16 => {
+                for row in tile.chunks_exact_mut(per_row * 2) {
+                    for i in (b..per_row).rev() {
+                        let cur = u16::from_ne_bytes([row[2 * i], row[2 * i + 1]]);
+                        let prev = u16::from_ne_bytes([row[2 * (i - b)], row[2 * (i - b) + 1]]);
+                        row[2 * i..2 * i + 2].copy_from_slice(&cur.wrapping_sub(prev).to_ne_bytes());
+                    }
+                }
+            }
+            SampleType::F32 => unreachable!("no predictor for floats"),
+        }
+    }
+    let io = |e: std::io::Error| Error::Usage(format!("tile compression failed: {e}"));
+    Ok(match spec.compression {
+        Compression::None => tile,
+        Compression::Deflate => {
+            let mut out = Vec::with_capacity(tile.len() / 2);
+            Deflate::default().write_to(&mut out, &tile).map_err(io)?;
+            out
+        }
+        Compression::Lzw => {
+            let mut out = Vec::with_capacity(tile.len() / 2);
+            Lzw::default().write_to(&mut out, &tile).map_err(io)?;
+            out
+        }
+        Compression::Zstd => zstd::bulk::compress(&tile, 9).map_err(io)?,
+    })
+}
+
+/// Writes the whole file: `next_tile` yields encoded tiles in row-major
+/// order (`Ok(None)` at the end); their offsets go into the directory, which
+/// is written last. One directory encoder lives for the whole file, which is
+/// why this is a function that pulls tiles rather than an object.
+pub fn write_tiled<E>(
+    file: std::fs::File,
+    spec: &OutputSpec,
+    next_tile: impl FnMut() -> std::result::Result<Option<Vec<u8>>, E>,
+) -> std::result::Result<(), WriteError<E>> {
+    // Unbuffered on purpose: tiles are large single writes, and every write
+    // error (a full disk) must reach us rather than vanish in a buffer's drop.
+    let w = file;
+    if spec.bigtiff {
+        write_kind::<TiffKindBig, E>(TiffEncoder::new_big(w)?, spec, next_tile)
+    } else {
+        write_kind::<TiffKindStandard, E>(TiffEncoder::new(w)?, spec, next_tile)
+    }
+}
+
+/// Either the tile source failed or the file could not be written.
+#[derive(Debug)]
+pub enum WriteError<E> {
+    Source(E),
+    Tiff(tiff::TiffError),
+}
+
+impl<E> From<tiff::TiffError> for WriteError<E> {
+    fn from(e: tiff::TiffError) -> Self {
+        WriteError::Tiff(e)
+    }
+}
+
+fn write_kind<K: TiffKind, E>(
+    mut enc: TiffEncoder<std::fs::File, K>,
+    spec: &OutputSpec,
+    mut next_tile: impl FnMut() -> std::result::Result<Option<Vec<u8>>, E>,
+) -> std::result::Result<(), WriteError<E>> {
+    let n = (spec.tiles_across() * spec.tiles_down()) as usize;
+    let mut offsets = Vec::with_capacity(n);
+    let mut counts = Vec::with_capacity(n);
+    let mut dir = enc.image_directory()?;
+    while let Some(tile) = next_tile().map_err(WriteError::Source)? {
+        offsets.push(dir.write_data(&tile[..])?);
+        counts.push(tile.len() as u64);
+    }
+    if offsets.len() != n {
+        return Err(WriteError::Tiff(tiff::TiffError::UsageError(tiff::UsageError::InvalidCodingUnit(offsets.len() as u32, n as u32))));
+    }
+    dir.write_tag(Tag::ImageWidth, spec.width)?;
+    dir.write_tag(Tag::ImageLength, spec.height)?;
+    let bits = vec![(spec.sample.bytes() * 8) as u16; spec.bands as usize];
+    dir.write_tag(Tag::BitsPerSample, &bits[..])?;
+    dir.write_tag(Tag::Compression, spec.compression.tag())?;
+    dir.write_tag(Tag::PhotometricInterpretation, spec.photometric)?;
+    dir.write_tag(Tag::SamplesPerPixel, spec.bands as u16)?;
+    dir.write_tag(Tag::PlanarConfiguration, 1u16)?;
+    dir.write_tag(Tag::TileWidth, spec.tile)?;
+    dir.write_tag(Tag::TileLength, spec.tile)?;
+    let offsets: Vec<K::OffsetType> = offsets.iter().map(|&o| K::convert_offset(o)).collect::<tiff::TiffResult<_>>()?;
+    let counts: Vec<K::OffsetType> = counts.iter().map(|&o| K::convert_offset(o)).collect::<tiff::TiffResult<_>>()?;
+    dir.write_tag(Tag::TileOffsets, K::convert_slice(&offsets))?;
+    dir.write_tag(Tag::TileByteCounts, K::convert_slice(&counts))?;
+    let format = if spec.sample == SampleType::F32 { 3u16 } else { 1u16 };
+    dir.write_tag(Tag::SampleFormat, &vec![format; spec.bands as usize][..])?;
+    let colour = if spec.photometric == 2 { 3 } else { 1 };
+    if spec.bands > colour {
+        let mut extra = vec![0u16; (spec.bands - colour) as usize];
+        if spec.alpha {
+            *extra.last_mut().expect("at least one extra sample") = 2; // unassociated alpha
+        }
+        dir.write_tag(Tag::ExtraSamples, &extra[..])?;
+    }
+    if spec.predictor() != 1 {
+        dir.write_tag(Tag::Predictor, spec.predictor())?;
+    }
+    write_georef(&mut dir, spec.x0, spec.y0, spec.gsd, spec.epsg, spec.nodata)?;
+    dir.finish()?;
+    Ok(())
+}
+
+/// A temporary file next to the output that becomes the output only when
+/// `publish` is called; dropped, it is removed.
+pub struct PendingFile {
+    tmp: tempfile::NamedTempFile,
+    target: PathBuf,
+}
+
+impl PendingFile {
+    pub fn create(target: &Path) -> Result<PendingFile> {
+        let dir = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let name = target.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+        let tmp = tempfile::Builder::new()
+            .prefix(&format!(".{name}."))
+            .suffix(".partial")
+            .tempfile_in(&dir)
+            .map_err(|e| Error::io(&dir, e))?;
+        Ok(PendingFile { tmp, target: target.to_path_buf() })
+    }
+
+    pub fn file(&self) -> Result<std::fs::File> {
+        self.tmp.reopen().map_err(|e| Error::io(self.tmp.path(), e))
+    }
+
+    pub fn path(&self) -> &Path {
+        self.tmp.path()
+    }
+
+    /// Syncs, then renames onto the target.
+    pub fn publish(self) -> Result<()> {
+        self.tmp.as_file().sync_all().map_err(|e| Error::io(&self.target, e))?;
+        let target = self.target.clone();
+        self.tmp.persist(&target).map_err(|e| Error::io(&target, e.error))?;
+        Ok(())
+    }
+}
+
+/// Re-reads a written file's directory and checks its tile tables against
+/// the spec and the file length, so that a writer bug never publishes a
+/// broken file.
+pub fn verify(path: &Path, spec: &OutputSpec) -> Result<()> {
+    let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let len = f.metadata().map_err(|e| Error::io(path, e))?.len();
+    let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(f))
+        .map_err(|e| Error::from_tiff(path, e))?
+        .with_limits(crate::io::source::decoder_limits());
+    let bad = |m: String| Error::format(path, format!("written file failed verification: {m}"));
+    let (w, h) = dec.dimensions().map_err(|e| Error::from_tiff(path, e))?;
+    if (w, h) != (spec.width, spec.height) {
+        return Err(bad(format!("size {w}×{h}")));
+    }
+    let offsets = dec.get_tag_u64_vec(Tag::TileOffsets).map_err(|e| Error::from_tiff(path, e))?;
+    let counts = dec.get_tag_u64_vec(Tag::TileByteCounts).map_err(|e| Error::from_tiff(path, e))?;
+    let n = (spec.tiles_across() * spec.tiles_down()) as usize;
+    if offsets.len() != n || counts.len() != n {
+        return Err(bad(format!("{} tiles, expected {n}", offsets.len())));
+    }
+    if let Some(k) = offsets.iter().zip(&counts).position(|(&o, &c)| c == 0 || o + c > len) {
+        return Err(bad(format!("tile {k} lies outside the file")));
+    }
+    Ok(())
+}

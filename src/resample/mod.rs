@@ -1,0 +1,305 @@
+//! Resampling kernels: the value of the scan at a continuous position
+//! (column, row; pixel centres at +½), from a window of the scan. Kernels
+//! take slices and plain numbers; one output row segment per call.
+//!
+//! * nearest — the pixel containing the position (textbook §9.10.3);
+//! * bilinear — the four nearest centres (textbook 9.36);
+//! * cubic — Keys' convolution, a = −0.5 (as GDAL), 4×4;
+//! * lanczos3 — windowed sinc, 6×6, weights normalised.
+//!
+//! Positions outside the scan give no value; near the border the kernel's
+//! missing neighbours repeat the edge pixel.
+
+use crate::io::source::{SampleType, Window};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Kernel {
+    Nearest,
+    Bilinear,
+    Cubic,
+    Lanczos3,
+}
+
+impl std::str::FromStr for Kernel {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "nearest" => Ok(Kernel::Nearest),
+            "bilinear" => Ok(Kernel::Bilinear),
+            "cubic" => Ok(Kernel::Cubic),
+            "lanczos3" | "lanczos" => Ok(Kernel::Lanczos3),
+            _ => Err(format!("'{s}' is not one of nearest, bilinear, cubic, lanczos3")),
+        }
+    }
+}
+
+impl Kernel {
+    /// How many source pixels beyond the position's own the kernel reads.
+    pub fn radius(self) -> u32 {
+        match self {
+            Kernel::Nearest => 0,
+            Kernel::Bilinear => 1,
+            Kernel::Cubic => 2,
+            Kernel::Lanczos3 => 3,
+        }
+    }
+}
+
+/// A sample type the kernels read and write.
+pub trait Sample: Copy + Default + Send + Sync + bytemuck::Pod {
+    const TYPE: SampleType;
+    fn to_f32(self) -> f32;
+    fn from_f32(v: f32) -> Self;
+}
+
+impl Sample for u8 {
+    const TYPE: SampleType = SampleType::U8;
+    #[inline]
+    fn to_f32(self) -> f32 {
+        self as f32
+    }
+    #[inline]
+    fn from_f32(v: f32) -> Self {
+        v.round().clamp(0.0, 255.0) as u8
+    }
+}
+impl Sample for u16 {
+    const TYPE: SampleType = SampleType::U16;
+    #[inline]
+    fn to_f32(self) -> f32 {
+        self as f32
+    }
+    #[inline]
+    fn from_f32(v: f32) -> Self {
+        v.round().clamp(0.0, 65535.0) as u16
+    }
+}
+impl Sample for f32 {
+    const TYPE: SampleType = SampleType::F32;
+    #[inline]
+    fn to_f32(self) -> f32 {
+        self
+    }
+    #[inline]
+    fn from_f32(v: f32) -> Self {
+        v
+    }
+}
+
+/// A typed view of a window: `bands` interleaved samples per pixel.
+pub struct View<'a, T> {
+    pub data: &'a [T],
+    pub x0: i64,
+    pub y0: i64,
+    pub w: i64,
+    pub h: i64,
+    pub bands: usize,
+    /// Size of the whole scan (for "outside" and edge clamping).
+    pub img_w: f64,
+    pub img_h: f64,
+}
+
+impl<'a, T: Sample> View<'a, T> {
+    pub fn new(win: &'a Window, bands: u32, img_w: u32, img_h: u32) -> View<'a, T> {
+        View {
+            data: bytemuck::cast_slice(win.bytes()),
+            x0: win.x0 as i64,
+            y0: win.y0 as i64,
+            w: win.w as i64,
+            h: win.h as i64,
+            bands: bands as usize,
+            img_w: img_w as f64,
+            img_h: img_h as f64,
+        }
+    }
+
+    /// Sample index of window-relative (clamped) pixel (i, j).
+    #[inline]
+    fn at(&self, i: i64, j: i64) -> usize {
+        let i = i.clamp(0, self.w - 1);
+        let j = j.clamp(0, self.h - 1);
+        (j * self.w + i) as usize * self.bands
+    }
+}
+
+#[inline]
+fn cubic_weights(t: f32) -> [f32; 4] {
+    // Keys, a = −0.5, for the taps at −1, 0, 1, 2 from floor.
+    let a = -0.5f32;
+    let w = |x: f32| {
+        let x = x.abs();
+        if x <= 1.0 {
+            ((a + 2.0) * x - (a + 3.0)) * x * x + 1.0
+        } else if x < 2.0 {
+            ((a * x - 5.0 * a) * x + 8.0 * a) * x - 4.0 * a
+        } else {
+            0.0
+        }
+    };
+    [w(1.0 + t), w(t), w(1.0 - t), w(2.0 - t)]
+}
+
+#[inline]
+fn lanczos3_weights(t: f32) -> [f32; 6] {
+    let mut w = [0f32; 6];
+    let mut sum = 0.0;
+    for (k, wk) in w.iter_mut().enumerate() {
+        let x = t - (k as f32 - 2.0);
+        *wk = if x.abs() < 1e-6 {
+            1.0
+        } else if x.abs() < 3.0 {
+            let px = std::f32::consts::PI * x;
+            3.0 * px.sin() * (px / 3.0).sin() / (px * px)
+        } else {
+            0.0
+        };
+        sum += *wk;
+    }
+    for wk in &mut w {
+        *wk /= sum;
+    }
+    w
+}
+
+/// Resamples one output row segment: `out` gets `cols.len()` pixels of
+/// `view.bands` samples; `valid[i]` says whether pixel i got a value (else
+/// its samples are `fill`).
+pub fn resample_row<T: Sample>(
+    kernel: Kernel,
+    view: &View<'_, T>,
+    cols: &[f64],
+    rows: &[f64],
+    out: &mut [T],
+    valid: &mut [bool],
+    fill: T,
+) {
+    let b = view.bands;
+    let mut acc = [0f32; 4];
+    for (i, (&c, &r)) in cols.iter().zip(rows).enumerate() {
+        let px = &mut out[i * b..(i + 1) * b];
+        if !(c >= 0.0 && r >= 0.0 && c < view.img_w && r < view.img_h) {
+            px.fill(fill);
+            valid[i] = false;
+            continue;
+        }
+        valid[i] = true;
+        match kernel {
+            Kernel::Nearest => {
+                let s = view.at(c as i64 - view.x0, r as i64 - view.y0);
+                px.copy_from_slice(&view.data[s..s + b]);
+            }
+            Kernel::Bilinear => {
+                let (x, y) = (c - 0.5, r - 0.5);
+                let (fx0, fy0) = (x.floor(), y.floor());
+                let (fx, fy) = ((x - fx0) as f32, (y - fy0) as f32);
+                let (i0, j0) = (fx0 as i64 - view.x0, fy0 as i64 - view.y0);
+                let s00 = view.at(i0, j0);
+                let s10 = view.at(i0 + 1, j0);
+                let s01 = view.at(i0, j0 + 1);
+                let s11 = view.at(i0 + 1, j0 + 1);
+                let d = view.data;
+                for k in 0..b {
+                    let top = d[s00 + k].to_f32() + fx * (d[s10 + k].to_f32() - d[s00 + k].to_f32());
+                    let bot = d[s01 + k].to_f32() + fx * (d[s11 + k].to_f32() - d[s01 + k].to_f32());
+                    px[k] = T::from_f32(top + fy * (bot - top));
+                }
+            }
+            Kernel::Cubic => {
+                let (x, y) = (c - 0.5, r - 0.5);
+                let (fx0, fy0) = (x.floor(), y.floor());
+                let wx = cubic_weights((x - fx0) as f32);
+                let wy = cubic_weights((y - fy0) as f32);
+                let (i0, j0) = (fx0 as i64 - view.x0 - 1, fy0 as i64 - view.y0 - 1);
+                acc[..b].fill(0.0);
+                for (dj, wyj) in wy.iter().enumerate() {
+                    for (di, wxi) in wx.iter().enumerate() {
+                        let s = view.at(i0 + di as i64, j0 + dj as i64);
+                        let w = wxi * wyj;
+                        for k in 0..b {
+                            acc[k] += w * view.data[s + k].to_f32();
+                        }
+                    }
+                }
+                for k in 0..b {
+                    px[k] = T::from_f32(acc[k]);
+                }
+            }
+            Kernel::Lanczos3 => {
+                let (x, y) = (c - 0.5, r - 0.5);
+                let (fx0, fy0) = (x.floor(), y.floor());
+                let wx = lanczos3_weights((x - fx0) as f32);
+                let wy = lanczos3_weights((y - fy0) as f32);
+                let (i0, j0) = (fx0 as i64 - view.x0 - 2, fy0 as i64 - view.y0 - 2);
+                acc[..b].fill(0.0);
+                for (dj, wyj) in wy.iter().enumerate() {
+                    for (di, wxi) in wx.iter().enumerate() {
+                        let s = view.at(i0 + di as i64, j0 + dj as i64);
+                        let w = wxi * wyj;
+                        for k in 0..b {
+                            acc[k] += w * view.data[s + k].to_f32();
+                        }
+                    }
+                }
+                for k in 0..b {
+                    px[k] = T::from_f32(acc[k]);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 4×4 one-band image whose value is 10·col + row.
+    fn ramp() -> Window {
+        let data: Vec<u8> = (0..16).map(|k| (10 * (k % 4) + k / 4) as u8).collect();
+        Window::from_bytes(0, 0, 4, 4, &data)
+    }
+
+    fn one(kernel: Kernel, c: f64, r: f64) -> Option<u8> {
+        let win = ramp();
+        let v = View::<u8>::new(&win, 1, 4, 4);
+        let mut out = [0u8];
+        let mut ok = [false];
+        resample_row(kernel, &v, &[c], &[r], &mut out, &mut ok, 255);
+        ok[0].then_some(out[0])
+    }
+
+    #[test]
+    fn nearest_takes_the_containing_pixel() {
+        assert_eq!(one(Kernel::Nearest, 2.99, 1.01), Some(21));
+        assert_eq!(one(Kernel::Nearest, 4.0, 1.0), None);
+        assert_eq!(one(Kernel::Nearest, -0.01, 1.0), None);
+    }
+
+    #[test]
+    fn bilinear_reproduces_a_linear_ramp() {
+        // At (2.0, 2.5): x = 1.5 → 15, y = 2.0 → +2.
+        assert_eq!(one(Kernel::Bilinear, 2.0, 2.5), Some(17));
+        // Exactly at a centre: the pixel itself.
+        assert_eq!(one(Kernel::Bilinear, 1.5, 3.5), Some(13));
+    }
+
+    #[test]
+    fn cubic_and_lanczos_interpolate_centres_and_ramps() {
+        // Interpolating kernels give the pixel itself at its centre.
+        assert_eq!(one(Kernel::Cubic, 1.5, 1.5), Some(11));
+        assert_eq!(one(Kernel::Lanczos3, 2.5, 1.5), Some(21));
+        // Keys' cubic reproduces linear functions exactly away from edges.
+        // (2.0, 2.5) → x = 1.5, y = 2.0: 15 + 2; (2.2, 1.5) → 17 + 1.
+        assert_eq!(one(Kernel::Cubic, 2.0, 2.5), Some(17));
+        assert_eq!(one(Kernel::Cubic, 2.2, 1.5), Some(18));
+    }
+
+    #[test]
+    fn weights_sum_to_one() {
+        for t in [0.0f32, 0.25, 0.5, 0.9] {
+            let c: f32 = cubic_weights(t).iter().sum();
+            let l: f32 = lanczos3_weights(t).iter().sum();
+            assert!((c - 1.0).abs() < 1e-6 && (l - 1.0).abs() < 1e-6);
+        }
+    }
+}

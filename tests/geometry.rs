@@ -1,0 +1,171 @@
+//! The geometry core against the formulas: conventions, `A + c = T` at k = 1,
+//! zero corrections on flat terrain, round trips.
+
+use gcm_ortho::camera::atmosphere::Refraction;
+use gcm_ortho::camera::distortion::Distortion;
+use gcm_ortho::camera::interior::InteriorOrientation;
+use gcm_ortho::camera::rotation::AngleConvention;
+use gcm_ortho::camera::{locate, FrameCamera, Plane, SensorModel};
+use gcm_ortho::dem::{Dem, GridDem};
+use gcm_ortho::gcm::{CorrectionMode, Gcm, GcmSpec};
+use gcm_ortho::geom::OutputGrid;
+use gcm_ortho::transform::{Approx, Mapped, Transform};
+use nalgebra::Vector3;
+use proptest::prelude::*;
+use std::path::Path;
+
+fn film_interior() -> InteriorOrientation {
+    let mm = [[-106.0, -106.0], [106.0, 106.0], [-106.0, 106.0], [106.0, -106.0]];
+    let g = 0.2f64.to_radians();
+    let px: Vec<[f64; 2]> = mm
+        .iter()
+        .map(|p: &[f64; 2]| {
+            let (sx, sy) = (1.0 / 0.05, 1.0 / 0.0502);
+            [2300.0 + sx * p[0] * g.cos() - sy * p[1] * g.sin(), 2300.0 - (sx * p[0] * g.sin() + sy * p[1] * g.cos())]
+        })
+        .collect();
+    InteriorOrientation::from_fiducials(&mm, &px, [0.01, -0.02]).unwrap()
+}
+
+fn camera(conv: AngleConvention, angles_deg: [f64; 3], full: bool) -> FrameCamera {
+    let (d, r, c) = if full {
+        (Distortion::Radial([0.0, 2.1e-8, -3.0e-10]), Refraction::Auto, true)
+    } else {
+        (Distortion::None, Refraction::None, false)
+    };
+    FrameCamera::new(
+        152.0,
+        Vector3::new(5000.0, 5000.0, 1800.0),
+        conv.matrix(angles_deg.map(f64::to_radians)),
+        film_interior(),
+        d,
+        r,
+        c,
+    )
+}
+
+fn grid() -> OutputGrid {
+    OutputGrid { x0: 4000.0, y0: 6000.0, gsd: 2.0, width: 1000, height: 1000 }
+}
+
+/// A hilly DEM: 20 m posting, smooth hills.
+fn hills() -> Dem {
+    hills_posted(20.0)
+}
+
+fn hills_posted(posting: f64) -> Dem {
+    let (w, h) = ((4000.0 / posting) as usize, (4000.0 / posting) as usize);
+    let data = (0..w * h)
+        .map(|k| {
+            let (i, j) = ((k % w) as f64, (k / w) as f64);
+            let (x, y) = (i * posting, j * posting);
+            (200.0 + 60.0 * (x / 340.0).sin() * (y / 460.0).cos() + 0.015 * x) as f32
+        })
+        .collect();
+    Dem::grid(GridDem::new(w, h, data, [3000.0, posting, 0.0, 7000.0, 0.0, -posting], None, None), Path::new("hills"))
+}
+
+#[test]
+fn one_camera_in_three_conventions_maps_identically() {
+    let thesis = camera(AngleConvention::AlphaOmegaKappa, [1.3, -0.8, 31.0], true);
+    for conv in [AngleConvention::OmegaPhiKappa, AngleConvention::OmegaAlphaChi] {
+        let angles = conv.angles(&thesis.r).map(f64::to_degrees);
+        let other = camera(conv, angles, true);
+        for (x, y, z) in [(5000.0, 5000.0, 200.0), (4100.0, 5900.0, 310.0), (5800.0, 4300.0, 150.0)] {
+            let a = thesis.project(x, y, z).unwrap();
+            let b = other.project(x, y, z).unwrap();
+            assert!((a.0 - b.0).abs() < 1e-9 && (a.1 - b.1).abs() < 1e-9, "{conv:?}: {a:?} vs {b:?}");
+        }
+    }
+}
+
+#[test]
+fn cell_mode_at_k1_reproduces_t_exactly() {
+    let cam = camera(AngleConvention::AlphaOmegaKappa, [1.3, -0.8, 31.0], true);
+    let dem = hills();
+    let g = OutputGrid { width: 300, height: 200, ..grid() };
+    let t = Transform::new(&cam, &dem, g);
+    let a = Approx::new(&cam, &g, dem.trend_plane([g.x0, g.y0 - 400.0, g.x0 + 600.0, g.y0]).unwrap()).unwrap();
+    let gcm = Gcm::new(&t, a, GcmSpec { k: 1, mode: CorrectionMode::Cell, max_error: None });
+    let band = gcm.prepare(0, g.height);
+    let mut cols = vec![0.0; g.width as usize];
+    let mut rows = vec![0.0; g.width as usize];
+    let mut miss = None;
+    let mut worst = 0.0f64;
+    for y in 0..g.height {
+        gcm.fill_row(&band, y, 0, &mut cols, &mut rows, &mut miss);
+        for x in 0..g.width {
+            let Mapped::Px(c, r) = t.exact(x as f64 + 0.5, y as f64 + 0.5) else { panic!("no T") };
+            worst = worst.max((c - cols[x as usize]).abs()).max((r - rows[x as usize]).abs());
+        }
+    }
+    assert!(worst < 1e-9, "{worst}");
+}
+
+#[test]
+fn flat_terrain_without_corrections_needs_no_corrections() {
+    let cam = camera(AngleConvention::OmegaPhiKappa, [2.0, -1.5, 75.0], false);
+    let dem = Dem::flat(250.0);
+    let g = grid();
+    let t = Transform::new(&cam, &dem, g);
+    let a = Approx::new(&cam, &g, Plane::flat(250.0)).unwrap();
+    let gcm = Gcm::new(&t, a, GcmSpec { k: 16, mode: CorrectionMode::Bilinear, max_error: None });
+    let band = gcm.prepare(0, 64);
+    let mut miss = None;
+    for j in -1..=4 {
+        let h = gcm.node_heights(j);
+        let row = gcm.node_row(j, &h, &mut miss);
+        for (dc, dr) in row.dc.iter().zip(&row.dr) {
+            assert!(dc.abs() < 1e-9 && dr.abs() < 1e-9, "{dc} {dr}");
+        }
+    }
+    assert_eq!(band.stats.refined_cells, 0);
+}
+
+#[test]
+fn bilinear_corrections_beat_cell_corrections_on_hills() {
+    let cam = camera(AngleConvention::AlphaOmegaKappa, [1.3, -0.8, 31.0], true);
+    let dem = hills();
+    let g = grid();
+    let t = Transform::new(&cam, &dem, g);
+    let a = Approx::new(&cam, &g, dem.trend_plane([g.x0, g.y0 - 2000.0, g.x0 + 2000.0, g.y0]).unwrap()).unwrap();
+    let run = |mode| {
+        let gcm = Gcm::new(&t, a, GcmSpec { k: 8, mode, max_error: None });
+        gcm_ortho::accuracy::evaluate(&gcm, 7, None).errors
+    };
+    let cell = run(CorrectionMode::Cell);
+    let bil = run(CorrectionMode::Bilinear);
+    assert!(bil.rms < cell.rms / 3.0, "bilinear {bil:?} cell {cell:?}");
+    assert!(bil.max < 0.1, "{bil:?}");
+}
+
+#[test]
+fn error_bound_holds_over_every_pixel() {
+    let cam = camera(AngleConvention::AlphaOmegaKappa, [1.3, -0.8, 31.0], true);
+    // DEM posted every 10 output pixels, as a 5 m DEM under a 0.5 m orthophoto.
+    let dem = hills_posted(20.0);
+    let g = OutputGrid { width: 600, height: 600, ..grid() };
+    let t = Transform::new(&cam, &dem, g);
+    let a = Approx::new(&cam, &g, dem.mean_plane([g.x0, g.y0 - 1200.0, g.x0 + 1200.0, g.y0]).unwrap()).unwrap();
+    let gcm = Gcm::new(&t, a, GcmSpec { k: 32, mode: CorrectionMode::Bilinear, max_error: Some(0.05) });
+    let ev = gcm_ortho::accuracy::evaluate(&gcm, 1, None);
+    assert!(ev.errors.max <= 0.05, "{:?}", ev.errors);
+    assert!(ev.gcm.refined_cells > 0, "the bound should force some refinement: {:?}", ev.gcm);
+    // Fewer exact evaluations than pixels (k = 1 evaluates every pixel).
+    let cost = ev.gcm.nodes + ev.gcm.checks + ev.gcm.exact_pixels;
+    assert!(cost < g.pixel_count() / 2, "{:?}", ev.gcm);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+    #[test]
+    fn ground_image_ground_round_trip(
+        a in -3.0f64..3.0, w in -3.0f64..3.0, k in -180.0f64..180.0,
+        x in 4200.0f64..5800.0, y in 4200.0f64..5800.0, z in 0.0f64..600.0,
+    ) {
+        let cam = camera(AngleConvention::AlphaOmegaKappa, [a, w, k], true);
+        let (c, r) = cam.project(x, y, z).unwrap();
+        let (bx, by) = locate(&cam, c, r, z, 1e-9).unwrap();
+        prop_assert!((bx - x).abs() < 1e-5 && (by - y).abs() < 1e-5, "{} {}", bx - x, by - y);
+    }
+}
