@@ -161,3 +161,39 @@ pub fn evaluate(gcm: &Gcm<'_>, step: u32, mut error_map: Option<&mut Vec<f32>>) 
     };
     Evaluation { errors, gcm: stats, prepare, fill }
 }
+
+/// `|A + c − T|` on every `row_step`-th row and `col_step`-th column, each
+/// sampled row prepared on its own (cheap; for run reports).
+pub fn sample_errors(gcm: &Gcm<'_>, row_step: u32, col_step: u32) -> ErrorStats {
+    let grid = gcm.t.grid;
+    let rows: Vec<u32> = (0..grid.height).step_by(row_step as usize).collect();
+    let acc = rows
+        .par_iter()
+        .map(|&y| {
+            let band = gcm.prepare(y, y + 1);
+            let mut cols = vec![0.0; grid.width as usize];
+            let mut rws = vec![0.0; grid.width as usize];
+            let mut miss = None;
+            gcm.fill_row(&band, y, 0, &mut cols, &mut rws, &mut miss);
+            let mut acc = Acc::default();
+            for x in (0..grid.width).step_by(col_step as usize) {
+                if let Mapped::Px(c, r) = gcm.t.exact(x as f64 + 0.5, y as f64 + 0.5) {
+                    if !cols[x as usize].is_nan() {
+                        acc.push((c - cols[x as usize]).hypot(r - rws[x as usize]), x, y);
+                    }
+                }
+            }
+            acc
+        })
+        .reduce(Acc::default, Acc::merge);
+    let n = acc.n.max(1) as f64;
+    ErrorStats {
+        count: acc.n,
+        mean_abs: acc.sum / n,
+        rms: (acc.sum2 / n).sqrt(),
+        max: acc.max,
+        pct_under: acc.under.map(|u| 100.0 * u as f64 / n),
+        step: col_step,
+        argmax: acc.argmax,
+    }
+}

@@ -104,6 +104,34 @@ impl GridDem {
         )
     }
 
+    /// Height and its gradient (dZ/dX, dZ/dY) at ground (X, Y), from the
+    /// bilinear cell; `None` outside or in a hole.
+    #[inline]
+    pub fn lookup_gradient(&self, x: f64, y: f64) -> Option<(f64, f64, f64)> {
+        let gt = &self.transform;
+        let c = (x - gt[0]) / gt[1] - 0.5;
+        let r = (y - gt[3]) / gt[5] - 0.5;
+        let (w, h) = (self.width as f64, self.height as f64);
+        if !(c >= -0.5 && c <= w - 0.5 && r >= -0.5 && r <= h - 0.5) || self.width < 2 || self.height < 2 {
+            return None;
+        }
+        let c = c.clamp(0.0, w - 1.0);
+        let r = r.clamp(0.0, h - 1.0);
+        let i0 = (c.floor() as usize).min(self.width - 2);
+        let j0 = (r.floor() as usize).min(self.height - 2);
+        let (fx, fy) = (c - i0 as f64, r - j0 as f64);
+        let v = |i: usize, j: usize| self.data[j * self.width + i];
+        let (z00, z10, z01, z11) = (v(i0, j0), v(i0 + 1, j0), v(i0, j0 + 1), v(i0 + 1, j0 + 1));
+        if [z00, z10, z01, z11].iter().any(|&z| self.is_nodata(z)) {
+            return None;
+        }
+        let (z00, z10, z01, z11) = (z00 as f64, z10 as f64, z01 as f64, z11 as f64);
+        let z = z00 * (1.0 - fx) * (1.0 - fy) + z10 * fx * (1.0 - fy) + z01 * (1.0 - fx) * fy + z11 * fx * fy;
+        let dzdc = (z10 - z00) * (1.0 - fy) + (z11 - z01) * fy;
+        let dzdr = (z01 - z00) * (1.0 - fx) + (z11 - z10) * fx;
+        Some((z, dzdc / gt[1], dzdr / gt[5]))
+    }
+
     /// Ground bounds `[minx, miny, maxx, maxy]`.
     pub fn bounds(&self) -> [f64; 4] {
         let gt = &self.transform;
@@ -243,6 +271,15 @@ impl Dem {
             Miss::Error => Height::Missing(found),
             Miss::Nodata => Height::Nodata,
             Miss::Height(z) => Height::Value(z),
+        }
+    }
+
+    /// Height and gradient where there is a real height (no policy applied).
+    #[inline]
+    pub fn height_gradient(&self, x: f64, y: f64) -> Option<(f64, f64, f64)> {
+        match &self.model {
+            HeightModel::Flat(z) => Some((*z, 0.0, 0.0)),
+            HeightModel::Grid(g) => g.lookup_gradient(x, y),
         }
     }
 

@@ -5,12 +5,16 @@
 
 pub mod accuracy;
 pub mod camera;
+pub mod compare;
 pub mod dem;
 pub mod error;
 pub mod gcm;
 pub mod geom;
 pub mod io;
+pub mod pipeline;
+pub mod progress;
 pub mod resample;
+pub mod synth;
 pub mod transform;
 
 pub use error::{Error, Result};

@@ -1,1 +1,37 @@
-fn main(){}
+//! The binary's edge: parse arguments, run, print one readable error line,
+//! map errors to exit codes. `anyhow` lives only here.
+
+mod cli;
+mod commands;
+
+use clap::Parser;
+use std::process::ExitCode;
+
+/// Exit codes: 0 success, 1 bad input or failure, 2 usage, 130 SIGINT, 143 SIGTERM.
+fn main() -> ExitCode {
+    let cli = cli::Cli::parse();
+    let signals = match commands::Signals::install() {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("gcm-ortho: cannot install signal handlers: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    match commands::run(cli, &signals) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            if let Some(code) = signals.exit_code() {
+                eprintln!("gcm-ortho: interrupted; nothing was written at the output path");
+                return ExitCode::from(code);
+            }
+            // Broken pipe on stdout is not an error worth a message.
+            if e.chain().any(|c| c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)) {
+                return ExitCode::SUCCESS;
+            }
+            let msg = e.chain().map(|c| c.to_string()).collect::<Vec<_>>().join(": ");
+            eprintln!("gcm-ortho: error: {}", msg.replace('\n', " "));
+            let usage = e.chain().any(|c| matches!(c.downcast_ref::<gcm_ortho::Error>(), Some(gcm_ortho::Error::Usage(_))));
+            ExitCode::from(if usage { 2 } else { 1 })
+        }
+    }
+}

@@ -137,7 +137,7 @@ impl CameraFile {
     }
 
     pub fn to_toml(&self) -> String {
-        toml::to_string_pretty(self).expect("camera files always serialise")
+        toml::to_string(self).expect("camera files always serialise")
     }
 
     /// Validates every field and builds the sensor model.

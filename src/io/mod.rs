@@ -1,5 +1,6 @@
 //! Reading scans and rasters, writing the tiled GeoTIFF.
 
 pub mod geotiff;
+pub mod maps;
 pub mod source;
 pub mod tiff_out;

@@ -46,6 +46,26 @@ impl Compression {
     }
 }
 
+/// North-up georeferencing of a written raster.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GeoTags {
+    /// Ground X of the west edge, Y of the north edge, pixel size.
+    pub x0: f64,
+    pub y0: f64,
+    pub gsd: f64,
+    pub epsg: u32,
+    pub nodata: Option<f64>,
+}
+
+/// How the pixels are cut into chunks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Chunking {
+    /// Square tiles of this size (a multiple of 16).
+    Tiles(u32),
+    /// Strips of this many rows (the last one may be shorter).
+    Strips(u32),
+}
+
 /// Everything about the output file but its pixels.
 #[derive(Clone, Debug)]
 pub struct OutputSpec {
@@ -54,29 +74,34 @@ pub struct OutputSpec {
     /// Samples per pixel, alpha included.
     pub bands: u32,
     pub sample: SampleType,
-    pub tile: u32,
+    pub chunking: Chunking,
     pub compression: Compression,
     pub bigtiff: bool,
     /// Photometric: 1 grey, 2 RGB.
     pub photometric: u16,
     /// The last band is (unassociated) alpha.
     pub alpha: bool,
-    pub x0: f64,
-    pub y0: f64,
-    pub gsd: f64,
-    pub epsg: u32,
-    pub nodata: Option<f64>,
+    pub geo: Option<GeoTags>,
 }
 
 impl OutputSpec {
+    /// Chunk width and height.
+    pub fn chunk(&self) -> (u32, u32) {
+        match self.chunking {
+            Chunking::Tiles(t) => (t, t),
+            Chunking::Strips(r) => (self.width, r.min(self.height)),
+        }
+    }
     pub fn tiles_across(&self) -> u32 {
-        self.width.div_ceil(self.tile)
+        self.width.div_ceil(self.chunk().0)
     }
     pub fn tiles_down(&self) -> u32 {
-        self.height.div_ceil(self.tile)
+        self.height.div_ceil(self.chunk().1)
     }
+    /// Uncompressed bytes of a full chunk.
     pub fn tile_bytes(&self) -> usize {
-        self.tile as usize * self.tile as usize * self.bands as usize * self.sample.bytes()
+        let (w, h) = self.chunk();
+        w as usize * h as usize * self.bands as usize * self.sample.bytes()
     }
     /// Horizontal differencing for integer samples under compression.
     fn predictor(&self) -> u16 {
@@ -94,11 +119,11 @@ impl OutputSpec {
     }
 }
 
-/// Applies the predictor and compression to one tile (chunky, native-endian
-/// samples, full tile size). Consumes the buffer.
+/// Applies the predictor and compression to one chunk (chunky,
+/// native-endian samples, whole rows of the chunk width). Consumes the buffer.
 pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>) -> Result<Vec<u8>> {
     if spec.predictor() == 2 {
-        let per_row = spec.tile as usize * spec.bands as usize;
+        let per_row = spec.chunk().0 as usize * spec.bands as usize;
         let b = spec.bands as usize;
         match spec.sample {
             SampleType::U8 => {
@@ -193,12 +218,21 @@ fn write_kind<K: TiffKind, E>(
     dir.write_tag(Tag::PhotometricInterpretation, spec.photometric)?;
     dir.write_tag(Tag::SamplesPerPixel, spec.bands as u16)?;
     dir.write_tag(Tag::PlanarConfiguration, 1u16)?;
-    dir.write_tag(Tag::TileWidth, spec.tile)?;
-    dir.write_tag(Tag::TileLength, spec.tile)?;
     let offsets: Vec<K::OffsetType> = offsets.iter().map(|&o| K::convert_offset(o)).collect::<tiff::TiffResult<_>>()?;
     let counts: Vec<K::OffsetType> = counts.iter().map(|&o| K::convert_offset(o)).collect::<tiff::TiffResult<_>>()?;
-    dir.write_tag(Tag::TileOffsets, K::convert_slice(&offsets))?;
-    dir.write_tag(Tag::TileByteCounts, K::convert_slice(&counts))?;
+    match spec.chunking {
+        Chunking::Tiles(t) => {
+            dir.write_tag(Tag::TileWidth, t)?;
+            dir.write_tag(Tag::TileLength, t)?;
+            dir.write_tag(Tag::TileOffsets, K::convert_slice(&offsets))?;
+            dir.write_tag(Tag::TileByteCounts, K::convert_slice(&counts))?;
+        }
+        Chunking::Strips(_) => {
+            dir.write_tag(Tag::RowsPerStrip, spec.chunk().1)?;
+            dir.write_tag(Tag::StripOffsets, K::convert_slice(&offsets))?;
+            dir.write_tag(Tag::StripByteCounts, K::convert_slice(&counts))?;
+        }
+    }
     let format = if spec.sample == SampleType::F32 { 3u16 } else { 1u16 };
     dir.write_tag(Tag::SampleFormat, &vec![format; spec.bands as usize][..])?;
     let colour = if spec.photometric == 2 { 3 } else { 1 };
@@ -212,7 +246,9 @@ fn write_kind<K: TiffKind, E>(
     if spec.predictor() != 1 {
         dir.write_tag(Tag::Predictor, spec.predictor())?;
     }
-    write_georef(&mut dir, spec.x0, spec.y0, spec.gsd, spec.epsg, spec.nodata)?;
+    if let Some(g) = spec.geo {
+        write_georef(&mut dir, g.x0, g.y0, g.gsd, g.epsg, g.nodata)?;
+    }
     dir.finish()?;
     Ok(())
 }
@@ -247,9 +283,13 @@ impl PendingFile {
         self.tmp.path()
     }
 
-    /// Syncs, then renames onto the target.
+    /// Syncs, then renames onto the target (readable by all, as a plain
+    /// new file would be; the temporary file was private).
     pub fn publish(self) -> Result<()> {
-        self.tmp.as_file().sync_all().map_err(|e| Error::io(&self.target, e))?;
+        use std::os::unix::fs::PermissionsExt;
+        let f = self.tmp.as_file();
+        f.set_permissions(std::fs::Permissions::from_mode(0o644)).map_err(|e| Error::io(&self.target, e))?;
+        f.sync_all().map_err(|e| Error::io(&self.target, e))?;
         let target = self.target.clone();
         self.tmp.persist(&target).map_err(|e| Error::io(&target, e.error))?;
         Ok(())
@@ -270,8 +310,12 @@ pub fn verify(path: &Path, spec: &OutputSpec) -> Result<()> {
     if (w, h) != (spec.width, spec.height) {
         return Err(bad(format!("size {w}×{h}")));
     }
-    let offsets = dec.get_tag_u64_vec(Tag::TileOffsets).map_err(|e| Error::from_tiff(path, e))?;
-    let counts = dec.get_tag_u64_vec(Tag::TileByteCounts).map_err(|e| Error::from_tiff(path, e))?;
+    let (ot, ct) = match spec.chunking {
+        Chunking::Tiles(_) => (Tag::TileOffsets, Tag::TileByteCounts),
+        Chunking::Strips(_) => (Tag::StripOffsets, Tag::StripByteCounts),
+    };
+    let offsets = dec.get_tag_u64_vec(ot).map_err(|e| Error::from_tiff(path, e))?;
+    let counts = dec.get_tag_u64_vec(ct).map_err(|e| Error::from_tiff(path, e))?;
     let n = (spec.tiles_across() * spec.tiles_down()) as usize;
     if offsets.len() != n || counts.len() != n {
         return Err(bad(format!("{} tiles, expected {n}", offsets.len())));
@@ -280,4 +324,70 @@ pub fn verify(path: &Path, spec: &OutputSpec) -> Result<()> {
         return Err(bad(format!("tile {k} lies outside the file")));
     }
     Ok(())
+}
+
+/// Writes a whole raster to `path` (atomically), one row of chunks at a
+/// time: `produce(y0, y1, buf)` fills rows `[y0, y1)` (chunky, native-endian,
+/// full image width) and may itself run in parallel; the chunks of each row
+/// are compressed in parallel. Memory: one row of chunks.
+pub fn write_raster(path: &Path, spec: &OutputSpec, produce: impl Fn(u32, u32, &mut [u8]) + Sync) -> Result<()> {
+    use rayon::prelude::*;
+    let pending = PendingFile::create(path)?;
+    let file = pending.file()?;
+    let (cw, ch) = spec.chunk();
+    let pb = spec.bands as usize * spec.sample.bytes();
+    let row_bytes = spec.width as usize * pb;
+    let mut band = vec![0u8; row_bytes * ch as usize];
+    let mut queue: std::collections::VecDeque<Vec<u8>> = Default::default();
+    let mut band_index = 0u32;
+    let bands = spec.tiles_down();
+    let result = write_tiled(file, spec, || -> Result<Option<Vec<u8>>> {
+        if queue.is_empty() {
+            if band_index == bands {
+                return Ok(None);
+            }
+            let y0 = band_index * ch;
+            let y1 = (y0 + ch).min(spec.height);
+            let rows = (y1 - y0) as usize;
+            produce(y0, y1, &mut band[..rows * row_bytes]);
+            let tiles: Vec<Result<Vec<u8>>> = (0..spec.tiles_across())
+                .into_par_iter()
+                .map(|tx| {
+                    let (x0, x1) = (tx * cw, ((tx + 1) * cw).min(spec.width));
+                    // Tiles are always full size (zero padded); strips keep their rows.
+                    let out_rows = match spec.chunking {
+                        Chunking::Tiles(_) => ch as usize,
+                        Chunking::Strips(_) => rows,
+                    };
+                    let mut t = vec![0u8; cw as usize * out_rows * pb];
+                    let n = (x1 - x0) as usize * pb;
+                    for y in 0..rows {
+                        let s = y * row_bytes + x0 as usize * pb;
+                        t[y * cw as usize * pb..][..n].copy_from_slice(&band[s..s + n]);
+                    }
+                    encode_tile(spec, t)
+                })
+                .collect();
+            for t in tiles {
+                queue.push_back(t?);
+            }
+            band_index += 1;
+        }
+        Ok(queue.pop_front())
+    });
+    match result {
+        Ok(()) => {}
+        Err(WriteError::Source(e)) => return Err(e),
+        Err(WriteError::Tiff(e)) => return Err(tiff_write_error(pending.path(), e)),
+    }
+    verify(pending.path(), spec)?;
+    pending.publish()
+}
+
+/// A write-side `tiff` error as our error, naming the file.
+pub fn tiff_write_error(path: &Path, e: tiff::TiffError) -> Error {
+    match e {
+        tiff::TiffError::IoError(io) => Error::io(path, io),
+        other => Error::format(path, format!("writing failed: {other}")),
+    }
 }

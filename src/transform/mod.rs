@@ -7,6 +7,9 @@
 //! +½, see `geom::grid`); scan coordinates are continuous (column, row),
 //! pixel centres at +½.
 
+pub mod footprint;
+pub mod inverse;
+
 use crate::camera::{Plane, SensorModel};
 use crate::dem::{Dem, Height, Lookup};
 use crate::geom::OutputGrid;

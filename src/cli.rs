@@ -1,0 +1,292 @@
+//! Command-line arguments (clap) and their validation into the library's
+//! option structs. Raw flags stop here.
+
+use clap::{Args, Parser, Subcommand};
+use gcm_ortho::dem::Miss;
+use gcm_ortho::gcm::{CorrectionMode, GcmSpec};
+use gcm_ortho::io::tiff_out::Compression;
+use gcm_ortho::pipeline::{BigTiff, DemSource, RectifyConfig};
+use gcm_ortho::resample::Kernel;
+use gcm_ortho::transform::Trend;
+use gcm_ortho::synth::{CameraKind, Relief, SynthOptions};
+use std::path::PathBuf;
+
+#[derive(Parser, Debug)]
+#[command(name = "gcm-ortho", version, about = "Orthorectification of huge scans on small machines by the generalized correction matrix")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Generate a synthetic scene: scan, camera file, DEM, truth orthophoto, checkpoints.
+    Synth(SynthArgs),
+    /// Orthorectify a scan.
+    Rectify(Box<RectifyArgs>),
+    /// Accuracy of A + GCM against the exact model, per sparsity and mode.
+    Accuracy(AccuracyArgs),
+    /// Generate a scene in a temporary folder, rectify it and report accuracy and speed.
+    Demo(DemoArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct SynthArgs {
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Scan size WxH in pixels.
+    #[arg(long, default_value = "4000x4000")]
+    pub size: String,
+    #[arg(long, default_value_t = 3)]
+    pub bands: u32,
+    #[arg(long, default_value_t = 8)]
+    pub bits: u32,
+    #[arg(long, default_value = "hilly", value_parser = ["flat", "hilly", "mountain"])]
+    pub relief: String,
+    #[arg(long, default_value = "film", value_parser = ["film", "digital"])]
+    pub camera: String,
+    /// Swing of the camera, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub kappa: f64,
+    #[arg(long, default_value = "strips", value_parser = ["strips", "tiles"])]
+    pub layout: String,
+    #[arg(long, default_value = "none", value_parser = ["none", "deflate", "lzw"])]
+    pub compress: String,
+    /// DEM posting, metres.
+    #[arg(long, default_value_t = 5.0)]
+    pub dem_posting: f64,
+    /// Photo scale denominator.
+    #[arg(long, default_value_t = 10000.0)]
+    pub scale: f64,
+    /// Fiducial marks on film: 4 (corners) or 8.
+    #[arg(long, default_value_t = 4)]
+    pub fiducials: u32,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("--size '{s}' is not WxH"))?;
+    let w = w.trim().parse().map_err(|_| format!("--size '{s}': bad width"))?;
+    let h = h.trim().parse().map_err(|_| format!("--size '{s}': bad height"))?;
+    Ok((w, h))
+}
+
+impl SynthArgs {
+    pub fn options(&self) -> Result<SynthOptions, String> {
+        let (width, height) = parse_size(&self.size)?;
+        Ok(SynthOptions {
+            out: self.out.clone(),
+            width,
+            height,
+            bands: self.bands,
+            bits: self.bits,
+            relief: match self.relief.as_str() {
+                "flat" => Relief::Flat,
+                "mountain" => Relief::Mountain,
+                _ => Relief::Hilly,
+            },
+            camera: if self.camera == "digital" { CameraKind::Digital } else { CameraKind::Film },
+            kappa_deg: self.kappa,
+            tiled: self.layout == "tiles",
+            compress: self.compress.parse::<Compression>()?,
+            dem_posting: self.dem_posting,
+            scale: self.scale,
+            fiducials: self.fiducials,
+            seed: self.seed,
+            quiet: self.quiet,
+        })
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct DemoArgs {
+    /// Keep the generated files in this folder instead of a temporary one.
+    #[arg(long)]
+    pub keep: Option<PathBuf>,
+    /// Scan size of the demo scene.
+    #[arg(long, default_value = "6000x6000")]
+    pub size: String,
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct RectifyArgs {
+    /// The scan (TIFF or BigTIFF).
+    #[arg(long)]
+    pub image: PathBuf,
+    /// The camera file (TOML).
+    #[arg(long)]
+    pub camera: PathBuf,
+    /// DEM (GeoTIFF or SRTM .hgt) in the camera file's CRS.
+    #[arg(long, conflicts_with = "height")]
+    pub dem: Option<PathBuf>,
+    /// A constant terrain height instead of a DEM, metres.
+    #[arg(long, allow_negative_numbers = true)]
+    pub height: Option<f64>,
+    /// What to do in DEM holes: error, nodata, or a height.
+    #[arg(long, default_value = "error")]
+    pub dem_hole: String,
+    /// What to do outside the DEM: error, nodata, or a height.
+    #[arg(long, default_value = "nodata")]
+    pub dem_outside: String,
+    /// Output pixel size (default: the scan's mean GSD).
+    #[arg(long)]
+    pub gsd: Option<f64>,
+    /// minx,miny,maxx,maxy or auto (the scan's footprint on the DEM).
+    #[arg(long, default_value = "auto", allow_hyphen_values = true)]
+    pub bounds: String,
+    /// GCM node spacing k, output pixels.
+    #[arg(long, default_value_t = 16)]
+    pub sparsity: u32,
+    /// Error bound of the GCM in scan pixels (refines cells that miss it).
+    #[arg(long)]
+    pub max_error: Option<f64>,
+    #[arg(long, default_value = "bilinear", value_parser = ["bilinear", "cell"])]
+    pub corrections: String,
+    #[arg(long, default_value = "plane", value_parser = ["plane", "mean"])]
+    pub trend: String,
+    #[arg(long, default_value = "bilinear", value_parser = ["nearest", "bilinear", "cubic", "lanczos3"])]
+    pub resample: String,
+    #[arg(long, default_value_t = 256)]
+    pub tile: u32,
+    #[arg(long, default_value = "deflate", value_parser = ["none", "deflate", "lzw", "zstd"])]
+    pub compress: String,
+    #[arg(long, default_value = "auto", value_parser = ["auto", "yes", "no"])]
+    pub bigtiff: String,
+    /// Nodata value of the output.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, conflicts_with = "alpha")]
+    pub nodata: f64,
+    /// Add an alpha band instead of a nodata value.
+    #[arg(long)]
+    pub alpha: bool,
+    /// Worker threads (0: all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Memory budget, e.g. 128M or 1G.
+    #[arg(long, default_value = "128M")]
+    pub memory: String,
+    #[arg(long)]
+    pub quiet: bool,
+    /// Write the run report here as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// The output orthophoto.
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
+}
+
+pub fn parse_bytes(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let (num, mult) = match t.chars().last() {
+        Some('K' | 'k') => (&t[..t.len() - 1], 1u64 << 10),
+        Some('M' | 'm') => (&t[..t.len() - 1], 1 << 20),
+        Some('G' | 'g') => (&t[..t.len() - 1], 1 << 30),
+        _ => (t, 1),
+    };
+    let v: f64 = num.parse().map_err(|_| format!("'{s}' is not a size like 128M"))?;
+    if !(v > 0.0) {
+        return Err(format!("'{s}' must be positive"));
+    }
+    Ok((v * mult as f64) as u64)
+}
+
+fn parse_bounds(s: &str) -> Result<Option<[f64; 4]>, String> {
+    if s == "auto" {
+        return Ok(None);
+    }
+    let v: Vec<f64> = s.split(',').map(|p| p.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| format!("--bounds '{s}' is not minx,miny,maxx,maxy"))?;
+    if v.len() != 4 || v.iter().any(|x| !x.is_finite()) || v[2] <= v[0] || v[3] <= v[1] {
+        return Err(format!("--bounds '{s}' is not minx,miny,maxx,maxy with min < max"));
+    }
+    Ok(Some([v[0], v[1], v[2], v[3]]))
+}
+
+impl RectifyArgs {
+    pub fn config(&self) -> Result<RectifyConfig, String> {
+        let dem = match (&self.dem, self.height) {
+            (Some(p), None) => DemSource::File(p.clone()),
+            (None, Some(h)) if h.is_finite() => DemSource::Height(h),
+            (None, Some(h)) => return Err(format!("--height {h} is not a finite number")),
+            _ => return Err("give --dem FILE or --height METRES".into()),
+        };
+        if let Some(e) = self.max_error {
+            if !(e > 0.0) || !e.is_finite() {
+                return Err(format!("--max-error {e} must be a positive number"));
+            }
+        }
+        let mut cfg = RectifyConfig::new(self.image.clone(), self.camera.clone(), dem, self.output.clone());
+        cfg.dem_hole = self.dem_hole.parse::<Miss>().map_err(|e| format!("--dem-hole: {e}"))?;
+        cfg.dem_outside = self.dem_outside.parse::<Miss>().map_err(|e| format!("--dem-outside: {e}"))?;
+        cfg.gsd = self.gsd;
+        cfg.bounds = parse_bounds(&self.bounds)?;
+        cfg.gcm = GcmSpec {
+            k: self.sparsity,
+            mode: self.corrections.parse::<CorrectionMode>()?,
+            max_error: self.max_error,
+        };
+        if self.max_error.is_some() && cfg.gcm.mode == CorrectionMode::Cell {
+            return Err("--max-error works with --corrections bilinear".into());
+        }
+        cfg.trend = if self.trend == "mean" { Trend::Mean } else { Trend::Plane };
+        cfg.kernel = self.resample.parse::<Kernel>()?;
+        cfg.tile = self.tile;
+        cfg.compress = self.compress.parse::<Compression>()?;
+        cfg.bigtiff = match self.bigtiff.as_str() {
+            "yes" => BigTiff::Yes,
+            "no" => BigTiff::No,
+            _ => BigTiff::Auto,
+        };
+        cfg.nodata = self.nodata;
+        cfg.alpha = self.alpha;
+        cfg.threads = self.threads;
+        cfg.memory = parse_bytes(&self.memory).map_err(|e| format!("--memory: {e}"))?;
+        cfg.quiet = self.quiet;
+        Ok(cfg)
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct AccuracyArgs {
+    /// A scene folder made by `synth` (scan.tif, camera.toml, dem.tif, checkpoints.csv).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    #[arg(long)]
+    pub image: Option<PathBuf>,
+    #[arg(long)]
+    pub camera: Option<PathBuf>,
+    #[arg(long)]
+    pub dem: Option<PathBuf>,
+    /// Sparsities to tabulate.
+    #[arg(long, default_value = "1,2,4,8,16,32", value_delimiter = ',')]
+    pub sparsity: Vec<u32>,
+    /// Error bounds to tabulate (bilinear, at the largest sparsity).
+    #[arg(long, value_delimiter = ',')]
+    pub max_error: Vec<f64>,
+    #[arg(long, default_value = "plane", value_parser = ["plane", "mean"])]
+    pub trend: String,
+    /// Evaluate every Nth row and column (1: all pixels).
+    #[arg(long, default_value_t = 1)]
+    pub step: u32,
+    /// Write the per-pixel error of this k (bilinear) as a GeoTIFF.
+    #[arg(long)]
+    pub error_map: Option<PathBuf>,
+    /// ... and as a colour-mapped PNG with a legend.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Picture the correction matrix (x and y) as a PNG.
+    #[arg(long)]
+    pub gcm_png: Option<PathBuf>,
+    /// The k of the maps.
+    #[arg(long, default_value_t = 16)]
+    pub map_sparsity: u32,
+    /// Also rectify and check the checkpoints (needs an output path).
+    #[arg(long)]
+    pub ortho: Option<PathBuf>,
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}

@@ -1,0 +1,235 @@
+//! What each subcommand does with its validated options: call the library,
+//! print a summary.
+
+use crate::cli::{AccuracyArgs, Cli, Command, DemoArgs, RectifyArgs, SynthArgs};
+use anyhow::{anyhow, Context, Result};
+use gcm_ortho::accuracy::{evaluate, THRESHOLDS};
+use gcm_ortho::camera::file::Camera;
+use gcm_ortho::compare::{compare, read_grey};
+use gcm_ortho::dem::{Dem, GridDem};
+use gcm_ortho::gcm::{CorrectionMode, Gcm, GcmSpec};
+use gcm_ortho::io::source::SourceImage;
+use gcm_ortho::pipeline::{rectify, DemSource, RectifyConfig, Report};
+use gcm_ortho::synth::{synth, SynthOptions};
+use gcm_ortho::transform::footprint::{auto_grid, mean_gsd};
+use gcm_ortho::transform::{Approx, Transform};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+/// SIGINT / SIGTERM turn into a cancel flag the pipeline polls.
+pub struct Signals {
+    pub cancel: Arc<AtomicBool>,
+    int: Arc<AtomicBool>,
+    term: Arc<AtomicBool>,
+}
+
+impl Signals {
+    pub fn install() -> std::io::Result<Signals> {
+        let s = Signals { cancel: Arc::default(), int: Arc::default(), term: Arc::default() };
+        for (sig, flag) in [(signal_hook::consts::SIGINT, &s.int), (signal_hook::consts::SIGTERM, &s.term)] {
+            signal_hook::flag::register(sig, flag.clone())?;
+            signal_hook::flag::register(sig, s.cancel.clone())?;
+        }
+        Ok(s)
+    }
+    pub fn exit_code(&self) -> Option<u8> {
+        if self.int.load(Ordering::Relaxed) {
+            Some(130)
+        } else if self.term.load(Ordering::Relaxed) {
+            Some(143)
+        } else {
+            None
+        }
+    }
+}
+
+pub fn run(cli: Cli, signals: &Signals) -> Result<()> {
+    match cli.command {
+        Command::Synth(a) => run_synth(&a),
+        Command::Rectify(a) => run_rectify(&a, signals),
+        Command::Accuracy(a) => run_accuracy(&a),
+        Command::Demo(a) => run_demo(&a, signals),
+    }
+}
+
+fn usage(msg: String) -> anyhow::Error {
+    anyhow::Error::new(gcm_ortho::Error::Usage(msg))
+}
+
+fn run_synth(a: &SynthArgs) -> Result<()> {
+    let o = a.options().map_err(usage)?;
+    let t = std::time::Instant::now();
+    let r = synth(&o)?;
+    if !a.quiet {
+        println!(
+            "synth: {}x{} {} scan, GSD {} m, flying height {:.0} m, relief {:.0}–{:.0} m (steepest {:.0}°), {:.1} s",
+            o.width, o.height, a.relief, r.gsd, r.flying_height, r.relief_range[0], r.relief_range[1], r.max_slope_deg,
+            t.elapsed().as_secs_f64()
+        );
+        for p in [Some(&r.scan), Some(&r.camera), Some(&r.dem), r.truth.as_ref(), Some(&r.checkpoints)].into_iter().flatten() {
+            println!("  {}", p.display());
+        }
+    }
+    Ok(())
+}
+
+fn print_report(r: &Report) {
+    let s = &r.stage_seconds;
+    println!(
+        "rectify: {}x{} px at {} m ({}), {:.2} s wall, {:.1} MB/s in, {:.1} Mpx/s out, peak RSS {} MiB",
+        r.grid.width,
+        r.grid.height,
+        r.grid.gsd,
+        r.crs,
+        r.wall_seconds,
+        r.input_mb_per_s,
+        r.output_mpx_per_s,
+        r.peak_rss_mib.map(|m| format!("{m:.0}")).unwrap_or_else(|| "?".into())
+    );
+    println!(
+        "  stages (busy s): setup {:.2}, dem {:.2}, gcm {:.2}, read {:.2}, resample {:.2}, encode {:.2}",
+        s.setup, s.dem, s.gcm, s.read, s.resample, s.encode
+    );
+    let e = &r.accuracy_estimate;
+    println!("  GCM vs exact model (sampled): RMS {:.4} px, max {:.4} px over {} pixels", e.rms, e.max, e.count);
+}
+
+fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
+    let cfg = a.config().map_err(usage)?;
+    let report = rectify(&cfg, &signals.cancel)?;
+    if let Some(j) = &a.json {
+        std::fs::write(j, serde_json::to_string_pretty(&report)?).with_context(|| j.display().to_string())?;
+    }
+    if !a.quiet {
+        print_report(&report);
+    }
+    Ok(())
+}
+
+/// The scene's inputs from --scene or the individual flags.
+fn scene_inputs(a: &AccuracyArgs) -> Result<(PathBuf, PathBuf, PathBuf)> {
+    match &a.scene {
+        Some(d) => Ok((d.join("scan.tif"), d.join("camera.toml"), d.join("dem.tif"))),
+        None => Ok((
+            a.image.clone().ok_or_else(|| usage("give --scene DIR or --image, --camera, --dem".into()))?,
+            a.camera.clone().ok_or_else(|| usage("--camera missing".into()))?,
+            a.dem.clone().ok_or_else(|| usage("--dem missing".into()))?,
+        )),
+    }
+}
+
+fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
+    let (image, camera, dem_path) = scene_inputs(a)?;
+    let cam = Camera::read(&camera)?;
+    let src = SourceImage::open(&image, 1 << 20)?;
+    let dem = Dem::grid(GridDem::read(&dem_path)?, &dem_path);
+    let (w, h) = (src.info.width, src.info.height);
+    let z0 = dem.mean_plane(dem_bounds(&dem)).map(|p| p.a).unwrap_or(0.0);
+    let gsd = mean_gsd(&cam.frame, &dem, w, h, z0)?;
+    let grid = auto_grid(&cam.frame, &dem, w, h, z0, gsd)?;
+    let area = [grid.x0, grid.y0 - grid.gsd * grid.height as f64, grid.x0 + grid.gsd * grid.width as f64, grid.y0];
+    let plane = if a.trend == "mean" { dem.mean_plane(area) } else { dem.trend_plane(area) }.ok_or_else(|| anyhow!("no DEM heights in the output area"))?;
+    let approx = Approx::new(&cam.frame, &grid, plane).ok_or_else(|| anyhow!("plane behind the camera"))?;
+    let t = Transform::new(&cam.frame, &dem, grid);
+    println!(
+        "accuracy of A + GCM against the exact model: {}x{} output at {} m, every {} row/column, trend {}",
+        grid.width, grid.height, gsd, a.step, a.trend
+    );
+    println!(
+        "{:>4} {:>9} {:>9} | {:>9} {:>9} {:>9} | {:>6} {:>6} {:>6} {:>6} | {:>8} {:>8} {:>9}",
+        "k", "mode", "bound", "mean px", "RMS px", "max px", "<0.1", "<0.25", "<0.5", "<1", "prep s", "fill s", "refined%"
+    );
+    let mut rows = Vec::new();
+    let mut cases: Vec<(u32, CorrectionMode, Option<f64>)> = Vec::new();
+    for &k in &a.sparsity {
+        cases.push((k, CorrectionMode::Cell, None));
+        cases.push((k, CorrectionMode::Bilinear, None));
+    }
+    let kmax = a.sparsity.iter().copied().max().unwrap_or(16);
+    for &e in &a.max_error {
+        cases.push((kmax, CorrectionMode::Bilinear, Some(e)));
+    }
+    for (k, mode, bound) in cases {
+        let gcm = Gcm::new(&t, approx, GcmSpec { k, mode, max_error: bound });
+        let ev = evaluate(&gcm, a.step, None);
+        let e = &ev.errors;
+        let refined = 100.0 * ev.gcm.refined_cells as f64 / ev.gcm.cells.max(1) as f64;
+        println!(
+            "{:>4} {:>9} {:>9} | {:>9.4} {:>9.4} {:>9.4} | {:>6.1} {:>6.1} {:>6.1} {:>6.1} | {:>8.3} {:>8.3} {:>9.1}",
+            k,
+            format!("{mode:?}").to_lowercase(),
+            bound.map(|b| format!("{b}")).unwrap_or_else(|| "-".into()),
+            e.mean_abs,
+            e.rms,
+            e.max,
+            e.pct_under[0],
+            e.pct_under[1],
+            e.pct_under[2],
+            e.pct_under[3],
+            ev.prepare.as_secs_f64(),
+            ev.fill.as_secs_f64(),
+            refined
+        );
+        rows.push(serde_json::json!({"k": k, "mode": mode, "max_error": bound, "errors": e, "gcm": ev.gcm,
+            "prepare_s": ev.prepare.as_secs_f64(), "fill_s": ev.fill.as_secs_f64()}));
+    }
+    let _ = THRESHOLDS;
+    if a.error_map.is_some() || a.png.is_some() {
+        let gcm = Gcm::new(&t, approx, GcmSpec { k: a.map_sparsity, mode: CorrectionMode::Bilinear, max_error: None });
+        let mut map = Vec::new();
+        evaluate(&gcm, a.step, Some(&mut map));
+        let (mw, mh) = (grid.width.div_ceil(a.step), grid.height.div_ceil(a.step));
+        if let Some(p) = &a.error_map {
+            gcm_ortho::io::maps::write_error_map(p, &map, mw, mh, &grid, a.step, cam.crs.epsg)?;
+        }
+        if let Some(p) = &a.png {
+            gcm_ortho::io::maps::write_error_png(p, &map, mw, mh)?;
+        }
+    }
+    if let Some(p) = &a.gcm_png {
+        let gcm = Gcm::new(&t, approx, GcmSpec { k: a.map_sparsity, mode: CorrectionMode::Cell, max_error: None });
+        gcm_ortho::io::maps::write_gcm_png(p, &gcm)?;
+    }
+    if let Some(j) = &a.json {
+        std::fs::write(j, serde_json::to_string_pretty(&serde_json::json!({"grid": grid, "rows": rows}))?)?;
+    }
+    Ok(())
+}
+
+fn dem_bounds(dem: &Dem) -> [f64; 4] {
+    match &dem.model {
+        gcm_ortho::dem::HeightModel::Grid(g) => g.bounds(),
+        gcm_ortho::dem::HeightModel::Flat(_) => [-1e9, -1e9, 1e9, 1e9],
+    }
+}
+
+fn run_demo(a: &DemoArgs, signals: &Signals) -> Result<()> {
+    let tmp;
+    let dir: &Path = match &a.keep {
+        Some(d) => d,
+        None => {
+            tmp = tempfile::tempdir()?;
+            tmp.path()
+        }
+    };
+    let (width, height) = crate::cli::parse_size(&a.size).map_err(usage)?;
+    let opts = SynthOptions { out: dir.join("scene"), width, height, kappa_deg: 30.0, quiet: a.quiet, ..Default::default() };
+    println!("demo: generating a {width}x{height} hilly film scene (swing 30°) in {}", opts.out.display());
+    let t = std::time::Instant::now();
+    let scene = synth(&opts)?;
+    println!("  synth: {:.1} s, GSD {} m, flying height {:.0} m", t.elapsed().as_secs_f64(), scene.gsd, scene.flying_height);
+    let out = dir.join("ortho.tif");
+    let mut cfg = RectifyConfig::new(scene.scan.clone(), scene.camera.clone(), DemSource::File(scene.dem.clone()), out.clone());
+    cfg.quiet = a.quiet;
+    let report = rectify(&cfg, &signals.cancel)?;
+    print_report(&report);
+    let truth = scene.truth.ok_or_else(|| anyhow!("the demo scene has no truth image"))?;
+    let c = compare(&read_grey(&out, 0.0)?, &read_grey(&truth, 0.0)?, 48);
+    println!(
+        "  vs truth: mean |difference| {:.2} grey levels over {} pixels; offset by correlation in {} windows: mean {:.3} px, max {:.3} px",
+        c.mean_abs_diff, c.pixels, c.windows, c.mean_shift, c.max_shift
+    );
+    println!("  files: {}", if a.keep.is_some() { dir.display().to_string() } else { "(temporary, removed; use --keep DIR)".into() });
+    Ok(())
+}

@@ -1,0 +1,78 @@
+//! What `rectify` is asked to do, validated (the CLI builds it).
+
+use crate::dem::Miss;
+use crate::gcm::GcmSpec;
+use crate::io::tiff_out::Compression;
+use crate::resample::Kernel;
+use crate::transform::Trend;
+use std::path::PathBuf;
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub enum DemSource {
+    File(PathBuf),
+    /// A constant height, metres.
+    Height(f64),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BigTiff {
+    Auto,
+    Yes,
+    No,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RectifyConfig {
+    pub image: PathBuf,
+    pub camera: PathBuf,
+    pub dem: DemSource,
+    pub dem_hole: Miss,
+    pub dem_outside: Miss,
+    pub output: PathBuf,
+    /// Output pixel size, ground units; `None`: the scan's mean GSD.
+    pub gsd: Option<f64>,
+    /// `[minx, miny, maxx, maxy]`; `None`: the scan's footprint on the DEM.
+    pub bounds: Option<[f64; 4]>,
+    pub gcm: GcmSpec,
+    pub trend: Trend,
+    pub kernel: Kernel,
+    pub tile: u32,
+    pub compress: Compression,
+    pub bigtiff: BigTiff,
+    /// Nodata value written where there is no image (ignored with `alpha`).
+    pub nodata: f64,
+    pub alpha: bool,
+    /// Worker threads (0 = all cores).
+    pub threads: usize,
+    /// Memory budget, bytes.
+    pub memory: u64,
+    pub quiet: bool,
+}
+
+impl RectifyConfig {
+    /// A configuration with the documented defaults.
+    pub fn new(image: PathBuf, camera: PathBuf, dem: DemSource, output: PathBuf) -> RectifyConfig {
+        RectifyConfig {
+            image,
+            camera,
+            dem,
+            dem_hole: Miss::Error,
+            dem_outside: Miss::Nodata,
+            output,
+            gsd: None,
+            bounds: None,
+            gcm: GcmSpec { k: 16, mode: crate::gcm::CorrectionMode::Bilinear, max_error: None },
+            trend: Trend::Plane,
+            kernel: Kernel::Bilinear,
+            tile: 256,
+            compress: Compression::Deflate,
+            bigtiff: BigTiff::Auto,
+            nodata: 0.0,
+            alpha: false,
+            threads: 0,
+            memory: 128 << 20,
+            quiet: true,
+        }
+    }
+}

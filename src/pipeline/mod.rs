@@ -1,0 +1,24 @@
+//! `rectify`: a scan through a bounded streaming pipeline into a tiled
+//! GeoTIFF. Output is made a band (one row of tiles) at a time by stages
+//! joined by bounded channels, so a few bands at most are in flight and
+//! memory does not grow with the image:
+//!
+//! 1. DEM lookup — heights at the GCM nodes of the next band;
+//! 2. GCM — exact `T` at the nodes (and refinement under `--max-error`);
+//! 3. read — plan the band's chunks and read their scan windows;
+//! 4. resample — rows of a chunk in parallel (rayon);
+//! 5. encode — the chunk's tiles compressed in parallel;
+//! 6. write — one thread appends tiles in order.
+//!
+//! The first error anywhere cancels every stage; the output is a temporary
+//! file that is removed unless the whole run succeeds.
+
+mod config;
+mod plan;
+mod report;
+mod stages;
+
+pub use config::{BigTiff, DemSource, RectifyConfig};
+pub use plan::{plan_band, Chunk};
+pub use report::{Report, StageTimes};
+pub use stages::rectify;

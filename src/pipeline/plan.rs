@@ -1,0 +1,100 @@
+//! Planning a band: which groups of output tiles ("chunks") to resample
+//! together, and which window of the scan each needs. Like GDAL's chunk
+//! list: the source window of a chunk is found from its output edges (and a
+//! coarse interior grid), and tiles are grouped left to right while the
+//! window stays under the memory budget.
+
+use crate::gcm::{BandGcm, Gcm};
+
+/// A run of output tiles of one band and the scan window it reads.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Chunk {
+    /// Output columns `[x0, x1)`.
+    pub x0: u32,
+    pub x1: u32,
+    /// Scan window `[c0, c1) × [r0, r1)`, clipped to the scan; empty when no
+    /// pixel of the chunk sees the scan.
+    pub win: [u32; 4],
+}
+
+/// Source bounding box of output rows `[y0, y1)` × columns `[x0, x1)`, from
+/// their edges and every 16th row and column inside; `None` if no point maps.
+fn source_bbox(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, x0: u32, x1: u32) -> Option<[f64; 4]> {
+    let w = (x1 - x0) as usize;
+    let mut cols = vec![0.0; w];
+    let mut rows = vec![0.0; w];
+    let mut miss = None;
+    let mut b = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+    let mut add = |c: f64, r: f64| {
+        if c.is_finite() && r.is_finite() {
+            b = [b[0].min(c), b[1].min(r), b[2].max(c), b[3].max(r)];
+        }
+    };
+    let mut ys: Vec<u32> = (y0..y1).step_by(16).collect();
+    ys.push(y1 - 1);
+    for &y in &ys {
+        gcm.fill_row(band, y, x0, &mut cols, &mut rows, &mut miss);
+        let full = y == y0 || y == y1 - 1;
+        for i in 0..w {
+            if full || i % 16 == 0 || i == w - 1 {
+                add(cols[i], rows[i]);
+            }
+        }
+    }
+    // The left and right edges on every row.
+    for y in y0..y1 {
+        for x in [x0, x1 - 1] {
+            gcm.fill_row(band, y, x, &mut cols[..1], &mut rows[..1], &mut miss);
+            add(cols[0], rows[0]);
+        }
+    }
+    b[0].is_finite().then_some(b)
+}
+
+/// Splits band rows `[y0, y1)` into chunks of whole tiles whose scan windows
+/// hold at most `budget_px` pixels (a single tile may exceed it).
+pub fn plan_band(
+    gcm: &Gcm<'_>,
+    band: &BandGcm,
+    y0: u32,
+    y1: u32,
+    tile: u32,
+    scan: (u32, u32),
+    margin: u32,
+    budget_px: u64,
+) -> Vec<Chunk> {
+    let width = gcm.t.grid.width;
+    let tiles = width.div_ceil(tile);
+    let clip = |b: [f64; 4]| -> [u32; 4] {
+        let m = margin as f64;
+        let c0 = (b[0] - m).floor().clamp(0.0, scan.0 as f64) as u32;
+        let r0 = (b[1] - m).floor().clamp(0.0, scan.1 as f64) as u32;
+        let c1 = (b[2] + m).ceil().clamp(0.0, scan.0 as f64) as u32;
+        let r1 = (b[3] + m).ceil().clamp(0.0, scan.1 as f64) as u32;
+        [c0, r0, c1.max(c0), r1.max(r0)]
+    };
+    let area = |w: &[u32; 4]| (w[2] - w[0]) as u64 * (w[3] - w[1]) as u64;
+    let union = |a: Option<[f64; 4]>, b: Option<[f64; 4]>| match (a, b) {
+        (Some(a), Some(b)) => Some([a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])]),
+        (a, None) => a,
+        (None, b) => b,
+    };
+    let mut chunks = Vec::new();
+    let mut start = 0u32;
+    let mut acc: Option<[f64; 4]> = None;
+    for t in 0..tiles {
+        let (x0, x1) = (t * tile, ((t + 1) * tile).min(width));
+        let bb = source_bbox(gcm, band, y0, y1, x0, x1);
+        let merged = union(acc, bb);
+        let fits = merged.map(|m| area(&clip(m)) <= budget_px).unwrap_or(true);
+        if t > start && !fits {
+            chunks.push(Chunk { x0: start * tile, x1: x0, win: acc.map(clip).unwrap_or([0; 4]) });
+            start = t;
+            acc = bb;
+        } else {
+            acc = merged;
+        }
+    }
+    chunks.push(Chunk { x0: start * tile, x1: width, win: acc.map(clip).unwrap_or([0; 4]) });
+    chunks
+}

@@ -1,0 +1,56 @@
+//! What a run did and how fast: written as JSON with `--json`.
+
+use crate::accuracy::ErrorStats;
+use crate::gcm::GcmStats;
+use crate::geom::OutputGrid;
+
+/// Busy seconds of each stage (waiting on channels excluded).
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct StageTimes {
+    pub setup: f64,
+    pub dem: f64,
+    pub gcm: f64,
+    pub read: f64,
+    pub resample: f64,
+    pub encode: f64,
+    pub write: f64,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Report {
+    pub config: super::RectifyConfig,
+    pub grid: OutputGrid,
+    pub crs: String,
+    pub scan: ScanInfo,
+    pub bands: u32,
+    pub chunks: u64,
+    pub stage_seconds: StageTimes,
+    pub wall_seconds: f64,
+    pub input_mb_per_s: f64,
+    pub output_mpx_per_s: f64,
+    pub peak_rss_mib: Option<f64>,
+    pub gcm: GcmStats,
+    /// `|A + c − T|` on a sample of output pixels.
+    pub accuracy_estimate: ErrorStats,
+    pub output_bytes: u64,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ScanInfo {
+    pub width: u32,
+    pub height: u32,
+    pub bands: u32,
+    pub sample: crate::io::source::SampleType,
+    pub tiled: bool,
+    pub compression: u16,
+    pub memory_mapped: bool,
+    pub bytes: u64,
+}
+
+/// Peak resident memory of this process (VmHWM), MiB.
+pub fn peak_rss_mib() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}

@@ -1,0 +1,523 @@
+//! The stages of `rectify` and the threads that run them (see `mod.rs`).
+
+use super::config::{BigTiff, DemSource, RectifyConfig};
+use super::plan::{plan_band, Chunk};
+use super::report::{peak_rss_mib, Report, ScanInfo, StageTimes};
+use crate::accuracy;
+use crate::camera::file::Camera;
+use crate::dem::{Dem, GridDem, Height, Lookup};
+use crate::error::{Error, Result};
+use crate::gcm::{BandGcm, Gcm};
+use crate::geom::OutputGrid;
+use crate::io::source::{SampleType, SourceImage, Window};
+use crate::io::tiff_out::{encode_tile, tiff_write_error, verify, write_tiled, Chunking, GeoTags, OutputSpec, PendingFile, WriteError};
+use crate::resample::{resample_row, Sample, View};
+use crate::transform::footprint::{auto_grid, mean_gsd};
+use crate::transform::{Approx, Transform, Trend};
+use crossbeam_channel::bounded;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Rows of output pixels of one chunk, in the output sample type.
+enum Raw {
+    U8(Vec<u8>),
+    U16(Vec<u16>),
+    F32(Vec<f32>),
+}
+
+impl Raw {
+    fn bytes(&self) -> &[u8] {
+        match self {
+            Raw::U8(v) => v,
+            Raw::U16(v) => bytemuck::cast_slice(v),
+            Raw::F32(v) => bytemuck::cast_slice(v),
+        }
+    }
+}
+
+struct DemMsg {
+    band: u32,
+    first_j: i64,
+    heights: Vec<Vec<Height>>,
+}
+
+struct ReadMsg {
+    band: u32,
+    gcm: Arc<BandGcm>,
+    chunk: Chunk,
+    win: Window,
+}
+
+struct RawChunk {
+    band: u32,
+    x0: u32,
+    x1: u32,
+    data: Raw,
+}
+
+fn dem_miss_error(dem: &Dem, (x, y, l): (f64, f64, Lookup)) -> Error {
+    let what = match l {
+        Lookup::Hole => "a hole (nodata) in the DEM",
+        _ => "outside the DEM",
+    };
+    Error::format(
+        &dem.path,
+        format!("no height at ground point ({x:.2}, {y:.2}), {what}; choose --dem-hole / --dem-outside nodata or a height"),
+    )
+}
+
+/// Output row band `b` of a grid cut in `tile`-row bands.
+fn band_rows(grid: &OutputGrid, tile: u32, b: u32) -> (u32, u32) {
+    (b * tile, ((b + 1) * tile).min(grid.height))
+}
+
+/// Runs `f`, adding its wall time to `acc`.
+fn timed<R>(acc: &mut Duration, f: impl FnOnce() -> R) -> R {
+    let t = Instant::now();
+    let r = f();
+    *acc += t.elapsed();
+    r
+}
+
+/// Orthorectifies `cfg.image` into `cfg.output`. `cancel` may be set from
+/// another thread (a signal handler) to stop the run; the output is then
+/// not created.
+pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
+    let wall = Instant::now();
+    if cfg.tile == 0 || cfg.tile % 16 != 0 || cfg.tile > 4096 {
+        return Err(Error::Usage(format!("--tile {} must be a multiple of 16 up to 4096", cfg.tile)));
+    }
+    if cfg.gcm.k == 0 {
+        return Err(Error::Usage("--sparsity must be at least 1".into()));
+    }
+    if cfg.memory < 16 << 20 {
+        return Err(Error::Usage("--memory must be at least 16M".into()));
+    }
+    // The output folder must take a file before any work starts.
+    let pending = PendingFile::create(&cfg.output)?;
+
+    let camera = Camera::read(&cfg.camera)?;
+    let model = &camera.frame;
+    let src = SourceImage::open(&cfg.image, (cfg.memory / 8) as usize)?;
+    let mut dem = match &cfg.dem {
+        DemSource::File(p) => {
+            let g = GridDem::read(p)?;
+            if let Some(e) = g.epsg.filter(|&e| e != camera.crs.epsg) {
+                return Err(Error::format(p, format!("the DEM is in EPSG:{e}, the camera file in {}", camera.crs)));
+            }
+            Dem::grid(g, p)
+        }
+        DemSource::Height(h) => Dem::flat(*h),
+    };
+    dem.on_hole = cfg.dem_hole;
+    dem.on_outside = cfg.dem_outside;
+    let (sw, sh) = (src.info.width, src.info.height);
+    let z_guess = model_ground_height(&dem, model.centre.z);
+    let gsd = match cfg.gsd {
+        Some(g) if g > 0.0 && g.is_finite() => g,
+        Some(g) => return Err(Error::Usage(format!("--gsd {g} must be positive"))),
+        None => mean_gsd(model, &dem, sw, sh, z_guess)?,
+    };
+    let grid = match cfg.bounds {
+        Some(b) => OutputGrid::snapped(b[0], b[1], b[2], b[3], gsd)
+            .ok_or_else(|| Error::Usage(format!("--bounds {b:?} at GSD {gsd} is empty")))?,
+        None => auto_grid(model, &dem, sw, sh, z_guess, gsd)?,
+    };
+    if grid.width > 1 << 21 || grid.height > 1 << 21 {
+        return Err(Error::Usage(format!("output of {}×{} pixels is beyond 2M pixels a side", grid.width, grid.height)));
+    }
+    let area = [grid.x0, grid.y0 - grid.gsd * grid.height as f64, grid.x0 + grid.gsd * grid.width as f64, grid.y0];
+    let plane = match cfg.trend {
+        Trend::Plane => dem.trend_plane(area),
+        Trend::Mean => dem.mean_plane(area),
+    }
+    .ok_or_else(|| Error::format(&dem.path, "no height anywhere inside the output area"))?;
+    let approx = Approx::new(model, &grid, plane)
+        .ok_or_else(|| Error::Geometry("the terrain plane is not in front of the camera".into()))?;
+    let t = Transform::new(model, &dem, grid);
+    let gcm = Gcm::new(&t, approx, cfg.gcm);
+
+    let bands_in = src.info.bands;
+    let bands_out = bands_in + u32::from(cfg.alpha);
+    let photometric = if src.info.photometric == 2 && bands_in >= 3 { 2 } else { 1 };
+    let mut spec = OutputSpec {
+        width: grid.width,
+        height: grid.height,
+        bands: bands_out,
+        sample: src.info.sample,
+        chunking: Chunking::Tiles(cfg.tile),
+        compression: cfg.compress,
+        bigtiff: false,
+        photometric,
+        alpha: cfg.alpha || src.info.has_alpha,
+        geo: Some(GeoTags {
+            x0: grid.x0,
+            y0: grid.y0,
+            gsd: grid.gsd,
+            epsg: camera.crs.epsg,
+            nodata: (!cfg.alpha).then_some(cfg.nodata),
+        }),
+    };
+    spec.bigtiff = match cfg.bigtiff {
+        BigTiff::Yes => true,
+        BigTiff::No => false,
+        BigTiff::Auto => spec.needs_bigtiff(),
+    };
+
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(cfg.threads)
+        .build()
+        .map_err(|e| Error::Usage(format!("cannot start {} threads: {e}", cfg.threads)))?;
+    let mut times = StageTimes { setup: wall.elapsed().as_secs_f64(), ..Default::default() };
+    let n_bands = grid.height.div_ceil(cfg.tile);
+    let progress = crate::progress::bar(spec.tiles_across() as u64 * n_bands as u64, "tiles", cfg.quiet);
+    let failed = AtomicBool::new(false);
+    let stop = || cancel.load(Ordering::Relaxed) || failed.load(Ordering::Relaxed);
+    let chunks_done = AtomicU64::new(0);
+    let stats = std::sync::Mutex::new(crate::gcm::GcmStats::default());
+    let out_file = pending.file()?;
+
+    // Stage results: each returns its busy time or an error.
+    let (tx_dem, rx_dem) = bounded::<DemMsg>(2);
+    let (tx_gcm, rx_gcm) = bounded::<Arc<BandGcm>>(2);
+    let (tx_read, rx_read) = bounded::<ReadMsg>(1);
+    let (tx_raw, rx_raw) = bounded::<RawChunk>(2);
+    let (tx_enc, rx_enc) = bounded::<Vec<u8>>(2 * spec.tiles_across() as usize + 8);
+
+    let fail = |e: Error| {
+        failed.store(true, Ordering::Relaxed);
+        e
+    };
+    let results: Vec<Result<Duration>> = std::thread::scope(|s| {
+        let h_dem = s.spawn(|| {
+            let mut busy = Duration::ZERO;
+            for b in 0..n_bands {
+                if stop() {
+                    return Err(Error::Cancelled);
+                }
+                let msg = timed(&mut busy, || {
+                    let (y0, y1) = band_rows(&grid, cfg.tile, b);
+                    let (j0, _, _) = gcm.rows_for(y0);
+                    let (_, j1, _) = gcm.rows_for(y1 - 1);
+                    DemMsg { band: b, first_j: j0, heights: (j0..=j1).map(|j| gcm.node_heights(j)).collect() }
+                });
+                if tx_dem.send(msg).is_err() {
+                    return Err(Error::Cancelled);
+                }
+            }
+            drop(tx_dem);
+            Ok(busy)
+        });
+        let h_gcm = s.spawn(|| {
+            let mut busy = Duration::ZERO;
+            for msg in rx_dem.iter() {
+                if stop() {
+                    return Err(Error::Cancelled);
+                }
+                let band = timed(&mut busy, || {
+                    let mut miss = None;
+                    let rows: Vec<_> = msg
+                        .heights
+                        .iter()
+                        .enumerate()
+                        .map(|(n, h)| gcm.node_row(msg.first_j + n as i64, h, &mut miss))
+                        .collect();
+                    gcm.finish_band(msg.first_j, rows, miss)
+                });
+                if let Some(m) = band.miss {
+                    return Err(fail(dem_miss_error(&dem, m)));
+                }
+                stats.lock().expect("stats").add(&band.stats);
+                let _ = msg.band;
+                if tx_gcm.send(Arc::new(band)).is_err() {
+                    return Err(Error::Cancelled);
+                }
+            }
+            drop(tx_gcm);
+            Ok(busy)
+        });
+        let h_read = s.spawn(|| {
+            let mut busy = Duration::ZERO;
+            let margin = cfg.kernel.radius() + 2;
+            let budget_px = (cfg.memory / 8) / src.info.pixel_bytes().max(1) as u64;
+            for (b, band) in rx_gcm.iter().enumerate() {
+                let b = b as u32;
+                let (y0, y1) = band_rows(&grid, cfg.tile, b);
+                let chunks = timed(&mut busy, || plan_band(&gcm, &band, y0, y1, cfg.tile, (sw, sh), margin, budget_px));
+                for chunk in chunks {
+                    if stop() {
+                        return Err(Error::Cancelled);
+                    }
+                    let mut win = Window::default();
+                    let [c0, r0, c1, r1] = chunk.win;
+                    timed(&mut busy, || src.read_window(c0, r0, c1 - c0, r1 - r0, &mut win)).map_err(fail)?;
+                    if tx_read.send(ReadMsg { band: b, gcm: band.clone(), chunk, win }).is_err() {
+                        return Err(Error::Cancelled);
+                    }
+                }
+            }
+            drop(tx_read);
+            Ok(busy)
+        });
+        let h_resample = s.spawn(|| {
+            let mut busy = Duration::ZERO;
+            for msg in rx_read.iter() {
+                if stop() {
+                    return Err(Error::Cancelled);
+                }
+                let (y0, y1) = band_rows(&grid, cfg.tile, msg.band);
+                let raw = timed(&mut busy, || {
+                    pool.install(|| match src.info.sample {
+                        SampleType::U8 => resample_chunk::<u8>(&gcm, &src, &msg, y0, y1, cfg, bands_out).map(Raw::U8),
+                        SampleType::U16 => resample_chunk::<u16>(&gcm, &src, &msg, y0, y1, cfg, bands_out).map(Raw::U16),
+                        SampleType::F32 => resample_chunk::<f32>(&gcm, &src, &msg, y0, y1, cfg, bands_out).map(Raw::F32),
+                    })
+                });
+                let raw = match raw {
+                    Ok(r) => r,
+                    Err(m) => return Err(fail(dem_miss_error(&dem, m))),
+                };
+                chunks_done.fetch_add(1, Ordering::Relaxed);
+                let out = RawChunk { band: msg.band, x0: msg.chunk.x0, x1: msg.chunk.x1, data: raw };
+                if tx_raw.send(out).is_err() {
+                    return Err(Error::Cancelled);
+                }
+            }
+            drop(tx_raw);
+            Ok(busy)
+        });
+        let h_encode = s.spawn(|| {
+            let mut busy = Duration::ZERO;
+            let pb = bands_out as usize * spec.sample.bytes();
+            for chunk in rx_raw.iter() {
+                if stop() {
+                    return Err(Error::Cancelled);
+                }
+                let (y0, y1) = band_rows(&grid, cfg.tile, chunk.band);
+                let rows = (y1 - y0) as usize;
+                let cw = (chunk.x1 - chunk.x0) as usize;
+                let tiles: Vec<Result<Vec<u8>>> = timed(&mut busy, || {
+                    pool.install(|| {
+                        (chunk.x0 / cfg.tile..chunk.x1.div_ceil(cfg.tile))
+                            .into_par_iter()
+                            .map(|tx| {
+                                let t = cfg.tile as usize;
+                                let mut tile = vec![0u8; t * t * pb];
+                                let x0 = (tx * cfg.tile - chunk.x0) as usize;
+                                let n = (t.min(cw - x0)) * pb;
+                                let src = chunk.data.bytes();
+                                for y in 0..rows {
+                                    tile[y * t * pb..][..n].copy_from_slice(&src[(y * cw + x0) * pb..][..n]);
+                                }
+                                encode_tile(&spec, tile)
+                            })
+                            .collect()
+                    })
+                });
+                for tile in tiles {
+                    if tx_enc.send(tile.map_err(fail)?).is_err() {
+                        return Err(Error::Cancelled);
+                    }
+                }
+            }
+            drop(tx_enc);
+            Ok(busy)
+        });
+        let h_write = s.spawn(|| {
+            let mut busy = Duration::ZERO;
+            let r = write_tiled(out_file, &spec, || -> Result<Option<Vec<u8>>> {
+                if cancel.load(Ordering::Relaxed) {
+                    return Err(Error::Cancelled);
+                }
+                let next = rx_enc.recv().ok();
+                if next.is_some() {
+                    progress.inc(1);
+                }
+                Ok(next)
+            });
+            // `write_tiled` interleaves waiting and writing; count its whole
+            // time minus nothing: the writer's share shows in the wall clock.
+            busy += Duration::ZERO;
+            match r {
+                Ok(()) => Ok(busy),
+                Err(WriteError::Source(e)) => Err(fail(e)),
+                Err(WriteError::Tiff(e)) => Err(fail(tiff_write_error(&cfg.output, e))),
+            }
+        });
+        [h_dem, h_gcm, h_read, h_resample, h_encode, h_write]
+            .into_iter()
+            .map(|h| h.join().unwrap_or_else(|_| Err(Error::Geometry("a pipeline stage panicked".into()))))
+            .collect()
+    });
+    progress.finish_and_clear();
+    if cancel.load(Ordering::Relaxed) {
+        return Err(Error::Cancelled);
+    }
+    // The root cause: the first error that is not a consequence of another.
+    if let Some(e) = results.iter().find_map(|r| match r {
+        Err(e) if !matches!(e, Error::Cancelled) => Some(e),
+        _ => None,
+    }) {
+        return Err(clone_error(e));
+    }
+    if results.iter().any(|r| r.is_err()) {
+        return Err(Error::Cancelled);
+    }
+    let d = |k: usize| results[k].as_ref().map(|d| d.as_secs_f64()).unwrap_or(0.0);
+    times.dem = d(0);
+    times.gcm = d(1);
+    times.read = d(2);
+    times.resample = d(3);
+    times.encode = d(4);
+    verify(pending.path(), &spec)?;
+    let output_bytes = std::fs::metadata(pending.path()).map(|m| m.len()).unwrap_or(0);
+    pending.publish()?;
+    let wall_s = wall.elapsed().as_secs_f64();
+    times.write = (wall_s - times.setup).max(0.0);
+    let estimate = accuracy::sample_errors(&gcm, (grid.height / 64).max(1), 7);
+    let gcm_stats = *stats.lock().expect("stats");
+    Ok(Report {
+        config: cfg.clone(),
+        grid,
+        crs: camera.crs.to_string(),
+        scan: ScanInfo {
+            width: sw,
+            height: sh,
+            bands: bands_in,
+            sample: src.info.sample,
+            tiled: src.info.tiled,
+            compression: src.info.compression,
+            memory_mapped: src.is_mapped(),
+            bytes: src.info.data_bytes(),
+        },
+        bands: n_bands,
+        chunks: chunks_done.load(Ordering::Relaxed),
+        stage_seconds: times,
+        wall_seconds: wall_s,
+        input_mb_per_s: src.info.data_bytes() as f64 / 1e6 / wall_s,
+        output_mpx_per_s: grid.pixel_count() as f64 / 1e6 / wall_s,
+        peak_rss_mib: peak_rss_mib(),
+        gcm: gcm_stats,
+        accuracy_estimate: estimate,
+        output_bytes,
+    })
+}
+
+/// A height to start ray casting from: the DEM's mean, or below the camera.
+fn model_ground_height(dem: &Dem, camera_z: f64) -> f64 {
+    match &dem.model {
+        crate::dem::HeightModel::Flat(z) => *z,
+        crate::dem::HeightModel::Grid(g) => {
+            let valid: Vec<f64> = g.data().iter().step_by(97).filter(|v| v.is_finite() && g.nodata != Some(**v as f64)).map(|&v| v as f64).collect();
+            if valid.is_empty() {
+                camera_z - 1000.0
+            } else {
+                valid.iter().sum::<f64>() / valid.len() as f64
+            }
+        }
+    }
+}
+
+/// Our errors hold `io::Error`s, which do not clone: rebuild one with the same text.
+fn clone_error(e: &Error) -> Error {
+    match e {
+        Error::Io { path, source } => Error::io(path, std::io::Error::new(source.kind(), source.to_string())),
+        Error::Format { path, msg } => Error::format(path, msg.clone()),
+        Error::Unsupported { path, msg } => Error::unsupported(path, msg.clone()),
+        Error::Config { path, field, msg } => Error::config(path, field.clone(), msg.clone()),
+        Error::Limits { path, msg } => Error::limits(path, msg.clone()),
+        Error::Geometry(m) => Error::Geometry(m.clone()),
+        Error::Usage(m) => Error::Usage(m.clone()),
+        Error::Cancelled => Error::Cancelled,
+    }
+}
+
+/// Resamples the rows of one chunk; returns a DEM miss under the `error` policy.
+fn resample_chunk<T: Sample>(
+    gcm: &Gcm<'_>,
+    src: &SourceImage,
+    msg: &ReadMsg,
+    y0: u32,
+    y1: u32,
+    cfg: &RectifyConfig,
+    bands_out: u32,
+) -> std::result::Result<Vec<T>, (f64, f64, Lookup)> {
+    let info = &src.info;
+    let bands_in = info.bands as usize;
+    let bo = bands_out as usize;
+    let (x0, x1) = (msg.chunk.x0, msg.chunk.x1);
+    let w = (x1 - x0) as usize;
+    let view = View::<T>::new(&msg.win, info.bands, info.width, info.height);
+    // Where the kernel stays inside the window (or the window reaches the
+    // scan's edge, where clamping is the intended behaviour).
+    let r = cfg.kernel.radius() as f64 + 1.0;
+    let [c0, r0, c1, r1] = msg.chunk.win;
+    let safe = [
+        if c0 == 0 { f64::NEG_INFINITY } else { c0 as f64 + r },
+        if r0 == 0 { f64::NEG_INFINITY } else { r0 as f64 + r },
+        if c1 == info.width { f64::INFINITY } else { c1 as f64 - r },
+        if r1 == info.height { f64::INFINITY } else { r1 as f64 - r },
+    ];
+    let fill = T::from_f32(if cfg.alpha { 0.0 } else { cfg.nodata as f32 });
+    let opaque = T::from_f32(match T::TYPE {
+        SampleType::U8 => 255.0,
+        SampleType::U16 => 65535.0,
+        SampleType::F32 => 1.0,
+    });
+    let mut out = vec![T::default(); (y1 - y0) as usize * w * bo];
+    let misses: Vec<Option<(f64, f64, Lookup)>> = out
+        .par_chunks_mut(w * bo)
+        .enumerate()
+        .map_init(
+            || (vec![0.0f64; w], vec![0.0f64; w], vec![T::default(); w * bands_in], vec![false; w]),
+            |(cols, rows, px, valid), (k, row_out)| {
+                let y = y0 + k as u32;
+                let mut miss = None;
+                gcm.fill_row(&msg.gcm, y, x0, cols, rows, &mut miss);
+                resample_row(cfg.kernel, &view, cols, rows, px, valid, fill);
+                // Pixels whose kernel would leave the window: read their
+                // neighbourhood on their own (rare; the plan adds a margin).
+                for i in 0..w {
+                    let (c, rr) = (cols[i], rows[i]);
+                    if valid[i] && !(c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3]) {
+                        single_pixel(src, cfg, c, rr, &mut px[i * bands_in..(i + 1) * bands_in], fill);
+                    }
+                }
+                if bo == bands_in {
+                    row_out.copy_from_slice(px);
+                } else {
+                    for i in 0..w {
+                        row_out[i * bo..i * bo + bands_in].copy_from_slice(&px[i * bands_in..(i + 1) * bands_in]);
+                        row_out[i * bo + bands_in] = if valid[i] { opaque } else { T::default() };
+                    }
+                }
+                miss
+            },
+        )
+        .collect();
+    match misses.into_iter().flatten().next() {
+        Some(m) => Err(m),
+        None => Ok(out),
+    }
+}
+
+/// Resamples one pixel from a window read just for it.
+fn single_pixel<T: Sample>(src: &SourceImage, cfg: &RectifyConfig, c: f64, r: f64, out: &mut [T], fill: T) {
+    let info = &src.info;
+    let rad = cfg.kernel.radius() as i64 + 1;
+    let (ci, ri) = (c.floor() as i64, r.floor() as i64);
+    let c0 = (ci - rad).clamp(0, info.width as i64) as u32;
+    let r0 = (ri - rad).clamp(0, info.height as i64) as u32;
+    let c1 = (ci + rad + 1).clamp(0, info.width as i64) as u32;
+    let r1 = (ri + rad + 1).clamp(0, info.height as i64) as u32;
+    let mut win = Window::default();
+    if src.read_window(c0, r0, c1 - c0, r1 - r0, &mut win).is_err() {
+        out.fill(fill);
+        return;
+    }
+    let view = View::<T>::new(&win, info.bands, info.width, info.height);
+    let mut valid = [false];
+    resample_row(cfg.kernel, &view, &[c], &[r], out, &mut valid, fill);
+}

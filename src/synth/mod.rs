@@ -1,0 +1,468 @@
+//! `gcm-ortho synth`: synthetic scenes whose truth is known. A procedural
+//! ground texture, a relief posted as a real DEM raster, a film or digital
+//! frame camera; the scan is rendered the *other* way from `rectify` — each
+//! scan pixel's ray is cast onto the DEM and the texture sampled there — so
+//! the two check each other from opposite directions. Deterministic for a
+//! seed; written a band of rows at a time, in parallel, in bounded memory.
+
+pub mod noise;
+pub mod texture;
+
+use crate::camera::file::{CameraFile, CameraSection, CorrectionsSection, DistortionSection, ExteriorSection, InteriorSection};
+use crate::camera::atmosphere::Refraction;
+use crate::camera::distortion::Brown;
+use crate::camera::rotation::AngleConvention;
+use crate::camera::SensorModel;
+use crate::dem::{Dem, GridDem, Height};
+use crate::error::{Error, Result};
+use crate::io::source::SampleType;
+use crate::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
+use crate::transform::footprint::{auto_grid, mean_gsd};
+use crate::transform::inverse::RayCaster;
+use rayon::prelude::*;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use texture::Texture;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Relief {
+    Flat,
+    Hilly,
+    Mountain,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CameraKind {
+    Film,
+    Digital,
+}
+
+#[derive(Clone, Debug)]
+pub struct SynthOptions {
+    pub out: PathBuf,
+    pub width: u32,
+    pub height: u32,
+    pub bands: u32,
+    pub bits: u32,
+    pub relief: Relief,
+    pub camera: CameraKind,
+    pub kappa_deg: f64,
+    pub tiled: bool,
+    pub compress: Compression,
+    pub dem_posting: f64,
+    /// Photo scale denominator (1:scale).
+    pub scale: f64,
+    /// Number of fiducial marks on film (4 or 8).
+    pub fiducials: u32,
+    pub seed: u64,
+    pub quiet: bool,
+}
+
+impl Default for SynthOptions {
+    fn default() -> Self {
+        SynthOptions {
+            out: PathBuf::from("scene"),
+            width: 4000,
+            height: 4000,
+            bands: 3,
+            bits: 8,
+            relief: Relief::Hilly,
+            camera: CameraKind::Film,
+            kappa_deg: 0.0,
+            tiled: false,
+            compress: Compression::None,
+            dem_posting: 5.0,
+            scale: 10000.0,
+            fiducials: 4,
+            seed: 1,
+            quiet: true,
+        }
+    }
+}
+
+/// What `synth` wrote.
+#[derive(Debug, serde::Serialize)]
+pub struct SynthReport {
+    pub scan: PathBuf,
+    pub camera: PathBuf,
+    pub dem: PathBuf,
+    pub truth: Option<PathBuf>,
+    pub checkpoints: PathBuf,
+    pub gsd: f64,
+    pub flying_height: f64,
+    pub relief_range: [f64; 2],
+    pub max_slope_deg: f64,
+}
+
+/// Film: 240 mm scanned, 230 mm image frame, 152 mm lens.
+const FILM_MM: f64 = 240.0;
+const FRAME_HALF_MM: f64 = 115.0;
+const FILM_FOCAL: f64 = 152.0;
+const DIGITAL_FOCAL: f64 = 100.0;
+const BASE_HEIGHT: f64 = 300.0;
+/// Scene origin: UTM zone 31N, southern France.
+const EPSG: u32 = 32631;
+const ORIGIN: (f64, f64) = (650_000.0, 4_890_000.0);
+
+fn check(o: &SynthOptions) -> Result<()> {
+    let bad = |m: String| Err(Error::Usage(m));
+    if o.width < 64 || o.height < 64 {
+        return bad(format!("--size {}x{} is too small (64×64 at least)", o.width, o.height));
+    }
+    if !(1..=4).contains(&o.bands) {
+        return bad(format!("--bands {} (1 to 4)", o.bands));
+    }
+    if o.bits != 8 && o.bits != 16 {
+        return bad(format!("--bits {} (8 or 16)", o.bits));
+    }
+    if !(o.dem_posting > 0.0) || !(o.scale > 0.0) {
+        return bad("--dem-posting and --scale must be positive".into());
+    }
+    if o.fiducials != 4 && o.fiducials != 8 {
+        return bad(format!("--fiducials {} (4 or 8)", o.fiducials));
+    }
+    if o.compress == Compression::Zstd {
+        return bad("--compress zstd is not written for scans (none, deflate, lzw)".into());
+    }
+    Ok(())
+}
+
+/// The camera file of the scene.
+fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
+    let u = |k: i64| noise::unit(k, 3, o.seed);
+    let (omega, tilt2) = ((u(1) - 0.5) * 2.4, (u(2) - 0.5) * 2.4);
+    let centre_x = ORIGIN.0 + (u(3) * 1000.0).round();
+    let centre_y = ORIGIN.1 + (u(4) * 1000.0).round();
+    match o.camera {
+        CameraKind::Film => {
+            let px = FILM_MM / o.width.max(o.height) as f64;
+            let flying = FILM_FOCAL * o.scale / 1000.0;
+            // A flatbed scanner: turned 0.3°, y pixels 0.08 % longer, film
+            // centre a little off the scan centre.
+            let g = 0.3f64.to_radians();
+            let (sx, sy) = (1.0 / px, 1.0 / (px * 1.0008));
+            let (cx, cy) = (o.width as f64 / 2.0 + 12.3, o.height as f64 / 2.0 - 7.8);
+            let (sg, cg) = (g.sin(), g.cos());
+            let to_px = |x: f64, y: f64| [cx + sx * x * cg - sy * y * sg, cy - (sx * x * sg + sy * y * cg)];
+            let d = FRAME_HALF_MM + 2.5;
+            let mut marks = vec![[-d, -d], [d, d], [-d, d], [d, -d]];
+            if o.fiducials == 8 {
+                marks.extend([[-d, 0.0], [d, 0.0], [0.0, d], [0.0, -d]]);
+            }
+            let pp = [0.004, -0.009];
+            let px_marks = marks.iter().map(|m| to_px(m[0], m[1])).collect();
+            CameraFile {
+                crs: format!("EPSG:{EPSG}"),
+                camera: CameraSection { model: "frame".into(), focal_length_mm: Some(FILM_FOCAL) },
+                interior: Some(InteriorSection {
+                    fiducials_mm: Some(marks),
+                    fiducials_px: Some(px_marks),
+                    principal_point_mm: Some(pp),
+                    ..Default::default()
+                }),
+                distortion: Some(DistortionSection { radial_mm: Some([0.0, 1.5e-7, -2.0e-9]), brown: None }),
+                exterior: Some(ExteriorSection {
+                    position: [centre_x, centre_y, ground_h + flying],
+                    angles_deg: [tilt2, omega, o.kappa_deg],
+                    convention: AngleConvention::AlphaOmegaKappa,
+                }),
+                corrections: CorrectionsSection { refraction: Refraction::Auto, earth_curvature: true },
+            }
+        }
+        CameraKind::Digital => {
+            let px = 0.006 * 8000.0 / o.width.max(o.height) as f64;
+            let flying = DIGITAL_FOCAL * o.scale / 1000.0;
+            CameraFile {
+                crs: format!("EPSG:{EPSG}"),
+                camera: CameraSection { model: "frame".into(), focal_length_mm: Some(DIGITAL_FOCAL) },
+                interior: Some(InteriorSection {
+                    pixel_size_mm: Some(px),
+                    principal_point_px: Some([o.width as f64 / 2.0 + 3.7, o.height as f64 / 2.0 - 2.9]),
+                    ..Default::default()
+                }),
+                distortion: Some(DistortionSection {
+                    radial_mm: None,
+                    brown: Some(Brown { k1: -0.02, k2: 0.004, k3: 0.0, p1: 1.0e-5, p2: -2.0e-5 }),
+                }),
+                exterior: Some(ExteriorSection {
+                    position: [centre_x, centre_y, ground_h + flying],
+                    angles_deg: [omega, tilt2, o.kappa_deg],
+                    convention: AngleConvention::OmegaPhiKappa,
+                }),
+                corrections: CorrectionsSection { refraction: Refraction::Auto, earth_curvature: true },
+            }
+        }
+    }
+}
+
+/// The relief raster around (cx, cy), `half` metres each way.
+fn relief(o: &SynthOptions, cx: f64, cy: f64, half: f64, flying: f64) -> GridDem {
+    let p = o.dem_posting;
+    let n = ((2.0 * half / p).ceil() as usize).max(4);
+    let x0 = ((cx - half) / p).floor() * p;
+    let y0 = ((cy + half) / p).ceil() * p;
+    let seed = o.seed ^ 0xde_0de;
+    let raw: Vec<f64> = (0..n * n)
+        .into_par_iter()
+        .map(|k| {
+            let (x, y) = (x0 + ((k % n) as f64 + 0.5) * p, y0 - ((k / n) as f64 + 0.5) * p);
+            match o.relief {
+                Relief::Flat => 0.0,
+                Relief::Hilly => noise::fbm(x / 700.0, y / 700.0, 3, seed),
+                Relief::Mountain => noise::ridged(x / 900.0, y / 900.0, 4, seed),
+            }
+        })
+        .collect();
+    // Scale the relief: hilly to a steepest slope of 20°, mountains to a
+    // range of 0.35 of the flying height.
+    let (lo, hi) = raw.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    let amp = match o.relief {
+        Relief::Flat => 0.0,
+        Relief::Hilly => 20f64.to_radians().tan() / max_slope(&raw, n, p).max(1e-12),
+        Relief::Mountain => 0.35 * flying / (hi - lo).max(1e-12),
+    };
+    let data = raw.iter().map(|v| (BASE_HEIGHT + amp * (v - lo)) as f32).collect();
+    GridDem::new(n, n, data, [x0, p, 0.0, y0, 0.0, -p], None, Some(EPSG))
+}
+
+/// Steepest slope (tan) of a raster, by central differences.
+fn max_slope(z: &[f64], n: usize, p: f64) -> f64 {
+    let mut m = 0.0f64;
+    for j in 1..n - 1 {
+        for i in 1..n - 1 {
+            let gx = (z[j * n + i + 1] - z[j * n + i - 1]) / (2.0 * p);
+            let gy = (z[(j + 1) * n + i] - z[(j - 1) * n + i]) / (2.0 * p);
+            m = m.max(gx.hypot(gy));
+        }
+    }
+    m
+}
+
+/// Is the photo point inside the image area (not the film margin)?
+fn in_image(o: &SynthOptions, cam: &crate::camera::FrameCamera, c: f64, r: f64) -> bool {
+    match o.camera {
+        CameraKind::Film => {
+            let (x, y) = cam.interior.px_to_mm(c, r);
+            x.abs() <= FRAME_HALF_MM && y.abs() <= FRAME_HALF_MM
+        }
+        CameraKind::Digital => c >= 0.0 && r >= 0.0 && c < o.width as f64 && r < o.height as f64,
+    }
+}
+
+fn quantise(v: f32, bits: u32, out: &mut [u8]) {
+    if bits == 8 {
+        out[0] = (v * 255.0).round().clamp(0.0, 255.0) as u8;
+    } else {
+        out[..2].copy_from_slice(&((v * 65535.0).round().clamp(0.0, 65535.0) as u16).to_ne_bytes());
+    }
+}
+
+fn pixel_value(rgb: [f32; 3], bands: u32, k: u32) -> f32 {
+    match (bands, k) {
+        (1, _) | (2, 0) => 0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2],
+        (_, 0..=2) => rgb[k as usize],
+        // A near-infrared-like fourth band.
+        _ => (1.2 * rgb[1] - 0.3 * rgb[0]).clamp(0.0, 1.0),
+    }
+}
+
+/// Generates the scene. See the module doc.
+pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
+    check(o)?;
+    std::fs::create_dir_all(&o.out).map_err(|e| Error::io(&o.out, e))?;
+    let cam_path = o.out.join("camera.toml");
+    let dem_path = o.out.join("dem.tif");
+    let scan_path = o.out.join("scan.tif");
+    let truth_path = o.out.join("truth.tif");
+    let cp_path = o.out.join("checkpoints.csv");
+
+    // Camera first (needs the terrain's base height only), then a DEM
+    // generously covering its footprint.
+    let file = camera_file(o, BASE_HEIGHT);
+    let text = file.to_toml();
+    std::fs::write(&cam_path, &text).map_err(|e| Error::io(&cam_path, e))?;
+    let cam = crate::camera::file::Camera::read(&cam_path)?.frame;
+    let flying = file.exterior.as_ref().expect("synth writes exterior").position[2] - BASE_HEIGHT;
+    let (focal, film_half) = match o.camera {
+        CameraKind::Film => (FILM_FOCAL, FILM_MM / 2.0),
+        CameraKind::Digital => (DIGITAL_FOCAL, cam.interior.pixel_size_mm() * o.width.max(o.height) as f64 / 2.0),
+    };
+    let half = 1.8 * film_half / focal * flying + 200.0;
+    let grid_dem = relief(o, cam.centre.x, cam.centre.y, half, flying);
+    let zs: Vec<f64> = grid_dem.data().iter().map(|&v| v as f64).collect();
+    let (zlo, zhi) = zs.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    let slope = max_slope(&zs, grid_dem.width, o.dem_posting).atan().to_degrees();
+    let dem_spec = OutputSpec {
+        width: grid_dem.width as u32,
+        height: grid_dem.height as u32,
+        bands: 1,
+        sample: SampleType::F32,
+        chunking: Chunking::Strips(16),
+        compression: Compression::None,
+        bigtiff: false,
+        photometric: 1,
+        alpha: false,
+        geo: Some(GeoTags { x0: grid_dem.transform[0], y0: grid_dem.transform[3], gsd: o.dem_posting, epsg: EPSG, nodata: None }),
+    };
+    write_raster(&dem_path, &dem_spec, |y0, y1, buf| {
+        let w = grid_dem.width;
+        let src = &grid_dem.data()[y0 as usize * w..y1 as usize * w];
+        buf.copy_from_slice(bytemuck::cast_slice(src));
+    })?;
+    let dem = Dem::grid(grid_dem, &dem_path);
+    let mid_z = (zlo + zhi) / 2.0;
+
+    // The scan.
+    let gsd = mean_gsd(&cam, &dem, o.width, o.height, mid_z)?;
+    let tex = Texture::new(o.seed, gsd, cam.centre.x, cam.centre.y, 2.0 * half);
+    let sample = if o.bits == 8 { SampleType::U8 } else { SampleType::U16 };
+    let sb = sample.bytes();
+    let pb = o.bands as usize * sb;
+    let scan_spec = OutputSpec {
+        width: o.width,
+        height: o.height,
+        bands: o.bands,
+        sample,
+        chunking: if o.tiled { Chunking::Tiles(256) } else { Chunking::Strips(16) },
+        compression: o.compress,
+        bigtiff: false,
+        photometric: if o.bands >= 3 { 2 } else { 1 },
+        alpha: false,
+        geo: None,
+    };
+    let scan_spec = OutputSpec { bigtiff: scan_spec.needs_bigtiff(), ..scan_spec };
+    let progress = crate::progress::bar(o.height as u64, "synth rows", o.quiet);
+    write_raster(&scan_path, &scan_spec, |y0, y1, buf| {
+        let row_bytes = o.width as usize * pb;
+        buf.par_chunks_mut(row_bytes).enumerate().for_each(|(k, row)| {
+            let r = (y0 as usize + k) as f64 + 0.5;
+            let mut caster = RayCaster::new(&cam, &dem);
+            let mut guess = None;
+            for i in 0..o.width as usize {
+                let c = i as f64 + 0.5;
+                let px = &mut row[i * pb..(i + 1) * pb];
+                let rgb = if in_image(o, &cam, c, r) {
+                    match caster.cast(c, r, guess, mid_z, 1e-4) {
+                        Some(p) => {
+                            guess = Some((p[0], p[1]));
+                            tex.rgb(p[0], p[1])
+                        }
+                        None => {
+                            guess = None;
+                            [0.0; 3]
+                        }
+                    }
+                } else {
+                    guess = None;
+                    film_margin(o, &cam, c, r)
+                };
+                for k in 0..o.bands {
+                    quantise(pixel_value(rgb, o.bands, k), o.bits, &mut px[k as usize * sb..]);
+                }
+            }
+        });
+        progress.inc((y1 - y0) as u64);
+    })?;
+    progress.finish_and_clear();
+
+    // The truth orthophoto on the grid rectify chooses by default.
+    let grid = auto_grid(&cam, &dem, o.width, o.height, mid_z, gsd)?;
+    let truth = if grid.pixel_count() <= 100_000_000 {
+        let spec = OutputSpec {
+            width: grid.width,
+            height: grid.height,
+            chunking: Chunking::Tiles(256),
+            compression: Compression::Deflate,
+            geo: Some(GeoTags { x0: grid.x0, y0: grid.y0, gsd: grid.gsd, epsg: EPSG, nodata: Some(0.0) }),
+            bigtiff: false,
+            ..scan_spec.clone()
+        };
+        write_raster(&truth_path, &spec, |y0, _y1, buf| {
+            let row_bytes = grid.width as usize * pb;
+            buf.par_chunks_mut(row_bytes).enumerate().for_each(|(k, row)| {
+                let v = (y0 as usize + k) as f64 + 0.5;
+                for i in 0..grid.width as usize {
+                    let (x, y) = grid.ground(i as f64 + 0.5, v);
+                    let px = &mut row[i * pb..(i + 1) * pb];
+                    let seen = match dem.height(x, y) {
+                        Height::Value(z) => cam.project(x, y, z).filter(|&(c, r)| in_image(o, &cam, c, r)).is_some(),
+                        _ => false,
+                    };
+                    if !seen {
+                        px.fill(0);
+                        continue;
+                    }
+                    let rgb = tex.rgb(x, y);
+                    for k in 0..o.bands {
+                        quantise(pixel_value(rgb, o.bands, k), o.bits, &mut px[k as usize * sb..]);
+                    }
+                }
+            });
+        })?;
+        Some(truth_path)
+    } else {
+        None
+    };
+
+    // Checkpoints: ground points inside the image, with their exact scan positions.
+    let mut csv = String::from("id,X,Y,Z,col,row\n");
+    let mut id = 0;
+    for k in 0..2000 {
+        if id == 50 {
+            break;
+        }
+        let x = grid.x0 + grid.gsd * grid.width as f64 * (0.1 + 0.8 * noise::unit(k, 1, o.seed ^ 0xc4));
+        let y = grid.y0 - grid.gsd * grid.height as f64 * (0.1 + 0.8 * noise::unit(k, 2, o.seed ^ 0xc4));
+        let Height::Value(z) = dem.height(x, y) else { continue };
+        let Some((c, r)) = cam.project(x, y, z) else { continue };
+        if !in_image(o, &cam, c, r) {
+            continue;
+        }
+        id += 1;
+        csv.push_str(&format!("{id},{x:.4},{y:.4},{z:.4},{c:.4},{r:.4}\n"));
+    }
+    let mut f = std::fs::File::create(&cp_path).map_err(|e| Error::io(&cp_path, e))?;
+    f.write_all(csv.as_bytes()).map_err(|e| Error::io(&cp_path, e))?;
+
+    Ok(SynthReport {
+        scan: scan_path,
+        camera: cam_path,
+        dem: dem_path,
+        truth,
+        checkpoints: cp_path,
+        gsd,
+        flying_height: flying,
+        relief_range: [zlo, zhi],
+        max_slope_deg: slope,
+    })
+}
+
+/// Film base with the fiducial marks: bright crosses on dark film.
+fn film_margin(o: &SynthOptions, cam: &crate::camera::FrameCamera, c: f64, r: f64) -> [f32; 3] {
+    if o.camera == CameraKind::Digital {
+        return [0.0; 3];
+    }
+    let (x, y) = cam.interior.px_to_mm(c, r);
+    let d = FRAME_HALF_MM + 2.5;
+    let mut marks = vec![(-d, -d), (d, d), (-d, d), (d, -d)];
+    if o.fiducials == 8 {
+        marks.extend([(-d, 0.0), (d, 0.0), (0.0, d), (0.0, -d)]);
+    }
+    let px = cam.interior.pixel_size_mm();
+    for (mx, my) in marks {
+        let (dx, dy) = ((x - mx).abs(), (y - my).abs());
+        let dot = dx * dx + dy * dy < 0.3 * 0.3;
+        let cross = (dx < px.max(0.02) && dy < 1.5) || (dy < px.max(0.02) && dx < 1.5);
+        if dot || cross {
+            return [0.95; 3];
+        }
+    }
+    [0.06; 3]
+}
+
+/// Paths of a scene directory.
+pub fn scene_paths(dir: &Path) -> (PathBuf, PathBuf, PathBuf, PathBuf) {
+    (dir.join("scan.tif"), dir.join("camera.toml"), dir.join("dem.tif"), dir.join("truth.tif"))
+}

@@ -1,0 +1,61 @@
+//! The default output grid of a scan: its footprint on the DEM (thesis
+//! 2.4.3–2.4.4: corners and points along the edges intersected with the
+//! terrain) snapped outward to the GSD, and the scan's mean ground sample
+//! distance at its centre.
+
+use super::inverse::RayCaster;
+use crate::camera::SensorModel;
+use crate::dem::Dem;
+use crate::error::{Error, Result};
+use crate::geom::OutputGrid;
+
+/// Ground bounds `[minx, miny, maxx, maxy]` of a `w × h` scan on the DEM.
+pub fn footprint(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64) -> Result<[f64; 4]> {
+    let mut caster = RayCaster::new(model, dem);
+    let n = 32;
+    let (w, h) = (w as f64, h as f64);
+    let mut b = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+    let mut hits = 0;
+    for k in 0..=n {
+        let t = k as f64 / n as f64;
+        for (c, r) in [(t * w, 0.0), (t * w, h), (0.0, t * h), (w, t * h)] {
+            if let Some(p) = caster.cast(c, r, None, z_guess, 1e-3) {
+                b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
+                hits += 1;
+            }
+        }
+    }
+    if hits < 4 {
+        return Err(Error::Geometry(format!(
+            "only {hits} of {} points on the scan's edges meet the DEM: does the DEM cover the scan?",
+            4 * (n + 1)
+        )));
+    }
+    Ok(b)
+}
+
+/// The scan's ground sample distance at its centre, rounded to 4
+/// significant digits.
+pub fn mean_gsd(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64) -> Result<f64> {
+    let mut caster = RayCaster::new(model, dem);
+    let (c, r) = (w as f64 / 2.0, h as f64 / 2.0);
+    let d = 8.0;
+    let p = |cs: &mut RayCaster, c: f64, r: f64| cs.cast(c, r, None, z_guess, 1e-4);
+    let (Some(o), Some(a), Some(b)) = (p(&mut caster, c, r), p(&mut caster, c + d, r), p(&mut caster, c, r + d)) else {
+        return Err(Error::Geometry("the scan's centre does not meet the DEM".into()));
+    };
+    let area = ((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])).abs() / (d * d);
+    let gsd = area.sqrt();
+    if !(gsd > 0.0) || !gsd.is_finite() {
+        return Err(Error::Geometry("cannot compute the scan's ground sample distance".into()));
+    }
+    let mag = 10f64.powf(gsd.log10().floor() - 3.0);
+    Ok((gsd / mag).round() * mag)
+}
+
+/// The default grid: footprint snapped to `gsd`.
+pub fn auto_grid(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64, gsd: f64) -> Result<OutputGrid> {
+    let b = footprint(model, dem, w, h, z_guess)?;
+    OutputGrid::snapped(b[0], b[1], b[2], b[3], gsd)
+        .ok_or_else(|| Error::Geometry(format!("footprint {b:?} at GSD {gsd} gives an empty grid")))
+}

@@ -1,0 +1,73 @@
+//! The other direction: which ground point on the DEM a scan pixel sees.
+//! Used for the footprint of a scan (auto bounds, thesis 2.4.3–2.4.4) and by
+//! the scene generator, which renders scans by casting every pixel's ray.
+//! Newton's method on `project(X, Y, Z(X, Y)) = (col, row)` with the DEM's
+//! gradient; the camera's partial derivatives are cached, since they change
+//! slowly from one pixel to the next.
+
+use crate::camera::SensorModel;
+use crate::dem::Dem;
+use nalgebra::{Matrix2, Vector2};
+
+/// Casts rays from scan pixels onto the DEM.
+pub struct RayCaster<'a> {
+    pub model: &'a dyn SensorModel,
+    pub dem: &'a Dem,
+    /// d(col, row)/d(X, Y, Z) near `at`.
+    partials: Option<([[f64; 3]; 2], (f64, f64))>,
+}
+
+impl<'a> RayCaster<'a> {
+    pub fn new(model: &'a dyn SensorModel, dem: &'a Dem) -> Self {
+        RayCaster { model, dem, partials: None }
+    }
+
+    fn partials_at(&self, x: f64, y: f64, z: f64) -> Option<[[f64; 3]; 2]> {
+        let h = 0.05;
+        let (c, r) = self.model.project(x, y, z)?;
+        let (cx, rx) = self.model.project(x + h, y, z)?;
+        let (cy, ry) = self.model.project(x, y + h, z)?;
+        let (cz, rz) = self.model.project(x, y, z + h)?;
+        Some([[(cx - c) / h, (cy - c) / h, (cz - c) / h], [(rx - r) / h, (ry - r) / h, (rz - r) / h]])
+    }
+
+    /// Ground (X, Y, Z) on the DEM imaged at (col, row), to `tol` pixels,
+    /// starting from `guess` (a neighbouring pixel's answer) or from the
+    /// model's own inverse at `z_guess`.
+    pub fn cast(&mut self, col: f64, row: f64, guess: Option<(f64, f64)>, z_guess: f64, tol: f64) -> Option<[f64; 3]> {
+        let (mut x, mut y) = match guess {
+            Some(g) => g,
+            None => self.model.locate_approx(col, row, z_guess)?,
+        };
+        let mut best: Option<([f64; 3], f64)> = None;
+        let mut refreshed = false;
+        for it in 0..30 {
+            let (z, gx, gy) = self.dem.height_gradient(x, y)?;
+            let (c, r) = self.model.project(x, y, z)?;
+            let e = Vector2::new(col - c, row - r);
+            let err = e.norm();
+            if best.is_none_or(|b| err < b.1) {
+                best = Some(([x, y, z], err));
+            }
+            if err < tol {
+                return Some([x, y, z]);
+            }
+            let stale = match self.partials {
+                None => true,
+                Some((_, at)) => (at.0 - x).abs() + (at.1 - y).abs() > 50.0,
+            };
+            if stale || (it > 4 && !refreshed) {
+                self.partials = self.partials_at(x, y, z).map(|p| (p, (x, y)));
+                refreshed = it > 4;
+            }
+            let (p, _) = self.partials?;
+            let j = Matrix2::new(p[0][0] + p[0][2] * gx, p[0][1] + p[0][2] * gy, p[1][0] + p[1][2] * gx, p[1][1] + p[1][2] * gy);
+            let step = j.try_inverse()? * e;
+            // Damp long steps: beyond a few pixels the cell's gradient says little.
+            let scale = if it > 10 { 0.5 } else { 1.0 };
+            x += scale * step.x;
+            y += scale * step.y;
+        }
+        best.filter(|b| b.1 < 10.0 * tol.max(0.01)).map(|b| b.0)
+    }
+}
