@@ -299,9 +299,28 @@ impl<'a> Gcm<'a> {
         true
     }
 
+    /// The node columns (indices from the first node, inclusive) that output
+    /// columns `[x0, x0 + len)` interpolate between.
+    fn node_span(&self, x0: u32, len: usize) -> (usize, usize) {
+        let k = self.spec.k as usize;
+        let x1 = x0 as usize + len.max(1) - 1;
+        match self.spec.mode {
+            CorrectionMode::Cell => (x0 as usize / k, x1 / k),
+            CorrectionMode::Bilinear => {
+                let seg = |x: usize| {
+                    let t = (x as f64 + 0.5) * self.inv_k - 0.5;
+                    let i0 = crate::resample::floor_i64(t).clamp(self.first_node, self.first_node + self.nodes_x as i64 - 2);
+                    (i0 - self.first_node) as usize
+                };
+                (seg(x0 as usize), seg(x1) + 1)
+            }
+        }
+    }
+
     /// Fills output row `y` (columns `x0..x0+cols.len()`) with scan
     /// coordinates `A + c`, NaN where there is no value. Returns the number
-    /// of pixels that fell back to `T`.
+    /// of pixels that fell back to `T`. Per pixel: one reciprocal (for `A`)
+    /// and a few multiply-adds; the two node rows are blended once per row.
     pub fn fill_row(&self, band: &BandGcm, y: u32, x0: u32, cols: &mut [f64], rows: &mut [f64], miss: &mut Option<(f64, f64, Lookup)>) -> u64 {
         let (j0, j1, fy) = self.rows_for(y);
         let a = &band.rows[(j0 - band.first_j) as usize];
@@ -309,10 +328,23 @@ impl<'a> Gcm<'a> {
         let v = y as f64 + 0.5;
         let ra = self.a.row(v);
         let cells = band.cells.get((j0 - band.first_j) as usize);
-        let mut exact_px = 0;
-        let last = self.nodes_x as i64 - 2;
-        for (n, (oc, or)) in cols.iter_mut().zip(rows.iter_mut()).enumerate() {
-            let u = (x0 as usize + n) as f64 + 0.5;
+        // The correction along this row at the node columns this segment
+        // uses (indices relative to `lo`).
+        let n = self.nodes_x;
+        let (lo, hi_node) = self.node_span(x0, cols.len());
+        let mut cc = Vec::with_capacity(hi_node - lo + 1);
+        let mut cr = Vec::with_capacity(hi_node - lo + 1);
+        for i in lo..=hi_node {
+            cc.push(a.dc[i] + fy * (b.dc[i] - a.dc[i]));
+            cr.push(a.dr[i] + fy * (b.dr[i] - a.dr[i]));
+        }
+        // Highest left node of a segment (bilinear mode has n ≥ 3 nodes).
+        let hi = self.first_node + n as i64 - 2;
+        let k = self.spec.k as usize;
+        let mut fallback = 0;
+        for (m, (oc, or)) in cols.iter_mut().zip(rows.iter_mut()).enumerate() {
+            let x = x0 as usize + m;
+            let u = x as f64 + 0.5;
             // A: one reciprocal.
             let den = ra.e * u + ra.f;
             let inv = 1.0 / den;
@@ -320,58 +352,44 @@ impl<'a> Gcm<'a> {
             let ar = (ra.p * u + ra.q) * inv;
             let (dc, dr) = match self.spec.mode {
                 CorrectionMode::Cell => {
-                    let i = (x0 as usize + n) / self.spec.k as usize;
-                    (a.dc[i], a.dr[i])
+                    let i = x / k - lo;
+                    (cc[i], cr[i])
                 }
                 CorrectionMode::Bilinear => {
                     let t = u * self.inv_k - 0.5;
-                    let i0 = (t.floor() as i64).clamp(-1, last - 1);
+                    let i0 = crate::resample::floor_i64(t).clamp(self.first_node, hi);
                     let fx = t - i0 as f64;
                     let i = (i0 - self.first_node) as usize;
-                    if let Some(Some(q)) = cells.map(|c| &c[i]) {
-                        match leaf(q, u, v) {
+                    let il = i - lo;
+                    match cells.and_then(|c| c[i].as_ref()) {
+                        Some(q) => match leaf(q, u, v) {
                             Some(leaf) => {
                                 let c = bilerp(&leaf.corners, (u - leaf.u0) / leaf.size, (v - leaf.v0) / leaf.size);
                                 (c[0], c[1])
                             }
                             None => (f64::NAN, f64::NAN),
-                        }
-                    } else {
-                        let w00 = (1.0 - fx) * (1.0 - fy);
-                        let w10 = fx * (1.0 - fy);
-                        let w01 = (1.0 - fx) * fy;
-                        let w11 = fx * fy;
-                        (
-                            a.dc[i] * w00 + a.dc[i + 1] * w10 + b.dc[i] * w01 + b.dc[i + 1] * w11,
-                            a.dr[i] * w00 + a.dr[i + 1] * w10 + b.dr[i] * w01 + b.dr[i + 1] * w11,
-                        )
+                        },
+                        None => (cc[il] + fx * (cc[il + 1] - cc[il]), cr[il] + fx * (cr[il + 1] - cr[il])),
                     }
                 }
             };
             let (c, r) = (ac + dc, ar + dr);
             if c.is_nan() || r.is_nan() || !(den > 0.0) {
-                exact_px += 1;
-                match self.t.exact(u, v) {
-                    Mapped::Px(c, r) => {
-                        *oc = c;
-                        *or = r;
-                    }
-                    Mapped::Nodata => {
-                        *oc = f64::NAN;
-                        *or = f64::NAN;
-                    }
+                fallback += 1;
+                (*oc, *or) = match self.t.exact(u, v) {
+                    Mapped::Px(c, r) => (c, r),
+                    Mapped::Nodata => (f64::NAN, f64::NAN),
                     Mapped::DemMiss(x, y, l) => {
                         miss.get_or_insert((x, y, l));
-                        *oc = f64::NAN;
-                        *or = f64::NAN;
+                        (f64::NAN, f64::NAN)
                     }
-                }
+                };
             } else {
                 *oc = c;
                 *or = r;
             }
         }
-        exact_px
+        fallback
     }
 }
 

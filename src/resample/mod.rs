@@ -61,7 +61,8 @@ impl Sample for u8 {
     }
     #[inline]
     fn from_f32(v: f32) -> Self {
-        v.round().clamp(0.0, 255.0) as u8
+        // Round half up without a libm call; `as` saturates NaN to 0.
+        (v.clamp(0.0, 255.0) + 0.5) as u8
     }
 }
 impl Sample for u16 {
@@ -72,7 +73,7 @@ impl Sample for u16 {
     }
     #[inline]
     fn from_f32(v: f32) -> Self {
-        v.round().clamp(0.0, 65535.0) as u16
+        (v.clamp(0.0, 65535.0) + 0.5) as u16
     }
 }
 impl Sample for f32 {
@@ -85,6 +86,14 @@ impl Sample for f32 {
     fn from_f32(v: f32) -> Self {
         v
     }
+}
+
+/// `floor` without a libm call (x86-64 has no rounding instruction before
+/// SSE4.1); exact for |x| < 2⁶³.
+#[inline(always)]
+pub fn floor_i64(x: f64) -> i64 {
+    let i = x as i64;
+    i - i64::from((i as f64) > x)
 }
 
 /// A typed view of a window: `bands` interleaved samples per pixel.
@@ -186,18 +195,21 @@ pub fn resample_row<T: Sample>(
         valid[i] = true;
         match kernel {
             Kernel::Nearest => {
-                let s = view.at(c as i64 - view.x0, r as i64 - view.y0);
+                let s = view.at(floor_i64(c) - view.x0, floor_i64(r) - view.y0);
                 px.copy_from_slice(&view.data[s..s + b]);
             }
             Kernel::Bilinear => {
                 let (x, y) = (c - 0.5, r - 0.5);
-                let (fx0, fy0) = (x.floor(), y.floor());
-                let (fx, fy) = ((x - fx0) as f32, (y - fy0) as f32);
-                let (i0, j0) = (fx0 as i64 - view.x0, fy0 as i64 - view.y0);
-                let s00 = view.at(i0, j0);
-                let s10 = view.at(i0 + 1, j0);
-                let s01 = view.at(i0, j0 + 1);
-                let s11 = view.at(i0 + 1, j0 + 1);
+                let (xi, yi) = (floor_i64(x), floor_i64(y));
+                let (fx, fy) = ((x - xi as f64) as f32, (y - yi as f64) as f32);
+                let (i0, j0) = (xi - view.x0, yi - view.y0);
+                let (s00, s10, s01, s11) = if i0 >= 0 && j0 >= 0 && i0 + 1 < view.w && j0 + 1 < view.h {
+                    let s = (j0 * view.w + i0) as usize * b;
+                    let row = view.w as usize * b;
+                    (s, s + b, s + row, s + row + b)
+                } else {
+                    (view.at(i0, j0), view.at(i0 + 1, j0), view.at(i0, j0 + 1), view.at(i0 + 1, j0 + 1))
+                };
                 let d = view.data;
                 for k in 0..b {
                     let top = d[s00 + k].to_f32() + fx * (d[s10 + k].to_f32() - d[s00 + k].to_f32());
@@ -207,10 +219,10 @@ pub fn resample_row<T: Sample>(
             }
             Kernel::Cubic => {
                 let (x, y) = (c - 0.5, r - 0.5);
-                let (fx0, fy0) = (x.floor(), y.floor());
-                let wx = cubic_weights((x - fx0) as f32);
-                let wy = cubic_weights((y - fy0) as f32);
-                let (i0, j0) = (fx0 as i64 - view.x0 - 1, fy0 as i64 - view.y0 - 1);
+                let (xi, yi) = (floor_i64(x), floor_i64(y));
+                let wx = cubic_weights((x - xi as f64) as f32);
+                let wy = cubic_weights((y - yi as f64) as f32);
+                let (i0, j0) = (xi - view.x0 - 1, yi - view.y0 - 1);
                 acc[..b].fill(0.0);
                 for (dj, wyj) in wy.iter().enumerate() {
                     for (di, wxi) in wx.iter().enumerate() {
@@ -227,10 +239,10 @@ pub fn resample_row<T: Sample>(
             }
             Kernel::Lanczos3 => {
                 let (x, y) = (c - 0.5, r - 0.5);
-                let (fx0, fy0) = (x.floor(), y.floor());
-                let wx = lanczos3_weights((x - fx0) as f32);
-                let wy = lanczos3_weights((y - fy0) as f32);
-                let (i0, j0) = (fx0 as i64 - view.x0 - 2, fy0 as i64 - view.y0 - 2);
+                let (xi, yi) = (floor_i64(x), floor_i64(y));
+                let wx = lanczos3_weights((x - xi as f64) as f32);
+                let wy = lanczos3_weights((y - yi as f64) as f32);
+                let (i0, j0) = (xi - view.x0 - 2, yi - view.y0 - 2);
                 acc[..b].fill(0.0);
                 for (dj, wyj) in wy.iter().enumerate() {
                     for (di, wxi) in wx.iter().enumerate() {
