@@ -197,3 +197,76 @@ pub fn sample_errors(gcm: &Gcm<'_>, row_step: u32, col_step: u32) -> ErrorStats 
         argmax: acc.argmax,
     }
 }
+
+/// A ground point with its exact scan position (synth's checkpoints.csv).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Checkpoint {
+    pub id: u32,
+    pub ground: [f64; 3],
+    /// Scan (column, row), continuous.
+    pub scan: [f64; 2],
+}
+
+/// Reads `id,X,Y,Z,col,row` with a header line.
+pub fn read_checkpoints(path: &std::path::Path) -> crate::Result<Vec<Checkpoint>> {
+    let text = std::fs::read_to_string(path).map_err(|e| crate::Error::io(path, e))?;
+    let mut out = Vec::new();
+    for (n, line) in text.lines().enumerate().skip(1) {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let v: Vec<f64> = line.split(',').map(|s| s.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| crate::Error::format(path, format!("line {}: not six numbers", n + 1)))?;
+        if v.len() != 6 {
+            return Err(crate::Error::format(path, format!("line {}: expected id,X,Y,Z,col,row", n + 1)));
+        }
+        out.push(Checkpoint { id: v[0] as u32, ground: [v[1], v[2], v[3]], scan: [v[4], v[5]] });
+    }
+    Ok(out)
+}
+
+/// Thesis Table 2 for synthetic scenes: where each checkpoint's true scan
+/// point appears in the orthophoto (the inverse of `A + c`, linearised
+/// between the four surrounding pixel centres) minus where it should be.
+/// Returns per-checkpoint (dx, dy) in output pixels (east, south).
+pub fn checkpoint_offsets(gcm: &Gcm<'_>, cps: &[Checkpoint]) -> Vec<(u32, [f64; 2])> {
+    let grid = gcm.t.grid;
+    let mut out = Vec::new();
+    for cp in cps {
+        let (u, v) = grid.pixel(cp.ground[0], cp.ground[1]);
+        let (x0, y0) = ((u - 0.5).floor(), (v - 0.5).floor());
+        if x0 < 0.0 || y0 < 0.0 || x0 + 2.0 > grid.width as f64 || y0 + 2.0 > grid.height as f64 {
+            continue;
+        }
+        let (x0, y0) = (x0 as u32, y0 as u32);
+        let band = gcm.prepare(y0, y0 + 2);
+        let mut c = [[0.0f64; 2]; 2];
+        let mut r = [[0.0f64; 2]; 2];
+        let mut miss = None;
+        for dy in 0..2 {
+            gcm.fill_row(&band, y0 + dy, x0, &mut c[dy as usize], &mut r[dy as usize], &mut miss);
+        }
+        if c.iter().flatten().chain(r.iter().flatten()).any(|v| v.is_nan()) {
+            continue;
+        }
+        let (fx, fy) = (u - 0.5 - x0 as f64, v - 0.5 - y0 as f64);
+        let lerp = |m: &[[f64; 2]; 2]| {
+            let top = m[0][0] + fx * (m[0][1] - m[0][0]);
+            let bot = m[1][0] + fx * (m[1][1] - m[1][0]);
+            top + fy * (bot - top)
+        };
+        let mapped = [lerp(&c), lerp(&r)];
+        // Jacobian d(scan)/d(output) from the four centres.
+        let j = nalgebra::Matrix2::new(
+            (c[0][1] - c[0][0] + c[1][1] - c[1][0]) / 2.0,
+            (c[1][0] - c[0][0] + c[1][1] - c[0][1]) / 2.0,
+            (r[0][1] - r[0][0] + r[1][1] - r[1][0]) / 2.0,
+            (r[1][0] - r[0][0] + r[1][1] - r[0][1]) / 2.0,
+        );
+        let Some(ji) = j.try_inverse() else { continue };
+        // The true scan point sits at output position (u, v) + J⁻¹(true − mapped);
+        // the orthophoto shows it there, so the error is that offset.
+        let d = ji * nalgebra::Vector2::new(cp.scan[0] - mapped[0], cp.scan[1] - mapped[1]);
+        out.push((cp.id, [d.x, d.y]));
+    }
+    out
+}

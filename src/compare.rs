@@ -54,6 +54,8 @@ pub struct Comparison {
     /// Offsets (pixels) found by cross-correlation in windows with texture.
     pub windows: usize,
     pub mean_shift: f64,
+    /// 95th percentile of the window offsets.
+    pub p95_shift: f64,
     pub max_shift: f64,
     pub mean_shift_xy: [f64; 2],
 }
@@ -82,13 +84,16 @@ pub fn compare(a: &Grey, b: &Grey, window: usize) -> Comparison {
         }
         y += window;
     }
-    let mags: Vec<f64> = shifts.iter().map(|s: &[f64; 2]| s[0].hypot(s[1])).collect();
+    let mut mags: Vec<f64> = shifts.iter().map(|s: &[f64; 2]| s[0].hypot(s[1])).collect();
+    mags.sort_by(f64::total_cmp);
+    let p95 = mags.get(((mags.len() as f64 * 0.95) as usize).min(mags.len().saturating_sub(1))).copied().unwrap_or(0.0);
     let m = mags.len().max(1) as f64;
     Comparison {
         pixels: n,
         mean_abs_diff: sum / n.max(1) as f64,
         windows: shifts.len(),
         mean_shift: mags.iter().sum::<f64>() / m,
+        p95_shift: p95,
         max_shift: mags.iter().copied().fold(0.0, f64::max),
         mean_shift_xy: [shifts.iter().map(|s| s[0]).sum::<f64>() / m, shifts.iter().map(|s| s[1]).sum::<f64>() / m],
     }

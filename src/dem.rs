@@ -83,8 +83,8 @@ impl GridDem {
         }
         let c = c.clamp(0.0, w - 1.0);
         let r = r.clamp(0.0, h - 1.0);
-        let i0 = (c.floor() as usize).min(self.width.saturating_sub(2));
-        let j0 = (r.floor() as usize).min(self.height.saturating_sub(2));
+        let i0 = (c as usize).min(self.width.saturating_sub(2));
+        let j0 = (r as usize).min(self.height.saturating_sub(2));
         let i1 = (i0 + 1).min(self.width - 1);
         let j1 = (j0 + 1).min(self.height - 1);
         let (fx, fy) = (c - i0 as f64, r - j0 as f64);
@@ -117,8 +117,8 @@ impl GridDem {
         }
         let c = c.clamp(0.0, w - 1.0);
         let r = r.clamp(0.0, h - 1.0);
-        let i0 = (c.floor() as usize).min(self.width - 2);
-        let j0 = (r.floor() as usize).min(self.height - 2);
+        let i0 = (c as usize).min(self.width - 2);
+        let j0 = (r as usize).min(self.height - 2);
         let (fx, fy) = (c - i0 as f64, r - j0 as f64);
         let v = |i: usize, j: usize| self.data[j * self.width + i];
         let (z00, z10, z01, z11) = (v(i0, j0), v(i0 + 1, j0), v(i0, j0 + 1), v(i0 + 1, j0 + 1));

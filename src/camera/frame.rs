@@ -72,7 +72,7 @@ impl FrameCamera {
                 let lambda = self.refraction.angle(self.centre.z, ground.2, tan_z);
                 let dr = lambda * self.focal_mm * (1.0 + tan_z * tan_z);
                 let (ex, ey) = (x - self.nadir_mm.0, y - self.nadir_mm.1);
-                let e = ex.hypot(ey);
+                let e = (ex * ex + ey * ey).sqrt();
                 if e > 0.0 {
                     x += dr * ex / e;
                     y += dr * ey / e;

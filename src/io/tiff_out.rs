@@ -9,7 +9,7 @@ use crate::error::{Error, Result};
 use crate::io::geotiff::write_georef;
 use crate::io::source::SampleType;
 use std::path::{Path, PathBuf};
-use tiff::encoder::compression::{CompressionAlgorithm, Deflate, Lzw};
+use tiff::encoder::compression::{CompressionAlgorithm, Deflate, DeflateLevel, Lzw};
 use tiff::encoder::{TiffEncoder, TiffKind, TiffKindBig, TiffKindStandard};
 use tiff::tags::Tag;
 
@@ -150,7 +150,7 @@ pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>) -> Result<Vec<u8>> {
         Compression::None => tile,
         Compression::Deflate => {
             let mut out = Vec::with_capacity(tile.len() / 2);
-            Deflate::default().write_to(&mut out, &tile).map_err(io)?;
+            Deflate::with_level(DeflateLevel::Fast).write_to(&mut out, &tile).map_err(io)?;
             out
         }
         Compression::Lzw => {

@@ -253,9 +253,9 @@ fn in_image(o: &SynthOptions, cam: &crate::camera::FrameCamera, c: f64, r: f64) 
 
 fn quantise(v: f32, bits: u32, out: &mut [u8]) {
     if bits == 8 {
-        out[0] = (v * 255.0).round().clamp(0.0, 255.0) as u8;
+        out[0] = ((v * 255.0).clamp(0.0, 255.0) + 0.5) as u8;
     } else {
-        out[..2].copy_from_slice(&((v * 65535.0).round().clamp(0.0, 65535.0) as u16).to_ne_bytes());
+        out[..2].copy_from_slice(&(((v * 65535.0).clamp(0.0, 65535.0) + 0.5) as u16).to_ne_bytes());
     }
 }
 
@@ -339,23 +339,30 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
         buf.par_chunks_mut(row_bytes).enumerate().for_each(|(k, row)| {
             let r = (y0 as usize + k) as f64 + 0.5;
             let mut caster = RayCaster::new(&cam, &dem);
-            let mut guess = None;
+            // The last two ground points: their difference predicts the next
+            // one so well that most pixels need a single projection.
+            let mut prev: Option<(f64, f64)> = None;
+            let mut step = (0.0, 0.0);
             for i in 0..o.width as usize {
                 let c = i as f64 + 0.5;
                 let px = &mut row[i * pb..(i + 1) * pb];
                 let rgb = if in_image(o, &cam, c, r) {
-                    match caster.cast(c, r, guess, mid_z, 1e-4) {
+                    let guess = prev.map(|p| (p.0 + step.0, p.1 + step.1));
+                    match caster.cast(c, r, guess, mid_z, 1e-3) {
                         Some(p) => {
-                            guess = Some((p[0], p[1]));
+                            if let Some(q) = prev {
+                                step = (p[0] - q.0, p[1] - q.1);
+                            }
+                            prev = Some((p[0], p[1]));
                             tex.rgb(p[0], p[1])
                         }
                         None => {
-                            guess = None;
+                            prev = None;
                             [0.0; 3]
                         }
                     }
                 } else {
-                    guess = None;
+                    prev = None;
                     film_margin(o, &cam, c, r)
                 };
                 for k in 0..o.bands {

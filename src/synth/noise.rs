@@ -27,8 +27,8 @@ fn fade(t: f64) -> f64 {
 /// Value noise in [0, 1), one lattice cell per unit.
 #[inline]
 pub fn value(x: f64, y: f64, seed: u64) -> f64 {
-    let (fx, fy) = (x.floor(), y.floor());
-    let (i, j) = (fx as i64, fy as i64);
+    let (i, j) = (crate::resample::floor_i64(x), crate::resample::floor_i64(y));
+    let (fx, fy) = (i as f64, j as f64);
     let (u, v) = (fade(x - fx), fade(y - fy));
     let a = unit(i, j, seed);
     let b = unit(i + 1, j, seed);

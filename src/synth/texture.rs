@@ -71,10 +71,10 @@ impl Texture {
         let (c, s) = self.rot;
         let xr = (c * x + s * y) / self.field;
         let yr = (-s * x + c * y) / (0.7 * self.field);
-        let (fi, fj) = (xr.floor(), yr.floor());
+        let (fi, fj) = (crate::resample::floor_i64(xr) as f64, crate::resample::floor_i64(yr) as f64);
         let base = PALETTE[(hash(fi as i64, fj as i64, self.seed) % PALETTE.len() as u64) as usize];
-        // Fine texture: ±20 % brightness, wavelengths from 48 to 6 GSD.
-        let n = fbm(x / (48.0 * g), y / (48.0 * g), 3, self.seed ^ 0x5eed) as f32;
+        // Fine texture: ±20 % brightness, wavelengths of 24 and 12 GSD.
+        let n = fbm(x / (24.0 * g), y / (24.0 * g), 2, self.seed ^ 0x5eed) as f32;
         let mut col = base.map(|v| v * (0.8 + 0.4 * n));
         // Field boundaries: dark lines 2 GSD wide, anti-aliased over 1 GSD.
         let dx = (xr - fi).min(fi + 1.0 - xr) * self.field;

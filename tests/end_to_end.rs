@@ -1,0 +1,111 @@
+//! synth → rectify → compare with the truth orthophoto, from opposite
+//! directions: synth casts every scan pixel's ray onto the DEM, rectify maps
+//! every output pixel into the scan through A + GCM.
+
+mod common;
+use common::*;
+use gcm_ortho::compare::{compare, read_grey};
+use gcm_ortho::io::source::SourceImage;
+
+#[test]
+fn film_scene_rectifies_onto_its_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 1500, |_| {});
+    let out = dir.path().join("ortho.tif");
+    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    // The default grid is the truth's grid: same georeferencing.
+    let o = SourceImage::open(&out, 1 << 20).unwrap();
+    let t = SourceImage::open(sc.truth.as_ref().unwrap(), 1 << 20).unwrap();
+    assert_eq!((o.info.width, o.info.height), (t.info.width, t.info.height));
+    assert_eq!(o.info.georef, t.info.georef);
+    let c = compare(&read_grey(&out, 0.0).unwrap(), &read_grey(sc.truth.as_ref().unwrap(), 0.0).unwrap(), 48);
+    // Bilinear resampling of a scan at the orthophoto's own GSD smooths
+    // only the 1-GSD ramps of edges and lines (a tenth of the pixels); the
+    // texture between them is smooth. So the mean difference stays at a few
+    // grey levels; a geometric error of ½ px would raise it past 5 (edges of
+    // up to 200 levels moving by half a pixel).
+    assert!(c.pixels > 1_000_000, "{c:?}");
+    assert!(c.mean_abs_diff < 2.0, "{c:?}");
+    // The sharp lines land where they should: correlation in windows finds
+    // offsets far under ½ px.
+    assert!(c.windows > 200, "{c:?}");
+    assert!(c.mean_shift < 0.1, "{c:?}");
+    assert!(c.p95_shift < 0.25, "{c:?}");
+}
+
+#[test]
+fn checkpoints_agree_to_a_quarter_pixel_at_k16() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 1200, |o| o.kappa_deg = 31.0);
+    let r = run(&["accuracy", "--scene", s(&dir.path().join("scene")), "--sparsity", "16", "--step", "4"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let text = String::from_utf8_lossy(&r.stdout);
+    let line = text.lines().find(|l| l.starts_with("checkpoints")).expect("checkpoint line");
+    let rms: f64 = line.split("RMS ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+    assert!(rms <= 0.25, "{line}");
+    assert!(line.contains(" 50 points") || line.contains(" 4"), "{line}");
+    drop(sc);
+}
+
+#[test]
+fn synth_is_deterministic() {
+    let dir = tempfile::tempdir().unwrap();
+    let hash = |p: &std::path::Path| {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        std::fs::read(p).unwrap().hash(&mut h);
+        h.finish()
+    };
+    let a = scene(&dir.path().join("a"), 300, |o| o.seed = 7);
+    let b = scene(&dir.path().join("b"), 300, |o| o.seed = 7);
+    let c = scene(&dir.path().join("c"), 300, |o| o.seed = 8);
+    assert_eq!(hash(&a.scan), hash(&b.scan));
+    assert_eq!(hash(&a.dem), hash(&b.dem));
+    assert_eq!(std::fs::read(&a.camera).unwrap(), std::fs::read(&b.camera).unwrap());
+    assert_ne!(hash(&a.scan), hash(&c.scan));
+}
+
+#[test]
+fn every_input_layout_gives_the_same_orthophoto() {
+    use gcm_ortho::io::tiff_out::Compression;
+    let dir = tempfile::tempdir().unwrap();
+    let mut outputs = Vec::new();
+    for (name, tiled, comp) in [
+        ("strips-none", false, Compression::None),
+        ("tiles-none", true, Compression::None),
+        ("strips-lzw", false, Compression::Lzw),
+        ("tiles-deflate", true, Compression::Deflate),
+    ] {
+        let sc = scene(&dir.path().join(name), 700, |o| {
+            o.tiled = tiled;
+            o.compress = comp;
+            o.kappa_deg = 90.0;
+            o.bits = 16;
+        });
+        let out = dir.path().join(format!("{name}.tif"));
+        let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--resample", "cubic"]);
+        assert!(r.status.success(), "{name}: {}", String::from_utf8_lossy(&r.stderr));
+        outputs.push((name, std::fs::read(&out).unwrap()));
+    }
+    for (name, bytes) in &outputs[1..] {
+        assert!(bytes == &outputs[0].1, "{name} differs from {}", outputs[0].0);
+    }
+}
+
+#[test]
+fn small_memory_budget_and_many_chunks_change_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 800, |o| o.kappa_deg = 45.0);
+    let mut outs = Vec::new();
+    for (mem, tile, threads) in [("512M", "256", "2"), ("16M", "64", "1")] {
+        let out = dir.path().join(format!("o{mem}.tif"));
+        let r = run(&[
+            "rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet",
+            "--memory", mem, "--tile", tile, "--threads", threads, "--compress", "none",
+        ]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        outs.push(read_grey(&out, 0.0).unwrap());
+    }
+    assert_eq!(outs[0].v, outs[1].v);
+}
