@@ -184,7 +184,11 @@ impl GridDem {
         if data.len() != pixels as usize {
             return Err(Error::format(path, "DEM data size does not match its dimensions"));
         }
-        Ok(GridDem::new(w as usize, h as usize, data, geo.transform, geo.nodata, geo.epsg))
+        let g = GridDem::new(w as usize, h as usize, data, geo.transform, geo.nodata, geo.epsg);
+        if g.data.iter().all(|&v| g.is_nodata(v)) {
+            return Err(Error::format(path, "every sample of the DEM is nodata"));
+        }
+        Ok(g)
     }
 }
 

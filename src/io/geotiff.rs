@@ -33,10 +33,26 @@ pub fn is_geographic(epsg: u32) -> Option<bool> {
     Some(def.proj4.contains("+proj=longlat"))
 }
 
+/// Any numeric tag value (or list of them) as f64s.
 fn as_f64_list(v: Value) -> Option<Vec<f64>> {
+    fn one(v: Value) -> Option<f64> {
+        Some(match v {
+            Value::Byte(x) => x as f64,
+            Value::Short(x) => x as f64,
+            Value::SignedByte(x) => x as f64,
+            Value::SignedShort(x) => x as f64,
+            Value::Signed(x) => x as f64,
+            Value::SignedBig(x) => x as f64,
+            Value::Unsigned(x) => x as f64,
+            Value::UnsignedBig(x) => x as f64,
+            Value::Float(x) => x as f64,
+            Value::Double(x) => x,
+            _ => return None,
+        })
+    }
     match v {
-        Value::List(items) => items.into_iter().map(|x| x.into_f64().ok()).collect(),
-        other => other.into_f64().ok().map(|x| vec![x]),
+        Value::List(items) => items.into_iter().map(one).collect(),
+        other => one(other).map(|x| vec![x]),
     }
 }
 

@@ -115,15 +115,20 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     dem.on_outside = cfg.dem_outside;
     let (sw, sh) = (src.info.width, src.info.height);
     let z_guess = model_ground_height(&dem, model.centre.z);
+    // Where the scan and the DEM do not meet, the DEM is the file to name.
+    let on_dem = |e: Error| match e {
+        Error::Geometry(m) => Error::format(&dem.path, m),
+        e => e,
+    };
     let gsd = match cfg.gsd {
         Some(g) if g > 0.0 && g.is_finite() => g,
         Some(g) => return Err(Error::Usage(format!("--gsd {g} must be positive"))),
-        None => mean_gsd(model, &dem, sw, sh, z_guess)?,
+        None => mean_gsd(model, &dem, sw, sh, z_guess).map_err(on_dem)?,
     };
     let grid = match cfg.bounds {
         Some(b) => OutputGrid::snapped(b[0], b[1], b[2], b[3], gsd)
             .ok_or_else(|| Error::Usage(format!("--bounds {b:?} at GSD {gsd} is empty")))?,
-        None => auto_grid(model, &dem, sw, sh, z_guess, gsd)?,
+        None => auto_grid(model, &dem, sw, sh, z_guess, gsd).map_err(on_dem)?,
     };
     if grid.width > 1 << 21 || grid.height > 1 << 21 {
         return Err(Error::Usage(format!("output of {}×{} pixels is beyond 2M pixels a side", grid.width, grid.height)));

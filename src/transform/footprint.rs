@@ -49,8 +49,8 @@ pub fn mean_gsd(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64
     if !(gsd > 0.0) || !gsd.is_finite() {
         return Err(Error::Geometry("cannot compute the scan's ground sample distance".into()));
     }
-    let mag = 10f64.powf(gsd.log10().floor() - 3.0);
-    Ok((gsd / mag).round() * mag)
+    // Through decimal text, so that 11.54 is the double nearest 11.54.
+    Ok(format!("{gsd:.3e}").parse().expect("a formatted float parses"))
 }
 
 /// The default grid: footprint snapped to `gsd`.

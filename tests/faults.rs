@@ -1,0 +1,65 @@
+//! Faults during a run: signals, a full disk. Nothing half-written is ever
+//! left at the output path; an older file there stays as it was.
+
+mod common;
+use common::*;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Sends `signal` (a number, as `kill -N` takes it) mid-run.
+fn interrupt(signal: i32, expect: i32) {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 1000, |_| {});
+    let out = dir.path().join("ortho.tif");
+    std::fs::write(&out, b"an older orthophoto").unwrap();
+    // A small GSD makes the run long (≈ 100 Mpx of output) so the signal
+    // surely lands mid-run.
+    let mut child = Command::new(bin())
+        .args(["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--gsd", "0.25", "--threads", "1"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(700));
+    assert!(child.try_wait().unwrap().is_none(), "the run ended before the signal");
+    let sent = Command::new("kill").args([format!("-{signal}"), child.id().to_string()]).status().unwrap();
+    assert!(sent.success());
+    let t = Instant::now();
+    let status = child.wait_with_output().unwrap();
+    assert!(t.elapsed() < Duration::from_secs(10), "slow to stop: {:?}", t.elapsed());
+    assert_eq!(status.status.code(), Some(expect), "{}", String::from_utf8_lossy(&status.stderr));
+    assert_eq!(std::fs::read(&out).unwrap(), b"an older orthophoto");
+    assert!(files_containing(dir.path(), "partial").is_empty(), "temporary file left behind");
+}
+
+#[test]
+fn sigterm_mid_run_removes_the_temporary_and_keeps_the_old_file() {
+    interrupt(15, 143);
+}
+
+#[test]
+fn sigint_mid_run_exits_130() {
+    interrupt(2, 130);
+}
+
+/// A full disk: a 2 MiB tmpfs, where root may mount one (CI runs as root).
+#[test]
+fn full_disk_is_a_clear_error_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let mnt = dir.path().join("small");
+    std::fs::create_dir(&mnt).unwrap();
+    let ok = Command::new("mount").args(["-t", "tmpfs", "-o", "size=2m", "tmpfs", s(&mnt)]).status().map(|s| s.success()).unwrap_or(false);
+    if !ok {
+        eprintln!("skipped: cannot mount a small tmpfs here (needs root)");
+        return;
+    }
+    let sc = scene(&dir.path().join("scene"), 600, |_| {});
+    let out = mnt.join("ortho.tif");
+    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--compress", "none", "--gsd", "2"]);
+    let err = String::from_utf8_lossy(&r.stderr).to_string();
+    let left = files_containing(&mnt, "");
+    let _ = Command::new("umount").arg(&mnt).status();
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.to_lowercase().contains("no space left"), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(left.is_empty(), "left behind: {left:?}");
+}

@@ -1,0 +1,254 @@
+//! Bad input never panics, never leaves a file behind, and is answered by
+//! one clear line naming the file and the problem, with a non-zero exit.
+//!
+//! The corpus lives in `tests/malformed/<what>/<kind>.<ext>`: one folder per
+//! input (scan, camera, dem), one file per kind of failure. It is made from
+//! the small scene in `fixtures/mini` by `regenerate_corpus` below (run it
+//! with `cargo test --test malformed -- --ignored` after changing it).
+
+mod common;
+use common::*;
+use std::path::{Path, PathBuf};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn mini(name: &str) -> PathBuf {
+    root().join("fixtures/mini").join(name)
+}
+
+/// Little-endian classic TIFF: the first IFD's entries as (entry offset, tag, type, count, value/offset).
+fn entries(b: &[u8]) -> Vec<(usize, u16, u16, u32, u32)> {
+    let u16at = |o: usize| u16::from_le_bytes([b[o], b[o + 1]]);
+    let u32at = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap());
+    let ifd = u32at(4) as usize;
+    (0..u16at(ifd) as usize)
+        .map(|k| {
+            let e = ifd + 2 + 12 * k;
+            (e, u16at(e), u16at(e + 2), u32at(e + 4), u32at(e + 8))
+        })
+        .collect()
+}
+
+/// Sets the first value of `tag` (SHORT or LONG; inline or in an array).
+fn patch(b: &mut [u8], tag: u16, value: u32) {
+    let (e, _, ty, count, v) = *entries(b).iter().find(|x| x.1 == tag).unwrap_or_else(|| panic!("tag {tag} present"));
+    let inline = (ty == 3 && count <= 2) || (ty == 4 && count <= 1);
+    let at = if inline { e + 8 } else { v as usize };
+    match ty {
+        3 => b[at..at + 2].copy_from_slice(&(value as u16).to_le_bytes()),
+        4 => b[at..at + 4].copy_from_slice(&value.to_le_bytes()),
+        _ => panic!("tag {tag} has type {ty}"),
+    }
+}
+
+fn tag_value(b: &[u8], tag: u16) -> u32 {
+    let (_, _, ty, count, v) = *entries(b).iter().find(|x| x.1 == tag).unwrap();
+    if (ty == 3 && count <= 2) || (ty == 4 && count <= 1) {
+        if ty == 3 { v & 0xffff } else { v }
+    } else {
+        u32::from_le_bytes(b[v as usize..v as usize + 4].try_into().unwrap())
+    }
+}
+
+#[test]
+#[ignore = "writes the corpus into the source tree"]
+fn regenerate_corpus() {
+    let dir = root().join("tests/malformed");
+    let scan = std::fs::read(mini("scan.tif")).unwrap();
+    let w = |sub: &str, name: &str, data: &[u8]| {
+        std::fs::create_dir_all(dir.join(sub)).unwrap();
+        std::fs::write(dir.join(sub).join(name), data).unwrap();
+    };
+    // --- scans ---
+    w("scan", "empty.tif", b"");
+    w("scan", "not_a_tiff.tif", b"This is a text file, not an image.\n");
+    w("scan", "header_only.tif", &scan[..8]);
+    let strip0 = tag_value(&scan, 273) as usize;
+    w("scan", "cut_in_strip.tif", &scan[..strip0 + 1000]);
+    w("scan", "cut_in_ifd.tif", &scan[..scan.len() - 40]);
+    let mut b = scan.clone();
+    b[4..8].copy_from_slice(&0x7fff_fff0u32.to_le_bytes());
+    w("scan", "ifd_offset_past_end.tif", &b);
+    let mut b = scan.clone();
+    b[4..8].copy_from_slice(&8u32.to_le_bytes()); // IFD read from pixel data
+    w("scan", "ifd_points_into_pixels.tif", &b);
+    let mut b = scan.clone();
+    patch(&mut b, 256, 0xffff_ffff);
+    patch(&mut b, 257, 0xffff_ffff);
+    w("scan", "absurd_size.tif", &b);
+    let mut b = scan.clone();
+    patch(&mut b, 279, 0x7fff_0000);
+    w("scan", "strip_bytes_past_end.tif", &b);
+    let mut b = scan.clone();
+    patch(&mut b, 339, 2);
+    w("scan", "signed_samples.tif", &b);
+    let mut b = scan.clone();
+    patch(&mut b, 258, 1);
+    w("scan", "one_bit.tif", &b);
+    let mut b = scan.clone();
+    patch(&mut b, 262, 3);
+    w("scan", "palette.tif", &b);
+    let mut b = scan.clone();
+    patch(&mut b, 259, 8); // claims deflate, holds raw pixels
+    w("scan", "strip_does_not_decompress.tif", &b);
+    let mut b = scan.clone();
+    patch(&mut b, 278, 1); // one row per strip, but only the original strip table
+    w("scan", "strip_table_too_short.tif", &b);
+
+    // --- cameras ---
+    let cam = std::fs::read_to_string(mini("camera.toml")).unwrap();
+    let c = |name: &str, text: String| w("camera", name, text.as_bytes());
+    let drop_line = |key: &str| cam.lines().filter(|l| !l.trim_start().starts_with(key)).collect::<Vec<_>>().join("\n");
+    c("missing_crs.toml", drop_line("crs ="));
+    c("missing_focal.toml", drop_line("focal_length_mm"));
+    c("missing_position.toml", drop_line("position"));
+    c("missing_angles.toml", drop_line("angles_deg"));
+    c("missing_convention.toml", drop_line("convention"));
+    c("missing_fiducials_px.toml", drop_line("fiducials_px"));
+    c("unknown_field.toml", cam.replace("focal_length_mm", "focal_lenght_mm"));
+    c("wrong_type.toml", cam.replace("focal_length_mm = 152.0", "focal_length_mm = \"152\""));
+    c("nan_focal.toml", cam.replace("focal_length_mm = 152.0", "focal_length_mm = nan"));
+    let pos_line = cam.lines().find(|l| l.starts_with("position")).unwrap().to_string();
+    c("inf_position.toml", cam.replace(&pos_line, "position = [inf, 4890000.0, 1820.0]"));
+    c("negative_focal.toml", cam.replace("focal_length_mm = 152.0", "focal_length_mm = -152.0"));
+    c("unknown_convention.toml", cam.replace("alpha-omega-kappa", "kappa-phi-omega"));
+    c("bad_crs.toml", cam.replace("EPSG:32631", "UTM31"));
+    c("unknown_model.toml", cam.replace("model = \"frame\"", "model = \"pushbroom\""));
+    let fid_line = cam.lines().find(|l| l.starts_with("fiducials_mm")).unwrap().to_string();
+    c("collinear_fiducials.toml", cam.replace(&fid_line, "fiducials_mm = [[-117.5, -117.5], [0.0, 0.0], [117.5, 117.5], [50.0, 50.0]]"));
+    c("not_toml.toml", "this is [not toml\n".into());
+
+    // --- DEMs ---
+    let dem = std::fs::read(mini("dem.tif")).unwrap();
+    let mut b = dem.clone();
+    patch(&mut b, 339, 2); // 32-bit signed integers are fine; make it 1-bit instead
+    patch(&mut b, 258, 1);
+    w("dem", "one_bit.tif", &b);
+    w("dem", "three_bands.tif", &std::fs::read(mini("scan.tif")).map(|_| rgb_dem()).unwrap());
+    w("dem", "truncated.tif", &dem[..dem.len() / 2]);
+    w("dem", "no_georeferencing.tif", &std::fs::read(mini("scan.tif")).unwrap());
+    let keys = dem_with_epsg(&dem, 4326);
+    w("dem", "other_crs.tif", &keys);
+    w("dem", "all_nodata.tif", &dem_all_nodata(&dem));
+    w("dem", "far_away.tif", &dem_shifted(&dem, 50_000.0));
+}
+
+/// A 3-band GeoTIFF where a DEM is expected.
+fn rgb_dem() -> Vec<u8> {
+    use gcm_ortho::io::tiff_out::*;
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("rgb.tif");
+    let spec = OutputSpec {
+        width: 8, height: 8, bands: 3, sample: gcm_ortho::io::source::SampleType::U8, chunking: Chunking::Strips(8),
+        compression: Compression::None, bigtiff: false, photometric: 2, alpha: false,
+        geo: Some(GeoTags { x0: 649000.0, y0: 4891000.0, gsd: 100.0, epsg: 32631, nodata: None }),
+    };
+    write_raster(&p, &spec, |_, _, buf| buf.fill(100)).unwrap();
+    std::fs::read(&p).unwrap()
+}
+
+fn dem_with_epsg(dem: &[u8], epsg: u16) -> Vec<u8> {
+    let mut b = dem.to_vec();
+    let (_, _, _, _, off) = *entries(&b).iter().find(|x| x.1 == 34735).unwrap();
+    let off = off as usize;
+    // keys: header (4 shorts), then (id, location, count, value) × 3:
+    // model type, raster type, CRS. Make it a geographic CRS.
+    b[off + 2 * 7..off + 2 * 8].copy_from_slice(&2u16.to_le_bytes());
+    b[off + 2 * 12..off + 2 * 13].copy_from_slice(&2048u16.to_le_bytes());
+    b[off + 2 * 15..off + 2 * 16].copy_from_slice(&epsg.to_le_bytes());
+    b
+}
+
+fn dem_all_nodata(dem: &[u8]) -> Vec<u8> {
+    // Every sample NaN (Float32 nodata by definition).
+    let mut b = dem.to_vec();
+    let offs = tag_value(&b, 273) as usize;
+    let es = entries(&b);
+    let (_, _, _, count, table) = *es.iter().find(|x| x.1 == 273).unwrap();
+    let (_, _, _, _, counts) = *es.iter().find(|x| x.1 == 279).unwrap();
+    let u32at = |b: &[u8], o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap()) as usize;
+    for k in 0..count as usize {
+        let (o, n) = if count == 1 { (offs, u32at(&b, counts as usize)) } else { (u32at(&b, table as usize + 4 * k), u32at(&b, counts as usize + 4 * k)) };
+        for s in (o..o + n).step_by(4) {
+            b[s..s + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+        }
+    }
+    b
+}
+
+fn dem_shifted(dem: &[u8], dx: f64) -> Vec<u8> {
+    let mut b = dem.to_vec();
+    let (_, _, _, _, off) = *entries(&b).iter().find(|x| x.1 == 33922).unwrap();
+    let o = off as usize + 3 * 8;
+    let x = f64::from_le_bytes(b[o..o + 8].try_into().unwrap());
+    b[o..o + 8].copy_from_slice(&(x + dx).to_le_bytes());
+    b
+}
+
+/// Runs rectify with one bad input and the rest from `fixtures/mini`.
+fn check(what: &str, file: &Path) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.tif");
+    let (scan, cam, dem) = match what {
+        "scan" => (file.to_path_buf(), mini("camera.toml"), mini("dem.tif")),
+        "camera" => (mini("scan.tif"), file.to_path_buf(), mini("dem.tif")),
+        _ => (mini("scan.tif"), mini("camera.toml"), file.to_path_buf()),
+    };
+    let t = std::time::Instant::now();
+    let r = run(&["rectify", "--image", s(&scan), "--camera", s(&cam), "--dem", s(&dem), "-o", s(&out), "--quiet"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    let name = file.file_name().unwrap().to_str().unwrap();
+    assert!(!r.status.success(), "{what}/{name}: succeeded");
+    assert_eq!(r.status.code(), Some(1), "{what}/{name}: {err}");
+    assert!(!err.contains("panicked"), "{what}/{name}: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{what}/{name}: not one line: {err}");
+    assert!(err.contains(name), "{what}/{name}: the message does not name the file: {err}");
+    assert!(!out.exists(), "{what}/{name}: an output was left");
+    assert!(files_containing(dir.path(), "partial").is_empty(), "{what}/{name}: a temporary file was left");
+    assert!(t.elapsed().as_secs() < 20, "{what}/{name}: took {:?}", t.elapsed());
+}
+
+#[test]
+fn every_malformed_input_fails_cleanly() {
+    let mut n = 0;
+    for what in ["scan", "camera", "dem"] {
+        let dir = root().join("tests/malformed").join(what);
+        let mut files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
+        files.sort();
+        for f in files {
+            check(what, &f);
+            n += 1;
+        }
+    }
+    assert!(n >= 35, "only {n} malformed files");
+}
+
+#[test]
+fn the_good_fixture_works() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.tif");
+    let r = run(&["rectify", "--image", s(&mini("scan.tif")), "--camera", s(&mini("camera.toml")), "--dem", s(&mini("dem.tif")), "-o", s(&out), "--quiet"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(out.exists());
+}
+
+#[test]
+fn unwritable_output_folder_fails_before_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("no/such/folder/out.tif");
+    let r = run(&["rectify", "--image", s(&mini("scan.tif")), "--camera", s(&mini("camera.toml")), "--dem", s(&mini("dem.tif")), "-o", s(&out), "--quiet"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(err.contains("no/such/folder") && err.trim_end().lines().count() == 1, "{err}");
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    let r = run(&["rectify", "--image", "a.tif", "--camera", "c.toml", "-o", "o.tif"]);
+    assert_eq!(r.status.code(), Some(2), "{}", String::from_utf8_lossy(&r.stderr));
+    let r = run(&["rectify", "--image", "a.tif", "--camera", "c.toml", "--height", "10", "--memory", "lots", "-o", "o.tif"]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("--memory"));
+}
