@@ -1,1 +1,92 @@
-fn main(){}
+//! Cost per output pixel of the exact mapping `T` against filling rows from
+//! `A` + GCM at several sparsities, and of the resampling kernels.
+//! `cargo bench --bench gcm`; throughput is in output pixels.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use gcm_ortho::camera::atmosphere::Refraction;
+use gcm_ortho::camera::distortion::Distortion;
+use gcm_ortho::camera::interior::InteriorOrientation;
+use gcm_ortho::camera::rotation::AngleConvention;
+use gcm_ortho::camera::FrameCamera;
+use gcm_ortho::dem::{Dem, GridDem};
+use gcm_ortho::gcm::{CorrectionMode, Gcm, GcmSpec};
+use gcm_ortho::geom::OutputGrid;
+use gcm_ortho::io::source::Window;
+use gcm_ortho::resample::{resample_row, Kernel, View};
+use gcm_ortho::transform::{Approx, Transform};
+use nalgebra::Vector3;
+use std::path::Path;
+
+const W: u32 = 2048;
+const ROWS: u32 = 64;
+
+fn scene() -> (FrameCamera, Dem, OutputGrid) {
+    let io = InteriorOrientation::digital(0.012, [10000.0, 10000.0]).unwrap();
+    let r = AngleConvention::AlphaOmegaKappa.matrix([0.01, -0.02, 0.5]);
+    let cam = FrameCamera::new(152.0, Vector3::new(5000.0, 5000.0, 1800.0), r, io, Distortion::Radial([0.0, 1.5e-7, -2e-9]), Refraction::Auto, true);
+    let (n, post) = (1000usize, 5.0);
+    let data = (0..n * n)
+        .map(|k| {
+            let (x, y) = ((k % n) as f64 * post, (k / n) as f64 * post);
+            (300.0 + 40.0 * ((x / 310.0).sin() * (y / 270.0).cos())) as f32
+        })
+        .collect();
+    let dem = Dem::grid(GridDem::new(n, n, data, [2500.0, post, 0.0, 7500.0, 0.0, -post], None, None), Path::new("bench"));
+    let grid = OutputGrid { x0: 4000.0, y0: 6000.0, gsd: 0.12, width: W, height: ROWS };
+    (cam, dem, grid)
+}
+
+fn mapping(c: &mut Criterion) {
+    let (cam, dem, grid) = scene();
+    let t = Transform::new(&cam, &dem, grid);
+    let a = Approx::new(&cam, &grid, dem.trend_plane([4000.0, 5990.0, 4250.0, 6000.0]).unwrap()).unwrap();
+    let mut g = c.benchmark_group("map_rows");
+    g.throughput(Throughput::Elements((W * ROWS) as u64));
+    let mut cols = vec![0.0; W as usize];
+    let mut rows = vec![0.0; W as usize];
+    g.bench_function("exact_T", |b| {
+        b.iter(|| {
+            for y in 0..ROWS {
+                t.exact_row(y as f64 + 0.5, 0.5, &mut cols, &mut rows);
+            }
+        })
+    });
+    for k in [1u32, 4, 8, 16, 32] {
+        for mode in [CorrectionMode::Cell, CorrectionMode::Bilinear] {
+            let gcm = Gcm::new(&t, a, GcmSpec { k, mode, max_error: None });
+            let name = format!("{mode:?}").to_lowercase();
+            g.bench_with_input(BenchmarkId::new(name, k), &k, |b, _| {
+                b.iter(|| {
+                    let band = gcm.prepare(0, ROWS);
+                    let mut miss = None;
+                    for y in 0..ROWS {
+                        gcm.fill_row(&band, y, 0, &mut cols, &mut rows, &mut miss);
+                    }
+                })
+            });
+        }
+    }
+    g.finish();
+}
+
+fn kernels(c: &mut Criterion) {
+    let (w, h) = (1024u32, 1024u32);
+    let bytes: Vec<u8> = (0..w * h * 3).map(|i| (i.wrapping_mul(2654435761) >> 24) as u8).collect();
+    let win = Window::from_bytes(0, 0, w, h, &bytes);
+    let view = View::<u8>::new(&win, 3, w, h);
+    let n = 1000usize;
+    // A rotated, slightly scaled walk through the window.
+    let cols: Vec<f64> = (0..n).map(|i| 100.3 + i as f64 * 0.87).collect();
+    let rows: Vec<f64> = (0..n).map(|i| 200.7 + i as f64 * 0.5).collect();
+    let mut out = vec![0u8; n * 3];
+    let mut valid = vec![false; n];
+    let mut g = c.benchmark_group("resample_rgb8");
+    g.throughput(Throughput::Elements(n as u64));
+    for k in [Kernel::Nearest, Kernel::Bilinear, Kernel::Cubic, Kernel::Lanczos3] {
+        g.bench_function(format!("{k:?}").to_lowercase(), |b| b.iter(|| resample_row(k, &view, &cols, &rows, &mut out, &mut valid, 0)));
+    }
+    g.finish();
+}
+
+criterion_group!(benches, mapping, kernels);
+criterion_main!(benches);

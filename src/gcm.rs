@@ -307,11 +307,7 @@ impl<'a> Gcm<'a> {
         match self.spec.mode {
             CorrectionMode::Cell => (x0 as usize / k, x1 / k),
             CorrectionMode::Bilinear => {
-                let seg = |x: usize| {
-                    let t = (x as f64 + 0.5) * self.inv_k - 0.5;
-                    let i0 = crate::resample::floor_i64(t).clamp(self.first_node, self.first_node + self.nodes_x as i64 - 2);
-                    (i0 - self.first_node) as usize
-                };
+                let seg = |x: usize| (self.segment(x) - self.first_node) as usize;
                 (seg(x0 as usize), seg(x1) + 1)
             }
         }
@@ -338,58 +334,85 @@ impl<'a> Gcm<'a> {
             cc.push(a.dc[i] + fy * (b.dc[i] - a.dc[i]));
             cr.push(a.dr[i] + fy * (b.dr[i] - a.dr[i]));
         }
-        // Highest left node of a segment (bilinear mode has n ≥ 3 nodes).
-        let hi = self.first_node + n as i64 - 2;
         let k = self.spec.k as usize;
+        let len = cols.len();
+        let x_end = x0 as usize + len;
+        // Pass 1, segment by segment (a cell, or the stretch between two
+        // nodes): A plus the linearly varying correction. No branches inside,
+        // so the compiler can vectorise it.
+        let mut p = 0usize;
+        while p < len {
+            let x = x0 as usize + p;
+            let (i, seg_end, base) = match self.spec.mode {
+                CorrectionMode::Cell => (x / k, ((x / k + 1) * k).min(x_end), 0.0),
+                CorrectionMode::Bilinear => {
+                    let i0 = self.segment(x);
+                    // First pixel of the next segment: t(x) ≥ i0 + 1.
+                    let next = if i0 - self.first_node + 2 >= n as i64 {
+                        x_end
+                    } else {
+                        ((k as f64 * (i0 as f64 + 1.5) - 0.5).ceil() as usize).clamp(x + 1, x_end)
+                    };
+                    ((i0 - self.first_node) as usize, next, i0 as f64 + 0.5)
+                }
+            };
+            let il = i - lo;
+            let refined = cells.and_then(|c| c.get(i)).is_some_and(|q| q.is_some());
+            let (oc, or) = (&mut cols[p..seg_end - x0 as usize], &mut rows[p..seg_end - x0 as usize]);
+            if refined {
+                let q = cells.and_then(|c| c[i].as_ref()).expect("refined cell");
+                for (m, (oc, or)) in oc.iter_mut().zip(or.iter_mut()).enumerate() {
+                    let u = (x + m) as f64 + 0.5;
+                    let (ac, ar) = ra.at(u);
+                    let c = leaf(q, u, v).map(|l| bilerp(&l.corners, (u - l.u0) / l.size, (v - l.v0) / l.size)).unwrap_or([f64::NAN; 2]);
+                    *oc = ac + c[0];
+                    *or = ar + c[1];
+                }
+            } else {
+                let (c0, r0) = (cc[il], cr[il]);
+                let (sc, sr) = match self.spec.mode {
+                    CorrectionMode::Cell => (0.0, 0.0),
+                    CorrectionMode::Bilinear => (cc[il + 1] - c0, cr[il + 1] - r0),
+                };
+                let inv_k = self.inv_k;
+                for (m, (oc, or)) in oc.iter_mut().zip(or.iter_mut()).enumerate() {
+                    let u = (x + m) as f64 + 0.5;
+                    let inv = 1.0 / (ra.e * u + ra.f);
+                    let fx = u * inv_k - base;
+                    *oc = (ra.m * u + ra.n) * inv + c0 + fx * sc;
+                    *or = (ra.p * u + ra.q) * inv + r0 + fx * sr;
+                }
+            }
+            p = seg_end - x0 as usize;
+        }
+        // Pass 2: where a node had no value, or the plane of A is behind the
+        // camera (its denominator is linear in u: check the ends first),
+        // fall back to T itself.
+        let den = |x: usize| ra.e * (x as f64 + 0.5) + ra.f;
+        let den_ok = den(x0 as usize) > 0.0 && den(x_end.saturating_sub(1)) > 0.0;
         let mut fallback = 0;
         for (m, (oc, or)) in cols.iter_mut().zip(rows.iter_mut()).enumerate() {
             let x = x0 as usize + m;
-            let u = x as f64 + 0.5;
-            // A: one reciprocal.
-            let den = ra.e * u + ra.f;
-            let inv = 1.0 / den;
-            let ac = (ra.m * u + ra.n) * inv;
-            let ar = (ra.p * u + ra.q) * inv;
-            let (dc, dr) = match self.spec.mode {
-                CorrectionMode::Cell => {
-                    let i = x / k - lo;
-                    (cc[i], cr[i])
-                }
-                CorrectionMode::Bilinear => {
-                    let t = u * self.inv_k - 0.5;
-                    let i0 = crate::resample::floor_i64(t).clamp(self.first_node, hi);
-                    let fx = t - i0 as f64;
-                    let i = (i0 - self.first_node) as usize;
-                    let il = i - lo;
-                    match cells.and_then(|c| c[i].as_ref()) {
-                        Some(q) => match leaf(q, u, v) {
-                            Some(leaf) => {
-                                let c = bilerp(&leaf.corners, (u - leaf.u0) / leaf.size, (v - leaf.v0) / leaf.size);
-                                (c[0], c[1])
-                            }
-                            None => (f64::NAN, f64::NAN),
-                        },
-                        None => (cc[il] + fx * (cc[il + 1] - cc[il]), cr[il] + fx * (cr[il + 1] - cr[il])),
-                    }
-                }
-            };
-            let (c, r) = (ac + dc, ar + dr);
-            if c.is_nan() || r.is_nan() || !(den > 0.0) {
+            if oc.is_nan() || or.is_nan() || (!den_ok && !(den(x) > 0.0)) {
                 fallback += 1;
-                (*oc, *or) = match self.t.exact(u, v) {
+                (*oc, *or) = match self.t.exact(x as f64 + 0.5, v) {
                     Mapped::Px(c, r) => (c, r),
                     Mapped::Nodata => (f64::NAN, f64::NAN),
-                    Mapped::DemMiss(x, y, l) => {
-                        miss.get_or_insert((x, y, l));
+                    Mapped::DemMiss(gx, gy, l) => {
+                        miss.get_or_insert((gx, gy, l));
                         (f64::NAN, f64::NAN)
                     }
                 };
-            } else {
-                *oc = c;
-                *or = r;
             }
         }
         fallback
+    }
+
+    /// The bilinear segment (absolute index of its left node) of column `x`.
+    #[inline]
+    fn segment(&self, x: usize) -> i64 {
+        let t = (x as f64 + 0.5) * self.inv_k - 0.5;
+        crate::resample::floor_i64(t).clamp(self.first_node, self.first_node + self.nodes_x as i64 - 2)
     }
 }
 

@@ -52,7 +52,8 @@ fn source_bbox(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, x0: u32, x1: u32
 }
 
 /// Splits band rows `[y0, y1)` into chunks of whole tiles whose scan windows
-/// hold at most `budget_px` pixels (a single tile may exceed it).
+/// hold at most `budget_px` pixels and that count at most `max_tiles`
+/// tiles (a single tile may exceed the budget).
 pub fn plan_band(
     gcm: &Gcm<'_>,
     band: &BandGcm,
@@ -62,6 +63,7 @@ pub fn plan_band(
     scan: (u32, u32),
     margin: u32,
     budget_px: u64,
+    max_tiles: u32,
 ) -> Vec<Chunk> {
     let width = gcm.t.grid.width;
     let tiles = width.div_ceil(tile);
@@ -87,7 +89,7 @@ pub fn plan_band(
         let bb = source_bbox(gcm, band, y0, y1, x0, x1);
         let merged = union(acc, bb);
         let fits = merged.map(|m| area(&clip(m)) <= budget_px).unwrap_or(true);
-        if t > start && !fits {
+        if t > start && (!fits || t - start >= max_tiles) {
             chunks.push(Chunk { x0: start * tile, x1: x0, win: acc.map(clip).unwrap_or([0; 4]) });
             start = t;
             acc = bb;

@@ -100,7 +100,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
 
     let camera = Camera::read(&cfg.camera)?;
     let model = &camera.frame;
-    let src = SourceImage::open(&cfg.image, (cfg.memory / 8) as usize)?;
+    let src = SourceImage::open(&cfg.image, (cfg.memory / 12) as usize)?;
     let mut dem = match &cfg.dem {
         DemSource::File(p) => {
             let g = GridDem::read(p)?;
@@ -188,8 +188,15 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let (tx_dem, rx_dem) = bounded::<DemMsg>(2);
     let (tx_gcm, rx_gcm) = bounded::<Arc<BandGcm>>(2);
     let (tx_read, rx_read) = bounded::<ReadMsg>(1);
-    let (tx_raw, rx_raw) = bounded::<RawChunk>(2);
-    let (tx_enc, rx_enc) = bounded::<Vec<u8>>(2 * spec.tiles_across() as usize + 8);
+    // The memory plan: three scan windows in flight (being read, queued,
+    // being resampled), three output chunks (being made, queued, being
+    // encoded) and a queue of encoded tiles, each share a twelfth of the
+    // budget; what is left covers the DEM, the GCM rows and the threads.
+    let share = cfg.memory / 12;
+    let budget_px = share / src.info.pixel_bytes().max(1) as u64;
+    let max_tiles = (share / spec.tile_bytes() as u64).max(1) as u32;
+    let (tx_raw, rx_raw) = bounded::<RawChunk>(1);
+    let (tx_enc, rx_enc) = bounded::<Vec<u8>>(max_tiles.max(4) as usize);
 
     let fail = |e: Error| {
         failed.store(true, Ordering::Relaxed);
@@ -246,11 +253,10 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         let h_read = s.spawn(|| {
             let mut busy = Duration::ZERO;
             let margin = cfg.kernel.radius() + 2;
-            let budget_px = (cfg.memory / 8) / src.info.pixel_bytes().max(1) as u64;
             for (b, band) in rx_gcm.iter().enumerate() {
                 let b = b as u32;
                 let (y0, y1) = band_rows(&grid, cfg.tile, b);
-                let chunks = timed(&mut busy, || plan_band(&gcm, &band, y0, y1, cfg.tile, (sw, sh), margin, budget_px));
+                let chunks = timed(&mut busy, || plan_band(&gcm, &band, y0, y1, cfg.tile, (sw, sh), margin, budget_px, max_tiles));
                 for chunk in chunks {
                     if stop() {
                         return Err(Error::Cancelled);
@@ -472,30 +478,40 @@ fn resample_chunk<T: Sample>(
         SampleType::F32 => 1.0,
     });
     let mut out = vec![T::default(); (y1 - y0) as usize * w * bo];
+    // Rows in parallel; each row in segments of `SEG` pixels so that the
+    // coordinates stay in L1 between the GCM and the kernel.
+    const SEG: usize = 1024;
     let misses: Vec<Option<(f64, f64, Lookup)>> = out
         .par_chunks_mut(w * bo)
         .enumerate()
         .map_init(
-            || (vec![0.0f64; w], vec![0.0f64; w], vec![T::default(); w * bands_in], vec![false; w]),
+            || (vec![0.0f64; SEG], vec![0.0f64; SEG], vec![T::default(); SEG * bands_in], vec![false; SEG]),
             |(cols, rows, px, valid), (k, row_out)| {
                 let y = y0 + k as u32;
                 let mut miss = None;
-                gcm.fill_row(&msg.gcm, y, x0, cols, rows, &mut miss);
-                resample_row(cfg.kernel, &view, cols, rows, px, valid, fill);
-                // Pixels whose kernel would leave the window: read their
-                // neighbourhood on their own (rare; the plan adds a margin).
-                for i in 0..w {
-                    let (c, rr) = (cols[i], rows[i]);
-                    if valid[i] && !(c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3]) {
-                        single_pixel(src, cfg, c, rr, &mut px[i * bands_in..(i + 1) * bands_in], fill);
+                for s0 in (0..w).step_by(SEG) {
+                    let n = SEG.min(w - s0);
+                    let (cols, rows, valid) = (&mut cols[..n], &mut rows[..n], &mut valid[..n]);
+                    gcm.fill_row(&msg.gcm, y, x0 + s0 as u32, cols, rows, &mut miss);
+                    let seg_out = &mut row_out[s0 * bo..(s0 + n) * bo];
+                    let direct = bo == bands_in;
+                    {
+                        let px: &mut [T] = if direct { &mut *seg_out } else { &mut px[..n * bands_in] };
+                        resample_row(cfg.kernel, &view, cols, rows, px, valid, fill);
+                        // Pixels whose kernel would leave the window: read their
+                        // neighbourhood on their own (rare; the plan adds a margin).
+                        for i in 0..n {
+                            let (c, rr) = (cols[i], rows[i]);
+                            if valid[i] && !(c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3]) {
+                                single_pixel(src, cfg, c, rr, &mut px[i * bands_in..(i + 1) * bands_in], fill);
+                            }
+                        }
                     }
-                }
-                if bo == bands_in {
-                    row_out.copy_from_slice(px);
-                } else {
-                    for i in 0..w {
-                        row_out[i * bo..i * bo + bands_in].copy_from_slice(&px[i * bands_in..(i + 1) * bands_in]);
-                        row_out[i * bo + bands_in] = if valid[i] { opaque } else { T::default() };
+                    if !direct {
+                        for i in 0..n {
+                            seg_out[i * bo..i * bo + bands_in].copy_from_slice(&px[i * bands_in..(i + 1) * bands_in]);
+                            seg_out[i * bo + bands_in] = if valid[i] { opaque } else { T::default() };
+                        }
                     }
                 }
                 miss

@@ -46,15 +46,46 @@ impl Kernel {
     }
 }
 
+/// Bilinear weights of one position: as floats and as 10-bit fixed point.
+#[derive(Clone, Copy)]
+pub struct Weights {
+    pub fx: f32,
+    pub fy: f32,
+    pub ix: u32,
+    pub iy: u32,
+}
+
+impl Weights {
+    #[inline]
+    fn new(fx: f64, fy: f64) -> Weights {
+        Weights { fx: fx as f32, fy: fy as f32, ix: (fx * 1024.0 + 0.5) as u32, iy: (fy * 1024.0 + 0.5) as u32 }
+    }
+}
+
 /// A sample type the kernels read and write.
 pub trait Sample: Copy + Default + Send + Sync + bytemuck::Pod {
     const TYPE: SampleType;
     fn to_f32(self) -> f32;
     fn from_f32(v: f32) -> Self;
+    /// Bilinear interpolation of four neighbours (integers in fixed point,
+    /// rounded half up: exact to the sample's own precision).
+    #[inline]
+    fn bilerp(p00: Self, p10: Self, p01: Self, p11: Self, w: Weights) -> Self {
+        let top = p00.to_f32() + w.fx * (p10.to_f32() - p00.to_f32());
+        let bot = p01.to_f32() + w.fx * (p11.to_f32() - p01.to_f32());
+        Self::from_f32(top + w.fy * (bot - top))
+    }
 }
 
 impl Sample for u8 {
     const TYPE: SampleType = SampleType::U8;
+    #[inline]
+    fn bilerp(p00: u8, p10: u8, p01: u8, p11: u8, w: Weights) -> u8 {
+        let (ax, ay) = (1024 - w.ix, 1024 - w.iy);
+        let top = p00 as u32 * ax + p10 as u32 * w.ix;
+        let bot = p01 as u32 * ax + p11 as u32 * w.ix;
+        ((top * ay + bot * w.iy + (1 << 19)) >> 20) as u8
+    }
     #[inline]
     fn to_f32(self) -> f32 {
         self as f32
@@ -67,6 +98,14 @@ impl Sample for u8 {
 }
 impl Sample for u16 {
     const TYPE: SampleType = SampleType::U16;
+    #[inline]
+    fn bilerp(p00: u16, p10: u16, p01: u16, p11: u16, w: Weights) -> u16 {
+        let (ax, ay) = ((1024 - w.ix) as u64, (1024 - w.iy) as u64);
+        let (ix, iy) = (w.ix as u64, w.iy as u64);
+        let top = p00 as u64 * ax + p10 as u64 * ix;
+        let bot = p01 as u64 * ax + p11 as u64 * ix;
+        ((top * ay + bot * iy + (1 << 19)) >> 20) as u16
+    }
     #[inline]
     fn to_f32(self) -> f32 {
         self as f32
@@ -183,6 +222,13 @@ pub fn resample_row<T: Sample>(
     valid: &mut [bool],
     fill: T,
 ) {
+    // The common kernels with the band count known at compile time.
+    match (kernel, view.bands) {
+        (Kernel::Bilinear, 1) => return bilinear_row::<T, 1>(view, cols, rows, out, valid, fill),
+        (Kernel::Bilinear, 3) => return bilinear_row::<T, 3>(view, cols, rows, out, valid, fill),
+        (Kernel::Bilinear, 4) => return bilinear_row::<T, 4>(view, cols, rows, out, valid, fill),
+        _ => {}
+    }
     let b = view.bands;
     let mut acc = [0f32; 4];
     for (i, (&c, &r)) in cols.iter().zip(rows).enumerate() {
@@ -201,7 +247,7 @@ pub fn resample_row<T: Sample>(
             Kernel::Bilinear => {
                 let (x, y) = (c - 0.5, r - 0.5);
                 let (xi, yi) = (floor_i64(x), floor_i64(y));
-                let (fx, fy) = ((x - xi as f64) as f32, (y - yi as f64) as f32);
+                let w = Weights::new(x - xi as f64, y - yi as f64);
                 let (i0, j0) = (xi - view.x0, yi - view.y0);
                 let (s00, s10, s01, s11) = if i0 >= 0 && j0 >= 0 && i0 + 1 < view.w && j0 + 1 < view.h {
                     let s = (j0 * view.w + i0) as usize * b;
@@ -212,9 +258,7 @@ pub fn resample_row<T: Sample>(
                 };
                 let d = view.data;
                 for k in 0..b {
-                    let top = d[s00 + k].to_f32() + fx * (d[s10 + k].to_f32() - d[s00 + k].to_f32());
-                    let bot = d[s01 + k].to_f32() + fx * (d[s11 + k].to_f32() - d[s01 + k].to_f32());
-                    px[k] = T::from_f32(top + fy * (bot - top));
+                    px[k] = T::bilerp(d[s00 + k], d[s10 + k], d[s01 + k], d[s11 + k], w);
                 }
             }
             Kernel::Cubic => {
@@ -261,6 +305,35 @@ pub fn resample_row<T: Sample>(
     }
 }
 
+/// Bilinear with `B` bands: the same arithmetic as the generic path.
+fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], rows: &[f64], out: &mut [T], valid: &mut [bool], fill: T) {
+    let d = view.data;
+    let row = view.w as usize * B;
+    for (i, (&c, &r)) in cols.iter().zip(rows).enumerate() {
+        let px: &mut [T; B] = (&mut out[i * B..(i + 1) * B]).try_into().expect("B samples");
+        if !(c >= 0.0 && r >= 0.0 && c < view.img_w && r < view.img_h) {
+            *px = [fill; B];
+            valid[i] = false;
+            continue;
+        }
+        valid[i] = true;
+        let (x, y) = (c - 0.5, r - 0.5);
+        let (xi, yi) = (floor_i64(x), floor_i64(y));
+        let w = Weights::new(x - xi as f64, y - yi as f64);
+        let (i0, j0) = (xi - view.x0, yi - view.y0);
+        let (s00, s10, s01, s11) = if i0 >= 0 && j0 >= 0 && i0 + 1 < view.w && j0 + 1 < view.h {
+            let s = (j0 * view.w + i0) as usize * B;
+            (s, s + B, s + row, s + row + B)
+        } else {
+            (view.at(i0, j0), view.at(i0 + 1, j0), view.at(i0, j0 + 1), view.at(i0 + 1, j0 + 1))
+        };
+        let (p00, p10, p01, p11) = (&d[s00..s00 + B], &d[s10..s10 + B], &d[s01..s01 + B], &d[s11..s11 + B]);
+        for k in 0..B {
+            px[k] = T::bilerp(p00[k], p10[k], p01[k], p11[k], w);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -288,6 +361,23 @@ mod tests {
     }
 
     #[test]
+    fn fixed_point_bilinear_matches_float_to_half_a_level() {
+        let w = Weights::new(0.37, 0.81);
+        for (a, b, c, d) in [(0u8, 255u8, 17u8, 200u8), (255, 255, 255, 255), (0, 0, 0, 0), (10, 20, 30, 40)] {
+            let f = {
+                let top = a as f32 + 0.37 * (b as f32 - a as f32);
+                let bot = c as f32 + 0.37 * (d as f32 - c as f32);
+                top + 0.81 * (bot - top)
+            };
+            let i = u8::bilerp(a, b, c, d, w) as f32;
+            assert!((i - f).abs() <= 0.5 + 0.26, "{a} {b} {c} {d}: {i} vs {f}");
+            let i16v = u16::bilerp(a as u16 * 257, b as u16 * 257, c as u16 * 257, d as u16 * 257, w) as f32;
+            assert!((i16v - f * 257.0).abs() <= 0.5 + 0.26 * 257.0, "{i16v} vs {}", f * 257.0);
+        }
+        assert_eq!(u8::bilerp(255, 255, 255, 255, Weights::new(0.999, 0.999)), 255);
+    }
+
+    #[test]
     fn bilinear_reproduces_a_linear_ramp() {
         // At (2.0, 2.5): x = 1.5 → 15, y = 2.0 → +2.
         assert_eq!(one(Kernel::Bilinear, 2.0, 2.5), Some(17));
@@ -304,6 +394,29 @@ mod tests {
         // (2.0, 2.5) → x = 1.5, y = 2.0: 15 + 2; (2.2, 1.5) → 17 + 1.
         assert_eq!(one(Kernel::Cubic, 2.0, 2.5), Some(17));
         assert_eq!(one(Kernel::Cubic, 2.2, 1.5), Some(18));
+    }
+
+    #[test]
+    fn bilinear_fast_path_equals_the_generic_one() {
+        // Three bands take the const-generic path; compare with two calls
+        // over a one-band view of each band's samples.
+        let data: Vec<u8> = (0..4 * 4 * 3).map(|k| (k * 37 % 251) as u8).collect();
+        let win = Window::from_bytes(0, 0, 4, 4, &data);
+        let v3 = View::<u8>::new(&win, 3, 4, 4);
+        let (cols, rows) = ([0.3, 1.7, 2.2, 3.9, 0.01], [0.6, 2.5, 3.99, 1.1, 0.2]);
+        let mut out = [0u8; 15];
+        let mut ok = [false; 5];
+        resample_row(Kernel::Bilinear, &v3, &cols, &rows, &mut out, &mut ok, 0);
+        for band in 0..3 {
+            let one: Vec<u8> = data.iter().skip(band).step_by(3).copied().collect();
+            let w1 = Window::from_bytes(0, 0, 4, 4, &one);
+            let v1 = View::<u8>::new(&w1, 1, 4, 4);
+            let mut o1 = [0u8; 5];
+            resample_row(Kernel::Bilinear, &v1, &cols, &rows, &mut o1, &mut ok, 0);
+            for i in 0..5 {
+                assert_eq!(out[i * 3 + band], o1[i]);
+            }
+        }
     }
 
     #[test]
