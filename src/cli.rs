@@ -66,6 +66,10 @@ pub struct SynthArgs {
     pub seed: u64,
     #[arg(long)]
     pub quiet: bool,
+    /// Write only camera.toml, dem.tif and checkpoints.csv (no scan, no
+    /// truth): for `accuracy --size` studies of very large scans.
+    #[arg(long)]
+    pub no_scan: bool,
 }
 
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -98,6 +102,7 @@ impl SynthArgs {
             fiducials: self.fiducials,
             seed: self.seed,
             quiet: self.quiet,
+            no_scan: self.no_scan,
         })
     }
 }
@@ -261,6 +266,9 @@ pub struct AccuracyArgs {
     pub camera: Option<PathBuf>,
     #[arg(long)]
     pub dem: Option<PathBuf>,
+    /// Scan size WxH, when there is no scan file (`synth --no-scan`).
+    #[arg(long)]
+    pub size: Option<String>,
     /// Sparsities to tabulate.
     #[arg(long, default_value = "1,2,4,8,16,32", value_delimiter = ',')]
     pub sparsity: Vec<u32>,

@@ -122,9 +122,14 @@ fn scene_inputs(a: &AccuracyArgs) -> Result<(PathBuf, PathBuf, PathBuf)> {
 fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     let (image, camera, dem_path) = scene_inputs(a)?;
     let cam = Camera::read(&camera)?;
-    let src = SourceImage::open(&image, 1 << 20)?;
+    let (w, h) = match &a.size {
+        Some(sz) => crate::cli::parse_size(sz).map_err(usage)?,
+        None => {
+            let src = SourceImage::open(&image, 1 << 20)?;
+            (src.info.width, src.info.height)
+        }
+    };
     let dem = Dem::grid(GridDem::read(&dem_path)?, &dem_path);
-    let (w, h) = (src.info.width, src.info.height);
     let z0 = dem.mean_plane(dem_bounds(&dem)).map(|p| p.a).unwrap_or(0.0);
     let gsd = mean_gsd(&cam.frame, &dem, w, h, z0)?;
     let grid = auto_grid(&cam.frame, &dem, w, h, z0, gsd)?;

@@ -1,8 +1,8 @@
 //! Planning a band: which groups of output tiles ("chunks") to resample
 //! together, and which window of the scan each needs. Like GDAL's chunk
-//! list: the source window of a chunk is found from its output edges (and a
-//! coarse interior grid), and tiles are grouped left to right while the
-//! window stays under the memory budget.
+//! list: the source window of a chunk is found from a lattice of samples of
+//! `A + c`, and tiles are grouped left to right while the window stays under
+//! the memory budget.
 
 use crate::gcm::{BandGcm, Gcm};
 
@@ -17,38 +17,38 @@ pub struct Chunk {
     pub win: [u32; 4],
 }
 
-/// Source bounding box of output rows `[y0, y1)` × columns `[x0, x1)`, from
-/// their edges and every 16th row and column inside; `None` if no point maps.
-fn source_bbox(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, x0: u32, x1: u32) -> Option<[f64; 4]> {
-    let w = (x1 - x0) as usize;
+/// Source bounding boxes of the tiles of output rows `[y0, y1)`, from a
+/// lattice of samples: every 16th row and column, the band's first and last
+/// rows and every tile's first and last columns. `A + c` is smooth between
+/// samples; a pixel that still falls outside its window is read on its own
+/// by the resampler, so a box can never be wrong, only too small.
+fn tile_bboxes(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, tile: u32) -> Vec<Option<[f64; 4]>> {
+    let width = gcm.t.grid.width;
+    let tiles = width.div_ceil(tile) as usize;
+    let w = width as usize;
     let mut cols = vec![0.0; w];
     let mut rows = vec![0.0; w];
     let mut miss = None;
-    let mut b = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
-    let mut add = |c: f64, r: f64| {
-        if c.is_finite() && r.is_finite() {
-            b = [b[0].min(c), b[1].min(r), b[2].max(c), b[3].max(r)];
-        }
-    };
+    let mut boxes: Vec<Option<[f64; 4]>> = vec![None; tiles];
     let mut ys: Vec<u32> = (y0..y1).step_by(16).collect();
     ys.push(y1 - 1);
     for &y in &ys {
-        gcm.fill_row(band, y, x0, &mut cols, &mut rows, &mut miss);
-        let full = y == y0 || y == y1 - 1;
-        for i in 0..w {
-            if full || i % 16 == 0 || i == w - 1 {
-                add(cols[i], rows[i]);
+        gcm.fill_row(band, y, 0, &mut cols, &mut rows, &mut miss);
+        for (t, b) in boxes.iter_mut().enumerate() {
+            let (x0, x1) = (t * tile as usize, ((t + 1) * tile as usize).min(w));
+            let xs = (x0..x1).step_by(16).chain(std::iter::once(x1 - 1));
+            for x in xs {
+                let (c, r) = (cols[x], rows[x]);
+                if c.is_finite() && r.is_finite() {
+                    *b = Some(match *b {
+                        None => [c, r, c, r],
+                        Some(o) => [o[0].min(c), o[1].min(r), o[2].max(c), o[3].max(r)],
+                    });
+                }
             }
         }
     }
-    // The left and right edges on every row.
-    for y in y0..y1 {
-        for x in [x0, x1 - 1] {
-            gcm.fill_row(band, y, x, &mut cols[..1], &mut rows[..1], &mut miss);
-            add(cols[0], rows[0]);
-        }
-    }
-    b[0].is_finite().then_some(b)
+    boxes
 }
 
 /// Splits band rows `[y0, y1)` into chunks of whole tiles whose scan windows
@@ -81,12 +81,13 @@ pub fn plan_band(
         (a, None) => a,
         (None, b) => b,
     };
+    let boxes = tile_bboxes(gcm, band, y0, y1, tile);
     let mut chunks = Vec::new();
     let mut start = 0u32;
     let mut acc: Option<[f64; 4]> = None;
     for t in 0..tiles {
-        let (x0, x1) = (t * tile, ((t + 1) * tile).min(width));
-        let bb = source_bbox(gcm, band, y0, y1, x0, x1);
+        let x0 = t * tile;
+        let bb = boxes[t as usize];
         let merged = union(acc, bb);
         let fits = merged.map(|m| area(&clip(m)) <= budget_px).unwrap_or(true);
         if t > start && (!fits || t - start >= max_tiles) {

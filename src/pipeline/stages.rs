@@ -315,13 +315,16 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                             .into_par_iter()
                             .map(|tx| {
                                 let t = cfg.tile as usize;
-                                let mut tile = vec![0u8; t * t * pb];
                                 let x0 = (tx * cfg.tile - chunk.x0) as usize;
                                 let n = (t.min(cw - x0)) * pb;
                                 let src = chunk.data.bytes();
+                                // Whole tiles; the right and bottom edges padded with zeros.
+                                let mut tile = Vec::with_capacity(t * t * pb);
                                 for y in 0..rows {
-                                    tile[y * t * pb..][..n].copy_from_slice(&src[(y * cw + x0) * pb..][..n]);
+                                    tile.extend_from_slice(&src[(y * cw + x0) * pb..][..n]);
+                                    tile.resize((y + 1) * t * pb, 0);
                                 }
+                                tile.resize(t * t * pb, 0);
                                 encode_tile(&spec, tile)
                             })
                             .collect()

@@ -58,6 +58,9 @@ pub struct SynthOptions {
     pub fiducials: u32,
     pub seed: u64,
     pub quiet: bool,
+    /// Write only the geometry (camera, DEM, checkpoints): for accuracy
+    /// studies of scans too large to render.
+    pub no_scan: bool,
 }
 
 impl Default for SynthOptions {
@@ -78,6 +81,7 @@ impl Default for SynthOptions {
             fiducials: 4,
             seed: 1,
             quiet: true,
+            no_scan: false,
         }
     }
 }
@@ -333,7 +337,8 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
         geo: None,
     };
     let scan_spec = OutputSpec { bigtiff: scan_spec.needs_bigtiff(), ..scan_spec };
-    let progress = crate::progress::bar(o.height as u64, "synth rows", o.quiet);
+    let progress = crate::progress::bar(o.height as u64, "synth rows", o.quiet || o.no_scan);
+    if !o.no_scan {
     write_raster(&scan_path, &scan_spec, |y0, y1, buf| {
         let row_bytes = o.width as usize * pb;
         buf.par_chunks_mut(row_bytes).enumerate().for_each(|(k, row)| {
@@ -372,11 +377,12 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
         });
         progress.inc((y1 - y0) as u64);
     })?;
+    }
     progress.finish_and_clear();
 
     // The truth orthophoto on the grid rectify chooses by default.
     let grid = auto_grid(&cam, &dem, o.width, o.height, mid_z, gsd)?;
-    let truth = if grid.pixel_count() <= 100_000_000 {
+    let truth = if grid.pixel_count() <= 100_000_000 && !o.no_scan {
         let spec = OutputSpec {
             width: grid.width,
             height: grid.height,
@@ -434,7 +440,7 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     f.write_all(csv.as_bytes()).map_err(|e| Error::io(&cp_path, e))?;
 
     Ok(SynthReport {
-        scan: scan_path,
+        scan: if o.no_scan { PathBuf::new() } else { scan_path },
         camera: cam_path,
         dem: dem_path,
         truth,
