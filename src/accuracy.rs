@@ -78,7 +78,15 @@ pub struct Evaluation {
 /// Compares `A + c` with `T` on every `step`-th row and column. `error_map`,
 /// when given, receives the per-pixel error of the sampled pixels (NaN
 /// elsewhere), row-major over the sampled grid ⌈W/step⌉ × ⌈H/step⌉.
-pub fn evaluate(gcm: &Gcm<'_>, step: u32, mut error_map: Option<&mut Vec<f32>>) -> Evaluation {
+pub fn evaluate(gcm: &Gcm<'_>, step: u32, error_map: Option<&mut Vec<f32>>) -> Evaluation {
+    evaluate_where(gcm, step, None, error_map)
+}
+
+/// As `evaluate`, counting only pixels whose terrain slope (from the DEM's
+/// gradient) is at most `max_slope_deg` when given — the thesis judges
+/// mountains "wherever the slope is below 35°".
+pub fn evaluate_where(gcm: &Gcm<'_>, step: u32, max_slope_deg: Option<f64>, mut error_map: Option<&mut Vec<f32>>) -> Evaluation {
+    let max_tan = max_slope_deg.map(|d| d.to_radians().tan());
     let grid = gcm.t.grid;
     let band = 256u32;
     let bands: Vec<u32> = (0..grid.height.div_ceil(band)).collect();
@@ -126,6 +134,13 @@ pub fn evaluate(gcm: &Gcm<'_>, step: u32, mut error_map: Option<&mut Vec<f32>>) 
             for y in (b * band..((b + 1) * band).min(grid.height)).filter(|y| y % step == 0) {
                 gcm.fill_row(g, y, 0, &mut cols, &mut rows, &mut miss);
                 for x in (0..grid.width).step_by(step as usize) {
+                    if let Some(t) = max_tan {
+                        let (gx, gy) = grid.ground(x as f64 + 0.5, y as f64 + 0.5);
+                        match gcm.t.dem.height_gradient(gx, gy) {
+                            Some((_, dx, dy)) if dx.hypot(dy) <= t => {}
+                            _ => continue,
+                        }
+                    }
                     if let Mapped::Px(c, r) = gcm.t.exact(x as f64 + 0.5, y as f64 + 0.5) {
                         let (ac, ar) = (cols[x as usize], rows[x as usize]);
                         if ac.is_nan() {

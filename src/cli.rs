@@ -277,6 +277,9 @@ pub struct AccuracyArgs {
     pub max_error: Vec<f64>,
     #[arg(long, default_value = "plane", value_parser = ["plane", "mean"])]
     pub trend: String,
+    /// Count only pixels where the terrain is at most this steep (degrees).
+    #[arg(long)]
+    pub max_slope: Option<f64>,
     /// Evaluate every Nth row and column (1: all pixels).
     #[arg(long, default_value_t = 1)]
     pub step: u32,

@@ -138,8 +138,13 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     let approx = Approx::new(&cam.frame, &grid, plane).ok_or_else(|| anyhow!("plane behind the camera"))?;
     let t = Transform::new(&cam.frame, &dem, grid);
     println!(
-        "accuracy of A + GCM against the exact model: {}x{} output at {} m, every {} row/column, trend {}",
-        grid.width, grid.height, gsd, a.step, a.trend
+        "accuracy of A + GCM against the exact model: {}x{} output at {} m, every {} row/column, trend {}{}",
+        grid.width,
+        grid.height,
+        gsd,
+        a.step,
+        a.trend,
+        a.max_slope.map(|m| format!(", only where the slope is at most {m}°")).unwrap_or_default()
     );
     println!(
         "{:>4} {:>9} {:>9} | {:>9} {:>9} {:>9} | {:>6} {:>6} {:>6} {:>6} | {:>8} {:>8} {:>9}",
@@ -157,7 +162,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     }
     for (k, mode, bound) in cases {
         let gcm = Gcm::new(&t, approx, GcmSpec { k, mode, max_error: bound });
-        let ev = evaluate(&gcm, a.step, None);
+        let ev = gcm_ortho::accuracy::evaluate_where(&gcm, a.step, a.max_slope, None);
         let e = &ev.errors;
         let refined = 100.0 * ev.gcm.refined_cells as f64 / ev.gcm.cells.max(1) as f64;
         println!(

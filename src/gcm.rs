@@ -10,8 +10,10 @@
 //!
 //! With `max_error` (bilinear only) each cell between four nodes is checked
 //! against `T` at 13 interior points and split as a quadtree where it misses
-//! the bound; cells that would cost more to split than to compute (≤ 52 px) are
-//! evaluated exactly.
+//! the bound — at the DEM's own grid lines where one crosses the cell (a
+//! bilinear DEM bends only there, so the pieces are smooth), else in the
+//! middle; cells that would cost more to split than to compute (≤ 52 px)
+//! are evaluated exactly.
 //!
 //! Everything is computed a band of rows at a time (`prepare`), so a caller
 //! never holds the whole matrix.
@@ -59,9 +61,12 @@ pub struct NodeRow {
 struct Quad {
     u0: f64,
     v0: f64,
-    size: f64,
-    /// Corrections (dc, dr) at the corners (u0,v0), (u0+s,v0), (u0,v0+s), (u0+s,v0+s).
+    du: f64,
+    dv: f64,
+    /// Corrections (dc, dr) at the corners (u0,v0), (u0+du,v0), (u0,v0+dv), (u0+du,v0+dv).
     corners: [[f64; 2]; 4],
+    /// Where the children meet (a DEM line, or the middle).
+    split: (f64, f64),
     kids: Option<Box<[Quad; 4]>>,
     /// Too fine to split further and still over the bound: use `T` itself.
     exact: bool,
@@ -110,6 +115,9 @@ pub struct Gcm<'a> {
     first_node: i64,
     nodes_x: usize,
     inv_k: f64,
+    /// The DEM's bilinear kinks in output coordinates, where the DEM grid is
+    /// aligned with the output grid: lines u = au + bu·i and v = av + bv·j.
+    kinks: Option<[f64; 4]>,
 }
 
 const CHECK_POINTS: [(f64, f64); 13] = [
@@ -128,7 +136,39 @@ impl<'a> Gcm<'a> {
             CorrectionMode::Cell => (0, w.div_ceil(k)),
             CorrectionMode::Bilinear => (-1, w.div_ceil(k) + 2),
         };
-        Gcm { t, a, spec, first_node, nodes_x, inv_k: 1.0 / spec.k as f64 }
+        // A bilinear DEM bends only along the lines through its samples;
+        // when they are lines of the output grid too (same CRS, north-up),
+        // refinement splits cells there, leaving smooth pieces.
+        let kinks = match &t.dem.model {
+            crate::dem::HeightModel::Grid(g) => {
+                let gt = g.transform;
+                let grid = &t.grid;
+                Some([(gt[0] + 0.5 * gt[1] - grid.x0) / grid.gsd, gt[1] / grid.gsd, (grid.y0 - gt[3] - 0.5 * gt[5]) / grid.gsd, -gt[5] / grid.gsd])
+            }
+            crate::dem::HeightModel::Flat(_) => None,
+        };
+        Gcm { t, a, spec, first_node, nodes_x, inv_k: 1.0 / spec.k as f64, kinks }
+    }
+
+    /// Where to split `[lo, lo + d]`: the DEM line nearest the middle when
+    /// one crosses it (at least a pixel from either end), else the middle.
+    fn split_at(&self, lo: f64, d: f64, axis: usize) -> f64 {
+        let mid = lo + d / 2.0;
+        if let Some(k) = self.kinks {
+            let (a, b) = (k[2 * axis], k[2 * axis + 1]);
+            if b > 0.0 {
+                let i = ((mid - a) / b).round();
+                let line = a + b * i;
+                let near = [line, line - b, line + b]
+                    .into_iter()
+                    .filter(|&x| x > lo + 1.0 && x < lo + d - 1.0)
+                    .min_by(|x, y| (x - mid).abs().total_cmp(&(y - mid).abs()));
+                if let Some(x) = near {
+                    return x;
+                }
+            }
+        }
+        mid
     }
 
     #[inline]
@@ -228,11 +268,14 @@ impl<'a> Gcm<'a> {
                         if corners.iter().flatten().any(|v| v.is_nan()) {
                             return None;
                         }
+                        let k = self.spec.k as f64;
                         let mut q = Quad {
                             u0: self.node_pos(self.first_node + i as i64),
                             v0: self.node_pos(a.j),
-                            size: self.spec.k as f64,
+                            du: k,
+                            dv: k,
                             corners,
+                            split: (0.0, 0.0),
                             kids: None,
                             exact: false,
                         };
@@ -257,12 +300,10 @@ impl<'a> Gcm<'a> {
         // Checking at a few points cannot see every pixel: hold them to half
         // the bound so that the pixels between them stay under it.
         let limit = 0.5 * bound;
-        let mut exact = [[0.0f64; 2]; 13];
         let mut worst = 0.0f64;
-        for (p, &(fu, fv)) in CHECK_POINTS.iter().enumerate() {
-            let c = self.correction(q.u0 + fu * q.size, q.v0 + fv * q.size, miss);
+        for &(fu, fv) in CHECK_POINTS.iter() {
+            let c = self.correction(q.u0 + fu * q.du, q.v0 + fv * q.dv, miss);
             stats.checks += 1;
-            exact[p] = c;
             let interp = bilerp(&q.corners, fu, fv);
             let err = (c[0] - interp[0]).hypot(c[1] - interp[1]);
             worst = if err.is_nan() { f64::INFINITY } else { worst.max(err) };
@@ -272,21 +313,27 @@ impl<'a> Gcm<'a> {
         }
         // Splitting costs 4 × 13 checks; below that many pixels, computing
         // every pixel exactly is cheaper (and exact).
-        if q.size * q.size <= (4 * CHECK_POINTS.len()) as f64 {
+        if q.du * q.dv <= (4 * CHECK_POINTS.len()) as f64 {
             q.exact = true;
             return true;
         }
-        // Children's corners: parent corners, edge midpoints (check points
-        // 9..13: top, left, right, bottom) and the centre (check point 4).
+        // Split at the DEM's lines where they cross the cell (the pieces are
+        // then smooth), else in the middle. New corners: four edge points and
+        // the centre.
+        let (su, sv) = (self.split_at(q.u0, q.du, 0), self.split_at(q.v0, q.dv, 1));
+        let (u1, v1) = (q.u0 + q.du, q.v0 + q.dv);
+        let mut at = |u: f64, v: f64| {
+            stats.checks += 1;
+            self.correction(u, v, miss)
+        };
+        let (top, left, right, bottom, centre) = (at(su, q.v0), at(q.u0, sv), at(u1, sv), at(su, v1), at(su, sv));
         let [c00, c10, c01, c11] = q.corners;
-        let (top, left, right, bottom, centre) = (exact[9], exact[10], exact[11], exact[12], exact[4]);
-        let h = q.size / 2.0;
-        let mk = |u0: f64, v0: f64, corners: [[f64; 2]; 4]| Quad { u0, v0, size: h, corners, kids: None, exact: false };
+        let mk = |u0: f64, v0: f64, du: f64, dv: f64, corners: [[f64; 2]; 4]| Quad { u0, v0, du, dv, corners, split: (0.0, 0.0), kids: None, exact: false };
         let mut kids = Box::new([
-            mk(q.u0, q.v0, [c00, top, left, centre]),
-            mk(q.u0 + h, q.v0, [top, c10, centre, right]),
-            mk(q.u0, q.v0 + h, [left, centre, c01, bottom]),
-            mk(q.u0 + h, q.v0 + h, [centre, right, bottom, c11]),
+            mk(q.u0, q.v0, su - q.u0, sv - q.v0, [c00, top, left, centre]),
+            mk(su, q.v0, u1 - su, sv - q.v0, [top, c10, centre, right]),
+            mk(q.u0, sv, su - q.u0, v1 - sv, [left, centre, c01, bottom]),
+            mk(su, sv, u1 - su, v1 - sv, [centre, right, bottom, c11]),
         ]);
         for kid in kids.iter_mut() {
             if kid.corners.iter().flatten().any(|v| v.is_nan()) {
@@ -295,6 +342,7 @@ impl<'a> Gcm<'a> {
             }
             self.refine(kid, bound, stats, miss);
         }
+        q.split = (su, sv);
         q.kids = Some(kids);
         true
     }
@@ -364,7 +412,7 @@ impl<'a> Gcm<'a> {
                 for (m, (oc, or)) in oc.iter_mut().zip(or.iter_mut()).enumerate() {
                     let u = (x + m) as f64 + 0.5;
                     let (ac, ar) = ra.at(u);
-                    let c = leaf(q, u, v).map(|l| bilerp(&l.corners, (u - l.u0) / l.size, (v - l.v0) / l.size)).unwrap_or([f64::NAN; 2]);
+                    let c = leaf(q, u, v).map(|l| bilerp(&l.corners, (u - l.u0) / l.du, (v - l.v0) / l.dv)).unwrap_or([f64::NAN; 2]);
                     *oc = ac + c[0];
                     *or = ar + c[1];
                 }
@@ -435,8 +483,7 @@ fn leaf(q: &Quad, u: f64, v: f64) -> Option<&Quad> {
         match &q.kids {
             None => return Some(q),
             Some(k) => {
-                let h = q.size / 2.0;
-                let i = usize::from(u >= q.u0 + h) + 2 * usize::from(v >= q.v0 + h);
+                let i = usize::from(u >= q.split.0) + 2 * usize::from(v >= q.split.1);
                 q = &k[i];
             }
         }

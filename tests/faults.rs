@@ -63,3 +63,27 @@ fn full_disk_is_a_clear_error_and_leaves_nothing() {
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
     assert!(left.is_empty(), "left behind: {left:?}");
 }
+
+/// Another process truncates the memory-mapped scan mid-run: a clear error,
+/// not a bare SIGBUS, and nothing left behind.
+#[test]
+fn scan_truncated_underneath_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 1000, |_| {});
+    let out = dir.path().join("ortho.tif");
+    let mut child = Command::new(bin())
+        .args(["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--gsd", "0.25", "--threads", "1"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(700));
+    assert!(child.try_wait().unwrap().is_none(), "the run ended before the truncation");
+    std::fs::OpenOptions::new().write(true).open(&sc.scan).unwrap().set_len(4096).unwrap();
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("scan.tif") && err.contains("truncated"), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(!out.exists());
+    assert!(files_containing(dir.path(), "partial").is_empty());
+}

@@ -2,5 +2,6 @@
 
 pub mod geotiff;
 pub mod maps;
+pub mod mmap_guard;
 pub mod source;
 pub mod tiff_out;

@@ -305,6 +305,7 @@ impl SourceImage {
             let map = unsafe { memmap2::MmapOptions::new().map(&file) }.ok();
             if let Some(m) = &map {
                 let _ = m.advise(memmap2::Advice::Sequential);
+                crate::io::mmap_guard::watch_mapped(path);
             }
             Backend::Raw { map, file }
         } else {
@@ -328,6 +329,7 @@ impl SourceImage {
     /// into `win`, chunky.
     pub fn read_window(&self, x0: u32, y0: u32, w: u32, h: u32, win: &mut Window) -> Result<()> {
         let info = &self.info;
+        self.check_size()?;
         debug_assert!(x0 + w <= info.width && y0 + h <= info.height);
         let pb = info.pixel_bytes();
         win.x0 = x0;
@@ -354,6 +356,22 @@ impl SourceImage {
             }
             // Hand the rows of this chunk row back to the kernel.
             self.release(cy, cx0, cx1);
+        }
+        Ok(())
+    }
+
+    /// Has the file shrunk since it was opened (another process truncating
+    /// it)? Checked before each window of a mapped file, so that the map is
+    /// never read past the file's end in the ordinary course.
+    fn check_size(&self) -> Result<()> {
+        if let Backend::Raw { map: Some(m), file } = &self.backend {
+            let now = file.metadata().map_err(|e| Error::io(&self.path, e))?.len();
+            if now < m.len() as u64 {
+                return Err(Error::format(
+                    &self.path,
+                    format!("the input file was truncated while being read ({} bytes, was {})", now, m.len()),
+                ));
+            }
         }
         Ok(())
     }

@@ -256,8 +256,18 @@ fn write_kind<K: TiffKind, E>(
 /// A temporary file next to the output that becomes the output only when
 /// `publish` is called; dropped, it is removed.
 pub struct PendingFile {
-    tmp: tempfile::NamedTempFile,
+    /// `None` once published.
+    tmp: Option<tempfile::NamedTempFile>,
     target: PathBuf,
+}
+
+impl Drop for PendingFile {
+    fn drop(&mut self) {
+        // The NamedTempFile removes itself right after this.
+        if let Some(t) = &self.tmp {
+            crate::io::mmap_guard::unregister_cleanup(t.path());
+        }
+    }
 }
 
 impl PendingFile {
@@ -272,26 +282,34 @@ impl PendingFile {
             .suffix(".partial")
             .tempfile_in(&dir)
             .map_err(|e| Error::io(&dir, e))?;
-        Ok(PendingFile { tmp, target: target.to_path_buf() })
+        crate::io::mmap_guard::register_cleanup(tmp.path());
+        Ok(PendingFile { tmp: Some(tmp), target: target.to_path_buf() })
+    }
+
+    fn tmp(&self) -> &tempfile::NamedTempFile {
+        self.tmp.as_ref().expect("not yet published")
     }
 
     pub fn file(&self) -> Result<std::fs::File> {
-        self.tmp.reopen().map_err(|e| Error::io(self.tmp.path(), e))
+        self.tmp().reopen().map_err(|e| Error::io(self.tmp().path(), e))
     }
 
     pub fn path(&self) -> &Path {
-        self.tmp.path()
+        self.tmp().path()
     }
 
     /// Syncs, then renames onto the target (readable by all, as a plain
     /// new file would be; the temporary file was private).
-    pub fn publish(self) -> Result<()> {
+    pub fn publish(mut self) -> Result<()> {
         use std::os::unix::fs::PermissionsExt;
-        let f = self.tmp.as_file();
+        let f = self.tmp().as_file();
         f.set_permissions(std::fs::Permissions::from_mode(0o644)).map_err(|e| Error::io(&self.target, e))?;
         f.sync_all().map_err(|e| Error::io(&self.target, e))?;
         let target = self.target.clone();
-        self.tmp.persist(&target).map_err(|e| Error::io(&target, e.error))?;
+        let tmp = self.tmp.take().expect("not yet published");
+        let tmp_path = tmp.path().to_path_buf();
+        crate::io::mmap_guard::unregister_cleanup(&tmp_path);
+        tmp.persist(&target).map_err(|e| Error::io(&target, e.error))?;
         Ok(())
     }
 }
