@@ -28,6 +28,40 @@ pub enum Command {
     Accuracy(AccuracyArgs),
     /// Generate a scene in a temporary folder, rectify it and report accuracy and speed.
     Demo(DemoArgs),
+    /// Run many rectify jobs from a manifest: resumable, shardable.
+    Batch(BatchArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BatchArgs {
+    /// The manifest (TOML).
+    pub manifest: PathBuf,
+    /// Jobs to run at a time, sharing --memory.
+    #[arg(long, default_value_t = 1)]
+    pub jobs: usize,
+    /// Memory budget of the whole batch.
+    #[arg(long, default_value = "256M")]
+    pub memory: String,
+    /// Redo jobs whose outputs are current.
+    #[arg(long)]
+    pub force: bool,
+    /// Write one JSON line per job here.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Run the I-th of N shares of the jobs (1-based), e.g. 2/8.
+    #[arg(long)]
+    pub shard: Option<String>,
+    /// The number of shares when the index comes from JOB_COMPLETION_INDEX.
+    #[arg(long)]
+    pub shard_count: Option<usize>,
+    /// Worker threads per job (0: the cores shared among the jobs).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Only validate the manifest and list the jobs of this shard.
+    #[arg(long)]
+    pub dry_run: bool,
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 #[derive(Args, Debug)]

@@ -1,7 +1,7 @@
 //! What each subcommand does with its validated options: call the library,
 //! print a summary.
 
-use crate::cli::{AccuracyArgs, Cli, Command, DemoArgs, RectifyArgs, SynthArgs};
+use crate::cli::{AccuracyArgs, BatchArgs, Cli, Command, DemoArgs, RectifyArgs, SynthArgs};
 use anyhow::{anyhow, Context, Result};
 use gcm_ortho::accuracy::{evaluate, THRESHOLDS};
 use gcm_ortho::camera::file::Camera;
@@ -44,13 +44,63 @@ impl Signals {
     }
 }
 
-pub fn run(cli: Cli, signals: &Signals) -> Result<()> {
+/// Runs a command; `Ok(code)` is the exit code of a run that completed
+/// (3: a batch in which some jobs failed).
+pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
     match cli.command {
-        Command::Synth(a) => run_synth(&a),
-        Command::Rectify(a) => run_rectify(&a, signals),
-        Command::Accuracy(a) => run_accuracy(&a),
-        Command::Demo(a) => run_demo(&a, signals),
+        Command::Synth(a) => run_synth(&a).map(|()| 0),
+        Command::Rectify(a) => run_rectify(&a, signals).map(|()| 0),
+        Command::Accuracy(a) => run_accuracy(&a).map(|()| 0),
+        Command::Demo(a) => run_demo(&a, signals).map(|()| 0),
+        Command::Batch(a) => run_batch(&a, signals),
     }
+}
+
+fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
+    use gcm_ortho::batch::{self, BatchOptions, ReportWriter, Status};
+    let shard = batch::shard::resolve(a.shard.as_deref(), a.shard_count, &|k| std::env::var(k).ok()).map_err(usage)?;
+    let memory = crate::cli::parse_bytes(&a.memory).map_err(|e| usage(format!("--memory: {e}")))?;
+    let jobs = batch::manifest::load(&a.manifest).map_err(|e| anyhow!("{}: {e}", a.manifest.display()))?;
+    let o = BatchOptions { manifest: a.manifest.clone(), jobs: a.jobs, memory, force: a.force, report: a.report.clone(), shard, threads: a.threads };
+    if a.dry_run {
+        for (i, j) in jobs.iter().enumerate().filter(|(i, _)| i % shard.1 == shard.0) {
+            println!("{i:>5}  {}  {} -> {}", j.name, j.config.image.display(), j.config.output.display());
+        }
+        return Ok(0);
+    }
+    for j in jobs.iter().filter(|j| j.problem.is_some()) {
+        eprintln!("gcm-ortho: job {} will fail: {}", j.name, j.problem.as_deref().unwrap_or_default());
+    }
+    let report = ReportWriter::create(a.report.as_deref()).with_context(|| format!("{:?}", a.report))?;
+    let quiet = a.quiet;
+    let results = batch::run_jobs(&jobs, &o, &signals.cancel, &|r| {
+        report.push(r);
+        if !quiet {
+            eprintln!("{:<24} {:?}{}", r.job, r.status, r.error.as_ref().map(|e| format!(": {e}")).unwrap_or_default());
+        }
+    });
+    if !a.quiet {
+        println!("{:<24} {:>9} {:>8} {:>8}  output", "job", "status", "time s", "MB/s");
+        for r in &results {
+            println!(
+                "{:<24} {:>9} {:>8.2} {:>8}  {}",
+                r.job,
+                format!("{:?}", r.status).to_lowercase(),
+                r.seconds,
+                r.input_mb_per_s.map(|v| format!("{v:.1}")).unwrap_or_else(|| "-".into()),
+                r.output.display()
+            );
+        }
+        let count = |s: Status| results.iter().filter(|r| r.status == s).count();
+        println!(
+            "shard {}/{}: {} jobs, {} done, {} skipped (current), {} failed, {} cancelled",
+            shard.0 + 1, shard.1, results.len(), count(Status::Done), count(Status::Skipped), count(Status::Failed), count(Status::Cancelled)
+        );
+    }
+    if signals.exit_code().is_some() {
+        return Err(anyhow::Error::new(gcm_ortho::Error::Cancelled));
+    }
+    Ok(if results.iter().any(|r| r.status == Status::Failed) { 3 } else { 0 })
 }
 
 fn usage(msg: String) -> anyhow::Error {

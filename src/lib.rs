@@ -4,6 +4,7 @@
 //! arguments and prints errors.
 
 pub mod accuracy;
+pub mod batch;
 pub mod camera;
 pub mod compare;
 pub mod dem;

@@ -7,7 +7,8 @@ mod commands;
 use clap::Parser;
 use std::process::ExitCode;
 
-/// Exit codes: 0 success, 1 bad input or failure, 2 usage, 130 SIGINT, 143 SIGTERM.
+/// Exit codes: 0 success, 1 bad input or failure, 2 usage, 3 a batch in
+/// which some jobs failed, 130 SIGINT, 143 SIGTERM.
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
     let signals = match commands::Signals::install() {
@@ -18,10 +19,10 @@ fn main() -> ExitCode {
         }
     };
     match commands::run(cli, &signals) {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => ExitCode::from(code),
         Err(e) => {
             if let Some(code) = signals.exit_code() {
-                eprintln!("gcm-ortho: interrupted; nothing was written at the output path");
+                eprintln!("gcm-ortho: interrupted; no unfinished output was left behind");
                 return ExitCode::from(code);
             }
             // Broken pipe on stdout is not an error worth a message.

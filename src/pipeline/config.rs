@@ -26,6 +26,11 @@ pub enum BigTiff {
 pub struct RectifyConfig {
     pub image: PathBuf,
     pub camera: PathBuf,
+    /// The camera itself, when it does not come from `camera` (a batch
+    /// block builds it from an interior file and a row of exterior
+    /// orientations); `camera` then names its origin in messages.
+    #[serde(skip)]
+    pub camera_file: Option<crate::camera::CameraFile>,
     pub dem: DemSource,
     pub dem_hole: Miss,
     pub dem_outside: Miss,
@@ -56,6 +61,7 @@ impl RectifyConfig {
         RectifyConfig {
             image,
             camera,
+            camera_file: None,
             dem,
             dem_hole: Miss::Error,
             dem_outside: Miss::Nodata,

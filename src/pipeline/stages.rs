@@ -98,7 +98,10 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     // The output folder must take a file before any work starts.
     let pending = PendingFile::create(&cfg.output)?;
 
-    let camera = Camera::read(&cfg.camera)?;
+    let camera = match &cfg.camera_file {
+        Some(f) => f.clone().build(&cfg.camera)?,
+        None => Camera::read(&cfg.camera)?,
+    };
     let model = &camera.frame;
     let src = SourceImage::open(&cfg.image, (cfg.memory / 12) as usize)?;
     let mut dem = match &cfg.dem {

@@ -1,0 +1,294 @@
+//! The batch manifest: defaults, jobs, or an aerotriangulation block (one
+//! interior-orientation file plus a CSV of exterior orientations). Paths are
+//! relative to the manifest. Everything is validated before any work
+//! starts, and every problem is listed with its line.
+
+use crate::camera::file::{CameraFile, ExteriorSection};
+use crate::camera::rotation::AngleConvention;
+use crate::dem::Miss;
+use crate::gcm::{CorrectionMode, GcmSpec};
+use crate::io::tiff_out::Compression;
+use crate::pipeline::{BigTiff, DemSource, RectifyConfig};
+use crate::resample::Kernel;
+use crate::transform::Trend;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+/// Every rectify option a manifest may set, in `[defaults]` or per job.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Options {
+    pub dem: Option<String>,
+    pub height: Option<f64>,
+    pub dem_hole: Option<String>,
+    pub dem_outside: Option<String>,
+    pub gsd: Option<f64>,
+    pub bounds: Option<[f64; 4]>,
+    pub sparsity: Option<u32>,
+    pub max_error: Option<f64>,
+    pub corrections: Option<String>,
+    pub trend: Option<String>,
+    pub resample: Option<String>,
+    pub tile: Option<u32>,
+    pub compress: Option<String>,
+    pub bigtiff: Option<String>,
+    pub nodata: Option<f64>,
+    pub alpha: Option<bool>,
+    pub output_dir: Option<String>,
+}
+
+impl Options {
+    /// `self` with unset fields taken from `base`.
+    fn over(&self, base: &Options) -> Options {
+        macro_rules! pick { ($($f:ident),*) => { Options { $($f: self.$f.clone().or_else(|| base.$f.clone()),)* } } }
+        pick!(dem, height, dem_hole, dem_outside, gsd, bounds, sparsity, max_error, corrections, trend, resample, tile, compress, bigtiff, nodata, alpha, output_dir)
+    }
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JobEntry {
+    image: String,
+    camera: Option<String>,
+    output: Option<String>,
+    #[serde(flatten)]
+    options: Options,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Block {
+    interior: String,
+    exterior_csv: String,
+    images: String,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ManifestFile {
+    #[serde(default)]
+    defaults: Options,
+    #[serde(default)]
+    job: Vec<Spanned<JobEntry>>,
+    block: Option<Spanned<Block>>,
+}
+
+/// One job, ready to run — or, when `problem` is set, one that validation
+/// already knows will fail (a missing file, a camera that does not parse):
+/// it is reported as failed while the others run.
+#[derive(Clone, Debug)]
+pub struct Job {
+    /// A stable name (the image's file stem), unique in the manifest.
+    pub name: String,
+    pub config: RectifyConfig,
+    pub problem: Option<String>,
+}
+
+/// Problems found in a manifest, each with where it is.
+#[derive(Debug)]
+pub struct ManifestErrors(pub Vec<String>);
+
+impl std::fmt::Display for ManifestErrors {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} problem(s): {}", self.0.len(), self.0.join("; "))
+    }
+}
+
+fn line_of(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+}
+
+/// Reads and validates a manifest; returns its jobs in manifest order. A
+/// manifest that cannot be read as a whole is an error listing every
+/// problem; a job with a bad input comes back with its `problem` set.
+pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
+    let text = std::fs::read_to_string(path).map_err(|e| ManifestErrors(vec![format!("{}: {e}", path.display())]))?;
+    let m: ManifestFile = toml::from_str(&text).map_err(|e| {
+        let line = e.span().map(|s| format!(" line {}", line_of(&text, s.start))).unwrap_or_default();
+        ManifestErrors(vec![format!("{}:{line}: {}", path.display(), e.message().replace('\n', " "))])
+    })?;
+    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let rel = |p: &str| -> PathBuf {
+        let p = Path::new(p);
+        if p.is_absolute() { p.to_path_buf() } else { base.join(p) }
+    };
+    let mut errors = Vec::new();
+    let mut jobs = Vec::new();
+    let at = |line: usize| format!("{}: line {line}", path.display());
+
+    let mut entries: Vec<Entry> = Vec::new();
+    for j in &m.job {
+        let line = line_of(&text, j.span().start);
+        let e = j.get_ref();
+        let Some(cam) = &e.camera else {
+            errors.push(format!("{}: [[job]] for {} has no camera", at(line), e.image));
+            continue;
+        };
+        entries.push(Entry {
+            image: rel(&e.image),
+            camera: rel(cam),
+            inline: None,
+            output: e.output.as_deref().map(rel),
+            options: e.options.over(&m.defaults),
+            line,
+        });
+    }
+    if let Some(b) = &m.block {
+        let line = line_of(&text, b.span().start);
+        let b = b.get_ref();
+        match block_cameras(&rel(&b.interior), &rel(&b.exterior_csv)) {
+            Ok(cams) => {
+                for (name, cam, csv_line) in cams {
+                    let image = rel(&b.images.replace("{name}", &name));
+                    let origin = PathBuf::from(format!("{}:{csv_line}", rel(&b.exterior_csv).display()));
+                    entries.push(Entry { image, camera: origin, inline: Some(cam), output: None, options: m.defaults.clone(), line });
+                }
+            }
+            Err(e) => errors.extend(e),
+        }
+    }
+    if entries.is_empty() && errors.is_empty() {
+        errors.push(format!("{}: no [[job]] and no [block]", path.display()));
+    }
+    let mut names = std::collections::HashSet::new();
+    for Entry { image, camera, inline, output, options: opts, line } in entries {
+        let name = image.file_stem().and_then(|s| s.to_str()).unwrap_or("job").to_string();
+        if !names.insert(name.clone()) {
+            errors.push(format!("{}: a second job named {name}", at(line)));
+            continue;
+        }
+        let mut problems = Vec::new();
+        if !image.is_file() {
+            problems.push(format!("image {} does not exist", image.display()));
+        }
+        let cam = match &inline {
+            Some(cf) => cf.clone().build(&camera).map(|_| ()),
+            None => crate::camera::file::Camera::read(&camera).map(|_| ()),
+        };
+        if let Err(e) = cam {
+            problems.push(e.to_string());
+        }
+        let cfg = match config(&name, image.clone(), camera.clone(), inline.clone(), output.clone(), &opts, &rel) {
+            Ok(c) => c,
+            Err(e) => {
+                problems.push(e);
+                RectifyConfig::new(image, camera, DemSource::Height(0.0), PathBuf::from(format!("{name}.tif")))
+            }
+        };
+        let problem = (!problems.is_empty()).then(|| format!("{}: {}", at(line), problems.join("; ")));
+        jobs.push(Job { name, config: cfg, problem });
+    }
+    if errors.is_empty() { Ok(jobs) } else { Err(ManifestErrors(errors)) }
+}
+
+/// One job as written, before validation.
+struct Entry {
+    image: PathBuf,
+    /// The camera file, or (for a block) where the exterior orientation came from.
+    camera: PathBuf,
+    inline: Option<CameraFile>,
+    output: Option<PathBuf>,
+    options: Options,
+    line: usize,
+}
+
+fn config(
+    name: &str,
+    image: PathBuf,
+    camera: PathBuf,
+    inline: Option<CameraFile>,
+    output: Option<PathBuf>,
+    o: &Options,
+    rel: &dyn Fn(&str) -> PathBuf,
+) -> Result<RectifyConfig, String> {
+    let dem = match (&o.dem, o.height) {
+        (Some(d), None) => {
+            let p = rel(d);
+            if !p.is_file() {
+                return Err(format!("DEM {} does not exist", p.display()));
+            }
+            DemSource::File(p)
+        }
+        (None, Some(h)) if h.is_finite() => DemSource::Height(h),
+        (Some(_), Some(_)) => return Err("give dem or height, not both".into()),
+        _ => return Err("no dem and no height".into()),
+    };
+    let output = match (output, &o.output_dir) {
+        (Some(p), _) => p,
+        (None, Some(dir)) => rel(dir).join(format!("{name}.tif")),
+        (None, None) => rel(&format!("{name}.ortho.tif")),
+    };
+    let mut c = RectifyConfig::new(image, camera, dem, output);
+    c.camera_file = inline;
+    if let Some(v) = &o.dem_hole {
+        c.dem_hole = v.parse::<Miss>().map_err(|e| format!("dem_hole: {e}"))?;
+    }
+    if let Some(v) = &o.dem_outside {
+        c.dem_outside = v.parse::<Miss>().map_err(|e| format!("dem_outside: {e}"))?;
+    }
+    c.gsd = o.gsd;
+    c.bounds = o.bounds;
+    c.gcm = GcmSpec {
+        k: o.sparsity.unwrap_or(16),
+        mode: o.corrections.as_deref().unwrap_or("bilinear").parse::<CorrectionMode>().map_err(|e| format!("corrections: {e}"))?,
+        max_error: o.max_error,
+    };
+    c.trend = match o.trend.as_deref() {
+        None | Some("plane") => Trend::Plane,
+        Some("mean") => Trend::Mean,
+        Some(t) => return Err(format!("trend: '{t}' is neither plane nor mean")),
+    };
+    if let Some(k) = &o.resample {
+        c.kernel = k.parse::<Kernel>().map_err(|e| format!("resample: {e}"))?;
+    }
+    if let Some(t) = o.tile {
+        c.tile = t;
+    }
+    if let Some(z) = &o.compress {
+        c.compress = z.parse::<Compression>().map_err(|e| format!("compress: {e}"))?;
+    }
+    c.bigtiff = match o.bigtiff.as_deref() {
+        None | Some("auto") => BigTiff::Auto,
+        Some("yes") => BigTiff::Yes,
+        Some("no") => BigTiff::No,
+        Some(b) => return Err(format!("bigtiff: '{b}' is not auto, yes or no")),
+    };
+    if let Some(n) = o.nodata {
+        c.nodata = n;
+    }
+    c.alpha = o.alpha.unwrap_or(false);
+    c.quiet = true;
+    Ok(c)
+}
+
+/// Cameras of a block: the interior file (crs, [camera], [interior],
+/// [distortion], [corrections]) with each CSV row's exterior orientation
+/// (`name,X,Y,Z,omega,phi,kappa`, degrees, ω-φ-κ, header row first).
+fn block_cameras(interior: &Path, csv: &Path) -> Result<Vec<(String, CameraFile, usize)>, Vec<String>> {
+    let base = CameraFile::read(interior).map_err(|e| vec![e.to_string()])?;
+    let text = std::fs::read_to_string(csv).map_err(|e| vec![format!("{}: {e}", csv.display())])?;
+    let mut out = Vec::new();
+    let mut errors = Vec::new();
+    let mut lines = text.lines().enumerate();
+    match lines.next() {
+        Some((_, h)) if h.to_ascii_lowercase().replace(' ', "").starts_with("name,x,y,z,omega,phi,kappa") => {}
+        _ => return Err(vec![format!("{}: line 1: expected the header name,X,Y,Z,omega,phi,kappa", csv.display())]),
+    }
+    for (n, line) in lines {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        let nums: Option<Vec<f64>> = f.get(1..7).map(|v| v.iter().map(|x| x.parse::<f64>().ok().filter(|v| v.is_finite())).collect()).flatten();
+        match (f.len(), nums) {
+            (7, Some(v)) => {
+                let mut cam = base.clone();
+                cam.exterior = Some(ExteriorSection { position: [v[0], v[1], v[2]], angles_deg: [v[3], v[4], v[5]], convention: AngleConvention::OmegaPhiKappa });
+                out.push((f[0].to_string(), cam, n + 1));
+            }
+            _ => errors.push(format!("{}: line {}: expected name and six numbers", csv.display(), n + 1)),
+        }
+    }
+    if errors.is_empty() { Ok(out) } else { Err(errors) }
+}

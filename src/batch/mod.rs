@@ -1,0 +1,217 @@
+//! `batch`: many scans from one manifest, as a nightly job. Jobs run one
+//! after another or N at a time within one memory budget; a failing job
+//! does not stop the others; a finished output is recorded with a key of its
+//! inputs and parameters so that a rerun skips it (and redoes it when
+//! anything changed); `--shard I/N` (or Slurm / Kubernetes array variables)
+//! takes a deterministic share of the jobs.
+
+pub mod manifest;
+pub mod shard;
+
+use crate::pipeline::{rectify, DemSource, RectifyConfig};
+use manifest::Job;
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::Instant;
+
+#[derive(Clone, Debug)]
+pub struct BatchOptions {
+    pub manifest: PathBuf,
+    /// Jobs at a time.
+    pub jobs: usize,
+    /// Memory budget of the whole batch, bytes.
+    pub memory: u64,
+    pub force: bool,
+    pub report: Option<PathBuf>,
+    /// (index, count), 0-based.
+    pub shard: (usize, usize),
+    pub threads: usize,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    Done,
+    Skipped,
+    Failed,
+    Cancelled,
+}
+
+/// One line of the report.
+#[derive(Clone, Debug, Serialize)]
+pub struct JobResult {
+    pub job: String,
+    pub status: Status,
+    pub error: Option<String>,
+    pub output: PathBuf,
+    pub seconds: f64,
+    pub input_mb_per_s: Option<f64>,
+    pub peak_rss_mib: Option<f64>,
+    pub gcm_rms_px: Option<f64>,
+    pub gcm_max_px: Option<f64>,
+}
+
+/// A 64-bit FNV-1a hash: stable across runs and machines.
+fn fnv(h: &mut u64, bytes: &[u8]) {
+    for b in bytes {
+        *h ^= *b as u64;
+        *h = h.wrapping_mul(0x100_0000_01b3);
+    }
+}
+
+fn file_stamp(h: &mut u64, p: &Path) {
+    fnv(h, p.as_os_str().as_encoded_bytes());
+    if let Ok(m) = std::fs::metadata(p) {
+        fnv(h, &m.len().to_le_bytes());
+        if let Ok(t) = m.modified().and_then(|t| t.duration_since(std::time::UNIX_EPOCH).map_err(std::io::Error::other)) {
+            fnv(h, &t.as_nanos().to_le_bytes());
+        }
+    }
+}
+
+/// The key of a job: its inputs (path, size, modification time), its camera
+/// and every parameter that changes the output.
+pub fn job_key(c: &RectifyConfig) -> String {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    file_stamp(&mut h, &c.image);
+    match &c.camera_file {
+        Some(f) => fnv(&mut h, f.to_toml().as_bytes()),
+        None => fnv(&mut h, &std::fs::read(&c.camera).unwrap_or_default()),
+    }
+    if let DemSource::File(p) = &c.dem {
+        file_stamp(&mut h, p);
+    }
+    let mut params = c.clone();
+    params.threads = 0;
+    params.memory = 0;
+    params.quiet = true;
+    fnv(&mut h, serde_json::to_string(&params).unwrap_or_default().as_bytes());
+    format!("{h:016x}")
+}
+
+/// The record of a finished output.
+pub fn sidecar(output: &Path) -> PathBuf {
+    let mut s = output.as_os_str().to_owned();
+    s.push(".done");
+    PathBuf::from(s)
+}
+
+fn is_current(c: &RectifyConfig, key: &str) -> bool {
+    c.output.is_file() && std::fs::read_to_string(sidecar(&c.output)).map(|s| s.trim() == key).unwrap_or(false)
+}
+
+fn write_sidecar(output: &Path, key: &str) -> std::io::Result<()> {
+    let p = sidecar(output);
+    let tmp = p.with_extension("done.partial");
+    std::fs::write(&tmp, format!("{key}\n"))?;
+    std::fs::rename(tmp, p)
+}
+
+/// Runs the share of `jobs` chosen by the shard; results in job order.
+pub fn run_jobs(jobs: &[Job], o: &BatchOptions, cancel: &AtomicBool, on_done: &(dyn Fn(&JobResult) + Sync)) -> Vec<JobResult> {
+    let mine: Vec<&Job> = jobs.iter().enumerate().filter(|(i, _)| i % o.shard.1 == o.shard.0).map(|(_, j)| j).collect();
+    let workers = o.jobs.clamp(1, mine.len().max(1));
+    let per_job_memory = (o.memory / workers as u64).max(16 << 20);
+    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let threads = if o.threads > 0 { o.threads } else { (cores / workers).max(1) };
+    let next = AtomicUsize::new(0);
+    let results: Mutex<Vec<Option<JobResult>>> = Mutex::new(vec![None; mine.len()]);
+    std::thread::scope(|s| {
+        for _ in 0..workers {
+            s.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::SeqCst);
+                if i >= mine.len() {
+                    break;
+                }
+                let job = mine[i];
+                let r = run_one(job, o.force, per_job_memory, threads, cancel);
+                on_done(&r);
+                results.lock().expect("results")[i] = Some(r);
+            });
+        }
+    });
+    results.into_inner().expect("results").into_iter().flatten().collect()
+}
+
+fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &AtomicBool) -> JobResult {
+    let t = Instant::now();
+    let mut res = JobResult {
+        job: job.name.clone(),
+        status: Status::Cancelled,
+        error: None,
+        output: job.config.output.clone(),
+        seconds: 0.0,
+        input_mb_per_s: None,
+        peak_rss_mib: None,
+        gcm_rms_px: None,
+        gcm_max_px: None,
+    };
+    if cancel.load(Ordering::Relaxed) {
+        return res;
+    }
+    if let Some(p) = &job.problem {
+        res.status = Status::Failed;
+        res.error = Some(p.clone());
+        return res;
+    }
+    let key = job_key(&job.config);
+    if !force && is_current(&job.config, &key) {
+        res.status = Status::Skipped;
+        return res;
+    }
+    let mut cfg = job.config.clone();
+    cfg.memory = memory;
+    cfg.threads = threads;
+    if let Some(dir) = cfg.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        if let Err(e) = std::fs::create_dir_all(dir) {
+            res.status = Status::Failed;
+            res.error = Some(format!("{}: {e}", dir.display()));
+            return res;
+        }
+    }
+    match rectify(&cfg, cancel) {
+        Ok(r) => {
+            res.status = Status::Done;
+            res.input_mb_per_s = Some(r.input_mb_per_s);
+            res.peak_rss_mib = r.peak_rss_mib;
+            res.gcm_rms_px = Some(r.accuracy_estimate.rms);
+            res.gcm_max_px = Some(r.accuracy_estimate.max);
+            if let Err(e) = write_sidecar(&cfg.output, &key) {
+                res.status = Status::Failed;
+                res.error = Some(format!("{}: {e}", sidecar(&cfg.output).display()));
+            }
+        }
+        Err(crate::Error::Cancelled) => res.status = Status::Cancelled,
+        Err(e) => {
+            res.status = Status::Failed;
+            res.error = Some(e.to_string());
+        }
+    }
+    res.seconds = t.elapsed().as_secs_f64();
+    res
+}
+
+/// Appends report lines as jobs finish, so a crash keeps what was done.
+pub struct ReportWriter {
+    file: Option<Mutex<std::fs::File>>,
+}
+
+impl ReportWriter {
+    pub fn create(path: Option<&Path>) -> std::io::Result<ReportWriter> {
+        let file = match path {
+            Some(p) => Some(Mutex::new(std::fs::File::create(p)?)),
+            None => None,
+        };
+        Ok(ReportWriter { file })
+    }
+    pub fn push(&self, r: &JobResult) {
+        if let Some(f) = &self.file {
+            let mut f = f.lock().expect("report");
+            let _ = writeln!(f, "{}", serde_json::to_string(r).unwrap_or_default());
+            let _ = f.flush();
+        }
+    }
+}

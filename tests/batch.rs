@@ -1,0 +1,204 @@
+//! `batch`: failures isolated, reruns skip finished work, shards cover every
+//! job exactly once, signals leave nothing half-written.
+
+mod common;
+use common::*;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+/// A block of `n` small scans copied from one scene (each its own file).
+fn block(dir: &Path, n: usize) -> (PathBuf, Vec<PathBuf>) {
+    let sc = scene(&dir.join("scene"), 300, |o| o.dem_posting = 20.0);
+    let scans: Vec<PathBuf> = (0..n)
+        .map(|i| {
+            let p = dir.join(format!("scans/s{i:02}.tif"));
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::copy(&sc.scan, &p).unwrap();
+            p
+        })
+        .collect();
+    (dir.join("scene"), scans)
+}
+
+fn jobs_toml(n: usize) -> String {
+    (0..n).map(|i| format!("[[job]]\nimage = \"scans/s{i:02}.tif\"\ncamera = \"scene/camera.toml\"\n\n")).collect()
+}
+
+fn batch(dir: &Path, args: &[&str]) -> std::process::Output {
+    let m = dir.join("manifest.toml");
+    let mut a = vec!["batch", s(&m), "--quiet"];
+    a.extend_from_slice(args);
+    run(&a)
+}
+
+fn lines(report: &Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(report).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect()
+}
+
+#[test]
+fn failures_are_isolated_and_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    block(d, 5);
+    std::fs::write(d.join("bad.toml"), "crs = \"EPSG:32631\"\n[camera]\nmodel = \"frame\"\n").unwrap();
+    let manifest = format!(
+        "[defaults]\ndem = \"scene/dem.tif\"\noutput_dir = \"ortho\"\ncompress = \"deflate\"\n\n{}\
+         [[job]]\nimage = \"scans/s03.tif\"\ncamera = \"bad.toml\"\n\n\
+         [[job]]\nimage = \"scans/s04.tif\"\ncamera = \"scene/camera.toml\"\ndem = \"missing/dem.tif\"\n",
+        jobs_toml(3)
+    );
+    std::fs::write(d.join("manifest.toml"), manifest).unwrap();
+    let r = batch(d, &["--report", s(&d.join("report.jsonl")), "--jobs", "2"]);
+    assert_eq!(r.status.code(), Some(3), "{}", String::from_utf8_lossy(&r.stderr));
+    for i in 0..3 {
+        let out = d.join(format!("ortho/s{i:02}.tif"));
+        assert!(out.is_file(), "{}", out.display());
+        gcm_ortho::io::source::SourceImage::open(&out, 1 << 20).unwrap();
+    }
+    let rep = lines(&d.join("report.jsonl"));
+    assert_eq!(rep.len(), 5);
+    let failed: Vec<_> = rep.iter().filter(|l| l["status"] == "failed").collect();
+    assert_eq!(failed.len(), 2);
+    let errs: Vec<String> = failed.iter().map(|l| l["error"].as_str().unwrap().to_string()).collect();
+    assert!(errs.iter().any(|e| e.contains("bad.toml") && e.contains("focal_length_mm")), "{errs:?}");
+    assert!(errs.iter().any(|e| e.contains("missing/dem.tif") && e.contains("line")), "{errs:?}");
+    assert!(!d.join("ortho/s03.tif").exists() && !d.join("ortho/s04.tif").exists());
+}
+
+#[test]
+fn reruns_skip_finished_jobs_and_redo_changed_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (_, scans) = block(d, 3);
+    std::fs::write(d.join("manifest.toml"), format!("[defaults]\ndem = \"scene/dem.tif\"\noutput_dir = \"ortho\"\n\n{}", jobs_toml(3))).unwrap();
+    let rep = d.join("r.jsonl");
+    assert!(batch(d, &["--report", s(&rep)]).status.success());
+    assert!(lines(&rep).iter().all(|l| l["status"] == "done"));
+    assert!(batch(d, &["--report", s(&rep)]).status.success());
+    assert!(lines(&rep).iter().all(|l| l["status"] == "skipped"));
+    // Touch one input: only that job reruns.
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    let f = std::fs::OpenOptions::new().append(true).open(&scans[1]).unwrap();
+    f.set_modified(std::time::SystemTime::now()).unwrap();
+    drop(f);
+    assert!(batch(d, &["--report", s(&rep)]).status.success());
+    let st: Vec<String> = lines(&rep).iter().map(|l| l["status"].as_str().unwrap().to_string()).collect();
+    assert_eq!(st, ["skipped", "done", "skipped"]);
+    // A changed parameter redoes everything; --force too.
+    assert!(batch(d, &["--report", s(&rep), "--force"]).status.success());
+    assert!(lines(&rep).iter().all(|l| l["status"] == "done"));
+}
+
+#[test]
+fn three_shards_run_every_job_exactly_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    block(d, 10);
+    std::fs::write(d.join("manifest.toml"), format!("[defaults]\nheight = 350.0\noutput_dir = \"ortho\"\ngsd = 20.0\n\n{}", jobs_toml(10))).unwrap();
+    let mut seen = Vec::new();
+    for (i, how) in [(1, "flag"), (2, "slurm"), (3, "k8s")] {
+        let rep = d.join(format!("r{i}.jsonl"));
+        let mut cmd = Command::new(bin());
+        cmd.args(["batch", s(&d.join("manifest.toml")), "--quiet", "--report", s(&rep)]);
+        match how {
+            "flag" => {
+                cmd.args(["--shard", &format!("{i}/3")]);
+            }
+            "slurm" => {
+                cmd.env("SLURM_ARRAY_TASK_ID", (i - 1).to_string()).env("SLURM_ARRAY_TASK_COUNT", "3");
+            }
+            _ => {
+                cmd.env("JOB_COMPLETION_INDEX", (i - 1).to_string()).args(["--shard-count", "3"]);
+            }
+        }
+        let o = cmd.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        seen.extend(lines(&rep).iter().map(|l| l["job"].as_str().unwrap().to_string()));
+    }
+    seen.sort();
+    let want: Vec<String> = (0..10).map(|i| format!("s{i:02}")).collect();
+    assert_eq!(seen, want);
+}
+
+#[test]
+fn block_of_exterior_orientations() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    block(d, 2);
+    // The interior file: the scene camera without [exterior]; the CSV gives
+    // the same exterior orientation in ω-φ-κ.
+    let cam = gcm_ortho::camera::file::CameraFile::read(&d.join("scene/camera.toml")).unwrap();
+    let ext = cam.exterior.clone().unwrap();
+    let r = ext.convention.matrix(ext.angles_deg.map(f64::to_radians));
+    let opk = gcm_ortho::camera::rotation::AngleConvention::OmegaPhiKappa.angles(&r).map(f64::to_degrees);
+    let mut interior = cam.clone();
+    interior.exterior = None;
+    std::fs::write(d.join("rc30.toml"), interior.to_toml()).unwrap();
+    let p = ext.position;
+    let mut csv = String::from("name,X,Y,Z,omega,phi,kappa\n");
+    for i in 0..2 {
+        csv += &format!("s{i:02},{},{},{},{},{},{}\n", p[0], p[1], p[2], opk[0], opk[1], opk[2]);
+    }
+    std::fs::write(d.join("eo.csv"), csv).unwrap();
+    std::fs::write(
+        d.join("manifest.toml"),
+        "[defaults]\ndem = \"scene/dem.tif\"\noutput_dir = \"ortho\"\n\n[block]\ninterior = \"rc30.toml\"\nexterior_csv = \"eo.csv\"\nimages = \"scans/{name}.tif\"\n",
+    )
+    .unwrap();
+    let o = batch(d, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The block camera equals the camera file: the same orthophoto as a plain rectify.
+    let single = d.join("single.tif");
+    let sc = d.join("scene");
+    assert!(run(&["rectify", "--image", s(&d.join("scans/s00.tif")), "--camera", s(&sc.join("camera.toml")), "--dem", s(&sc.join("dem.tif")), "-o", s(&single), "--quiet"]).status.success());
+    let a = gcm_ortho::compare::read_grey(&single, 0.0).unwrap();
+    let b = gcm_ortho::compare::read_grey(&d.join("ortho/s00.tif"), 0.0).unwrap();
+    let diff = a.v.iter().zip(&b.v).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+    assert!(diff <= 1.0, "{diff}");
+}
+
+#[test]
+fn a_broken_manifest_lists_every_problem_with_lines() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("manifest.toml"), "[defaults]\ndme = \"x.tif\"\n").unwrap();
+    let o = batch(d, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(err.contains("manifest.toml") && err.contains("line 2") && err.contains("dme"), "{err}");
+}
+
+#[test]
+fn sigterm_mid_batch_keeps_finished_jobs_and_a_rerun_finishes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    block(d, 4);
+    std::fs::write(d.join("manifest.toml"), format!("[defaults]\ndem = \"scene/dem.tif\"\noutput_dir = \"ortho\"\ngsd = 0.6\n\n{}", jobs_toml(4))).unwrap();
+    let rep = d.join("r.jsonl");
+    let child = Command::new(bin())
+        .args(["batch", s(&d.join("manifest.toml")), "--quiet", "--report", s(&rep), "--threads", "1"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until the first job is done, then stop the batch.
+    let t = std::time::Instant::now();
+    while !std::fs::read_to_string(&rep).map(|s| s.contains("\"done\"")).unwrap_or(false) {
+        assert!(t.elapsed().as_secs() < 60, "no job finished");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    Command::new("kill").args(["-15", &child.id().to_string()]).status().unwrap();
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(143), "{}", String::from_utf8_lossy(&o.stderr));
+    let done: Vec<String> = lines(&rep).iter().filter(|l| l["status"] == "done").map(|l| l["job"].as_str().unwrap().to_string()).collect();
+    assert!(!done.is_empty() && done.len() < 4, "{done:?}");
+    assert!(files_containing(&d.join("ortho"), "partial").is_empty());
+    for name in &done {
+        assert!(d.join(format!("ortho/{name}.tif")).is_file());
+    }
+    // The rerun skips what was done and finishes the rest.
+    let o = batch(d, &["--report", s(&rep)]);
+    assert!(o.status.success());
+    let st = lines(&rep);
+    assert_eq!(st.iter().filter(|l| l["status"] == "skipped").count(), done.len());
+    assert_eq!(st.iter().filter(|l| l["status"] == "done").count(), 4 - done.len());
+}
