@@ -30,6 +30,17 @@ pub enum Command {
     Demo(DemoArgs),
     /// Run many rectify jobs from a manifest: resumable, shardable.
     Batch(BatchArgs),
+    /// Put pieces made with `rectify --window` together into one GeoTIFF.
+    Assemble(AssembleArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct AssembleArgs {
+    /// The pieces (GeoTIFFs written by `rectify --window`).
+    #[arg(required = true)]
+    pub pieces: Vec<PathBuf>,
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -179,6 +190,9 @@ pub struct RectifyArgs {
     /// minx,miny,maxx,maxy or auto (the scan's footprint on the DEM).
     #[arg(long, default_value = "auto", allow_hyphen_values = true)]
     pub bounds: String,
+    /// Only a piece of the output: col,row,width,height in output tiles.
+    #[arg(long)]
+    pub window: Option<String>,
     /// GCM node spacing k, output pixels.
     #[arg(long, default_value_t = 16)]
     pub sparsity: u32,
@@ -263,6 +277,16 @@ impl RectifyArgs {
         cfg.dem_outside = self.dem_outside.parse::<Miss>().map_err(|e| format!("--dem-outside: {e}"))?;
         cfg.gsd = self.gsd;
         cfg.bounds = parse_bounds(&self.bounds)?;
+        cfg.window = match &self.window {
+            None => None,
+            Some(w) => {
+                let v: Vec<u32> = w.split(',').map(|p| p.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(|_| format!("--window '{w}' is not col,row,width,height"))?;
+                match v[..] {
+                    [c, r, ww, hh] if ww > 0 && hh > 0 => Some([c, r, ww, hh]),
+                    _ => return Err(format!("--window '{w}' is not col,row,width,height (tiles, width and height > 0)")),
+                }
+            }
+        };
         cfg.gcm = GcmSpec {
             k: self.sparsity,
             mode: self.corrections.parse::<CorrectionMode>()?,

@@ -53,6 +53,10 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Accuracy(a) => run_accuracy(&a).map(|()| 0),
         Command::Demo(a) => run_demo(&a, signals).map(|()| 0),
         Command::Batch(a) => run_batch(&a, signals),
+        Command::Assemble(a) => {
+            gcm_ortho::io::assemble::assemble(&a.pieces, &a.output)?;
+            Ok(0)
+        }
     }
 }
 

@@ -202,3 +202,44 @@ fn sigterm_mid_batch_keeps_finished_jobs_and_a_rerun_finishes() {
     assert_eq!(st.iter().filter(|l| l["status"] == "skipped").count(), done.len());
     assert_eq!(st.iter().filter(|l| l["status"] == "done").count(), 4 - done.len());
 }
+
+#[test]
+fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene(&d.join("scene"), 700, |o| o.kappa_deg = 20.0);
+    let base = ["--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "--tile", "128"];
+    let whole = d.join("whole.tif");
+    let mut a = vec!["rectify"];
+    a.extend_from_slice(&base);
+    a.extend_from_slice(&["-o", s(&whole)]);
+    assert!(run(&a).status.success());
+    let info = gcm_ortho::io::source::SourceImage::open(&whole, 1 << 20).unwrap().info;
+    let (ta, td) = (info.width.div_ceil(128), info.height.div_ceil(128));
+    // Four uneven pieces: a column of 2 tiles, and the rest split in three.
+    let (c, r) = (2, td / 2);
+    let windows = [[0, 0, c, td], [c, 0, ta - c, r], [c, r, 1, td - r], [c + 1, r, ta - c - 1, td - r]];
+    let mut pieces = Vec::new();
+    for (k, w) in windows.iter().enumerate() {
+        let p = d.join(format!("piece{k}.tif"));
+        let win = format!("{},{},{},{}", w[0], w[1], w[2], w[3]);
+        let mut a = vec!["rectify"];
+        a.extend_from_slice(&base);
+        a.extend_from_slice(&["--window", &win, "-o", s(&p)]);
+        let o = run(&a);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        pieces.push(p);
+    }
+    let joined = d.join("joined.tif");
+    let mut a = vec!["assemble", "-o", s(&joined)];
+    for p in &pieces {
+        a.push(s(p));
+    }
+    let o = run(&a);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::read(&whole).unwrap() == std::fs::read(&joined).unwrap(), "assembled file differs from the single run");
+    // A missing piece is an error naming the gap.
+    let o = run(&["assemble", "-o", s(&d.join("gap.tif")), s(&pieces[0]), s(&pieces[1])]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no piece covers tile"));
+}

@@ -1,5 +1,6 @@
 //! Reading scans and rasters, writing the tiled GeoTIFF.
 
+pub mod assemble;
 pub mod geotiff;
 pub mod maps;
 pub mod mmap_guard;

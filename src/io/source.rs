@@ -59,6 +59,8 @@ pub struct SourceInfo {
     pub photometric: u16,
     /// An alpha channel among the bands (ExtraSamples = associated/unassociated alpha).
     pub has_alpha: bool,
+    /// Predictor of compressed data (1 none, 2 horizontal, 3 floating point).
+    pub predictor: u16,
     pub georef: Option<GeoRef>,
     offsets: Vec<u64>,
     byte_counts: Vec<u64>,
@@ -81,6 +83,10 @@ impl SourceInfo {
     fn chunk_plane_bytes(&self) -> u64 {
         let spp = if self.planar { 1 } else { self.bands as u64 };
         self.chunk.0 as u64 * self.chunk.1 as u64 * spp * self.sample.bytes() as u64
+    }
+    /// Byte offsets and counts of the chunks, as the file records them.
+    pub fn chunk_table(&self) -> (&[u64], &[u64]) {
+        (&self.offsets, &self.byte_counts)
     }
     pub fn data_bytes(&self) -> u64 {
         self.width as u64 * self.height as u64 * self.pixel_bytes() as u64
@@ -227,6 +233,7 @@ fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_len: u64) -> 
         ((width, rps), tag_u64s(dec, Tag::StripOffsets, path)?, tag_u64s(dec, Tag::StripByteCounts, path)?)
     };
     let georef = read_georef(dec, path)?;
+    let predictor = dec.find_tag_unsigned::<u16>(Tag::Predictor).map_err(tf)?.unwrap_or(1);
     let info = SourceInfo {
         width,
         height,
@@ -238,6 +245,7 @@ fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_len: u64) -> 
         compression,
         photometric,
         has_alpha,
+        predictor,
         georef,
         offsets,
         byte_counts,

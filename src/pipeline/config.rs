@@ -39,6 +39,9 @@ pub struct RectifyConfig {
     pub gsd: Option<f64>,
     /// `[minx, miny, maxx, maxy]`; `None`: the scan's footprint on the DEM.
     pub bounds: Option<[f64; 4]>,
+    /// Only this piece of the output grid, in tiles: `[col, row, w, h]`.
+    /// Pieces made separately assemble into the whole, pixel for pixel.
+    pub window: Option<[u32; 4]>,
     pub gcm: GcmSpec,
     pub trend: Trend,
     pub kernel: Kernel,
@@ -68,6 +71,7 @@ impl RectifyConfig {
             output,
             gsd: None,
             bounds: None,
+            window: None,
             gcm: GcmSpec { k: 16, mode: crate::gcm::CorrectionMode::Bilinear, max_error: None },
             trend: Trend::Plane,
             kernel: Kernel::Bilinear,

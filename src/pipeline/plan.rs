@@ -22,10 +22,12 @@ pub struct Chunk {
 /// rows and every tile's first and last columns. `A + c` is smooth between
 /// samples; a pixel that still falls outside its window is read on its own
 /// by the resampler, so a box can never be wrong, only too small.
-fn tile_bboxes(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, tile: u32) -> Vec<Option<[f64; 4]>> {
+fn tile_bboxes(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, tile: u32, (t0, t1): (u32, u32)) -> Vec<Option<[f64; 4]>> {
     let width = gcm.t.grid.width;
-    let tiles = width.div_ceil(tile) as usize;
-    let w = width as usize;
+    let tiles = (t1 - t0) as usize;
+    // Output columns [x_lo, x_lo + w) of the tiles t0..t1.
+    let x_lo = (t0 * tile) as usize;
+    let w = (t1 * tile).min(width) as usize - x_lo;
     let mut cols = vec![0.0; w];
     let mut rows = vec![0.0; w];
     let mut miss = None;
@@ -33,7 +35,7 @@ fn tile_bboxes(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, tile: u32) -> Ve
     let mut ys: Vec<u32> = (y0..y1).step_by(16).collect();
     ys.push(y1 - 1);
     for &y in &ys {
-        gcm.fill_row(band, y, 0, &mut cols, &mut rows, &mut miss);
+        gcm.fill_row(band, y, x_lo as u32, &mut cols, &mut rows, &mut miss);
         for (t, b) in boxes.iter_mut().enumerate() {
             let (x0, x1) = (t * tile as usize, ((t + 1) * tile as usize).min(w));
             let xs = (x0..x1).step_by(16).chain(std::iter::once(x1 - 1));
@@ -51,7 +53,8 @@ fn tile_bboxes(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, tile: u32) -> Ve
     boxes
 }
 
-/// Splits band rows `[y0, y1)` into chunks of whole tiles whose scan windows
+/// Splits band rows `[y0, y1)`, tile columns `[t0, t1)`, into chunks of
+/// whole tiles whose scan windows
 /// hold at most `budget_px` pixels and that count at most `max_tiles`
 /// tiles (a single tile may exceed the budget).
 pub fn plan_band(
@@ -64,9 +67,9 @@ pub fn plan_band(
     margin: u32,
     budget_px: u64,
     max_tiles: u32,
+    (t0, t1): (u32, u32),
 ) -> Vec<Chunk> {
     let width = gcm.t.grid.width;
-    let tiles = width.div_ceil(tile);
     let clip = |b: [f64; 4]| -> [u32; 4] {
         let m = margin as f64;
         let c0 = (b[0] - m).floor().clamp(0.0, scan.0 as f64) as u32;
@@ -81,13 +84,13 @@ pub fn plan_band(
         (a, None) => a,
         (None, b) => b,
     };
-    let boxes = tile_bboxes(gcm, band, y0, y1, tile);
+    let boxes = tile_bboxes(gcm, band, y0, y1, tile, (t0, t1));
     let mut chunks = Vec::new();
-    let mut start = 0u32;
+    let mut start = t0;
     let mut acc: Option<[f64; 4]> = None;
-    for t in 0..tiles {
+    for t in t0..t1 {
         let x0 = t * tile;
-        let bb = boxes[t as usize];
+        let bb = boxes[(t - t0) as usize];
         let merged = union(acc, bb);
         let fits = merged.map(|m| area(&clip(m)) <= budget_px).unwrap_or(true);
         if t > start && (!fits || t - start >= max_tiles) {
@@ -98,6 +101,6 @@ pub fn plan_band(
             acc = merged;
         }
     }
-    chunks.push(Chunk { x0: start * tile, x1: width, win: acc.map(clip).unwrap_or([0; 4]) });
+    chunks.push(Chunk { x0: start * tile, x1: (t1 * tile).min(width), win: acc.map(clip).unwrap_or([0; 4]) });
     chunks
 }

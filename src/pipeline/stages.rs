@@ -147,12 +147,24 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let t = Transform::new(model, &dem, grid);
     let gcm = Gcm::new(&t, approx, cfg.gcm);
 
+    // The piece of the grid to make, in tiles (everything by default). All
+    // geometry stays that of the whole grid, so pieces equal the whole.
+    let (tx_all, ty_all) = (grid.width.div_ceil(cfg.tile), grid.height.div_ceil(cfg.tile));
+    let [tc0, tr0, tcw, trh] = cfg.window.unwrap_or([0, 0, tx_all, ty_all]);
+    if tcw == 0 || trh == 0 || tc0 + tcw > tx_all || tr0 + trh > ty_all {
+        return Err(Error::Usage(format!(
+            "--window {tc0},{tr0},{tcw},{trh} is not inside the output's {tx_all}×{ty_all} tiles"
+        )));
+    }
+    let (tc1, tr1) = (tc0 + tcw, tr0 + trh);
+    let piece_w = (tc1 * cfg.tile).min(grid.width) - tc0 * cfg.tile;
+    let piece_h = (tr1 * cfg.tile).min(grid.height) - tr0 * cfg.tile;
     let bands_in = src.info.bands;
     let bands_out = bands_in + u32::from(cfg.alpha);
     let photometric = if src.info.photometric == 2 && bands_in >= 3 { 2 } else { 1 };
     let mut spec = OutputSpec {
-        width: grid.width,
-        height: grid.height,
+        width: piece_w,
+        height: piece_h,
         bands: bands_out,
         sample: src.info.sample,
         chunking: Chunking::Tiles(cfg.tile),
@@ -161,8 +173,8 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         photometric,
         alpha: cfg.alpha || src.info.has_alpha,
         geo: Some(GeoTags {
-            x0: grid.x0,
-            y0: grid.y0,
+            x0: grid.x0 + (tc0 * cfg.tile) as f64 * grid.gsd,
+            y0: grid.y0 - (tr0 * cfg.tile) as f64 * grid.gsd,
             gsd: grid.gsd,
             epsg: camera.crs.epsg,
             nodata: (!cfg.alpha).then_some(cfg.nodata),
@@ -179,7 +191,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         .build()
         .map_err(|e| Error::Usage(format!("cannot start {} threads: {e}", cfg.threads)))?;
     let mut times = StageTimes { setup: wall.elapsed().as_secs_f64(), ..Default::default() };
-    let n_bands = grid.height.div_ceil(cfg.tile);
+    let n_bands = trh;
     let progress = crate::progress::bar(spec.tiles_across() as u64 * n_bands as u64, "tiles", cfg.quiet);
     let failed = AtomicBool::new(false);
     let stop = || cancel.load(Ordering::Relaxed) || failed.load(Ordering::Relaxed);
@@ -208,7 +220,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let results: Vec<Result<Duration>> = std::thread::scope(|s| {
         let h_dem = s.spawn(|| {
             let mut busy = Duration::ZERO;
-            for b in 0..n_bands {
+            for b in tr0..tr1 {
                 if stop() {
                     return Err(Error::Cancelled);
                 }
@@ -257,9 +269,9 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
             let mut busy = Duration::ZERO;
             let margin = cfg.kernel.radius() + 2;
             for (b, band) in rx_gcm.iter().enumerate() {
-                let b = b as u32;
+                let b = tr0 + b as u32;
                 let (y0, y1) = band_rows(&grid, cfg.tile, b);
-                let chunks = timed(&mut busy, || plan_band(&gcm, &band, y0, y1, cfg.tile, (sw, sh), margin, budget_px, max_tiles));
+                let chunks = timed(&mut busy, || plan_band(&gcm, &band, y0, y1, cfg.tile, (sw, sh), margin, budget_px, max_tiles, (tc0, tc1)));
                 for chunk in chunks {
                     if stop() {
                         return Err(Error::Cancelled);
@@ -414,7 +426,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         stage_seconds: times,
         wall_seconds: wall_s,
         input_mb_per_s: src.info.data_bytes() as f64 / 1e6 / wall_s,
-        output_mpx_per_s: grid.pixel_count() as f64 / 1e6 / wall_s,
+        output_mpx_per_s: piece_w as f64 * piece_h as f64 / 1e6 / wall_s,
         peak_rss_mib: peak_rss_mib(),
         gcm: gcm_stats,
         accuracy_estimate: estimate,
