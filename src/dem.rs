@@ -43,11 +43,98 @@ impl std::str::FromStr for Miss {
     }
 }
 
+/// Heights of a grid: in memory, or read a chunk at a time from the file
+/// into a bounded cache (large DEMs: a 1 m DEM of 20×20 km is 1.6 GB).
+enum Samples {
+    Memory(Vec<f32>),
+    Chunked(ChunkedSamples),
+}
+
+/// Out-of-core samples: the file's strips or tiles, decoded on demand.
+struct ChunkedSamples {
+    path: PathBuf,
+    width: usize,
+    chunk: (usize, usize),
+    across: usize,
+    decoders: std::sync::Mutex<Vec<tiff::decoder::Decoder<std::io::BufReader<std::fs::File>>>>,
+    cache: std::sync::Mutex<(std::collections::HashMap<usize, (std::sync::Arc<Vec<f32>>, u64)>, u64)>,
+    /// Chunks kept at most.
+    keep: usize,
+}
+
+impl ChunkedSamples {
+    fn chunk(&self, k: usize) -> Option<std::sync::Arc<Vec<f32>>> {
+        {
+            let mut c = self.cache.lock().ok()?;
+            c.1 += 1;
+            let tick = c.1;
+            if let Some(e) = c.0.get_mut(&k) {
+                e.1 = tick;
+                return Some(e.0.clone());
+            }
+        }
+        let mut dec = match self.decoders.lock().ok()?.pop() {
+            Some(d) => d,
+            None => open_decoder(&self.path).ok()?,
+        };
+        let r = dec.read_chunk(k as u32).ok();
+        self.decoders.lock().ok()?.push(dec);
+        let v = std::sync::Arc::new(to_f32(r?)?);
+        let mut c = self.cache.lock().ok()?;
+        c.1 += 1;
+        let tick = c.1;
+        c.0.insert(k, (v.clone(), tick));
+        if c.0.len() > self.keep {
+            let (&old, _) = c.0.iter().min_by_key(|(_, e)| e.1)?;
+            c.0.remove(&old);
+        }
+        Some(v)
+    }
+
+    /// Sample (i, j); NaN when its chunk cannot be read.
+    fn get(&self, i: usize, j: usize) -> f32 {
+        let (cw, ch) = self.chunk;
+        let (tx, ty) = (i / cw, j / ch);
+        match self.chunk(ty * self.across + tx) {
+            // The decoder crops edge tiles to their data: the row stride is
+            // the chunk's data width (strips span the image width).
+            Some(c) => {
+                let stride = cw.min(self.width - tx * cw);
+                c.get((j - ty * ch) * stride + (i - tx * cw)).copied().unwrap_or(f32::NAN)
+            }
+            None => f32::NAN,
+        }
+    }
+}
+
+fn open_decoder(path: &Path) -> Result<tiff::decoder::Decoder<std::io::BufReader<std::fs::File>>> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    Ok(tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(|e| Error::from_tiff(path, e))?.with_limits(crate::io::source::decoder_limits()))
+}
+
+fn to_f32(img: tiff::decoder::DecodingResult) -> Option<Vec<f32>> {
+    use tiff::decoder::DecodingResult as D;
+    Some(match img {
+        D::U8(v) => v.into_iter().map(f32::from).collect(),
+        D::U16(v) => v.into_iter().map(f32::from).collect(),
+        D::I8(v) => v.into_iter().map(f32::from).collect(),
+        D::I16(v) => v.into_iter().map(f32::from).collect(),
+        D::U32(v) => v.into_iter().map(|x| x as f32).collect(),
+        D::I32(v) => v.into_iter().map(|x| x as f32).collect(),
+        D::F32(v) => v,
+        D::F64(v) => v.into_iter().map(|x| x as f32).collect(),
+        _ => return None,
+    })
+}
+
+/// DEMs larger than this are read a chunk at a time.
+pub const IN_MEMORY_LIMIT: u64 = 64 << 20;
+
 /// A height grid, north-up, heights at pixel centres.
 pub struct GridDem {
     pub width: usize,
     pub height: usize,
-    data: Vec<f32>,
+    data: Samples,
     /// GDAL geotransform (north-up: gt2 = gt4 = 0).
     pub transform: [f64; 6],
     pub nodata: Option<f64>,
@@ -57,11 +144,27 @@ pub struct GridDem {
 impl GridDem {
     pub fn new(width: usize, height: usize, data: Vec<f32>, transform: [f64; 6], nodata: Option<f64>, epsg: Option<u32>) -> GridDem {
         assert_eq!(data.len(), width * height);
-        GridDem { width, height, data, transform, nodata, epsg }
+        GridDem { width, height, data: Samples::Memory(data), transform, nodata, epsg }
     }
 
-    pub fn data(&self) -> &[f32] {
-        &self.data
+    /// Is the grid read a chunk at a time?
+    pub fn is_chunked(&self) -> bool {
+        matches!(self.data, Samples::Chunked(_))
+    }
+
+    /// Sample (i, j) (column, row).
+    #[inline]
+    pub fn sample(&self, i: usize, j: usize) -> f32 {
+        match &self.data {
+            Samples::Memory(v) => v[j * self.width + i],
+            Samples::Chunked(c) => c.get(i, j),
+        }
+    }
+
+    /// Every `step`-th sample, row-major (for summaries: mean height).
+    pub fn samples(&self, step: usize) -> Vec<f32> {
+        let n = self.width * self.height;
+        (0..n).step_by(step.max(1)).map(|k| self.sample(k % self.width, k / self.width)).collect()
     }
 
     #[inline]
@@ -88,7 +191,7 @@ impl GridDem {
         let i1 = (i0 + 1).min(self.width - 1);
         let j1 = (j0 + 1).min(self.height - 1);
         let (fx, fy) = (c - i0 as f64, r - j0 as f64);
-        let v = |i: usize, j: usize| self.data[j * self.width + i];
+        let v = |i: usize, j: usize| self.sample(i, j);
         let (z00, z10, z01, z11) = (v(i0, j0), v(i1, j0), v(i0, j1), v(i1, j1));
         let need = |z: f32, wgt: f64| wgt > 0.0 && self.is_nodata(z);
         if need(z00, (1.0 - fx) * (1.0 - fy))
@@ -120,7 +223,7 @@ impl GridDem {
         let i0 = (c as usize).min(self.width - 2);
         let j0 = (r as usize).min(self.height - 2);
         let (fx, fy) = (c - i0 as f64, r - j0 as f64);
-        let v = |i: usize, j: usize| self.data[j * self.width + i];
+        let v = |i: usize, j: usize| self.sample(i, j);
         let (z00, z10, z01, z11) = (v(i0, j0), v(i0 + 1, j0), v(i0, j0 + 1), v(i0 + 1, j0 + 1));
         if [z00, z10, z01, z11].iter().any(|&z| self.is_nodata(z)) {
             return None;
@@ -165,27 +268,39 @@ impl GridDem {
             .ok_or_else(|| Error::format(path, "the DEM has no georeferencing (no ModelPixelScale/ModelTiepoint)"))?;
         check_north_up(&geo, path)?;
         let pixels = (w as u64) * (h as u64);
-        if pixels > 1 << 31 {
-            return Err(Error::limits(path, format!("DEM of {w}×{h} samples is larger than this version reads into memory")));
+        if pixels > 1 << 40 {
+            return Err(Error::limits(path, format!("DEM of {w}×{h} samples is too large")));
         }
-        use tiff::decoder::DecodingResult as D;
+        if pixels * 4 > IN_MEMORY_LIMIT {
+            // Out of core: chunks decoded on demand into a cache of ~16 MB.
+            let (cw, ch) = dec.chunk_dimensions();
+            let (cw, ch) = (cw.max(1) as usize, ch.max(1) as usize);
+            let tiled = matches!(dec.get_chunk_type(), tiff::decoder::ChunkType::Tile);
+            let across = if tiled { (w as usize).div_ceil(cw) } else { 1 };
+            let keep = ((16usize << 20) / (cw * ch * 4)).max(4);
+            let chunked = ChunkedSamples {
+                path: path.to_path_buf(),
+                width: w as usize,
+                chunk: if tiled { (cw, ch) } else { (w as usize, ch) },
+                across,
+                decoders: std::sync::Mutex::new(vec![dec]),
+                cache: std::sync::Mutex::new((Default::default(), 0)),
+                keep,
+            };
+            let g = GridDem { width: w as usize, height: h as usize, data: Samples::Chunked(chunked), transform: geo.transform, nodata: geo.nodata, epsg: geo.epsg };
+            // A readable first chunk, or a clear error now rather than NaNs later.
+            if g.sample(0, 0).is_nan() && g.samples((pixels / 1000).max(1) as usize).iter().all(|v| v.is_nan()) {
+                return Err(Error::format(path, "the DEM's data cannot be read (or is all NaN)"));
+            }
+            return Ok(g);
+        }
         let img = dec.read_image().map_err(|e| Error::from_tiff(path, e))?;
-        let data: Vec<f32> = match img {
-            D::U8(v) => v.into_iter().map(f32::from).collect(),
-            D::U16(v) => v.into_iter().map(f32::from).collect(),
-            D::I8(v) => v.into_iter().map(f32::from).collect(),
-            D::I16(v) => v.into_iter().map(f32::from).collect(),
-            D::U32(v) => v.into_iter().map(|x| x as f32).collect(),
-            D::I32(v) => v.into_iter().map(|x| x as f32).collect(),
-            D::F32(v) => v,
-            D::F64(v) => v.into_iter().map(|x| x as f32).collect(),
-            _ => return Err(Error::unsupported(path, "DEM sample type")),
-        };
+        let data = to_f32(img).ok_or_else(|| Error::unsupported(path, "DEM sample type"))?;
         if data.len() != pixels as usize {
             return Err(Error::format(path, "DEM data size does not match its dimensions"));
         }
         let g = GridDem::new(w as usize, h as usize, data, geo.transform, geo.nodata, geo.epsg);
-        if g.data.iter().all(|&v| g.is_nodata(v)) {
+        if g.samples(1).iter().all(|&v| g.is_nodata(v)) {
             return Err(Error::format(path, "every sample of the DEM is nodata"));
         }
         Ok(g)
@@ -353,7 +468,9 @@ mod tests {
     #[test]
     fn holes_and_policies() {
         let mut g = ramp();
-        g.data[5] = -9999.0; // (1, 1)
+        if let Samples::Memory(v) = &mut g.data {
+            v[5] = -9999.0; // (1, 1)
+        }
         assert_eq!(g.lookup(1020.0, 1990.0), Lookup::Hole);
         // Exactly on sample (2, 0) the hole at (1, 1) has zero weight.
         assert_eq!(g.lookup(1025.0, 1995.0), Lookup::Height(102.0));

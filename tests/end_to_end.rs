@@ -109,3 +109,55 @@ fn small_memory_budget_and_many_chunks_change_nothing() {
     }
     assert_eq!(outs[0].v, outs[1].v);
 }
+
+#[test]
+fn a_dem_too_large_for_memory_is_read_in_chunks_with_the_same_result() {
+    use gcm_ortho::dem::{GridDem, IN_MEMORY_LIMIT};
+    use gcm_ortho::io::tiff_out::*;
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 400, |o| o.dem_posting = 20.0);
+    let small = GridDem::read(&sc.dem).unwrap();
+    assert!(!small.is_chunked());
+    // The same heights resampled onto a grid 20× finer in each direction:
+    // ~4.7 K² Float32 samples ≈ 89 MB, past the in-memory limit. Written
+    // tiled and deflated; its bilinear heights equal the coarse DEM's at the
+    // coarse posts and in between (bilinear of bilinear on a refined grid).
+    let f = 20usize;
+    let (w, h) = (small.width * f, small.height * f);
+    assert!((w * h * 4) as u64 > IN_MEMORY_LIMIT);
+    let gt = small.transform;
+    let big = dir.path().join("big_dem.tif");
+    let spec = OutputSpec {
+        width: w as u32, height: h as u32, bands: 1, sample: gcm_ortho::io::source::SampleType::F32,
+        chunking: Chunking::Tiles(256), compression: Compression::Deflate, bigtiff: false, photometric: 1, alpha: false,
+        geo: Some(GeoTags { x0: gt[0], y0: gt[3], gsd: gt[1] / f as f64, epsg: 32631, nodata: None }),
+    };
+    write_raster(&big, &spec, |y0, y1, buf| {
+        let out: &mut [f32] = bytemuck::cast_slice_mut(buf);
+        for y in y0..y1 {
+            for x in 0..w {
+                let (gx, gy) = (gt[0] + (x as f64 + 0.5) * gt[1] / f as f64, gt[3] + (y as f64 + 0.5) * gt[5] / f as f64);
+                out[(y - y0) as usize * w + x] = match small.lookup(gx, gy) {
+                    gcm_ortho::dem::Lookup::Height(z) => z as f32,
+                    _ => f32::NAN,
+                };
+            }
+        }
+    })
+    .unwrap();
+    let chunked = GridDem::read(&big).unwrap();
+    assert!(chunked.is_chunked());
+    for (x, y) in [(649800.3, 4890500.7), (650321.0, 4889900.2), (650999.9, 4890011.1)] {
+        let (a, b) = (small.lookup(x, y), chunked.lookup(x, y));
+        if let (gcm_ortho::dem::Lookup::Height(a), gcm_ortho::dem::Lookup::Height(b)) = (a, b) {
+            assert!((a - b).abs() < 0.05, "{a} {b}");
+        }
+    }
+    // And rectify runs on it, in bounded memory.
+    let out = dir.path().join("o.tif");
+    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&big), "-o", s(&out), "--quiet", "--json", s(&dir.path().join("r.json"))]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let rep: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("r.json")).unwrap()).unwrap();
+    // Less than the DEM alone would take in memory (89 MB).
+    assert!(rep["peak_rss_mib"].as_f64().unwrap() < 85.0, "{}", rep["peak_rss_mib"]);
+}

@@ -4,27 +4,63 @@
 //! turns that into what every other failure looks like: one line naming the
 //! file, no half-written output (the temporary files registered here are
 //! removed), exit code 1.
+//!
+//! Paths live in fixed static buffers of atomics: nothing is allocated (or
+//! leaked) per file, and the handler reads them without locks.
 
-use std::ffi::CString;
 use std::path::Path;
-use std::sync::atomic::{AtomicPtr, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::Once;
 
+const LEN: usize = 1024;
 const SLOTS: usize = 8;
-static MAPPED: AtomicPtr<libc::c_char> = AtomicPtr::new(std::ptr::null_mut());
-static CLEANUP: [AtomicPtr<libc::c_char>; SLOTS] = [const { AtomicPtr::new(std::ptr::null_mut()) }; SLOTS];
-static INSTALL: Once = Once::new();
 
-fn leak(p: &Path) -> *mut libc::c_char {
-    CString::new(p.as_os_str().as_encoded_bytes()).map(CString::into_raw).unwrap_or(std::ptr::null_mut())
+/// A NUL-terminated path in atomics.
+struct PathBuf0 {
+    bytes: [AtomicU8; LEN],
+    used: AtomicBool,
 }
+
+impl PathBuf0 {
+    const fn new() -> Self {
+        PathBuf0 { bytes: [const { AtomicU8::new(0) }; LEN], used: AtomicBool::new(false) }
+    }
+    fn set(&self, p: &[u8]) {
+        let n = p.len().min(LEN - 1);
+        for (a, b) in self.bytes.iter().zip(&p[..n]) {
+            a.store(*b, Ordering::Relaxed);
+        }
+        self.bytes[n].store(0, Ordering::Release);
+    }
+    fn equals(&self, p: &[u8]) -> bool {
+        p.len() < LEN && p.iter().enumerate().all(|(i, b)| self.bytes[i].load(Ordering::Relaxed) == *b) && self.bytes[p.len()].load(Ordering::Relaxed) == 0
+    }
+    /// Copies into `out` (NUL-terminated); the length without the NUL.
+    fn copy(&self, out: &mut [u8; LEN]) -> usize {
+        let mut n = 0;
+        while n < LEN - 1 {
+            let b = self.bytes[n].load(Ordering::Acquire);
+            if b == 0 {
+                break;
+            }
+            out[n] = b;
+            n += 1;
+        }
+        out[n] = 0;
+        n
+    }
+}
+
+static MAPPED: PathBuf0 = PathBuf0::new();
+static CLEANUP: [PathBuf0; SLOTS] = [const { PathBuf0::new() }; SLOTS];
+static INSTALL: Once = Once::new();
 
 /// Remembers the file being mapped (for the message) and installs the handler.
 pub fn watch_mapped(path: &Path) {
-    MAPPED.store(leak(path), Ordering::SeqCst);
+    MAPPED.set(path.as_os_str().as_encoded_bytes());
     INSTALL.call_once(|| {
         // SAFETY: `on_sigbus` only calls async-signal-safe functions (write,
-        // unlink, _exit) on data that is never freed (leaked CStrings).
+        // unlink, _exit) on static buffers.
         unsafe {
             let mut sa: libc::sigaction = std::mem::zeroed();
             sa.sa_sigaction = on_sigbus as *const () as usize;
@@ -34,11 +70,12 @@ pub fn watch_mapped(path: &Path) {
     });
 }
 
-/// A temporary file to remove if the process dies of SIGBUS.
+/// A temporary file to remove if the process dies of SIGBUS (the first
+/// eight at a time are remembered).
 pub fn register_cleanup(path: &Path) {
-    let p = leak(path);
     for slot in &CLEANUP {
-        if slot.compare_exchange(std::ptr::null_mut(), p, Ordering::SeqCst, Ordering::SeqCst).is_ok() {
+        if slot.used.compare_exchange(false, true, Ordering::AcqRel, Ordering::Relaxed).is_ok() {
+            slot.set(path.as_os_str().as_encoded_bytes());
             return;
         }
     }
@@ -48,10 +85,9 @@ pub fn register_cleanup(path: &Path) {
 pub fn unregister_cleanup(path: &Path) {
     let want = path.as_os_str().as_encoded_bytes();
     for slot in &CLEANUP {
-        let p = slot.load(Ordering::SeqCst);
-        // SAFETY: non-null slots hold leaked, NUL-terminated CStrings.
-        if !p.is_null() && unsafe { std::ffi::CStr::from_ptr(p) }.to_bytes() == want {
-            slot.store(std::ptr::null_mut(), Ordering::SeqCst);
+        if slot.used.load(Ordering::Acquire) && slot.equals(want) {
+            slot.set(b"");
+            slot.used.store(false, Ordering::Release);
         }
     }
 }
@@ -61,21 +97,18 @@ extern "C" fn on_sigbus(_: libc::c_int) {
         // SAFETY: write(2) is async-signal-safe; the buffer is valid.
         unsafe { libc::write(2, s.as_ptr().cast(), s.len()) };
     };
+    let mut buf = [0u8; LEN];
     write(b"gcm-ortho: error: ");
-    let m = MAPPED.load(Ordering::SeqCst);
-    if !m.is_null() {
-        // SAFETY: a leaked CString; strlen is async-signal-safe.
-        let n = unsafe { libc::strlen(m) };
-        // SAFETY: `m` points to `n` valid bytes.
-        write(unsafe { std::slice::from_raw_parts(m.cast::<u8>(), n) });
+    let n = MAPPED.copy(&mut buf);
+    if n > 0 {
+        write(&buf[..n]);
         write(b": ");
     }
     write(b"the input file was truncated while being read (SIGBUS on its memory map)\n");
     for slot in &CLEANUP {
-        let p = slot.load(Ordering::SeqCst);
-        if !p.is_null() {
-            // SAFETY: unlink(2) is async-signal-safe; `p` is a leaked CString.
-            unsafe { libc::unlink(p) };
+        if slot.used.load(Ordering::Acquire) && slot.copy(&mut buf) > 0 {
+            // SAFETY: unlink(2) is async-signal-safe; `buf` is NUL-terminated.
+            unsafe { libc::unlink(buf.as_ptr().cast()) };
         }
     }
     // SAFETY: _exit(2) is async-signal-safe and never returns.

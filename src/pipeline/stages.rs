@@ -439,7 +439,8 @@ fn model_ground_height(dem: &Dem, camera_z: f64) -> f64 {
     match &dem.model {
         crate::dem::HeightModel::Flat(z) => *z,
         crate::dem::HeightModel::Grid(g) => {
-            let valid: Vec<f64> = g.data().iter().step_by(97).filter(|v| v.is_finite() && g.nodata != Some(**v as f64)).map(|&v| v as f64).collect();
+            let step = (g.width * g.height / 20_000).max(1);
+            let valid: Vec<f64> = g.samples(step).iter().filter(|v| v.is_finite() && g.nodata != Some(**v as f64)).map(|&v| v as f64).collect();
             if valid.is_empty() {
                 camera_z - 1000.0
             } else {

@@ -295,7 +295,7 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     };
     let half = 1.8 * film_half / focal * flying + 200.0;
     let grid_dem = relief(o, cam.centre.x, cam.centre.y, half, flying);
-    let zs: Vec<f64> = grid_dem.data().iter().map(|&v| v as f64).collect();
+    let zs: Vec<f64> = grid_dem.samples(1).iter().map(|&v| v as f64).collect();
     let (zlo, zhi) = zs.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
     let slope = max_slope(&zs, grid_dem.width, o.dem_posting).atan().to_degrees();
     let dem_spec = OutputSpec {
@@ -312,8 +312,8 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     };
     write_raster(&dem_path, &dem_spec, |y0, y1, buf| {
         let w = grid_dem.width;
-        let src = &grid_dem.data()[y0 as usize * w..y1 as usize * w];
-        buf.copy_from_slice(bytemuck::cast_slice(src));
+        let src: Vec<f32> = (y0 as usize * w..y1 as usize * w).map(|k| grid_dem.sample(k % w, k / w)).collect();
+        buf.copy_from_slice(bytemuck::cast_slice(&src));
     })?;
     let dem = Dem::grid(grid_dem, &dem_path);
     let mid_z = (zlo + zhi) / 2.0;
