@@ -7,6 +7,7 @@ pub mod file;
 pub mod frame;
 pub mod interior;
 pub mod rotation;
+pub mod rpc;
 
 pub use file::{CameraFile, Crs};
 pub use frame::FrameCamera;
