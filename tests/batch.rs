@@ -187,7 +187,7 @@ fn sigterm_mid_batch_keeps_finished_jobs_and_a_rerun_finishes() {
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
     Command::new("kill").args(["-15", &child.id().to_string()]).status().unwrap();
-    let o = child.wait_with_output().unwrap();
+    let o = wait_deadline(child, 30);
     assert_eq!(o.status.code(), Some(143), "{}", String::from_utf8_lossy(&o.stderr));
     let done: Vec<String> = lines(&rep).iter().filter(|l| l["status"] == "done").map(|l| l["job"].as_str().unwrap().to_string()).collect();
     assert!(!done.is_empty() && done.len() < 4, "{done:?}");

@@ -4,7 +4,7 @@
 mod common;
 use common::*;
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// Sends `signal` (a number, as `kill -N` takes it) mid-run.
 fn interrupt(signal: i32, expect: i32) {
@@ -23,9 +23,7 @@ fn interrupt(signal: i32, expect: i32) {
     assert!(child.try_wait().unwrap().is_none(), "the run ended before the signal");
     let sent = Command::new("kill").args([format!("-{signal}"), child.id().to_string()]).status().unwrap();
     assert!(sent.success());
-    let t = Instant::now();
-    let status = child.wait_with_output().unwrap();
-    assert!(t.elapsed() < Duration::from_secs(10), "slow to stop: {:?}", t.elapsed());
+    let status = wait_deadline(child, 10);
     assert_eq!(status.status.code(), Some(expect), "{}", String::from_utf8_lossy(&status.stderr));
     assert_eq!(std::fs::read(&out).unwrap(), b"an older orthophoto");
     assert!(files_containing(dir.path(), "partial").is_empty(), "temporary file left behind");
@@ -79,7 +77,7 @@ fn scan_truncated_underneath_is_reported() {
     std::thread::sleep(Duration::from_millis(700));
     assert!(child.try_wait().unwrap().is_none(), "the run ended before the truncation");
     std::fs::OpenOptions::new().write(true).open(&sc.scan).unwrap().set_len(4096).unwrap();
-    let o = child.wait_with_output().unwrap();
+    let o = wait_deadline(child, 30);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("scan.tif") && err.contains("truncated"), "{err}");

@@ -238,6 +238,9 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
             Ok(busy)
         });
         let h_gcm = s.spawn(|| {
+            // Owned, so that it is dropped (and the stage before it stops)
+            // as soon as this stage returns, by success or by error.
+            let rx_dem = rx_dem;
             let mut busy = Duration::ZERO;
             for msg in rx_dem.iter() {
                 if stop() {
@@ -266,6 +269,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
             Ok(busy)
         });
         let h_read = s.spawn(|| {
+            let rx_gcm = rx_gcm;
             let mut busy = Duration::ZERO;
             let margin = cfg.kernel.radius() + 2;
             for (b, band) in rx_gcm.iter().enumerate() {
@@ -288,6 +292,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
             Ok(busy)
         });
         let h_resample = s.spawn(|| {
+            let rx_read = rx_read;
             let mut busy = Duration::ZERO;
             for msg in rx_read.iter() {
                 if stop() {
@@ -315,6 +320,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
             Ok(busy)
         });
         let h_encode = s.spawn(|| {
+            let rx_raw = rx_raw;
             let mut busy = Duration::ZERO;
             let pb = bands_out as usize * spec.sample.bytes();
             for chunk in rx_raw.iter() {
@@ -355,6 +361,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
             Ok(busy)
         });
         let h_write = s.spawn(|| {
+            let rx_enc = rx_enc;
             let mut busy = Duration::ZERO;
             let r = write_tiled(out_file, &spec, || -> Result<Option<Vec<u8>>> {
                 if cancel.load(Ordering::Relaxed) {

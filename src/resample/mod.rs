@@ -230,7 +230,6 @@ pub fn resample_row<T: Sample>(
         _ => {}
     }
     let b = view.bands;
-    let mut acc = [0f32; 4];
     for (i, (&c, &r)) in cols.iter().zip(rows).enumerate() {
         let px = &mut out[i * b..(i + 1) * b];
         if !(c >= 0.0 && r >= 0.0 && c < view.img_w && r < view.img_h) {
@@ -261,47 +260,35 @@ pub fn resample_row<T: Sample>(
                     px[k] = T::bilerp(d[s00 + k], d[s10 + k], d[s01 + k], d[s11 + k], w);
                 }
             }
-            Kernel::Cubic => {
-                let (x, y) = (c - 0.5, r - 0.5);
-                let (xi, yi) = (floor_i64(x), floor_i64(y));
-                let wx = cubic_weights((x - xi as f64) as f32);
-                let wy = cubic_weights((y - yi as f64) as f32);
-                let (i0, j0) = (xi - view.x0 - 1, yi - view.y0 - 1);
-                acc[..b].fill(0.0);
-                for (dj, wyj) in wy.iter().enumerate() {
-                    for (di, wxi) in wx.iter().enumerate() {
-                        let s = view.at(i0 + di as i64, j0 + dj as i64);
-                        let w = wxi * wyj;
-                        for k in 0..b {
-                            acc[k] += w * view.data[s + k].to_f32();
-                        }
-                    }
-                }
-                for k in 0..b {
-                    px[k] = T::from_f32(acc[k]);
-                }
-            }
-            Kernel::Lanczos3 => {
-                let (x, y) = (c - 0.5, r - 0.5);
-                let (xi, yi) = (floor_i64(x), floor_i64(y));
-                let wx = lanczos3_weights((x - xi as f64) as f32);
-                let wy = lanczos3_weights((y - yi as f64) as f32);
-                let (i0, j0) = (xi - view.x0 - 2, yi - view.y0 - 2);
-                acc[..b].fill(0.0);
-                for (dj, wyj) in wy.iter().enumerate() {
-                    for (di, wxi) in wx.iter().enumerate() {
-                        let s = view.at(i0 + di as i64, j0 + dj as i64);
-                        let w = wxi * wyj;
-                        for k in 0..b {
-                            acc[k] += w * view.data[s + k].to_f32();
-                        }
-                    }
-                }
-                for k in 0..b {
-                    px[k] = T::from_f32(acc[k]);
-                }
+            Kernel::Cubic => separable(view, c, r, cubic_weights, px),
+            Kernel::Lanczos3 => separable(view, c, r, lanczos3_weights, px),
+        }
+    }
+}
+
+/// A separable `N`-tap kernel (cubic: 4, Lanczos: 6) at scan position (c, r).
+#[inline]
+fn separable<T: Sample, const N: usize>(view: &View<'_, T>, c: f64, r: f64, weights: fn(f32) -> [f32; N], px: &mut [T]) {
+    let (x, y) = (c - 0.5, r - 0.5);
+    let (xi, yi) = (floor_i64(x), floor_i64(y));
+    let wx = weights((x - xi as f64) as f32);
+    let wy = weights((y - yi as f64) as f32);
+    // Taps start (N/2 − 1) pixels left of and above the floor.
+    let back = (N / 2 - 1) as i64;
+    let (i0, j0) = (xi - view.x0 - back, yi - view.y0 - back);
+    let mut acc = [0f32; 4];
+    let b = view.bands;
+    for (dj, wyj) in wy.iter().enumerate() {
+        for (di, wxi) in wx.iter().enumerate() {
+            let s = view.at(i0 + di as i64, j0 + dj as i64);
+            let w = wxi * wyj;
+            for k in 0..b {
+                acc[k] += w * view.data[s + k].to_f32();
             }
         }
+    }
+    for k in 0..b {
+        px[k] = T::from_f32(acc[k]);
     }
 }
 

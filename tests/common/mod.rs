@@ -37,3 +37,18 @@ pub fn files_containing(dir: &Path, part: &str) -> Vec<String> {
         .map(|rd| rd.filter_map(|e| e.ok()).map(|e| e.file_name().to_string_lossy().into_owned()).filter(|n| n.contains(part)).collect())
         .unwrap_or_default()
 }
+
+/// Waits for a child at most `secs` seconds; a hang kills it and fails.
+pub fn wait_deadline(mut child: std::process::Child, secs: u64) -> Output {
+    let t = std::time::Instant::now();
+    loop {
+        if child.try_wait().expect("try_wait").is_some() {
+            return child.wait_with_output().expect("output");
+        }
+        if t.elapsed().as_secs() >= secs {
+            let _ = child.kill();
+            panic!("the process hung for {secs} s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
