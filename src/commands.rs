@@ -3,7 +3,7 @@
 
 use crate::cli::{AccuracyArgs, BatchArgs, Cli, Command, DemoArgs, RectifyArgs, SynthArgs};
 use anyhow::{anyhow, Context, Result};
-use gcm_ortho::accuracy::{evaluate, THRESHOLDS};
+use gcm_ortho::accuracy::evaluate;
 use gcm_ortho::camera::file::Camera;
 use gcm_ortho::compare::{compare, read_grey};
 use gcm_ortho::dem::{Dem, GridDem};
@@ -238,7 +238,6 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         rows.push(serde_json::json!({"k": k, "mode": mode, "max_error": bound, "errors": e, "gcm": ev.gcm,
             "prepare_s": ev.prepare.as_secs_f64(), "fill_s": ev.fill.as_secs_f64()}));
     }
-    let _ = THRESHOLDS;
     let cp_path = a.scene.as_ref().map(|d| d.join("checkpoints.csv")).filter(|p| p.exists());
     if let Some(cp_path) = cp_path {
         let cps = gcm_ortho::accuracy::read_checkpoints(&cp_path)?;

@@ -6,21 +6,26 @@ use common::*;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
+/// Starts a long rectify of `sc` into `out` and returns it 0.7 s in, still
+/// running: a small GSD makes ≈ 100 Mpx of output.
+fn long_run(sc: &gcm_ortho::synth::SynthReport, out: &std::path::Path) -> std::process::Child {
+    let mut child = Command::new(bin())
+        .args(["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(out), "--quiet", "--gsd", "0.25", "--threads", "1"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(700));
+    assert!(child.try_wait().unwrap().is_none(), "the run ended too early");
+    child
+}
+
 /// Sends `signal` (a number, as `kill -N` takes it) mid-run.
 fn interrupt(signal: i32, expect: i32) {
     let dir = tempfile::tempdir().unwrap();
     let sc = scene(&dir.path().join("scene"), 1000, |_| {});
     let out = dir.path().join("ortho.tif");
     std::fs::write(&out, b"an older orthophoto").unwrap();
-    // A small GSD makes the run long (≈ 100 Mpx of output) so the signal
-    // surely lands mid-run.
-    let mut child = Command::new(bin())
-        .args(["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--gsd", "0.25", "--threads", "1"])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(Duration::from_millis(700));
-    assert!(child.try_wait().unwrap().is_none(), "the run ended before the signal");
+    let child = long_run(&sc, &out);
     let sent = Command::new("kill").args([format!("-{signal}"), child.id().to_string()]).status().unwrap();
     assert!(sent.success());
     let status = wait_deadline(child, 10);
@@ -69,13 +74,7 @@ fn scan_truncated_underneath_is_reported() {
     let dir = tempfile::tempdir().unwrap();
     let sc = scene(&dir.path().join("scene"), 1000, |_| {});
     let out = dir.path().join("ortho.tif");
-    let mut child = Command::new(bin())
-        .args(["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--gsd", "0.25", "--threads", "1"])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(Duration::from_millis(700));
-    assert!(child.try_wait().unwrap().is_none(), "the run ended before the truncation");
+    let child = long_run(&sc, &out);
     std::fs::OpenOptions::new().write(true).open(&sc.scan).unwrap().set_len(4096).unwrap();
     let o = wait_deadline(child, 30);
     let err = String::from_utf8_lossy(&o.stderr);

@@ -11,7 +11,7 @@ use super::rotation::AngleConvention;
 use crate::error::{Error, Result};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A coordinate reference system named by its EPSG code.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -248,11 +248,6 @@ fn build_interior(s: &InteriorSection) -> std::result::Result<InteriorOrientatio
     let ppx = s.principal_point_px.ok_or_else(|| e("principal_point_px", "missing".into()))?;
     all_finite(&ppx).map_err(|m| e("principal_point_px", m))?;
     InteriorOrientation::digital(ps, ppx).map_err(|x| e("pixel_size_mm", x.to_string()))
-}
-
-/// Where a camera file's relative paths would be resolved.
-pub fn dir_of(path: &Path) -> PathBuf {
-    path.parent().map(Path::to_path_buf).unwrap_or_default()
 }
 
 #[cfg(test)]

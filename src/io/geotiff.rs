@@ -94,7 +94,6 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
             }
         }
     }
-    let _ = GT_MODEL_TYPE;
     let mut gt = if let Some(m) = matrix.filter(|m| m.len() >= 16) {
         [m[3], m[0], m[1], m[7], m[4], m[5]]
     } else if let (Some(s), Some(t)) = (scale, tie) {

@@ -21,7 +21,7 @@ use crate::transform::footprint::{auto_grid, mean_gsd};
 use crate::transform::inverse::RayCaster;
 use rayon::prelude::*;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use texture::Texture;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -473,9 +473,4 @@ fn film_margin(o: &SynthOptions, cam: &crate::camera::FrameCamera, c: f64, r: f6
         }
     }
     [0.06; 3]
-}
-
-/// Paths of a scene directory.
-pub fn scene_paths(dir: &Path) -> (PathBuf, PathBuf, PathBuf, PathBuf) {
-    (dir.join("scan.tif"), dir.join("camera.toml"), dir.join("dem.tif"), dir.join("truth.tif"))
 }
