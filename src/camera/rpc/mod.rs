@@ -4,10 +4,9 @@
 //! the first pixel, so our continuous scan coordinates (centres at +½) are
 //! the RPC's sample and line plus ½ — as GDAL's RPC transformer reports them.
 //!
-//! Readers so far: the "KEY: value" text of IKONOS `rpc.txt`, GDAL
-//! `_RPC.TXT` and Planet files, and the GeoTIFF RPCCoefficientTag (50844).
-//! The rest (RPB, OSSIM .geom, DIMAP, WorldView XML) and rectification with
-//! RPC are the satellite issue's work still to do.
+//! The readers of the formats found in the wild are in `read`.
+
+mod read;
 
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -65,6 +64,42 @@ impl Rpc {
         Rpc { samp_off: self.samp_off - col, line_off: self.line_off - row, ..self.clone() }
     }
 
+    /// Ground (longitude °, latitude °) at height `h` seen at scan (column,
+    /// row): Newton's method from the model's centre, to `tol_px`.
+    pub fn locate(&self, col: f64, row: f64, h: f64, tol_px: f64) -> Option<(f64, f64)> {
+        let (mut lon, mut lat) = (self.long_off, self.lat_off);
+        let (dl, dp) = (self.long_scale * 1e-6, self.lat_scale * 1e-6);
+        for _ in 0..30 {
+            let (c, r) = self.project(lon, lat, h)?;
+            let (ec, er) = (col - c, row - r);
+            if ec.hypot(er) < tol_px {
+                return Some((lon, lat));
+            }
+            let (cl, rl) = self.project(lon + dl, lat, h)?;
+            let (cp, rp) = self.project(lon, lat + dp, h)?;
+            let j = nalgebra::Matrix2::new((cl - c) / dl, (cp - c) / dp, (rl - r) / dl, (rp - r) / dp);
+            let step = j.try_inverse()? * nalgebra::Vector2::new(ec, er);
+            lon += step.x;
+            lat += step.y;
+            if !(lon.is_finite() && lat.is_finite()) {
+                return None;
+            }
+        }
+        None
+    }
+
+    /// Scan pixels per degree of latitude and of longitude near the centre
+    /// (for step sizes and ground sample distances).
+    pub fn pixels_per_degree(&self) -> (f64, f64) {
+        let (lon, lat, h) = (self.long_off, self.lat_off, self.height_off);
+        let d = 1e-4;
+        let at = |lo: f64, la: f64| self.project(lo, la, h).unwrap_or((f64::NAN, f64::NAN));
+        let (c0, r0) = at(lon, lat);
+        let (c1, r1) = at(lon, lat + d);
+        let (c2, r2) = at(lon + d, lat);
+        ((c1 - c0).hypot(r1 - r0) / d, (c2 - c0).hypot(r2 - r0) / d)
+    }
+
     fn from_map(get: &dyn Fn(&str) -> Option<Vec<f64>>, path: &Path) -> Result<Rpc> {
         let one = |k: &str| -> Result<f64> {
             let v = get(k).ok_or_else(|| Error::format(path, format!("RPC: {k} missing")))?;
@@ -76,8 +111,8 @@ impl Rpc {
         let coeffs = |k: &str| -> Result<[f64; 20]> {
             let v = get(k).ok_or_else(|| Error::format(path, format!("RPC: {k} missing")))?;
             let arr: [f64; 20] = v.try_into().map_err(|v: Vec<f64>| Error::format(path, format!("RPC: {k} has {} coefficients, not 20", v.len())))?;
-            if arr.iter().any(|x| !x.is_finite()) {
-                return Err(Error::format(path, format!("RPC: {k} has a non-finite coefficient")));
+            if let Some(i) = arr.iter().position(|x| !x.is_finite()) {
+                return Err(Error::format(path, format!("RPC: {k}_{} (of 1..20) is missing or not finite", i + 1)));
             }
             Ok(arr)
         };
@@ -103,65 +138,5 @@ impl Rpc {
             }
         }
         Ok(rpc)
-    }
-
-    /// "KEY: value [unit]" lines (IKONOS rpc.txt, GDAL _RPC.TXT, Planet):
-    /// coefficients as LINE_NUM_COEFF_1 … LINE_NUM_COEFF_20.
-    pub fn parse_text(text: &str, path: &Path) -> Result<Rpc> {
-        let mut map = std::collections::HashMap::<String, Vec<f64>>::new();
-        for line in text.lines() {
-            let Some((k, v)) = line.split_once(':') else { continue };
-            let k = k.trim().to_ascii_uppercase();
-            let Some(first) = v.split_whitespace().next() else { continue };
-            let Ok(x) = first.parse::<f64>() else { continue };
-            // LINE_NUM_COEFF_7 → LINE_NUM_COEFF[6]
-            if let Some((base, idx)) = k.rsplit_once('_').filter(|(b, _)| b.ends_with("_COEFF")) {
-                if let Ok(i) = idx.parse::<usize>() {
-                    if (1..=20).contains(&i) {
-                        let e = map.entry(base.to_string()).or_insert_with(|| vec![f64::NAN; 20]);
-                        e[i - 1] = x;
-                        continue;
-                    }
-                }
-            }
-            map.insert(k, vec![x]);
-        }
-        if !map.contains_key("LINE_OFF") {
-            return Err(Error::unsupported(path, "not an RPC text file (no LINE_OFF)"));
-        }
-        Rpc::from_map(&|k| map.get(k).cloned(), path)
-    }
-
-    /// Reads a text RPC file.
-    pub fn read_text(path: &Path) -> Result<Rpc> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        Rpc::parse_text(&text, path)
-    }
-
-    /// The GeoTIFF RPCCoefficientTag (50844): ERR_BIAS, ERR_RAND, the ten
-    /// offsets and scales, then the four sets of 20 coefficients.
-    pub fn from_geotiff(path: &Path) -> Result<Rpc> {
-        let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-        let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(f)).map_err(|e| Error::from_tiff(path, e))?;
-        let v = dec
-            .find_tag(tiff::tags::Tag::Unknown(50844))
-            .map_err(|e| Error::from_tiff(path, e))?
-            .ok_or_else(|| Error::format(path, "no RPC tag (50844)"))?;
-        let v: Vec<f64> = match v {
-            tiff::decoder::ifd::Value::List(items) => items.into_iter().filter_map(|x| x.into_f64().ok()).collect(),
-            _ => Vec::new(),
-        };
-        if v.len() != 92 {
-            return Err(Error::format(path, format!("the RPC tag holds {} numbers, not 92", v.len())));
-        }
-        let names = ["LINE_OFF", "SAMP_OFF", "LAT_OFF", "LONG_OFF", "HEIGHT_OFF", "LINE_SCALE", "SAMP_SCALE", "LAT_SCALE", "LONG_SCALE", "HEIGHT_SCALE"];
-        let sets = ["LINE_NUM_COEFF", "LINE_DEN_COEFF", "SAMP_NUM_COEFF", "SAMP_DEN_COEFF"];
-        let get = |k: &str| -> Option<Vec<f64>> {
-            if let Some(i) = names.iter().position(|n| *n == k) {
-                return Some(vec![v[2 + i]]);
-            }
-            sets.iter().position(|n| *n == k).map(|s| v[12 + 20 * s..32 + 20 * s].to_vec())
-        };
-        Rpc::from_map(&get, path)
     }
 }

@@ -1,0 +1,256 @@
+//! Readers of RPC00B metadata in the formats found in the wild. Every reader
+//! ends in `Rpc::from_map` with GDAL's metadata names, so one place checks
+//! that all 90 numbers are there and finite. Pixel conventions are brought to
+//! GDAL's (0, 0) = centre of the first pixel here, at the boundary:
+//! DIMAP's (1, 1) is shifted by one.
+//!
+//! | format | recognised by | where the numbers are |
+//! |---|---|---|
+//! | GeoTIFF RPCCoefficientTag (50844) | TIFF magic | the tag's 92 doubles |
+//! | IKONOS `rpc.txt`, GDAL `_RPC.TXT`, Planet | `LINE_OFF:` lines | `KEY: value`, `*_COEFF_1..20` |
+//! | GDAL / DigitalGlobe `.RPB` | `lineOffset =` | `key = value;`, `( … )` lists |
+//! | OSSIM `.geom` keyword list | `line_off:` with `_coeff_00` | `key: value`, `*_coeff_00..19` |
+//! | Pléiades / SPOT DIMAP v2 XML | `<Inverse_Model>` | `<SAMP_NUM_COEFF_1>`…, 1-based pixels |
+//! | WorldView / DigitalGlobe XML | `<RPB>` | `<LINEOFFSET>`…, space-separated lists |
+//! | NITF | `NITF` magic | the RPC00B TRE, fixed-width text |
+
+use super::Rpc;
+use crate::error::{Error, Result};
+use std::collections::HashMap;
+use std::path::Path;
+
+type Numbers = HashMap<String, Vec<f64>>;
+
+/// The ten offsets and scales, in the order of the GeoTIFF tag and the NITF TRE.
+pub(super) const SCALARS: [&str; 10] =
+    ["LINE_OFF", "SAMP_OFF", "LAT_OFF", "LONG_OFF", "HEIGHT_OFF", "LINE_SCALE", "SAMP_SCALE", "LAT_SCALE", "LONG_SCALE", "HEIGHT_SCALE"];
+/// The four coefficient sets, in the same order.
+pub(super) const SETS: [&str; 4] = ["LINE_NUM_COEFF", "LINE_DEN_COEFF", "SAMP_NUM_COEFF", "SAMP_DEN_COEFF"];
+
+impl Rpc {
+    /// Reads an RPC model from any supported file, recognising the format
+    /// by its content (not its name).
+    pub fn read(path: &Path) -> Result<Rpc> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        if bytes.starts_with(b"II*\0") || bytes.starts_with(b"MM\0*") || bytes.starts_with(b"II+\0") || bytes.starts_with(b"MM\0+") {
+            return Rpc::from_geotiff(path);
+        }
+        if bytes.starts_with(b"NITF") || bytes.starts_with(b"NSIF") {
+            return Rpc::parse_nitf(&bytes, path);
+        }
+        let text = std::str::from_utf8(&bytes).map_err(|_| Error::unsupported(path, "not an RPC file: neither TIFF, NITF nor text"))?;
+        let head = text.trim_start();
+        if head.starts_with('<') {
+            return Rpc::parse_xml(text, path);
+        }
+        if text.contains("lineOffset") {
+            return Rpc::parse_rpb(text, path);
+        }
+        if text.contains("line_num_coeff_00") {
+            return Rpc::parse_geom(text, path);
+        }
+        Rpc::parse_text(text, path)
+    }
+
+    /// Reads a text RPC file (`KEY: value` lines).
+    pub fn read_text(path: &Path) -> Result<Rpc> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Rpc::parse_text(&text, path)
+    }
+
+    /// "KEY: value [unit]" lines (IKONOS rpc.txt, GDAL _RPC.TXT, Planet):
+    /// coefficients as LINE_NUM_COEFF_1 … LINE_NUM_COEFF_20.
+    pub fn parse_text(text: &str, path: &Path) -> Result<Rpc> {
+        let map = keyword_list(text, ':', 1);
+        if !map.contains_key("LINE_OFF") {
+            return Err(Error::unsupported(path, "not an RPC file (no LINE_OFF)"));
+        }
+        Rpc::from_numbers(&map, path)
+    }
+
+    /// OSSIM keyword list (`.geom`): lower-case keys, coefficients numbered
+    /// from 00. Only `polynomial_format: B` (RPC00B) is read.
+    pub fn parse_geom(text: &str, path: &Path) -> Result<Rpc> {
+        for line in text.lines() {
+            if let Some(("polynomial_format", v)) = line.split_once(':').map(|(k, v)| (k.trim(), v.trim())) {
+                if v != "B" {
+                    return Err(Error::unsupported(path, format!("OSSIM polynomial_format {v} (only B, RPC00B, is read)")));
+                }
+            }
+        }
+        Rpc::from_numbers(&keyword_list(text, ':', 0), path)
+    }
+
+    /// GDAL / DigitalGlobe `.RPB`: `lineOffset = 1234;`, coefficient lists
+    /// `lineNumCoef = ( a, b, … );`.
+    pub fn parse_rpb(text: &str, path: &Path) -> Result<Rpc> {
+        let names = rpb_names();
+        let mut map = Numbers::new();
+        for stmt in text.split(';') {
+            let Some((k, v)) = stmt.split_once('=') else { continue };
+            let Some(name) = names.get(k.trim().to_ascii_lowercase().as_str()) else { continue };
+            let nums = v.trim().trim_start_matches('(').trim_end_matches(')');
+            let parsed: std::result::Result<Vec<f64>, _> = nums.split([',', ' ', '\n', '\r', '\t']).filter(|s| !s.is_empty()).map(str::parse::<f64>).collect();
+            let parsed = parsed.map_err(|_| Error::format(path, format!("RPB: {} is not a number list", k.trim())))?;
+            map.insert(name.to_string(), parsed);
+        }
+        Rpc::from_numbers(&map, path)
+    }
+
+    /// XML metadata: DIMAP v2 (Pléiades, SPOT 6/7) or DigitalGlobe's `<RPB>`.
+    pub fn parse_xml(text: &str, path: &Path) -> Result<Rpc> {
+        let doc = roxmltree::Document::parse(text).map_err(|e| Error::format(path, format!("XML: {e}")))?;
+        let find = |name: &str| doc.descendants().find(|n| n.has_tag_name(name));
+        if let Some(model) = find("Inverse_Model") {
+            return Rpc::from_dimap(model, path);
+        }
+        if let Some(rpb) = find("RPB") {
+            return Rpc::from_digitalglobe(rpb, path);
+        }
+        let root = doc.root_element().tag_name().name().to_string();
+        Err(Error::unsupported(path, format!("XML <{root}> holds no RPC this reader knows (DIMAP <Inverse_Model> or DigitalGlobe <RPB>)")))
+    }
+
+    fn from_dimap(model: roxmltree::Node<'_, '_>, path: &Path) -> Result<Rpc> {
+        let mut map = Numbers::new();
+        // The offsets and scales sit beside the model in <RFM_Validity>.
+        let scope = model.parent().unwrap_or(model);
+        for n in scope.descendants().filter(|n| n.is_element()) {
+            let name = n.tag_name().name().to_ascii_uppercase();
+            let Some(v) = n.text().and_then(|t| t.trim().parse::<f64>().ok()) else { continue };
+            if SCALARS.contains(&name.as_str()) {
+                map.insert(name, vec![v]);
+            } else if let Some((base, i)) = numbered(&name, 1) {
+                map.entry(base.to_string()).or_insert_with(|| vec![f64::NAN; 20])[i] = v;
+            }
+        }
+        let mut rpc = Rpc::from_numbers(&map, path)?;
+        // DIMAP: the centre of the first pixel is (1, 1).
+        rpc.line_off -= 1.0;
+        rpc.samp_off -= 1.0;
+        Ok(rpc)
+    }
+
+    fn from_digitalglobe(rpb: roxmltree::Node<'_, '_>, path: &Path) -> Result<Rpc> {
+        let names = rpb_names();
+        let mut map = Numbers::new();
+        for n in rpb.descendants().filter(|n| n.is_element()) {
+            let Some(name) = names.get(n.tag_name().name().to_ascii_lowercase().as_str()) else { continue };
+            let Some(text) = n.text() else { continue };
+            let parsed: std::result::Result<Vec<f64>, _> = text.split_whitespace().map(str::parse::<f64>).collect();
+            let parsed = parsed.map_err(|_| Error::format(path, format!("<{}> is not a number list", n.tag_name().name())))?;
+            map.insert(name.to_string(), parsed);
+        }
+        Rpc::from_numbers(&map, path)
+    }
+
+    /// The RPC00B tagged record extension of a NITF file (STDI-0002 App. E):
+    /// fixed-width text after the tag name and its 5-digit length.
+    pub fn parse_nitf(bytes: &[u8], path: &Path) -> Result<Rpc> {
+        let at = bytes
+            .windows(6)
+            .position(|w| w == b"RPC00B")
+            .ok_or_else(|| Error::format(path, "NITF without an RPC00B TRE"))?;
+        let widths = [6usize, 5, 8, 9, 5, 6, 5, 8, 9, 5];
+        // tag (6) + length (5) + SUCCESS (1) + ERR_BIAS (7) + ERR_RAND (7)
+        let mut pos = at + 6 + 5 + 1 + 7 + 7;
+        let need = pos + widths.iter().sum::<usize>() + 80 * 12;
+        if bytes.len() < need {
+            return Err(Error::format(path, "the RPC00B TRE is cut short"));
+        }
+        let mut field = |w: usize| -> Result<f64> {
+            let s = std::str::from_utf8(&bytes[pos..pos + w]).unwrap_or("");
+            pos += w;
+            s.trim().parse::<f64>().map_err(|_| Error::format(path, format!("RPC00B TRE: '{s}' is not a number")))
+        };
+        let mut map = Numbers::new();
+        for (name, w) in SCALARS.iter().zip(widths) {
+            map.insert(name.to_string(), vec![field(w)?]);
+        }
+        for set in SETS {
+            let v = (0..20).map(|_| field(12)).collect::<Result<Vec<f64>>>()?;
+            map.insert(set.to_string(), v);
+        }
+        Rpc::from_numbers(&map, path)
+    }
+
+    /// The GeoTIFF RPCCoefficientTag (50844): ERR_BIAS, ERR_RAND, the ten
+    /// offsets and scales, then the four sets of 20 coefficients.
+    pub fn from_geotiff(path: &Path) -> Result<Rpc> {
+        let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(f)).map_err(|e| Error::from_tiff(path, e))?;
+        let v = dec
+            .find_tag(tiff::tags::Tag::Unknown(50844))
+            .map_err(|e| Error::from_tiff(path, e))?
+            .ok_or_else(|| Error::format(path, "no RPC tag (50844)"))?;
+        let v: Vec<f64> = match v {
+            tiff::decoder::ifd::Value::List(items) => items.into_iter().filter_map(|x| x.into_f64().ok()).collect(),
+            _ => Vec::new(),
+        };
+        if v.len() != 92 {
+            return Err(Error::format(path, format!("the RPC tag holds {} numbers, not 92", v.len())));
+        }
+        let mut map = Numbers::new();
+        for (i, name) in SCALARS.iter().enumerate() {
+            map.insert(name.to_string(), vec![v[2 + i]]);
+        }
+        for (s, name) in SETS.iter().enumerate() {
+            map.insert(name.to_string(), v[12 + 20 * s..32 + 20 * s].to_vec());
+        }
+        Rpc::from_numbers(&map, path)
+    }
+
+    fn from_numbers(map: &Numbers, path: &Path) -> Result<Rpc> {
+        Rpc::from_map(&|k| map.get(k).cloned(), path)
+    }
+}
+
+/// `base_N` with N counted from `first` → (base, 0-based index < 20).
+fn numbered(key: &str, first: usize) -> Option<(&str, usize)> {
+    let (base, idx) = key.rsplit_once('_')?;
+    if !SETS.contains(&base) {
+        return None;
+    }
+    let i: usize = idx.parse().ok()?;
+    (first..first + 20).contains(&i).then(|| (base, i - first))
+}
+
+/// `KEY<sep> value [unit]` lines; keys upper-cased; numbered coefficients
+/// (`LINE_NUM_COEFF_7`, counted from `first`) gathered into lists of 20.
+fn keyword_list(text: &str, sep: char, first: usize) -> Numbers {
+    let mut map = Numbers::new();
+    for line in text.lines() {
+        let Some((k, v)) = line.split_once(sep) else { continue };
+        let k = k.trim().to_ascii_uppercase();
+        let Some(x) = v.split_whitespace().next().and_then(|s| s.parse::<f64>().ok()) else { continue };
+        match numbered(&k, first) {
+            Some((base, i)) => map.entry(base.to_string()).or_insert_with(|| vec![f64::NAN; 20])[i] = x,
+            None => {
+                map.insert(k, vec![x]);
+            }
+        }
+    }
+    map
+}
+
+/// DigitalGlobe's names (RPB and XML, lower-cased) → GDAL's.
+fn rpb_names() -> HashMap<&'static str, &'static str> {
+    [
+        ("lineoffset", "LINE_OFF"),
+        ("sampoffset", "SAMP_OFF"),
+        ("latoffset", "LAT_OFF"),
+        ("longoffset", "LONG_OFF"),
+        ("heightoffset", "HEIGHT_OFF"),
+        ("linescale", "LINE_SCALE"),
+        ("sampscale", "SAMP_SCALE"),
+        ("latscale", "LAT_SCALE"),
+        ("longscale", "LONG_SCALE"),
+        ("heightscale", "HEIGHT_SCALE"),
+        ("linenumcoef", "LINE_NUM_COEFF"),
+        ("linedencoef", "LINE_DEN_COEFF"),
+        ("sampnumcoef", "SAMP_NUM_COEFF"),
+        ("sampdencoef", "SAMP_DEN_COEFF"),
+    ]
+    .into_iter()
+    .collect()
+}
