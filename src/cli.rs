@@ -169,10 +169,28 @@ pub struct RectifyArgs {
     /// The scan (TIFF or BigTIFF).
     #[arg(long)]
     pub image: PathBuf,
-    /// The camera file (TOML).
+    /// The camera file (TOML): a frame camera, or model = "rpc".
+    #[arg(long, required_unless_present = "rpc", conflicts_with = "rpc")]
+    pub camera: Option<PathBuf>,
+    /// An RPC model instead of a camera file, in any supported format
+    /// (GeoTIFF RPC tag, NITF, _RPC.TXT, RPB, OSSIM .geom, DIMAP or
+    /// WorldView XML); the image itself when it carries one.
     #[arg(long)]
-    pub camera: PathBuf,
-    /// DEM (GeoTIFF or SRTM .hgt) in the camera file's CRS.
+    pub rpc: Option<PathBuf>,
+    /// With --rpc: the image is a crop starting at this column,row of the
+    /// scene the RPC describes.
+    #[arg(long, requires = "rpc")]
+    pub rpc_offset: Option<String>,
+    /// With --rpc: the DEM's heights are above this geoid (PROJ .gtx grid,
+    /// e.g. egm96_15.gtx for SRTM); RPCs expect ellipsoidal heights.
+    #[arg(long, requires = "rpc")]
+    pub geoid: Option<PathBuf>,
+    /// With --rpc: the orthophoto's CRS, EPSG:<code> (default: the WGS84
+    /// UTM zone of the scene's centre).
+    #[arg(long, requires = "rpc")]
+    pub crs: Option<String>,
+    /// DEM (GeoTIFF or SRTM .hgt), in the orthophoto's CRS or any other
+    /// (it is then reprojected on the fly).
     #[arg(long, conflicts_with = "height")]
     pub dem: Option<PathBuf>,
     /// A constant terrain height instead of a DEM, metres.
@@ -272,7 +290,29 @@ impl RectifyArgs {
                 return Err(format!("--max-error {e} must be a positive number"));
             }
         }
-        let mut cfg = RectifyConfig::new(self.image.clone(), self.camera.clone(), dem, self.output.clone());
+        let camera = match (&self.camera, &self.rpc) {
+            (Some(c), None) => c.clone(),
+            (None, Some(r)) => r.clone(),
+            _ => return Err("give --camera FILE or --rpc FILE".into()),
+        };
+        let mut cfg = RectifyConfig::new(self.image.clone(), camera, dem, self.output.clone());
+        if let Some(r) = &self.rpc {
+            let offset = match &self.rpc_offset {
+                None => None,
+                Some(o) => {
+                    let v: Vec<f64> = o.split(',').map(|p| p.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| format!("--rpc-offset '{o}' is not col,row"))?;
+                    match v[..] {
+                        [c, r] if c.is_finite() && r.is_finite() => Some([c, r]),
+                        _ => return Err(format!("--rpc-offset '{o}' is not col,row")),
+                    }
+                }
+            };
+            let crs = match &self.crs {
+                None => None,
+                Some(c) => Some(gcm_ortho::camera::Crs::parse(c).ok_or_else(|| format!("--crs '{c}' is not of the form EPSG:<code>"))?.epsg),
+            };
+            cfg.camera_file = Some(gcm_ortho::camera::file::Camera::rpc_file(r, crs, offset, self.geoid.as_deref()));
+        }
         cfg.dem_hole = self.dem_hole.parse::<Miss>().map_err(|e| format!("--dem-hole: {e}"))?;
         cfg.dem_outside = self.dem_outside.parse::<Miss>().map_err(|e| format!("--dem-outside: {e}"))?;
         cfg.gsd = self.gsd;

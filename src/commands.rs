@@ -6,7 +6,7 @@ use anyhow::{anyhow, Context, Result};
 use gcm_ortho::accuracy::evaluate;
 use gcm_ortho::camera::file::Camera;
 use gcm_ortho::compare::{compare, read_grey};
-use gcm_ortho::dem::{Dem, GridDem};
+use gcm_ortho::dem::Dem;
 use gcm_ortho::gcm::{CorrectionMode, Gcm, GcmSpec};
 use gcm_ortho::io::source::SourceImage;
 use gcm_ortho::pipeline::{rectify, DemSource, RectifyConfig, Report};
@@ -183,14 +183,14 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
             (src.info.width, src.info.height)
         }
     };
-    let dem = Dem::grid(GridDem::read(&dem_path)?, &dem_path);
-    let z0 = dem.mean_plane(dem_bounds(&dem)).map(|p| p.a).unwrap_or(0.0);
-    let gsd = mean_gsd(&cam.frame, &dem, w, h, z0)?;
-    let grid = auto_grid(&cam.frame, &dem, w, h, z0, gsd)?;
+    let dem = Dem::open(&dem_path, cam.crs.epsg)?;
+    let z0 = dem.mean_height().unwrap_or_else(|| cam.height_hint());
+    let gsd = mean_gsd(cam.model(), &dem, w, h, z0)?;
+    let grid = auto_grid(cam.model(), &dem, w, h, z0, gsd)?;
     let area = [grid.x0, grid.y0 - grid.gsd * grid.height as f64, grid.x0 + grid.gsd * grid.width as f64, grid.y0];
     let plane = if a.trend == "mean" { dem.mean_plane(area) } else { dem.trend_plane(area) }.ok_or_else(|| anyhow!("no DEM heights in the output area"))?;
-    let approx = Approx::new(&cam.frame, &grid, plane).ok_or_else(|| anyhow!("plane behind the camera"))?;
-    let t = Transform::new(&cam.frame, &dem, grid);
+    let approx = Approx::new(cam.model(), &grid, plane).ok_or_else(|| anyhow!("plane behind the camera"))?;
+    let t = Transform::new(cam.model(), &dem, grid);
     println!(
         "accuracy of A + GCM against the exact model: {}x{} output at {} m, every {} row/column, trend {}{}",
         grid.width,
@@ -272,13 +272,6 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         std::fs::write(j, serde_json::to_string_pretty(&serde_json::json!({"grid": grid, "rows": rows}))?)?;
     }
     Ok(())
-}
-
-fn dem_bounds(dem: &Dem) -> [f64; 4] {
-    match &dem.model {
-        gcm_ortho::dem::HeightModel::Grid(g) => g.bounds(),
-        gcm_ortho::dem::HeightModel::Flat(_) => [-1e9, -1e9, 1e9, 1e9],
-    }
 }
 
 fn run_demo(a: &DemoArgs, signals: &Signals) -> Result<()> {

@@ -4,6 +4,7 @@
 
 use crate::camera::Plane;
 use crate::error::{Error, Result};
+use crate::geodesy::Reprojection;
 use crate::io::geotiff::{read_georef, GeoRef};
 use std::path::{Path, PathBuf};
 
@@ -354,6 +355,8 @@ pub struct Dem {
     pub on_outside: Miss,
     /// For error messages.
     pub path: PathBuf,
+    /// Ground (orthophoto CRS) → the grid's own CRS, when they differ.
+    pub to_dem: Option<Reprojection>,
 }
 
 /// The height at a ground point after the policy, or why there is none.
@@ -368,18 +371,66 @@ pub enum Height {
 
 impl Dem {
     pub fn flat(z: f64) -> Dem {
-        Dem { model: HeightModel::Flat(z), on_hole: Miss::Error, on_outside: Miss::Error, path: PathBuf::from("(flat)") }
+        Dem { model: HeightModel::Flat(z), on_hole: Miss::Error, on_outside: Miss::Error, path: PathBuf::from("(flat)"), to_dem: None }
     }
 
     pub fn grid(g: GridDem, path: &Path) -> Dem {
-        Dem { model: HeightModel::Grid(g), on_hole: Miss::Error, on_outside: Miss::Error, path: path.to_path_buf() }
+        Dem { model: HeightModel::Grid(g), on_hole: Miss::Error, on_outside: Miss::Error, path: path.to_path_buf(), to_dem: None }
+    }
+
+    /// Reads a DEM for an orthophoto in EPSG:`ground`. A DEM in another CRS
+    /// (SRTM in EPSG:4326 under a UTM orthophoto) is looked up through a
+    /// reprojection; one without a CRS is taken to be in the ground CRS.
+    pub fn open(path: &Path, ground: u32) -> Result<Dem> {
+        let g = GridDem::read(path)?;
+        let to_dem = match g.epsg {
+            Some(e) if e != ground => {
+                let r = Reprojection::new(ground, e).map_err(|m| Error::format(path, format!("cannot reproject the DEM: {m}")))?;
+                if crate::io::geotiff::is_geographic(e).unwrap_or(e == 4326) {
+                    let b = g.bounds();
+                    if b[0] < -540.0 || b[2] > 540.0 || b[1] < -90.5 || b[3] > 90.5 {
+                        return Err(Error::format(path, format!("the DEM says EPSG:{e} (degrees), but its bounds {b:?} are not longitudes and latitudes")));
+                    }
+                }
+                Some(r)
+            }
+            _ => None,
+        };
+        let mut dem = Dem::grid(g, path);
+        dem.to_dem = to_dem;
+        Ok(dem)
+    }
+
+    /// The mean of (at most ~20 000 of) the grid's valid heights; the
+    /// height of a flat DEM; `None` for a grid without any.
+    pub fn mean_height(&self) -> Option<f64> {
+        match &self.model {
+            HeightModel::Flat(z) => Some(*z),
+            HeightModel::Grid(g) => {
+                let step = (g.width * g.height / 20_000).max(1);
+                let valid: Vec<f64> = g.samples(step).iter().filter(|&&v| !g.is_nodata(v)).map(|&v| f64::from(v)).collect();
+                (!valid.is_empty()).then(|| valid.iter().sum::<f64>() / valid.len() as f64)
+            }
+        }
+    }
+
+    /// Ground (X, Y) in the grid's own CRS.
+    #[inline]
+    fn in_grid_crs(&self, x: f64, y: f64) -> Option<(f64, f64)> {
+        match &self.to_dem {
+            None => Some((x, y)),
+            Some(r) => r.apply(x, y),
+        }
     }
 
     #[inline]
     pub fn height(&self, x: f64, y: f64) -> Height {
         let found = match &self.model {
             HeightModel::Flat(z) => return Height::Value(*z),
-            HeightModel::Grid(g) => g.lookup(x, y),
+            HeightModel::Grid(g) => match self.in_grid_crs(x, y) {
+                Some((gx, gy)) => g.lookup(gx, gy),
+                None => Lookup::Outside,
+            },
         };
         let policy = match found {
             Lookup::Height(z) => return Height::Value(z),
@@ -398,7 +449,22 @@ impl Dem {
     pub fn height_gradient(&self, x: f64, y: f64) -> Option<(f64, f64, f64)> {
         match &self.model {
             HeightModel::Flat(z) => Some((*z, 0.0, 0.0)),
-            HeightModel::Grid(g) => g.lookup_gradient(x, y),
+            HeightModel::Grid(g) if self.to_dem.is_none() => g.lookup_gradient(x, y),
+            HeightModel::Grid(g) => {
+                // The chain rule through the reprojection's Jacobian, by
+                // differences over a tenth of a DEM posting.
+                let (px, py) = self.in_grid_crs(x, y)?;
+                let (z, gx, gy) = g.lookup_gradient(px, py)?;
+                let d = 0.1 * g.transform[1].abs();
+                let h = {
+                    let (ex, _) = self.in_grid_crs(x + 1.0, y)?;
+                    d / (ex - px).abs().max(1e-300)
+                };
+                let (ax, ay) = self.in_grid_crs(x + h, y)?;
+                let (bx, by) = self.in_grid_crs(x, y + h)?;
+                let j = [[(ax - px) / h, (bx - px) / h], [(ay - py) / h, (by - py) / h]];
+                Some((z, gx * j[0][0] + gy * j[1][0], gx * j[0][1] + gy * j[1][1]))
+            }
         }
     }
 

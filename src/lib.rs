@@ -10,6 +10,7 @@ pub mod compare;
 pub mod dem;
 pub mod error;
 pub mod gcm;
+pub mod geodesy;
 pub mod geom;
 pub mod io;
 pub mod pipeline;

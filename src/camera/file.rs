@@ -8,10 +8,14 @@ use super::distortion::{Brown, Distortion};
 use super::frame::FrameCamera;
 use super::interior::InteriorOrientation;
 use super::rotation::AngleConvention;
+use super::rpc::Rpc;
+use super::satellite::RpcCamera;
+use super::SensorModel;
+use crate::geodesy::{utm_zone_epsg, Geoid, GroundCrs};
 use crate::error::{Error, Result};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A coordinate reference system named by its EPSG code.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -94,6 +98,26 @@ impl Default for CorrectionsSection {
     }
 }
 
+/// `[rpc]` of a camera file with `model = "rpc"`: the coefficients in a
+/// file of any supported format (`file`, relative to the camera file) or
+/// inline under GDAL's names in lower case.
+/// Unknown keys are refused by `build_rpc` (serde cannot deny them beside a
+/// flattened map).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RpcSection {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub file: Option<String>,
+    /// (column, row) of the image's first pixel in the scene the RPC
+    /// describes (the image is a crop of it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub offset_px: Option<[f64; 2]>,
+    /// Geoid grid (PROJ `.gtx`): the DEM's heights are above this geoid.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub geoid: Option<String>,
+    #[serde(flatten)]
+    pub inline: std::collections::BTreeMap<String, toml::Value>,
+}
+
 /// The camera file as written on disk.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -108,12 +132,20 @@ pub struct CameraFile {
     pub exterior: Option<ExteriorSection>,
     #[serde(default)]
     pub corrections: CorrectionsSection,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rpc: Option<RpcSection>,
+}
+
+/// The sensor model a camera file describes.
+pub enum Sensor {
+    Frame(FrameCamera),
+    Rpc(RpcCamera),
 }
 
 /// A parsed and validated camera: its CRS and its sensor model.
 pub struct Camera {
     pub crs: Crs,
-    pub frame: FrameCamera,
+    pub sensor: Sensor,
     pub file: CameraFile,
 }
 
@@ -143,13 +175,16 @@ impl CameraFile {
     /// Validates every field and builds the sensor model.
     pub fn build(self, path: &Path) -> Result<Camera> {
         let err = |field: &str, msg: String| Error::config(path, field, msg);
-        let crs = Crs::parse(&self.crs).ok_or_else(|| err("crs", format!("'{}' is not of the form EPSG:<code>", self.crs)))?;
         match self.camera.model.as_str() {
             "frame" => {}
-            "rpc" => {
-                return Err(Error::unsupported(path, "camera.model = \"rpc\" is not supported yet (frame cameras only)"))
+            "rpc" => return self.build_rpc(path),
+            other => return Err(err("camera.model", format!("unknown model '{other}' (expected \"frame\" or \"rpc\")"))),
+        }
+        let crs = Crs::parse(&self.crs).ok_or_else(|| err("crs", format!("'{}' is not of the form EPSG:<code>", self.crs)))?;
+        for (section, present) in [("rpc", self.rpc.is_some())] {
+            if present {
+                return Err(err(section, "only for camera.model = \"rpc\"".into()));
             }
-            other => return Err(err("camera.model", format!("unknown model '{other}' (expected \"frame\")"))),
         }
         let f = self.camera.focal_length_mm.ok_or_else(|| err("camera.focal_length_mm", "missing".into()))?;
         finite_positive(f).map_err(|m| err("camera.focal_length_mm", m))?;
@@ -187,13 +222,101 @@ impl CameraFile {
             self.corrections.refraction,
             self.corrections.earth_curvature,
         );
-        Ok(Camera { crs, frame, file: self })
+        Ok(Camera { crs, sensor: Sensor::Frame(frame), file: self })
+    }
+
+    /// `model = "rpc"`: the RPC from `[rpc]`, the ground CRS from `crs`
+    /// (`"auto"`: the WGS84 UTM zone of the scene's centre).
+    fn build_rpc(self, path: &Path) -> Result<Camera> {
+        let err = |field: &str, msg: String| Error::config(path, field, msg);
+        for (section, present) in [("interior", self.interior.is_some()), ("exterior", self.exterior.is_some()), ("distortion", self.distortion.is_some())] {
+            if present {
+                return Err(err(section, "not used by an RPC camera".into()));
+            }
+        }
+        if self.camera.focal_length_mm.is_some() {
+            return Err(err("camera.focal_length_mm", "not used by an RPC camera".into()));
+        }
+        let sec = self.rpc.clone().ok_or_else(|| err("rpc", "missing section".into()))?;
+        let near = |f: &str| -> PathBuf { path.parent().unwrap_or(Path::new("")).join(f) };
+        let mut rpc = match (&sec.file, sec.inline.is_empty()) {
+            (Some(f), true) => Rpc::read(&near(f))?,
+            (None, false) => {
+                let get = |k: &str| -> Option<Vec<f64>> {
+                    match sec.inline.get(&k.to_ascii_lowercase())? {
+                        toml::Value::Array(a) => a.iter().map(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64))).collect(),
+                        v => v.as_float().or_else(|| v.as_integer().map(|i| i as f64)).map(|x| vec![x]),
+                    }
+                };
+                let known: Vec<String> = super::rpc::GDAL_NAMES.iter().map(|k| k.to_ascii_lowercase()).collect();
+                if let Some(k) = sec.inline.keys().find(|k| !known.contains(k)) {
+                    return Err(err(&format!("rpc.{k}"), "unknown field".into()));
+                }
+                Rpc::from_map(&get, path)?
+            }
+            (Some(_), false) => return Err(err("rpc", "give file or the inline coefficients, not both".into())),
+            (None, true) => return Err(err("rpc", "give file = \"…\" or the coefficients inline".into())),
+        };
+        if let Some(o) = sec.offset_px {
+            all_finite(&o).map_err(|m| err("rpc.offset_px", m))?;
+            rpc = rpc.cropped(o[0], o[1]);
+        }
+        let geoid = match &sec.geoid {
+            Some(g) => Some(Geoid::read(&near(g))?),
+            None => None,
+        };
+        let crs = if self.crs.trim().eq_ignore_ascii_case("auto") {
+            Crs { epsg: utm_zone_epsg(rpc.long_off, rpc.lat_off) }
+        } else {
+            Crs::parse(&self.crs).ok_or_else(|| err("crs", format!("'{}' is neither \"auto\" nor of the form EPSG:<code>", self.crs)))?
+        };
+        let ground = GroundCrs::from_epsg(crs.epsg).map_err(|m| err("crs", m))?;
+        let model = RpcCamera::new(rpc, ground, geoid);
+        Ok(Camera { crs, sensor: Sensor::Rpc(model), file: self })
     }
 }
 
 impl Camera {
     pub fn read(path: &Path) -> Result<Camera> {
         CameraFile::read(path)?.build(path)
+    }
+
+    /// The camera file for an RPC file given on the command line.
+    pub fn rpc_file(rpc: &Path, crs: Option<u32>, offset: Option<[f64; 2]>, geoid: Option<&Path>) -> CameraFile {
+        let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()).to_string_lossy().into_owned();
+        CameraFile {
+            crs: crs.map_or("auto".into(), |e| format!("EPSG:{e}")),
+            camera: CameraSection { model: "rpc".into(), focal_length_mm: None },
+            interior: None,
+            distortion: None,
+            exterior: None,
+            corrections: CorrectionsSection::default(),
+            rpc: Some(RpcSection { file: Some(abs(rpc)), offset_px: offset, geoid: geoid.map(abs), inline: Default::default() }),
+        }
+    }
+
+    pub fn model(&self) -> &dyn SensorModel {
+        match &self.sensor {
+            Sensor::Frame(f) => f,
+            Sensor::Rpc(r) => r,
+        }
+    }
+
+    /// The frame camera, or an error naming the file for a model that is not one.
+    pub fn frame(&self, path: &Path) -> Result<&FrameCamera> {
+        match &self.sensor {
+            Sensor::Frame(f) => Ok(f),
+            Sensor::Rpc(_) => Err(Error::unsupported(path, "this needs a frame camera, not an RPC model")),
+        }
+    }
+
+    /// A ground height to start ray casting from when the DEM gives none:
+    /// 1000 m below a frame camera, the RPC's mid height.
+    pub fn height_hint(&self) -> f64 {
+        match &self.sensor {
+            Sensor::Frame(f) => f.centre.z - 1000.0,
+            Sensor::Rpc(r) => r.height_hint(),
+        }
     }
 }
 
@@ -282,8 +405,9 @@ earth_curvature = true
     fn the_issue_example_parses() {
         let cam = build(GOOD).unwrap();
         assert_eq!(cam.crs.epsg, 32631);
-        assert_eq!(cam.frame.focal_mm, 152.82);
-        assert_eq!(cam.frame.interior.residuals.len(), 4);
+        let frame = cam.frame(Path::new("cam.toml")).unwrap();
+        assert_eq!(frame.focal_mm, 152.82);
+        assert_eq!(frame.interior.residuals.len(), 4);
     }
 
     #[test]

@@ -8,9 +8,11 @@ pub mod frame;
 pub mod interior;
 pub mod rotation;
 pub mod rpc;
+pub mod satellite;
 
 pub use file::{CameraFile, Crs};
 pub use frame::FrameCamera;
+pub use satellite::RpcCamera;
 
 use crate::geom::OutputGrid;
 use nalgebra::Matrix3;
@@ -48,6 +50,12 @@ pub trait SensorModel: Send + Sync {
     /// `plane`: the analytic approximation `A` of thesis 2.4.5–2.4.7 for
     /// every output row at once.
     fn plane_homography(&self, grid: &OutputGrid, plane: &Plane) -> Option<Matrix3<f64>>;
+
+    /// A ground distance small against one scan pixel, for finite
+    /// differences (ground units: metres, or degrees in a geographic CRS).
+    fn ground_step(&self) -> f64 {
+        0.01
+    }
 }
 
 /// Refines `locate_approx` by Newton steps on `project`: ground (X, Y) at
@@ -60,7 +68,7 @@ pub fn locate(model: &dyn SensorModel, col: f64, row: f64, z: f64, tol_px: f64) 
         if ec.hypot(er) < tol_px {
             return Some((x, y));
         }
-        let h = 0.01;
+        let h = model.ground_step();
         let (cx, rx) = model.project(x + h, y, z)?;
         let (cy, ry) = model.project(x, y + h, z)?;
         let j = nalgebra::Matrix2::new((cx - c) / h, (cy - c) / h, (rx - r) / h, (ry - r) / h);

@@ -5,7 +5,7 @@ use super::plan::{plan_band, Chunk};
 use super::report::{peak_rss_mib, Report, ScanInfo, StageTimes};
 use crate::accuracy;
 use crate::camera::file::Camera;
-use crate::dem::{Dem, GridDem, Height, Lookup};
+use crate::dem::{Dem, Height, Lookup};
 use crate::error::{Error, Result};
 use crate::gcm::{BandGcm, Gcm};
 use crate::geom::OutputGrid;
@@ -101,22 +101,16 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         Some(f) => f.clone().build(&cfg.camera)?,
         None => Camera::read(&cfg.camera)?,
     };
-    let model = &camera.frame;
+    let model = camera.model();
     let src = SourceImage::open(&cfg.image, (cfg.memory / 12) as usize)?;
     let mut dem = match &cfg.dem {
-        DemSource::File(p) => {
-            let g = GridDem::read(p)?;
-            if let Some(e) = g.epsg.filter(|&e| e != camera.crs.epsg) {
-                return Err(Error::format(p, format!("the DEM is in EPSG:{e}, the camera file in {}", camera.crs)));
-            }
-            Dem::grid(g, p)
-        }
+        DemSource::File(p) => Dem::open(p, camera.crs.epsg)?,
         DemSource::Height(h) => Dem::flat(*h),
     };
     dem.on_hole = cfg.dem_hole;
     dem.on_outside = cfg.dem_outside;
     let (sw, sh) = (src.info.width, src.info.height);
-    let z_guess = model_ground_height(&dem, model.centre.z);
+    let z_guess = dem.mean_height().unwrap_or_else(|| camera.height_hint());
     // Where the scan and the DEM do not meet, the DEM is the file to name.
     let on_dem = |e: Error| match e {
         Error::Geometry(m) => Error::format(&dem.path, m),
@@ -435,22 +429,6 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         accuracy_estimate: estimate,
         output_bytes,
     })
-}
-
-/// A height to start ray casting from: the DEM's mean, or below the camera.
-fn model_ground_height(dem: &Dem, camera_z: f64) -> f64 {
-    match &dem.model {
-        crate::dem::HeightModel::Flat(z) => *z,
-        crate::dem::HeightModel::Grid(g) => {
-            let step = (g.width * g.height / 20_000).max(1);
-            let valid: Vec<f64> = g.samples(step).iter().filter(|v| v.is_finite() && g.nodata != Some(**v as f64)).map(|&v| v as f64).collect();
-            if valid.is_empty() {
-                camera_z - 1000.0
-            } else {
-                valid.iter().sum::<f64>() / valid.len() as f64
-            }
-        }
-    }
 }
 
 /// Our errors hold `io::Error`s, which do not clone: rebuild one with the same text.

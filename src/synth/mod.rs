@@ -173,6 +173,7 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
                     convention: AngleConvention::AlphaOmegaKappa,
                 }),
                 corrections: CorrectionsSection { refraction: Refraction::Auto, earth_curvature: true },
+                rpc: None,
             }
         }
         CameraKind::Digital => {
@@ -196,6 +197,7 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
                     convention: AngleConvention::OmegaPhiKappa,
                 }),
                 corrections: CorrectionsSection { refraction: Refraction::Auto, earth_curvature: true },
+                rpc: None,
             }
         }
     }
@@ -287,7 +289,8 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     let file = camera_file(o, BASE_HEIGHT);
     let text = file.to_toml();
     std::fs::write(&cam_path, &text).map_err(|e| Error::io(&cam_path, e))?;
-    let cam = crate::camera::file::Camera::read(&cam_path)?.frame;
+    let camera = crate::camera::file::Camera::read(&cam_path)?;
+    let cam = camera.frame(&cam_path)?;
     let flying = file.exterior.as_ref().expect("synth writes exterior").position[2] - BASE_HEIGHT;
     let (focal, film_half) = match o.camera {
         CameraKind::Film => (FILM_FOCAL, FILM_MM / 2.0),
@@ -319,7 +322,7 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     let mid_z = (zlo + zhi) / 2.0;
 
     // The scan.
-    let gsd = mean_gsd(&cam, &dem, o.width, o.height, mid_z)?;
+    let gsd = mean_gsd(cam, &dem, o.width, o.height, mid_z)?;
     let tex = Texture::new(o.seed, gsd, cam.centre.x, cam.centre.y, 2.0 * half);
     let sample = if o.bits == 8 { SampleType::U8 } else { SampleType::U16 };
     let sb = sample.bytes();
@@ -343,7 +346,7 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
         let row_bytes = o.width as usize * pb;
         buf.par_chunks_mut(row_bytes).enumerate().for_each(|(k, row)| {
             let r = (y0 as usize + k) as f64 + 0.5;
-            let mut caster = RayCaster::new(&cam, &dem);
+            let mut caster = RayCaster::new(cam, &dem);
             // The last two ground points: their difference predicts the next
             // one so well that most pixels need a single projection.
             let mut prev: Option<(f64, f64)> = None;
@@ -381,7 +384,7 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     progress.finish_and_clear();
 
     // The truth orthophoto on the grid rectify chooses by default.
-    let grid = auto_grid(&cam, &dem, o.width, o.height, mid_z, gsd)?;
+    let grid = auto_grid(cam, &dem, o.width, o.height, mid_z, gsd)?;
     let truth = if grid.pixel_count() <= 100_000_000 && !o.no_scan {
         let spec = OutputSpec {
             width: grid.width,

@@ -23,7 +23,7 @@ impl<'a> RayCaster<'a> {
     }
 
     fn partials_at(&self, x: f64, y: f64, z: f64) -> Option<[[f64; 3]; 2]> {
-        let h = 0.05;
+        let h = 5.0 * self.model.ground_step();
         let (c, r) = self.model.project(x, y, z)?;
         let (cx, rx) = self.model.project(x + h, y, z)?;
         let (cy, ry) = self.model.project(x, y + h, z)?;
@@ -54,7 +54,7 @@ impl<'a> RayCaster<'a> {
             }
             let stale = match self.partials {
                 None => true,
-                Some((_, at)) => (at.0 - x).abs() + (at.1 - y).abs() > 50.0,
+                Some((_, at)) => (at.0 - x).abs() + (at.1 - y).abs() > 5000.0 * self.model.ground_step(),
             };
             if stale || (it > 4 && !refreshed) {
                 self.partials = self.partials_at(x, y, z).map(|p| (p, (x, y)));

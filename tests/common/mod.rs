@@ -52,3 +52,45 @@ pub fn wait_deadline(mut child: std::process::Child, secs: u64) -> Output {
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
 }
+
+/// Writes a 2-band Float32 "coordinate image": every pixel holds its own
+/// continuous (column, row) centre. Warped with bilinear resampling (exact
+/// on a linear ramp), an orthophoto of it is the map output pixel → scan
+/// position of the warper, so two warpers' geometries compare pixel by
+/// pixel, free of any image-matching noise.
+pub fn coordinate_image(path: &Path, w: u32, h: u32) {
+    use gcm_ortho::io::source::SampleType;
+    use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, OutputSpec};
+    let spec = OutputSpec {
+        width: w,
+        height: h,
+        bands: 2,
+        sample: SampleType::F32,
+        chunking: Chunking::Strips(16),
+        compression: Compression::None,
+        bigtiff: false,
+        photometric: 1,
+        alpha: false,
+        geo: None,
+    };
+    write_raster(path, &spec, |y0, y1, buf| {
+        for y in y0..y1 {
+            for x in 0..w {
+                let k = 8 * ((y - y0) as usize * w as usize + x as usize);
+                buf[k..k + 4].copy_from_slice(&(x as f32 + 0.5).to_ne_bytes());
+                buf[k + 4..k + 8].copy_from_slice(&(y as f32 + 0.5).to_ne_bytes());
+            }
+        }
+    })
+    .expect("the coordinate image is written");
+}
+
+/// The bands of a Float32 raster, band-interleaved by pixel, and its size.
+pub fn read_f32(path: &Path) -> (u32, u32, u32, Vec<f32>) {
+    use gcm_ortho::io::source::{SourceImage, Window};
+    let src = SourceImage::open(path, 64 << 20).expect("the raster opens");
+    let (w, h, b) = (src.info.width, src.info.height, src.info.bands);
+    let mut win = Window::default();
+    src.read_window(0, 0, w, h, &mut win).expect("the raster reads");
+    (w, h, b, win.bytes().chunks_exact(4).map(|c| f32::from_ne_bytes([c[0], c[1], c[2], c[3]])).collect())
+}

@@ -8,6 +8,12 @@
 
 mod read;
 
+/// GDAL's metadata names of the 14 RPC items (the other readers map onto them).
+pub const GDAL_NAMES: [&str; 14] = [
+    "LINE_OFF", "SAMP_OFF", "LAT_OFF", "LONG_OFF", "HEIGHT_OFF", "LINE_SCALE", "SAMP_SCALE", "LAT_SCALE", "LONG_SCALE", "HEIGHT_SCALE",
+    "LINE_NUM_COEFF", "LINE_DEN_COEFF", "SAMP_NUM_COEFF", "SAMP_DEN_COEFF",
+];
+
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -58,6 +64,24 @@ impl Rpc {
         Some((samp + 0.5, line + 0.5))
     }
 
+    /// The model as GDAL's `_RPC.TXT` sidecar text (`KEY: value` lines).
+    pub fn to_gdal_text(&self) -> String {
+        let mut t = String::new();
+        let scalars = [
+            self.line_off, self.samp_off, self.lat_off, self.long_off, self.height_off,
+            self.line_scale, self.samp_scale, self.lat_scale, self.long_scale, self.height_scale,
+        ];
+        for (name, v) in read::SCALARS.iter().zip(scalars) {
+            t += &format!("{name}: {v:?}\n");
+        }
+        for (name, set) in read::SETS.iter().zip([&self.line_num, &self.line_den, &self.samp_num, &self.samp_den]) {
+            for (i, v) in set.iter().enumerate() {
+                t += &format!("{name}_{}: {v:?}\n", i + 1);
+            }
+        }
+        t
+    }
+
     /// The model of a crop starting at scan (column, row) of the full scene.
     #[must_use]
     pub fn cropped(&self, col: f64, row: f64) -> Rpc {
@@ -100,7 +124,7 @@ impl Rpc {
         ((c1 - c0).hypot(r1 - r0) / d, (c2 - c0).hypot(r2 - r0) / d)
     }
 
-    fn from_map(get: &dyn Fn(&str) -> Option<Vec<f64>>, path: &Path) -> Result<Rpc> {
+    pub(crate) fn from_map(get: &dyn Fn(&str) -> Option<Vec<f64>>, path: &Path) -> Result<Rpc> {
         let one = |k: &str| -> Result<f64> {
             let v = get(k).ok_or_else(|| Error::format(path, format!("RPC: {k} missing")))?;
             match v[..] {

@@ -1,0 +1,133 @@
+//! Geoid undulation grids in PROJ's `.gtx` format: a 40-byte big-endian
+//! header (latitude and longitude of the south-west sample, the two steps in
+//! degrees, rows, columns) and rows × columns big-endian f32, south row
+//! first. Ellipsoidal height h = H + N(φ, λ), N interpolated bilinearly
+//! (as PROJ's `vgridshift`). Grids are small (EGM96 at 15′: 4 MB) and read
+//! whole.
+
+use crate::error::{Error, Result};
+use std::path::{Path, PathBuf};
+
+/// PROJ's "no value" for `.gtx` grids.
+const GTX_NODATA: f32 = -88.8888;
+
+#[derive(Debug)]
+pub struct Geoid {
+    lat0: f64,
+    lon0: f64,
+    dlat: f64,
+    dlon: f64,
+    rows: usize,
+    cols: usize,
+    /// Whether the columns go once around the globe (longitudes wrap).
+    global: bool,
+    n: Vec<f32>,
+    pub path: PathBuf,
+}
+
+impl Geoid {
+    pub fn read(path: &Path) -> Result<Geoid> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        Geoid::parse(&bytes, path)
+    }
+
+    pub fn parse(bytes: &[u8], path: &Path) -> Result<Geoid> {
+        if bytes.len() < 40 {
+            return Err(Error::format(path, "not a .gtx geoid grid: shorter than its 40-byte header"));
+        }
+        let f = |i: usize| f64::from_be_bytes(bytes[8 * i..8 * i + 8].try_into().expect("8 bytes"));
+        let (lat0, lon0, dlat, dlon) = (f(0), f(1), f(2), f(3));
+        let rows = i32::from_be_bytes(bytes[32..36].try_into().expect("4 bytes"));
+        let cols = i32::from_be_bytes(bytes[36..40].try_into().expect("4 bytes"));
+        let sane = [lat0, lon0, dlat, dlon].iter().all(|v| v.is_finite()) && dlat > 0.0 && dlon > 0.0 && (-90.0..=90.0).contains(&lat0) && rows >= 2 && cols >= 2;
+        if !sane {
+            return Err(Error::format(path, format!("not a .gtx geoid grid: header {lat0} {lon0} {dlat} {dlon} {rows}×{cols}")));
+        }
+        let (rows, cols) = (rows as usize, cols as usize);
+        let want = rows.checked_mul(cols).and_then(|n| n.checked_mul(4)).and_then(|n| n.checked_add(40));
+        if want != Some(bytes.len()) {
+            return Err(Error::format(path, format!(".gtx grid of {rows}×{cols} needs {} bytes, the file has {}", want.map_or("too many".into(), |w| w.to_string()), bytes.len())));
+        }
+        let n = bytes[40..].chunks_exact(4).map(|b| f32::from_be_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let global = (dlon * cols as f64 - 360.0).abs() < dlon * 1.01;
+        Ok(Geoid { lat0, lon0, dlat, dlon, rows, cols, global, n, path: path.to_path_buf() })
+    }
+
+    /// N (metres) at (longitude °, latitude °), or `None` outside the grid
+    /// or next to a sample without value.
+    pub fn undulation(&self, lon: f64, lat: f64) -> Option<f64> {
+        let y = (lat - self.lat0) / self.dlat;
+        let mut x = (lon - self.lon0) / self.dlon;
+        if self.global {
+            x = x.rem_euclid(self.cols as f64);
+        }
+        if !(y >= 0.0 && y <= (self.rows - 1) as f64 && x >= 0.0) {
+            return None;
+        }
+        let (i, j) = (x.floor() as usize, (y.floor() as usize).min(self.rows - 2));
+        let i1 = if i + 1 < self.cols {
+            i + 1
+        } else if self.global {
+            (i + 1) % self.cols
+        } else if x <= (self.cols - 1) as f64 {
+            i
+        } else {
+            return None;
+        };
+        let (fx, fy) = (x - i as f64, y - j as f64);
+        let at = |c: usize, r: usize| self.n[r * self.cols + c];
+        let v = [at(i, j), at(i1, j), at(i, j + 1), at(i1, j + 1)];
+        if v.iter().any(|&s| s == GTX_NODATA || !s.is_finite()) {
+            return None;
+        }
+        let [a, b, c, d] = v.map(f64::from);
+        Some((a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(lon0: f64, cols: i32, dlon: f64) -> Vec<u8> {
+        let mut b = Vec::new();
+        for v in [10.0f64, lon0, 1.0, dlon] {
+            b.extend_from_slice(&v.to_be_bytes());
+        }
+        b.extend_from_slice(&2i32.to_be_bytes());
+        b.extend_from_slice(&cols.to_be_bytes());
+        // N = column + 10·row
+        for r in 0..2 {
+            for c in 0..cols {
+                b.extend_from_slice(&((c + 10 * r) as f32).to_be_bytes());
+            }
+        }
+        b
+    }
+
+    #[test]
+    fn bilinear_and_edges() {
+        let g = Geoid::parse(&grid(0.0, 3, 1.0), Path::new("g.gtx")).unwrap();
+        assert_eq!(g.undulation(0.5, 10.5), Some(5.5));
+        assert_eq!(g.undulation(2.0, 11.0), Some(12.0));
+        assert_eq!(g.undulation(2.5, 10.5), None);
+        assert_eq!(g.undulation(1.0, 9.9), None);
+    }
+
+    #[test]
+    fn global_grids_wrap_in_longitude() {
+        let g = Geoid::parse(&grid(-180.0, 4, 90.0), Path::new("g.gtx")).unwrap();
+        // Between the last column (90°E, N = 3) and the first (180°W = 180°E, N = 0).
+        assert!((g.undulation(135.0, 10.0).unwrap() - 1.5).abs() < 1e-12);
+        assert!((g.undulation(-225.0, 10.0).unwrap() - 1.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn broken_headers_are_refused() {
+        let mut b = grid(0.0, 3, 1.0);
+        b.truncate(50);
+        let e = Geoid::parse(&b, Path::new("cut.gtx")).unwrap_err().to_string();
+        assert!(e.contains("cut.gtx") && e.contains("bytes"), "{e}");
+        assert!(Geoid::parse(&[0u8; 12], Path::new("x.gtx")).is_err());
+    }
+}
