@@ -89,8 +89,11 @@ pub struct SynthArgs {
     pub bits: u32,
     #[arg(long, default_value = "hilly", value_parser = ["flat", "hilly", "mountain"])]
     pub relief: String,
-    #[arg(long, default_value = "film", value_parser = ["film", "digital"])]
+    #[arg(long, default_value = "film", value_parser = ["film", "digital", "rpc"])]
     pub camera: String,
+    /// Off-nadir angle of an RPC (satellite) scene, degrees: 2 to 35.
+    #[arg(long, default_value_t = 25.0)]
+    pub off_nadir: f64,
     /// Swing of the camera, degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub kappa: f64,
@@ -138,13 +141,18 @@ impl SynthArgs {
                 "mountain" => Relief::Mountain,
                 _ => Relief::Hilly,
             },
-            camera: if self.camera == "digital" { CameraKind::Digital } else { CameraKind::Film },
+            camera: match self.camera.as_str() {
+                "digital" => CameraKind::Digital,
+                "rpc" => CameraKind::Rpc,
+                _ => CameraKind::Film,
+            },
             kappa_deg: self.kappa,
             tiled: self.layout == "tiles",
             compress: self.compress.parse::<Compression>()?,
             dem_posting: self.dem_posting,
             scale: self.scale,
             fiducials: self.fiducials,
+            off_nadir_deg: self.off_nadir,
             seed: self.seed,
             quiet: self.quiet,
             no_scan: self.no_scan,

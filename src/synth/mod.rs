@@ -6,6 +6,7 @@
 //! seed; written a band of rows at a time, in parallel, in bounded memory.
 
 pub mod noise;
+mod satellite;
 pub mod texture;
 
 use crate::camera::file::{CameraFile, CameraSection, CorrectionsSection, DistortionSection, ExteriorSection, InteriorSection};
@@ -37,6 +38,8 @@ pub enum Relief {
 pub enum CameraKind {
     Film,
     Digital,
+    /// A pushbroom satellite described by a fitted RPC.
+    Rpc,
 }
 
 #[derive(Clone, Debug)]
@@ -56,6 +59,8 @@ pub struct SynthOptions {
     pub scale: f64,
     /// Number of fiducial marks on film (4 or 8).
     pub fiducials: u32,
+    /// Off-nadir angle of a satellite scene, degrees (2 to 35).
+    pub off_nadir_deg: f64,
     pub seed: u64,
     pub quiet: bool,
     /// Write only the geometry (camera, DEM, checkpoints): for accuracy
@@ -79,6 +84,7 @@ impl Default for SynthOptions {
             dem_posting: 5.0,
             scale: 10000.0,
             fiducials: 4,
+            off_nadir_deg: 25.0,
             seed: 1,
             quiet: true,
             no_scan: false,
@@ -126,6 +132,9 @@ fn check(o: &SynthOptions) -> Result<()> {
     }
     if o.fiducials != 4 && o.fiducials != 8 {
         return bad(format!("--fiducials {} (4 or 8)", o.fiducials));
+    }
+    if o.camera == CameraKind::Rpc && !(2.0..=35.0).contains(&o.off_nadir_deg) {
+        return bad(format!("--off-nadir {} (2° to 35°)", o.off_nadir_deg));
     }
     if o.compress == Compression::Zstd {
         return bad("--compress zstd is not written for scans (none, deflate, lzw)".into());
@@ -176,7 +185,7 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
                 rpc: None,
             }
         }
-        CameraKind::Digital => {
+        CameraKind::Digital | CameraKind::Rpc => {
             let px = 0.006 * 8000.0 / o.width.max(o.height) as f64;
             let flying = DIGITAL_FOCAL * o.scale / 1000.0;
             CameraFile {
@@ -209,11 +218,27 @@ fn relief(o: &SynthOptions, cx: f64, cy: f64, half: f64, flying: f64) -> GridDem
     let n = ((2.0 * half / p).ceil() as usize).max(4);
     let x0 = ((cx - half) / p).floor() * p;
     let y0 = ((cy + half) / p).ceil() * p;
+    relief_grid(o, (n, n), [x0, p, 0.0, y0, 0.0, -p], &|x, y| (x, y), (p, p), 0.35 * flying, EPSG)
+}
+
+/// A relief raster of `size` samples on the geotransform `gt` in EPSG:`epsg`:
+/// the noise is evaluated at `metres(X, Y)` (a local metric position), its
+/// samples are `posting_m` metres apart. Hilly reliefs are scaled to a
+/// steepest slope of 20°, mountains to a height range of `mountain_range`.
+fn relief_grid(
+    o: &SynthOptions,
+    (nx, ny): (usize, usize),
+    gt: [f64; 6],
+    metres: &(dyn Fn(f64, f64) -> (f64, f64) + Sync),
+    posting_m: (f64, f64),
+    mountain_range: f64,
+    epsg: u32,
+) -> GridDem {
     let seed = o.seed ^ 0xde_0de;
-    let raw: Vec<f64> = (0..n * n)
+    let raw: Vec<f64> = (0..nx * ny)
         .into_par_iter()
         .map(|k| {
-            let (x, y) = (x0 + ((k % n) as f64 + 0.5) * p, y0 - ((k / n) as f64 + 0.5) * p);
+            let (x, y) = metres(gt[0] + ((k % nx) as f64 + 0.5) * gt[1], gt[3] + ((k / nx) as f64 + 0.5) * gt[5]);
             match o.relief {
                 Relief::Flat => 0.0,
                 Relief::Hilly => noise::fbm(x / 700.0, y / 700.0, 3, seed),
@@ -221,25 +246,45 @@ fn relief(o: &SynthOptions, cx: f64, cy: f64, half: f64, flying: f64) -> GridDem
             }
         })
         .collect();
-    // Scale the relief: hilly to a steepest slope of 20°, mountains to a
-    // range of 0.35 of the flying height.
     let (lo, hi) = raw.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
     let amp = match o.relief {
         Relief::Flat => 0.0,
-        Relief::Hilly => 20f64.to_radians().tan() / max_slope(&raw, n, p).max(1e-12),
-        Relief::Mountain => 0.35 * flying / (hi - lo).max(1e-12),
+        Relief::Hilly => 20f64.to_radians().tan() / max_slope(&raw, (nx, ny), posting_m).max(1e-12),
+        Relief::Mountain => mountain_range / (hi - lo).max(1e-12),
     };
     let data = raw.iter().map(|v| (BASE_HEIGHT + amp * (v - lo)) as f32).collect();
-    GridDem::new(n, n, data, [x0, p, 0.0, y0, 0.0, -p], None, Some(EPSG))
+    GridDem::new(nx, ny, data, gt, None, Some(epsg))
 }
 
-/// Steepest slope (tan) of a raster, by central differences.
-fn max_slope(z: &[f64], n: usize, p: f64) -> f64 {
+/// Writes a relief raster as a Float32 GeoTIFF (square postings).
+fn write_dem(path: &std::path::Path, g: &GridDem) -> Result<()> {
+    let spec = OutputSpec {
+        width: g.width as u32,
+        height: g.height as u32,
+        bands: 1,
+        sample: SampleType::F32,
+        chunking: Chunking::Strips(16),
+        compression: Compression::None,
+        bigtiff: false,
+        photometric: 1,
+        alpha: false,
+        geo: Some(GeoTags { x0: g.transform[0], y0: g.transform[3], gsd: g.transform[1], epsg: g.epsg.unwrap_or(EPSG), nodata: None }),
+    };
+    write_raster(path, &spec, |y0, y1, buf| {
+        let w = g.width;
+        let src: Vec<f32> = (y0 as usize * w..y1 as usize * w).map(|k| g.sample(k % w, k / w)).collect();
+        buf.copy_from_slice(bytemuck::cast_slice(&src));
+    })
+}
+
+/// Steepest slope (tan) of a raster with samples `posting` metres apart,
+/// by central differences.
+fn max_slope(z: &[f64], (nx, ny): (usize, usize), (px, py): (f64, f64)) -> f64 {
     let mut m = 0.0f64;
-    for j in 1..n - 1 {
-        for i in 1..n - 1 {
-            let gx = (z[j * n + i + 1] - z[j * n + i - 1]) / (2.0 * p);
-            let gy = (z[(j + 1) * n + i] - z[(j - 1) * n + i]) / (2.0 * p);
+    for j in 1..ny - 1 {
+        for i in 1..nx - 1 {
+            let gx = (z[j * nx + i + 1] - z[j * nx + i - 1]) / (2.0 * px);
+            let gy = (z[(j + 1) * nx + i] - z[(j - 1) * nx + i]) / (2.0 * py);
             m = m.max(gx.hypot(gy));
         }
     }
@@ -253,7 +298,7 @@ fn in_image(o: &SynthOptions, cam: &crate::camera::FrameCamera, c: f64, r: f64) 
             let (x, y) = cam.interior.px_to_mm(c, r);
             x.abs() <= FRAME_HALF_MM && y.abs() <= FRAME_HALF_MM
         }
-        CameraKind::Digital => c >= 0.0 && r >= 0.0 && c < o.width as f64 && r < o.height as f64,
+        CameraKind::Digital | CameraKind::Rpc => c >= 0.0 && r >= 0.0 && c < o.width as f64 && r < o.height as f64,
     }
 }
 
@@ -278,6 +323,9 @@ fn pixel_value(rgb: [f32; 3], bands: u32, k: u32) -> f32 {
 pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     check(o)?;
     std::fs::create_dir_all(&o.out).map_err(|e| Error::io(&o.out, e))?;
+    if o.camera == CameraKind::Rpc {
+        return satellite::synth_rpc(o);
+    }
     let cam_path = o.out.join("camera.toml");
     let dem_path = o.out.join("dem.tif");
     let scan_path = o.out.join("scan.tif");
@@ -294,154 +342,36 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     let flying = file.exterior.as_ref().expect("synth writes exterior").position[2] - BASE_HEIGHT;
     let (focal, film_half) = match o.camera {
         CameraKind::Film => (FILM_FOCAL, FILM_MM / 2.0),
-        CameraKind::Digital => (DIGITAL_FOCAL, cam.interior.pixel_size_mm() * o.width.max(o.height) as f64 / 2.0),
+        CameraKind::Digital | CameraKind::Rpc => (DIGITAL_FOCAL, cam.interior.pixel_size_mm() * o.width.max(o.height) as f64 / 2.0),
     };
     let half = 1.8 * film_half / focal * flying + 200.0;
     let grid_dem = relief(o, cam.centre.x, cam.centre.y, half, flying);
     let zs: Vec<f64> = grid_dem.samples(1).iter().map(|&v| v as f64).collect();
     let (zlo, zhi) = zs.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
-    let slope = max_slope(&zs, grid_dem.width, o.dem_posting).atan().to_degrees();
-    let dem_spec = OutputSpec {
-        width: grid_dem.width as u32,
-        height: grid_dem.height as u32,
-        bands: 1,
-        sample: SampleType::F32,
-        chunking: Chunking::Strips(16),
-        compression: Compression::None,
-        bigtiff: false,
-        photometric: 1,
-        alpha: false,
-        geo: Some(GeoTags { x0: grid_dem.transform[0], y0: grid_dem.transform[3], gsd: o.dem_posting, epsg: EPSG, nodata: None }),
-    };
-    write_raster(&dem_path, &dem_spec, |y0, y1, buf| {
-        let w = grid_dem.width;
-        let src: Vec<f32> = (y0 as usize * w..y1 as usize * w).map(|k| grid_dem.sample(k % w, k / w)).collect();
-        buf.copy_from_slice(bytemuck::cast_slice(&src));
-    })?;
+    let slope = max_slope(&zs, (grid_dem.width, grid_dem.height), (o.dem_posting, o.dem_posting)).atan().to_degrees();
+    write_dem(&dem_path, &grid_dem)?;
     let dem = Dem::grid(grid_dem, &dem_path);
     let mid_z = (zlo + zhi) / 2.0;
 
     // The scan.
     let gsd = mean_gsd(cam, &dem, o.width, o.height, mid_z)?;
     let tex = Texture::new(o.seed, gsd, cam.centre.x, cam.centre.y, 2.0 * half);
-    let sample = if o.bits == 8 { SampleType::U8 } else { SampleType::U16 };
-    let sb = sample.bytes();
-    let pb = o.bands as usize * sb;
-    let scan_spec = OutputSpec {
-        width: o.width,
-        height: o.height,
-        bands: o.bands,
-        sample,
-        chunking: if o.tiled { Chunking::Tiles(256) } else { Chunking::Strips(16) },
-        compression: o.compress,
-        bigtiff: false,
-        photometric: if o.bands >= 3 { 2 } else { 1 },
-        alpha: false,
-        geo: None,
-    };
-    let scan_spec = OutputSpec { bigtiff: scan_spec.needs_bigtiff(), ..scan_spec };
-    let progress = crate::progress::bar(o.height as u64, "synth rows", o.quiet || o.no_scan);
+    let inside = |c: f64, r: f64| in_image(o, cam, c, r);
+    let colour = |x: f64, y: f64| tex.rgb(x, y);
+    let scene = Scene { model: cam, dem: &dem, colour: &colour, inside: &inside, margin: &|c, r| film_margin(o, cam, c, r), mid_z };
+    let scan_spec = scan_spec(o);
     if !o.no_scan {
-    write_raster(&scan_path, &scan_spec, |y0, y1, buf| {
-        let row_bytes = o.width as usize * pb;
-        buf.par_chunks_mut(row_bytes).enumerate().for_each(|(k, row)| {
-            let r = (y0 as usize + k) as f64 + 0.5;
-            let mut caster = RayCaster::new(cam, &dem);
-            // The last two ground points: their difference predicts the next
-            // one so well that most pixels need a single projection.
-            let mut prev: Option<(f64, f64)> = None;
-            let mut step = (0.0, 0.0);
-            for i in 0..o.width as usize {
-                let c = i as f64 + 0.5;
-                let px = &mut row[i * pb..(i + 1) * pb];
-                let rgb = if in_image(o, &cam, c, r) {
-                    let guess = prev.map(|p| (p.0 + step.0, p.1 + step.1));
-                    match caster.cast(c, r, guess, mid_z, 1e-3) {
-                        Some(p) => {
-                            if let Some(q) = prev {
-                                step = (p[0] - q.0, p[1] - q.1);
-                            }
-                            prev = Some((p[0], p[1]));
-                            tex.rgb(p[0], p[1])
-                        }
-                        None => {
-                            prev = None;
-                            [0.0; 3]
-                        }
-                    }
-                } else {
-                    prev = None;
-                    film_margin(o, &cam, c, r)
-                };
-                for k in 0..o.bands {
-                    quantise(pixel_value(rgb, o.bands, k), o.bits, &mut px[k as usize * sb..]);
-                }
-            }
-        });
-        progress.inc((y1 - y0) as u64);
-    })?;
+        render_scan(o, &scene, &scan_spec, &scan_path)?;
     }
-    progress.finish_and_clear();
-
     // The truth orthophoto on the grid rectify chooses by default.
     let grid = auto_grid(cam, &dem, o.width, o.height, mid_z, gsd)?;
     let truth = if grid.pixel_count() <= 100_000_000 && !o.no_scan {
-        let spec = OutputSpec {
-            width: grid.width,
-            height: grid.height,
-            chunking: Chunking::Tiles(256),
-            compression: Compression::Deflate,
-            geo: Some(GeoTags { x0: grid.x0, y0: grid.y0, gsd: grid.gsd, epsg: EPSG, nodata: Some(0.0) }),
-            bigtiff: false,
-            ..scan_spec.clone()
-        };
-        write_raster(&truth_path, &spec, |y0, _y1, buf| {
-            let row_bytes = grid.width as usize * pb;
-            buf.par_chunks_mut(row_bytes).enumerate().for_each(|(k, row)| {
-                let v = (y0 as usize + k) as f64 + 0.5;
-                for i in 0..grid.width as usize {
-                    let (x, y) = grid.ground(i as f64 + 0.5, v);
-                    let px = &mut row[i * pb..(i + 1) * pb];
-                    let seen = match dem.height(x, y) {
-                        Height::Value(z) => cam.project(x, y, z).filter(|&(c, r)| in_image(o, &cam, c, r)).is_some(),
-                        _ => false,
-                    };
-                    if !seen {
-                        px.fill(0);
-                        continue;
-                    }
-                    let rgb = tex.rgb(x, y);
-                    for k in 0..o.bands {
-                        quantise(pixel_value(rgb, o.bands, k), o.bits, &mut px[k as usize * sb..]);
-                    }
-                }
-            });
-        })?;
+        render_truth(o, &scene, &scan_spec, &grid, &truth_path)?;
         Some(truth_path)
     } else {
         None
     };
-
-    // Checkpoints: ground points inside the image, with their exact scan positions.
-    let mut csv = String::from("id,X,Y,Z,col,row\n");
-    let mut id = 0;
-    for k in 0..2000 {
-        if id == 50 {
-            break;
-        }
-        let x = grid.x0 + grid.gsd * grid.width as f64 * (0.1 + 0.8 * noise::unit(k, 1, o.seed ^ 0xc4));
-        let y = grid.y0 - grid.gsd * grid.height as f64 * (0.1 + 0.8 * noise::unit(k, 2, o.seed ^ 0xc4));
-        let Height::Value(z) = dem.height(x, y) else { continue };
-        let Some((c, r)) = cam.project(x, y, z) else { continue };
-        if !in_image(o, &cam, c, r) {
-            continue;
-        }
-        id += 1;
-        csv.push_str(&format!("{id},{x:.4},{y:.4},{z:.4},{c:.4},{r:.4}\n"));
-    }
-    let mut f = std::fs::File::create(&cp_path).map_err(|e| Error::io(&cp_path, e))?;
-    f.write_all(csv.as_bytes()).map_err(|e| Error::io(&cp_path, e))?;
-
+    write_checkpoints(o, &scene, &grid, &cp_path)?;
     Ok(SynthReport {
         scan: if o.no_scan { PathBuf::new() } else { scan_path },
         camera: cam_path,
@@ -453,6 +383,144 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
         relief_range: [zlo, zhi],
         max_slope_deg: slope,
     })
+}
+
+/// What rendering needs of a scene: the sensor and the terrain in one
+/// ground CRS, the ground's colour there, which scan pixels see the ground
+/// and what the others show.
+struct Scene<'a> {
+    model: &'a dyn SensorModel,
+    dem: &'a Dem,
+    colour: &'a (dyn Fn(f64, f64) -> [f32; 3] + Sync),
+    inside: &'a (dyn Fn(f64, f64) -> bool + Sync),
+    margin: &'a (dyn Fn(f64, f64) -> [f32; 3] + Sync),
+    mid_z: f64,
+}
+
+/// The layout of the scan file.
+fn scan_spec(o: &SynthOptions) -> OutputSpec {
+    let sample = if o.bits == 8 { SampleType::U8 } else { SampleType::U16 };
+    let spec = OutputSpec {
+        width: o.width,
+        height: o.height,
+        bands: o.bands,
+        sample,
+        chunking: if o.tiled { Chunking::Tiles(256) } else { Chunking::Strips(16) },
+        compression: o.compress,
+        bigtiff: false,
+        photometric: if o.bands >= 3 { 2 } else { 1 },
+        alpha: false,
+        geo: None,
+    };
+    OutputSpec { bigtiff: spec.needs_bigtiff(), ..spec }
+}
+
+/// Renders the scan: every pixel's ray cast onto the DEM, the ground's
+/// colour taken there; rows in parallel, a band of rows at a time.
+fn render_scan(o: &SynthOptions, sc: &Scene<'_>, spec: &OutputSpec, path: &std::path::Path) -> Result<()> {
+    let sb = spec.sample.bytes();
+    let pb = o.bands as usize * sb;
+    let progress = crate::progress::bar(o.height as u64, "synth rows", o.quiet);
+    write_raster(path, spec, |y0, y1, buf| {
+        let row_bytes = o.width as usize * pb;
+        buf.par_chunks_mut(row_bytes).enumerate().for_each(|(k, row)| {
+            let r = (y0 as usize + k) as f64 + 0.5;
+            let mut caster = RayCaster::new(sc.model, sc.dem);
+            // The last two ground points: their difference predicts the next
+            // one so well that most pixels need a single projection.
+            let mut prev: Option<(f64, f64)> = None;
+            let mut step = (0.0, 0.0);
+            for i in 0..o.width as usize {
+                let c = i as f64 + 0.5;
+                let px = &mut row[i * pb..(i + 1) * pb];
+                let rgb = if (sc.inside)(c, r) {
+                    let guess = prev.map(|p| (p.0 + step.0, p.1 + step.1));
+                    match caster.cast(c, r, guess, sc.mid_z, 1e-3) {
+                        Some(p) => {
+                            if let Some(q) = prev {
+                                step = (p[0] - q.0, p[1] - q.1);
+                            }
+                            prev = Some((p[0], p[1]));
+                            (sc.colour)(p[0], p[1])
+                        }
+                        None => {
+                            prev = None;
+                            [0.0; 3]
+                        }
+                    }
+                } else {
+                    prev = None;
+                    (sc.margin)(c, r)
+                };
+                for k in 0..o.bands {
+                    quantise(pixel_value(rgb, o.bands, k), o.bits, &mut px[k as usize * sb..]);
+                }
+            }
+        });
+        progress.inc((y1 - y0) as u64);
+    })?;
+    progress.finish_and_clear();
+    Ok(())
+}
+
+/// The true orthophoto on `grid` (in the scene's UTM zone):
+/// the ground's colour wherever the scan sees the ground, 0 elsewhere.
+fn render_truth(o: &SynthOptions, sc: &Scene<'_>, scan: &OutputSpec, grid: &crate::geom::OutputGrid, path: &std::path::Path) -> Result<()> {
+    let pb = o.bands as usize * scan.sample.bytes();
+    let sb = scan.sample.bytes();
+    let spec = OutputSpec {
+        width: grid.width,
+        height: grid.height,
+        chunking: Chunking::Tiles(256),
+        compression: Compression::Deflate,
+        geo: Some(GeoTags { x0: grid.x0, y0: grid.y0, gsd: grid.gsd, epsg: EPSG, nodata: Some(0.0) }),
+        bigtiff: false,
+        ..scan.clone()
+    };
+    write_raster(path, &spec, |y0, _y1, buf| {
+        let row_bytes = grid.width as usize * pb;
+        buf.par_chunks_mut(row_bytes).enumerate().for_each(|(k, row)| {
+            let v = (y0 as usize + k) as f64 + 0.5;
+            for i in 0..grid.width as usize {
+                let (x, y) = grid.ground(i as f64 + 0.5, v);
+                let px = &mut row[i * pb..(i + 1) * pb];
+                let seen = match sc.dem.height(x, y) {
+                    Height::Value(z) => sc.model.project(x, y, z).filter(|&(c, r)| (sc.inside)(c, r)).is_some(),
+                    _ => false,
+                };
+                if !seen {
+                    px.fill(0);
+                    continue;
+                }
+                let rgb = (sc.colour)(x, y);
+                for k in 0..o.bands {
+                    quantise(pixel_value(rgb, o.bands, k), o.bits, &mut px[k as usize * sb..]);
+                }
+            }
+        });
+    })
+}
+
+/// 50 checkpoints: ground points inside the image, with their exact scan positions.
+fn write_checkpoints(o: &SynthOptions, sc: &Scene<'_>, grid: &crate::geom::OutputGrid, path: &std::path::Path) -> Result<()> {
+    let mut csv = String::from("id,X,Y,Z,col,row\n");
+    let mut id = 0;
+    for k in 0..2000 {
+        if id == 50 {
+            break;
+        }
+        let x = grid.x0 + grid.gsd * grid.width as f64 * (0.1 + 0.8 * noise::unit(k, 1, o.seed ^ 0xc4));
+        let y = grid.y0 - grid.gsd * grid.height as f64 * (0.1 + 0.8 * noise::unit(k, 2, o.seed ^ 0xc4));
+        let Height::Value(z) = sc.dem.height(x, y) else { continue };
+        let Some((c, r)) = sc.model.project(x, y, z) else { continue };
+        if !(sc.inside)(c, r) {
+            continue;
+        }
+        id += 1;
+        csv.push_str(&format!("{id},{x:.4},{y:.4},{z:.4},{c:.4},{r:.4}\n"));
+    }
+    let mut f = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    f.write_all(csv.as_bytes()).map_err(|e| Error::io(path, e))
 }
 
 /// Film base with the fiducial marks: bright crosses on dark film.

@@ -6,6 +6,7 @@
 //!
 //! The readers of the formats found in the wild are in `read`.
 
+pub mod fit;
 mod read;
 
 /// GDAL's metadata names of the 14 RPC items (the other readers map onto them).
@@ -38,7 +39,7 @@ pub struct Rpc {
 
 /// The 20 RPC00B terms of normalised (L = longitude, P = latitude, H = height).
 #[inline]
-fn terms(l: f64, p: f64, h: f64) -> [f64; 20] {
+pub(crate) fn terms(l: f64, p: f64, h: f64) -> [f64; 20] {
     [
         1.0, l, p, h, l * p, l * h, p * h, l * l, p * p, h * h,
         p * l * h, l * l * l, l * p * p, l * h * h, l * l * p, p * p * p, p * h * h, l * l * h, p * p * h, h * h * h,
