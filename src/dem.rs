@@ -246,6 +246,12 @@ impl GridDem {
     /// Reads a single-band GeoTIFF (Int16, UInt16, Int32, Float32, Float64, ...)
     /// or an SRTM `.hgt` tile.
     pub fn read(path: &Path) -> Result<GridDem> {
+        GridDem::read_within(path, IN_MEMORY_LIMIT)
+    }
+
+    /// As `read`, holding at most about `max_bytes` of heights in memory:
+    /// a larger grid is read a chunk at a time into a cache of that size.
+    pub fn read_within(path: &Path, max_bytes: u64) -> Result<GridDem> {
         if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("hgt")) {
             return read_hgt(path);
         }
@@ -272,13 +278,15 @@ impl GridDem {
         if pixels > 1 << 40 {
             return Err(Error::limits(path, format!("DEM of {w}×{h} samples is too large")));
         }
-        if pixels * 4 > IN_MEMORY_LIMIT {
-            // Out of core: chunks decoded on demand into a cache of ~16 MB.
+        if pixels * 4 > max_bytes {
+            // Out of core: chunks decoded on demand into a cache of at most
+            // 16 MB within the budget.
             let (cw, ch) = dec.chunk_dimensions();
             let (cw, ch) = (cw.max(1) as usize, ch.max(1) as usize);
             let tiled = matches!(dec.get_chunk_type(), tiff::decoder::ChunkType::Tile);
             let across = if tiled { (w as usize).div_ceil(cw) } else { 1 };
-            let keep = ((16usize << 20) / (cw * ch * 4)).max(4);
+            let cache = (max_bytes as usize).min(16 << 20);
+            let keep = (cache / (cw * ch * 4)).max(4);
             let chunked = ChunkedSamples {
                 path: path.to_path_buf(),
                 width: w as usize,
@@ -382,7 +390,12 @@ impl Dem {
     /// (SRTM in EPSG:4326 under a UTM orthophoto) is looked up through a
     /// reprojection; one without a CRS is taken to be in the ground CRS.
     pub fn open(path: &Path, ground: u32) -> Result<Dem> {
-        let g = GridDem::read(path)?;
+        Dem::open_within(path, ground, IN_MEMORY_LIMIT)
+    }
+
+    /// As `open`, holding at most about `max_bytes` of heights in memory.
+    pub fn open_within(path: &Path, ground: u32, max_bytes: u64) -> Result<Dem> {
+        let g = GridDem::read_within(path, max_bytes)?;
         let to_dem = match g.epsg {
             Some(e) if e != ground => {
                 let r = Reprojection::new(ground, e).map_err(|m| Error::format(path, format!("cannot reproject the DEM: {m}")))?;

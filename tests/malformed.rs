@@ -2,9 +2,11 @@
 //! one clear line naming the file and the problem, with a non-zero exit.
 //!
 //! The corpus lives in `tests/malformed/<what>/<kind>.<ext>`: one folder per
-//! input (scan, camera, dem), one file per kind of failure. It is made from
-//! the small scene in `fixtures/mini` by `regenerate_corpus` below (run it
-//! with `cargo test --test malformed -- --ignored` after changing it).
+//! input (scan, camera, dem, rpc, rpc_camera, geoid), one file per kind of
+//! failure. It is made from the small scene in `fixtures/mini` and the real
+//! files in `fixtures/rpc` and `fixtures/ventoux` by `regenerate_corpus`
+//! below (run it with `cargo test --test malformed -- --ignored` after
+//! changing it).
 
 mod common;
 use common::*;
@@ -133,6 +135,77 @@ fn regenerate_corpus() {
     w("dem", "other_crs.tif", &keys);
     w("dem", "all_nodata.tif", &dem_all_nodata(&dem));
     w("dem", "far_away.tif", &dem_shifted(&dem, 50_000.0));
+
+    // --- RPC files (for the Ventoux crop) ---
+    let rpc_txt = std::fs::read_to_string(root().join("fixtures/rpc/rpc_IKONOS.txt")).unwrap();
+    let r = |name: &str, data: &[u8]| w("rpc", name, data);
+    let without = |t: &str, key: &str| t.lines().filter(|l| !l.trim_start().starts_with(key)).map(|l| format!("{l}\n")).collect::<String>();
+    let with = |t: &str, key: &str, v: &str| t.lines().map(|l| if l.trim_start().starts_with(key) { format!("{key} {v}\n") } else { format!("{l}\n") }).collect::<String>();
+    r("empty.txt", b"");
+    r("binary_junk.bin", &[0xff, 0xfe, 0x00, 0x01, 0x80, 0x81, 0x82, 0xc3, 0x28]);
+    r("missing_coefficient.txt", without(&rpc_txt, "SAMP_DEN_COEFF_7:").as_bytes());
+    r("missing_line_off.txt", without(&rpc_txt, "LINE_OFF:").as_bytes());
+    r("nan_coefficient.txt", with(&rpc_txt, "LINE_NUM_COEFF_3:", "nan").as_bytes());
+    r("zero_scale.txt", with(&rpc_txt, "LAT_SCALE:", "0").as_bytes());
+    let mut zero_den = rpc_txt.clone();
+    for i in 1..=20 {
+        zero_den = with(&zero_den, &format!("LINE_DEN_COEFF_{i}:"), "0");
+    }
+    r("zero_denominator.txt", zero_den.as_bytes());
+    let dimap = std::fs::read_to_string(root().join("fixtures/ventoux/RPC_PHR1B_P_201308051042194_SEN_690908101-001.XML")).unwrap();
+    r("dimap_truncated.xml", dimap[..dimap.len() / 2].as_bytes());
+    r("dimap_missing_samp_off.xml", without(&dimap, "<SAMP_OFF>").as_bytes());
+    r("xml_without_rpc.xml", b"<?xml version=\"1.0\"?>\n<Dimap_Document><Metadata_Identification/></Dimap_Document>\n");
+    let wv = std::fs::read_to_string(root().join("fixtures/rpc/rpc_WV2.xml")).unwrap();
+    r("worldview_bad_number.xml", wv.replacen("<LINENUMCOEF>1.594159000000000e-03", "<LINENUMCOEF>1.59x", 1).as_bytes());
+    r("worldview_19_coefficients.xml", wv.replacen("<SAMPDENCOEF>1.000000000000000e+00 ", "<SAMPDENCOEF>", 1).as_bytes());
+    let geom = std::fs::read_to_string(root().join("fixtures/ventoux/left_image.geom")).unwrap();
+    r("rpc00a.geom", geom.replace("polynomial_format:  B", "polynomial_format:  A").as_bytes());
+    r("geom_missing_coefficient.geom", without(&geom, "samp_num_coeff_19:").as_bytes());
+    let rpb = std::fs::read_to_string(root().join("fixtures/rpc/PHR1B_P_201709281038393_SEN_PRG_FC_178609-001.RPB")).unwrap();
+    r("rpb_bad_number.RPB", rpb.replacen("lineOffset = 11469.5;", "lineOffset = 11469.5.5;", 1).as_bytes());
+    let ntf = std::fs::read(root().join("fixtures/rpc/wv3_20.NTF")).unwrap();
+    let at = ntf.windows(6).position(|x| x == b"RPC00B").unwrap();
+    r("nitf_cut_in_tre.ntf", &ntf[..at + 200]);
+    r("nitf_without_rpc.ntf", b"NITF02.10 a header and nothing else");
+    r("tiff_without_rpc_tag.tif", &std::fs::read(mini("scan.tif")).unwrap());
+    r("gdal_vrt.xml", &std::fs::read(root().join("fixtures/rpc/rpc_unsupported.xml")).unwrap());
+
+    // --- camera files with model = "rpc" ---
+    let rc = |name: &str, text: &str| w("rpc_camera", name, text.as_bytes());
+    let good = "crs = \"EPSG:32631\"\n[camera]\nmodel = \"rpc\"\n[rpc]\nfile = \"../../../fixtures/ventoux/left_image.geom\"\noffset_px = [5000, 5000]\n";
+    rc("missing_rpc_section.toml", "crs = \"EPSG:32631\"\n[camera]\nmodel = \"rpc\"\n");
+    rc("file_and_inline.toml", &format!("{good}line_off = 3.0\n"));
+    rc("unknown_inline_key.toml", "crs = \"auto\"\n[camera]\nmodel = \"rpc\"\n[rpc]\nlin_off = 3.0\n");
+    rc("inline_short_list.toml", &inline_rpc(&rpc_txt).replace("line_num_coeff = [", "line_num_coeff = [1.0, "));
+    rc("focal_length_in_rpc.toml", &good.replace("model = \"rpc\"", "model = \"rpc\"\nfocal_length_mm = 152.0"));
+    rc("nan_offset.toml", &good.replace("[5000, 5000]", "[nan, 5000]"));
+    rc("bad_crs.toml", &good.replace("EPSG:32631", "UTM31"));
+    rc("unknown_epsg.toml", &good.replace("EPSG:32631", "EPSG:999999"));
+    rc("exterior_in_rpc.toml", &format!("{good}[exterior]\nposition = [0.0, 0.0, 0.0]\nangles_deg = [0.0, 0.0, 0.0]\nconvention = \"omega-phi-kappa\"\n"));
+
+    // --- geoid grids ---
+    let gtx = std::fs::read(root().join("fixtures/ventoux/egm96_15_ventoux.gtx")).unwrap();
+    w("geoid", "truncated.gtx", &gtx[..gtx.len() - 100]);
+    w("geoid", "header_only.gtx", &gtx[..40]);
+    let mut b = gtx.clone();
+    b[16..24].copy_from_slice(&(-0.25f64).to_be_bytes());
+    w("geoid", "negative_step.gtx", &b);
+    w("geoid", "not_a_grid.gtx", b"geoid heights, but as text\n");
+    let mut b = gtx.clone();
+    b[0..8].copy_from_slice(&60.0f64.to_be_bytes()); // the grid moved north of the scene
+    w("geoid", "not_covering.gtx", &b);
+}
+
+/// An RPC text file written inline in a camera file.
+fn inline_rpc(rpc_txt: &str) -> String {
+    let rpc = gcm_ortho::camera::rpc::Rpc::parse_text(rpc_txt, Path::new("x")).unwrap();
+    let list = |v: &[f64; 20]| v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", ");
+    format!(
+        "crs = \"auto\"\n[camera]\nmodel = \"rpc\"\n[rpc]\nline_off = {:?}\nsamp_off = {:?}\nlat_off = {:?}\nlong_off = {:?}\nheight_off = {:?}\nline_scale = {:?}\nsamp_scale = {:?}\nlat_scale = {:?}\nlong_scale = {:?}\nheight_scale = {:?}\nline_num_coeff = [{}]\nline_den_coeff = [{}]\nsamp_num_coeff = [{}]\nsamp_den_coeff = [{}]\n",
+        rpc.line_off, rpc.samp_off, rpc.lat_off, rpc.long_off, rpc.height_off, rpc.line_scale, rpc.samp_scale, rpc.lat_scale, rpc.long_scale, rpc.height_scale,
+        list(&rpc.line_num), list(&rpc.line_den), list(&rpc.samp_num), list(&rpc.samp_den)
+    )
 }
 
 /// A 3-band GeoTIFF where a DEM is expected.
@@ -191,13 +264,28 @@ fn dem_shifted(dem: &[u8], dx: f64) -> Vec<u8> {
 fn check(what: &str, file: &Path) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.tif");
-    let (scan, cam, dem) = match what {
-        "scan" => (file.to_path_buf(), mini("camera.toml"), mini("dem.tif")),
-        "camera" => (mini("scan.tif"), file.to_path_buf(), mini("dem.tif")),
-        _ => (mini("scan.tif"), mini("camera.toml"), file.to_path_buf()),
+    let ventoux = |n: &str| root().join("fixtures/ventoux").join(n);
+    let (image, vdem, geom) = (ventoux("left_image.tif"), ventoux("srtm_N44E005_crop.tif"), ventoux("left_image.geom"));
+    let satellite = |extra: Vec<&str>| -> Vec<String> {
+        let mut a = vec!["rectify", "--image", s(&image), "--dem", s(&vdem), "-o", s(&out), "--quiet"];
+        a.extend(extra);
+        a.into_iter().map(String::from).collect()
+    };
+    let args: Vec<String> = match what {
+        "scan" | "camera" | "dem" => {
+            let (scan, cam, dem) = match what {
+                "scan" => (file.to_path_buf(), mini("camera.toml"), mini("dem.tif")),
+                "camera" => (mini("scan.tif"), file.to_path_buf(), mini("dem.tif")),
+                _ => (mini("scan.tif"), mini("camera.toml"), file.to_path_buf()),
+            };
+            ["rectify", "--image", s(&scan), "--camera", s(&cam), "--dem", s(&dem), "-o", s(&out), "--quiet"].map(String::from).to_vec()
+        }
+        "rpc" => satellite(vec!["--rpc", s(file), "--rpc-offset", "5000,5000"]),
+        "rpc_camera" => satellite(vec!["--camera", s(file)]),
+        _ => satellite(vec!["--rpc", s(&geom), "--rpc-offset", "5000,5000", "--geoid", s(file)]),
     };
     let t = std::time::Instant::now();
-    let r = run(&["rectify", "--image", s(&scan), "--camera", s(&cam), "--dem", s(&dem), "-o", s(&out), "--quiet"]);
+    let r = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
     let err = String::from_utf8_lossy(&r.stderr);
     let name = file.file_name().unwrap().to_str().unwrap();
     assert!(!r.status.success(), "{what}/{name}: succeeded");
@@ -213,7 +301,7 @@ fn check(what: &str, file: &Path) {
 #[test]
 fn every_malformed_input_fails_cleanly() {
     let mut n = 0;
-    for what in ["scan", "camera", "dem"] {
+    for what in ["scan", "camera", "dem", "rpc", "rpc_camera", "geoid"] {
         let dir = root().join("tests/malformed").join(what);
         let mut files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
         files.sort();
@@ -222,7 +310,7 @@ fn every_malformed_input_fails_cleanly() {
             n += 1;
         }
     }
-    assert!(n >= 35, "only {n} malformed files");
+    assert!(n >= 70, "only {n} malformed files");
 }
 
 #[test]

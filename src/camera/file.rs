@@ -262,7 +262,13 @@ impl CameraFile {
             rpc = rpc.cropped(o[0], o[1]);
         }
         let geoid = match &sec.geoid {
-            Some(g) => Some(Geoid::read(&near(g))?),
+            Some(g) => {
+                let geoid = Geoid::read(&near(g))?;
+                if geoid.undulation(rpc.long_off, rpc.lat_off).is_none() {
+                    return Err(Error::format(&geoid.path, format!("the geoid grid does not cover the scene's centre ({:.4}°, {:.4}°)", rpc.long_off, rpc.lat_off)));
+                }
+                Some(geoid)
+            }
             None => None,
         };
         let crs = if self.crs.trim().eq_ignore_ascii_case("auto") {

@@ -104,7 +104,8 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let model = camera.model();
     let src = SourceImage::open(&cfg.image, (cfg.memory / 12) as usize)?;
     let mut dem = match &cfg.dem {
-        DemSource::File(p) => Dem::open(p, camera.crs.epsg)?,
+        // The DEM's share of the budget (see the memory plan below).
+        DemSource::File(p) => Dem::open_within(p, camera.crs.epsg, cfg.memory / 8)?,
         DemSource::Height(h) => Dem::flat(*h),
     };
     dem.on_hole = cfg.dem_hole;
@@ -198,9 +199,12 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let (tx_read, rx_read) = bounded::<ReadMsg>(1);
     // The memory plan: three scan windows in flight (being read, queued,
     // being resampled), three output chunks (being made, queued, being
-    // encoded) and a queue of encoded tiles, each share a twelfth of the
-    // budget; what is left covers the DEM, the GCM rows and the threads.
-    let share = cfg.memory / 12;
+    // encoded) and a queue of encoded tiles, each a sixteenth of the budget;
+    // the DEM an eighth (larger ones are read a chunk at a time); what is
+    // left (~40 %) covers the GCM rows, the threads' stacks, the program and
+    // the allocator's slack, so that the peak resident size stays under the
+    // budget.
+    let share = cfg.memory / 16;
     let budget_px = share / src.info.pixel_bytes().max(1) as u64;
     let max_tiles = (share / spec.tile_bytes() as u64).max(1) as u32;
     let (tx_raw, rx_raw) = bounded::<RawChunk>(1);

@@ -157,6 +157,11 @@ impl Rpc {
             samp_num: coeffs("SAMP_NUM_COEFF")?,
             samp_den: coeffs("SAMP_DEN_COEFF")?,
         };
+        for (k, den) in [("LINE_DEN_COEFF", &rpc.line_den), ("SAMP_DEN_COEFF", &rpc.samp_den)] {
+            if den.iter().all(|&c| c == 0.0) {
+                return Err(Error::format(path, format!("RPC: {k} is all zero (no denominator)")));
+            }
+        }
         for (k, v) in [("LINE_SCALE", rpc.line_scale), ("SAMP_SCALE", rpc.samp_scale), ("LAT_SCALE", rpc.lat_scale), ("LONG_SCALE", rpc.long_scale), ("HEIGHT_SCALE", rpc.height_scale)] {
             if v == 0.0 {
                 return Err(Error::format(path, format!("RPC: {k} is zero")));
