@@ -27,6 +27,29 @@ enum Raw {
     F32(Vec<f32>),
 }
 
+/// Output buffers handed back by the encoder for the next chunk: allocating
+/// and freeing multi-MB buffers on different threads leaves the allocator's
+/// per-thread arenas holding tens of MB nobody uses.
+trait Recycle: Sized {
+    fn take(raw: Option<Raw>) -> Vec<Self>;
+}
+
+macro_rules! recycle {
+    ($t:ty, $v:ident) => {
+        impl Recycle for $t {
+            fn take(raw: Option<Raw>) -> Vec<$t> {
+                match raw {
+                    Some(Raw::$v(v)) => v,
+                    _ => Vec::new(),
+                }
+            }
+        }
+    };
+}
+recycle!(u8, U8);
+recycle!(u16, U16);
+recycle!(f32, F32);
+
 impl Raw {
     fn bytes(&self) -> &[u8] {
         match self {
@@ -199,15 +222,18 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let (tx_read, rx_read) = bounded::<ReadMsg>(1);
     // The memory plan: three scan windows in flight (being read, queued,
     // being resampled), three output chunks (being made, queued, being
-    // encoded) and a queue of encoded tiles, each a sixteenth of the budget;
-    // the DEM an eighth (larger ones are read a chunk at a time); what is
-    // left (~40 %) covers the GCM rows, the threads' stacks, the program and
-    // the allocator's slack, so that the peak resident size stays under the
-    // budget.
-    let share = cfg.memory / 16;
+    // encoded) and the encoded tiles (in hand and queued), each a 24th of
+    // the budget; the DEM an eighth (larger ones are read a chunk at a
+    // time). What is left (~55 %) covers the GCM rows, the threads, the
+    // program and the allocator's per-thread arenas (20–30 MB measured on
+    // 1 GiB scans), so that the peak resident size stays under the budget.
+    let share = cfg.memory / 24;
     let budget_px = share / src.info.pixel_bytes().max(1) as u64;
     let max_tiles = (share / spec.tile_bytes() as u64).max(1) as u32;
     let (tx_raw, rx_raw) = bounded::<RawChunk>(1);
+    // Buffers going back up the pipeline to be used again.
+    let (tx_free_win, rx_free_win) = bounded::<Window>(4);
+    let (tx_free_raw, rx_free_raw) = bounded::<Raw>(4);
     let (tx_enc, rx_enc) = bounded::<Vec<u8>>(max_tiles.max(4) as usize);
 
     let fail = |e: Error| {
@@ -276,7 +302,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                     if stop() {
                         return Err(Error::Cancelled);
                     }
-                    let mut win = Window::default();
+                    let mut win = rx_free_win.try_recv().unwrap_or_default();
                     let [c0, r0, c1, r1] = chunk.win;
                     timed(&mut busy, || src.read_window(c0, r0, c1 - c0, r1 - r0, &mut win)).map_err(fail)?;
                     if tx_read.send(ReadMsg { band: b, gcm: band.clone(), chunk, win }).is_err() {
@@ -295,13 +321,15 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                     return Err(Error::Cancelled);
                 }
                 let (y0, y1) = band_rows(&grid, cfg.tile, msg.band);
+                let spare = rx_free_raw.try_recv().ok();
                 let raw = timed(&mut busy, || {
                     pool.install(|| match src.info.sample {
-                        SampleType::U8 => resample_chunk::<u8>(&gcm, &src, &msg, y0, y1, cfg, bands_out).map(Raw::U8),
-                        SampleType::U16 => resample_chunk::<u16>(&gcm, &src, &msg, y0, y1, cfg, bands_out).map(Raw::U16),
-                        SampleType::F32 => resample_chunk::<f32>(&gcm, &src, &msg, y0, y1, cfg, bands_out).map(Raw::F32),
+                        SampleType::U8 => resample_chunk::<u8>(&gcm, &src, &msg, y0, y1, cfg, bands_out, spare).map(Raw::U8),
+                        SampleType::U16 => resample_chunk::<u16>(&gcm, &src, &msg, y0, y1, cfg, bands_out, spare).map(Raw::U16),
+                        SampleType::F32 => resample_chunk::<f32>(&gcm, &src, &msg, y0, y1, cfg, bands_out, spare).map(Raw::F32),
                     })
                 });
+                let _ = tx_free_win.try_send(msg.win);
                 let raw = match raw {
                     Ok(r) => r,
                     Err(m) => return Err(fail(dem_miss_error(&dem, m))),
@@ -347,6 +375,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                             .collect()
                     })
                 });
+                let _ = tx_free_raw.try_send(chunk.data);
                 for tile in tiles {
                     if tx_enc.send(tile.map_err(fail)?).is_err() {
                         return Err(Error::Cancelled);
@@ -450,7 +479,8 @@ fn clone_error(e: &Error) -> Error {
 }
 
 /// Resamples the rows of one chunk; returns a DEM miss under the `error` policy.
-fn resample_chunk<T: Sample>(
+#[allow(clippy::too_many_arguments)]
+fn resample_chunk<T: Sample + Recycle>(
     gcm: &Gcm<'_>,
     src: &SourceImage,
     msg: &ReadMsg,
@@ -458,6 +488,7 @@ fn resample_chunk<T: Sample>(
     y1: u32,
     cfg: &RectifyConfig,
     bands_out: u32,
+    spare: Option<Raw>,
 ) -> std::result::Result<Vec<T>, (f64, f64, Lookup)> {
     let info = &src.info;
     let bands_in = info.bands as usize;
@@ -481,7 +512,9 @@ fn resample_chunk<T: Sample>(
         SampleType::U16 => 65535.0,
         SampleType::F32 => 1.0,
     });
-    let mut out = vec![T::default(); (y1 - y0) as usize * w * bo];
+    let mut out = T::take(spare);
+    out.clear();
+    out.resize((y1 - y0) as usize * w * bo, T::default());
     // Rows in parallel; each row in segments of `SEG` pixels so that the
     // coordinates stay in L1 between the GCM and the kernel.
     const SEG: usize = 1024;
