@@ -32,6 +32,45 @@ pub enum Command {
     Batch(BatchArgs),
     /// Put pieces made with `rectify --window` together into one GeoTIFF.
     Assemble(AssembleArgs),
+    /// The image → ground regular grid of an RPC image (seed 004), as GDAL
+    /// geolocation arrays, with its accuracy table.
+    RpcGrid(RpcGridArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct RpcGridArgs {
+    /// The image (for its size; the VRT written beside the grid reads it).
+    #[arg(long)]
+    pub image: PathBuf,
+    /// A camera file with model = "rpc".
+    #[arg(long, required_unless_present = "rpc", conflicts_with = "rpc")]
+    pub camera: Option<PathBuf>,
+    /// An RPC file of any supported format.
+    #[arg(long)]
+    pub rpc: Option<PathBuf>,
+    #[arg(long, requires = "rpc")]
+    pub rpc_offset: Option<String>,
+    #[arg(long, requires = "rpc")]
+    pub geoid: Option<PathBuf>,
+    /// DEM (any EPSG CRS; heights above the geoid with --geoid).
+    #[arg(long)]
+    pub dem: PathBuf,
+    /// Grid step, image pixels.
+    #[arg(long, default_value_t = 8)]
+    pub step: u32,
+    /// Also print seed 004's accuracy table for these steps, e.g. 2,4,8,16,32.
+    #[arg(long)]
+    pub accuracy: Option<String>,
+    /// Accuracy over every N-th pixel of each row and column.
+    #[arg(long, default_value_t = 4)]
+    pub sample: u32,
+    /// Write the accuracy table here as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// The grid: a 3-band Float64 TIFF (longitude, latitude, height); a VRT
+    /// of the image with GEOLOCATION metadata is written beside it.
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -118,6 +157,15 @@ pub struct SynthArgs {
     /// truth): for `accuracy --size` studies of very large scans.
     #[arg(long)]
     pub no_scan: bool,
+}
+
+/// `col,row` of `--rpc-offset`.
+pub fn parse_offset(o: &str) -> Result<[f64; 2], String> {
+    let v: Vec<f64> = o.split(',').map(|p| p.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| format!("--rpc-offset '{o}' is not col,row"))?;
+    match v[..] {
+        [c, r] if c.is_finite() && r.is_finite() => Ok([c, r]),
+        _ => Err(format!("--rpc-offset '{o}' is not col,row")),
+    }
 }
 
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -305,16 +353,7 @@ impl RectifyArgs {
         };
         let mut cfg = RectifyConfig::new(self.image.clone(), camera, dem, self.output.clone());
         if let Some(r) = &self.rpc {
-            let offset = match &self.rpc_offset {
-                None => None,
-                Some(o) => {
-                    let v: Vec<f64> = o.split(',').map(|p| p.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| format!("--rpc-offset '{o}' is not col,row"))?;
-                    match v[..] {
-                        [c, r] if c.is_finite() && r.is_finite() => Some([c, r]),
-                        _ => return Err(format!("--rpc-offset '{o}' is not col,row")),
-                    }
-                }
-            };
+            let offset = self.rpc_offset.as_deref().map(parse_offset).transpose()?;
             let crs = match &self.crs {
                 None => None,
                 Some(c) => Some(gcm_ortho::camera::Crs::parse(c).ok_or_else(|| format!("--crs '{c}' is not of the form EPSG:<code>"))?.epsg),

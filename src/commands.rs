@@ -53,6 +53,7 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Accuracy(a) => run_accuracy(&a).map(|()| 0),
         Command::Demo(a) => run_demo(&a, signals).map(|()| 0),
         Command::Batch(a) => run_batch(&a, signals),
+        Command::RpcGrid(a) => run_rpc_grid(&a).map(|()| 0),
         Command::Assemble(a) => {
             gcm_ortho::io::assemble::assemble(&a.pieces, &a.output)?;
             Ok(0)
@@ -270,6 +271,70 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     }
     if let Some(j) = &a.json {
         std::fs::write(j, serde_json::to_string_pretty(&serde_json::json!({"grid": grid, "rows": rows}))?)?;
+    }
+    Ok(())
+}
+
+fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
+    use gcm_ortho::camera::file::{Camera, Sensor};
+    use gcm_ortho::camera::RpcCamera;
+    use gcm_ortho::geodesy::GroundCrs;
+    use gcm_ortho::rpcgrid;
+    let (file, origin) = match (&a.camera, &a.rpc) {
+        (Some(c), _) => (gcm_ortho::camera::CameraFile::read(c)?, c.clone()),
+        (None, Some(r)) => {
+            let offset = a.rpc_offset.as_deref().map(crate::cli::parse_offset).transpose().map_err(usage)?;
+            (Camera::rpc_file(r, None, offset, a.geoid.as_deref()), r.clone())
+        }
+        _ => return Err(usage("give --camera FILE or --rpc FILE".into())),
+    };
+    let cam = file.build(&origin)?;
+    let Sensor::Rpc(r) = &cam.sensor else {
+        return Err(gcm_ortho::error::Error::unsupported(&origin, "rpc-grid needs an RPC model (camera.model = \"rpc\")").into());
+    };
+    // The grid is in longitude/latitude: the model and the DEM in EPSG:4326.
+    let model = RpcCamera::new(r.rpc.clone(), GroundCrs::from_epsg(4326).map_err(|m| anyhow!(m))?, r.geoid.clone());
+    let dem = Dem::open(&a.dem, 4326)?;
+    let src = SourceImage::open(&a.image, 1 << 20)?;
+    let (w, h) = (src.info.width, src.info.height);
+    let z0 = dem.mean_height().unwrap_or_else(|| model.height_hint());
+    let on_dem = |e: gcm_ortho::error::Error| match e {
+        gcm_ortho::error::Error::Geometry(m) => gcm_ortho::error::Error::format(&a.dem, m),
+        e => e,
+    };
+    let grid = rpcgrid::build(&model, &dem, w, h, a.step, z0).map_err(on_dem)?;
+    grid.write(&a.output)?;
+    let vrt_path = a.output.with_extension("vrt");
+    let data_type = match src.info.sample {
+        gcm_ortho::io::source::SampleType::U8 => "Byte",
+        gcm_ortho::io::source::SampleType::U16 => "UInt16",
+        gcm_ortho::io::source::SampleType::F32 => "Float32",
+    };
+    let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let vrt = rpcgrid::geolocation_vrt(&abs(&a.image), &abs(&a.output), w, h, src.info.bands, data_type, a.step);
+    std::fs::write(&vrt_path, vrt).with_context(|| vrt_path.display().to_string())?;
+    println!(
+        "rpc-grid: {}x{} nodes every {} px for {w}x{h} px; {} nodes failed the {} px back-check, {} corrected",
+        grid.cols, grid.rows, a.step, grid.bad, rpcgrid::BACK_CHECK_PX, grid.corrected
+    );
+    println!("  {}\n  {} (gdalwarp -geoloc {} …)", a.output.display(), vrt_path.display(), vrt_path.display());
+    if let Some(steps) = &a.accuracy {
+        let steps: Vec<u32> = steps.split(',').map(|s| s.trim().parse::<u32>()).collect::<std::result::Result<_, _>>().map_err(|_| usage(format!("--accuracy '{steps}' is not a list of steps")))?;
+        println!("accuracy of the grid against the exact solve, every {} px (seed 004's table):", a.sample);
+        println!("{:>5} | {:>9} {:>9} {:>9} | {:>6} {:>6} {:>6} {:>6} | {:>9}", "step", "mean m", "RMS m", "max m", "<0.5", "<1", "<2.5", "<5", "corrected");
+        let mut rows = Vec::new();
+        for s in steps {
+            let g = rpcgrid::build(&model, &dem, w, h, s, z0).map_err(on_dem)?;
+            let acc = rpcgrid::accuracy(&g, &model, &dem, w, h, a.sample, z0);
+            println!(
+                "{:>5} | {:>9.4} {:>9.4} {:>9.4} | {:>6.1} {:>6.1} {:>6.1} {:>6.1} | {:>9}",
+                s, acc.mean_abs_m, acc.rms_m, acc.max_m, acc.pct_under[0], acc.pct_under[1], acc.pct_under[2], acc.pct_under[3], acc.corrected_nodes
+            );
+            rows.push(acc);
+        }
+        if let Some(j) = &a.json {
+            std::fs::write(j, serde_json::to_string_pretty(&rows)?).with_context(|| j.display().to_string())?;
+        }
     }
     Ok(())
 }

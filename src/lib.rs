@@ -16,6 +16,7 @@ pub mod io;
 pub mod pipeline;
 pub mod progress;
 pub mod resample;
+pub mod rpcgrid;
 pub mod synth;
 pub mod transform;
 

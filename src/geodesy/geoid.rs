@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 /// PROJ's "no value" for `.gtx` grids.
 const GTX_NODATA: f32 = -88.8888;
 
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Geoid {
     lat0: f64,
     lon0: f64,

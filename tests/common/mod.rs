@@ -94,3 +94,19 @@ pub fn read_f32(path: &Path) -> (u32, u32, u32, Vec<f32>) {
     src.read_window(0, 0, w, h, &mut win).expect("the raster reads");
     (w, h, b, win.bytes().chunks_exact(4).map(|c| f32::from_ne_bytes([c[0], c[1], c[2], c[3]])).collect())
 }
+
+/// The bands of a Float64 raster, band-interleaved by pixel, and its size.
+pub fn read_f64(path: &Path) -> (u32, u32, u32, Vec<f64>) {
+    let f = std::fs::File::open(path).expect("the raster opens");
+    let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(f)).expect("a TIFF");
+    let (w, h) = dec.dimensions().expect("dimensions");
+    let bands = match dec.colortype().expect("colour type") {
+        tiff::ColorType::RGB(_) => 3,
+        tiff::ColorType::Gray(_) => 1,
+        c => panic!("unexpected {c:?}"),
+    };
+    match dec.read_image().expect("pixels") {
+        tiff::decoder::DecodingResult::F64(v) => (w, h, bands, v),
+        _ => panic!("not Float64"),
+    }
+}
