@@ -267,9 +267,10 @@ pub struct RectifyArgs {
     /// Only a piece of the output: col,row,width,height in output tiles.
     #[arg(long)]
     pub window: Option<String>,
-    /// GCM node spacing k, output pixels.
-    #[arg(long, default_value_t = 16)]
-    pub sparsity: u32,
+    /// GCM node spacing k, output pixels (default: 16, or the DEM's posting
+    /// in output pixels where finer, but at least 12).
+    #[arg(long)]
+    pub sparsity: Option<u32>,
     /// Error bound of the GCM in scan pixels (refines cells that miss it).
     #[arg(long)]
     pub max_error: Option<f64>,
@@ -375,10 +376,11 @@ impl RectifyArgs {
             }
         };
         cfg.gcm = GcmSpec {
-            k: self.sparsity,
+            k: self.sparsity.unwrap_or(16),
             mode: self.corrections.parse::<CorrectionMode>()?,
             max_error: self.max_error,
         };
+        cfg.auto_sparsity = self.sparsity.is_none();
         if self.max_error.is_some() && cfg.gcm.mode == CorrectionMode::Cell {
             return Err("--max-error works with --corrections bilinear".into());
         }

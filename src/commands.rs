@@ -132,10 +132,12 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
 fn print_report(r: &Report) {
     let s = &r.stage_seconds;
     println!(
-        "rectify: {}x{} px at {} m ({}), {:.2} s wall, {:.1} MB/s in, {:.1} Mpx/s out, peak RSS {} MiB",
+        "rectify: {}x{} px at {} {} ({}), {:.2} s wall, {:.1} MB/s in, {:.1} Mpx/s out, peak RSS {} MiB",
         r.grid.width,
         r.grid.height,
         r.grid.gsd,
+        // Ground units: degrees in a geographic CRS.
+        if r.crs.strip_prefix("EPSG:").and_then(|c| c.parse().ok()).and_then(gcm_ortho::io::geotiff::is_geographic).unwrap_or(false) { "°" } else { "m" },
         r.crs,
         r.wall_seconds,
         r.input_mb_per_s,

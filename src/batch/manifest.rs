@@ -234,6 +234,7 @@ fn config(
         mode: o.corrections.as_deref().unwrap_or("bilinear").parse::<CorrectionMode>().map_err(|e| format!("corrections: {e}"))?,
         max_error: o.max_error,
     };
+    c.auto_sparsity = o.sparsity.is_none();
     c.trend = match o.trend.as_deref() {
         None | Some("plane") => Trend::Plane,
         Some("mean") => Trend::Mean,

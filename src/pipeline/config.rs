@@ -43,6 +43,9 @@ pub struct RectifyConfig {
     /// Pieces made separately assemble into the whole, pixel for pixel.
     pub window: Option<[u32; 4]>,
     pub gcm: GcmSpec,
+    /// Choose `gcm.k` from the DEM (see `rectify`); off when the user gives
+    /// `--sparsity`.
+    pub auto_sparsity: bool,
     pub trend: Trend,
     pub kernel: Kernel,
     pub tile: u32,
@@ -73,6 +76,7 @@ impl RectifyConfig {
             bounds: None,
             window: None,
             gcm: GcmSpec { k: 16, mode: crate::gcm::CorrectionMode::Bilinear, max_error: None },
+            auto_sparsity: true,
             trend: Trend::Plane,
             kernel: Kernel::Bilinear,
             tile: 256,

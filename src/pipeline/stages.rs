@@ -162,7 +162,11 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let approx = Approx::new(model, &grid, plane)
         .ok_or_else(|| Error::Geometry("the terrain plane is not in front of the camera".into()))?;
     let t = Transform::new(model, &dem, grid);
-    let gcm = Gcm::new(&t, approx, cfg.gcm);
+    let mut spec_gcm = cfg.gcm;
+    if cfg.auto_sparsity {
+        spec_gcm.k = auto_sparsity(&dem, &grid, camera.crs.epsg);
+    }
+    let gcm = Gcm::new(&t, approx, spec_gcm);
 
     // The piece of the grid to make, in tiles (everything by default). All
     // geometry stays that of the whole grid, so pieces equal the whole.
@@ -438,7 +442,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let estimate = accuracy::sample_errors(&gcm, (grid.height / 64).max(1), 7);
     let gcm_stats = *stats.lock().expect("stats");
     Ok(Report {
-        config: cfg.clone(),
+        config: RectifyConfig { gcm: spec_gcm, auto_sparsity: false, ..cfg.clone() },
         grid,
         crs: camera.crs.to_string(),
         scan: ScanInfo {
@@ -462,6 +466,35 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         accuracy_estimate: estimate,
         output_bytes,
     })
+}
+
+/// The default node spacing: 16 output pixels, or the DEM's posting in
+/// output pixels where that is finer, but not under 12. Between nodes the
+/// corrections are interpolated bilinearly while the DEM bends at its own
+/// posts; seed 004 likewise asks for grid nodes no sparser than the DEM.
+fn auto_sparsity(dem: &Dem, grid: &OutputGrid, ground_epsg: u32) -> u32 {
+    let crate::dem::HeightModel::Grid(g) = &dem.model else { return 16 };
+    let metres = |epsg: Option<u32>, v: f64, lat_scale: f64| {
+        if epsg.and_then(crate::io::geotiff::is_geographic).unwrap_or(false) {
+            v * 111_320.0 * lat_scale
+        } else {
+            v
+        }
+    };
+    let (lat_mid, _) = {
+        let (x, y) = grid.ground(grid.width as f64 / 2.0, grid.height as f64 / 2.0);
+        match crate::geodesy::GroundCrs::from_epsg(ground_epsg).ok().and_then(|c| c.to_lonlat(x, y)) {
+            Some((lon, lat)) => (lat, lon),
+            None => (0.0, 0.0),
+        }
+    };
+    let cos = lat_mid.to_radians().cos();
+    let post = metres(g.epsg, g.transform[1].abs(), cos).min(metres(g.epsg, g.transform[5].abs(), 1.0));
+    let gsd = metres(Some(ground_epsg), grid.gsd, 1.0);
+    if !(post > 0.0 && gsd > 0.0) {
+        return 16;
+    }
+    ((post / gsd).floor() as u32).clamp(12, 16)
 }
 
 /// Our errors hold `io::Error`s, which do not clone: rebuild one with the same text.

@@ -93,7 +93,7 @@ pub fn build(model: &RpcCamera, dem: &Dem, w: u32, h: u32, step: u32, z_guess: f
     }
     let mut corrected = 0;
     if bad > 0 {
-        let finest = cols.max(rows).next_power_of_two() / 2;
+        let finest = cols.max(rows).next_power_of_two();
         let fits: Vec<([f64; 3], Mba)> = good
             .iter()
             .map(|vals| {
