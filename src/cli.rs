@@ -234,7 +234,8 @@ pub struct RectifyArgs {
     #[arg(long)]
     pub rpc: Option<PathBuf>,
     /// With --rpc: the image is a crop starting at this column,row of the
-    /// scene the RPC describes.
+    /// scene the RPC describes (default: the tile offset a DigitalGlobe XML
+    /// records for the image's file name, else none).
     #[arg(long, requires = "rpc")]
     pub rpc_offset: Option<String>,
     /// With --rpc: the DEM's heights are above this geoid (PROJ .gtx grid,
@@ -340,6 +341,8 @@ impl RectifyArgs {
             (Some(p), None) => DemSource::File(p.clone()),
             (None, Some(h)) if h.is_finite() => DemSource::Height(h),
             (None, Some(h)) => return Err(format!("--height {h} is not a finite number")),
+            // An RPC has a height of its own (HEIGHT_OFF).
+            (None, None) if self.rpc.is_some() => DemSource::ModelHeight,
             _ => return Err("give --dem FILE or --height METRES".into()),
         };
         if let Some(e) = self.max_error {
@@ -354,7 +357,14 @@ impl RectifyArgs {
         };
         let mut cfg = RectifyConfig::new(self.image.clone(), camera, dem, self.output.clone());
         if let Some(r) = &self.rpc {
-            let offset = self.rpc_offset.as_deref().map(parse_offset).transpose()?;
+            let offset = match self.rpc_offset.as_deref() {
+                Some(o) => Some(parse_offset(o)?),
+                // A tile of a DigitalGlobe product: its offset is in the XML.
+                None => std::fs::read_to_string(r).ok().and_then(|xml| {
+                    let name = self.image.file_name()?.to_str()?;
+                    gcm_ortho::camera::rpc::Rpc::tile_offset(&xml, name)
+                }),
+            };
             let crs = match &self.crs {
                 None => None,
                 Some(c) => Some(gcm_ortho::camera::Crs::parse(c).ok_or_else(|| format!("--crs '{c}' is not of the form EPSG:<code>"))?.epsg),

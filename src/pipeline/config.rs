@@ -12,6 +12,10 @@ pub enum DemSource {
     File(PathBuf),
     /// A constant height, metres.
     Height(f64),
+    /// The sensor model's own: an RPC's HEIGHT_OFF (in the DEM datum, so
+    /// less the geoid's undulation when there is one); an error for frame
+    /// cameras, which have none.
+    ModelHeight,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]

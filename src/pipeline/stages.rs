@@ -130,6 +130,10 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         // The DEM's share of the budget (see the memory plan below).
         DemSource::File(p) => Dem::open_within(p, camera.crs.epsg, cfg.memory / 8)?,
         DemSource::Height(h) => Dem::flat(*h),
+        DemSource::ModelHeight => match &camera.sensor {
+            crate::camera::file::Sensor::Rpc(r) => Dem::flat(r.height_hint()),
+            crate::camera::file::Sensor::Frame(_) => return Err(Error::Usage("give --dem FILE or --height METRES".into())),
+        },
     };
     dem.on_hole = cfg.dem_hole;
     dem.on_outside = cfg.dem_outside;

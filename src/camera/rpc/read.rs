@@ -200,6 +200,18 @@ impl Rpc {
         Rpc::from_numbers(&map, path)
     }
 
+    /// Where a DigitalGlobe XML records the image as one tile of the
+    /// scene: the (ULCOLOFFSET, ULROWOFFSET) of the `<TILE>` whose
+    /// `<FILENAME>` is `image_name` (case-insensitive), to shift the RPC by.
+    pub fn tile_offset(xml: &str, image_name: &str) -> Option<[f64; 2]> {
+        let doc = roxmltree::Document::parse(xml).ok()?;
+        let tile = doc.descendants().filter(|n| n.has_tag_name("TILE")).find(|t| {
+            t.children().any(|c| c.has_tag_name("FILENAME") && c.text().is_some_and(|f| f.trim().eq_ignore_ascii_case(image_name)))
+        })?;
+        let get = |name: &str| tile.children().find(|c| c.has_tag_name(name))?.text()?.trim().parse::<f64>().ok();
+        Some([get("ULCOLOFFSET")?, get("ULROWOFFSET")?])
+    }
+
     fn from_numbers(map: &Numbers, path: &Path) -> Result<Rpc> {
         Rpc::from_map(&|k| map.get(k).cloned(), path)
     }
