@@ -329,8 +329,6 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     let cam_path = o.out.join("camera.toml");
     let dem_path = o.out.join("dem.tif");
     let scan_path = o.out.join("scan.tif");
-    let truth_path = o.out.join("truth.tif");
-    let cp_path = o.out.join("checkpoints.csv");
 
     // Camera first (needs the terrain's base height only), then a DEM
     // generously covering its footprint.
@@ -365,23 +363,40 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     }
     // The truth orthophoto on the grid rectify chooses by default.
     let grid = auto_grid(cam, &dem, o.width, o.height, mid_z, gsd)?;
+    let measures = Measures { gsd, flying_height: flying, relief_range: [zlo, zhi], max_slope_deg: slope };
+    finish(o, &scene, &scan_spec, &grid, measures)
+}
+
+/// What a scene measures, for its report.
+struct Measures {
+    gsd: f64,
+    flying_height: f64,
+    relief_range: [f64; 2],
+    max_slope_deg: f64,
+}
+
+/// The truth orthophoto (when under ~100 Mpx and a scan was rendered), the
+/// checkpoints, and the report of what was written.
+fn finish(o: &SynthOptions, sc: &Scene<'_>, spec: &OutputSpec, grid: &crate::geom::OutputGrid, m: Measures) -> Result<SynthReport> {
+    let truth_path = o.out.join("truth.tif");
     let truth = if grid.pixel_count() <= 100_000_000 && !o.no_scan {
-        render_truth(o, &scene, &scan_spec, &grid, &truth_path)?;
+        render_truth(o, sc, spec, grid, &truth_path)?;
         Some(truth_path)
     } else {
         None
     };
-    write_checkpoints(o, &scene, &grid, &cp_path)?;
+    let checkpoints = o.out.join("checkpoints.csv");
+    write_checkpoints(o, sc, grid, &checkpoints)?;
     Ok(SynthReport {
-        scan: if o.no_scan { PathBuf::new() } else { scan_path },
-        camera: cam_path,
-        dem: dem_path,
+        scan: if o.no_scan { PathBuf::new() } else { o.out.join("scan.tif") },
+        camera: o.out.join("camera.toml"),
+        dem: o.out.join("dem.tif"),
         truth,
-        checkpoints: cp_path,
-        gsd,
-        flying_height: flying,
-        relief_range: [zlo, zhi],
-        max_slope_deg: slope,
+        checkpoints,
+        gsd: m.gsd,
+        flying_height: m.flying_height,
+        relief_range: m.relief_range,
+        max_slope_deg: m.max_slope_deg,
     })
 }
 

@@ -10,7 +10,7 @@
 //! 31N), `dem.tif` (EPSG:4326), `truth.tif` (UTM, when small enough) and
 //! `checkpoints.csv` (UTM).
 
-use super::{noise, relief_grid, render_scan, render_truth, scan_spec, write_checkpoints, write_dem, Scene, SynthOptions, SynthReport};
+use super::{finish, noise, relief_grid, render_scan, scan_spec, write_dem, Measures, Scene, SynthOptions, SynthReport};
 use super::{texture::Texture, BASE_HEIGHT, EPSG, ORIGIN};
 use crate::camera::file::{CameraFile, CameraSection, CorrectionsSection, RpcSection};
 use crate::camera::rpc::fit::fit_rpc;
@@ -20,7 +20,6 @@ use crate::dem::Dem;
 use crate::error::{Error, Result};
 use crate::geodesy::GroundCrs;
 use crate::transform::footprint::{auto_grid, mean_gsd};
-use std::path::PathBuf;
 
 /// Metres per degree of latitude on the sphere of the scene's local frame.
 const METRES_PER_DEGREE: f64 = 111_194.93;
@@ -83,8 +82,7 @@ impl Pushbroom {
 
 pub(super) fn synth_rpc(o: &SynthOptions) -> Result<SynthReport> {
     let out = |name: &str| o.out.join(name);
-    let (cam_path, dem_path, scan_path, truth_path, cp_path, rpc_path) =
-        (out("camera.toml"), out("dem.tif"), out("scan.tif"), out("truth.tif"), out("checkpoints.csv"), out("scan_RPC.TXT"));
+    let (cam_path, dem_path, scan_path, rpc_path) = (out("camera.toml"), out("dem.tif"), out("scan.tif"), out("scan_RPC.TXT"));
     let utm = GroundCrs::from_epsg(EPSG).map_err(Error::Geometry)?;
     let u = |k: i64| noise::unit(k, 3, o.seed);
     let centre = (ORIGIN.0 + (u(3) * 1000.0).round(), ORIGIN.1 + (u(4) * 1000.0).round());
@@ -171,22 +169,5 @@ pub(super) fn synth_rpc(o: &SynthOptions) -> Result<SynthReport> {
         None => [0.0; 3],
     };
     let scene = Scene { model: &model, dem: &dem, colour: &colour, inside: &inside, margin: &|_, _| [0.0; 3], mid_z };
-    let truth = if grid.pixel_count() <= 100_000_000 && !o.no_scan {
-        render_truth(o, &scene, &spec, &grid, &truth_path)?;
-        Some(truth_path)
-    } else {
-        None
-    };
-    write_checkpoints(o, &scene, &grid, &cp_path)?;
-    Ok(SynthReport {
-        scan: if o.no_scan { PathBuf::new() } else { scan_path },
-        camera: cam_path,
-        dem: dem_path,
-        truth,
-        checkpoints: cp_path,
-        gsd,
-        flying_height: ALTITUDE,
-        relief_range: [zlo, zhi],
-        max_slope_deg: slope,
-    })
+    finish(o, &scene, &spec, &grid, Measures { gsd, flying_height: ALTITUDE, relief_range: [zlo, zhi], max_slope_deg: slope })
 }
