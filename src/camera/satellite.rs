@@ -42,11 +42,6 @@ impl RpcCamera {
         let n = self.geoid.as_ref().and_then(|g| g.undulation(self.rpc.long_off, self.rpc.lat_off)).unwrap_or(0.0);
         self.rpc.height_off - n
     }
-
-    /// The scene centre, longitude and latitude.
-    pub fn centre_lonlat(&self) -> (f64, f64) {
-        (self.rpc.long_off, self.rpc.lat_off)
-    }
 }
 
 impl SensorModel for RpcCamera {

@@ -88,14 +88,6 @@ impl Reprojection {
         let (lon, lat) = self.from.to_lonlat(x, y)?;
         self.to.from_lonlat(lon, lat)
     }
-
-    pub fn is_identity(&self) -> bool {
-        self.identity
-    }
-
-    pub fn target_epsg(&self) -> u32 {
-        self.to.epsg
-    }
 }
 
 #[cfg(test)]
