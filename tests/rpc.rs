@@ -28,6 +28,21 @@ fn geotiff_rpc_tag_matches_gdal() {
     }
 }
 
+/// Runs `gdaltransform args` with `input` on stdin: (stdout, stderr).
+fn gdaltransform(args: &[&str], input: &str) -> (String, String) {
+    let mut child = Command::new("gdaltransform")
+        .args(args)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::io::Write::write_all(child.stdin.as_mut().unwrap(), input.as_bytes()).unwrap();
+    drop(child.stdin.take());
+    let out = child.wait_with_output().unwrap();
+    (String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
 /// The text readers: the file as a GDAL `_RPC.TXT` sidecar of a dummy image,
 /// projected by GDAL and by us.
 fn text_matches_gdal(name: &str, points: &[(f64, f64, f64)]) {
@@ -42,19 +57,9 @@ fn text_matches_gdal(name: &str, points: &[(f64, f64, f64)]) {
     std::fs::copy(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini/scan.tif"), &plain).unwrap();
     std::fs::copy(fx(name), dir.path().join("plain_RPC.TXT")).unwrap();
     let input: String = points.iter().map(|(a, b, c)| format!("{a} {b} {c}\n")).collect();
-    let mut child = Command::new("gdaltransform")
-        .args(["-rpc", "-i", s(&plain)])
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::io::Write::write_all(child.stdin.as_mut().unwrap(), input.as_bytes()).unwrap();
-    drop(child.stdin.take());
-    let out = child.wait_with_output().unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
+    let (text, err) = gdaltransform(&["-rpc", "-i", s(&plain)], &input);
     let got: Vec<Vec<f64>> = text.lines().map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect()).collect();
-    assert_eq!(got.len(), points.len(), "{text} {}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(got.len(), points.len(), "{text} {err}");
     for (p, g) in points.iter().zip(&got) {
         let (c, r) = rpc.project(p.0, p.1, p.2).unwrap();
         assert!((c - g[0]).abs() < 1e-6 && (r - g[1]).abs() < 1e-6, "{name}: ours ({c}, {r}) GDAL ({}, {})", g[0], g[1]);
@@ -270,10 +275,7 @@ fn ventoux_model_matches_gdal_transformer(geoid: bool) {
         args.extend(["-to".into(), format!("RPC_DEM_SRS=+proj=longlat +datum=WGS84 +geoidgrids={} +type=crs", s(&ventoux("egm96_15_ventoux.gtx")))]);
     }
     args.extend(["-t_srs".into(), "EPSG:32631".into(), "-i".into(), s(&dir.path().join("coords.tif")).into()]);
-    let mut child = Command::new("gdaltransform").args(&args).stdin(std::process::Stdio::piped()).stdout(std::process::Stdio::piped()).spawn().unwrap();
-    std::io::Write::write_all(child.stdin.as_mut().unwrap(), input.as_bytes()).unwrap();
-    drop(child.stdin.take());
-    let text = String::from_utf8(child.wait_with_output().unwrap().stdout).unwrap();
+    let (text, _) = gdaltransform(&args.iter().map(String::as_str).collect::<Vec<_>>(), &input);
     let mut worst = 0f64;
     let mut compared = 0;
     for (&(c, r), line) in pixels.iter().zip(text.lines()) {
@@ -436,10 +438,7 @@ fn rpc_grid_is_read_by_gdal_and_matches_the_checkpoints() {
     let vrt = grid.with_extension("vrt");
     let nodes = [(0usize, 0usize), (10, 20), (75, 75), (40, 3)];
     let input: String = nodes.iter().map(|&(i, j)| format!("{} {}\n", i as f64 * 8.0 + 0.5, j as f64 * 8.0 + 0.5)).collect();
-    let mut child = Command::new("gdaltransform").args(["-geoloc", s(&vrt)]).stdin(std::process::Stdio::piped()).stdout(std::process::Stdio::piped()).spawn().unwrap();
-    std::io::Write::write_all(child.stdin.as_mut().unwrap(), input.as_bytes()).unwrap();
-    drop(child.stdin.take());
-    let text = String::from_utf8(child.wait_with_output().unwrap().stdout).unwrap();
+    let (text, _) = gdaltransform(&["-geoloc", s(&vrt)], &input);
     for (&(i, j), line) in nodes.iter().zip(text.lines()) {
         let g: Vec<f64> = line.split_whitespace().map(|t| t.parse().unwrap()).collect();
         let k = 3 * (j * gw as usize + i);
