@@ -549,8 +549,8 @@ fn resample_chunk<T: Sample + Recycle>(
         SampleType::U16 => 65535.0,
         SampleType::F32 => 1.0,
     });
+    // Every sample is written below: keep what the buffer holds.
     let mut out = T::take(spare);
-    out.clear();
     out.resize((y1 - y0) as usize * w * bo, T::default());
     // Rows in parallel; each row in segments of `SEG` pixels so that the
     // coordinates stay in L1 between the GCM and the kernel.
@@ -571,13 +571,15 @@ fn resample_chunk<T: Sample + Recycle>(
                     let direct = bo == bands_in;
                     {
                         let px: &mut [T] = if direct { &mut *seg_out } else { &mut px[..n * bands_in] };
-                        resample_row(cfg.kernel, &view, cols, rows, px, valid, fill);
+                        let clamped = resample_row(cfg.kernel, &view, cols, rows, px, valid, fill);
                         // Pixels whose kernel would leave the window: read their
                         // neighbourhood on their own (rare; the plan adds a margin).
-                        for i in 0..n {
-                            let (c, rr) = (cols[i], rows[i]);
-                            if valid[i] && !(c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3]) {
-                                single_pixel(src, cfg, c, rr, &mut px[i * bands_in..(i + 1) * bands_in], fill);
+                        if clamped {
+                            for i in 0..n {
+                                let (c, rr) = (cols[i], rows[i]);
+                                if valid[i] && !(c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3]) {
+                                    single_pixel(src, cfg, c, rr, &mut px[i * bands_in..(i + 1) * bands_in], fill);
+                                }
                             }
                         }
                     }

@@ -212,7 +212,10 @@ fn lanczos3_weights(t: f32) -> [f32; 6] {
 
 /// Resamples one output row segment: `out` gets `cols.len()` pixels of
 /// `view.bands` samples; `valid[i]` says whether pixel i got a value (else
-/// its samples are `fill`).
+/// its samples are `fill`). Neighbours outside the view repeat its edge
+/// pixels; the result says whether any pixel may have needed one (then the
+/// caller, if the view's edge is not the scan's, reads those pixels again
+/// from a wider window).
 pub fn resample_row<T: Sample>(
     kernel: Kernel,
     view: &View<'_, T>,
@@ -221,10 +224,11 @@ pub fn resample_row<T: Sample>(
     out: &mut [T],
     valid: &mut [bool],
     fill: T,
-) {
+) -> bool {
     // The common kernels with the band count known at compile time.
     match (kernel, view.bands) {
         (Kernel::Bilinear, 1) => return bilinear_row::<T, 1>(view, cols, rows, out, valid, fill),
+        (Kernel::Bilinear, 2) => return bilinear_row::<T, 2>(view, cols, rows, out, valid, fill),
         (Kernel::Bilinear, 3) => return bilinear_row::<T, 3>(view, cols, rows, out, valid, fill),
         (Kernel::Bilinear, 4) => return bilinear_row::<T, 4>(view, cols, rows, out, valid, fill),
         _ => {}
@@ -264,6 +268,7 @@ pub fn resample_row<T: Sample>(
             Kernel::Lanczos3 => separable(view, c, r, lanczos3_weights, px),
         }
     }
+    true
 }
 
 /// A separable `N`-tap kernel (cubic: 4, Lanczos: 6) at scan position (c, r).
@@ -292,33 +297,70 @@ fn separable<T: Sample, const N: usize>(view: &View<'_, T>, c: f64, r: f64, weig
     }
 }
 
-/// Bilinear with `B` bands: the same arithmetic as the generic path.
-fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], rows: &[f64], out: &mut [T], valid: &mut [bool], fill: T) {
+/// Bilinear with `B` bands: the same arithmetic as the generic path, in
+/// two passes over blocks of pixels. The first (branch-free, so it
+/// vectorises) turns positions into window offsets and fixed-point weights
+/// and says which pixels have all four neighbours inside the window; the
+/// second gathers those and leaves the rest to the clamping generic path.
+/// Returns whether any pixel needed a neighbour outside the window.
+fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], rows: &[f64], out: &mut [T], valid: &mut [bool], fill: T) -> bool {
+    const BLOCK: usize = 256;
+    // Offsets of 4 keep every position that matters positive, so that
+    // truncation is floor; everything else is clamped to a harmless range.
+    const PAD: f64 = 4.0;
     let d = view.data;
     let row = view.w as usize * B;
-    for (i, (&c, &r)) in cols.iter().zip(rows).enumerate() {
-        let px: &mut [T; B] = (&mut out[i * B..(i + 1) * B]).try_into().expect("B samples");
-        if !(c >= 0.0 && r >= 0.0 && c < view.img_w && r < view.img_h) {
-            *px = [fill; B];
-            valid[i] = false;
-            continue;
+    let (ox, oy) = (view.x0 as f64 + 0.5 - PAD, view.y0 as f64 + 0.5 - PAD);
+    let (ux_max, uy_max) = ((view.w + 8) as f64, (view.h + 8) as f64);
+    let (wx_lim, wy_lim) = ((view.w - 1) as u32, (view.h - 1) as u32);
+    let mut offset = [0usize; BLOCK];
+    let mut weights = [Weights { fx: 0.0, fy: 0.0, ix: 0, iy: 0 }; BLOCK];
+    let mut state = [0u8; BLOCK];
+    let mut clamped = false;
+    for (b0, (cb, rb)) in cols.chunks(BLOCK).zip(rows.chunks(BLOCK)).enumerate() {
+        let n = cb.len();
+        for i in 0..n {
+            let (c, r) = (cb[i], rb[i]);
+            let inside = c >= 0.0 && r >= 0.0 && c < view.img_w && r < view.img_h;
+            let ux = (c - ox).max(0.0).min(ux_max);
+            let uy = (r - oy).max(0.0).min(uy_max);
+            let (xi, yi) = (ux as u32, uy as u32);
+            weights[i] = Weights::new(ux - xi as f64, uy - yi as f64);
+            // Window-relative floor: xi − PAD (wrapping below zero).
+            let (i0, j0) = (xi.wrapping_sub(PAD as u32), yi.wrapping_sub(PAD as u32));
+            let fast = i0 < wx_lim && j0 < wy_lim;
+            offset[i] = if fast { (j0 as usize * view.w as usize + i0 as usize) * B } else { 0 };
+            state[i] = u8::from(inside) * (1 + u8::from(!fast));
         }
-        valid[i] = true;
-        let (x, y) = (c - 0.5, r - 0.5);
-        let (xi, yi) = (floor_i64(x), floor_i64(y));
-        let w = Weights::new(x - xi as f64, y - yi as f64);
-        let (i0, j0) = (xi - view.x0, yi - view.y0);
-        let (s00, s10, s01, s11) = if i0 >= 0 && j0 >= 0 && i0 + 1 < view.w && j0 + 1 < view.h {
-            let s = (j0 * view.w + i0) as usize * B;
-            (s, s + B, s + row, s + row + B)
-        } else {
-            (view.at(i0, j0), view.at(i0 + 1, j0), view.at(i0, j0 + 1), view.at(i0 + 1, j0 + 1))
-        };
-        let (p00, p10, p01, p11) = (&d[s00..s00 + B], &d[s10..s10 + B], &d[s01..s01 + B], &d[s11..s11 + B]);
-        for k in 0..B {
-            px[k] = T::bilerp(p00[k], p10[k], p01[k], p11[k], w);
+        let o = &mut out[b0 * BLOCK * B..(b0 * BLOCK + n) * B];
+        let v = &mut valid[b0 * BLOCK..b0 * BLOCK + n];
+        for i in 0..n {
+            let px: &mut [T; B] = (&mut o[i * B..(i + 1) * B]).try_into().expect("B samples");
+            v[i] = state[i] != 0;
+            match state[i] {
+                0 => *px = [fill; B],
+                1 => {
+                    let s = offset[i];
+                    let (p0, p1) = (&d[s..s + 2 * B], &d[s + row..s + row + 2 * B]);
+                    for k in 0..B {
+                        px[k] = T::bilerp(p0[k], p0[B + k], p1[k], p1[B + k], weights[i]);
+                    }
+                }
+                _ => {
+                    clamped = true;
+                    let (x, y) = (cb[i] - 0.5, rb[i] - 0.5);
+                    let (xi, yi) = (floor_i64(x), floor_i64(y));
+                    let w = Weights::new(x - xi as f64, y - yi as f64);
+                    let (i0, j0) = (xi - view.x0, yi - view.y0);
+                    let (s00, s10, s01, s11) = (view.at(i0, j0), view.at(i0 + 1, j0), view.at(i0, j0 + 1), view.at(i0 + 1, j0 + 1));
+                    for k in 0..B {
+                        px[k] = T::bilerp(d[s00 + k], d[s10 + k], d[s01 + k], d[s11 + k], w);
+                    }
+                }
+            }
         }
     }
+    clamped
 }
 
 #[cfg(test)]
