@@ -420,14 +420,19 @@ impl<'a> Gcm<'a> {
         // nodes): A plus the linearly varying correction. No branches inside,
         // so the compiler can vectorise it.
         let mut p = 0usize;
+        // The gap between node columns that holds the current pixel.
+        let mut gap = (self.segment(x0 as usize) - self.first_node) as usize;
         while p < len {
             let x = x0 as usize + p;
             let (i, seg_end, base) = match self.spec.mode {
                 CorrectionMode::Cell => (x / k, ((x / k + 1) * k).min(x_end), 0.0),
                 CorrectionMode::Bilinear => {
-                    let i0 = self.segment(x);
-                    // First pixel of the next segment: t(x) ≥ i0 + 1.
-                    let il = (i0 - self.first_node) as usize;
+                    // Gaps only move right (skipping any no pixel centre falls in).
+                    while gap + 2 < n && self.xs[gap + 1] <= x as f64 + 0.5 {
+                        gap += 1;
+                    }
+                    let il = gap;
+                    // First pixel of the next gap: its centre at or past the line.
                     let next = if il + 2 >= n {
                         x_end
                     } else {
