@@ -140,12 +140,14 @@ pub struct GridDem {
     pub transform: [f64; 6],
     pub nodata: Option<f64>,
     pub epsg: Option<u32>,
+    /// 1/gt1 and 1/gt5: lookups multiply instead of dividing.
+    inv_step: (f64, f64),
 }
 
 impl GridDem {
     pub fn new(width: usize, height: usize, data: Vec<f32>, transform: [f64; 6], nodata: Option<f64>, epsg: Option<u32>) -> GridDem {
         assert_eq!(data.len(), width * height);
-        GridDem { width, height, data: Samples::Memory(data), transform, nodata, epsg }
+        GridDem { width, height, data: Samples::Memory(data), transform, nodata, epsg, inv_step: (1.0 / transform[1], 1.0 / transform[5]) }
     }
 
     /// Is the grid read a chunk at a time?
@@ -178,8 +180,8 @@ impl GridDem {
     pub fn lookup(&self, x: f64, y: f64) -> Lookup {
         let gt = &self.transform;
         // Continuous pixel-centre coordinates: sample (i, j) at (i, j).
-        let c = (x - gt[0]) / gt[1] - 0.5;
-        let r = (y - gt[3]) / gt[5] - 0.5;
+        let c = (x - gt[0]) * self.inv_step.0 - 0.5;
+        let r = (y - gt[3]) * self.inv_step.1 - 0.5;
         let (w, h) = (self.width as f64, self.height as f64);
         // The grid covers its pixels' whole area: accept the outer half pixel.
         if !(c >= -0.5 && c <= w - 0.5 && r >= -0.5 && r <= h - 0.5) {
@@ -213,8 +215,8 @@ impl GridDem {
     #[inline]
     pub fn lookup_gradient(&self, x: f64, y: f64) -> Option<(f64, f64, f64)> {
         let gt = &self.transform;
-        let c = (x - gt[0]) / gt[1] - 0.5;
-        let r = (y - gt[3]) / gt[5] - 0.5;
+        let c = (x - gt[0]) * self.inv_step.0 - 0.5;
+        let r = (y - gt[3]) * self.inv_step.1 - 0.5;
         let (w, h) = (self.width as f64, self.height as f64);
         if !(c >= -0.5 && c <= w - 0.5 && r >= -0.5 && r <= h - 0.5) || self.width < 2 || self.height < 2 {
             return None;
@@ -233,7 +235,7 @@ impl GridDem {
         let z = z00 * (1.0 - fx) * (1.0 - fy) + z10 * fx * (1.0 - fy) + z01 * (1.0 - fx) * fy + z11 * fx * fy;
         let dzdc = (z10 - z00) * (1.0 - fy) + (z11 - z01) * fy;
         let dzdr = (z01 - z00) * (1.0 - fx) + (z11 - z10) * fx;
-        Some((z, dzdc / gt[1], dzdr / gt[5]))
+        Some((z, dzdc * self.inv_step.0, dzdr * self.inv_step.1))
     }
 
     /// Ground bounds `[minx, miny, maxx, maxy]`.
@@ -296,7 +298,16 @@ impl GridDem {
                 cache: std::sync::Mutex::new((Default::default(), 0)),
                 keep,
             };
-            let g = GridDem { width: w as usize, height: h as usize, data: Samples::Chunked(chunked), transform: geo.transform, nodata: geo.nodata, epsg: geo.epsg };
+            let gt = geo.transform;
+            let g = GridDem {
+                width: w as usize,
+                height: h as usize,
+                data: Samples::Chunked(chunked),
+                transform: gt,
+                nodata: geo.nodata,
+                epsg: geo.epsg,
+                inv_step: (1.0 / gt[1], 1.0 / gt[5]),
+            };
             // A readable first chunk, or a clear error now rather than NaNs later.
             if g.sample(0, 0).is_nan() && g.samples((pixels / 1000).max(1) as usize).iter().all(|v| v.is_nan()) {
                 return Err(Error::format(path, "the DEM's data cannot be read (or is all NaN)"));

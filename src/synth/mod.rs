@@ -441,30 +441,34 @@ fn render_scan(o: &SynthOptions, sc: &Scene<'_>, spec: &OutputSpec, path: &std::
         buf.par_chunks_mut(row_bytes).enumerate().for_each(|(k, row)| {
             let r = (y0 as usize + k) as f64 + 0.5;
             let mut caster = RayCaster::new(sc.model, sc.dem);
-            // The last two ground points: their difference predicts the next
-            // one so well that most pixels need a single projection.
-            let mut prev: Option<(f64, f64)> = None;
-            let mut step = (0.0, 0.0);
+            // The last two ground points two pixels back: their difference
+            // predicts the next one so well that most pixels need a single
+            // projection. Even and odd pixels form two separate chains, so
+            // that the processor can work on one while the other waits for
+            // its divisions and square roots.
+            let mut prev: [Option<(f64, f64)>; 2] = [None; 2];
+            let mut step = [(0.0, 0.0); 2];
             for i in 0..o.width as usize {
                 let c = i as f64 + 0.5;
                 let px = &mut row[i * pb..(i + 1) * pb];
+                let (prev, step) = (&mut prev[i & 1], &mut step[i & 1]);
                 let rgb = if (sc.inside)(c, r) {
                     let guess = prev.map(|p| (p.0 + step.0, p.1 + step.1));
                     match caster.cast(c, r, guess, sc.mid_z, 1e-3) {
                         Some(p) => {
-                            if let Some(q) = prev {
-                                step = (p[0] - q.0, p[1] - q.1);
+                            if let Some(q) = *prev {
+                                *step = (p[0] - q.0, p[1] - q.1);
                             }
-                            prev = Some((p[0], p[1]));
+                            *prev = Some((p[0], p[1]));
                             (sc.colour)(p[0], p[1])
                         }
                         None => {
-                            prev = None;
+                            *prev = None;
                             [0.0; 3]
                         }
                     }
                 } else {
-                    prev = None;
+                    *prev = None;
                     (sc.margin)(c, r)
                 };
                 for k in 0..o.bands {

@@ -50,6 +50,13 @@ impl<'a> RayCaster<'a> {
                 best = Some(([x, y, z], err));
             }
             if err < tol {
+                // One more Newton step costs no projection: the answer is
+                // then far inside the tolerance, and a neighbour's guess
+                // extrapolated from it stays inside it too.
+                if let Some(j) = self.partials.and_then(|(p, _)| jacobian(p, gx, gy).try_inverse()) {
+                    let d = j * e;
+                    return Some([x + d.x, y + d.y, z + gx * d.x + gy * d.y]);
+                }
                 return Some([x, y, z]);
             }
             let stale = match self.partials {
@@ -61,8 +68,7 @@ impl<'a> RayCaster<'a> {
                 refreshed = it > 4;
             }
             let (p, _) = self.partials?;
-            let j = Matrix2::new(p[0][0] + p[0][2] * gx, p[0][1] + p[0][2] * gy, p[1][0] + p[1][2] * gx, p[1][1] + p[1][2] * gy);
-            let step = j.try_inverse()? * e;
+            let step = jacobian(p, gx, gy).try_inverse()? * e;
             // Damp long steps: beyond a few pixels the cell's gradient says little.
             let scale = if it > 10 { 0.5 } else { 1.0 };
             x += scale * step.x;
@@ -71,3 +77,11 @@ impl<'a> RayCaster<'a> {
         best.filter(|b| b.1 < 10.0 * tol.max(0.01)).map(|b| b.0)
     }
 }
+
+/// d(col, row)/d(X, Y) along the DEM surface: the model's partials in X, Y
+/// and Z, with Z following the terrain's slope (gx, gy).
+#[inline]
+fn jacobian(p: [[f64; 3]; 2], gx: f64, gy: f64) -> Matrix2<f64> {
+    Matrix2::new(p[0][0] + p[0][2] * gx, p[0][1] + p[0][2] * gy, p[1][0] + p[1][2] * gx, p[1][1] + p[1][2] * gy)
+}
+
