@@ -149,6 +149,9 @@ pub struct SynthArgs {
     /// Fiducial marks on film: 4 (corners) or 8.
     #[arg(long, default_value_t = 4)]
     pub fiducials: u32,
+    /// Film image frame, mm: 230 (23 × 23 cm) or 180 (18 × 18 cm).
+    #[arg(long, default_value_t = 230.0)]
+    pub frame: f64,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     #[arg(long)]
@@ -200,6 +203,7 @@ impl SynthArgs {
             dem_posting: self.dem_posting,
             scale: self.scale,
             fiducials: self.fiducials,
+            frame_mm: self.frame,
             off_nadir_deg: self.off_nadir,
             seed: self.seed,
             quiet: self.quiet,

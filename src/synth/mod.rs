@@ -59,6 +59,8 @@ pub struct SynthOptions {
     pub scale: f64,
     /// Number of fiducial marks on film (4 or 8).
     pub fiducials: u32,
+    /// Film image frame, mm: 230 (the common 23 × 23 cm) or 180 (18 × 18 cm).
+    pub frame_mm: f64,
     /// Off-nadir angle of a satellite scene, degrees (2 to 35).
     pub off_nadir_deg: f64,
     pub seed: u64,
@@ -84,6 +86,7 @@ impl Default for SynthOptions {
             dem_posting: 5.0,
             scale: 10000.0,
             fiducials: 4,
+            frame_mm: 230.0,
             off_nadir_deg: 25.0,
             seed: 1,
             quiet: true,
@@ -106,10 +109,21 @@ pub struct SynthReport {
     pub max_slope_deg: f64,
 }
 
-/// Film: 240 mm scanned, 230 mm image frame, 152 mm lens.
-const FILM_MM: f64 = 240.0;
-const FRAME_HALF_MM: f64 = 115.0;
+/// Film: the image frame (230 or 180 mm) and 5 mm of film base with the
+/// fiducial marks on each side scanned; 152 mm lens.
+const FILM_BORDER_MM: f64 = 5.0;
 const FILM_FOCAL: f64 = 152.0;
+
+impl SynthOptions {
+    /// Half the image frame, mm.
+    fn frame_half(&self) -> f64 {
+        self.frame_mm / 2.0
+    }
+    /// The scanned film's side, mm.
+    fn film_mm(&self) -> f64 {
+        self.frame_mm + 2.0 * FILM_BORDER_MM
+    }
+}
 const DIGITAL_FOCAL: f64 = 100.0;
 const BASE_HEIGHT: f64 = 300.0;
 /// Scene origin: UTM zone 31N, southern France.
@@ -129,6 +143,9 @@ fn check(o: &SynthOptions) -> Result<()> {
     }
     if !(o.dem_posting > 0.0) || !(o.scale > 0.0) {
         return bad("--dem-posting and --scale must be positive".into());
+    }
+    if o.frame_mm != 230.0 && o.frame_mm != 180.0 {
+        return bad(format!("--frame {} (230 or 180 mm)", o.frame_mm));
     }
     if o.fiducials != 4 && o.fiducials != 8 {
         return bad(format!("--fiducials {} (4 or 8)", o.fiducials));
@@ -150,7 +167,7 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
     let centre_y = ORIGIN.1 + (u(4) * 1000.0).round();
     match o.camera {
         CameraKind::Film => {
-            let px = FILM_MM / o.width.max(o.height) as f64;
+            let px = o.film_mm() / o.width.max(o.height) as f64;
             let flying = FILM_FOCAL * o.scale / 1000.0;
             // A flatbed scanner: turned 0.3°, y pixels 0.08 % longer, film
             // centre a little off the scan centre.
@@ -159,7 +176,7 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
             let (cx, cy) = (o.width as f64 / 2.0 + 12.3, o.height as f64 / 2.0 - 7.8);
             let (sg, cg) = (g.sin(), g.cos());
             let to_px = |x: f64, y: f64| [cx + sx * x * cg - sy * y * sg, cy - (sx * x * sg + sy * y * cg)];
-            let d = FRAME_HALF_MM + 2.5;
+            let d = o.frame_half() + 2.5;
             let mut marks = vec![[-d, -d], [d, d], [-d, d], [d, -d]];
             if o.fiducials == 8 {
                 marks.extend([[-d, 0.0], [d, 0.0], [0.0, d], [0.0, -d]]);
@@ -296,7 +313,7 @@ fn in_image(o: &SynthOptions, cam: &crate::camera::FrameCamera, c: f64, r: f64) 
     match o.camera {
         CameraKind::Film => {
             let (x, y) = cam.interior.px_to_mm(c, r);
-            x.abs() <= FRAME_HALF_MM && y.abs() <= FRAME_HALF_MM
+            x.abs() <= o.frame_half() && y.abs() <= o.frame_half()
         }
         CameraKind::Digital | CameraKind::Rpc => c >= 0.0 && r >= 0.0 && c < o.width as f64 && r < o.height as f64,
     }
@@ -339,7 +356,7 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     let cam = camera.frame(&cam_path)?;
     let flying = file.exterior.as_ref().expect("synth writes exterior").position[2] - BASE_HEIGHT;
     let (focal, film_half) = match o.camera {
-        CameraKind::Film => (FILM_FOCAL, FILM_MM / 2.0),
+        CameraKind::Film => (FILM_FOCAL, o.film_mm() / 2.0),
         CameraKind::Digital | CameraKind::Rpc => (DIGITAL_FOCAL, cam.interior.pixel_size_mm() * o.width.max(o.height) as f64 / 2.0),
     };
     let half = 1.8 * film_half / focal * flying + 200.0;
@@ -548,7 +565,7 @@ fn film_margin(o: &SynthOptions, cam: &crate::camera::FrameCamera, c: f64, r: f6
         return [0.0; 3];
     }
     let (x, y) = cam.interior.px_to_mm(c, r);
-    let d = FRAME_HALF_MM + 2.5;
+    let d = o.frame_half() + 2.5;
     let mut marks = vec![(-d, -d), (d, d), (-d, d), (d, -d)];
     if o.fiducials == 8 {
         marks.extend([(-d, 0.0), (d, 0.0), (0.0, d), (0.0, -d)]);
