@@ -60,6 +60,12 @@ impl Weights {
     fn new(fx: f64, fy: f64) -> Weights {
         Weights { fx: fx as f32, fy: fy as f32, ix: (fx * 1024.0 + 0.5) as u32, iy: (fy * 1024.0 + 0.5) as u32 }
     }
+
+    /// From fixed-point fractions (0..1024).
+    #[inline]
+    fn fixed(ix: u32, iy: u32) -> Weights {
+        Weights { fx: ix as f32 * (1.0 / 1024.0), fy: iy as f32 * (1.0 / 1024.0), ix, iy }
+    }
 }
 
 /// A sample type the kernels read and write.
@@ -297,24 +303,26 @@ fn separable<T: Sample, const N: usize>(view: &View<'_, T>, c: f64, r: f64, weig
     }
 }
 
-/// Bilinear with `B` bands: the same arithmetic as the generic path, in
-/// two passes over blocks of pixels. The first (branch-free, so it
-/// vectorises) turns positions into window offsets and fixed-point weights
-/// and says which pixels have all four neighbours inside the window; the
-/// second gathers those and leaves the rest to the clamping generic path.
+/// Bilinear with `B` bands, in two passes over blocks of pixels. The first
+/// (branch-free, so it vectorises) turns positions into window positions in
+/// 1/1024 pixel, rounded (the fixed-point weights' resolution), and says
+/// which pixels have all four neighbours inside the window; the second
+/// gathers those and leaves the rest to the clamping generic path.
 /// Returns whether any pixel needed a neighbour outside the window.
 fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], rows: &[f64], out: &mut [T], valid: &mut [bool], fill: T) -> bool {
     const BLOCK: usize = 256;
-    // Offsets of 4 keep every position that matters positive, so that
-    // truncation is floor; everything else is clamped to a harmless range.
+    // Positions are shifted by PAD pixels so that every one that matters is
+    // positive, and clamped to a harmless range; adding 2^52 then rounds to
+    // an integer held in the low bits of the f64 (no conversion instruction).
     const PAD: f64 = 4.0;
+    const MAGIC: f64 = 4_503_599_627_370_496.0;
     let d = view.data;
     let row = view.w as usize * B;
     let (ox, oy) = (view.x0 as f64 + 0.5 - PAD, view.y0 as f64 + 0.5 - PAD);
     let (ux_max, uy_max) = ((view.w + 8) as f64, (view.h + 8) as f64);
     let (wx_lim, wy_lim) = ((view.w - 1) as u32, (view.h - 1) as u32);
-    let mut offset = [0usize; BLOCK];
-    let mut weights = [Weights { fx: 0.0, fy: 0.0, ix: 0, iy: 0 }; BLOCK];
+    let mut qx = [0u32; BLOCK];
+    let mut qy = [0u32; BLOCK];
     let mut state = [0u8; BLOCK];
     let mut clamped = false;
     for (b0, (cb, rb)) in cols.chunks(BLOCK).zip(rows.chunks(BLOCK)).enumerate() {
@@ -324,12 +332,11 @@ fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], row
             let inside = c >= 0.0 && r >= 0.0 && c < view.img_w && r < view.img_h;
             let ux = (c - ox).max(0.0).min(ux_max);
             let uy = (r - oy).max(0.0).min(uy_max);
-            let (xi, yi) = (ux as u32, uy as u32);
-            weights[i] = Weights::new(ux - xi as f64, uy - yi as f64);
-            // Window-relative floor: xi − PAD (wrapping below zero).
-            let (i0, j0) = (xi.wrapping_sub(PAD as u32), yi.wrapping_sub(PAD as u32));
-            let fast = i0 < wx_lim && j0 < wy_lim;
-            offset[i] = if fast { (j0 as usize * view.w as usize + i0 as usize) * B } else { 0 };
+            let (x, y) = ((ux * 1024.0 + MAGIC).to_bits() as u32, (uy * 1024.0 + MAGIC).to_bits() as u32);
+            qx[i] = x;
+            qy[i] = y;
+            // Window-relative floor: (x >> 10) − PAD, wrapping below zero.
+            let fast = (x >> 10).wrapping_sub(PAD as u32) < wx_lim && (y >> 10).wrapping_sub(PAD as u32) < wy_lim;
             state[i] = u8::from(inside) * (1 + u8::from(!fast));
         }
         let o = &mut out[b0 * BLOCK * B..(b0 * BLOCK + n) * B];
@@ -340,10 +347,12 @@ fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], row
             match state[i] {
                 0 => *px = [fill; B],
                 1 => {
-                    let s = offset[i];
+                    let (i0, j0) = ((qx[i] >> 10) as usize - PAD as usize, (qy[i] >> 10) as usize - PAD as usize);
+                    let w = Weights::fixed(qx[i] & 1023, qy[i] & 1023);
+                    let s = (j0 * view.w as usize + i0) * B;
                     let (p0, p1) = (&d[s..s + 2 * B], &d[s + row..s + row + 2 * B]);
                     for k in 0..B {
-                        px[k] = T::bilerp(p0[k], p0[B + k], p1[k], p1[B + k], weights[i]);
+                        px[k] = T::bilerp(p0[k], p0[B + k], p1[k], p1[B + k], w);
                     }
                 }
                 _ => {
