@@ -362,11 +362,13 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                 let (y0, y1) = band_rows(&grid, cfg.tile, chunk.band);
                 let rows = (y1 - y0) as usize;
                 let cw = (chunk.x1 - chunk.x0) as usize;
+                // Uncompressed tiles are a copy each: done here, on this
+                // stage's own thread, rather than queued behind the
+                // resampling on the pool.
+                let light = spec.compression == crate::io::tiff_out::Compression::None;
                 let tiles: Vec<Result<Vec<u8>>> = timed(&mut busy, || {
-                    pool.install(|| {
-                        (chunk.x0 / cfg.tile..chunk.x1.div_ceil(cfg.tile))
-                            .into_par_iter()
-                            .map(|tx| {
+                    let txs = chunk.x0 / cfg.tile..chunk.x1.div_ceil(cfg.tile);
+                    let run = |tx: u32| {
                                 let t = cfg.tile as usize;
                                 let x0 = (tx * cfg.tile - chunk.x0) as usize;
                                 let n = (t.min(cw - x0)) * pb;
@@ -377,11 +379,14 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                                     tile.extend_from_slice(&src[(y * cw + x0) * pb..][..n]);
                                     tile.resize((y + 1) * t * pb, 0);
                                 }
-                                tile.resize(t * t * pb, 0);
-                                encode_tile(&spec, tile)
-                            })
-                            .collect()
-                    })
+                        tile.resize(t * t * pb, 0);
+                        encode_tile(&spec, tile)
+                    };
+                    if light {
+                        txs.map(run).collect()
+                    } else {
+                        pool.install(|| txs.into_par_iter().map(run).collect())
+                    }
                 });
                 let _ = tx_free_raw.try_send(chunk.data);
                 for tile in tiles {
