@@ -65,11 +65,27 @@ struct DemMsg {
     heights: Vec<Vec<Height>>,
 }
 
-struct ReadMsg {
+struct ReadMsg<'a> {
     band: u32,
     gcm: Arc<BandGcm>,
     chunk: Chunk,
     win: Window,
+    /// The window's rows in place in the mapped scan (then `win` only
+    /// carries the position), and their stride in bytes.
+    in_place: Option<(&'a [u8], usize)>,
+}
+
+impl ReadMsg<'_> {
+    fn view<'v, T: Sample>(&'v self, info: &crate::io::source::SourceInfo) -> View<'v, T> {
+        let w = &self.win;
+        match self.in_place {
+            Some((bytes, stride)) => {
+                let data = bytemuck::try_cast_slice(bytes).expect("mapped_rows checks alignment");
+                View::in_place(data, w.x0, w.y0, w.w, w.h, stride / info.pixel_bytes(), info.bands, info.width, info.height)
+            }
+            None => View::new(w, info.bands, info.width, info.height),
+        }
+    }
 }
 
 struct RawChunk {
@@ -312,8 +328,16 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                     }
                     let mut win = rx_free_win.try_recv().unwrap_or_default();
                     let [c0, r0, c1, r1] = chunk.win;
-                    timed(&mut busy, || src.read_window(c0, r0, c1 - c0, r1 - r0, &mut win)).map_err(fail)?;
-                    if tx_read.send(ReadMsg { band: b, gcm: band.clone(), chunk, win }).is_err() {
+                    // In place when the rows it spans fit the window's share
+                    // (a tall, narrow window of a turned scan would map far
+                    // more pages than it uses: copy those).
+                    let span = (r1 - r0) as u64 * sw as u64 * src.info.pixel_bytes() as u64;
+                    let in_place = if span <= 2 * share { src.mapped_rows(c0, r0, c1 - c0, r1 - r0).map_err(fail)? } else { None };
+                    match in_place {
+                        Some(_) => (win.x0, win.y0, win.w, win.h) = (c0, r0, c1 - c0, r1 - r0),
+                        None => timed(&mut busy, || src.read_window(c0, r0, c1 - c0, r1 - r0, &mut win)).map_err(fail)?,
+                    }
+                    if tx_read.send(ReadMsg { band: b, gcm: band.clone(), chunk, win, in_place }).is_err() {
                         return Err(Error::Cancelled);
                     }
                 }
@@ -337,6 +361,9 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                         SampleType::F32 => resample_chunk::<f32>(&gcm, &src, &msg, y0, y1, cfg, bands_out, spare).map(Raw::F32),
                     })
                 });
+                if msg.in_place.is_some() {
+                    src.release_rows(msg.win.y0, msg.win.h);
+                }
                 let _ = tx_free_win.try_send(msg.win);
                 let raw = match raw {
                     Ok(r) => r,
@@ -537,7 +564,7 @@ fn resample_chunk<T: Sample + Recycle>(
     let bo = bands_out as usize;
     let (x0, x1) = (msg.chunk.x0, msg.chunk.x1);
     let w = (x1 - x0) as usize;
-    let view = View::<T>::new(&msg.win, info.bands, info.width, info.height);
+    let view = msg.view::<T>(info);
     // Where the kernel stays inside the window (or the window reaches the
     // scan's edge, where clamping is the intended behaviour).
     let r = cfg.kernel.radius() as f64 + 1.0;

@@ -148,6 +148,8 @@ pub struct View<'a, T> {
     pub y0: i64,
     pub w: i64,
     pub h: i64,
+    /// Pixels from one row of `data` to the next (≥ w).
+    pub stride: i64,
     pub bands: usize,
     /// Size of the whole scan (for "outside" and edge clamping).
     pub img_w: f64,
@@ -162,6 +164,24 @@ impl<'a, T: Sample> View<'a, T> {
             y0: win.y0 as i64,
             w: win.w as i64,
             h: win.h as i64,
+            stride: win.w as i64,
+            bands: bands as usize,
+            img_w: img_w as f64,
+            img_h: img_h as f64,
+        }
+    }
+
+    /// A view of samples in place (in a mapped file): `w`×`h` pixels at scan
+    /// position (x0, y0), rows `stride` pixels apart.
+    #[allow(clippy::too_many_arguments)]
+    pub fn in_place(data: &'a [T], x0: u32, y0: u32, w: u32, h: u32, stride: usize, bands: u32, img_w: u32, img_h: u32) -> View<'a, T> {
+        View {
+            data,
+            x0: x0 as i64,
+            y0: y0 as i64,
+            w: w as i64,
+            h: h as i64,
+            stride: stride as i64,
             bands: bands as usize,
             img_w: img_w as f64,
             img_h: img_h as f64,
@@ -173,7 +193,7 @@ impl<'a, T: Sample> View<'a, T> {
     fn at(&self, i: i64, j: i64) -> usize {
         let i = i.clamp(0, self.w - 1);
         let j = j.clamp(0, self.h - 1);
-        (j * self.w + i) as usize * self.bands
+        (j * self.stride + i) as usize * self.bands
     }
 }
 
@@ -259,8 +279,8 @@ pub fn resample_row<T: Sample>(
                 let w = Weights::new(x - xi as f64, y - yi as f64);
                 let (i0, j0) = (xi - view.x0, yi - view.y0);
                 let (s00, s10, s01, s11) = if i0 >= 0 && j0 >= 0 && i0 + 1 < view.w && j0 + 1 < view.h {
-                    let s = (j0 * view.w + i0) as usize * b;
-                    let row = view.w as usize * b;
+                    let s = (j0 * view.stride + i0) as usize * b;
+                    let row = view.stride as usize * b;
                     (s, s + b, s + row, s + row + b)
                 } else {
                     (view.at(i0, j0), view.at(i0 + 1, j0), view.at(i0, j0 + 1), view.at(i0 + 1, j0 + 1))
@@ -317,7 +337,7 @@ fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], row
     const PAD: f64 = 4.0;
     const MAGIC: f64 = 4_503_599_627_370_496.0;
     let d = view.data;
-    let row = view.w as usize * B;
+    let row = view.stride as usize * B;
     let (ox, oy) = (view.x0 as f64 + 0.5 - PAD, view.y0 as f64 + 0.5 - PAD);
     let (ux_max, uy_max) = ((view.w + 8) as f64, (view.h + 8) as f64);
     let (wx_lim, wy_lim) = ((view.w - 1) as u32, (view.h - 1) as u32);
@@ -349,7 +369,7 @@ fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], row
                 1 => {
                     let (i0, j0) = ((qx[i] >> 10) as usize - PAD as usize, (qy[i] >> 10) as usize - PAD as usize);
                     let w = Weights::fixed(qx[i] & 1023, qy[i] & 1023);
-                    let s = (j0 * view.w as usize + i0) * B;
+                    let s = (j0 * view.stride as usize + i0) * B;
                     let (p0, p1) = (&d[s..s + 2 * B], &d[s + row..s + row + 2 * B]);
                     for k in 0..B {
                         px[k] = T::bilerp(p0[k], p0[B + k], p1[k], p1[B + k], w);
