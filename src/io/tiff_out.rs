@@ -166,18 +166,18 @@ pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>) -> Result<Vec<u8>> {
 /// order (`Ok(None)` at the end); their offsets go into the directory, which
 /// is written last. One directory encoder lives for the whole file, which is
 /// why this is a function that pulls tiles rather than an object.
-pub fn write_tiled<E>(
+pub fn write_tiled<E, B: AsRef<[u8]>>(
     file: std::fs::File,
     spec: &OutputSpec,
-    next_tile: impl FnMut() -> std::result::Result<Option<Vec<u8>>, E>,
+    next_tile: impl FnMut() -> std::result::Result<Option<B>, E>,
 ) -> std::result::Result<(), WriteError<E>> {
     // Unbuffered on purpose: tiles are large single writes, and every write
     // error (a full disk) must reach us rather than vanish in a buffer's drop.
     let w = file;
     if spec.bigtiff {
-        write_kind::<TiffKindBig, E>(TiffEncoder::new_big(w)?, spec, next_tile)
+        write_kind::<TiffKindBig, E, B>(TiffEncoder::new_big(w)?, spec, next_tile)
     } else {
-        write_kind::<TiffKindStandard, E>(TiffEncoder::new(w)?, spec, next_tile)
+        write_kind::<TiffKindStandard, E, B>(TiffEncoder::new(w)?, spec, next_tile)
     }
 }
 
@@ -194,17 +194,18 @@ impl<E> From<tiff::TiffError> for WriteError<E> {
     }
 }
 
-fn write_kind<K: TiffKind, E>(
+fn write_kind<K: TiffKind, E, B: AsRef<[u8]>>(
     mut enc: TiffEncoder<std::fs::File, K>,
     spec: &OutputSpec,
-    mut next_tile: impl FnMut() -> std::result::Result<Option<Vec<u8>>, E>,
+    mut next_tile: impl FnMut() -> std::result::Result<Option<B>, E>,
 ) -> std::result::Result<(), WriteError<E>> {
     let n = (spec.tiles_across() * spec.tiles_down()) as usize;
     let mut offsets = Vec::with_capacity(n);
     let mut counts = Vec::with_capacity(n);
     let mut dir = enc.image_directory()?;
     while let Some(tile) = next_tile().map_err(WriteError::Source)? {
-        offsets.push(dir.write_data(&tile[..])?);
+        let tile = tile.as_ref();
+        offsets.push(dir.write_data(tile)?);
         counts.push(tile.len() as u64);
     }
     if offsets.len() != n {

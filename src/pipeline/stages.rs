@@ -20,7 +20,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// Rows of output pixels of one chunk, in the output sample type.
+/// The output pixels of one chunk, tile by tile, in the output sample type.
 enum Raw {
     U8(Vec<u8>),
     U16(Vec<u16>),
@@ -60,6 +60,34 @@ impl Raw {
     }
 }
 
+/// An encoded tile on its way to the writer: compressed bytes of its own, or
+/// (uncompressed output) a piece of the resampled chunk, written from there;
+/// the chunk's buffer goes back to the resampler when its last tile is
+/// written.
+enum Tile {
+    Owned(Vec<u8>),
+    Shared { chunk: Option<Arc<Raw>>, range: std::ops::Range<usize>, free: crossbeam_channel::Sender<Raw> },
+}
+
+impl AsRef<[u8]> for Tile {
+    fn as_ref(&self) -> &[u8] {
+        match self {
+            Tile::Owned(v) => v,
+            Tile::Shared { chunk, range, .. } => &chunk.as_ref().expect("held until dropped").bytes()[range.clone()],
+        }
+    }
+}
+
+impl Drop for Tile {
+    fn drop(&mut self) {
+        if let Tile::Shared { chunk, free, .. } = self {
+            if let Some(Ok(raw)) = chunk.take().map(Arc::try_unwrap) {
+                let _ = free.try_send(raw);
+            }
+        }
+    }
+}
+
 struct DemMsg {
     first_j: i64,
     heights: Vec<Vec<Height>>,
@@ -88,12 +116,6 @@ impl ReadMsg<'_> {
     }
 }
 
-struct RawChunk {
-    band: u32,
-    x0: u32,
-    x1: u32,
-    data: Raw,
-}
 
 fn dem_miss_error(dem: &Dem, (x, y, l): (f64, f64, Lookup)) -> Error {
     let what = match l {
@@ -254,11 +276,11 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let share = cfg.memory / 24;
     let budget_px = share / src.info.pixel_bytes().max(1) as u64;
     let max_tiles = (share / spec.tile_bytes() as u64).max(1) as u32;
-    let (tx_raw, rx_raw) = bounded::<RawChunk>(1);
+    let (tx_raw, rx_raw) = bounded::<Raw>(1);
     // Buffers going back up the pipeline to be used again.
     let (tx_free_win, rx_free_win) = bounded::<Window>(4);
     let (tx_free_raw, rx_free_raw) = bounded::<Raw>(4);
-    let (tx_enc, rx_enc) = bounded::<Vec<u8>>(max_tiles.max(4) as usize);
+    let (tx_enc, rx_enc) = bounded::<Tile>(max_tiles.max(4) as usize);
 
     let fail = |e: Error| {
         failed.store(true, Ordering::Relaxed);
@@ -372,8 +394,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                     Err(m) => return Err(fail(dem_miss_error(&dem, m))),
                 };
                 chunks_done.fetch_add(1, Ordering::Relaxed);
-                let out = RawChunk { band: msg.band, x0: msg.chunk.x0, x1: msg.chunk.x1, data: raw };
-                if tx_raw.send(out).is_err() {
+                if tx_raw.send(raw).is_err() {
                     return Err(Error::Cancelled);
                 }
             }
@@ -383,41 +404,26 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         let h_encode = s.spawn(|| {
             let rx_raw = rx_raw;
             let mut busy = Duration::ZERO;
-            let pb = bands_out as usize * spec.sample.bytes();
-            for chunk in rx_raw.iter() {
+            let tb = spec.tile_bytes();
+            let plain = spec.compression == crate::io::tiff_out::Compression::None;
+            for raw in rx_raw.iter() {
                 if stop() {
                     return Err(Error::Cancelled);
                 }
-                let (y0, y1) = band_rows(&grid, cfg.tile, chunk.band);
-                let rows = (y1 - y0) as usize;
-                let cw = (chunk.x1 - chunk.x0) as usize;
-                // Uncompressed tiles are a copy each: done here, on this
-                // stage's own thread, rather than queued behind the
-                // resampling on the pool.
-                let light = spec.compression == crate::io::tiff_out::Compression::None;
-                let tiles: Vec<Result<Vec<u8>>> = timed(&mut busy, || {
-                    let txs = chunk.x0 / cfg.tile..chunk.x1.div_ceil(cfg.tile);
-                    let run = |tx: u32| {
-                                let t = cfg.tile as usize;
-                                let x0 = (tx * cfg.tile - chunk.x0) as usize;
-                                let n = (t.min(cw - x0)) * pb;
-                                let src = chunk.data.bytes();
-                                // Whole tiles; the right and bottom edges padded with zeros.
-                                let mut tile = Vec::with_capacity(t * t * pb);
-                                for y in 0..rows {
-                                    tile.extend_from_slice(&src[(y * cw + x0) * pb..][..n]);
-                                    tile.resize((y + 1) * t * pb, 0);
-                                }
-                        tile.resize(t * t * pb, 0);
-                        encode_tile(&spec, tile)
-                    };
-                    if light {
-                        txs.map(run).collect()
-                    } else {
-                        pool.install(|| txs.into_par_iter().map(run).collect())
-                    }
-                });
-                let _ = tx_free_raw.try_send(chunk.data);
+                // The chunk holds whole tiles, one after the other (padded).
+                let n = raw.bytes().len() / tb;
+                let tiles: Vec<Result<Tile>> = if plain {
+                    // Uncompressed: the writer writes straight from the chunk.
+                    let shared = Arc::new(raw);
+                    (0..n).map(|k| Ok(Tile::Shared { chunk: Some(shared.clone()), range: k * tb..(k + 1) * tb, free: tx_free_raw.clone() })).collect()
+                } else {
+                    let tiles = timed(&mut busy, || {
+                        let bytes = raw.bytes();
+                        pool.install(|| (0..n).into_par_iter().map(|k| encode_tile(&spec, bytes[k * tb..(k + 1) * tb].to_vec()).map(Tile::Owned)).collect())
+                    });
+                    let _ = tx_free_raw.try_send(raw);
+                    tiles
+                };
                 for tile in tiles {
                     if tx_enc.send(tile.map_err(fail)?).is_err() {
                         return Err(Error::Cancelled);
@@ -430,7 +436,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         let h_write = s.spawn(|| {
             let rx_enc = rx_enc;
             
-            let r = write_tiled(out_file, &spec, || -> Result<Option<Vec<u8>>> {
+            let r = write_tiled(out_file, &spec, || -> Result<Option<Tile>> {
                 if cancel.load(Ordering::Relaxed) {
                     return Err(Error::Cancelled);
                 }
@@ -585,32 +591,42 @@ fn resample_chunk<T: Sample + Recycle>(
     });
     // Every sample is written below: keep what the buffer holds.
     let mut out = T::take(spare);
-    out.resize((y1 - y0) as usize * w * bo, T::default());
-    // Rows in parallel; each row in segments of `SEG` pixels so that the
-    // coordinates stay in L1 between the GCM and the kernel.
-    const SEG: usize = 1024;
+    // Tile-major: the chunk's tiles one after the other, each `tile` rows
+    // of `tile` pixels; what lies beyond the grid's right or bottom edge is
+    // zero (the writer sends tiles as they are).
+    let t = cfg.tile as usize;
+    let rows = (y1 - y0) as usize;
+    out.resize(w.div_ceil(t) * t * t * bo, T::default());
+    // Tiles in parallel, row by row, so that the coordinates stay in L1
+    // between the GCM and the kernel.
     let misses: Vec<Option<(f64, f64, Lookup)>> = out
-        .par_chunks_mut(w * bo)
+        .par_chunks_mut(t * t * bo)
         .enumerate()
         .map_init(
-            || (vec![0.0f64; SEG], vec![0.0f64; SEG], vec![T::default(); SEG * bands_in], vec![false; SEG]),
-            |(cols, rows, px, valid), (k, row_out)| {
-                let y = y0 + k as u32;
+            || (vec![0.0f64; t], vec![0.0f64; t], vec![T::default(); t * bands_in], vec![false; t]),
+            |(cols, rws, px, valid), (tx, tile_out)| {
                 let mut miss = None;
-                for s0 in (0..w).step_by(SEG) {
-                    let n = SEG.min(w - s0);
-                    let (cols, rows, valid) = (&mut cols[..n], &mut rows[..n], &mut valid[..n]);
-                    gcm.fill_row(&msg.gcm, y, x0 + s0 as u32, cols, rows, &mut miss);
-                    let seg_out = &mut row_out[s0 * bo..(s0 + n) * bo];
+                let xs = tx * t;
+                let n = t.min(w - xs);
+                for (r, row_out) in tile_out.chunks_exact_mut(t * bo).enumerate() {
+                    if r >= rows {
+                        row_out.fill(T::default());
+                        continue;
+                    }
+                    let y = y0 + r as u32;
+                    let (cols, rws, valid) = (&mut cols[..n], &mut rws[..n], &mut valid[..n]);
+                    gcm.fill_row(&msg.gcm, y, x0 + xs as u32, cols, rws, &mut miss);
+                    let (seg_out, pad) = row_out.split_at_mut(n * bo);
+                    pad.fill(T::default());
                     let direct = bo == bands_in;
                     {
                         let px: &mut [T] = if direct { &mut *seg_out } else { &mut px[..n * bands_in] };
-                        let clamped = resample_row(cfg.kernel, &view, cols, rows, px, valid, fill);
+                        let clamped = resample_row(cfg.kernel, &view, cols, rws, px, valid, fill);
                         // Pixels whose kernel would leave the window: read their
                         // neighbourhood on their own (rare; the plan adds a margin).
                         if clamped {
                             for i in 0..n {
-                                let (c, rr) = (cols[i], rows[i]);
+                                let (c, rr) = (cols[i], rws[i]);
                                 if valid[i] && !(c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3]) {
                                     single_pixel(src, cfg, c, rr, &mut px[i * bands_in..(i + 1) * bands_in], fill);
                                 }
