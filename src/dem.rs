@@ -226,9 +226,24 @@ impl GridDem {
         let i0 = (c as usize).min(self.width - 2);
         let j0 = (r as usize).min(self.height - 2);
         let (fx, fy) = (c - i0 as f64, r - j0 as f64);
-        let v = |i: usize, j: usize| self.sample(i, j);
-        let (z00, z10, z01, z11) = (v(i0, j0), v(i0 + 1, j0), v(i0, j0 + 1), v(i0 + 1, j0 + 1));
-        if [z00, z10, z01, z11].iter().any(|&z| self.is_nodata(z)) {
+        let (z00, z10, z01, z11) = match &self.data {
+            // The common case, with one bounds check for the four samples.
+            Samples::Memory(v) => {
+                let k = j0 * self.width + i0;
+                let (top, bottom) = (&v[k..k + 2], &v[k + self.width..k + self.width + 2]);
+                (top[0], top[1], bottom[0], bottom[1])
+            }
+            Samples::Chunked(_) => {
+                let v = |i: usize, j: usize| self.sample(i, j);
+                (v(i0, j0), v(i0 + 1, j0), v(i0, j0 + 1), v(i0 + 1, j0 + 1))
+            }
+        };
+        let holes = match self.nodata {
+            // A NaN anywhere makes the sum NaN.
+            None => (z00 + z10 + z01 + z11).is_nan(),
+            Some(_) => [z00, z10, z01, z11].iter().any(|&z| self.is_nodata(z)),
+        };
+        if holes {
             return None;
         }
         let (z00, z10, z01, z11) = (z00 as f64, z10 as f64, z01 as f64, z11 as f64);

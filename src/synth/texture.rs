@@ -121,7 +121,7 @@ impl Texture {
             gsd,
             inv_gsd: 1.0 / gsd,
             inv_wave: 1.0 / (24.0 * gsd),
-            noise: Lattice::new(seed ^ 0x5eed),
+            noise: Lattice::fbm2(seed ^ 0x5eed),
             field,
             inv_field: (1.0 / field, 1.0 / (0.7 * field)),
             rot,
@@ -140,7 +140,7 @@ impl Texture {
         let (fi, fj) = (crate::resample::floor_i64(xr) as f64, crate::resample::floor_i64(yr) as f64);
         let base = PALETTE[(hash(fi as i64, fj as i64, self.seed) % PALETTE.len() as u64) as usize];
         // Fine texture: ±20 % brightness, wavelengths of 24 and 12 GSD.
-        let n = self.noise.fbm2(x * self.inv_wave, y * self.inv_wave) as f32;
+        let n = self.noise.value(2.0 * x * self.inv_wave, 2.0 * y * self.inv_wave) as f32;
         let mut col = base.map(|v| v * (0.8 + 0.4 * n));
         // Field boundaries: dark lines 2 GSD wide, anti-aliased over 1 GSD.
         let dx = (xr - fi).min(fi + 1.0 - xr) * self.field;

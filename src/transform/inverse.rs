@@ -15,11 +15,13 @@ pub struct RayCaster<'a> {
     pub dem: &'a Dem,
     /// d(col, row)/d(X, Y, Z) near `at`.
     partials: Option<([[f64; 3]; 2], (f64, f64))>,
+    /// How far (ground units) the partials stay good: 5000 ground steps.
+    stale_after: f64,
 }
 
 impl<'a> RayCaster<'a> {
     pub fn new(model: &'a dyn SensorModel, dem: &'a Dem) -> Self {
-        RayCaster { model, dem, partials: None }
+        RayCaster { model, dem, partials: None, stale_after: 5000.0 * model.ground_step() }
     }
 
     fn partials_at(&self, x: f64, y: f64, z: f64) -> Option<[[f64; 3]; 2]> {
@@ -46,9 +48,6 @@ impl<'a> RayCaster<'a> {
             let (c, r) = self.model.project(x, y, z)?;
             let e = Vector2::new(col - c, row - r);
             let err = e.norm();
-            if best.is_none_or(|b| err < b.1) {
-                best = Some(([x, y, z], err));
-            }
             if err < tol {
                 // One more Newton step costs no projection: the answer is
                 // then far inside the tolerance, and a neighbour's guess
@@ -59,9 +58,12 @@ impl<'a> RayCaster<'a> {
                 }
                 return Some([x, y, z]);
             }
+            if best.is_none_or(|b| err < b.1) {
+                best = Some(([x, y, z], err));
+            }
             let stale = match self.partials {
                 None => true,
-                Some((_, at)) => (at.0 - x).abs() + (at.1 - y).abs() > 5000.0 * self.model.ground_step(),
+                Some((_, at)) => (at.0 - x).abs() + (at.1 - y).abs() > self.stale_after,
             };
             if stale || (it > 4 && !refreshed) {
                 self.partials = self.partials_at(x, y, z).map(|p| (p, (x, y)));
