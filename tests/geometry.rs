@@ -54,12 +54,20 @@ fn hills() -> Dem {
 }
 
 fn hills_posted(posting: f64) -> Dem {
+    posted(posting, 0.0)
+}
+
+/// Smooth hills sampled every `posting` metres, plus up to ±`noise`/2 m of
+/// deterministic noise at every post (then the bilinear surface bends
+/// sharply along every post line).
+fn posted(posting: f64, noise: f64) -> Dem {
     let (w, h) = ((4000.0 / posting) as usize, (4000.0 / posting) as usize);
     let data = (0..w * h)
         .map(|k| {
             let (i, j) = ((k % w) as f64, (k / w) as f64);
             let (x, y) = (i * posting, j * posting);
-            (200.0 + 60.0 * (x / 340.0).sin() * (y / 460.0).cos() + 0.015 * x) as f32
+            let jitter = ((k as u64).wrapping_mul(2654435761) % 1000) as f64 / 1000.0 - 0.5;
+            (200.0 + 60.0 * (x / 340.0).sin() * (y / 460.0).cos() + 0.015 * x + noise * jitter) as f32
         })
         .collect();
     Dem::grid(GridDem::new(w, h, data, [3000.0, posting, 0.0, 7000.0, 0.0, -posting], None, None), Path::new("hills"))
@@ -156,20 +164,6 @@ fn error_bound_holds_over_every_pixel() {
     assert!(cost < g.pixel_count() / 2, "{:?}", ev.gcm);
 }
 
-/// A rough DEM: hills plus ±4 m of deterministic noise at every post, so
-/// that the bilinear surface bends sharply along every post line.
-fn rough_posted(posting: f64) -> Dem {
-    let (w, h) = ((4000.0 / posting) as usize, (4000.0 / posting) as usize);
-    let data = (0..w * h)
-        .map(|k| {
-            let (x, y) = ((k % w) as f64 * posting, (k / w) as f64 * posting);
-            let noise = ((k as u64).wrapping_mul(2654435761) % 1000) as f64 / 1000.0 - 0.5;
-            (200.0 + 60.0 * (x / 340.0).sin() * (y / 460.0).cos() + 0.015 * x + 8.0 * noise) as f32
-        })
-        .collect();
-    Dem::grid(GridDem::new(w, h, data, [3000.0, posting, 0.0, 7000.0, 0.0, -posting], None, None), Path::new("rough"))
-}
-
 #[test]
 fn dem_post_lines_as_node_lines_follow_a_rough_dem() {
     // Posts every 25 output pixels (50 m at 2 m, ~4 scan pixels an output
@@ -178,7 +172,7 @@ fn dem_post_lines_as_node_lines_follow_a_rough_dem() {
     // removed): RMS 0.30 px, max 3.2 px; with them RMS 0.028, max 0.13 px
     // (what is left is the curvature of T within the smooth pieces).
     let cam = camera(AngleConvention::AlphaOmegaKappa, [1.3, -0.8, 31.0], true);
-    let dem = rough_posted(50.0);
+    let dem = posted(50.0, 8.0);
     let g = OutputGrid { width: 800, height: 800, ..grid() };
     let t = Transform::new(&cam, &dem, g);
     let a = Approx::new(&cam, &g, dem.trend_plane([g.x0, g.y0 - 1600.0, g.x0 + 1600.0, g.y0]).unwrap()).unwrap();
