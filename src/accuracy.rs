@@ -121,7 +121,8 @@ pub fn evaluate_where(gcm: &Gcm<'_>, step: u32, max_slope_deg: Option<f64>, mut 
     for g in &prepared {
         stats.add(&g.stats);
     }
-    // Error pass on the sampled pixels.
+    // Error pass on the sampled pixels (their errors kept only for a map).
+    let want_map = error_map.is_some();
     let per_band: Vec<(Acc, Vec<(usize, f32)>)> = prepared
         .par_iter()
         .zip(&bands)
@@ -148,7 +149,9 @@ pub fn evaluate_where(gcm: &Gcm<'_>, step: u32, max_slope_deg: Option<f64>, mut 
                         }
                         let e = (c - ac).hypot(r - ar);
                         acc.push(e, x, y);
-                        map.push(((y / step) as usize * sw + (x / step) as usize, e as f32));
+                        if want_map {
+                            map.push(((y / step) as usize * sw + (x / step) as usize, e as f32));
+                        }
                     }
                 }
             }
