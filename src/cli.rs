@@ -37,21 +37,59 @@ pub enum Command {
     RpcGrid(RpcGridArgs),
 }
 
+/// The image and its sensor model: a camera file, or an RPC file with
+/// what goes with it (shared by `rectify` and `rpc-grid`).
 #[derive(Args, Debug)]
-pub struct RpcGridArgs {
-    /// The image (for its size; the VRT written beside the grid reads it).
+pub struct SensorArgs {
+    /// The scan or image (TIFF or BigTIFF).
     #[arg(long)]
     pub image: PathBuf,
-    /// A camera file with model = "rpc".
+    /// The camera file (TOML): a frame camera, or model = "rpc" (which
+    /// rpc-grid needs).
     #[arg(long, required_unless_present = "rpc", conflicts_with = "rpc")]
     pub camera: Option<PathBuf>,
-    /// An RPC file of any supported format.
+    /// An RPC model instead of a camera file, in any supported format
+    /// (GeoTIFF RPC tag, NITF, _RPC.TXT, RPB, OSSIM .geom, DIMAP or
+    /// WorldView XML); the image itself when it carries one.
     #[arg(long)]
     pub rpc: Option<PathBuf>,
+    /// With --rpc: the image is a crop starting at this column,row of the
+    /// scene the RPC describes (default: the tile offset a DigitalGlobe XML
+    /// records for the image's file name, else none).
     #[arg(long, requires = "rpc")]
     pub rpc_offset: Option<String>,
+    /// With --rpc: the DEM's heights are above this geoid (PROJ .gtx grid,
+    /// e.g. egm96_15.gtx for SRTM); RPCs expect ellipsoidal heights.
     #[arg(long, requires = "rpc")]
     pub geoid: Option<PathBuf>,
+}
+
+impl SensorArgs {
+    /// The camera file or RPC file named, and with --rpc the camera file
+    /// made from it (`crs`: the ground CRS, None for the scene's UTM zone).
+    pub fn model(&self, crs: Option<u32>) -> Result<(PathBuf, Option<gcm_ortho::camera::CameraFile>), String> {
+        match (&self.camera, &self.rpc) {
+            (Some(c), None) => Ok((c.clone(), None)),
+            (None, Some(r)) => {
+                let offset = match self.rpc_offset.as_deref() {
+                    Some(o) => Some(parse_offset(o)?),
+                    // A tile of a DigitalGlobe product: its offset is in the XML.
+                    None => std::fs::read_to_string(r).ok().and_then(|xml| {
+                        let name = self.image.file_name()?.to_str()?;
+                        gcm_ortho::camera::rpc::Rpc::tile_offset(&xml, name)
+                    }),
+                };
+                Ok((r.clone(), Some(gcm_ortho::camera::file::Camera::rpc_file(r, crs, offset, self.geoid.as_deref()))))
+            }
+            _ => Err("give --camera FILE or --rpc FILE".into()),
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct RpcGridArgs {
+    #[command(flatten)]
+    pub sensor: SensorArgs,
     /// DEM (any EPSG CRS; heights above the geoid with --geoid).
     #[arg(long)]
     pub dem: PathBuf,
@@ -226,26 +264,8 @@ pub struct DemoArgs {
 
 #[derive(Args, Debug)]
 pub struct RectifyArgs {
-    /// The scan (TIFF or BigTIFF).
-    #[arg(long)]
-    pub image: PathBuf,
-    /// The camera file (TOML): a frame camera, or model = "rpc".
-    #[arg(long, required_unless_present = "rpc", conflicts_with = "rpc")]
-    pub camera: Option<PathBuf>,
-    /// An RPC model instead of a camera file, in any supported format
-    /// (GeoTIFF RPC tag, NITF, _RPC.TXT, RPB, OSSIM .geom, DIMAP or
-    /// WorldView XML); the image itself when it carries one.
-    #[arg(long)]
-    pub rpc: Option<PathBuf>,
-    /// With --rpc: the image is a crop starting at this column,row of the
-    /// scene the RPC describes (default: the tile offset a DigitalGlobe XML
-    /// records for the image's file name, else none).
-    #[arg(long, requires = "rpc")]
-    pub rpc_offset: Option<String>,
-    /// With --rpc: the DEM's heights are above this geoid (PROJ .gtx grid,
-    /// e.g. egm96_15.gtx for SRTM); RPCs expect ellipsoidal heights.
-    #[arg(long, requires = "rpc")]
-    pub geoid: Option<PathBuf>,
+    #[command(flatten)]
+    pub sensor: SensorArgs,
     /// With --rpc: the orthophoto's CRS, EPSG:<code> (default: the WGS84
     /// UTM zone of the scene's centre).
     #[arg(long, requires = "rpc")]
@@ -346,7 +366,7 @@ impl RectifyArgs {
             (None, Some(h)) if h.is_finite() => DemSource::Height(h),
             (None, Some(h)) => return Err(format!("--height {h} is not a finite number")),
             // An RPC has a height of its own (HEIGHT_OFF).
-            (None, None) if self.rpc.is_some() => DemSource::ModelHeight,
+            (None, None) if self.sensor.rpc.is_some() => DemSource::ModelHeight,
             _ => return Err("give --dem FILE or --height METRES".into()),
         };
         if let Some(e) = self.max_error {
@@ -354,27 +374,13 @@ impl RectifyArgs {
                 return Err(format!("--max-error {e} must be a positive number"));
             }
         }
-        let camera = match (&self.camera, &self.rpc) {
-            (Some(c), None) => c.clone(),
-            (None, Some(r)) => r.clone(),
-            _ => return Err("give --camera FILE or --rpc FILE".into()),
+        let crs = match &self.crs {
+            None => None,
+            Some(c) => Some(gcm_ortho::camera::Crs::parse(c).ok_or_else(|| format!("--crs '{c}' is not of the form EPSG:<code>"))?.epsg),
         };
-        let mut cfg = RectifyConfig::new(self.image.clone(), camera, dem, self.output.clone());
-        if let Some(r) = &self.rpc {
-            let offset = match self.rpc_offset.as_deref() {
-                Some(o) => Some(parse_offset(o)?),
-                // A tile of a DigitalGlobe product: its offset is in the XML.
-                None => std::fs::read_to_string(r).ok().and_then(|xml| {
-                    let name = self.image.file_name()?.to_str()?;
-                    gcm_ortho::camera::rpc::Rpc::tile_offset(&xml, name)
-                }),
-            };
-            let crs = match &self.crs {
-                None => None,
-                Some(c) => Some(gcm_ortho::camera::Crs::parse(c).ok_or_else(|| format!("--crs '{c}' is not of the form EPSG:<code>"))?.epsg),
-            };
-            cfg.camera_file = Some(gcm_ortho::camera::file::Camera::rpc_file(r, crs, offset, self.geoid.as_deref()));
-        }
+        let (camera, file) = self.sensor.model(crs)?;
+        let mut cfg = RectifyConfig::new(self.sensor.image.clone(), camera, dem, self.output.clone());
+        cfg.camera_file = file;
         cfg.dem_hole = self.dem_hole.parse::<Miss>().map_err(|e| format!("--dem-hole: {e}"))?;
         cfg.dem_outside = self.dem_outside.parse::<Miss>().map_err(|e| format!("--dem-outside: {e}"))?;
         cfg.gsd = self.gsd;

@@ -278,17 +278,14 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
 }
 
 fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
-    use gcm_ortho::camera::file::{Camera, Sensor};
+    use gcm_ortho::camera::file::Sensor;
     use gcm_ortho::camera::RpcCamera;
     use gcm_ortho::geodesy::GroundCrs;
     use gcm_ortho::rpcgrid;
-    let (file, origin) = match (&a.camera, &a.rpc) {
-        (Some(c), _) => (gcm_ortho::camera::CameraFile::read(c)?, c.clone()),
-        (None, Some(r)) => {
-            let offset = a.rpc_offset.as_deref().map(crate::cli::parse_offset).transpose().map_err(usage)?;
-            (Camera::rpc_file(r, None, offset, a.geoid.as_deref()), r.clone())
-        }
-        _ => return Err(usage("give --camera FILE or --rpc FILE".into())),
+    let (origin, file) = a.sensor.model(None).map_err(usage)?;
+    let file = match file {
+        Some(f) => f,
+        None => gcm_ortho::camera::CameraFile::read(&origin)?,
     };
     let cam = file.build(&origin)?;
     let Sensor::Rpc(r) = &cam.sensor else {
@@ -297,7 +294,7 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     // The grid is in longitude/latitude: the model and the DEM in EPSG:4326.
     let model = RpcCamera::new(r.rpc.clone(), GroundCrs::from_epsg(4326).map_err(|m| anyhow!(m))?, r.geoid.clone());
     let dem = Dem::open(&a.dem, 4326)?;
-    let src = SourceImage::open(&a.image, 1 << 20)?;
+    let src = SourceImage::open(&a.sensor.image, 1 << 20)?;
     let (w, h) = (src.info.width, src.info.height);
     let z0 = dem.mean_height().unwrap_or_else(|| model.height_hint());
     let on_dem = |e: gcm_ortho::error::Error| match e {
@@ -313,7 +310,7 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
         gcm_ortho::io::source::SampleType::F32 => "Float32",
     };
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    let vrt = rpcgrid::geolocation_vrt(&abs(&a.image), &abs(&a.output), w, h, src.info.bands, data_type, a.step);
+    let vrt = rpcgrid::geolocation_vrt(&abs(&a.sensor.image), &abs(&a.output), w, h, src.info.bands, data_type, a.step);
     std::fs::write(&vrt_path, vrt).with_context(|| vrt_path.display().to_string())?;
     println!(
         "rpc-grid: {}x{} nodes every {} px for {w}x{h} px; {} nodes failed the {} px back-check, {} corrected",
