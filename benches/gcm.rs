@@ -12,7 +12,8 @@ use gcm_ortho::dem::{Dem, GridDem};
 use gcm_ortho::gcm::{CorrectionMode, Gcm, GcmSpec};
 use gcm_ortho::geom::OutputGrid;
 use gcm_ortho::io::source::Window;
-use gcm_ortho::resample::{resample_row, Kernel, View};
+use gcm_ortho::gcm::Span;
+use gcm_ortho::resample::{resample_row, resample_span, Kernel, View};
 use gcm_ortho::transform::{Approx, Transform};
 use nalgebra::Vector3;
 use std::path::Path;
@@ -85,6 +86,21 @@ fn kernels(c: &mut Criterion) {
     for k in [Kernel::Nearest, Kernel::Bilinear, Kernel::Cubic, Kernel::Lanczos3] {
         g.bench_function(format!("{k:?}").to_lowercase(), |b| b.iter(|| resample_row(k, &view, &cols, &rows, &mut out, &mut valid, 0)));
     }
+    // The same walk as straight spans of 16 pixels (what rectify does
+    // where the GCM's positions are straight between node columns).
+    let spans: Vec<Span> = (0..n / 16)
+        .map(|s| {
+            let first = s * 16;
+            Span { linear: true, first, end: first + 16, anchor: first, c: cols[first], r: rows[first], dc: 0.87, dr: 0.5 }
+        })
+        .collect();
+    g.bench_function("bilinear_spans", |b| {
+        b.iter(|| {
+            for s in &spans {
+                resample_span(&view, s, &mut out[s.first * 3..s.end * 3], &mut valid[s.first..s.end], 0);
+            }
+        })
+    });
     g.finish();
 }
 

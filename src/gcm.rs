@@ -25,7 +25,7 @@
 //! never holds the whole matrix.
 
 use crate::dem::{Height, Lookup};
-use crate::transform::{Approx, Mapped, Transform};
+use crate::transform::{Approx, Mapped, RowApprox, Transform};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -126,9 +126,62 @@ pub struct Gcm<'a> {
     xs: Vec<f64>,
     ys: Vec<f64>,
     inv_dx: Vec<f64>,
+    /// The first pixel whose centre lies at or right of each node column,
+    /// the widest gap between node columns, and 0, 1, 2, … as wide.
+    first_px: Vec<usize>,
+    max_gap: f64,
+    ramp: Vec<f64>,
     /// The DEM's bilinear kinks in output coordinates, where the DEM grid is
     /// aligned with the output grid: lines u = au + bu·i and v = av + bv·j.
     kinks: Option<[f64; 4]>,
+}
+
+/// How far (in scan pixels) a straight line between node columns may stray
+/// from `A` itself for [`Gcm::row_spans`] to stand in for it: a quarter of
+/// the 1/1024 pixel the bilinear kernel's weights resolve.
+pub const A_LINEAR_TOLERANCE: f64 = 1.0 / 4096.0;
+
+/// Output pixels `first..end` of a row, in one gap between node columns.
+/// Where `linear`, the scan position is a straight line: at pixel x,
+/// `(c + (x − anchor)·dc, r + (x − anchor)·dr)`, where `anchor` is the
+/// gap's first pixel. Where not (a refined cell, a node without a value),
+/// [`Gcm::fill_row`] works the positions out pixel by pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Span {
+    pub linear: bool,
+    pub first: usize,
+    pub end: usize,
+    pub anchor: usize,
+    pub c: f64,
+    pub r: f64,
+    pub dc: f64,
+    pub dr: f64,
+}
+
+impl Span {
+    /// The positions of pixels `first..end`; `ramp` holds 0, 1, 2, … at
+    /// least as many.
+    #[inline]
+    pub fn fill(&self, ramp: &[f64], cols: &mut [f64], rows: &mut [f64]) {
+        let off = (self.first - self.anchor) as f64;
+        if ramp.len() < cols.len() {
+            for (j, (oc, or)) in cols.iter_mut().zip(rows.iter_mut()).enumerate() {
+                (*oc, *or) = self.at(self.first + j);
+            }
+            return;
+        }
+        for ((oc, or), m) in cols.iter_mut().zip(rows.iter_mut()).zip(ramp) {
+            *oc = self.c + (off + m) * self.dc;
+            *or = self.r + (off + m) * self.dr;
+        }
+    }
+
+    /// The scan position at output column `x`.
+    #[inline]
+    pub fn at(&self, x: usize) -> (f64, f64) {
+        let m = x as f64 - self.anchor as f64;
+        (self.c + m * self.dc, self.r + m * self.dr)
+    }
 }
 
 const CHECK_POINTS: [(f64, f64); 13] = [
@@ -168,7 +221,10 @@ impl<'a> Gcm<'a> {
             }
         };
         let inv_dx = xs.windows(2).map(|p| 1.0 / (p[1] - p[0])).collect();
-        Gcm { t, a, spec, first_node, nodes_x: xs.len(), xs, ys, inv_dx, kinks }
+        let first_px = xs.iter().map(|&x| (x - 0.5).ceil().max(0.0) as usize).collect();
+        let max_gap = xs.windows(2).map(|p| p[1] - p[0]).fold(k as f64, f64::max);
+        let ramp = (0..=max_gap.ceil() as usize + 1).map(|m| m as f64).collect();
+        Gcm { t, a, spec, first_node, nodes_x: xs.len(), xs, ys, inv_dx, first_px, max_gap, ramp, kinks }
     }
 
     /// Whether the DEM's own lines were added to the node lines (bilinear
@@ -392,11 +448,86 @@ impl<'a> Gcm<'a> {
         }
     }
 
+    /// Output row `y`'s columns `x0..x0+len` as [`Span`]s, one per gap
+    /// between node columns, into `spans`; `false` (and `spans` empty)
+    /// where the row cannot have straight spans: cell mode, or A, whose
+    /// denominator is linear in u, curving by more than
+    /// [`A_LINEAR_TOLERANCE`] across a gap or behind the camera anywhere
+    /// along the row. Both tests look at the whole row or the gap alone,
+    /// and each line is anchored at its gap's first pixel, so a pixel's
+    /// position does not depend on which piece of the row is asked for.
+    pub fn row_spans(&self, band: &BandGcm, y: u32, x0: u32, len: usize, spans: &mut Vec<Span>) -> bool {
+        spans.clear();
+        if self.spec.mode != CorrectionMode::Bilinear || len == 0 {
+            return false;
+        }
+        let (j0, j1, fy) = self.rows_for(y);
+        let ra = self.a.row(y as f64 + 0.5);
+        let (da, db) = (ra.e * self.xs[0] + ra.f, ra.e * self.xs[self.nodes_x - 1] + ra.f);
+        let d = da.min(db);
+        if !(d > 0.0) {
+            return false;
+        }
+        // The largest |A''| of either coordinate, at the smallest denominator.
+        let bend = 2.0 * ra.e.abs() * (ra.m * ra.f - ra.e * ra.n).abs().max((ra.p * ra.f - ra.e * ra.q).abs()) / (d * d * d);
+        if !(bend * self.max_gap * self.max_gap <= 8.0 * A_LINEAR_TOLERANCE) {
+            return false;
+        }
+        let (a, b) = (&band.rows[(j0 - band.first_j) as usize], &band.rows[(j1 - band.first_j) as usize]);
+        let cells = band.cells.get((j0 - band.first_j) as usize);
+        let (lo, hi) = self.node_span(x0, len);
+        // The position at node column i: A there plus the correction.
+        let at = |i: usize| {
+            let (ac, ar) = ra.at(self.xs[i]);
+            (ac + a.dc[i] + fy * (b.dc[i] - a.dc[i]), ar + a.dr[i] + fy * (b.dr[i] - a.dr[i]))
+        };
+        let x_end = x0 as usize + len;
+        let mut right = at(lo);
+        let mut x = x0 as usize;
+        for i in lo..hi {
+            let left = right;
+            right = at(i + 1);
+            let end = if i + 2 >= self.nodes_x { x_end } else { self.first_px[i + 1].clamp(x, x_end) };
+            if end > x {
+                let inv = self.inv_dx[i];
+                let (dc, dr) = ((right.0 - left.0) * inv, (right.1 - left.1) * inv);
+                let anchor = self.first_px[i];
+                let off = anchor as f64 + 0.5 - self.xs[i];
+                let (c, r) = (left.0 + off * dc, left.1 + off * dr);
+                let refined = cells.and_then(|c| c.get(i)).is_some_and(|q| q.is_some());
+                // Within what 32-bit fixed point holds (a scan of 2³⁰ pixels a side).
+                let linear = !refined && [c, r, dc * 1024.0, dr * 1024.0].iter().all(|v| v.abs() < (1u64 << 30) as f64);
+                spans.push(Span { linear, first: x, end, anchor, c, r, dc, dr });
+            }
+            x = end;
+        }
+        true
+    }
+
     /// Fills output row `y` (columns `x0..x0+cols.len()`) with scan
     /// coordinates `A + c`, NaN where there is no value. Returns the number
-    /// of pixels that fell back to `T`. Per pixel: one reciprocal (for `A`)
-    /// and a few multiply-adds; the two node rows are blended once per row.
+    /// of pixels that fell back to `T`. Where the row is straight lines
+    /// between node columns ([`Gcm::row_spans`]), two multiply-adds a
+    /// pixel; elsewhere one reciprocal (for `A`) and a few multiply-adds.
     pub fn fill_row(&self, band: &BandGcm, y: u32, x0: u32, cols: &mut [f64], rows: &mut [f64], miss: &mut Option<(f64, f64, Lookup)>) -> u64 {
+        let mut spans = Vec::new();
+        if !self.row_spans(band, y, x0, cols.len(), &mut spans) {
+            return self.fill_exact(band, y, x0, cols, rows, miss);
+        }
+        let mut fallback = 0;
+        for s in &spans {
+            let (a, b) = (s.first - x0 as usize, s.end - x0 as usize);
+            if s.linear {
+                s.fill(&self.ramp, &mut cols[a..b], &mut rows[a..b]);
+            } else {
+                fallback += self.fill_exact(band, y, s.first as u32, &mut cols[a..b], &mut rows[a..b], miss);
+            }
+        }
+        fallback
+    }
+
+    /// [`Gcm::fill_row`] without straight spans: A itself at every pixel.
+    pub fn fill_exact(&self, band: &BandGcm, y: u32, x0: u32, cols: &mut [f64], rows: &mut [f64], miss: &mut Option<(f64, f64, Lookup)>) -> u64 {
         let (j0, j1, fy) = self.rows_for(y);
         let a = &band.rows[(j0 - band.first_j) as usize];
         let b = &band.rows[(j1 - band.first_j) as usize];
@@ -433,11 +564,7 @@ impl<'a> Gcm<'a> {
                     }
                     let il = gap;
                     // First pixel of the next gap: its centre at or past the line.
-                    let next = if il + 2 >= n {
-                        x_end
-                    } else {
-                        ((self.xs[il + 1] - 0.5).ceil().max(0.0) as usize).clamp(x + 1, x_end)
-                    };
+                    let next = if il + 2 >= n { x_end } else { self.first_px[il + 1].clamp(x + 1, x_end) };
                     (il, next, self.xs[il])
                 }
             };
@@ -478,6 +605,15 @@ impl<'a> Gcm<'a> {
         // fall back to T itself.
         let den = |x: usize| ra.e * (x as f64 + 0.5) + ra.f;
         let den_ok = den(x0 as usize) > 0.0 && den(x_end.saturating_sub(1)) > 0.0;
+        self.fall_back(x0, v, &ra, den_ok, cols, rows, miss)
+    }
+
+    /// Where a node had no value, or the plane of A is behind the camera
+    /// (`den_ok` false: its denominator is linear in u, the ends were
+    /// checked), falls back to T itself. Returns how many pixels did.
+    #[allow(clippy::too_many_arguments)]
+    fn fall_back(&self, x0: u32, v: f64, ra: &RowApprox, den_ok: bool, cols: &mut [f64], rows: &mut [f64], miss: &mut Option<(f64, f64, Lookup)>) -> u64 {
+        let den = |x: usize| ra.e * (x as f64 + 0.5) + ra.f;
         let mut fallback = 0;
         for (m, (oc, or)) in cols.iter_mut().zip(rows.iter_mut()).enumerate() {
             let x = x0 as usize + m;

@@ -195,3 +195,42 @@ proptest! {
         prop_assert!((bx - x).abs() < 1e-5 && (by - y).abs() < 1e-5, "{} {}", bx - x, by - y);
     }
 }
+
+#[test]
+fn straight_spans_stand_in_for_a_within_the_tolerance_in_any_piece() {
+    // A fine output grid (0.25 m), where A is straight to 1/4096 pixel
+    // across a 16-pixel gap: rows come as straight spans.
+    let cam = camera(AngleConvention::AlphaOmegaKappa, [1.3, -0.8, 31.0], true);
+    let dem = hills();
+    let g = OutputGrid { x0: 4400.0, y0: 5600.0, gsd: 0.25, width: 2000, height: 48 };
+    let t = Transform::new(&cam, &dem, g);
+    let a = Approx::new(&cam, &g, dem.trend_plane([g.x0, g.y0 - 12.0, g.x0 + 500.0, g.y0]).unwrap()).unwrap();
+    let gcm = Gcm::new(&t, a, GcmSpec { k: 16, mode: CorrectionMode::Bilinear, max_error: None });
+    let band = gcm.prepare(0, g.height);
+    let w = g.width as usize;
+    let (mut cols, mut rows) = (vec![0.0; w], vec![0.0; w]);
+    let (mut whole, mut piece) = (Vec::new(), Vec::new());
+    let mut miss = None;
+    let mut worst = 0.0f64;
+    for y in (0..g.height).step_by(5) {
+        assert!(gcm.row_spans(&band, y, 0, w, &mut whole), "row {y} should be straight spans");
+        assert!(whole.iter().all(|s| s.linear && s.end - s.first <= 17));
+        assert_eq!((whole[0].first, whole.last().unwrap().end), (0, w));
+        gcm.fill_exact(&band, y, 0, &mut cols, &mut rows, &mut miss);
+        for s in &whole {
+            for x in s.first..s.end {
+                let (c, r) = s.at(x);
+                worst = worst.max((c - cols[x]).abs()).max((r - rows[x]).abs());
+            }
+        }
+        // A piece of the row starting mid-gap: the same positions, bit for bit.
+        assert!(gcm.row_spans(&band, y, 701, 333, &mut piece));
+        assert_eq!((piece[0].first, piece.last().unwrap().end), (701, 1034));
+        for s in &piece {
+            let same = whole.iter().find(|o| o.first <= s.first && s.first < o.end).unwrap();
+            assert_eq!((s.anchor, s.c, s.r, s.dc, s.dr), (same.anchor, same.c, same.r, same.dc, same.dr));
+        }
+    }
+    assert!(worst <= gcm_ortho::gcm::A_LINEAR_TOLERANCE + 1e-9, "{worst}");
+    assert!(worst > 0.0, "A is not affine here: the spans should differ from it a little");
+}

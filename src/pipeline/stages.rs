@@ -11,7 +11,7 @@ use crate::gcm::{BandGcm, Gcm};
 use crate::geom::OutputGrid;
 use crate::io::source::{SampleType, SourceImage, Window};
 use crate::io::tiff_out::{encode_tile, tiff_write_error, verify, write_tiled, Chunking, GeoTags, OutputSpec, PendingFile, WriteError};
-use crate::resample::{resample_row, Sample, View};
+use crate::resample::{resample_row, resample_span, span_position, Kernel, Sample, View};
 use crate::transform::footprint::{auto_grid, mean_gsd};
 use crate::transform::{Approx, Transform, Trend};
 use crossbeam_channel::bounded;
@@ -372,9 +372,31 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         let h_resample = s.spawn(|| {
             let rx_read = rx_read;
             let mut busy = Duration::ZERO;
+            // Scan rows read in place by the last chunk, still mapped: given
+            // back once the next chunk does not need them (neighbouring
+            // chunks of a band mostly read the same rows).
+            let mut mapped: Option<(u32, u32)> = None;
+            let release_except = |rows: (u32, u32), keep: (u32, u32)| {
+                let (a, b) = rows;
+                let (ka, kb) = keep;
+                if ka >= b || kb <= a {
+                    src.release_rows(a, b - a);
+                } else {
+                    if ka > a {
+                        src.release_rows(a, ka - a);
+                    }
+                    if kb < b {
+                        src.release_rows(kb, b - kb);
+                    }
+                }
+            };
             for msg in rx_read.iter() {
                 if stop() {
                     return Err(Error::Cancelled);
+                }
+                let rows_now = msg.in_place.map(|_| (msg.win.y0, msg.win.y0 + msg.win.h));
+                if let Some(prev) = mapped.take() {
+                    release_except(prev, rows_now.unwrap_or((0, 0)));
                 }
                 let (y0, y1) = band_rows(&grid, cfg.tile, msg.band);
                 let spare = rx_free_raw.try_recv().ok();
@@ -385,9 +407,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                         SampleType::F32 => resample_chunk::<f32>(&gcm, &src, &msg, y0, y1, cfg, bands_out, spare).map(Raw::F32),
                     })
                 });
-                if msg.in_place.is_some() {
-                    src.release_rows(msg.win.y0, msg.win.h);
-                }
+                mapped = rows_now;
                 let _ = tx_free_win.try_send(msg.win);
                 let raw = match raw {
                     Ok(r) => r,
@@ -397,6 +417,9 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                 if tx_raw.send(raw).is_err() {
                     return Err(Error::Cancelled);
                 }
+            }
+            if let Some((a, b)) = mapped {
+                src.release_rows(a, b - a);
             }
             drop(tx_raw);
             Ok(busy)
@@ -596,47 +619,70 @@ fn resample_chunk<T: Sample + Recycle>(
     // zero (the writer sends tiles as they are).
     let t = cfg.tile as usize;
     let rows = (y1 - y0) as usize;
-    out.resize(w.div_ceil(t) * t * t * bo, T::default());
-    // Tiles in parallel, row by row, so that the coordinates stay in L1
-    // between the GCM and the kernel.
-    let misses: Vec<Option<(f64, f64, Lookup)>> = out
-        .par_chunks_mut(t * t * bo)
+    let n_tiles = w.div_ceil(t);
+    out.resize(n_tiles * t * t * bo, T::default());
+    // Made row by row across the whole chunk: the kernel then walks the
+    // scan's rows in long runs the hardware prefetches (tile by tile, each
+    // scan row is read a tile's width at a time, and mostly missed). Each
+    // output row's pieces, one per tile:
+    let mut pieces: Vec<Vec<&mut [T]>> = (0..t).map(|_| Vec::with_capacity(n_tiles)).collect();
+    for (k, piece) in out.chunks_exact_mut(t * bo).enumerate() {
+        pieces[k % t].push(piece);
+    }
+    let misses: Vec<Option<(f64, f64, Lookup)>> = pieces
+        .par_iter_mut()
         .enumerate()
         .map_init(
-            || (vec![0.0f64; t], vec![0.0f64; t], vec![T::default(); t * bands_in], vec![false; t]),
-            |(cols, rws, px, valid), (tx, tile_out)| {
+            || (vec![0.0f64; w], vec![0.0f64; w], vec![T::default(); w * bands_in], vec![false; w], Vec::new()),
+            |(cols, rws, px, valid, spans), (r, row_pieces)| {
+                if r >= rows {
+                    row_pieces.iter_mut().for_each(|p| p.fill(T::default()));
+                    return None;
+                }
                 let mut miss = None;
-                let xs = tx * t;
-                let n = t.min(w - xs);
-                for (r, row_out) in tile_out.chunks_exact_mut(t * bo).enumerate() {
-                    if r >= rows {
-                        row_out.fill(T::default());
-                        continue;
+                let y = y0 + r as u32;
+                // Pixels whose kernel would leave the window: read their
+                // neighbourhood on their own (rare; the plan adds a margin).
+                let reread = |i: usize, (c, rr): (f64, f64), px: &mut [T], valid: &[bool]| {
+                    if valid[i] && !(c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3]) {
+                        single_pixel(src, cfg, c, rr, &mut px[i * bands_in..(i + 1) * bands_in], fill);
                     }
-                    let y = y0 + r as u32;
-                    let (cols, rws, valid) = (&mut cols[..n], &mut rws[..n], &mut valid[..n]);
-                    gcm.fill_row(&msg.gcm, y, x0 + xs as u32, cols, rws, &mut miss);
-                    let (seg_out, pad) = row_out.split_at_mut(n * bo);
-                    pad.fill(T::default());
-                    let direct = bo == bands_in;
-                    {
-                        let px: &mut [T] = if direct { &mut *seg_out } else { &mut px[..n * bands_in] };
-                        let clamped = resample_row(cfg.kernel, &view, cols, rws, px, valid, fill);
-                        // Pixels whose kernel would leave the window: read their
-                        // neighbourhood on their own (rare; the plan adds a margin).
-                        if clamped {
-                            for i in 0..n {
-                                let (c, rr) = (cols[i], rws[i]);
-                                if valid[i] && !(c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3]) {
-                                    single_pixel(src, cfg, c, rr, &mut px[i * bands_in..(i + 1) * bands_in], fill);
-                                }
+                };
+                if cfg.kernel == Kernel::Bilinear && gcm.row_spans(&msg.gcm, y, x0, w, spans) {
+                    // Straight spans: positions step in fixed point.
+                    for s in spans.iter() {
+                        let (a, b) = (s.first - x0 as usize, s.end - x0 as usize);
+                        let (px_s, valid_s) = (&mut px[a * bands_in..b * bands_in], &mut valid[a..b]);
+                        if s.linear {
+                            if resample_span(&view, s, px_s, valid_s, fill) {
+                                (a..b).for_each(|i| reread(i, span_position(s, x0 as usize + i), px, valid));
+                            }
+                        } else {
+                            let (cs, rs) = (&mut cols[a..b], &mut rws[a..b]);
+                            gcm.fill_exact(&msg.gcm, y, s.first as u32, cs, rs, &mut miss);
+                            if resample_row(cfg.kernel, &view, cs, rs, px_s, valid_s, fill) {
+                                (a..b).for_each(|i| reread(i, (cols[i], rws[i]), px, valid));
                             }
                         }
                     }
-                    if !direct {
+                } else {
+                    gcm.fill_row(&msg.gcm, y, x0, cols, rws, &mut miss);
+                    if resample_row(cfg.kernel, &view, cols, rws, px, valid, fill) {
+                        (0..w).for_each(|i| reread(i, (cols[i], rws[i]), px, valid));
+                    }
+                }
+                for (tx, piece) in row_pieces.iter_mut().enumerate() {
+                    let xs = tx * t;
+                    let n = t.min(w - xs);
+                    let (seg_out, pad) = piece.split_at_mut(n * bo);
+                    pad.fill(T::default());
+                    if bo == bands_in {
+                        seg_out.copy_from_slice(&px[xs * bands_in..(xs + n) * bands_in]);
+                    } else {
                         for i in 0..n {
-                            seg_out[i * bo..i * bo + bands_in].copy_from_slice(&px[i * bands_in..(i + 1) * bands_in]);
-                            seg_out[i * bo + bands_in] = if valid[i] { opaque } else { T::default() };
+                            let s = (xs + i) * bands_in;
+                            seg_out[i * bo..i * bo + bands_in].copy_from_slice(&px[s..s + bands_in]);
+                            seg_out[i * bo + bands_in] = if valid[xs + i] { opaque } else { T::default() };
                         }
                     }
                 }

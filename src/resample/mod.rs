@@ -10,6 +10,9 @@
 //! Positions outside the scan give no value; near the border the kernel's
 //! missing neighbours repeat the edge pixel.
 
+mod bilinear_u8;
+
+use crate::gcm::Span;
 use crate::io::source::{SampleType, Window};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -87,10 +90,7 @@ impl Sample for u8 {
     const TYPE: SampleType = SampleType::U8;
     #[inline]
     fn bilerp(p00: u8, p10: u8, p01: u8, p11: u8, w: Weights) -> u8 {
-        let (ax, ay) = (1024 - w.ix, 1024 - w.iy);
-        let top = p00 as u32 * ax + p10 as u32 * w.ix;
-        let bot = p01 as u32 * ax + p11 as u32 * w.ix;
-        ((top * ay + bot * w.iy + (1 << 19)) >> 20) as u8
+        bilinear_u8::bilerp(p00, p10, p01, p11, w.ix, w.iy)
     }
     #[inline]
     fn to_f32(self) -> f32 {
@@ -336,8 +336,6 @@ fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], row
     // an integer held in the low bits of the f64 (no conversion instruction).
     const PAD: f64 = 4.0;
     const MAGIC: f64 = 4_503_599_627_370_496.0;
-    let d = view.data;
-    let row = view.stride as usize * B;
     let (ox, oy) = (view.x0 as f64 + 0.5 - PAD, view.y0 as f64 + 0.5 - PAD);
     let (ux_max, uy_max) = ((view.w + 8) as f64, (view.h + 8) as f64);
     let (wx_lim, wy_lim) = ((view.w - 1) as u32, (view.h - 1) as u32);
@@ -345,6 +343,7 @@ fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], row
     let mut qy = [0u32; BLOCK];
     let mut state = [0u8; BLOCK];
     let mut clamped = false;
+    let src = Gather::new::<B>(view);
     for (b0, (cb, rb)) in cols.chunks(BLOCK).zip(rows.chunks(BLOCK)).enumerate() {
         let n = cb.len();
         for i in 0..n {
@@ -369,27 +368,129 @@ fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], row
                 1 => {
                     let (i0, j0) = ((qx[i] >> 10) as usize - PAD as usize, (qy[i] >> 10) as usize - PAD as usize);
                     let w = Weights::fixed(qx[i] & 1023, qy[i] & 1023);
-                    let s = (j0 * view.stride as usize + i0) * B;
-                    let (p0, p1) = (&d[s..s + 2 * B], &d[s + row..s + row + 2 * B]);
-                    for k in 0..B {
-                        px[k] = T::bilerp(p0[k], p0[B + k], p1[k], p1[B + k], w);
-                    }
+                    gather_inside(&src, (j0 * view.stride as usize + i0) * B, w, px);
                 }
                 _ => {
                     clamped = true;
                     let (x, y) = (cb[i] - 0.5, rb[i] - 0.5);
                     let (xi, yi) = (floor_i64(x), floor_i64(y));
                     let w = Weights::new(x - xi as f64, y - yi as f64);
-                    let (i0, j0) = (xi - view.x0, yi - view.y0);
-                    let (s00, s10, s01, s11) = (view.at(i0, j0), view.at(i0 + 1, j0), view.at(i0, j0 + 1), view.at(i0 + 1, j0 + 1));
-                    for k in 0..B {
-                        px[k] = T::bilerp(d[s00 + k], d[s10 + k], d[s01 + k], d[s11 + k], w);
-                    }
+                    gather_clamped(view, xi - view.x0, yi - view.y0, w, px);
                 }
             }
         }
     }
     clamped
+}
+
+/// A window's samples as the bilinear gathers read them.
+struct Gather<'v, T> {
+    data: &'v [T],
+    /// The same bytes, for 8-bit RGB and RGBA (all bands at once), else empty.
+    bytes: &'v [u8],
+    /// Samples from one row to the next.
+    row: usize,
+}
+
+impl<'v, T: Sample> Gather<'v, T> {
+    fn new<const B: usize>(view: &View<'v, T>) -> Gather<'v, T> {
+        let all_bands = T::TYPE == SampleType::U8 && (B == 3 || B == 4);
+        Gather { data: view.data, bytes: if all_bands { bytemuck::cast_slice(view.data) } else { &[] }, row: view.stride as usize * B }
+    }
+}
+
+/// Bilinear at the four pixels from sample index `s` (upper left), all
+/// inside the window.
+#[inline(always)]
+fn gather_inside<T: Sample, const B: usize>(g: &Gather<'_, T>, s: usize, w: Weights, px: &mut [T; B]) {
+    let row = g.row;
+    if let (Some(u), Some(l)) = (g.bytes.get(s..s + 8), g.bytes.get(s + row..s + row + 8)) {
+        let v = bilinear_u8::bilerp_pixel::<B>(u, l, w.ix, w.iy).to_le_bytes();
+        bytemuck::cast_slice_mut::<T, u8>(&mut px[..]).copy_from_slice(&v[..B]);
+        return;
+    }
+    let d = g.data;
+    let (p0, p1) = (&d[s..s + 2 * B], &d[s + row..s + row + 2 * B]);
+    for k in 0..B {
+        px[k] = T::bilerp(p0[k], p0[B + k], p1[k], p1[B + k], w);
+    }
+}
+
+/// Bilinear at window pixel (i0, j0) and its neighbours, those outside the
+/// window repeating its edge.
+#[inline]
+fn gather_clamped<T: Sample, const B: usize>(view: &View<'_, T>, i0: i64, j0: i64, w: Weights, px: &mut [T; B]) {
+    let d = view.data;
+    let (s00, s10, s01, s11) = (view.at(i0, j0), view.at(i0 + 1, j0), view.at(i0, j0 + 1), view.at(i0 + 1, j0 + 1));
+    for k in 0..B {
+        px[k] = T::bilerp(d[s00 + k], d[s10 + k], d[s01 + k], d[s11 + k], w);
+    }
+}
+
+/// Bilinear along a straight span of scan positions (output pixels
+/// `span.first..span.end`, `B` bands each into `out`): the position steps
+/// by a constant in fixed point with 32 fractional bits, counted from the
+/// span's anchor so that a pixel's value does not depend on where a piece
+/// of the row starts. Same contract as [`resample_row`].
+pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span, out: &mut [T], valid: &mut [bool], fill: T) -> bool {
+    let ([mut qc, mut qr], [dqc, dqr]) = span_fixed(span, span.first);
+    let half = 1i64 << 31;
+    let (w_lim, h_lim) = ((view.img_w as i64) << 32, (view.img_h as i64) << 32);
+    let (wl, hl) = ((view.w - 1) as u64, (view.h - 1) as u64);
+    let src = Gather::new::<B>(view);
+    let stride = view.stride as usize;
+    let mut clamped = false;
+    for (px, v) in out.chunks_exact_mut(B).zip(valid.iter_mut()) {
+        let px: &mut [T; B] = px.try_into().expect("B samples");
+        let (c, r) = (qc.wrapping_add(half), qr.wrapping_add(half));
+        *v = c >= 0 && c < w_lim && r >= 0 && r < h_lim;
+        // In 1/1024 pixel, rounded: the fixed-point weights' resolution.
+        let (fx, fy) = (qc.wrapping_add(1 << 21) >> 22, qr.wrapping_add(1 << 21) >> 22);
+        qc = qc.wrapping_add(dqc);
+        qr = qr.wrapping_add(dqr);
+        if !*v {
+            *px = [fill; B];
+            continue;
+        }
+        let (i0, j0) = ((fx >> 10) - view.x0, (fy >> 10) - view.y0);
+        let w = Weights::fixed((fx & 1023) as u32, (fy & 1023) as u32);
+        if (i0 as u64) < wl && (j0 as u64) < hl {
+            gather_inside(&src, (j0 as usize * stride + i0 as usize) * B, w, px);
+        } else {
+            clamped = true;
+            gather_clamped(view, i0, j0, w, px);
+        }
+    }
+    clamped
+}
+
+/// (position − ½)·2³² (the kernel's origin) at output pixel `x` of a span,
+/// and its step from one pixel to the next.
+#[inline]
+fn span_fixed(span: &Span, x: usize) -> ([i64; 2], [i64; 2]) {
+    const ONE: f64 = 4_294_967_296.0;
+    let fixed = |v: f64| floor_i64(v * ONE + 0.5);
+    let (dqc, dqr) = (fixed(span.dc), fixed(span.dr));
+    let skip = x as i64 - span.anchor as i64;
+    ([fixed(span.c - 0.5).wrapping_add(skip.wrapping_mul(dqc)), fixed(span.r - 0.5).wrapping_add(skip.wrapping_mul(dqr))], [dqc, dqr])
+}
+
+/// The scan position [`bilinear_span`] resamples at output pixel `x` of a
+/// span, to 1/1024 pixel: the same value there through [`resample_row`].
+pub fn span_position(span: &Span, x: usize) -> (f64, f64) {
+    let ([qc, qr], _) = span_fixed(span, x);
+    let q = |v: i64| (v.wrapping_add(1 << 21) >> 22) as f64 / 1024.0 + 0.5;
+    (q(qc), q(qr))
+}
+
+/// [`bilinear_span`] for 1 to 4 bands.
+pub fn resample_span<T: Sample>(view: &View<'_, T>, span: &Span, out: &mut [T], valid: &mut [bool], fill: T) -> bool {
+    match view.bands {
+        1 => bilinear_span::<T, 1>(view, span, out, valid, fill),
+        2 => bilinear_span::<T, 2>(view, span, out, valid, fill),
+        3 => bilinear_span::<T, 3>(view, span, out, valid, fill),
+        _ => bilinear_span::<T, 4>(view, span, out, valid, fill),
+    }
 }
 
 #[cfg(test)]
@@ -483,6 +584,41 @@ mod tests {
             let c: f32 = cubic_weights(t).iter().sum();
             let l: f32 = lanczos3_weights(t).iter().sum();
             assert!((c - 1.0).abs() < 1e-6 && (l - 1.0).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn a_span_resamples_what_the_row_kernel_does_at_its_positions() {
+        // Random RGB and grey windows inside a larger scan; spans that run
+        // off the window (clamped edge) and off the scan (no value).
+        for bands in [1u32, 3, 4] {
+            let (w, h) = (40u32, 30u32);
+            let mut seed = 7u64;
+            let bytes: Vec<u8> = (0..w * h * bands)
+                .map(|_| {
+                    seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    (seed >> 56) as u8
+                })
+                .collect();
+            let win = Window::from_bytes(10, 5, w, h, &bytes);
+            let view = View::<u8>::new(&win, bands, 60, 40);
+            for (c, r, dc, dr) in [(12.3, 7.9, 0.731, 0.213), (8.0, 6.0, 1.117, -0.05), (45.5, 30.2, 0.9, 0.4), (55.1, 38.7, 0.3, 0.2)] {
+                let span = Span { linear: true, first: 100, end: 130, anchor: 97, c, r, dc, dr };
+                let n = span.end - span.first;
+                let b = bands as usize;
+                let (mut a, mut va) = (vec![0u8; n * b], vec![false; n]);
+                resample_span(&view, &span, &mut a, &mut va, 9);
+                let (cols, rows): (Vec<f64>, Vec<f64>) = (span.first..span.end).map(|x| span_position(&span, x)).unzip();
+                let (mut e, mut ve) = (vec![0u8; n * b], vec![false; n]);
+                resample_row(Kernel::Bilinear, &view, &cols, &rows, &mut e, &mut ve, 9);
+                assert_eq!(va, ve, "validity, {bands} bands, span at {c},{r}");
+                assert_eq!(a, e, "values, {bands} bands, span at {c},{r}");
+                // Within 1/1024 pixel of the span's own straight line.
+                for (i, x) in (span.first..span.end).enumerate() {
+                    let (pc, pr) = span.at(x);
+                    assert!((pc - cols[i]).abs() <= 0.5 / 1024.0 + 1e-9 && (pr - rows[i]).abs() <= 0.5 / 1024.0 + 1e-9);
+                }
+            }
         }
     }
 }
