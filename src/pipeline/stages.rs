@@ -7,7 +7,7 @@ use crate::accuracy;
 use crate::camera::file::Camera;
 use crate::dem::{Dem, Height, Lookup};
 use crate::error::{Error, Result};
-use crate::gcm::{BandGcm, Gcm};
+use crate::gcm::{BandGcm, Gcm, Span};
 use crate::geom::OutputGrid;
 use crate::io::source::{SampleType, SourceImage, Window};
 use crate::io::tiff_out::{encode_tile, tiff_write_error, verify, write_tiled, Chunking, GeoTags, OutputSpec, PendingFile, WriteError};
@@ -629,8 +629,10 @@ fn resample_chunk<T: Sample + Recycle>(
     for (k, piece) in out.chunks_exact_mut(t * bo).enumerate() {
         pieces[k % t].push(piece);
     }
+    let direct = bo == bands_in;
     let misses: Vec<Option<(f64, f64, Lookup)>> = pieces
         .par_iter_mut()
+        .with_min_len(8)
         .enumerate()
         .map_init(
             || (vec![0.0f64; w], vec![0.0f64; w], vec![T::default(); w * bands_in], vec![false; w], Vec::new()),
@@ -643,32 +645,53 @@ fn resample_chunk<T: Sample + Recycle>(
                 let y = y0 + r as u32;
                 // Pixels whose kernel would leave the window: read their
                 // neighbourhood on their own (rare; the plan adds a margin).
-                let reread = |i: usize, (c, rr): (f64, f64), px: &mut [T], valid: &[bool]| {
-                    if valid[i] && !(c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3]) {
-                        single_pixel(src, cfg, c, rr, &mut px[i * bands_in..(i + 1) * bands_in], fill);
+                let reread = |(c, rr): (f64, f64), out: &mut [T]| {
+                    if !(c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3]) {
+                        single_pixel(src, cfg, c, rr, out, fill);
                     }
                 };
-                if cfg.kernel == Kernel::Bilinear && gcm.row_spans(&msg.gcm, y, x0, w, spans) {
-                    // Straight spans: positions step in fixed point.
+                let x0 = x0 as usize;
+                if cfg.kernel == Kernel::Bilinear && gcm.row_spans(&msg.gcm, y, x0 as u32, w, spans) {
+                    // Straight spans: positions step in fixed point. Each
+                    // piece of a span inside one tile goes straight into the
+                    // tile where the output has the scan's bands.
                     for s in spans.iter() {
-                        let (a, b) = (s.first - x0 as usize, s.end - x0 as usize);
-                        let (px_s, valid_s) = (&mut px[a * bands_in..b * bands_in], &mut valid[a..b]);
-                        if s.linear {
-                            if resample_span(&view, s, px_s, valid_s, fill) {
-                                (a..b).for_each(|i| reread(i, span_position(s, x0 as usize + i), px, valid));
+                        let mut first = s.first;
+                        while first < s.end {
+                            let tx = (first - x0) / t;
+                            let end = (x0 + (tx + 1) * t).min(s.end);
+                            let sub = Span { first, end, ..*s };
+                            let (a, b) = (first - x0, end - x0);
+                            let out: &mut [T] = if direct { &mut row_pieces[tx][(a - tx * t) * bo..(b - tx * t) * bo] } else { &mut px[a * bands_in..b * bands_in] };
+                            let valid = &mut valid[a..b];
+                            let clamped = if sub.linear {
+                                resample_span(&view, &sub, out, valid, fill)
+                            } else {
+                                gcm.fill_exact(&msg.gcm, y, first as u32, &mut cols[a..b], &mut rws[a..b], &mut miss);
+                                resample_row(cfg.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill)
+                            };
+                            if clamped {
+                                for (j, px) in out.chunks_exact_mut(bands_in).enumerate().filter(|(j, _)| valid[*j]) {
+                                    let at = if sub.linear { span_position(&sub, first + j) } else { (cols[a + j], rws[a + j]) };
+                                    reread(at, px);
+                                }
                             }
-                        } else {
-                            let (cs, rs) = (&mut cols[a..b], &mut rws[a..b]);
-                            gcm.fill_exact(&msg.gcm, y, s.first as u32, cs, rs, &mut miss);
-                            if resample_row(cfg.kernel, &view, cs, rs, px_s, valid_s, fill) {
-                                (a..b).for_each(|i| reread(i, (cols[i], rws[i]), px, valid));
-                            }
+                            first = end;
                         }
                     }
+                    if direct {
+                        // Beyond the grid's right edge.
+                        if let Some(last) = row_pieces.last_mut() {
+                            last[(w - (n_tiles - 1) * t) * bo..].fill(T::default());
+                        }
+                        return miss;
+                    }
                 } else {
-                    gcm.fill_row(&msg.gcm, y, x0, cols, rws, &mut miss);
+                    gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, &mut miss);
                     if resample_row(cfg.kernel, &view, cols, rws, px, valid, fill) {
-                        (0..w).for_each(|i| reread(i, (cols[i], rws[i]), px, valid));
+                        for (i, p) in px.chunks_exact_mut(bands_in).enumerate().filter(|(i, _)| valid[*i]) {
+                            reread((cols[i], rws[i]), p);
+                        }
                     }
                 }
                 for (tx, piece) in row_pieces.iter_mut().enumerate() {
@@ -676,7 +699,7 @@ fn resample_chunk<T: Sample + Recycle>(
                     let n = t.min(w - xs);
                     let (seg_out, pad) = piece.split_at_mut(n * bo);
                     pad.fill(T::default());
-                    if bo == bands_in {
+                    if direct {
                         seg_out.copy_from_slice(&px[xs * bands_in..(xs + n) * bands_in]);
                     } else {
                         for i in 0..n {
