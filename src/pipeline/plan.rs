@@ -34,19 +34,36 @@ fn tile_bboxes(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, tile: u32, (t0, 
     let mut boxes: Vec<Option<[f64; 4]>> = vec![None; tiles];
     let mut ys: Vec<u32> = (y0..y1).step_by(16).collect();
     ys.push(y1 - 1);
+    let grow = |b: &mut Option<[f64; 4]>, (c, r): (f64, f64)| {
+        if c.is_finite() && r.is_finite() {
+            *b = Some(match *b {
+                None => [c, r, c, r],
+                Some(o) => [o[0].min(c), o[1].min(r), o[2].max(c), o[3].max(r)],
+            });
+        }
+    };
+    let tile = tile as usize;
+    let mut spans = Vec::new();
     for &y in &ys {
+        if gcm.row_spans(band, y, x_lo as u32, w, &mut spans) && spans.iter().all(|s| s.linear) {
+            // Straight spans: their ends (cut at tile edges) bound them.
+            for s in &spans {
+                let mut first = s.first;
+                while first < s.end {
+                    let t = (first - x_lo) / tile;
+                    let end = (x_lo + (t + 1) * tile).min(s.end);
+                    grow(&mut boxes[t], s.at(first));
+                    grow(&mut boxes[t], s.at(end - 1));
+                    first = end;
+                }
+            }
+            continue;
+        }
         gcm.fill_row(band, y, x_lo as u32, &mut cols, &mut rows, &mut miss);
         for (t, b) in boxes.iter_mut().enumerate() {
-            let (x0, x1) = (t * tile as usize, ((t + 1) * tile as usize).min(w));
-            let xs = (x0..x1).step_by(16).chain(std::iter::once(x1 - 1));
-            for x in xs {
-                let (c, r) = (cols[x], rows[x]);
-                if c.is_finite() && r.is_finite() {
-                    *b = Some(match *b {
-                        None => [c, r, c, r],
-                        Some(o) => [o[0].min(c), o[1].min(r), o[2].max(c), o[3].max(r)],
-                    });
-                }
+            let (x0, x1) = (t * tile, ((t + 1) * tile).min(w));
+            for x in (x0..x1).step_by(16).chain(std::iter::once(x1 - 1)) {
+                grow(b, (cols[x], rows[x]));
             }
         }
     }

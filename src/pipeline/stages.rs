@@ -350,13 +350,16 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                     }
                     let mut win = rx_free_win.try_recv().unwrap_or_default();
                     let [c0, r0, c1, r1] = chunk.win;
-                    // In place when the rows it spans fit the three windows'
-                    // shares: in place, only the window being resampled has
-                    // pages resident (at most its whole rows), where copies
-                    // hold three windows. A tall, narrow window of a turned
+                    // In place when the rows it spans fit six shares (a
+                    // quarter of the budget): in place, no window is copied
+                    // (the three windows' shares are free) and the only scan
+                    // pages resident are the rows of the chunk being
+                    // resampled (at most whole rows: the kernel maps pages
+                    // around each fault); the other three shares come from
+                    // the budget's slack. A tall, narrow window of a turned
                     // scan would map far more pages than it uses: copy those.
                     let span = (r1 - r0) as u64 * sw as u64 * src.info.pixel_bytes() as u64;
-                    let in_place = if span <= 3 * share { src.mapped_rows(c0, r0, c1 - c0, r1 - r0).map_err(fail)? } else { None };
+                    let in_place = if span <= 6 * share { src.mapped_rows(c0, r0, c1 - c0, r1 - r0).map_err(fail)? } else { None };
                     match in_place {
                         Some(_) => (win.x0, win.y0, win.w, win.h) = (c0, r0, c1 - c0, r1 - r0),
                         None => timed(&mut busy, || src.read_window(c0, r0, c1 - c0, r1 - r0, &mut win)).map_err(fail)?,
