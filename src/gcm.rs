@@ -25,7 +25,7 @@
 //! never holds the whole matrix.
 
 use crate::dem::{Height, Lookup};
-use crate::transform::{Approx, Mapped, RowApprox, Transform};
+use crate::transform::{Approx, Mapped, Transform};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -145,7 +145,7 @@ pub const A_LINEAR_TOLERANCE: f64 = 1.0 / 4096.0;
 /// Where `linear`, the scan position is a straight line: at pixel x,
 /// `(c + (x − anchor)·dc, r + (x − anchor)·dr)`, where `anchor` is the
 /// gap's first pixel. Where not (a refined cell, a node without a value),
-/// [`Gcm::fill_row`] works the positions out pixel by pixel.
+/// [`Gcm::fill_exact`] works the positions out pixel by pixel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Span {
     pub linear: bool,
@@ -605,15 +605,6 @@ impl<'a> Gcm<'a> {
         // fall back to T itself.
         let den = |x: usize| ra.e * (x as f64 + 0.5) + ra.f;
         let den_ok = den(x0 as usize) > 0.0 && den(x_end.saturating_sub(1)) > 0.0;
-        self.fall_back(x0, v, &ra, den_ok, cols, rows, miss)
-    }
-
-    /// Where a node had no value, or the plane of A is behind the camera
-    /// (`den_ok` false: its denominator is linear in u, the ends were
-    /// checked), falls back to T itself. Returns how many pixels did.
-    #[allow(clippy::too_many_arguments)]
-    fn fall_back(&self, x0: u32, v: f64, ra: &RowApprox, den_ok: bool, cols: &mut [f64], rows: &mut [f64], miss: &mut Option<(f64, f64, Lookup)>) -> u64 {
-        let den = |x: usize| ra.e * (x as f64 + 0.5) + ra.f;
         let mut fallback = 0;
         for (m, (oc, or)) in cols.iter_mut().zip(rows.iter_mut()).enumerate() {
             let x = x0 as usize + m;

@@ -436,7 +436,7 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
     let ([mut qc, mut qr], [dqc, dqr]) = span_fixed(span, span.first);
     let half = 1i64 << 31;
     let (w_lim, h_lim) = ((view.img_w as i64) << 32, (view.img_h as i64) << 32);
-    let (wl, hl) = ((view.w - 1) as u64, (view.h - 1) as u64);
+    let (wl, hl) = ((view.w - 1).max(0) as u64, (view.h - 1).max(0) as u64);
     let src = Gather::new::<B>(view);
     let stride = view.stride as usize;
     let mut clamped = false;
