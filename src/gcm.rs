@@ -176,6 +176,22 @@ impl Span {
         }
     }
 
+    /// The span cut where it crosses the edges of tiles `tile` columns
+    /// wide that start at column `origin`: (tile index from `origin`, the
+    /// piece), left to right.
+    pub fn by_tile(&self, origin: usize, tile: usize) -> impl Iterator<Item = (usize, Span)> + '_ {
+        let mut first = self.first;
+        std::iter::from_fn(move || {
+            (first < self.end).then(|| {
+                let t = (first - origin) / tile;
+                let end = (origin + (t + 1) * tile).min(self.end);
+                let piece = Span { first, end, ..*self };
+                first = end;
+                (t, piece)
+            })
+        })
+    }
+
     /// The scan position at output column `x`.
     #[inline]
     pub fn at(&self, x: usize) -> (f64, f64) {

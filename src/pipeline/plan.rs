@@ -47,15 +47,9 @@ fn tile_bboxes(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, tile: u32, (t0, 
     for &y in &ys {
         if gcm.row_spans(band, y, x_lo as u32, w, &mut spans) && spans.iter().all(|s| s.linear) {
             // Straight spans: their ends (cut at tile edges) bound them.
-            for s in &spans {
-                let mut first = s.first;
-                while first < s.end {
-                    let t = (first - x_lo) / tile;
-                    let end = (x_lo + (t + 1) * tile).min(s.end);
-                    grow(&mut boxes[t], s.at(first));
-                    grow(&mut boxes[t], s.at(end - 1));
-                    first = end;
-                }
+            for (t, piece) in spans.iter().flat_map(|s| s.by_tile(x_lo, tile)) {
+                grow(&mut boxes[t], piece.at(piece.first));
+                grow(&mut boxes[t], piece.at(piece.end - 1));
             }
             continue;
         }

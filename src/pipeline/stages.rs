@@ -7,7 +7,7 @@ use crate::accuracy;
 use crate::camera::file::Camera;
 use crate::dem::{Dem, Height, Lookup};
 use crate::error::{Error, Result};
-use crate::gcm::{BandGcm, Gcm, Span};
+use crate::gcm::{BandGcm, Gcm};
 use crate::geom::OutputGrid;
 use crate::io::source::{SampleType, SourceImage, Window};
 use crate::io::tiff_out::{encode_tile, tiff_write_error, verify, write_tiled, Chunking, GeoTags, OutputSpec, PendingFile, WriteError};
@@ -678,28 +678,22 @@ fn resample_chunk<T: Sample + Recycle>(
                     // Straight spans: positions step in fixed point. Each
                     // piece of a span inside one tile goes straight into the
                     // tile where the output has the scan's bands.
-                    for s in spans.iter() {
-                        let mut first = s.first;
-                        while first < s.end {
-                            let tx = (first - x0) / t;
-                            let end = (x0 + (tx + 1) * t).min(s.end);
-                            let sub = Span { first, end, ..*s };
-                            let (a, b) = (first - x0, end - x0);
-                            let out: &mut [T] = if direct { &mut row_pieces[tx][(a - tx * t) * bo..(b - tx * t) * bo] } else { &mut px[a * bands_in..b * bands_in] };
-                            let valid = &mut valid[a..b];
-                            let clamped = if sub.linear {
-                                resample_span(&view, &sub, out, valid, fill)
-                            } else {
-                                gcm.fill_exact(&msg.gcm, y, first as u32, &mut cols[a..b], &mut rws[a..b], &mut miss);
-                                resample_row(cfg.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill)
-                            };
-                            if clamped {
-                                for (j, px) in out.chunks_exact_mut(bands_in).enumerate().filter(|(j, _)| valid[*j]) {
-                                    let at = if sub.linear { span_position(&sub, first + j) } else { (cols[a + j], rws[a + j]) };
-                                    reread(at, px);
-                                }
+                    for (tx, sub) in spans.iter().flat_map(|s| s.by_tile(x0, t)) {
+                        let (first, end) = (sub.first, sub.end);
+                        let (a, b) = (first - x0, end - x0);
+                        let out: &mut [T] = if direct { &mut row_pieces[tx][(a - tx * t) * bo..(b - tx * t) * bo] } else { &mut px[a * bands_in..b * bands_in] };
+                        let valid = &mut valid[a..b];
+                        let clamped = if sub.linear {
+                            resample_span(&view, &sub, out, valid, fill)
+                        } else {
+                            gcm.fill_exact(&msg.gcm, y, first as u32, &mut cols[a..b], &mut rws[a..b], &mut miss);
+                            resample_row(cfg.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill)
+                        };
+                        if clamped {
+                            for (j, px) in out.chunks_exact_mut(bands_in).enumerate().filter(|(j, _)| valid[*j]) {
+                                let at = if sub.linear { span_position(&sub, first + j) } else { (cols[a + j], rws[a + j]) };
+                                reread(at, px);
                             }
-                            first = end;
                         }
                     }
                     if direct {
