@@ -58,6 +58,7 @@ impl Refraction {
     /// The ray's deviation angle (radians) for a camera at `ha_m`, a ground
     /// point at `hg_m` (metres above sea level) seen at nadir angle ζ.
     #[must_use]
+    #[inline]
     pub fn angle(self, ha_m: f64, hg_m: f64, tan_zeta: f64) -> f64 {
         let (ha, hg) = (ha_m / 1000.0, hg_m / 1000.0);
         if ha <= hg {

@@ -74,8 +74,9 @@ impl FrameCamera {
                 let (ex, ey) = (x - self.nadir_mm.0, y - self.nadir_mm.1);
                 let e = (ex * ex + ey * ey).sqrt();
                 if e > 0.0 {
-                    x += dr * ex / e;
-                    y += dr * ey / e;
+                    let k = dr / e;
+                    x += k * ex;
+                    y += k * ey;
                 }
             }
         }

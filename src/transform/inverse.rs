@@ -7,7 +7,6 @@
 
 use crate::camera::SensorModel;
 use crate::dem::Dem;
-use nalgebra::{Matrix2, Vector2};
 
 /// Casts rays from scan pixels onto the DEM.
 pub struct RayCaster<'a> {
@@ -41,25 +40,26 @@ impl<'a> RayCaster<'a> {
             Some(g) => g,
             None => self.model.locate_approx(col, row, z_guess)?,
         };
+        // The error is compared squared (no square root per pixel).
+        let tol2 = tol * tol;
         let mut best: Option<([f64; 3], f64)> = None;
         let mut refreshed = false;
         for it in 0..30 {
             let (z, gx, gy) = self.dem.height_gradient(x, y)?;
             let (c, r) = self.model.project(x, y, z)?;
-            let e = Vector2::new(col - c, row - r);
-            let err = e.norm();
-            if err < tol {
+            let e = (col - c, row - r);
+            let err2 = e.0 * e.0 + e.1 * e.1;
+            if err2 < tol2 {
                 // One more Newton step costs no projection: the answer is
                 // then far inside the tolerance, and a neighbour's guess
                 // extrapolated from it stays inside it too.
-                if let Some(j) = self.partials.and_then(|(p, _)| jacobian(p, gx, gy).try_inverse()) {
-                    let d = j * e;
-                    return Some([x + d.x, y + d.y, z + gx * d.x + gy * d.y]);
+                if let Some(d) = self.partials.and_then(|(p, _)| newton_step(p, gx, gy, e)) {
+                    return Some([x + d.0, y + d.1, z + gx * d.0 + gy * d.1]);
                 }
                 return Some([x, y, z]);
             }
-            if best.is_none_or(|b| err < b.1) {
-                best = Some(([x, y, z], err));
+            if best.is_none_or(|b| err2 < b.1) {
+                best = Some(([x, y, z], err2));
             }
             let stale = match self.partials {
                 None => true,
@@ -70,20 +70,30 @@ impl<'a> RayCaster<'a> {
                 refreshed = it > 4;
             }
             let (p, _) = self.partials?;
-            let step = jacobian(p, gx, gy).try_inverse()? * e;
+            let step = newton_step(p, gx, gy, e)?;
             // Damp long steps: beyond a few pixels the cell's gradient says little.
             let scale = if it > 10 { 0.5 } else { 1.0 };
-            x += scale * step.x;
-            y += scale * step.y;
+            x += scale * step.0;
+            y += scale * step.1;
         }
-        best.filter(|b| b.1 < 10.0 * tol.max(0.01)).map(|b| b.0)
+        let give_up = 10.0 * tol.max(0.01);
+        best.filter(|b| b.1 < give_up * give_up).map(|b| b.0)
     }
 }
 
-/// d(col, row)/d(X, Y) along the DEM surface: the model's partials in X, Y
-/// and Z, with Z following the terrain's slope (gx, gy).
+/// The ground step (ΔX, ΔY) that moves the image point by `e` = (Δcol,
+/// Δrow) along the DEM surface: `e` solved against the 2×2 Jacobian
+/// d(col, row)/d(X, Y), whose Z column follows the terrain's slope (gx, gy).
+/// `None` when the Jacobian is singular.
 #[inline]
-fn jacobian(p: [[f64; 3]; 2], gx: f64, gy: f64) -> Matrix2<f64> {
-    Matrix2::new(p[0][0] + p[0][2] * gx, p[0][1] + p[0][2] * gy, p[1][0] + p[1][2] * gx, p[1][1] + p[1][2] * gy)
+fn newton_step(p: [[f64; 3]; 2], gx: f64, gy: f64, e: (f64, f64)) -> Option<(f64, f64)> {
+    let (a, b) = (p[0][0] + p[0][2] * gx, p[0][1] + p[0][2] * gy);
+    let (c, d) = (p[1][0] + p[1][2] * gx, p[1][1] + p[1][2] * gy);
+    let det = a * d - b * c;
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let inv = 1.0 / det;
+    Some(((d * e.0 - b * e.1) * inv, (a * e.1 - c * e.0) * inv))
 }
 
