@@ -6,7 +6,8 @@
 //! 1. DEM lookup — heights at the GCM nodes of the next band;
 //! 2. GCM — exact `T` at the nodes (and refinement under `--max-error`);
 //! 3. read — plan the band's chunks and read their scan windows;
-//! 4. resample — rows of a chunk in parallel (rayon);
+//! 4. resample — rows of a chunk in parallel (rayon), two chunks at once so
+//!    that a worker done with one starts on the next;
 //! 5. encode — the chunk's tiles compressed in parallel;
 //! 6. write — one thread appends tiles in order.
 //!
