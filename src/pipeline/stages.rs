@@ -383,7 +383,6 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         });
         let h_resample = s.spawn(|| {
             let rx_read = rx_read;
-            let mut busy = Duration::ZERO;
             // Two chunks are resampled at once: when a worker runs out of
             // rows of the older one it starts on the newer one instead of
             // waiting for the other worker to finish (and for the pool to be
@@ -393,34 +392,11 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
             const IN_FLIGHT: usize = 2;
             let row_bytes = sw as u64 * src.info.pixel_bytes() as u64;
             let (tx_done, rx_done) = crossbeam_channel::unbounded::<Resampled>();
-            // Scan rows read in place by finished chunks, still mapped: given
-            // back once no chunk in flight or just arrived needs them
-            // (neighbouring chunks of a band mostly read the same rows).
-            let mut finished_rows: Vec<(u32, u32)> = Vec::new();
-            let mut in_flight: std::collections::VecDeque<(u64, Option<(u32, u32)>)> = Default::default();
-            let mut early: std::collections::BTreeMap<u64, Resampled> = Default::default();
-            let mut busy_since: Option<Instant> = None;
+            let mut chunks = InFlight::default();
             let result = pool.in_place_scope(|scope| -> Result<()> {
                 // Waits for the oldest chunk in flight and passes it on.
-                let mut forward_oldest = |in_flight: &mut std::collections::VecDeque<(u64, Option<(u32, u32)>)>,
-                                          finished_rows: &mut Vec<(u32, u32)>,
-                                          busy_since: &mut Option<Instant>,
-                                          busy: &mut Duration|
-                 -> Result<()> {
-                    let (seq, rows) = in_flight.pop_front().expect("a chunk in flight");
-                    let done = loop {
-                        if let Some(d) = early.remove(&seq) {
-                            break d;
-                        }
-                        let d = rx_done.recv().map_err(|_| Error::Cancelled)?;
-                        early.insert(d.seq, d);
-                    };
-                    if in_flight.is_empty() {
-                        if let Some(t) = busy_since.take() {
-                            *busy += t.elapsed();
-                        }
-                    }
-                    finished_rows.extend(rows);
+                let forward_oldest = |chunks: &mut InFlight| -> Result<()> {
+                    let done = chunks.finish_oldest(&rx_done)?;
                     let _ = tx_free_win.try_send(done.win);
                     let raw = done.raw.map_err(|m| fail(dem_miss_error(&dem, m)))?;
                     chunks_done.fetch_add(1, Ordering::Relaxed);
@@ -437,17 +413,14 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                     // would map more together (the first chunk of a band
                     // beside the last of the one before), the older ones are
                     // finished first.
-                    while !in_flight.is_empty() && rows_hull(&in_flight, rows_now).is_some_and(|(a, b)| (b - a) as u64 * row_bytes > 6 * share) {
-                        forward_oldest(&mut in_flight, &mut finished_rows, &mut busy_since, &mut busy)?;
+                    while !chunks.is_empty() && chunks.rows_hull(rows_now).is_some_and(|(a, b)| (b - a) as u64 * row_bytes > 6 * share) {
+                        forward_oldest(&mut chunks)?;
                     }
-                    let keep = rows_hull(&in_flight, rows_now);
-                    for rows in finished_rows.drain(..) {
-                        release_outside(&src, rows, keep);
-                    }
+                    chunks.release_finished_rows(&src, rows_now);
                     let spare = rx_free_raw.try_recv().ok();
                     let tx_done = tx_done.clone();
-                    busy_since.get_or_insert_with(Instant::now);
                     let (gcm, src, grid) = (&gcm, &src, &grid);
+                    chunks.start(seq, rows_now);
                     scope.spawn(move |_| {
                         let (y0, y1) = band_rows(grid, cfg.tile, msg.band);
                         let raw = match src.info.sample {
@@ -457,22 +430,19 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                         };
                         let _ = tx_done.send(Resampled { seq, raw, win: msg.win });
                     });
-                    in_flight.push_back((seq, rows_now));
-                    while in_flight.len() >= IN_FLIGHT {
-                        forward_oldest(&mut in_flight, &mut finished_rows, &mut busy_since, &mut busy)?;
+                    while chunks.len() >= IN_FLIGHT {
+                        forward_oldest(&mut chunks)?;
                     }
                 }
-                while !in_flight.is_empty() {
-                    forward_oldest(&mut in_flight, &mut finished_rows, &mut busy_since, &mut busy)?;
+                while !chunks.is_empty() {
+                    forward_oldest(&mut chunks)?;
                 }
                 Ok(())
             });
-            for rows in finished_rows.drain(..) {
-                release_outside(&src, rows, None);
-            }
+            chunks.release_finished_rows(&src, None);
             result?;
             drop(tx_raw);
-            Ok(busy)
+            Ok(chunks.busy)
         });
         let h_encode = s.spawn(|| {
             let rx_raw = rx_raw;
@@ -784,10 +754,66 @@ struct Resampled {
     win: Window,
 }
 
-/// The scan rows from the first to the last mapped by the chunks in flight
-/// and `extra`.
-fn rows_hull(in_flight: &std::collections::VecDeque<(u64, Option<(u32, u32)>)>, extra: Option<(u32, u32)>) -> Option<(u32, u32)> {
-    in_flight.iter().filter_map(|c| c.1).chain(extra).reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
+/// The chunks being resampled, oldest first, with the scan rows each reads
+/// in place; the scan rows of finished chunks not yet given back; and the
+/// stage's busy time (while any chunk is in flight).
+#[derive(Default)]
+struct InFlight {
+    chunks: std::collections::VecDeque<(u64, Option<(u32, u32)>)>,
+    /// Chunks finished before an older one.
+    early: std::collections::BTreeMap<u64, Resampled>,
+    finished_rows: Vec<(u32, u32)>,
+    busy_since: Option<Instant>,
+    busy: Duration,
+}
+
+impl InFlight {
+    fn len(&self) -> usize {
+        self.chunks.len()
+    }
+
+    fn is_empty(&self) -> bool {
+        self.chunks.is_empty()
+    }
+
+    fn start(&mut self, seq: u64, rows: Option<(u32, u32)>) {
+        self.busy_since.get_or_insert_with(Instant::now);
+        self.chunks.push_back((seq, rows));
+    }
+
+    /// Waits for the oldest chunk (the others may finish first).
+    fn finish_oldest(&mut self, done: &crossbeam_channel::Receiver<Resampled>) -> Result<Resampled> {
+        let (seq, rows) = self.chunks.pop_front().expect("a chunk in flight");
+        let chunk = loop {
+            if let Some(d) = self.early.remove(&seq) {
+                break d;
+            }
+            let d = done.recv().map_err(|_| Error::Cancelled)?;
+            self.early.insert(d.seq, d);
+        };
+        if self.chunks.is_empty() {
+            if let Some(t) = self.busy_since.take() {
+                self.busy += t.elapsed();
+            }
+        }
+        self.finished_rows.extend(rows);
+        Ok(chunk)
+    }
+
+    /// The scan rows from the first to the last mapped by the chunks in
+    /// flight and `extra`.
+    fn rows_hull(&self, extra: Option<(u32, u32)>) -> Option<(u32, u32)> {
+        self.chunks.iter().filter_map(|c| c.1).chain(extra).reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
+    }
+
+    /// Gives back the rows of finished chunks that neither a chunk in
+    /// flight nor `next` reads.
+    fn release_finished_rows(&mut self, src: &SourceImage, next: Option<(u32, u32)>) {
+        let keep = self.rows_hull(next);
+        for rows in self.finished_rows.drain(..) {
+            release_outside(src, rows, keep);
+        }
+    }
 }
 
 /// Gives back the mapped scan rows `rows` except those inside `keep`.
