@@ -97,3 +97,20 @@ fn newton_step(p: [[f64; 3]; 2], gx: f64, gy: f64, e: (f64, f64)) -> Option<(f64
     Some(((d * e.0 - b * e.1) * inv, (a * e.1 - c * e.0) * inv))
 }
 
+
+#[cfg(test)]
+mod tests {
+    use super::newton_step;
+
+    #[test]
+    fn the_newton_step_solves_the_jacobian_along_the_slope() {
+        // Partials d(col, row)/d(X, Y, Z) and a slope of 0.5 in X: the
+        // Jacobian along the surface is [[2 + 0.5, 1], [1 + 0, 3]] (det 6.5),
+        // so e = (1, 2) takes the step (1, 4) / 6.5.
+        let p = [[2.0, 1.0, 1.0], [1.0, 3.0, 0.0]];
+        let (dx, dy) = newton_step(p, 0.5, 0.0, (1.0, 2.0)).unwrap();
+        assert!((dx - 1.0 / 6.5).abs() < 1e-15 && (dy - 4.0 / 6.5).abs() < 1e-15, "{dx} {dy}");
+        // A slope that makes the two rows parallel leaves no step.
+        assert_eq!(newton_step([[1.0, 2.0, 0.0], [2.0, 4.0, 0.0]], 0.3, 0.1, (1.0, 1.0)), None);
+    }
+}
