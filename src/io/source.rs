@@ -396,10 +396,14 @@ impl SourceImage {
         let (ix0, ix1, iy0, iy1) = r;
         let n = (ix1 - ix0) as usize;
         let (win_x0, win_y0, win_w) = (win.x0, win.y0, win.w as usize);
+        // Where row `y` of the intersection starts in the chunk and in the window.
+        let row_at = |y: u32| {
+            let s = (y - origin.1) as usize * chunk_row_bytes + (ix0 - origin.0) as usize * spp_in_chunk * sb;
+            (s, ((y - win_y0) as usize * win_w + (ix0 - win_x0) as usize) * pb)
+        };
         let mut put = |src: &[u8]| {
             for y in iy0..iy1 {
-                let s = (y - origin.1) as usize * chunk_row_bytes + (ix0 - origin.0) as usize * spp_in_chunk * sb;
-                let d = ((y - win.y0) as usize * win.w as usize + (ix0 - win.x0) as usize) * pb;
+                let (s, d) = row_at(y);
                 if info.planar {
                     let dst = &mut win.bytes_mut()[d..d + n * pb];
                     for i in 0..n {
@@ -422,9 +426,8 @@ impl SourceImage {
                 let o = info.offsets[k as usize];
                 let bytes = win.bytes_mut();
                 for y in iy0..iy1 {
-                    let s = (y - origin.1) as u64 * chunk_row_bytes as u64 + (ix0 - origin.0) as u64 * pb as u64;
-                    let d = ((y - win_y0) as usize * win_w + (ix0 - win_x0) as usize) * pb;
-                    file.read_exact_at(&mut bytes[d..d + n * pb], o + s).map_err(|e| Error::io(&self.path, e))?;
+                    let (s, d) = row_at(y);
+                    file.read_exact_at(&mut bytes[d..d + n * pb], o + s as u64).map_err(|e| Error::io(&self.path, e))?;
                 }
             }
             Backend::Raw { map: Some(m), .. } => {
