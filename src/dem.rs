@@ -6,6 +6,7 @@ use crate::camera::Plane;
 use crate::error::{Error, Result};
 use crate::geodesy::Reprojection;
 use crate::io::geotiff::{read_georef, GeoRef};
+use crate::resample::floor_split;
 use std::path::{Path, PathBuf};
 
 /// What a raw lookup found.
@@ -223,8 +224,10 @@ impl GridDem {
         }
         let c = c.clamp(0.0, w - 1.0);
         let r = r.clamp(0.0, h - 1.0);
-        let i0 = (c as usize).min(self.width - 2);
-        let j0 = (r as usize).min(self.height - 2);
+        // ⌊c⌋, ⌊r⌋ (both ≥ 0) without saturating conversions: this runs
+        // for every pixel of a synthetic scan.
+        let i0 = (floor_split(c).0 as usize).min(self.width - 2);
+        let j0 = (floor_split(r).0 as usize).min(self.height - 2);
         let (fx, fy) = (c - i0 as f64, r - j0 as f64);
         let (z00, z10, z01, z11) = match &self.data {
             // The common case, with one bounds check for the four samples.

@@ -60,17 +60,26 @@ impl Refraction {
     #[must_use]
     #[inline]
     pub fn angle(self, ha_m: f64, hg_m: f64, tan_zeta: f64) -> f64 {
-        let (ha, hg) = (ha_m / 1000.0, hg_m / 1000.0);
+        tan_zeta * self.angle_per_tan(ha_m, hg_m)
+    }
+
+    /// `angle / tan ζ`: every formula is linear in tan ζ (Aschenbrenner's
+    /// L is the height difference times tan ζ), so a projection can fold
+    /// tan ζ into its other square roots and divisions.
+    #[must_use]
+    #[inline]
+    pub fn angle_per_tan(self, ha_m: f64, hg_m: f64) -> f64 {
+        let (ha, hg) = (ha_m * 1e-3, hg_m * 1e-3);
         if ha <= hg {
             return 0.0;
         }
-        let asch = || aschenbrenner_arcsec(ha, ha - hg, (ha - hg) * tan_zeta);
+        let asch = || aschenbrenner_arcsec(ha, ha - hg, ha - hg);
         let arcsec = match self {
             Refraction::None => 0.0,
             Refraction::Aschenbrenner => asch(),
-            Refraction::Kushtin => kushtin_arcsec(ha, hg, tan_zeta),
+            Refraction::Kushtin => kushtin_arcsec(ha, hg, 1.0),
             Refraction::Auto if ha <= 5.0 => asch(),
-            Refraction::Auto => kushtin_arcsec(ha, hg, tan_zeta),
+            Refraction::Auto => kushtin_arcsec(ha, hg, 1.0),
         };
         arcsec * ARCSEC
     }
@@ -81,7 +90,7 @@ impl Refraction {
 #[inline]
 #[must_use]
 pub fn curvature_drop(d2_m2: f64) -> f64 {
-    d2_m2 / (2.0 * EARTH_RADIUS_M)
+    d2_m2 * (0.5 / EARTH_RADIUS_M)
 }
 
 #[cfg(test)]

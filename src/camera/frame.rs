@@ -67,17 +67,21 @@ impl FrameCamera {
             let dx = ground.0 - self.centre.x;
             let dy = ground.1 - self.centre.y;
             let h = self.centre.z - ground.2;
-            if h > 0.0 {
-                let tan_z = (dx * dx + dy * dy).sqrt() / h;
-                let lambda = self.refraction.angle(self.centre.z, ground.2, tan_z);
-                let dr = lambda * self.focal_mm * (1.0 + tan_z * tan_z);
-                let (ex, ey) = (x - self.nadir_mm.0, y - self.nadir_mm.1);
-                let e = (ex * ex + ey * ey).sqrt();
-                if e > 0.0 {
-                    let k = dr / e;
-                    x += k * ex;
-                    y += k * ey;
-                }
+            let (ex, ey) = (x - self.nadir_mm.0, y - self.nadir_mm.1);
+            let e2 = ex * ex + ey * ey;
+            if h > 0.0 && e2 > 0.0 {
+                // Δr = λ·f·(1 + tan²ζ) along the radius e from the nadir,
+                // with λ = tanζ·per_tan and tanζ = D/h. The point moves by
+                // k = Δr/e = per_tan·f·(1 + D²/h²)·D/(h·e), taken here with
+                // one division, q = 1/(h⁴e²), and one square root.
+                let per_tan = self.refraction.angle_per_tan(self.centre.z, ground.2);
+                let (d2, h2) = (dx * dx + dy * dy, h * h);
+                let q = 1.0 / (h2 * h2 * e2);
+                let one_plus_tan2 = (h2 + d2) * (q * h2 * e2);
+                let tan_over_e = (d2 * q * h2).sqrt();
+                let k = per_tan * self.focal_mm * one_plus_tan2 * tan_over_e;
+                x += k * ex;
+                y += k * ey;
             }
         }
         self.distortion.apply(x, y, self.focal_mm)
@@ -164,6 +168,31 @@ mod tests {
         let want = -150.0 * (c * 200.0 + s * 1000.0) / (s * 200.0 - c * 1000.0);
         let (x, _) = cam.collinearity(200.0, 0.0, 0.0).unwrap();
         assert!((x - want).abs() < 1e-12);
+    }
+
+    #[test]
+    fn refraction_moves_the_point_away_from_the_nadir_by_lambda_f_sec2() {
+        // Vertical photo, f = 150 mm, 0.01 mm pixels, camera 3000 m above
+        // sea level, ground at 200 m, a point 600 m east and 800 m north:
+        // D = 1000 m, H = 2800 m, tanζ = D/H; the ideal photo point is
+        // r = f·tanζ from the nadir (the principal point here), and
+        // refraction adds Δr = λ·f·(1 + tan²ζ) along the same radius, with
+        // Aschenbrenner's λ″ = 3.1·L·(1 − 0.035·(3Ha − H)), L = D in km.
+        let io = InteriorOrientation::digital(0.01, [5000.0, 5000.0]).unwrap();
+        let (x0, y0) = (1000.0, 2000.0);
+        let cam = |refraction| FrameCamera::new(150.0, Vector3::new(x0, y0, 3000.0), Matrix3::identity(), io.clone(), Distortion::None, refraction, false);
+        let (g, (d, h)) = ((x0 + 600.0, y0 + 800.0, 200.0), (1000.0f64, 2800.0f64));
+        let tan_z = d / h;
+        let lambda = 3.1 * 1.0 * (1.0 - 0.035 * (3.0 * 3.0 - 2.8)) / 206_264.806_247;
+        let want_r = 150.0 * tan_z + lambda * 150.0 * (1.0 + tan_z * tan_z);
+        let (c, r) = cam(Refraction::Aschenbrenner).project(g.0, g.1, g.2).unwrap();
+        let (x, y) = ((c - 5000.0) * 0.01, (5000.0 - r) * 0.01);
+        assert!(((x * x + y * y).sqrt() - want_r).abs() < 1e-9, "{} vs {want_r}", (x * x + y * y).sqrt());
+        assert!((y / x - 800.0 / 600.0).abs() < 1e-12, "radial");
+        // Without refraction, the same point lies Δr closer (≈ 2.0 µm).
+        let (c0, _) = cam(Refraction::None).project(g.0, g.1, g.2).unwrap();
+        let dr = (c - c0) * 0.01 / 0.6;
+        assert!((dr - lambda * 150.0 * (1.0 + tan_z * tan_z)).abs() < 1e-10 && dr > 1.9e-3, "{dr}");
     }
 
     #[test]

@@ -141,6 +141,20 @@ pub fn floor_i64(x: f64) -> i64 {
     i - i64::from((i as f64) > x)
 }
 
+/// `⌊x⌋` as an integer and as a float, exact for |x| < 2⁵¹ (NaN gives
+/// garbage, not a panic). Adding 1.5·2⁵² rounds x to an integer that then
+/// sits in the low mantissa bits, so no float → integer conversion is
+/// needed: Rust's saturating conversions cost more than the rest of a
+/// texture or DEM sample.
+#[inline(always)]
+pub fn floor_split(x: f64) -> (i64, f64) {
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    let t = x + MAGIC;
+    let nearest = t - MAGIC;
+    let down = i64::from(nearest > x);
+    ((t.to_bits() as i64 - MAGIC.to_bits() as i64) - down, nearest - down as f64)
+}
+
 /// A typed view of a window: `bands` interleaved samples per pixel.
 pub struct View<'a, T> {
     pub data: &'a [T],
@@ -501,6 +515,23 @@ mod tests {
     fn ramp() -> Window {
         let data: Vec<u8> = (0..16).map(|k| (10 * (k % 4) + k / 4) as u8).collect();
         Window::from_bytes(0, 0, 4, 4, &data)
+    }
+
+    #[test]
+    fn floor_split_is_floor() {
+        let cases = [0.0, -0.0, 0.5, 1.0, 2.5, 3.5, -0.5, -1.0, -1.5, -2.5, 0.999_999_999_999, -1e-300, 1e-300, 123_456.789, -98_765.4321];
+        let mut all = cases.to_vec();
+        // Integers and the numbers just beside them, up to the stated range.
+        for e in [1.0, 1e3, 1e9, 2f64.powi(50), 2f64.powi(51) - 1.0] {
+            for v in [e, -e] {
+                all.extend([v, v.next_up(), v.next_down(), v + 0.5, v - 0.5]);
+            }
+        }
+        for x in all {
+            let (i, f) = floor_split(x);
+            assert_eq!(f, x.floor(), "{x}");
+            assert_eq!(i, x.floor() as i64, "{x}");
+        }
     }
 
     fn one(kernel: Kernel, c: f64, r: f64) -> Option<u8> {

@@ -381,7 +381,7 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     // The truth orthophoto on the grid rectify chooses by default.
     let grid = auto_grid(cam, &dem, o.width, o.height, mid_z, gsd)?;
     let measures = Measures { gsd, flying_height: flying, relief_range: [zlo, zhi], max_slope_deg: slope };
-    finish(o, &scene, &scan_spec, &grid, measures)
+    finish(o, &scene.as_dyn(), &scan_spec, &grid, measures)
 }
 
 /// What a scene measures, for its report.
@@ -420,13 +420,33 @@ fn finish(o: &SynthOptions, sc: &Scene<'_>, spec: &OutputSpec, grid: &crate::geo
 /// What rendering needs of a scene: the sensor and the terrain in one
 /// ground CRS, the ground's colour there, which scan pixels see the ground
 /// and what the others show.
-struct Scene<'a> {
-    model: &'a dyn SensorModel,
+///
+/// Generic over the model and the two per-pixel functions, so that the
+/// scan, which calls them once or more per pixel, is rendered with them
+/// inlined; the rest takes the `dyn` scene (`as_dyn`).
+struct Scene<
+    'a,
+    M: SensorModel + ?Sized = dyn SensorModel + 'a,
+    C: Fn(f64, f64) -> [f32; 3] + Sync + ?Sized = dyn Fn(f64, f64) -> [f32; 3] + Sync + 'a,
+    I: Fn(f64, f64) -> bool + Sync + ?Sized = dyn Fn(f64, f64) -> bool + Sync + 'a,
+> {
+    model: &'a M,
     dem: &'a Dem,
-    colour: &'a (dyn Fn(f64, f64) -> [f32; 3] + Sync),
-    inside: &'a (dyn Fn(f64, f64) -> bool + Sync),
+    colour: &'a C,
+    inside: &'a I,
     margin: &'a (dyn Fn(f64, f64) -> [f32; 3] + Sync),
     mid_z: f64,
+}
+
+impl<'a, M, C, I> Scene<'a, M, C, I>
+where
+    M: SensorModel,
+    C: Fn(f64, f64) -> [f32; 3] + Sync,
+    I: Fn(f64, f64) -> bool + Sync,
+{
+    fn as_dyn(&self) -> Scene<'_> {
+        Scene { model: self.model, dem: self.dem, colour: self.colour, inside: self.inside, margin: self.margin, mid_z: self.mid_z }
+    }
 }
 
 /// The layout of the scan file.
@@ -449,7 +469,12 @@ fn scan_spec(o: &SynthOptions) -> OutputSpec {
 
 /// Renders the scan: every pixel's ray cast onto the DEM, the ground's
 /// colour taken there; rows in parallel, a band of rows at a time.
-fn render_scan(o: &SynthOptions, sc: &Scene<'_>, spec: &OutputSpec, path: &std::path::Path) -> Result<()> {
+fn render_scan<M, C, I>(o: &SynthOptions, sc: &Scene<'_, M, C, I>, spec: &OutputSpec, path: &std::path::Path) -> Result<()>
+where
+    M: SensorModel,
+    C: Fn(f64, f64) -> [f32; 3] + Sync,
+    I: Fn(f64, f64) -> bool + Sync,
+{
     let sb = spec.sample.bytes();
     let pb = o.bands as usize * sb;
     let progress = crate::progress::bar(o.height as u64, "synth rows", o.quiet);

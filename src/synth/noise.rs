@@ -2,6 +2,8 @@
 //! noise with a quintic fade. Only +, −, ×, ÷ and floor, so the same seed
 //! gives the same bytes on every IEEE-754 machine (no libm calls).
 
+use crate::resample::floor_split;
+
 #[inline]
 pub fn hash(a: i64, b: i64, seed: u64) -> u64 {
     // SplitMix64 over a mix of the inputs.
@@ -27,8 +29,7 @@ fn fade(t: f64) -> f64 {
 /// Value noise in [0, 1), one lattice cell per unit.
 #[inline]
 pub fn value(x: f64, y: f64, seed: u64) -> f64 {
-    let (i, j) = (crate::resample::floor_i64(x), crate::resample::floor_i64(y));
-    let (fx, fy) = (i as f64, j as f64);
+    let ((i, fx), (j, fy)) = (floor_split(x), floor_split(y));
     let (u, v) = (fade(x - fx), fade(y - fy));
     let a = unit(i, j, seed);
     let b = unit(i + 1, j, seed);
@@ -56,7 +57,9 @@ pub fn fbm(x: f64, y: f64, octaves: u32, seed: u64) -> f64 {
 /// side) instead of hashing four lattice points per sample: the texture's
 /// fine noise is sampled once per scan pixel, where hashing dominated.
 pub struct Lattice {
-    v: Vec<f32>,
+    /// Row-major, `N` × `N`; a fixed size so that masked indices need no
+    /// bounds checks.
+    v: Box<[f32; Lattice::N * Lattice::N]>,
 }
 
 impl Lattice {
@@ -64,18 +67,23 @@ impl Lattice {
 
     pub fn new(seed: u64) -> Lattice {
         let n = Self::N as i64;
-        Lattice { v: (0..n * n).map(|k| unit(k % n, k / n, seed) as f32).collect() }
+        Lattice::from_fn(|k| unit(k as i64 % n, k as i64 / n, seed) as f32)
+    }
+
+    fn from_fn(f: impl Fn(usize) -> f32) -> Lattice {
+        let v: Vec<f32> = (0..Self::N * Self::N).map(f).collect();
+        Lattice { v: v.into_boxed_slice().try_into().expect("N × N values") }
     }
 
     /// Value noise in [0, 1), one lattice cell per unit.
     #[inline]
     pub fn value(&self, x: f64, y: f64) -> f64 {
-        let (i, j) = (crate::resample::floor_i64(x), crate::resample::floor_i64(y));
-        let (u, v) = (fade(x - i as f64), fade(y - j as f64));
+        let ((i, fi), (j, fj)) = (floor_split(x), floor_split(y));
+        let (u, v) = (fade(x - fi), fade(y - fj));
         let m = Self::N - 1;
         let (i0, j0) = (i as usize & m, j as usize & m);
         let (i1, j1) = ((i0 + 1) & m, (j0 + 1) & m);
-        let at = |i: usize, j: usize| self.v[j * Self::N + i] as f64;
+        let at = |i: usize, j: usize| self.v[(j * Self::N + i) & (Self::N * Self::N - 1)] as f64;
         let (a, b, c, d) = (at(i0, j0), at(i1, j0), at(i0, j1), at(i1, j1));
         let top = a + u * (b - a);
         let bot = c + u * (d - c);
@@ -89,15 +97,12 @@ impl Lattice {
         let coarse = Lattice::new(seed);
         let fine = Lattice::new(seed.wrapping_add(7919));
         let n = Self::N;
-        let v = (0..n * n)
-            .map(|k| {
-                let (i, j) = ((k % n) as f64, (k / n) as f64);
-                // The result is itself a lattice, so it wraps continuously.
-                let c = coarse.value((i / 2.0) % 128.0, (j / 2.0) % 128.0);
-                ((c + 0.5 * fine.v[k] as f64) / 1.5) as f32
-            })
-            .collect();
-        Lattice { v }
+        Lattice::from_fn(|k| {
+            let (i, j) = ((k % n) as f64, (k / n) as f64);
+            // The result is itself a lattice, so it wraps continuously.
+            let c = coarse.value((i / 2.0) % 128.0, (j / 2.0) % 128.0);
+            ((c + 0.5 * fine.v[k] as f64) / 1.5) as f32
+        })
     }
 }
 

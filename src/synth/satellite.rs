@@ -169,5 +169,5 @@ pub(super) fn synth_rpc(o: &SynthOptions) -> Result<SynthReport> {
         None => [0.0; 3],
     };
     let scene = Scene { model: &model, dem: &dem, colour: &colour, inside: &inside, margin: &|_, _| [0.0; 3], mid_z };
-    finish(o, &scene, &spec, &grid, Measures { gsd, flying_height: ALTITUDE, relief_range: [zlo, zhi], max_slope_deg: slope })
+    finish(o, &scene.as_dyn(), &spec, &grid, Measures { gsd, flying_height: ALTITUDE, relief_range: [zlo, zhi], max_slope_deg: slope })
 }

@@ -4,6 +4,7 @@
 //! resolved (no aliasing) yet sharp. Colours in [0, 1].
 
 use super::noise::{hash, unit, Lattice};
+use crate::resample::floor_split;
 
 pub struct Texture {
     seed: u64,
@@ -137,8 +138,8 @@ impl Texture {
         let (c, s) = self.rot;
         let xr = (c * x + s * y) * self.inv_field.0;
         let yr = (-s * x + c * y) * self.inv_field.1;
-        let (fi, fj) = (crate::resample::floor_i64(xr) as f64, crate::resample::floor_i64(yr) as f64);
-        let base = PALETTE[(hash(fi as i64, fj as i64, self.seed) % PALETTE.len() as u64) as usize];
+        let ((ki, fi), (kj, fj)) = (floor_split(xr), floor_split(yr));
+        let base = PALETTE[(hash(ki, kj, self.seed) % PALETTE.len() as u64) as usize];
         // Fine texture: ±20 % brightness, wavelengths of 24 and 12 GSD.
         let n = self.noise.value(2.0 * x * self.inv_wave, 2.0 * y * self.inv_wave) as f32;
         let mut col = base.map(|v| v * (0.8 + 0.4 * n));

@@ -40,7 +40,7 @@ pub fn mean_gsd(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64
     let mut caster = RayCaster::new(model, dem);
     let (c, r) = (w as f64 / 2.0, h as f64 / 2.0);
     let d = 8.0;
-    let p = |cs: &mut RayCaster, c: f64, r: f64| cs.cast(c, r, None, z_guess, 1e-4);
+    let p = |cs: &mut RayCaster<'_, _>, c: f64, r: f64| cs.cast(c, r, None, z_guess, 1e-4);
     let (Some(o), Some(a), Some(b)) = (p(&mut caster, c, r), p(&mut caster, c + d, r), p(&mut caster, c, r + d)) else {
         return Err(Error::Geometry("the scan's centre does not meet the DEM".into()));
     };

@@ -8,9 +8,12 @@
 use crate::camera::SensorModel;
 use crate::dem::Dem;
 
-/// Casts rays from scan pixels onto the DEM.
-pub struct RayCaster<'a> {
-    pub model: &'a dyn SensorModel,
+/// Casts rays from scan pixels onto the DEM. Generic over the sensor
+/// model so that a caller that knows its model (the scene generator casts
+/// one ray per scan pixel) gets `project` inlined; `dyn SensorModel` by
+/// default.
+pub struct RayCaster<'a, M: SensorModel + ?Sized = dyn SensorModel> {
+    pub model: &'a M,
     pub dem: &'a Dem,
     /// d(col, row)/d(X, Y, Z) near `at`.
     partials: Option<([[f64; 3]; 2], (f64, f64))>,
@@ -18,8 +21,8 @@ pub struct RayCaster<'a> {
     stale_after: f64,
 }
 
-impl<'a> RayCaster<'a> {
-    pub fn new(model: &'a dyn SensorModel, dem: &'a Dem) -> Self {
+impl<'a, M: SensorModel + ?Sized> RayCaster<'a, M> {
+    pub fn new(model: &'a M, dem: &'a Dem) -> Self {
         RayCaster { model, dem, partials: None, stale_after: 5000.0 * model.ground_step() }
     }
 
