@@ -250,9 +250,13 @@ impl GridDem {
             return None;
         }
         let (z00, z10, z01, z11) = (z00 as f64, z10 as f64, z01 as f64, z11 as f64);
-        let z = z00 * (1.0 - fx) * (1.0 - fy) + z10 * fx * (1.0 - fy) + z01 * (1.0 - fx) * fy + z11 * fx * fy;
-        let dzdc = (z10 - z00) * (1.0 - fy) + (z11 - z01) * fy;
-        let dzdr = (z01 - z00) * (1.0 - fx) + (z11 - z10) * fx;
+        // Along the top and bottom edges first, then between them: the
+        // height and both slopes from the same few differences.
+        let (dtop, dbottom) = (z10 - z00, z11 - z01);
+        let (top, bottom) = (z00 + fx * dtop, z01 + fx * dbottom);
+        let z = top + fy * (bottom - top);
+        let dzdc = dtop + fy * (dbottom - dtop);
+        let dzdr = bottom - top;
         Some((z, dzdc * self.inv_step.0, dzdr * self.inv_step.1))
     }
 
@@ -559,6 +563,28 @@ mod tests {
         // 4×3 samples, 10 m posting, origin (1000, 2000): z = 100 + col + 10·row.
         let data = (0..12).map(|k| 100.0 + (k % 4) as f32 + 10.0 * (k / 4) as f32).collect();
         GridDem::new(4, 3, data, [1000.0, 10.0, 0.0, 2000.0, 0.0, -10.0], Some(-9999.0), None)
+    }
+
+    #[test]
+    fn height_and_slopes_of_a_twisted_cell() {
+        // 2×2 samples, 10 m posting, sample centres at X = 1005, 1015 and
+        // Y = 1995, 1985: z00 = 100, z10 = 104, z01 = 120, z11 = 132.
+        // At fx = 0.25, fy = 0.5 (X = 1007.5, Y = 1990):
+        //   top = 101, bottom = 123 → z = 112;
+        //   dz/dcol = 4·0.5 + 12·0.5 = 8 → dZ/dX = 0.8 m/m;
+        //   dz/drow = 123 − 101 = 22 → dZ/dY = −2.2 (rows run south).
+        let g = GridDem::new(2, 2, vec![100.0, 104.0, 120.0, 132.0], [1000.0, 10.0, 0.0, 2000.0, 0.0, -10.0], None, None);
+        let (z, gx, gy) = g.lookup_gradient(1007.5, 1990.0).unwrap();
+        assert!((z - 112.0).abs() < 1e-12 && (gx - 0.8).abs() < 1e-12 && (gy + 2.2).abs() < 1e-12, "{z} {gx} {gy}");
+        assert_eq!(g.lookup(1007.5, 1990.0), Lookup::Height(z));
+        // The slopes are the height's differences.
+        let h = 1e-4;
+        let dzx = (g.lookup_gradient(1007.5 + h, 1990.0).unwrap().0 - g.lookup_gradient(1007.5 - h, 1990.0).unwrap().0) / (2.0 * h);
+        assert!((dzx - gx).abs() < 1e-6, "{dzx}");
+        // A hole among the four samples, and outside the grid: nothing.
+        let holed = GridDem::new(2, 2, vec![100.0, f32::NAN, 120.0, 132.0], [1000.0, 10.0, 0.0, 2000.0, 0.0, -10.0], None, None);
+        assert!(holed.lookup_gradient(1007.5, 1990.0).is_none());
+        assert!(g.lookup_gradient(1030.0, 1990.0).is_none());
     }
 
     #[test]

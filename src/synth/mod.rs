@@ -321,10 +321,31 @@ fn in_image(o: &SynthOptions, cam: &crate::camera::FrameCamera, c: f64, r: f64) 
 
 fn quantise(v: f32, bits: u32, out: &mut [u8]) {
     if bits == 8 {
-        out[0] = ((v * 255.0).clamp(0.0, 255.0) + 0.5) as u8;
+        out[0] = quantise8(v);
     } else {
         out[..2].copy_from_slice(&(((v * 65535.0).clamp(0.0, 65535.0) + 0.5) as u16).to_ne_bytes());
     }
+}
+
+/// A pixel's samples from its colour: `bands` samples of `bits` each.
+#[inline]
+fn write_pixel(rgb: [f32; 3], bands: u32, bits: u32, px: &mut [u8]) {
+    if bands == 3 && bits == 8 {
+        // The common scan, without the per-band dispatch.
+        if let [r, g, b, ..] = px {
+            (*r, *g, *b) = (quantise8(rgb[0]), quantise8(rgb[1]), quantise8(rgb[2]));
+        }
+        return;
+    }
+    let sb = bits as usize / 8;
+    for k in 0..bands {
+        quantise(pixel_value(rgb, bands, k), bits, &mut px[k as usize * sb..]);
+    }
+}
+
+#[inline]
+fn quantise8(v: f32) -> u8 {
+    ((v * 255.0).clamp(0.0, 255.0) + 0.5) as u8
 }
 
 fn pixel_value(rgb: [f32; 3], bands: u32, k: u32) -> f32 {
@@ -513,9 +534,7 @@ where
                     *prev = None;
                     (sc.margin)(c, r)
                 };
-                for k in 0..o.bands {
-                    quantise(pixel_value(rgb, o.bands, k), o.bits, &mut px[k as usize * sb..]);
-                }
+                write_pixel(rgb, o.bands, o.bits, px);
             }
         });
         progress.inc((y1 - y0) as u64);
@@ -528,7 +547,6 @@ where
 /// the ground's colour wherever the scan sees the ground, 0 elsewhere.
 fn render_truth(o: &SynthOptions, sc: &Scene<'_>, scan: &OutputSpec, grid: &crate::geom::OutputGrid, path: &std::path::Path) -> Result<()> {
     let pb = o.bands as usize * scan.sample.bytes();
-    let sb = scan.sample.bytes();
     let spec = OutputSpec {
         width: grid.width,
         height: grid.height,
@@ -554,9 +572,7 @@ fn render_truth(o: &SynthOptions, sc: &Scene<'_>, scan: &OutputSpec, grid: &crat
                     continue;
                 }
                 let rgb = (sc.colour)(x, y);
-                for k in 0..o.bands {
-                    quantise(pixel_value(rgb, o.bands, k), o.bits, &mut px[k as usize * sb..]);
-                }
+                write_pixel(rgb, o.bands, o.bits, px);
             }
         });
     })
