@@ -190,8 +190,8 @@ impl GridDem {
         }
         let c = c.clamp(0.0, w - 1.0);
         let r = r.clamp(0.0, h - 1.0);
-        let i0 = (c as usize).min(self.width.saturating_sub(2));
-        let j0 = (r as usize).min(self.height.saturating_sub(2));
+        let i0 = (floor_split(c).0 as usize).min(self.width.saturating_sub(2));
+        let j0 = (floor_split(r).0 as usize).min(self.height.saturating_sub(2));
         let i1 = (i0 + 1).min(self.width - 1);
         let j1 = (j0 + 1).min(self.height - 1);
         let (fx, fy) = (c - i0 as f64, r - j0 as f64);
