@@ -7,7 +7,7 @@ use gcm_ortho::camera::atmosphere::Refraction;
 use gcm_ortho::camera::distortion::Distortion;
 use gcm_ortho::camera::interior::InteriorOrientation;
 use gcm_ortho::camera::rotation::AngleConvention;
-use gcm_ortho::camera::FrameCamera;
+use gcm_ortho::camera::{FrameCamera, SensorModel};
 use gcm_ortho::dem::{Dem, GridDem};
 use gcm_ortho::gcm::{CorrectionMode, Gcm, GcmSpec};
 use gcm_ortho::geom::OutputGrid;
@@ -104,5 +104,28 @@ fn kernels(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, mapping, kernels);
+/// The frame camera's projection of a row of ground points: one call per
+/// point against one call for the whole row (what the scene generator's
+/// ray caster uses).
+fn projection(c: &mut Criterion) {
+    let (cam, _, grid) = scene();
+    let n = W as usize;
+    let x: Vec<f64> = (0..n).map(|i| grid.x0 + (i as f64 + 0.5) * grid.gsd).collect();
+    let y = vec![grid.y0 - 3.0; n];
+    let z: Vec<f64> = (0..n).map(|i| 300.0 + (i as f64 * 0.01).sin() * 30.0).collect();
+    let (mut col, mut row) = (vec![0.0; n], vec![0.0; n]);
+    let mut g = c.benchmark_group("project_frame");
+    g.throughput(Throughput::Elements(n as u64));
+    g.bench_function("one_by_one", |b| {
+        b.iter(|| {
+            for k in 0..n {
+                (col[k], row[k]) = cam.project(x[k], y[k], z[k]).unwrap_or((f64::NAN, f64::NAN));
+            }
+        })
+    });
+    g.bench_function("many", |b| b.iter(|| cam.project_many(&x, &y, &z, &mut col, &mut row)));
+    g.finish();
+}
+
+criterion_group!(benches, mapping, kernels, projection);
 criterion_main!(benches);

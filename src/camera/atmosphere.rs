@@ -69,19 +69,39 @@ impl Refraction {
     #[must_use]
     #[inline]
     pub fn angle_per_tan(self, ha_m: f64, hg_m: f64) -> f64 {
+        if self.is_aschenbrenner_at(ha_m) {
+            return Refraction::aschenbrenner_per_tan(ha_m, hg_m);
+        }
         let (ha, hg) = (ha_m * 1e-3, hg_m * 1e-3);
-        if ha <= hg {
+        if ha <= hg || self == Refraction::None {
             return 0.0;
         }
-        let asch = || aschenbrenner_arcsec(ha, ha - hg, ha - hg);
-        let arcsec = match self {
-            Refraction::None => 0.0,
-            Refraction::Aschenbrenner => asch(),
-            Refraction::Kushtin => kushtin_arcsec(ha, hg, 1.0),
-            Refraction::Auto if ha <= 5.0 => asch(),
-            Refraction::Auto => kushtin_arcsec(ha, hg, 1.0),
-        };
-        arcsec * ARCSEC
+        kushtin_arcsec(ha, hg, 1.0) * ARCSEC
+    }
+
+    /// Does a camera at `ha_m` use Aschenbrenner's formula?
+    #[must_use]
+    #[inline]
+    pub fn is_aschenbrenner_at(self, ha_m: f64) -> bool {
+        match self {
+            Refraction::Aschenbrenner => true,
+            Refraction::Auto => ha_m * 1e-3 <= 5.0,
+            Refraction::None | Refraction::Kushtin => false,
+        }
+    }
+
+    /// Aschenbrenner's λ / tanζ (radians), without a branch: 0 for a ground
+    /// point at or above the camera.
+    #[must_use]
+    #[inline(always)]
+    pub fn aschenbrenner_per_tan(ha_m: f64, hg_m: f64) -> f64 {
+        let (ha, hg) = (ha_m * 1e-3, hg_m * 1e-3);
+        let arcsec = aschenbrenner_arcsec(ha, ha - hg, ha - hg);
+        if ha <= hg {
+            0.0
+        } else {
+            arcsec * ARCSEC
+        }
     }
 }
 

@@ -36,24 +36,35 @@ impl Distortion {
     pub fn apply(&self, x: f64, y: f64, f: f64) -> (f64, f64) {
         match *self {
             Distortion::None => (x, y),
-            Distortion::Radial([b1, b2, b3]) => {
-                let r = (x * x + y * y).sqrt();
-                if r == 0.0 {
-                    return (x, y);
-                }
-                // σ/r = b1 + b2 r + b3 r²
-                let s = 1.0 + b1 + b2 * r + b3 * r * r;
-                (x * s, y * s)
-            }
-            Distortion::Brown(b) => {
-                let (xn, yn) = (x / f, y / f);
-                let r2 = xn * xn + yn * yn;
-                let radial = 1.0 + r2 * (b.k1 + r2 * (b.k2 + r2 * b.k3));
-                let xd = xn * radial + 2.0 * b.p1 * xn * yn + b.p2 * (r2 + 2.0 * xn * xn);
-                let yd = yn * radial + b.p1 * (r2 + 2.0 * yn * yn) + 2.0 * b.p2 * xn * yn;
-                (xd * f, yd * f)
-            }
+            Distortion::Radial(b) => Distortion::radial(b, x, y),
+            Distortion::Brown(b) => Distortion::brown(&b, x, y, f),
         }
+    }
+
+    /// The radial polynomial `[b1, b2, b3]` (mm) at (x, y).
+    #[inline(always)]
+    #[must_use]
+    pub fn radial([b1, b2, b3]: [f64; 3], x: f64, y: f64) -> (f64, f64) {
+        let r = (x * x + y * y).sqrt();
+        // σ/r = b1 + b2 r + b3 r²
+        let s = 1.0 + b1 + b2 * r + b3 * r * r;
+        if r == 0.0 {
+            (x, y)
+        } else {
+            (x * s, y * s)
+        }
+    }
+
+    /// Brown–Conrady at (x, y) (mm), focal length `f` (mm).
+    #[inline(always)]
+    #[must_use]
+    pub fn brown(b: &Brown, x: f64, y: f64, f: f64) -> (f64, f64) {
+        let (xn, yn) = (x / f, y / f);
+        let r2 = xn * xn + yn * yn;
+        let radial = 1.0 + r2 * (b.k1 + r2 * (b.k2 + r2 * b.k3));
+        let xd = xn * radial + 2.0 * b.p1 * xn * yn + b.p2 * (r2 + 2.0 * xn * xn);
+        let yd = yn * radial + b.p1 * (r2 + 2.0 * yn * yn) + 2.0 * b.p2 * xn * yn;
+        (xd * f, yd * f)
     }
 }
 

@@ -45,6 +45,13 @@ impl FrameCamera {
     /// before refraction and distortion. `None` behind the camera.
     #[inline]
     pub fn collinearity(&self, x: f64, y: f64, z: f64) -> Option<(f64, f64)> {
+        let (px, py) = self.ideal_photo(x, y, z);
+        (!px.is_nan()).then_some((px, py))
+    }
+
+    /// `collinearity` with NaN behind the camera, without a branch.
+    #[inline(always)]
+    fn ideal_photo(&self, x: f64, y: f64, z: f64) -> (f64, f64) {
         let dx = x - self.centre.x;
         let dy = y - self.centre.y;
         let mut dz = z - self.centre.z;
@@ -52,11 +59,37 @@ impl FrameCamera {
             dz -= curvature_drop(dx * dx + dy * dy);
         }
         let p = self.r.tr_mul(&Vector3::new(dx, dy, dz));
-        if !(p.z < 0.0) {
-            return None;
-        }
         let s = -self.focal_mm / p.z;
-        Some((p.x * s, p.y * s))
+        if p.z < 0.0 {
+            (p.x * s, p.y * s)
+        } else {
+            (f64::NAN, f64::NAN)
+        }
+    }
+
+    /// Refraction moves the photo point (x, y) of ground point `ground`
+    /// away from the nadir point; `per_tan` is λ / tanζ there.
+    #[inline(always)]
+    fn refracted(&self, x: f64, y: f64, ground: (f64, f64, f64), per_tan: f64) -> (f64, f64) {
+        let dx = ground.0 - self.centre.x;
+        let dy = ground.1 - self.centre.y;
+        let h = self.centre.z - ground.2;
+        let (ex, ey) = (x - self.nadir_mm.0, y - self.nadir_mm.1);
+        let e2 = ex * ex + ey * ey;
+        // Δr = λ·f·(1 + tan²ζ) along the radius e from the nadir, with
+        // λ = tanζ·per_tan and tanζ = D/h. The point moves by
+        // k = Δr/e = per_tan·f·(1 + D²/h²)·D/(h·e), taken here with one
+        // division, q = 1/(h⁴e²), and one square root.
+        let (d2, h2) = (dx * dx + dy * dy, h * h);
+        let q = 1.0 / (h2 * h2 * e2);
+        let one_plus_tan2 = (h2 + d2) * (q * h2 * e2);
+        let tan_over_e = (d2 * q * h2).sqrt();
+        let k = per_tan * self.focal_mm * one_plus_tan2 * tan_over_e;
+        if h > 0.0 && e2 > 0.0 {
+            (x + k * ex, y + k * ey)
+        } else {
+            (x, y)
+        }
     }
 
     /// Ideal photo point → photo point with refraction and distortion.
@@ -64,27 +97,20 @@ impl FrameCamera {
     fn photo_corrections(&self, x: f64, y: f64, ground: (f64, f64, f64)) -> (f64, f64) {
         let (mut x, mut y) = (x, y);
         if self.refraction != Refraction::None {
-            let dx = ground.0 - self.centre.x;
-            let dy = ground.1 - self.centre.y;
-            let h = self.centre.z - ground.2;
-            let (ex, ey) = (x - self.nadir_mm.0, y - self.nadir_mm.1);
-            let e2 = ex * ex + ey * ey;
-            if h > 0.0 && e2 > 0.0 {
-                // Δr = λ·f·(1 + tan²ζ) along the radius e from the nadir,
-                // with λ = tanζ·per_tan and tanζ = D/h. The point moves by
-                // k = Δr/e = per_tan·f·(1 + D²/h²)·D/(h·e), taken here with
-                // one division, q = 1/(h⁴e²), and one square root.
-                let per_tan = self.refraction.angle_per_tan(self.centre.z, ground.2);
-                let (d2, h2) = (dx * dx + dy * dy, h * h);
-                let q = 1.0 / (h2 * h2 * e2);
-                let one_plus_tan2 = (h2 + d2) * (q * h2 * e2);
-                let tan_over_e = (d2 * q * h2).sqrt();
-                let k = per_tan * self.focal_mm * one_plus_tan2 * tan_over_e;
-                x += k * ex;
-                y += k * ey;
-            }
+            let per_tan = self.refraction.angle_per_tan(self.centre.z, ground.2);
+            (x, y) = self.refracted(x, y, ground, per_tan);
         }
         self.distortion.apply(x, y, self.focal_mm)
+    }
+
+    /// The refraction pass of `project_many`, with λ / tanζ from `per_tan`.
+    #[inline(always)]
+    fn refract_all(&self, g: [&[f64]; 3], col: &mut [f64], row: &mut [f64], per_tan: impl Fn(f64) -> f64) {
+        let n = col.len().min(row.len()).min(g[0].len()).min(g[1].len()).min(g[2].len());
+        for k in 0..n {
+            let ground = (g[0][k], g[1][k], g[2][k]);
+            (col[k], row[k]) = self.refracted(col[k], row[k], ground, per_tan(ground.2));
+        }
     }
 }
 
@@ -94,6 +120,41 @@ impl SensorModel for FrameCamera {
         let (px, py) = self.collinearity(x, y, z)?;
         let (px, py) = self.photo_corrections(px, py, (x, y, z));
         Some(self.interior.mm_to_px(px, py))
+    }
+
+    /// In passes over the arrays (collinearity, refraction, distortion,
+    /// interior orientation), each without a branch per point, so that the
+    /// compiler works on two points per instruction; the numbers are
+    /// exactly those of `project`.
+    fn project_many(&self, x: &[f64], y: &[f64], z: &[f64], col: &mut [f64], row: &mut [f64]) {
+        let n = x.len();
+        assert!(y.len() == n && z.len() == n && col.len() == n && row.len() == n, "project_many: arrays of one length");
+        for k in 0..n {
+            (col[k], row[k]) = self.ideal_photo(x[k], y[k], z[k]);
+        }
+        let ha = self.centre.z;
+        match self.refraction {
+            Refraction::None => {}
+            r if r.is_aschenbrenner_at(ha) => self.refract_all([x, y, z], col, row, |hg| Refraction::aschenbrenner_per_tan(ha, hg)),
+            r => self.refract_all([x, y, z], col, row, |hg| r.angle_per_tan(ha, hg)),
+        }
+        let f = self.focal_mm;
+        match self.distortion {
+            Distortion::None => {}
+            Distortion::Radial(b) => {
+                for k in 0..n {
+                    (col[k], row[k]) = Distortion::radial(b, col[k], row[k]);
+                }
+            }
+            Distortion::Brown(b) => {
+                for k in 0..n {
+                    (col[k], row[k]) = Distortion::brown(&b, col[k], row[k], f);
+                }
+            }
+        }
+        for k in 0..n {
+            (col[k], row[k]) = self.interior.mm_to_px(col[k], row[k]);
+        }
     }
 
     fn locate_approx(&self, col: f64, row: f64, z: f64) -> Option<(f64, f64)> {
@@ -193,6 +254,40 @@ mod tests {
         let (c0, _) = cam(Refraction::None).project(g.0, g.1, g.2).unwrap();
         let dr = (c - c0) * 0.01 / 0.6;
         assert!((dr - lambda * 150.0 * (1.0 + tan_z * tan_z)).abs() < 1e-10 && dr > 1.9e-3, "{dr}");
+    }
+
+    #[test]
+    fn project_many_gives_exactly_what_project_gives() {
+        use crate::camera::distortion::Brown;
+        let io = InteriorOrientation::digital(0.012, [10000.0, 10000.0]).unwrap();
+        let r = AngleConvention::AlphaOmegaKappa.matrix([0.02, -0.03, 0.7]);
+        let brown = Distortion::Brown(Brown { k1: -0.02, k2: 0.004, k3: 1e-4, p1: 1e-5, p2: -2e-5 });
+        // Low (Aschenbrenner) and high (Kushtin) cameras, each distortion,
+        // with and without earth curvature.
+        for (h, refraction) in [(1800.0, Refraction::Auto), (9000.0, Refraction::Auto), (1800.0, Refraction::Kushtin), (1800.0, Refraction::None)] {
+            for distortion in [Distortion::None, Distortion::Radial([1e-5, 1.5e-7, -2e-9]), brown] {
+                for curvature in [false, true] {
+                    let cam = FrameCamera::new(152.0, Vector3::new(5000.0, 5000.0, h), r, io.clone(), distortion, refraction, curvature);
+                    // Points all over the photo, the nadir itself, and some
+                    // above the camera (not imaged).
+                    let n = 203;
+                    let x: Vec<f64> = (0..n).map(|k| 5000.0 + ((k * 37) % 101) as f64 * 23.0 - 1150.0).collect();
+                    let y: Vec<f64> = (0..n).map(|k| 5000.0 + ((k * 53) % 97) as f64 * 19.0 - 920.0).collect();
+                    let mut z: Vec<f64> = (0..n).map(|k| 300.0 + (k % 7) as f64 * 40.0).collect();
+                    z[5] = h + 10.0;
+                    z[6] = h;
+                    let (mut col, mut row) = (vec![0.0; n], vec![0.0; n]);
+                    cam.project_many(&x, &y, &z, &mut col, &mut row);
+                    for k in 0..n {
+                        match cam.project(x[k], y[k], z[k]) {
+                            Some((c, r)) => assert!(c.to_bits() == col[k].to_bits() && r.to_bits() == row[k].to_bits(), "{k}: {c} {r} vs {} {}", col[k], row[k]),
+                            None => assert!(col[k].is_nan() && row[k].is_nan(), "{k}"),
+                        }
+                    }
+                    assert!(col[5].is_nan() && !col[0].is_nan());
+                }
+            }
+        }
     }
 
     #[test]

@@ -41,6 +41,15 @@ pub trait SensorModel: Send + Sync {
     /// cannot be imaged (behind the camera, outside the model's domain).
     fn project(&self, x: f64, y: f64, z: f64) -> Option<(f64, f64)>;
 
+    /// `project` for many points: (col[k], row[k]) of (x[k], y[k], z[k]),
+    /// NaN where the point cannot be imaged. All slices of one length.
+    fn project_many(&self, x: &[f64], y: &[f64], z: &[f64], col: &mut [f64], row: &mut [f64]) {
+        assert!(y.len() == x.len() && z.len() == x.len() && col.len() == x.len() && row.len() == x.len(), "project_many: arrays of one length");
+        for k in 0..x.len() {
+            (col[k], row[k]) = self.project(x[k], y[k], z[k]).unwrap_or((f64::NAN, f64::NAN));
+        }
+    }
+
     /// An approximate inverse: ground (X, Y) at height `z` seen at the scan
     /// pixel (column, row). Within a few pixels of the truth is enough; the
     /// callers refine it against `project`.
