@@ -6,6 +6,7 @@
 //! seed; written a band of rows at a time, in parallel, in bounded memory.
 
 pub mod noise;
+mod render;
 mod satellite;
 pub mod texture;
 
@@ -19,10 +20,10 @@ use crate::error::{Error, Result};
 use crate::io::source::SampleType;
 use crate::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
 use crate::transform::footprint::{auto_grid, mean_gsd};
-use crate::transform::inverse::RayCaster;
 use rayon::prelude::*;
 use std::io::Write;
 use std::path::PathBuf;
+use render::render_scan;
 use texture::Texture;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -486,61 +487,6 @@ fn scan_spec(o: &SynthOptions) -> OutputSpec {
         geo: None,
     };
     OutputSpec { bigtiff: spec.needs_bigtiff(), ..spec }
-}
-
-/// Renders the scan: every pixel's ray cast onto the DEM, the ground's
-/// colour taken there; rows in parallel, a band of rows at a time.
-fn render_scan<M, C, I>(o: &SynthOptions, sc: &Scene<'_, M, C, I>, spec: &OutputSpec, path: &std::path::Path) -> Result<()>
-where
-    M: SensorModel,
-    C: Fn(f64, f64) -> [f32; 3] + Sync,
-    I: Fn(f64, f64) -> bool + Sync,
-{
-    let sb = spec.sample.bytes();
-    let pb = o.bands as usize * sb;
-    let progress = crate::progress::bar(o.height as u64, "synth rows", o.quiet);
-    write_raster(path, spec, |y0, y1, buf| {
-        let row_bytes = o.width as usize * pb;
-        buf.par_chunks_mut(row_bytes).enumerate().for_each(|(k, row)| {
-            let r = (y0 as usize + k) as f64 + 0.5;
-            let mut caster = RayCaster::new(sc.model, sc.dem);
-            // The last two ground points two pixels back: their difference
-            // predicts the next one so well that most pixels need a single
-            // projection. Even and odd pixels form two separate chains, so
-            // that the processor can work on one while the other waits for
-            // its divisions and square roots.
-            let mut prev: [Option<(f64, f64)>; 2] = [None; 2];
-            let mut step = [(0.0, 0.0); 2];
-            for i in 0..o.width as usize {
-                let c = i as f64 + 0.5;
-                let px = &mut row[i * pb..(i + 1) * pb];
-                let (prev, step) = (&mut prev[i & 1], &mut step[i & 1]);
-                let rgb = if (sc.inside)(c, r) {
-                    let guess = prev.map(|p| (p.0 + step.0, p.1 + step.1));
-                    match caster.cast(c, r, guess, sc.mid_z, 1e-3) {
-                        Some(p) => {
-                            if let Some(q) = *prev {
-                                *step = (p[0] - q.0, p[1] - q.1);
-                            }
-                            *prev = Some((p[0], p[1]));
-                            (sc.colour)(p[0], p[1])
-                        }
-                        None => {
-                            *prev = None;
-                            [0.0; 3]
-                        }
-                    }
-                } else {
-                    *prev = None;
-                    (sc.margin)(c, r)
-                };
-                write_pixel(rgb, o.bands, o.bits, px);
-            }
-        });
-        progress.inc((y1 - y0) as u64);
-    })?;
-    progress.finish_and_clear();
-    Ok(())
 }
 
 /// The true orthophoto on `grid` (in the scene's UTM zone):

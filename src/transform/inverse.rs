@@ -84,6 +84,72 @@ impl<'a, M: SensorModel + ?Sized> RayCaster<'a, M> {
     }
 }
 
+/// Scratch arrays of `RayCaster::cast_run`, kept between calls.
+#[derive(Default)]
+pub struct RunScratch {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    z: Vec<f64>,
+    slope: Vec<(f64, f64)>,
+    col: Vec<f64>,
+    row: Vec<f64>,
+}
+
+impl<M: SensorModel + ?Sized> RayCaster<'_, M> {
+    /// Casts a run of pixels of scan row `row` at once, each from a guess
+    /// good to a small fraction of a pixel (in the scene generator: the
+    /// rays of the two rows above, extrapolated). Each pixel costs one DEM
+    /// lookup, and the run one `project_many`; where the guess is within
+    /// `tol` pixels, `out[k]` is the ground point after one more Newton
+    /// step (as `cast` returns it), elsewhere `None`: the caller casts
+    /// that pixel alone.
+    pub fn cast_run(&mut self, cols: &[f64], row: f64, guess: &[(f64, f64)], tol: f64, out: &mut [Option<[f64; 3]>], s: &mut RunScratch) {
+        let n = cols.len();
+        assert!(guess.len() == n && out.len() == n, "cast_run: one guess and one answer per pixel");
+        if n == 0 {
+            return;
+        }
+        s.x.clear();
+        s.y.clear();
+        s.z.clear();
+        s.slope.clear();
+        for &(x, y) in guess {
+            let (z, gx, gy) = self.dem.height_gradient(x, y).unwrap_or((f64::NAN, 0.0, 0.0));
+            s.x.push(x);
+            s.y.push(y);
+            s.z.push(z);
+            s.slope.push((gx, gy));
+        }
+        s.col.resize(n, 0.0);
+        s.row.resize(n, 0.0);
+        self.model.project_many(&s.x, &s.y, &s.z, &mut s.col, &mut s.row);
+        // The partials near the middle of the run.
+        let (mx, my, mz) = (s.x[n / 2], s.y[n / 2], s.z[n / 2]);
+        let stale = match self.partials {
+            None => true,
+            Some((_, at)) => (at.0 - mx).abs() + (at.1 - my).abs() > self.stale_after,
+        };
+        if stale && !mz.is_nan() {
+            self.partials = self.partials_at(mx, my, mz).map(|p| (p, (mx, my)));
+        }
+        let tol2 = tol * tol;
+        for k in 0..n {
+            let e = (cols[k] - s.col[k], row - s.row[k]);
+            // NaN (no height, not imaged) fails the test too.
+            out[k] = if e.0 * e.0 + e.1 * e.1 < tol2 {
+                let (gx, gy) = s.slope[k];
+                let (x, y, z) = (s.x[k], s.y[k], s.z[k]);
+                match self.partials.and_then(|(p, _)| newton_step(p, gx, gy, e)) {
+                    Some(d) => Some([x + d.0, y + d.1, z + gx * d.0 + gy * d.1]),
+                    None => Some([x, y, z]),
+                }
+            } else {
+                None
+            };
+        }
+    }
+}
+
 /// The ground step (ΔX, ΔY) that moves the image point by `e` = (Δcol,
 /// Δrow) along the DEM surface: `e` solved against the 2×2 Jacobian
 /// d(col, row)/d(X, Y), whose Z column follows the terrain's slope (gx, gy).
@@ -103,7 +169,56 @@ fn newton_step(p: [[f64; 3]; 2], gx: f64, gy: f64, e: (f64, f64)) -> Option<(f64
 
 #[cfg(test)]
 mod tests {
-    use super::newton_step;
+    use super::{newton_step, RayCaster, RunScratch};
+    use crate::camera::atmosphere::Refraction;
+    use crate::camera::distortion::Distortion;
+    use crate::camera::interior::InteriorOrientation;
+    use crate::camera::rotation::AngleConvention;
+    use crate::camera::{FrameCamera, SensorModel};
+    use crate::dem::{Dem, GridDem};
+    use nalgebra::Vector3;
+
+    #[test]
+    fn a_run_from_the_rows_above_finds_what_single_casts_find() {
+        // A tilted film camera over hills posted every 5 m, ~0.1 m pixels.
+        let io = InteriorOrientation::digital(0.012, [10000.0, 10000.0]).unwrap();
+        let r = AngleConvention::AlphaOmegaKappa.matrix([0.01, -0.02, 0.5]);
+        let cam = FrameCamera::new(152.0, Vector3::new(5000.0, 5000.0, 1600.0), r, io, Distortion::Radial([0.0, 1.5e-7, -2e-9]), Refraction::Auto, true);
+        let n = 1000usize;
+        let data = (0..n * n)
+            .map(|k| {
+                let (x, y) = ((k % n) as f64 * 5.0, (k / n) as f64 * 5.0);
+                (300.0 + 40.0 * ((x / 310.0).sin() * (y / 270.0).cos())) as f32
+            })
+            .collect();
+        let dem = Dem::grid(GridDem::new(n, n, data, [2500.0, 5.0, 0.0, 7500.0, 0.0, -5.0], None, None), std::path::Path::new("hills"));
+        let mut caster = RayCaster::new(&cam, &dem);
+        let cols: Vec<f64> = (0..600).map(|i| 4000.5 + i as f64).collect();
+        let cast_row = |caster: &mut RayCaster<'_, FrameCamera>, r: f64| -> Vec<[f64; 3]> { cols.iter().map(|&c| caster.cast(c, r, None, 300.0, 1e-3).unwrap()).collect() };
+        let (a, b) = (cast_row(&mut caster, 5000.5), cast_row(&mut caster, 5001.5));
+        let guess: Vec<(f64, f64)> = a.iter().zip(&b).map(|(a, b)| (2.0 * b[0] - a[0], 2.0 * b[1] - a[1])).collect();
+        let mut found = vec![None; cols.len()];
+        caster.cast_run(&cols, 5002.5, &guess, 1e-3, &mut found, &mut RunScratch::default());
+        let single = cast_row(&mut caster, 5002.5);
+        let mut open = 0;
+        for (k, f) in found.iter().enumerate() {
+            let Some(p) = f else {
+                open += 1;
+                continue;
+            };
+            // On the DEM, imaged at its pixel, and where a single cast lands.
+            let (c, r) = cam.project(p[0], p[1], p[2]).unwrap();
+            assert!((c - cols[k]).hypot(r - 5002.5) < 1e-4, "{k}: {c} {r}");
+            assert!((dem.height_gradient(p[0], p[1]).unwrap().0 - p[2]).abs() < 1e-6, "{k}");
+            assert!((p[0] - single[k][0]).hypot(p[1] - single[k][1]) < 1e-3 * 0.12, "{k}");
+        }
+        // Only rays crossing a DEM cell's edge between the rows miss.
+        assert!(open < cols.len() / 10, "{open} of {} left open", cols.len());
+        // A guess a pixel off is left to the caller.
+        let off: Vec<(f64, f64)> = guess.iter().map(|g| (g.0 + 0.12, g.1)).collect();
+        caster.cast_run(&cols, 5002.5, &off, 1e-3, &mut found, &mut RunScratch::default());
+        assert!(found.iter().all(Option::is_none));
+    }
 
     #[test]
     fn the_newton_step_solves_the_jacobian_along_the_slope() {
