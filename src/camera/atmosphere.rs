@@ -14,6 +14,7 @@
 //! for vertical photos is the thesis' image-space term and stays right for
 //! tilted ones.
 
+use super::lanes::Lanes;
 use serde::{Deserialize, Serialize};
 
 /// Mean earth radius, metres.
@@ -94,14 +95,12 @@ impl Refraction {
     /// point at or above the camera.
     #[must_use]
     #[inline(always)]
-    pub fn aschenbrenner_per_tan(ha_m: f64, hg_m: f64) -> f64 {
-        let (ha, hg) = (ha_m * 1e-3, hg_m * 1e-3);
-        let arcsec = aschenbrenner_arcsec(ha, ha - hg, ha - hg);
-        if ha <= hg {
-            0.0
-        } else {
-            arcsec * ARCSEC
-        }
+    pub fn aschenbrenner_per_tan<T: Lanes>(ha_m: T, hg_m: T) -> T {
+        let (ha, hg) = (ha_m * T::splat(1e-3), hg_m * T::splat(1e-3));
+        let (h, one, k) = (ha - hg, T::splat(1.0), T::splat(0.035));
+        // aschenbrenner_arcsec(ha, h, h), spelt out for lanes.
+        let arcsec = T::splat(3.1) * h * (one - k * (T::splat(3.0) * ha - h));
+        T::if_greater(ha, hg, arcsec * T::splat(ARCSEC), T::splat(0.0))
     }
 }
 

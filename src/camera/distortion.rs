@@ -4,6 +4,7 @@
 //! is `b3 = E`). Brown–Conrady on normalised coordinates `x/f, y/f`.
 //! Small enough to live in the GCM, never in `A`.
 
+use super::lanes::Lanes;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -44,15 +45,12 @@ impl Distortion {
     /// The radial polynomial `[b1, b2, b3]` (mm) at (x, y).
     #[inline(always)]
     #[must_use]
-    pub fn radial([b1, b2, b3]: [f64; 3], x: f64, y: f64) -> (f64, f64) {
+    pub fn radial<T: Lanes>([b1, b2, b3]: [f64; 3], x: T, y: T) -> (T, T) {
         let r = (x * x + y * y).sqrt();
         // σ/r = b1 + b2 r + b3 r²
-        let s = 1.0 + b1 + b2 * r + b3 * r * r;
-        if r == 0.0 {
-            (x, y)
-        } else {
-            (x * s, y * s)
-        }
+        let s = T::splat(1.0) + T::splat(b1) + T::splat(b2) * r + T::splat(b3) * r * r;
+        let zero = T::splat(0.0);
+        (T::if_greater(r, zero, x * s, x), T::if_greater(r, zero, y * s, y))
     }
 
     /// Brown–Conrady at (x, y) (mm), focal length `f` (mm).

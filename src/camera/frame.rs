@@ -8,7 +8,9 @@ use super::distortion::Distortion;
 use super::interior::InteriorOrientation;
 use super::{Plane, SensorModel};
 use crate::geom::OutputGrid;
+use super::lanes::Lanes;
 use nalgebra::{Matrix3, Vector3};
+use wide::f64x2;
 
 #[derive(Clone, Debug)]
 pub struct FrameCamera {
@@ -70,26 +72,25 @@ impl FrameCamera {
     /// Refraction moves the photo point (x, y) of ground point `ground`
     /// away from the nadir point; `per_tan` is λ / tanζ there.
     #[inline(always)]
-    fn refracted(&self, x: f64, y: f64, ground: (f64, f64, f64), per_tan: f64) -> (f64, f64) {
-        let dx = ground.0 - self.centre.x;
-        let dy = ground.1 - self.centre.y;
-        let h = self.centre.z - ground.2;
-        let (ex, ey) = (x - self.nadir_mm.0, y - self.nadir_mm.1);
+    fn refracted<T: Lanes>(&self, x: T, y: T, ground: (T, T, T), per_tan: T) -> (T, T) {
+        let dx = ground.0 - T::splat(self.centre.x);
+        let dy = ground.1 - T::splat(self.centre.y);
+        let h = T::splat(self.centre.z) - ground.2;
+        let (ex, ey) = (x - T::splat(self.nadir_mm.0), y - T::splat(self.nadir_mm.1));
         let e2 = ex * ex + ey * ey;
         // Δr = λ·f·(1 + tan²ζ) along the radius e from the nadir, with
         // λ = tanζ·per_tan and tanζ = D/h. The point moves by
         // k = Δr/e = per_tan·f·(1 + D²/h²)·D/(h·e), taken here with one
         // division, q = 1/(h⁴e²), and one square root.
         let (d2, h2) = (dx * dx + dy * dy, h * h);
-        let q = 1.0 / (h2 * h2 * e2);
+        let q = T::splat(1.0) / (h2 * h2 * e2);
         let one_plus_tan2 = (h2 + d2) * (q * h2 * e2);
         let tan_over_e = (d2 * q * h2).sqrt();
-        let k = per_tan * self.focal_mm * one_plus_tan2 * tan_over_e;
-        if h > 0.0 && e2 > 0.0 {
-            (x + k * ex, y + k * ey)
-        } else {
-            (x, y)
-        }
+        let k = per_tan * T::splat(self.focal_mm) * one_plus_tan2 * tan_over_e;
+        // Only in front of a ground point below the camera, off the nadir.
+        let zero = T::splat(0.0);
+        let k = T::if_greater(h, zero, T::if_greater(e2, zero, k, zero), zero);
+        (x + k * ex, y + k * ey)
     }
 
     /// Ideal photo point → photo point with refraction and distortion.
@@ -103,13 +104,34 @@ impl FrameCamera {
         self.distortion.apply(x, y, self.focal_mm)
     }
 
-    /// The refraction pass of `project_many`, with λ / tanζ from `per_tan`.
+    /// The refraction pass of `project_many`, with λ / tanζ from `per_tan`
+    /// (any formula, one point at a time).
     #[inline(always)]
     fn refract_all(&self, g: [&[f64]; 3], col: &mut [f64], row: &mut [f64], per_tan: impl Fn(f64) -> f64) {
         let n = col.len().min(row.len()).min(g[0].len()).min(g[1].len()).min(g[2].len());
         for k in 0..n {
             let ground = (g[0][k], g[1][k], g[2][k]);
             (col[k], row[k]) = self.refracted(col[k], row[k], ground, per_tan(ground.2));
+        }
+    }
+
+    /// The refraction pass of `project_many` with Aschenbrenner's formula,
+    /// two points at a time.
+    fn refract_all_aschenbrenner(&self, g: [&[f64]; 3], col: &mut [f64], row: &mut [f64]) {
+        let n = col.len().min(row.len()).min(g[0].len()).min(g[1].len()).min(g[2].len());
+        let ha = f64x2::splat(self.centre.z);
+        let pair = |v: &[f64], k: usize| f64x2::new([v[k], v[k + 1]]);
+        for k in (0..n / 2).map(|i| 2 * i) {
+            let ground = (pair(g[0], k), pair(g[1], k), pair(g[2], k));
+            let per_tan = Refraction::aschenbrenner_per_tan(ha, ground.2);
+            let (x, y) = self.refracted(pair(col, k), pair(row, k), ground, per_tan);
+            let (x, y) = (x.to_array(), y.to_array());
+            (col[k], col[k + 1], row[k], row[k + 1]) = (x[0], x[1], y[0], y[1]);
+        }
+        if n % 2 == 1 {
+            let k = n - 1;
+            let per_tan = Refraction::aschenbrenner_per_tan(self.centre.z, g[2][k]);
+            (col[k], row[k]) = self.refracted(col[k], row[k], (g[0][k], g[1][k], g[2][k]), per_tan);
         }
     }
 }
@@ -135,15 +157,20 @@ impl SensorModel for FrameCamera {
         let ha = self.centre.z;
         match self.refraction {
             Refraction::None => {}
-            r if r.is_aschenbrenner_at(ha) => self.refract_all([x, y, z], col, row, |hg| Refraction::aschenbrenner_per_tan(ha, hg)),
+            r if r.is_aschenbrenner_at(ha) => self.refract_all_aschenbrenner([x, y, z], col, row),
             r => self.refract_all([x, y, z], col, row, |hg| r.angle_per_tan(ha, hg)),
         }
         let f = self.focal_mm;
         match self.distortion {
             Distortion::None => {}
             Distortion::Radial(b) => {
-                for k in 0..n {
-                    (col[k], row[k]) = Distortion::radial(b, col[k], row[k]);
+                let (pairs, rows) = (col.chunks_exact_mut(2), row.chunks_exact_mut(2));
+                for (c, r) in pairs.zip(rows) {
+                    let (x, y) = Distortion::radial(b, f64x2::new([c[0], c[1]]), f64x2::new([r[0], r[1]]));
+                    (c.copy_from_slice(&x.to_array()), r.copy_from_slice(&y.to_array()));
+                }
+                if n % 2 == 1 {
+                    (col[n - 1], row[n - 1]) = Distortion::radial(b, col[n - 1], row[n - 1]);
                 }
             }
             Distortion::Brown(b) => {

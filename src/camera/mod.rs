@@ -6,6 +6,7 @@ pub mod distortion;
 pub mod file;
 pub mod frame;
 pub mod interior;
+pub mod lanes;
 pub mod rotation;
 pub mod rpc;
 pub mod satellite;
