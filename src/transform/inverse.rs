@@ -90,7 +90,7 @@ pub struct RunScratch {
     x: Vec<f64>,
     y: Vec<f64>,
     z: Vec<f64>,
-    slope: Vec<(f64, f64)>,
+    height: Vec<(f64, f64, f64)>,
     col: Vec<f64>,
     row: Vec<f64>,
 }
@@ -111,15 +111,12 @@ impl<M: SensorModel + ?Sized> RayCaster<'_, M> {
         }
         s.x.clear();
         s.y.clear();
+        s.x.extend(guess.iter().map(|g| g.0));
+        s.y.extend(guess.iter().map(|g| g.1));
+        s.height.resize(n, (0.0, 0.0, 0.0));
+        self.dem.height_gradient_many(&s.x, &s.y, &mut s.height);
         s.z.clear();
-        s.slope.clear();
-        for &(x, y) in guess {
-            let (z, gx, gy) = self.dem.height_gradient(x, y).unwrap_or((f64::NAN, 0.0, 0.0));
-            s.x.push(x);
-            s.y.push(y);
-            s.z.push(z);
-            s.slope.push((gx, gy));
-        }
+        s.z.extend(s.height.iter().map(|h| h.0));
         s.col.resize(n, 0.0);
         s.row.resize(n, 0.0);
         self.model.project_many(&s.x, &s.y, &s.z, &mut s.col, &mut s.row);
@@ -137,7 +134,7 @@ impl<M: SensorModel + ?Sized> RayCaster<'_, M> {
             let e = (cols[k] - s.col[k], row - s.row[k]);
             // NaN (no height, not imaged) fails the test too.
             out[k] = if e.0 * e.0 + e.1 * e.1 < tol2 {
-                let (gx, gy) = s.slope[k];
+                let (_, gx, gy) = s.height[k];
                 let (x, y, z) = (s.x[k], s.y[k], s.z[k]);
                 match self.partials.and_then(|(p, _)| newton_step(p, gx, gy, e)) {
                     Some(d) => Some([x + d.0, y + d.1, z + gx * d.0 + gy * d.1]),
