@@ -249,15 +249,22 @@ impl GridDem {
         if holes {
             return None;
         }
-        let (z00, z10, z01, z11) = (z00 as f64, z10 as f64, z01 as f64, z11 as f64);
-        // Along the top and bottom edges first, then between them: the
-        // height and both slopes from the same few differences.
+        Some(self.height_and_slopes([z00, z10, z01, z11], fx, fy))
+    }
+
+    /// Height and slopes (dZ/dX, dZ/dY) in a cell with corner samples
+    /// `[z00, z10, z01, z11]` at (fx, fy) within it: along the top and
+    /// bottom edges first, then between them, from the same few
+    /// differences. A NaN corner makes the height NaN.
+    #[inline(always)]
+    fn height_and_slopes(&self, z: [f32; 4], fx: f64, fy: f64) -> (f64, f64, f64) {
+        let [z00, z10, z01, z11] = z.map(f64::from);
         let (dtop, dbottom) = (z10 - z00, z11 - z01);
         let (top, bottom) = (z00 + fx * dtop, z01 + fx * dbottom);
-        let z = top + fy * (bottom - top);
+        let height = top + fy * (bottom - top);
         let dzdc = dtop + fy * (dbottom - dtop);
         let dzdr = bottom - top;
-        Some((z, dzdc * self.inv_step.0, dzdr * self.inv_step.1))
+        (height, dzdc * self.inv_step.0, dzdr * self.inv_step.1)
     }
 
     /// `lookup_gradient` for many points: `out[k]` is (Z, dZ/dX, dZ/dY) at
@@ -288,15 +295,10 @@ impl GridDem {
             let j0 = (floor_split(r).0 as usize).min(self.height - 2);
             let (fx, fy) = (c - i0 as f64, r - j0 as f64);
             let at = j0 * self.width + i0;
-            let (z00, z10, z01, z11) = (v[at], v[at + 1], v[at + self.width], v[at + self.width + 1]);
-            let (z00, z10, z01, z11) = (z00 as f64, z10 as f64, z01 as f64, z11 as f64);
-            // As in lookup_gradient; a hole (NaN) makes z NaN by itself.
-            let (dtop, dbottom) = (z10 - z00, z11 - z01);
-            let (top, bottom) = (z00 + fx * dtop, z01 + fx * dbottom);
-            let z = top + fy * (bottom - top);
-            let dzdc = dtop + fy * (dbottom - dtop);
-            let dzdr = bottom - top;
-            out[k] = if inside && !z.is_nan() { (z, dzdc * self.inv_step.0, dzdr * self.inv_step.1) } else { (f64::NAN, 0.0, 0.0) };
+            let corners = [v[at], v[at + 1], v[at + self.width], v[at + self.width + 1]];
+            // A hole (NaN) makes the height NaN by itself.
+            let found = self.height_and_slopes(corners, fx, fy);
+            out[k] = if inside && !found.0.is_nan() { found } else { (f64::NAN, 0.0, 0.0) };
         }
     }
 
