@@ -321,6 +321,21 @@ impl SourceImage {
                 5 | 8 | 32946 | 32773 | 7 | 50000 => {}
                 c => return Err(Error::unsupported(path, format!("TIFF compression {c}"))),
             }
+            // The decoder hands out the samples of its colour type: an RGB
+            // file whose extra band is not alpha (an RGB + NIR aerial)
+            // decodes to three of its four bands.
+            if let Ok(colour) = dec.colortype() {
+                if !info.planar && u32::from(colour.num_samples()) != info.bands {
+                    return Err(Error::unsupported(
+                        path,
+                        format!(
+                            "{} interleaved bands, of which the TIFF decoder delivers {} when compressed (an RGB file whose extra band is not alpha); store it uncompressed or band-interleaved (planar)",
+                            info.bands,
+                            colour.num_samples()
+                        ),
+                    ));
+                }
+            }
             Backend::Coded {
                 decoders: Mutex::new(vec![dec]),
                 cache: Mutex::new(ChunkCache { map: HashMap::new(), bytes: 0, budget: cache_bytes, tick: 0 }),
@@ -591,5 +606,45 @@ fn decoding_bytes(r: DecodingResult, s: SampleType) -> Option<Vec<u8>> {
         (DecodingResult::U16(v), SampleType::U16) => Some(v.iter().flat_map(|x| x.to_ne_bytes()).collect()),
         (DecodingResult::F32(v), SampleType::F32) => Some(v.iter().flat_map(|x| x.to_ne_bytes()).collect()),
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::tiff_out::{write_raster, Chunking, Compression, OutputSpec};
+
+    /// A 40×30 four-band 8-bit RGB file (the 4th band not alpha).
+    fn rgb_plus_one(path: &Path, compression: Compression) {
+        let spec = OutputSpec {
+            width: 40,
+            height: 30,
+            bands: 4,
+            sample: SampleType::U8,
+            chunking: Chunking::Strips(16),
+            compression,
+            bigtiff: false,
+            photometric: 2,
+            alpha: false,
+            geo: None,
+        };
+        write_raster(path, &spec, |y0, _, buf| {
+            for (k, v) in buf.iter_mut().enumerate() {
+                *v = (k as u32 + y0 * 7) as u8;
+            }
+        })
+        .unwrap();
+    }
+
+    #[test]
+    fn a_compressed_rgb_file_with_a_fourth_band_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let (plain, packed) = (dir.path().join("plain.tif"), dir.path().join("packed.tif"));
+        rgb_plus_one(&plain, Compression::None);
+        rgb_plus_one(&packed, Compression::Lzw);
+        assert_eq!(SourceImage::open(&plain, 1 << 20).unwrap().info.bands, 4);
+        let Err(e) = SourceImage::open(&packed, 1 << 20) else { panic!("the decoder would drop the 4th band") };
+        let msg = e.to_string();
+        assert!(msg.starts_with(&packed.display().to_string()) && msg.contains("delivers 3"), "{msg}");
     }
 }
