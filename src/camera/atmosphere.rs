@@ -33,10 +33,12 @@ pub enum Refraction {
     Auto,
 }
 
-/// Aschenbrenner (2.3.5), arc seconds. All heights and `l_km` in km.
+/// Aschenbrenner (2.3.5), arc seconds. All heights and `l_km` in km; one
+/// number or two in SIMD lanes.
 #[must_use]
-pub fn aschenbrenner_arcsec(ha_km: f64, h_km: f64, l_km: f64) -> f64 {
-    3.1 * l_km * (1.0 - 0.035 * (3.0 * ha_km - h_km))
+#[inline(always)]
+pub fn aschenbrenner_arcsec<T: Lanes>(ha_km: T, h_km: T, l_km: T) -> T {
+    T::splat(3.1) * l_km * (T::splat(1.0) - T::splat(0.035) * (T::splat(3.0) * ha_km - h_km))
 }
 
 /// Kushtin, arc seconds: (2.3.6) below 11 km, (2.3.7) from 11 to 70 km.
@@ -97,9 +99,7 @@ impl Refraction {
     #[inline(always)]
     pub fn aschenbrenner_per_tan<T: Lanes>(ha_m: T, hg_m: T) -> T {
         let (ha, hg) = (ha_m * T::splat(1e-3), hg_m * T::splat(1e-3));
-        let (h, one, k) = (ha - hg, T::splat(1.0), T::splat(0.035));
-        // aschenbrenner_arcsec(ha, h, h), spelt out for lanes.
-        let arcsec = T::splat(3.1) * h * (one - k * (T::splat(3.0) * ha - h));
+        let arcsec = aschenbrenner_arcsec(ha, ha - hg, ha - hg);
         T::if_greater(ha, hg, arcsec * T::splat(ARCSEC), T::splat(0.0))
     }
 }

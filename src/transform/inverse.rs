@@ -35,6 +35,27 @@ impl<'a, M: SensorModel + ?Sized> RayCaster<'a, M> {
         Some([[(cx - c) / h, (cy - c) / h, (cz - c) / h], [(rx - r) / h, (ry - r) / h, (rz - r) / h]])
     }
 
+    /// Are there no partials, or were they taken too far from (x, y)?
+    #[inline]
+    fn partials_stale(&self, x: f64, y: f64) -> bool {
+        match self.partials {
+            None => true,
+            Some((_, at)) => (at.0 - x).abs() + (at.1 - y).abs() > self.stale_after,
+        }
+    }
+
+    /// A ground point `p` within the tolerance (image error `e`, terrain
+    /// slope `slope` there) after one more Newton step, which costs no
+    /// projection: the answer is then far inside the tolerance, and a
+    /// neighbour's guess extrapolated from it stays inside it too.
+    #[inline]
+    fn polished(&self, [x, y, z]: [f64; 3], (gx, gy): (f64, f64), e: (f64, f64)) -> [f64; 3] {
+        match self.partials.and_then(|(p, _)| newton_step(p, gx, gy, e)) {
+            Some(d) => [x + d.0, y + d.1, z + gx * d.0 + gy * d.1],
+            None => [x, y, z],
+        }
+    }
+
     /// Ground (X, Y, Z) on the DEM imaged at (col, row), to `tol` pixels,
     /// starting from `guess` (a neighbouring pixel's answer) or from the
     /// model's own inverse at `z_guess`.
@@ -53,22 +74,12 @@ impl<'a, M: SensorModel + ?Sized> RayCaster<'a, M> {
             let e = (col - c, row - r);
             let err2 = e.0 * e.0 + e.1 * e.1;
             if err2 < tol2 {
-                // One more Newton step costs no projection: the answer is
-                // then far inside the tolerance, and a neighbour's guess
-                // extrapolated from it stays inside it too.
-                if let Some(d) = self.partials.and_then(|(p, _)| newton_step(p, gx, gy, e)) {
-                    return Some([x + d.0, y + d.1, z + gx * d.0 + gy * d.1]);
-                }
-                return Some([x, y, z]);
+                return Some(self.polished([x, y, z], (gx, gy), e));
             }
             if best.is_none_or(|b| err2 < b.1) {
                 best = Some(([x, y, z], err2));
             }
-            let stale = match self.partials {
-                None => true,
-                Some((_, at)) => (at.0 - x).abs() + (at.1 - y).abs() > self.stale_after,
-            };
-            if stale || (it > 4 && !refreshed) {
+            if self.partials_stale(x, y) || (it > 4 && !refreshed) {
                 self.partials = self.partials_at(x, y, z).map(|p| (p, (x, y)));
                 refreshed = it > 4;
             }
@@ -122,11 +133,7 @@ impl<M: SensorModel + ?Sized> RayCaster<'_, M> {
         self.model.project_many(&s.x, &s.y, &s.z, &mut s.col, &mut s.row);
         // The partials near the middle of the run.
         let (mx, my, mz) = (s.x[n / 2], s.y[n / 2], s.z[n / 2]);
-        let stale = match self.partials {
-            None => true,
-            Some((_, at)) => (at.0 - mx).abs() + (at.1 - my).abs() > self.stale_after,
-        };
-        if stale && !mz.is_nan() {
+        if self.partials_stale(mx, my) && !mz.is_nan() {
             self.partials = self.partials_at(mx, my, mz).map(|p| (p, (mx, my)));
         }
         let tol2 = tol * tol;
@@ -135,11 +142,7 @@ impl<M: SensorModel + ?Sized> RayCaster<'_, M> {
             // NaN (no height, not imaged) fails the test too.
             out[k] = if e.0 * e.0 + e.1 * e.1 < tol2 {
                 let (_, gx, gy) = s.height[k];
-                let (x, y, z) = (s.x[k], s.y[k], s.z[k]);
-                match self.partials.and_then(|(p, _)| newton_step(p, gx, gy, e)) {
-                    Some(d) => Some([x + d.0, y + d.1, z + gx * d.0 + gy * d.1]),
-                    None => Some([x, y, z]),
-                }
+                Some(self.polished([s.x[k], s.y[k], s.z[k]], (gx, gy), e))
             } else {
                 None
             };
