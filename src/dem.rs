@@ -5,6 +5,7 @@
 use crate::camera::Plane;
 use crate::error::{Error, Result};
 use crate::geodesy::Reprojection;
+use crate::io::chunked_raster::ChunkedRaster;
 use crate::io::geotiff::{read_georef, GeoRef};
 use crate::resample::floor_split;
 use std::path::{Path, PathBuf};
@@ -54,11 +55,7 @@ enum Samples {
 
 /// Out-of-core samples: the file's strips or tiles, decoded on demand.
 struct ChunkedSamples {
-    path: PathBuf,
-    width: usize,
-    chunk: (usize, usize),
-    across: usize,
-    decoders: std::sync::Mutex<Vec<tiff::decoder::Decoder<std::io::BufReader<std::fs::File>>>>,
+    raster: ChunkedRaster,
     cache: std::sync::Mutex<(std::collections::HashMap<usize, (std::sync::Arc<Vec<f32>>, u64)>, u64)>,
     /// Chunks kept at most.
     keep: usize,
@@ -75,13 +72,7 @@ impl ChunkedSamples {
                 return Some(e.0.clone());
             }
         }
-        let mut dec = match self.decoders.lock().ok()?.pop() {
-            Some(d) => d,
-            None => open_decoder(&self.path).ok()?,
-        };
-        let r = dec.read_chunk(k as u32).ok();
-        self.decoders.lock().ok()?.push(dec);
-        let v = std::sync::Arc::new(to_f32(r?)?);
+        let v = std::sync::Arc::new(self.raster.chunk(k).ok()?);
         let mut c = self.cache.lock().ok()?;
         c.1 += 1;
         let tick = c.1;
@@ -95,38 +86,14 @@ impl ChunkedSamples {
 
     /// Sample (i, j); NaN when its chunk cannot be read.
     fn get(&self, i: usize, j: usize) -> f32 {
-        let (cw, ch) = self.chunk;
+        let (cw, ch) = self.raster.chunk;
         let (tx, ty) = (i / cw, j / ch);
-        match self.chunk(ty * self.across + tx) {
-            // The decoder crops edge tiles to their data: the row stride is
-            // the chunk's data width (strips span the image width).
-            Some(c) => {
-                let stride = cw.min(self.width - tx * cw);
-                c.get((j - ty * ch) * stride + (i - tx * cw)).copied().unwrap_or(f32::NAN)
-            }
+        match self.chunk(ty * self.raster.across() + tx) {
+            // Chunks come at their full width (strips span the image).
+            Some(c) => c.get((j - ty * ch) * cw + (i - tx * cw)).copied().unwrap_or(f32::NAN),
             None => f32::NAN,
         }
     }
-}
-
-fn open_decoder(path: &Path) -> Result<tiff::decoder::Decoder<std::io::BufReader<std::fs::File>>> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    Ok(tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(|e| Error::from_tiff(path, e))?.with_limits(crate::io::source::decoder_limits()))
-}
-
-fn to_f32(img: tiff::decoder::DecodingResult) -> Option<Vec<f32>> {
-    use tiff::decoder::DecodingResult as D;
-    Some(match img {
-        D::U8(v) => v.into_iter().map(f32::from).collect(),
-        D::U16(v) => v.into_iter().map(f32::from).collect(),
-        D::I8(v) => v.into_iter().map(f32::from).collect(),
-        D::I16(v) => v.into_iter().map(f32::from).collect(),
-        D::U32(v) => v.into_iter().map(|x| x as f32).collect(),
-        D::I32(v) => v.into_iter().map(|x| x as f32).collect(),
-        D::F32(v) => v,
-        D::F64(v) => v.into_iter().map(|x| x as f32).collect(),
-        _ => return None,
-    })
 }
 
 /// DEMs larger than this are read a chunk at a time.
@@ -325,18 +292,8 @@ impl GridDem {
         let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file))
             .map_err(|e| Error::from_tiff(path, e))?
             .with_limits(crate::io::source::decoder_limits());
-        let (w, h) = dec.dimensions().map_err(|e| Error::from_tiff(path, e))?;
-        let ct = dec.colortype().map_err(|e| Error::from_tiff(path, e))?;
-        let bands = match ct {
-            tiff::ColorType::Gray(_) => 1,
-            tiff::ColorType::RGB(_) => 3,
-            tiff::ColorType::RGBA(_) => 4,
-            tiff::ColorType::GrayA(_) => 2,
-            _ => 0,
-        };
-        if bands != 1 {
-            return Err(Error::format(path, format!("a DEM must be a single-band raster, this one is {ct:?}")));
-        }
+        let raster = ChunkedRaster::open(&mut dec, path)?;
+        let (w, h) = (raster.width as u32, raster.height as u32);
         let geo = read_georef(&mut dec, path)?
             .ok_or_else(|| Error::format(path, "the DEM has no georeferencing (no ModelPixelScale/ModelTiepoint)"))?;
         check_north_up(&geo, path)?;
@@ -347,21 +304,12 @@ impl GridDem {
         if pixels * 4 > max_bytes {
             // Out of core: chunks decoded on demand into a cache of at most
             // 16 MB within the budget.
-            let (cw, ch) = dec.chunk_dimensions();
-            let (cw, ch) = (cw.max(1) as usize, ch.max(1) as usize);
-            let tiled = matches!(dec.get_chunk_type(), tiff::decoder::ChunkType::Tile);
-            let across = if tiled { (w as usize).div_ceil(cw) } else { 1 };
+            // The first chunk's error, if any, names the problem now.
+            raster.chunk(0)?;
+            let (cw, ch) = raster.chunk;
             let cache = (max_bytes as usize).min(16 << 20);
             let keep = (cache / (cw * ch * 4)).max(4);
-            let chunked = ChunkedSamples {
-                path: path.to_path_buf(),
-                width: w as usize,
-                chunk: if tiled { (cw, ch) } else { (w as usize, ch) },
-                across,
-                decoders: std::sync::Mutex::new(vec![dec]),
-                cache: std::sync::Mutex::new((Default::default(), 0)),
-                keep,
-            };
+            let chunked = ChunkedSamples { raster, cache: std::sync::Mutex::new((Default::default(), 0)), keep };
             let gt = geo.transform;
             let g = GridDem {
                 width: w as usize,
@@ -378,11 +326,7 @@ impl GridDem {
             }
             return Ok(g);
         }
-        let img = dec.read_image().map_err(|e| Error::from_tiff(path, e))?;
-        let data = to_f32(img).ok_or_else(|| Error::unsupported(path, "DEM sample type"))?;
-        if data.len() != pixels as usize {
-            return Err(Error::format(path, "DEM data size does not match its dimensions"));
-        }
+        let data = raster.read_all()?;
         let g = GridDem::new(w as usize, h as usize, data, geo.transform, geo.nodata, geo.epsg);
         if g.samples(1).iter().all(|&v| g.is_nodata(v)) {
             return Err(Error::format(path, "every sample of the DEM is nodata"));

@@ -100,3 +100,140 @@ fn planar_input_made_by_gdal_gives_the_same_orthophoto() {
     }
     assert!(outs[0] == outs[1]);
 }
+
+/// Copies `src` with `gdal_translate` and these creation options.
+fn gdal_copy(src: &std::path::Path, dst: &std::path::Path, opts: &[&str]) -> bool {
+    let mut args = vec!["-q"];
+    for o in opts {
+        args.extend(["-co", o]);
+    }
+    let r = Command::new("gdal_translate").args(&args).args([s(src), s(dst)]).output().unwrap();
+    if !r.status.success() {
+        eprintln!("gdal_translate {opts:?}: {}", String::from_utf8_lossy(&r.stderr));
+    }
+    r.status.success()
+}
+
+/// The orthophoto of a scene with this scan and DEM, as bytes.
+fn ortho(sc: &gcm_ortho::synth::SynthReport, scan: &std::path::Path, dem: &std::path::Path, out: &std::path::Path) -> Vec<u8> {
+    let r = run(&["rectify", "--image", s(scan), "--camera", s(&sc.camera), "--dem", s(dem), "-o", s(out), "--quiet", "--compress", "none"]);
+    assert!(r.status.success(), "{}: {}", s(scan), String::from_utf8_lossy(&r.stderr));
+    std::fs::read(out).unwrap()
+}
+
+#[test]
+fn an_rgb_nir_scan_compressed_by_gdal_gives_the_same_orthophoto_in_every_coding() {
+    if !have("gdal_translate") {
+        eprintln!("skipped: gdal_translate not installed (apt-get install gdal-bin)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    // 16-bit RGB + a 4th band that is not alpha: interleaved, the `tiff`
+    // crate would decode three bands; big-endian copies test byte order.
+    let sc = scene(&dir.path().join("scene"), 500, |o| {
+        o.bands = 4;
+        o.bits = 16;
+    });
+    let j = gdalinfo_json(&sc.scan);
+    assert_eq!(j["bands"][3]["colorInterpretation"], "Undefined");
+    let want = ortho(&sc, &sc.scan, &sc.dem, &dir.path().join("plain-ortho.tif"));
+    let mut made = 0;
+    for (name, opts) in [
+        ("deflate-h", &["COMPRESS=DEFLATE", "PREDICTOR=2"][..]),
+        ("lzw-tiles", &["COMPRESS=LZW", "TILED=YES", "BLOCKXSIZE=48", "BLOCKYSIZE=32"][..]),
+        ("lzw-h-big", &["COMPRESS=LZW", "PREDICTOR=2", "ENDIANNESS=BIG", "BLOCKYSIZE=7"][..]),
+        ("packbits-big-tiles", &["COMPRESS=PACKBITS", "ENDIANNESS=BIG", "TILED=YES"][..]),
+        ("zstd-h", &["COMPRESS=ZSTD", "PREDICTOR=2", "TILED=YES", "BLOCKXSIZE=64", "BLOCKYSIZE=16"][..]),
+    ] {
+        let copy = dir.path().join(format!("{name}.tif"));
+        if !gdal_copy(&sc.scan, &copy, opts) {
+            assert!(name.starts_with("zstd"), "GDAL could not write {name}");
+            eprintln!("this GDAL lacks ZSTD; skipped {name}");
+            continue;
+        }
+        let got = ortho(&sc, &copy, &sc.dem, &dir.path().join(format!("{name}-ortho.tif")));
+        assert!(got == want, "{name} gives another orthophoto");
+        made += 1;
+    }
+    assert!(made >= 4);
+}
+
+#[test]
+fn a_dem_compressed_by_gdal_gives_the_same_orthophoto_in_every_coding() {
+    if !have("gdal_translate") {
+        eprintln!("skipped: gdal_translate not installed (apt-get install gdal-bin)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 400, |_| {});
+    let j = gdalinfo_json(&sc.dem);
+    assert_eq!(j["bands"][0]["type"], "Float32");
+    let want = ortho(&sc, &sc.scan, &sc.dem, &dir.path().join("plain-ortho.tif"));
+    // Float32 heights in every coding, and Float64 (exact for them). LZW
+    // tiles whose data ends on a tile's last byte failed in the `tiff`
+    // crate's reader (image-rs/image-tiff#395).
+    for (name, opts) in [
+        ("lzw-fp-tiles", &["COMPRESS=LZW", "PREDICTOR=3", "TILED=YES", "BLOCKXSIZE=16", "BLOCKYSIZE=16"][..]),
+        ("lzw-tiles-48", &["COMPRESS=LZW", "TILED=YES", "BLOCKXSIZE=48", "BLOCKYSIZE=48"][..]),
+        ("deflate-h-big", &["COMPRESS=DEFLATE", "PREDICTOR=2", "ENDIANNESS=BIG"][..]),
+        // (Not PREDICTOR=3 with ENDIANNESS=BIG: GDAL reads its own such
+        // files back as other numbers.)
+        ("deflate-fp-strips", &["COMPRESS=DEFLATE", "PREDICTOR=3", "BLOCKYSIZE=5"][..]),
+        ("packbits", &["COMPRESS=PACKBITS"][..]),
+        ("float64-fp", &["COMPRESS=DEFLATE", "PREDICTOR=3"][..]),
+    ] {
+        let copy = dir.path().join(format!("{name}.tif"));
+        let ok = if name.starts_with("float64") {
+            Command::new("gdal_translate").args(["-q", "-ot", "Float64"]).args(opts.iter().flat_map(|o| ["-co", o])).args([s(&sc.dem), s(&copy)]).status().unwrap().success()
+        } else {
+            gdal_copy(&sc.dem, &copy, opts)
+        };
+        assert!(ok, "GDAL could not write {name}");
+        let got = ortho(&sc, &sc.scan, &copy, &dir.path().join(format!("{name}-ortho.tif")));
+        assert!(got == want, "the DEM as {name} gives another orthophoto");
+    }
+    // Int16 heights (as SRTM has them): every coding as the plain copy.
+    let int16 = dir.path().join("int16.tif");
+    assert!(Command::new("gdal_translate").args(["-q", "-ot", "Int16", s(&sc.dem), s(&int16)]).status().unwrap().success());
+    let want16 = ortho(&sc, &sc.scan, &int16, &dir.path().join("int16-ortho.tif"));
+    for (name, opts) in [("int16-lzw-h-tiles", &["COMPRESS=LZW", "PREDICTOR=2", "TILED=YES", "BLOCKXSIZE=32", "BLOCKYSIZE=16"][..]), ("int16-deflate-big", &["COMPRESS=DEFLATE", "ENDIANNESS=BIG"][..])] {
+        let copy = dir.path().join(format!("{name}.tif"));
+        assert!(gdal_copy(&int16, &copy, opts), "GDAL could not write {name}");
+        let got = ortho(&sc, &sc.scan, &copy, &dir.path().join(format!("{name}-ortho.tif")));
+        assert!(got == want16, "the DEM as {name} gives another orthophoto");
+    }
+}
+
+#[test]
+fn a_jpeg_compressed_rgb_scan_gives_the_orthophoto_within_jpeg_loss() {
+    if !have("gdal_translate") {
+        eprintln!("skipped: gdal_translate not installed (apt-get install gdal-bin)");
+        return;
+    }
+    use gcm_ortho::io::source::{SourceImage, Window};
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 400, |_| {});
+    let jpeg = dir.path().join("jpeg.tif");
+    assert!(gdal_copy(&sc.scan, &jpeg, &["COMPRESS=JPEG", "PHOTOMETRIC=RGB", "JPEG_QUALITY=90", "TILED=YES"]));
+    let pixels = |bytes: Vec<u8>, name: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        let img = SourceImage::open(&p, 1 << 20).unwrap();
+        let mut win = Window::default();
+        img.read_window(0, 0, img.info.width, img.info.height, &mut win).unwrap();
+        win.bytes().to_vec()
+    };
+    let want = pixels(ortho(&sc, &sc.scan, &sc.dem, &dir.path().join("a.tif")), "plain-copy.tif");
+    let got = pixels(ortho(&sc, &jpeg, &sc.dem, &dir.path().join("b.tif")), "jpeg-copy.tif");
+    assert_eq!(got.len(), want.len());
+    let mean = got.iter().zip(&want).map(|(&a, &b)| (a as f64 - b as f64).abs()).sum::<f64>() / got.len() as f64;
+    // JPEG at quality 90 moves a level or two on average; a band dropped,
+    // swapped or misplaced would move tens.
+    assert!(mean < 3.0, "mean difference {mean} levels");
+    // YCbCr (GDAL's usual JPEG) is refused by name.
+    let ycbcr = dir.path().join("ycbcr.tif");
+    assert!(gdal_copy(&sc.scan, &ycbcr, &["COMPRESS=JPEG", "PHOTOMETRIC=YCBCR"]));
+    let r = run(&["rectify", "--image", s(&ycbcr), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&dir.path().join("c.tif")), "--quiet"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains(s(&ycbcr)) && err.contains("YCbCr"), "{err}");
+}

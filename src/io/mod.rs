@@ -1,6 +1,8 @@
 //! Reading scans and rasters, writing the tiled GeoTIFF.
 
 pub mod assemble;
+pub mod chunk_codec;
+pub mod chunked_raster;
 pub mod geotiff;
 pub mod maps;
 pub mod mmap_guard;

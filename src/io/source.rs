@@ -7,6 +7,7 @@
 //! source columns).
 
 use crate::error::{Error, Result};
+use crate::io::chunk_codec::{file_is_big_endian, ChunkCodec};
 use crate::io::geotiff::{read_georef, GeoRef};
 use std::collections::HashMap;
 use std::fs::File;
@@ -135,8 +136,16 @@ enum Backend {
     /// Uncompressed: read in place from the mapping (or by `pread` where
     /// the file cannot be mapped).
     Raw { map: Option<memmap2::Mmap>, file: File },
-    /// Compressed: decoders (one per concurrent reader) and a chunk cache.
-    Coded { decoders: Mutex<Vec<Decoder<BufReader<File>>>>, cache: Mutex<ChunkCache> },
+    /// Compressed: how chunks are decoded, and a cache of decoded chunks.
+    Coded { coder: Coder, cache: Mutex<ChunkCache> },
+}
+
+enum Coder {
+    /// Deflate, LZW, PackBits, zstd: decoded by `chunk_codec` from the
+    /// chunk's bytes, read with `pread`.
+    Own(ChunkCodec, File),
+    /// JPEG: `tiff` crate decoders, one per concurrent reader.
+    Tiff(Mutex<Vec<Decoder<BufReader<File>>>>),
 }
 
 /// Decoded chunks kept for the next window, bounded in bytes.
@@ -272,6 +281,11 @@ fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_len: u64) -> 
             ));
         }
     }
+    // A compressed chunk is decoded whole into memory.
+    if compression != 1 && info.chunk_plane_bytes() > decoder_limits().decoding_buffer_size as u64 {
+        let (cw, ch) = info.chunk;
+        return Err(Error::limits(path, format!("compressed chunks of {cw}×{ch} pixels are too large to decode (re-tile the file)")));
+    }
     if compression == 1 {
         for (k, &n) in info.byte_counts.iter().enumerate() {
             if n < info.chunk_data_bytes(k as u32) {
@@ -317,29 +331,32 @@ impl SourceImage {
             }
             Backend::Raw { map, file }
         } else {
-            match info.compression {
-                5 | 8 | 32946 | 32773 | 7 | 50000 => {}
-                c => return Err(Error::unsupported(path, format!("TIFF compression {c}"))),
-            }
-            // The decoder hands out the samples of its colour type: an RGB
-            // file whose extra band is not alpha (an RGB + NIR aerial)
-            // decodes to three of its four bands.
-            if let Ok(colour) = dec.colortype() {
-                if !info.planar && u32::from(colour.num_samples()) != info.bands {
-                    return Err(Error::unsupported(
-                        path,
-                        format!(
-                            "{} interleaved bands, of which the TIFF decoder delivers {} when compressed (an RGB file whose extra band is not alpha); store it uncompressed or band-interleaved (planar)",
-                            info.bands,
-                            colour.num_samples()
-                        ),
-                    ));
+            let cache = Mutex::new(ChunkCache { map: HashMap::new(), bytes: 0, budget: cache_bytes, tick: 0 });
+            let coder = if info.compression == 7 {
+                // JPEG: decoded by the `tiff` crate, which hands out the
+                // samples of its colour type.
+                if let Ok(colour) = dec.colortype() {
+                    if !info.planar && u32::from(colour.num_samples()) != info.bands {
+                        return Err(Error::unsupported(
+                            path,
+                            format!("JPEG compression of {} interleaved bands (the decoder delivers {})", info.bands, colour.num_samples()),
+                        ));
+                    }
                 }
-            }
-            Backend::Coded {
-                decoders: Mutex::new(vec![dec]),
-                cache: Mutex::new(ChunkCache { map: HashMap::new(), bytes: 0, budget: cache_bytes, tick: 0 }),
-            }
+                Coder::Tiff(Mutex::new(vec![dec]))
+            } else {
+                let codec = ChunkCodec {
+                    compression: info.compression,
+                    predictor: info.predictor,
+                    sample_bytes: info.sample.bytes(),
+                    float: info.sample == SampleType::F32,
+                    samples: if info.planar { 1 } else { info.bands as usize },
+                    big_endian: file_is_big_endian(&file).map_err(|e| Error::io(path, e))?,
+                };
+                codec.check().map_err(|what| Error::unsupported(path, what))?;
+                Coder::Own(codec, file)
+            };
+            Backend::Coded { coder, cache }
         };
         Ok(SourceImage { path: path.to_path_buf(), info, backend })
     }
@@ -473,10 +490,21 @@ impl SourceImage {
 
     /// A decoded chunk (full chunk width, native-endian), from the cache.
     fn decoded(&self, k: u32) -> Result<Arc<Vec<u8>>> {
-        let Backend::Coded { decoders, cache } = &self.backend else { unreachable!("only for coded files") };
+        let Backend::Coded { coder, cache } = &self.backend else { unreachable!("only for coded files") };
         if let Some(v) = cache.lock().expect("cache lock").get(k) {
             return Ok(v);
         }
+        let bytes = match coder {
+            Coder::Own(codec, file) => self.decode_own(k, codec, file)?,
+            Coder::Tiff(decoders) => self.decode_with_tiff(k, decoders)?,
+        };
+        let v = Arc::new(bytes);
+        cache.lock().expect("cache lock").put(k, v.clone());
+        Ok(v)
+    }
+
+    /// Chunk `k` decoded by the `tiff` crate, re-padded to the full chunk width.
+    fn decode_with_tiff(&self, k: u32, decoders: &Mutex<Vec<Decoder<BufReader<File>>>>) -> Result<Vec<u8>> {
         let mut dec = match decoders.lock().expect("decoder lock").pop() {
             Some(d) => d,
             None => {
@@ -505,19 +533,31 @@ impl SourceImage {
             return Err(Error::format(&self.path, format!("chunk {k} decodes to fewer bytes than its pixels need")));
         }
         let stride = cw as usize * spp * sb;
-        let padded = if got_w == cw && got_h == want_rows {
-            bytes
-        } else {
-            let mut p = vec![0u8; stride * want_rows as usize];
-            let row = got_w as usize * spp * sb;
-            for y in 0..got_h as usize {
-                p[y * stride..y * stride + row].copy_from_slice(&bytes[y * row..(y + 1) * row]);
-            }
-            p
-        };
-        let v = Arc::new(padded);
-        cache.lock().expect("cache lock").put(k, v.clone());
-        Ok(v)
+        if got_w == cw && got_h == want_rows {
+            return Ok(bytes);
+        }
+        let mut padded = vec![0u8; stride * want_rows as usize];
+        let row = got_w as usize * spp * sb;
+        for y in 0..got_h as usize {
+            padded[y * stride..y * stride + row].copy_from_slice(&bytes[y * row..(y + 1) * row]);
+        }
+        Ok(padded)
+    }
+
+    /// Chunk `k` decoded by `chunk_codec`: tiles are stored whole, so the
+    /// bytes come out at the chunk's full width and height already.
+    fn decode_own(&self, k: u32, codec: &ChunkCodec, file: &File) -> Result<Vec<u8>> {
+        use std::os::unix::fs::FileExt;
+        let info = &self.info;
+        let (o, n) = (info.offsets[k as usize], info.byte_counts[k as usize]);
+        if n > decoder_limits().intermediate_buffer_size as u64 {
+            return Err(Error::limits(&self.path, format!("chunk {k} holds {n} compressed bytes")));
+        }
+        let mut coded = vec![0u8; n as usize];
+        file.read_exact_at(&mut coded, o).map_err(|e| Error::io(&self.path, e))?;
+        let (cw, ch) = info.chunk;
+        let rows = if info.tiled { ch } else { (info.height - k % info.chunks_per_plane() * ch).min(ch) };
+        codec.decode(&coded, cw as usize, rows as usize).map_err(|e| Error::format(&self.path, format!("chunk {k}: {e}")))
     }
 
     /// Rows `[y0, y0+h)`, columns `[x0, x0+w)` in place in the mapped file,
@@ -614,37 +654,89 @@ mod tests {
     use super::*;
     use crate::io::tiff_out::{write_raster, Chunking, Compression, OutputSpec};
 
-    /// A 40×30 four-band 8-bit RGB file (the 4th band not alpha).
-    fn rgb_plus_one(path: &Path, compression: Compression) {
+    /// A 40×30 file of `bands` bands, samples that vary in every direction.
+    fn raster(path: &Path, bands: u32, sample: SampleType, chunking: Chunking, compression: Compression) {
         let spec = OutputSpec {
             width: 40,
             height: 30,
-            bands: 4,
-            sample: SampleType::U8,
-            chunking: Chunking::Strips(16),
+            bands,
+            sample,
+            chunking,
             compression,
             bigtiff: false,
-            photometric: 2,
+            photometric: if bands >= 3 { 2 } else { 1 },
             alpha: false,
             geo: None,
         };
+        let sb = sample.bytes();
         write_raster(path, &spec, |y0, _, buf| {
-            for (k, v) in buf.iter_mut().enumerate() {
-                *v = (k as u32 + y0 * 7) as u8;
+            let first = y0 as usize * 40 * bands as usize;
+            for (i, v) in buf.chunks_exact_mut(sb).enumerate() {
+                let x = ((first + i) as u32 * 37 % 100_003) as f32;
+                match sample {
+                    SampleType::U8 => v[0] = (x as u32 % 251) as u8,
+                    SampleType::U16 => v.copy_from_slice(&((x as u32 * 97 % 65521) as u16).to_ne_bytes()),
+                    SampleType::F32 => v.copy_from_slice(&(x.sin() * 1000.0).to_ne_bytes()),
+                }
             }
         })
         .unwrap();
     }
 
+    fn whole(img: &SourceImage) -> Vec<u8> {
+        let mut win = Window::default();
+        img.read_window(0, 0, img.info.width, img.info.height, &mut win).unwrap();
+        win.bytes().to_vec()
+    }
+
     #[test]
-    fn a_compressed_rgb_file_with_a_fourth_band_is_refused_by_name() {
+    fn compressed_copies_read_exactly_as_the_uncompressed_file() {
         let dir = tempfile::tempdir().unwrap();
-        let (plain, packed) = (dir.path().join("plain.tif"), dir.path().join("packed.tif"));
-        rgb_plus_one(&plain, Compression::None);
-        rgb_plus_one(&packed, Compression::Lzw);
-        assert_eq!(SourceImage::open(&plain, 1 << 20).unwrap().info.bands, 4);
-        let Err(e) = SourceImage::open(&packed, 1 << 20) else { panic!("the decoder would drop the 4th band") };
-        let msg = e.to_string();
-        assert!(msg.starts_with(&packed.display().to_string()) && msg.contains("delivers 3"), "{msg}");
+        let mut cases = 0;
+        for sample in [SampleType::U8, SampleType::U16, SampleType::F32] {
+            for bands in [1, 3, 4] {
+                let plain = dir.path().join("plain.tif");
+                raster(&plain, bands, sample, Chunking::Strips(7), Compression::None);
+                let want = whole(&SourceImage::open(&plain, 1 << 20).unwrap());
+                for compression in [Compression::Deflate, Compression::Lzw, Compression::Zstd] {
+                    for chunking in [Chunking::Strips(7), Chunking::Strips(30), Chunking::Tiles(16)] {
+                        let packed = dir.path().join(format!("packed{cases}.tif"));
+                        raster(&packed, bands, sample, chunking, compression);
+                        let img = SourceImage::open(&packed, 1 << 20).unwrap();
+                        assert_eq!(img.info.bands, bands);
+                        let what = format!("{bands}×{sample:?} {chunking:?} {compression:?}");
+                        assert!(whole(&img) == want, "{what}");
+                        // A window inside, across chunk edges.
+                        let mut win = Window::default();
+                        img.read_window(13, 5, 20, 17, &mut win).unwrap();
+                        let pb = bands as usize * sample.bytes();
+                        for y in 0..17 {
+                            let src = ((5 + y) * 40 + 13) * pb;
+                            assert_eq!(&win.bytes()[y * 20 * pb..(y + 1) * 20 * pb], &want[src..src + 20 * pb], "{what}");
+                        }
+                        cases += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(cases, 81);
+    }
+
+    #[test]
+    fn a_corrupt_chunk_of_a_four_band_file_is_an_error_naming_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let packed = dir.path().join("packed.tif");
+        raster(&packed, 4, SampleType::U8, Chunking::Strips(7), Compression::Deflate);
+        let img = SourceImage::open(&packed, 1 << 20).unwrap();
+        let (offsets, _) = img.info.chunk_table();
+        let mut bytes = std::fs::read(&packed).unwrap();
+        for b in &mut bytes[offsets[1] as usize..offsets[1] as usize + 8] {
+            *b ^= 0x5A;
+        }
+        std::fs::write(&packed, &bytes).unwrap();
+        let img = SourceImage::open(&packed, 1 << 20).unwrap();
+        let mut win = Window::default();
+        let e = img.read_window(0, 0, 40, 30, &mut win).unwrap_err().to_string();
+        assert!(e.starts_with(&packed.display().to_string()) && e.contains("chunk 1"), "{e}");
     }
 }

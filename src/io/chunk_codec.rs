@@ -1,0 +1,325 @@
+//! Decoding one TIFF chunk (strip or tile) into native-endian samples, with
+//! every band kept.
+//!
+//! The `tiff` crate (0.11) is not used for this, for two reasons found on
+//! real files: it decodes through its colour type, so an interleaved RGB
+//! file with a fourth band that is not alpha (an RGB + NIR aerial) comes out
+//! with three of its four bands; and its LZW reader fails on some tiles that
+//! GDAL writes ("unexpected end of file" when a tile's output fills before
+//! the end code is read; image-rs/image-tiff#395). Here a chunk is
+//! decompressed whole (deflate, LZW, PackBits, zstd, through the codec crates
+//! the `tiff` crate uses itself), then the file's byte order and predictor
+//! are undone row by row. Like libtiff, LZW stops once the chunk's bytes are
+//! out, whether or not an end code follows.
+
+use std::io::Read;
+
+/// How the chunks of one file are coded.
+#[derive(Clone, Copy, Debug)]
+pub struct ChunkCodec {
+    /// TIFF Compression tag: 1 none, 5 LZW, 8/32946 deflate, 32773 PackBits, 50000 zstd.
+    pub compression: u16,
+    /// TIFF Predictor tag: 1 none, 2 horizontal differencing, 3 floating point.
+    pub predictor: u16,
+    /// Bytes of one sample: 1, 2, 4 or 8.
+    pub sample_bytes: usize,
+    /// IEEE floating-point samples (the only ones predictor 3 applies to).
+    pub float: bool,
+    /// Samples interleaved in a pixel of the chunk (1 for planar files).
+    pub samples: usize,
+    /// The file is big-endian ("MM").
+    pub big_endian: bool,
+}
+
+impl ChunkCodec {
+    /// Can this codec decode such chunks? `Err` says what it cannot.
+    pub fn check(&self) -> Result<(), String> {
+        match self.compression {
+            1 | 5 | 8 | 32946 | 32773 | 50000 => {}
+            c => return Err(format!("TIFF compression {c}")),
+        }
+        if ![1, 2, 4, 8].contains(&self.sample_bytes) || self.samples == 0 {
+            return Err(format!("{}-byte samples", self.sample_bytes));
+        }
+        match self.predictor {
+            1 | 2 => Ok(()),
+            3 if self.float && self.sample_bytes >= 2 => Ok(()),
+            3 => Err("the floating-point predictor on integer samples".into()),
+            p => Err(format!("predictor {p}")),
+        }
+    }
+
+    /// The chunk's pixels: `rows` rows of `width` pixels, native-endian.
+    /// `coded` is the chunk's bytes as stored in the file.
+    pub fn decode(&self, coded: &[u8], width: usize, rows: usize) -> Result<Vec<u8>, String> {
+        let row_bytes = width * self.samples * self.sample_bytes;
+        let want = row_bytes * rows;
+        let mut out = self.decompress(coded, want)?;
+        if out.len() < want {
+            return Err(format!("decodes to {} bytes, its pixels need {want}", out.len()));
+        }
+        out.truncate(want);
+        if row_bytes > 0 {
+            let mut scratch = Vec::new();
+            for row in out.chunks_exact_mut(row_bytes) {
+                self.unpredict_row(row, &mut scratch);
+            }
+        }
+        Ok(out)
+    }
+
+    /// The decompressed bytes: at least `want` of them unless the data ends
+    /// first (the caller reports the shortfall).
+    fn decompress(&self, coded: &[u8], want: usize) -> Result<Vec<u8>, String> {
+        let mut out = Vec::with_capacity(want);
+        match self.compression {
+            1 => out.extend_from_slice(&coded[..want.min(coded.len())]),
+            8 | 32946 => read_up_to(flate2::read::ZlibDecoder::new(coded), want, &mut out, "deflate")?,
+            50000 => read_up_to(zstd::stream::read::Decoder::new(coded).map_err(|e| format!("zstd: {e}"))?, want, &mut out, "zstd")?,
+            5 => {
+                // Decoded into a buffer of the chunk's size: a stream that
+                // would expand past it (corrupt or hostile) stops there.
+                out.resize(want, 0);
+                let mut lzw = weezl::decode::Decoder::with_tiff_size_switch(weezl::BitOrder::Msb, 8);
+                let (mut read, mut written) = (0, 0);
+                while written < want {
+                    let r = lzw.decode_bytes(&coded[read..], &mut out[written..]);
+                    read += r.consumed_in;
+                    written += r.consumed_out;
+                    match r.status {
+                        Ok(weezl::LzwStatus::Ok) if r.consumed_in + r.consumed_out > 0 => {}
+                        // The end code, or the data ran out: what is there
+                        // is all there is.
+                        Ok(_) => break,
+                        Err(e) => return Err(format!("LZW: {e}")),
+                    }
+                }
+                // A stream that breaks off after the chunk's bytes (no end
+                // code, junk after it) has given all we need.
+                out.truncate(written);
+            }
+            32773 => unpack_bits(coded, want, &mut out),
+            c => return Err(format!("TIFF compression {c}")),
+        }
+        Ok(out)
+    }
+
+    /// One row from the file's coding to native-endian samples.
+    fn unpredict_row(&self, row: &mut [u8], scratch: &mut Vec<u8>) {
+        let (n, sb) = (self.samples, self.sample_bytes);
+        if self.predictor == 3 {
+            // Bytes were differenced across the row, then stored as planes
+            // of most- to least-significant bytes.
+            for i in n..row.len() {
+                row[i] = row[i].wrapping_add(row[i - n]);
+            }
+            scratch.clear();
+            scratch.extend_from_slice(row);
+            let plane = row.len() / sb;
+            for (i, v) in row.chunks_exact_mut(sb).enumerate() {
+                for (b, byte) in v.iter_mut().enumerate() {
+                    // Big-endian order in the planes; native order out.
+                    let from = if cfg!(target_endian = "big") { b } else { sb - 1 - b };
+                    *byte = scratch[from * plane + i];
+                }
+            }
+            return;
+        }
+        if self.big_endian != cfg!(target_endian = "big") && sb > 1 {
+            for v in row.chunks_exact_mut(sb) {
+                v.reverse();
+            }
+        }
+        if self.predictor == 2 {
+            match sb {
+                1 => add_previous(row, n, |a: u8, b| a.wrapping_add(b), u8::from_ne_bytes, u8::to_ne_bytes),
+                2 => add_previous(row, n, u16::wrapping_add, u16::from_ne_bytes, u16::to_ne_bytes),
+                4 => add_previous(row, n, u32::wrapping_add, u32::from_ne_bytes, u32::to_ne_bytes),
+                _ => add_previous(row, n, u64::wrapping_add, u64::from_ne_bytes, u64::to_ne_bytes),
+            }
+        }
+    }
+}
+
+/// Undoes horizontal differencing: each sample plus the same band's sample
+/// of the pixel before, with wrapping integers of `N` bytes (as libtiff and
+/// the `tiff` crate do, also for floats).
+fn add_previous<T: Copy, const N: usize>(row: &mut [u8], bands: usize, add: fn(T, T) -> T, load: fn([u8; N]) -> T, store: fn(T) -> [u8; N]) {
+    let get = |row: &[u8], i: usize| load(row[i * N..i * N + N].try_into().expect("N bytes"));
+    for i in bands..row.len() / N {
+        let v = add(get(row, i), get(row, i - bands));
+        row[i * N..i * N + N].copy_from_slice(&store(v));
+    }
+}
+
+/// Is this TIFF file big-endian ("MM")? From its first two bytes.
+pub fn file_is_big_endian(file: &std::fs::File) -> std::io::Result<bool> {
+    use std::os::unix::fs::FileExt;
+    let mut order = [0u8; 2];
+    file.read_exact_at(&mut order, 0)?;
+    Ok(&order == b"MM")
+}
+
+/// Reads up to `want` bytes of a decompressing reader into `out`.
+fn read_up_to(r: impl Read, want: usize, out: &mut Vec<u8>, what: &str) -> Result<(), String> {
+    r.take(want as u64).read_to_end(out).map(|_| ()).map_err(|e| format!("{what}: {e}"))
+}
+
+/// Apple PackBits, as TIFF uses it: a header byte n, then n+1 literal bytes
+/// (0 ≤ n ≤ 127) or one byte repeated 1−n times (−127 ≤ n ≤ −1); −128 is a
+/// no-op. Stops at `want` bytes or at the end of the data.
+fn unpack_bits(mut coded: &[u8], want: usize, out: &mut Vec<u8>) {
+    while out.len() < want {
+        let Some((&h, rest)) = coded.split_first() else { return };
+        coded = rest;
+        let h = h as i8;
+        if h >= 0 {
+            let n = (h as usize + 1).min(coded.len());
+            out.extend_from_slice(&coded[..n]);
+            coded = &coded[n..];
+        } else if h != -128 {
+            let Some((&b, rest)) = coded.split_first() else { return };
+            coded = rest;
+            out.resize(out.len() + (1 - h as isize) as usize, b);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn packbits_decodes_the_tiff_specification_example() {
+        // TIFF 6.0, section 9: the packed bytes and what they unpack to.
+        let packed = [0xFE, 0xAA, 0x02, 0x80, 0x00, 0x2A, 0xFD, 0xAA, 0x03, 0x80, 0x00, 0x2A, 0x22, 0xF7, 0xAA];
+        let unpacked = [
+            0xAA, 0xAA, 0xAA, 0x80, 0x00, 0x2A, 0xAA, 0xAA, 0xAA, 0xAA, 0x80, 0x00, 0x2A, 0x22, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA,
+            0xAA, 0xAA, 0xAA, 0xAA,
+        ];
+        let mut out = Vec::new();
+        unpack_bits(&packed, 1000, &mut out);
+        assert_eq!(out, unpacked);
+        // Stops at what was asked, and at the end of truncated data.
+        let mut out = Vec::new();
+        unpack_bits(&packed, 5, &mut out);
+        assert!(out.len() >= 5 && out[..5] == unpacked[..5]);
+        let mut out = Vec::new();
+        unpack_bits(&packed[..3], 1000, &mut out);
+        assert_eq!(out, [0xAA, 0xAA, 0xAA]);
+    }
+
+    fn codec(compression: u16, predictor: u16, sample_bytes: usize, samples: usize, big_endian: bool) -> ChunkCodec {
+        ChunkCodec { compression, predictor, sample_bytes, float: sample_bytes >= 4, samples, big_endian }
+    }
+
+    #[test]
+    fn horizontal_and_floating_point_predictors_are_undone() {
+        // Two pixels of four 8-bit bands, differenced per band.
+        let mut row = vec![10, 20, 30, 40, 1, 2, 3, 250];
+        codec(8, 2, 1, 4, false).unpredict_row(&mut row, &mut Vec::new());
+        assert_eq!(row, [10, 20, 30, 40, 11, 22, 33, 34]);
+        // 16-bit big-endian: byte order first, then differences (wrapping).
+        let mut row = vec![0x01, 0x00, 0xFF, 0xFF];
+        codec(8, 2, 2, 1, true).unpredict_row(&mut row, &mut Vec::new());
+        assert_eq!(row, [256u16.to_ne_bytes(), 255u16.to_ne_bytes()].concat());
+        // Floating point: the values 1.0 and −2.5 coded as byte planes of
+        // their big-endian bytes, then differenced byte by byte.
+        let (a, b) = (1.0f32.to_be_bytes(), (-2.5f32).to_be_bytes());
+        let planes = [a[0], b[0], a[1], b[1], a[2], b[2], a[3], b[3]];
+        let mut coded = planes;
+        for i in (1..coded.len()).rev() {
+            coded[i] = coded[i].wrapping_sub(coded[i - 1]);
+        }
+        let mut row = coded.to_vec();
+        codec(8, 3, 4, 1, false).unpredict_row(&mut row, &mut Vec::new());
+        assert_eq!(row, [1.0f32.to_ne_bytes(), (-2.5f32).to_ne_bytes()].concat());
+    }
+
+    /// The encoder's side of both predictors, written from the TIFF
+    /// specification and Technical Note 3: `values` are `sb`-byte integers
+    /// (or float bits), `n` bands a pixel.
+    fn predicted(values: &[u64], sb: usize, n: usize, predictor: u16, big_endian: bool) -> Vec<u8> {
+        let mask = if sb == 8 { u64::MAX } else { (1u64 << (8 * sb)) - 1 };
+        if predictor == 3 {
+            let (w, mut row) = (values.len(), vec![0u8; values.len() * sb]);
+            for (i, v) in values.iter().enumerate() {
+                for (k, b) in v.to_be_bytes()[8 - sb..].iter().enumerate() {
+                    row[k * w + i] = *b;
+                }
+            }
+            for i in (n..row.len()).rev() {
+                row[i] = row[i].wrapping_sub(row[i - n]);
+            }
+            return row;
+        }
+        let mut out = Vec::new();
+        for (i, &v) in values.iter().enumerate() {
+            let d = if predictor == 2 && i >= n { v.wrapping_sub(values[i - n]) & mask } else { v };
+            let be = &d.to_be_bytes()[8 - sb..];
+            out.extend(if big_endian { be.to_vec() } else { be.iter().rev().copied().collect() });
+        }
+        out
+    }
+
+    #[test]
+    fn every_sample_width_band_count_and_byte_order_round_trips() {
+        let mut cases = 0;
+        for sb in [1usize, 2, 4, 8] {
+            for n in [1usize, 3, 4] {
+                for big_endian in [false, true] {
+                    for predictor in [1u16, 2, 3] {
+                        if predictor == 3 && sb < 4 {
+                            continue;
+                        }
+                        let mask = if sb == 8 { u64::MAX } else { (1u64 << (8 * sb)) - 1 };
+                        let values: Vec<u64> = (0..7 * n as u64).map(|i| i.wrapping_mul(0x9E37_79B9_7F4A_7C15).rotate_left(17) & mask).collect();
+                        let mut row = predicted(&values, sb, n, predictor, big_endian);
+                        let c = ChunkCodec { compression: 1, predictor, sample_bytes: sb, float: true, samples: n, big_endian };
+                        c.check().unwrap();
+                        c.unpredict_row(&mut row, &mut Vec::new());
+                        // Native-endian samples of `sb` bytes, read back.
+                        let got: Vec<u64> = row
+                            .chunks_exact(sb)
+                            .map(|b| {
+                                let msb_first: Vec<u8> = if cfg!(target_endian = "little") { b.iter().rev().copied().collect() } else { b.to_vec() };
+                                msb_first.iter().fold(0u64, |a, &x| a << 8 | x as u64)
+                            })
+                            .collect();
+                        assert_eq!(got, values, "{sb}-byte, {n} bands, big-endian {big_endian}, predictor {predictor}");
+                        cases += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(cases, 60);
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn arbitrary_bytes_decode_or_fail_without_panic(
+            coded in proptest::collection::vec(proptest::num::u8::ANY, 0..300),
+            which in 0usize..6, predictor in 1u16..4, sb in 0usize..4, n in 1usize..5, width in 0usize..40, rows in 0usize..9,
+        ) {
+            let compression = [1, 5, 8, 32946, 32773, 50000][which];
+            let c = ChunkCodec { compression, predictor, sample_bytes: 1 << sb, float: true, samples: n, big_endian: width % 2 == 0 };
+            if c.check().is_ok() {
+                if let Ok(v) = c.decode(&coded, width, rows) {
+                    proptest::prop_assert_eq!(v.len(), width * rows * n * (1 << sb));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn short_or_corrupt_data_is_an_error_not_a_panic() {
+        let c = codec(8, 1, 1, 4, false);
+        let e = c.decode(&[1, 2, 3], 4, 4).unwrap_err();
+        assert!(e.contains("deflate"), "{e}");
+        let c = codec(32773, 1, 1, 4, false);
+        let e = c.decode(&[0x01, 7, 7], 4, 4).unwrap_err();
+        assert!(e.contains("its pixels need 64"), "{e}");
+        assert!(codec(7, 1, 1, 4, false).check().is_err());
+        assert!(codec(8, 3, 2, 4, false).check().is_err());
+    }
+}

@@ -1,0 +1,173 @@
+//! A single-band TIFF (a DEM) read a chunk at a time as `f32` heights:
+//! strips or tiles, uncompressed or compressed, any integer or float sample
+//! type GDAL writes for elevations. Chunks are decoded by `chunk_codec` from
+//! bytes read with `pread`, so any number of threads read at once.
+
+use crate::error::{Error, Result};
+use crate::io::chunk_codec::{file_is_big_endian, ChunkCodec};
+use std::fs::File;
+use std::io::BufReader;
+use std::os::unix::fs::FileExt;
+use std::path::{Path, PathBuf};
+use tiff::decoder::Decoder;
+use tiff::tags::Tag;
+
+/// The sample types a DEM may have.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Sample {
+    U8,
+    I8,
+    U16,
+    I16,
+    U32,
+    I32,
+    F32,
+    F64,
+}
+
+impl Sample {
+    fn bytes(self) -> usize {
+        match self {
+            Sample::U8 | Sample::I8 => 1,
+            Sample::U16 | Sample::I16 => 2,
+            Sample::U32 | Sample::I32 | Sample::F32 => 4,
+            Sample::F64 => 8,
+        }
+    }
+
+    /// Native-endian samples to heights.
+    fn to_f32(self, bytes: &[u8]) -> Vec<f32> {
+        fn each<const N: usize>(bytes: &[u8], f: impl Fn([u8; N]) -> f32) -> Vec<f32> {
+            bytes.chunks_exact(N).map(|c| f(c.try_into().expect("N bytes"))).collect()
+        }
+        match self {
+            Sample::U8 => bytes.iter().map(|&b| f32::from(b)).collect(),
+            Sample::I8 => bytes.iter().map(|&b| f32::from(b as i8)).collect(),
+            Sample::U16 => each(bytes, |b| f32::from(u16::from_ne_bytes(b))),
+            Sample::I16 => each(bytes, |b| f32::from(i16::from_ne_bytes(b))),
+            Sample::U32 => each(bytes, |b| u32::from_ne_bytes(b) as f32),
+            Sample::I32 => each(bytes, |b| i32::from_ne_bytes(b) as f32),
+            Sample::F32 => each(bytes, f32::from_ne_bytes),
+            Sample::F64 => each(bytes, |b| f64::from_ne_bytes(b) as f32),
+        }
+    }
+}
+
+/// A single-band raster's chunk table and coding.
+pub struct ChunkedRaster {
+    path: PathBuf,
+    file: File,
+    pub width: usize,
+    pub height: usize,
+    /// (width, height) of a chunk: a tile, or a strip (image width × rows).
+    pub chunk: (usize, usize),
+    tiled: bool,
+    offsets: Vec<u64>,
+    counts: Vec<u64>,
+    codec: ChunkCodec,
+    sample: Sample,
+}
+
+impl ChunkedRaster {
+    /// Reads the layout from `dec`'s current directory (a decoder opened on
+    /// `path`); refuses what it cannot read, naming the file.
+    pub fn open(dec: &mut Decoder<BufReader<File>>, path: &Path) -> Result<ChunkedRaster> {
+        let tf = |e| Error::from_tiff(path, e);
+        let (w, h) = dec.dimensions().map_err(tf)?;
+        let (width, height) = (w as usize, h as usize);
+        if width == 0 || height == 0 {
+            return Err(Error::format(path, format!("raster of {w}×{h} samples is empty")));
+        }
+        let bands = dec.find_tag_unsigned::<u32>(Tag::SamplesPerPixel).map_err(tf)?.unwrap_or(1);
+        if bands != 1 {
+            return Err(Error::format(path, format!("a DEM must be a single-band raster, this one has {bands} bands")));
+        }
+        let bits = dec.find_tag_unsigned_vec::<u16>(Tag::BitsPerSample).map_err(tf)?.unwrap_or_else(|| vec![1]);
+        let format = dec.find_tag_unsigned_vec::<u16>(Tag::SampleFormat).map_err(tf)?.unwrap_or_else(|| vec![1]);
+        let sample = match (bits[0], format[0]) {
+            (8, 1) => Sample::U8,
+            (8, 2) => Sample::I8,
+            (16, 1) => Sample::U16,
+            (16, 2) => Sample::I16,
+            (32, 1) => Sample::U32,
+            (32, 2) => Sample::I32,
+            (32, 3) => Sample::F32,
+            (64, 3) => Sample::F64,
+            (b, f) => return Err(Error::unsupported(path, format!("DEM samples of {b} bits, sample format {f}"))),
+        };
+        let compression = dec.find_tag_unsigned::<u16>(Tag::Compression).map_err(tf)?.unwrap_or(1);
+        let predictor = dec.find_tag_unsigned::<u16>(Tag::Predictor).map_err(tf)?.unwrap_or(1);
+        let tiled = dec.find_tag(Tag::TileWidth).map_err(tf)?.is_some();
+        let (chunk, (ot, ct)) = if tiled {
+            let tw = dec.get_tag_u32(Tag::TileWidth).map_err(tf)? as usize;
+            let th = dec.get_tag_u32(Tag::TileLength).map_err(tf)? as usize;
+            ((tw, th), (Tag::TileOffsets, Tag::TileByteCounts))
+        } else {
+            let rps = dec.find_tag_unsigned::<u32>(Tag::RowsPerStrip).map_err(tf)?.unwrap_or(h).clamp(1, h) as usize;
+            ((width, rps), (Tag::StripOffsets, Tag::StripByteCounts))
+        };
+        if chunk.0 == 0 || chunk.1 == 0 {
+            return Err(Error::format(path, format!("chunks of {}×{} samples", chunk.0, chunk.1)));
+        }
+        // A chunk is decoded whole into memory.
+        if (chunk.0 as u64 * chunk.1 as u64).saturating_mul(sample.bytes() as u64) > crate::io::source::decoder_limits().decoding_buffer_size as u64 {
+            return Err(Error::limits(path, format!("chunks of {}×{} samples are too large to decode (re-tile the file)", chunk.0, chunk.1)));
+        }
+        let offsets = dec.get_tag_u64_vec(ot).map_err(tf)?;
+        let counts = dec.get_tag_u64_vec(ct).map_err(tf)?;
+        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        let want = width.div_ceil(chunk.0) * height.div_ceil(chunk.1);
+        if offsets.len() != want || counts.len() != want {
+            return Err(Error::format(path, format!("{} chunk offsets and {} byte counts, the raster needs {want}", offsets.len(), counts.len())));
+        }
+        if let Some(k) = offsets.iter().zip(&counts).position(|(&o, &n)| o.checked_add(n).is_none_or(|end| end > len)) {
+            return Err(Error::format(path, format!("chunk {k} runs past the end of the {len}-byte file: truncated?")));
+        }
+        let codec = ChunkCodec {
+            compression,
+            predictor,
+            sample_bytes: sample.bytes(),
+            float: matches!(sample, Sample::F32 | Sample::F64),
+            samples: 1,
+            big_endian: file_is_big_endian(&file).map_err(|e| Error::io(path, e))?,
+        };
+        codec.check().map_err(|what| Error::unsupported(path, what))?;
+        Ok(ChunkedRaster { path: path.to_path_buf(), file, width, height, chunk, tiled, offsets, counts, codec, sample })
+    }
+
+    /// Chunks across the raster (1 for strips).
+    pub fn across(&self) -> usize {
+        self.width.div_ceil(self.chunk.0)
+    }
+
+    /// Chunk `k`'s heights, row-major with the chunk's full width as the
+    /// stride (edge tiles are stored whole); a last strip has fewer rows.
+    pub fn chunk(&self, k: usize) -> Result<Vec<f32>> {
+        let (cw, ch) = self.chunk;
+        let rows = if self.tiled { ch } else { ch.min(self.height - k * ch) };
+        let (o, n) = (self.offsets[k], self.counts[k]);
+        if n > crate::io::source::decoder_limits().intermediate_buffer_size as u64 {
+            return Err(Error::limits(&self.path, format!("chunk {k} holds {n} compressed bytes")));
+        }
+        let mut coded = vec![0u8; n as usize];
+        self.file.read_exact_at(&mut coded, o).map_err(|e| Error::io(&self.path, e))?;
+        let bytes = self.codec.decode(&coded, cw, rows).map_err(|e| Error::format(&self.path, format!("chunk {k}: {e}")))?;
+        Ok(self.sample.to_f32(&bytes))
+    }
+
+    /// The whole raster, row-major.
+    pub fn read_all(&self) -> Result<Vec<f32>> {
+        let (cw, ch) = self.chunk;
+        let mut all = vec![0f32; self.width * self.height];
+        for k in 0..self.offsets.len() {
+            let (x0, y0) = (k % self.across() * cw, k / self.across() * ch);
+            let c = self.chunk(k)?;
+            let w = cw.min(self.width - x0);
+            for (r, row) in c.chunks_exact(cw).enumerate().take(self.height - y0) {
+                all[(y0 + r) * self.width + x0..][..w].copy_from_slice(&row[..w]);
+            }
+        }
+        Ok(all)
+    }
+}
