@@ -144,8 +144,9 @@ enum Coder {
     /// Deflate, LZW, PackBits, zstd: decoded by `chunk_codec` from the
     /// chunk's bytes, read with `pread`.
     Own(ChunkCodec, File),
-    /// JPEG: `tiff` crate decoders, one per concurrent reader.
-    Tiff(Mutex<Vec<Decoder<BufReader<File>>>>),
+    /// JPEG: `tiff` crate decoders, one per concurrent reader; `ycbcr`
+    /// when its samples are Y, Cb, Cr to be turned into RGB.
+    Tiff { decoders: Mutex<Vec<Decoder<BufReader<File>>>>, ycbcr: bool },
 }
 
 /// Decoded chunks kept for the next window, bounded in bytes.
@@ -222,7 +223,9 @@ fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_len: u64) -> 
     match photometric {
         0 | 1 | 2 => {}
         3 => return Err(Error::unsupported(path, "palette (colour-mapped) images")),
-        6 => return Err(Error::unsupported(path, "YCbCr images (convert to RGB first)")),
+        // JPEG's own YCbCr: decoded by the `tiff` crate, turned into RGB here.
+        6 if dec.find_tag_unsigned::<u16>(Tag::Compression).map_err(tf)? == Some(7) => {}
+        6 => return Err(Error::unsupported(path, "YCbCr images other than JPEG-compressed ones (convert to RGB first)")),
         p => return Err(Error::unsupported(path, format!("photometric interpretation {p}"))),
     }
     let extra = dec.find_tag_unsigned_vec::<u16>(Tag::ExtraSamples).map_err(tf)?.unwrap_or_default();
@@ -317,7 +320,7 @@ impl SourceImage {
         let mut dec = Decoder::new(BufReader::new(file.try_clone().map_err(|e| Error::io(path, e))?))
             .map_err(|e| Error::from_tiff(path, e))?
             .with_limits(decoder_limits());
-        let info = read_info(&mut dec, path, len)?;
+        let mut info = read_info(&mut dec, path, len)?;
         let backend = if info.compression == 1 {
             // SAFETY: the mapping is read-only; every chunk's extent was
             // checked against the file's length in `read_info`, so no slice
@@ -343,7 +346,16 @@ impl SourceImage {
                         ));
                     }
                 }
-                Coder::Tiff(Mutex::new(vec![dec]))
+                // YCbCr JPEG comes out of the decoder as full-resolution
+                // Y, Cb, Cr samples; the scan is RGB from here on.
+                let ycbcr = info.photometric == 6;
+                if ycbcr {
+                    if info.bands != 3 || info.sample != SampleType::U8 || info.planar {
+                        return Err(Error::unsupported(path, format!("YCbCr JPEG of {} {:?} bands", info.bands, info.sample)));
+                    }
+                    info.photometric = 2;
+                }
+                Coder::Tiff { decoders: Mutex::new(vec![dec]), ycbcr }
             } else {
                 let codec = ChunkCodec {
                     compression: info.compression,
@@ -496,7 +508,13 @@ impl SourceImage {
         }
         let bytes = match coder {
             Coder::Own(codec, file) => self.decode_own(k, codec, file)?,
-            Coder::Tiff(decoders) => self.decode_with_tiff(k, decoders)?,
+            Coder::Tiff { decoders, ycbcr } => {
+                let mut bytes = self.decode_with_tiff(k, decoders)?;
+                if *ycbcr {
+                    ycbcr_to_rgb(&mut bytes);
+                }
+                bytes
+            }
         };
         let v = Arc::new(bytes);
         cache.lock().expect("cache lock").put(k, v.clone());
@@ -640,6 +658,24 @@ impl SourceImage {
     }
 }
 
+/// JPEG's YCbCr (JFIF, full range) to RGB in place, three bytes a pixel,
+/// in libjpeg's fixed-point arithmetic (16 fraction bits, rounded), so that
+/// the pixels are those GDAL reads through libjpeg.
+fn ycbcr_to_rgb(px: &mut [u8]) {
+    const ONE: i32 = 1 << 16;
+    let fix = |v: f64| (v * ONE as f64 + 0.5) as i32;
+    let (cr_r, cb_b, cb_g, cr_g) = (fix(1.402), fix(1.772), fix(0.34414), fix(0.71414));
+    for p in px.chunks_exact_mut(3) {
+        let (y, cb, cr) = (p[0] as i32, p[1] as i32 - 128, p[2] as i32 - 128);
+        let r = y + ((cr_r * cr + ONE / 2) >> 16);
+        let g = y + ((-cb_g * cb - cr_g * cr + ONE / 2) >> 16);
+        let b = y + ((cb_b * cb + ONE / 2) >> 16);
+        p[0] = r.clamp(0, 255) as u8;
+        p[1] = g.clamp(0, 255) as u8;
+        p[2] = b.clamp(0, 255) as u8;
+    }
+}
+
 fn decoding_bytes(r: DecodingResult, s: SampleType) -> Option<Vec<u8>> {
     match (r, s) {
         (DecodingResult::U8(v), SampleType::U8) => Some(v),
@@ -687,6 +723,16 @@ mod tests {
         let mut win = Window::default();
         img.read_window(0, 0, img.info.width, img.info.height, &mut win).unwrap();
         win.bytes().to_vec()
+    }
+
+    #[test]
+    fn ycbcr_turns_into_rgb_as_libjpeg_turns_it() {
+        // Grey stays grey; a saturated red, green and blue (their JFIF
+        // YCbCr worked by hand from the BT.601 matrix, rounded; blue's Cb
+        // of 255.5 is clipped, so it comes back as 254).
+        let mut px = [128, 128, 128, 0, 128, 128, 255, 128, 128, 76, 85, 255, 150, 44, 21, 29, 255, 107];
+        ycbcr_to_rgb(&mut px);
+        assert_eq!(px, [128, 128, 128, 0, 0, 0, 255, 255, 255, 254, 0, 0, 0, 255, 1, 0, 0, 254]);
     }
 
     #[test]
