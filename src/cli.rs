@@ -325,6 +325,11 @@ pub struct RectifyArgs {
     pub memory: String,
     #[arg(long)]
     pub quiet: bool,
+    /// Do not wait for the output to reach the disk before renaming it into
+    /// place (faster where the disk is slower than the run; a power failure
+    /// soon after may leave an incomplete file under the output's name).
+    #[arg(long)]
+    pub no_sync: bool,
     /// Write the run report here as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -418,6 +423,7 @@ impl RectifyArgs {
         cfg.threads = self.threads;
         cfg.memory = parse_bytes(&self.memory).map_err(|e| format!("--memory: {e}"))?;
         cfg.quiet = self.quiet;
+        cfg.sync = !self.no_sync;
         Ok(cfg)
     }
 }

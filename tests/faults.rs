@@ -57,14 +57,40 @@ fn full_disk_is_a_clear_error_and_leaves_nothing() {
     }
     let sc = scene(&dir.path().join("scene"), 600, |_| {});
     let out = mnt.join("ortho.tif");
-    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--compress", "none", "--gsd", "2"]);
-    let err = String::from_utf8_lossy(&r.stderr).to_string();
-    let left = files_containing(&mnt, "");
+    // With and without waiting for the disk: the error comes from the
+    // writes either way.
+    let mut results = Vec::new();
+    for sync in [&[][..], &["--no-sync"][..]] {
+        let mut args = vec!["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--compress", "none", "--gsd", "2"];
+        args.extend(sync);
+        let r = run(&args);
+        results.push((r, files_containing(&mnt, "")));
+    }
     let _ = Command::new("umount").arg(&mnt).status();
-    assert_eq!(r.status.code(), Some(1), "{err}");
-    assert!(err.to_lowercase().contains("no space left"), "{err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
-    assert!(left.is_empty(), "left behind: {left:?}");
+    for (r, left) in results {
+        let err = String::from_utf8_lossy(&r.stderr).to_string();
+        assert_eq!(r.status.code(), Some(1), "{err}");
+        assert!(err.to_lowercase().contains("no space left"), "{err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(left.is_empty(), "left behind: {left:?}");
+    }
+}
+
+#[test]
+fn without_sync_the_output_is_the_same_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 500, |_| {});
+    let mut outs = Vec::new();
+    for (name, extra) in [("synced.tif", &[][..]), ("unsynced.tif", &["--no-sync"][..])] {
+        let out = dir.path().join(name);
+        let mut args = vec!["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet"];
+        args.extend(extra);
+        let r = run(&args);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        outs.push(std::fs::read(&out).unwrap());
+    }
+    assert!(outs[0] == outs[1]);
+    assert!(files_containing(dir.path(), "partial").is_empty());
 }
 
 /// Another process truncates the memory-mapped scan mid-run: a clear error,

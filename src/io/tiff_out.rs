@@ -301,11 +301,19 @@ impl PendingFile {
 
     /// Syncs, then renames onto the target (readable by all, as a plain
     /// new file would be; the temporary file was private).
-    pub fn publish(mut self) -> Result<()> {
+    pub fn publish(self) -> Result<()> {
+        self.publish_synced(true)
+    }
+
+    /// [`publish`](Self::publish), with the sync only when `sync` (without
+    /// it, a power failure soon after may leave the target incomplete).
+    pub fn publish_synced(mut self, sync: bool) -> Result<()> {
         use std::os::unix::fs::PermissionsExt;
         let f = self.tmp().as_file();
         f.set_permissions(std::fs::Permissions::from_mode(0o644)).map_err(|e| Error::io(&self.target, e))?;
-        f.sync_all().map_err(|e| Error::io(&self.target, e))?;
+        if sync {
+            f.sync_all().map_err(|e| Error::io(&self.target, e))?;
+        }
         let target = self.target.clone();
         let tmp = self.tmp.take().expect("not yet published");
         let tmp_path = tmp.path().to_path_buf();

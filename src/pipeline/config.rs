@@ -63,6 +63,11 @@ pub struct RectifyConfig {
     /// Memory budget, bytes.
     pub memory: u64,
     pub quiet: bool,
+    /// Put the output on disk (fsync) before it gets its name, so that not
+    /// even a power failure leaves an incomplete file under that name. Off
+    /// (`--no-sync`): the kernel writes it back in its own time, as after
+    /// `cat` or `gdalwarp`.
+    pub sync: bool,
 }
 
 impl RectifyConfig {
@@ -91,6 +96,7 @@ impl RectifyConfig {
             threads: 0,
             memory: 128 << 20,
             quiet: true,
+            sync: true,
         }
     }
 }

@@ -494,7 +494,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                 if let Some(tile) = &next {
                     progress.inc(1);
                     unsynced += tile.as_ref().len();
-                    if unsynced >= FLUSH_EVERY {
+                    if cfg.sync && unsynced >= FLUSH_EVERY {
                         // Never waits: a sync still running takes this one too.
                         let _ = tx_flush.try_send(());
                         unsynced = 0;
@@ -537,7 +537,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     times.encode = d(4);
     verify(pending.path(), &spec)?;
     let output_bytes = std::fs::metadata(pending.path()).map(|m| m.len()).unwrap_or(0);
-    pending.publish()?;
+    pending.publish_synced(cfg.sync)?;
     let wall_s = wall.elapsed().as_secs_f64();
     times.write = (wall_s - times.setup).max(0.0);
     let estimate = accuracy::sample_errors(&gcm, (grid.height / 64).max(1), 7);
