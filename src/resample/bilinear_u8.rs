@@ -26,16 +26,16 @@ pub fn bilerp(p00: u8, p10: u8, p01: u8, p11: u8, wx: u32, wy: u32) -> u8 {
 #[inline(always)]
 pub fn bilerp_pixel<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32) -> u32 {
     use safe_arch::*;
-    let load = |s: &[u8]| {
-        let bytes: [u8; 8] = s[..8].try_into().expect("8 bytes");
-        unpack_low_i8_m128i(set_i64_m128i_s(i64::from_le_bytes(bytes)), zeroed_m128i())
-    };
-    // 16-bit lanes [a0 a1 a2 (a3) b0 b1 b2 (b3)] → pairs (a_k, b_k).
-    let pairs = |v: m128i| {
-        let right = if B == 3 { byte_shr_imm_u128_m128i::<6>(v) } else { byte_shr_imm_u128_m128i::<8>(v) };
-        unpack_low_i16_m128i(v, right)
-    };
-    let (u, l) = (pairs(load(upper)), pairs(load(lower)));
+    let word = |s: &[u8]| i64::from_le_bytes(s[..8].try_into().expect("8 bytes"));
+    // Upper row in the low 8 bytes, lower row in the high 8: [a0 a1 a2 b0 …].
+    let v = set_i64_m128i(word(lower), word(upper));
+    // Each row shifted by one pixel, so that interleaving the bytes pairs
+    // every band of the left pixel with the same band of the right one:
+    // [a0 b0 a1 b1 a2 b2 …], then widened to 16-bit lanes (a_k, b_k).
+    let right = if B == 3 { shr_imm_u64_m128i::<24>(v) } else { shr_imm_u64_m128i::<32>(v) };
+    let zero = zeroed_m128i();
+    let u = unpack_low_i8_m128i(unpack_low_i8_m128i(v, right), zero);
+    let l = unpack_low_i8_m128i(unpack_high_i8_m128i(v, right), zero);
     let wx2 = set_splat_i32_m128i(((wx << 16) | (1024 - wx)) as i32);
     let eight = set_splat_i32_m128i(8);
     let top = shr_imm_u32_m128i::<4>(add_i32_m128i(mul_i16_horizontal_add_m128i(u, wx2), eight));
@@ -57,6 +57,38 @@ pub fn bilerp_pixel<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32
         r |= (bilerp(upper[k], upper[B + k], lower[k], lower[B + k], wx, wy) as u32) << (8 * k);
     }
     r
+}
+
+/// A straight run of `out.len() / B` pixels whose four neighbours all lie
+/// inside `bytes` (rows `row` bytes apart): pixel `i` at fixed-point
+/// position `q + i·dq` (32 fractional bits, the kernel's origin: position
+/// − ½), less the window's origin `origin` in whole pixels. The caller has
+/// checked the first and last pixel; positions are linear, so every pixel
+/// between lies inside too. Same arithmetic as [`bilerp_pixel`].
+#[inline(always)]
+pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), q: (i64, i64), dq: (i64, i64), out: &mut [u8]) {
+    let (mut qc, mut qr) = q;
+    let n = out.len() / B;
+    let at = |qc: i64, qr: i64| {
+        // In 1/1024 pixel, rounded: the weights' resolution.
+        let (fx, fy) = (qc.wrapping_add(1 << 21) >> 22, qr.wrapping_add(1 << 21) >> 22);
+        let s = ((fy >> 10) - origin.1) as usize * row + ((fx >> 10) - origin.0) as usize * B;
+        (s, (fx & 1023) as u32, (fy & 1023) as u32)
+    };
+    // All but the last pixel are stored as four bytes (the fourth is the
+    // next pixel's first, written again right after).
+    for i in 0..n.saturating_sub(1) {
+        let (s, wx, wy) = at(qc, qr);
+        let v = bilerp_pixel::<B>(&bytes[s..], &bytes[s + row..], wx, wy);
+        out[i * B..i * B + 4].copy_from_slice(&v.to_le_bytes());
+        qc = qc.wrapping_add(dq.0);
+        qr = qr.wrapping_add(dq.1);
+    }
+    if n > 0 {
+        let (s, wx, wy) = at(qc, qr);
+        let v = bilerp_pixel::<B>(&bytes[s..], &bytes[s + row..], wx, wy);
+        out[(n - 1) * B..n * B].copy_from_slice(&v.to_le_bytes()[..B]);
+    }
 }
 
 #[cfg(test)]
