@@ -19,6 +19,18 @@ pub fn bilerp(p00: u8, p10: u8, p01: u8, p11: u8, wx: u32, wy: u32) -> u8 {
     ((top * (1024 - wy) + bot * wy + (1 << 15)) >> 16) as u8
 }
 
+/// `(w << 16) | (1024 − w)` for every weight `w` in 1/1024 (0 to 1024):
+/// the pair of 16-bit factors one multiply-add applies to a pair of samples.
+const WEIGHT_PAIRS: [u32; 1025] = {
+    let mut t = [0u32; 1025];
+    let mut w = 0;
+    while w <= 1024 {
+        t[w] = ((w as u32) << 16) | (1024 - w as u32);
+        w += 1;
+    }
+    t
+};
+
 /// All `B` (3 or 4) bands of one pixel from the two neighbouring pixels
 /// of each row, `upper` and `lower`: each slice starts at the left pixel
 /// and holds at least 8 bytes. Returns the bands in the low bytes.
@@ -36,13 +48,13 @@ pub fn bilerp_pixel<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32
     let zero = zeroed_m128i();
     let u = unpack_low_i8_m128i(unpack_low_i8_m128i(v, right), zero);
     let l = unpack_low_i8_m128i(unpack_high_i8_m128i(v, right), zero);
-    let wx2 = set_splat_i32_m128i(((wx << 16) | (1024 - wx)) as i32);
+    let wx2 = set_splat_i32_m128i(WEIGHT_PAIRS[(wx as usize).min(1024)] as i32);
     let eight = set_splat_i32_m128i(8);
     let top = shr_imm_u32_m128i::<4>(add_i32_m128i(mul_i16_horizontal_add_m128i(u, wx2), eight));
     let bot = shr_imm_u32_m128i::<4>(add_i32_m128i(mul_i16_horizontal_add_m128i(l, wx2), eight));
     // Both below 2¹⁵: one 32-bit lane holds the pair (top, bot).
     let tb = bitor_m128i(top, shl_imm_u32_m128i::<16>(bot));
-    let wy2 = set_splat_i32_m128i(((wy << 16) | (1024 - wy)) as i32);
+    let wy2 = set_splat_i32_m128i(WEIGHT_PAIRS[(wy as usize).min(1024)] as i32);
     let r = shr_imm_u32_m128i::<16>(add_i32_m128i(mul_i16_horizontal_add_m128i(tb, wy2), set_splat_i32_m128i(1 << 15)));
     let r16 = pack_i32_to_i16_m128i(r, r);
     get_i32_from_m128i_s(pack_i16_to_u8_m128i(r16, r16)) as u32
@@ -67,27 +79,19 @@ pub fn bilerp_pixel<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32
 /// between lies inside too. Same arithmetic as [`bilerp_pixel`].
 #[inline(always)]
 pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), q: (i64, i64), dq: (i64, i64), out: &mut [u8]) {
-    let (mut qc, mut qr) = q;
-    let n = out.len() / B;
-    let at = |qc: i64, qr: i64| {
+    // Counted from the window's origin (whole pixels: the fractions, and so
+    // the weights, stay as they are).
+    let (mut qc, mut qr) = (q.0.wrapping_sub(origin.0 << 32), q.1.wrapping_sub(origin.1 << 32));
+    let mut pixel = |qc: i64, qr: i64| {
         // In 1/1024 pixel, rounded: the weights' resolution.
-        let (fx, fy) = (qc.wrapping_add(1 << 21) >> 22, qr.wrapping_add(1 << 21) >> 22);
-        let s = ((fy >> 10) - origin.1) as usize * row + ((fx >> 10) - origin.0) as usize * B;
-        (s, (fx & 1023) as u32, (fy & 1023) as u32)
+        let (fx, fy) = ((qc.wrapping_add(1 << 21) >> 22) as usize, (qr.wrapping_add(1 << 21) >> 22) as usize);
+        let s = (fy >> 10) * row + (fx >> 10) * B;
+        bilerp_pixel::<B>(&bytes[s..], &bytes[s + row..], (fx & 1023) as u32, (fy & 1023) as u32)
     };
-    // All but the last pixel are stored as four bytes (the fourth is the
-    // next pixel's first, written again right after).
-    for i in 0..n.saturating_sub(1) {
-        let (s, wx, wy) = at(qc, qr);
-        let v = bilerp_pixel::<B>(&bytes[s..], &bytes[s + row..], wx, wy);
-        out[i * B..i * B + 4].copy_from_slice(&v.to_le_bytes());
+    for px in out.chunks_exact_mut(B) {
+        px.copy_from_slice(&pixel(qc, qr).to_le_bytes()[..B]);
         qc = qc.wrapping_add(dq.0);
         qr = qr.wrapping_add(dq.1);
-    }
-    if n > 0 {
-        let (s, wx, wy) = at(qc, qr);
-        let v = bilerp_pixel::<B>(&bytes[s..], &bytes[s + row..], wx, wy);
-        out[(n - 1) * B..n * B].copy_from_slice(&v.to_le_bytes()[..B]);
     }
 }
 

@@ -648,7 +648,9 @@ mod tests {
     #[test]
     fn a_span_resamples_what_the_row_kernel_does_at_its_positions() {
         // Random RGB and grey windows inside a larger scan; spans that run
-        // off the window (clamped edge) and off the scan (no value).
+        // off the window (clamped edge) and off the scan (no value), and one
+        // along the window's last two rows into its corner, where an 8-byte
+        // load of RGB would pass the end of the bytes.
         for bands in [1u32, 3, 4] {
             let (w, h) = (40u32, 30u32);
             let mut seed = 7u64;
@@ -660,7 +662,7 @@ mod tests {
                 .collect();
             let win = Window::from_bytes(10, 5, w, h, &bytes);
             let view = View::<u8>::new(&win, bands, 60, 40);
-            for (c, r, dc, dr) in [(12.3, 7.9, 0.731, 0.213), (8.0, 6.0, 1.117, -0.05), (45.5, 30.2, 0.9, 0.4), (55.1, 38.7, 0.3, 0.2)] {
+            for (c, r, dc, dr) in [(12.3, 7.9, 0.731, 0.213), (8.0, 6.0, 1.117, -0.05), (45.5, 30.2, 0.9, 0.4), (55.1, 38.7, 0.3, 0.2), (14.0, 33.9, 1.1, 0.0)] {
                 let span = Span { linear: true, first: 100, end: 130, anchor: 97, c, r, dc, dr };
                 let n = span.end - span.first;
                 let b = bands as usize;
