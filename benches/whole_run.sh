@@ -13,10 +13,10 @@
 # Each round times, one after the other:
 #   cat            cat scan.tif > copy.tif
 #   cat+sync       the same, then `sync copy.tif` (the copy on disk)
-#   rectify 2      --threads 2 (default: the output is synced before it is
-#                  renamed into place, like cat+sync)
-#   rectify 2 ns   --threads 2 --no-sync (left to the kernel, like cat)
-#   rectify 1 ns   --threads 1 --no-sync
+#   rect2-sync     rectify --threads 2 (default: the output is synced
+#                  before it is renamed into place, like cat+sync)
+#   rect2-nosync   rectify --threads 2 --no-sync (left to the kernel, like cat)
+#   rect1-nosync   rectify --threads 1 --no-sync
 # Before each command the previous outputs are deleted and the disk is
 # synced (not timed), so no command pays for another's write-back or for
 # deleting an old 1 GiB file. Prints each run's wall time (s) and peak
@@ -47,22 +47,22 @@ measure() { # label, command...
 rect=("$bin" rectify --image "$scene/scan.tif" --camera "$scene/camera.toml" --dem "$scene/dem.tif"
   --sparsity 16 --corrections bilinear --resample bilinear --compress none --memory 128M --quiet -o "$work/ortho.tif")
 for i in $(seq "$runs"); do
-  measure "round=$i cat          " sh -c "cat '$scene/scan.tif' > '$work/copy.tif'"
-  measure "round=$i cat+sync     " sh -c "cat '$scene/scan.tif' > '$work/copy.tif' && sync '$work/copy.tif'"
-  measure "round=$i rectify 2    " "${rect[@]}" --threads 2
-  measure "round=$i rectify 2 ns " "${rect[@]}" --threads 2 --no-sync
-  measure "round=$i rectify 1 ns " "${rect[@]}" --threads 1 --no-sync
+  measure "round=$i cat         " sh -c "cat '$scene/scan.tif' > '$work/copy.tif'"
+  measure "round=$i cat+sync    " sh -c "cat '$scene/scan.tif' > '$work/copy.tif' && sync '$work/copy.tif'"
+  measure "round=$i rect2-sync  " "${rect[@]}" --threads 2
+  measure "round=$i rect2-nosync" "${rect[@]}" --threads 2 --no-sync
+  measure "round=$i rect1-nosync" "${rect[@]}" --threads 1 --no-sync
 done | tee "$work/runs.txt"
 rm -f "$work/copy.tif" "$work/ortho.tif"
-wall() { grep "$1" "$work/runs.txt" | sed 's/.*wall_s=\([0-9.]*\).*/\1/'; }
-peak() { grep "$1" "$work/runs.txt" | sed 's/.*peak_MiB=\([0-9]*\).*/\1/'; }
+wall() { awk -v l="$1" '$2 == l' "$work/runs.txt" | sed 's/.*wall_s=\([0-9.]*\).*/\1/'; }
+peak() { awk -v l="$1" '$2 == l' "$work/runs.txt" | sed 's/.*peak_MiB=\([0-9]*\).*/\1/'; }
 median() { sort -g | awk '{v[NR]=$1} END {if (NR%2) print v[(NR+1)/2]; else printf "%.3f\n", (v[NR/2]+v[NR/2+1])/2}'; }
 echo "medians over $runs rounds:"
-for label in "cat " "cat+sync" "rectify 2 " "rectify 2 ns" "rectify 1 ns"; do
+for label in cat cat+sync rect2-sync rect2-nosync rect1-nosync; do
   printf "%-14s wall %6.2f s  peak %4.0f MiB\n" "$label" "$(wall "$label" | median)" "$(peak "$label" | median)"
 done
 ratio() { paste <(wall "$1") <(wall "$2") | awk '{printf "%.3f\n", $1/$2}' | median; }
 echo "ratios, round by round (median):"
-echo "  rectify 2 (synced)  / cat+sync      $(ratio "rectify 2 " "cat+sync")"
-echo "  rectify 2 --no-sync / cat           $(ratio "rectify 2 ns" "cat ")"
-echo "  rectify 1 / rectify 2 (--no-sync)   $(ratio "rectify 1 ns" "rectify 2 ns")"
+echo "  rect2-sync   / cat+sync       $(ratio rect2-sync cat+sync)"
+echo "  rect2-nosync / cat            $(ratio rect2-nosync cat)"
+echo "  rect1-nosync / rect2-nosync   $(ratio rect1-nosync rect2-nosync)"
