@@ -17,6 +17,10 @@
 #                  before it is renamed into place, like cat+sync)
 #   rect2-nosync   rectify --threads 2 --no-sync (left to the kernel, like cat)
 #   rect1-nosync   rectify --threads 1 --no-sync
+#   rect1-onecore  the same on one processor (`taskset -c 0`): the
+#                  pipeline's other threads (writer, planner, GCM) then
+#                  share that core, as under a batch scheduler's one-CPU
+#                  allocation; without it "1 thread" keeps ~1.4 cores busy
 # Before each command the previous outputs are deleted and the disk is
 # synced (not timed), so no command pays for another's write-back or for
 # deleting an old 1 GiB file. Prints each run's wall time (s) and peak
@@ -52,13 +56,14 @@ for i in $(seq "$runs"); do
   measure "round=$i rect2-sync  " "${rect[@]}" --threads 2
   measure "round=$i rect2-nosync" "${rect[@]}" --threads 2 --no-sync
   measure "round=$i rect1-nosync" "${rect[@]}" --threads 1 --no-sync
+  measure "round=$i rect1-onecore" taskset -c 0 "${rect[@]}" --threads 1 --no-sync
 done | tee "$work/runs.txt"
 rm -f "$work/copy.tif" "$work/ortho.tif"
 wall() { awk -v l="$1" '$2 == l' "$work/runs.txt" | sed 's/.*wall_s=\([0-9.]*\).*/\1/'; }
 peak() { awk -v l="$1" '$2 == l' "$work/runs.txt" | sed 's/.*peak_MiB=\([0-9]*\).*/\1/'; }
 median() { sort -g | awk '{v[NR]=$1} END {if (NR%2) print v[(NR+1)/2]; else printf "%.3f\n", (v[NR/2]+v[NR/2+1])/2}'; }
 echo "medians over $runs rounds:"
-for label in cat cat+sync rect2-sync rect2-nosync rect1-nosync; do
+for label in cat cat+sync rect2-sync rect2-nosync rect1-nosync rect1-onecore; do
   printf "%-14s wall %6.2f s  peak %4.0f MiB\n" "$label" "$(wall "$label" | median)" "$(peak "$label" | median)"
 done
 ratio() { paste <(wall "$1") <(wall "$2") | awk '{printf "%.3f\n", $1/$2}' | median; }
@@ -66,3 +71,4 @@ echo "ratios, round by round (median):"
 echo "  rect2-sync   / cat+sync       $(ratio rect2-sync cat+sync)"
 echo "  rect2-nosync / cat            $(ratio rect2-nosync cat)"
 echo "  rect1-nosync / rect2-nosync   $(ratio rect1-nosync rect2-nosync)"
+echo "  rect1-onecore / rect2-nosync  $(ratio rect1-onecore rect2-nosync)"
