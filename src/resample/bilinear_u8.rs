@@ -82,7 +82,7 @@ pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64),
     // Counted from the window's origin (whole pixels: the fractions, and so
     // the weights, stay as they are).
     let (mut qc, mut qr) = (q.0.wrapping_sub(origin.0 << 32), q.1.wrapping_sub(origin.1 << 32));
-    let mut pixel = |qc: i64, qr: i64| {
+    let pixel = |qc: i64, qr: i64| {
         // In 1/1024 pixel, rounded: the weights' resolution.
         let (fx, fy) = ((qc.wrapping_add(1 << 21) >> 22) as usize, (qr.wrapping_add(1 << 21) >> 22) as usize);
         let s = (fy >> 10) * row + (fx >> 10) * B;
