@@ -123,12 +123,17 @@ fn small_memory_budget_and_many_chunks_change_nothing() {
     let mut outs = Vec::new();
     for (mem, tile, threads) in [("512M", "256", "2"), ("16M", "64", "1")] {
         let out = dir.path().join(format!("o{mem}.tif"));
+        let json = dir.path().join(format!("r{mem}.json"));
         let r = run(&[
             "rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet",
-            "--memory", mem, "--tile", tile, "--threads", threads, "--compress", "none",
+            "--memory", mem, "--tile", tile, "--threads", threads, "--compress", "none", "--json", s(&json),
         ]);
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
         outs.push(read_grey(&out, 0.0).unwrap());
+        // The striped, uncompressed scan is read in place from its mapping.
+        let rep: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        let (all, in_place) = (rep["chunks"].as_u64().unwrap(), rep["chunks_in_place"].as_u64().unwrap());
+        assert!(all > 1 && in_place > 0 && in_place <= all, "{mem}: {in_place} of {all} chunks in place");
     }
     assert_eq!(outs[0].v, outs[1].v);
 }

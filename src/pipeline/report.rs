@@ -24,6 +24,9 @@ pub struct Report {
     pub scan: ScanInfo,
     pub bands: u32,
     pub chunks: u64,
+    /// Chunks whose scan rows were read in place from the mapping (the
+    /// others' windows were copied or decoded).
+    pub chunks_in_place: u64,
     pub stage_seconds: StageTimes,
     pub wall_seconds: f64,
     pub input_mb_per_s: f64,

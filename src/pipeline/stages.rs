@@ -262,6 +262,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let failed = AtomicBool::new(false);
     let stop = || cancel.load(Ordering::Relaxed) || failed.load(Ordering::Relaxed);
     let chunks_done = AtomicU64::new(0);
+    let chunks_in_place = AtomicU64::new(0);
     let stats = std::sync::Mutex::new(crate::gcm::GcmStats::default());
     let out_file = pending.file()?;
     // A second handle to the output, to start its write-back while tiles
@@ -349,6 +350,8 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
             let rx_gcm = rx_gcm;
             let mut busy = Duration::ZERO;
             let margin = cfg.kernel.radius() + 2;
+            // Scan windows are copied from here on (see below).
+            let mut copying = false;
             for (b, band) in rx_gcm.iter().enumerate() {
                 let b = tr0 + b as u32;
                 let (y0, y1) = band_rows(&grid, cfg.tile, b);
@@ -357,21 +360,32 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                     if stop() {
                         return Err(Error::Cancelled);
                     }
-                    let mut win = rx_free_win.try_recv().unwrap_or_default();
                     let [c0, r0, c1, r1] = chunk.win;
                     // In place when the rows it spans fit six shares (a
-                    // quarter of the budget): in place, no window is copied
-                    // (the three windows' shares are free) and the only scan
-                    // pages resident are the rows of the chunk being
-                    // resampled (at most whole rows: the kernel maps pages
-                    // around each fault); the other three shares come from
-                    // the budget's slack. A tall, narrow window of a turned
-                    // scan would map far more pages than it uses: copy those.
+                    // quarter of the budget): no window is copied (the
+                    // windows' four shares are free) and the only scan pages
+                    // resident are the rows of the chunks being resampled
+                    // (at most whole rows: the kernel maps pages around each
+                    // fault); the other two shares come from the budget's
+                    // slack. A tall, narrow window of a turned scan would map
+                    // far more pages than it uses: copy those. Once one
+                    // chunk is copied, the rest of the run is copied too:
+                    // mapped rows on top of the copies' buffers went past the
+                    // budget (a 4 GiB scan whose bands' rows lie about at the
+                    // bound peaked at 115–150 MiB; copied throughout, 76–82).
                     let span = (r1 - r0) as u64 * sw as u64 * src.info.pixel_bytes() as u64;
-                    let in_place = if span <= 6 * share { src.mapped_rows(c0, r0, c1 - c0, r1 - r0).map_err(fail)? } else { None };
+                    let in_place = if span <= 6 * share && !copying { src.mapped_rows(c0, r0, c1 - c0, r1 - r0).map_err(fail)? } else { None };
+                    let mut win = rx_free_win.try_recv().unwrap_or_default();
                     match in_place {
-                        Some(_) => (win.x0, win.y0, win.w, win.h) = (c0, r0, c1 - c0, r1 - r0),
-                        None => timed(&mut busy, || src.read_window(c0, r0, c1 - c0, r1 - r0, &mut win)).map_err(fail)?,
+                        Some(_) => {
+                            (win.x0, win.y0, win.w, win.h) = (c0, r0, c1 - c0, r1 - r0);
+                            chunks_in_place.fetch_add(1, Ordering::Relaxed);
+                        }
+                        None => {
+                            // A chunk that sees no pixel of the scan decides nothing.
+                            copying |= c1 > c0 && r1 > r0;
+                            timed(&mut busy, || src.read_window(c0, r0, c1 - c0, r1 - r0, &mut win)).map_err(fail)?
+                        }
                     }
                     if tx_read.send(ReadMsg { band: b, gcm: band.clone(), chunk, win, in_place }).is_err() {
                         return Err(Error::Cancelled);
@@ -558,6 +572,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         },
         bands: n_bands,
         chunks: chunks_done.load(Ordering::Relaxed),
+        chunks_in_place: chunks_in_place.load(Ordering::Relaxed),
         stage_seconds: times,
         wall_seconds: wall_s,
         input_mb_per_s: src.info.data_bytes() as f64 / 1e6 / wall_s,
