@@ -86,7 +86,9 @@ pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64),
         // In 1/1024 pixel, rounded: the weights' resolution.
         let (fx, fy) = ((qc.wrapping_add(1 << 21) >> 22) as usize, (qr.wrapping_add(1 << 21) >> 22) as usize);
         let s = (fy >> 10) * row + (fx >> 10) * B;
-        bilerp_pixel::<B>(&bytes[s..], &bytes[s + row..], (fx & 1023) as u32, (fy & 1023) as u32)
+        // Both rows' 8 bytes under one bounds check.
+        let both = &bytes[s..s + row + 8];
+        bilerp_pixel::<B>(&both[..8], &both[row..], (fx & 1023) as u32, (fy & 1023) as u32)
     };
     for px in out.chunks_exact_mut(B) {
         px.copy_from_slice(&pixel(qc, qr).to_le_bytes()[..B]);

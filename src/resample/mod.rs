@@ -450,36 +450,39 @@ fn gather_clamped<T: Sample, const B: usize>(view: &View<'_, T>, i0: i64, j0: i6
 /// of the row starts. Same contract as [`resample_row`].
 pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span, out: &mut [T], valid: &mut [bool], fill: T) -> bool {
     let ([mut qc, mut qr], [dqc, dqr]) = span_fixed(span, span.first);
+    let n = out.len() / B;
+    // 8-bit RGB/RGBA wholly inside the window (nearly every span): a loop
+    // with nothing to check per pixel.
+    if T::TYPE == SampleType::U8 && (B == 3 || B == 4) && n > 0 {
+        // The window-relative upper-left neighbour of pixel `i`, rounded
+        // as the weights are (to 1/1024 pixel).
+        let corner = |i: i64| {
+            let (qc, qr) = (qc.wrapping_add(i.wrapping_mul(dqc)), qr.wrapping_add(i.wrapping_mul(dqr)));
+            ((qc.wrapping_add(1 << 21) >> 32) - view.x0, (qr.wrapping_add(1 << 21) >> 32) - view.y0)
+        };
+        // Positions are linear and the rounding monotone, so the two ends
+        // bound every pixel between. Where all four neighbours lie in a
+        // window that lies in the scan, the pixel lies in the scan too
+        // (has a value), and the 8-byte loads of the farthest corner the
+        // ends span must stay inside the bytes.
+        let ((ia, ja), (ib, jb)) = (corner(0), corner(n as i64 - 1));
+        let (wl, hl) = ((view.w - 1).max(0) as u64, (view.h - 1).max(0) as u64);
+        let window_in_scan = view.x0 >= 0 && view.y0 >= 0 && (view.x0 + view.w) as f64 <= view.img_w && (view.y0 + view.h) as f64 <= view.img_h;
+        if window_in_scan && (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl {
+            let bytes: &[u8] = bytemuck::cast_slice(view.data);
+            let row = view.stride as usize * B;
+            if (ja.max(jb) as usize + 1) * row + ia.max(ib) as usize * B + 8 <= bytes.len() {
+                bilinear_u8::span_inside::<B>(bytes, row, (view.x0, view.y0), (qc, qr), (dqc, dqr), bytemuck::cast_slice_mut(out));
+                valid.fill(true);
+                return false;
+            }
+        }
+    }
     let half = 1i64 << 31;
     let (w_lim, h_lim) = ((view.img_w as i64) << 32, (view.img_h as i64) << 32);
     let (wl, hl) = ((view.w - 1).max(0) as u64, (view.h - 1).max(0) as u64);
     let src = Gather::new::<B>(view);
     let stride = view.stride as usize;
-    // 8-bit RGB/RGBA wholly inside the window (nearly every span): a loop
-    // with nothing to check per pixel.
-    let n = out.len() / B;
-    if !src.bytes.is_empty() && n > 0 {
-        // Whether pixel `i` lies in the image and its four neighbours in
-        // the window, and at which window pixel (upper left).
-        let at = |i: i64| {
-            let (qc, qr) = (qc.wrapping_add(i.wrapping_mul(dqc)), qr.wrapping_add(i.wrapping_mul(dqr)));
-            let (c, r) = (qc.wrapping_add(half), qr.wrapping_add(half));
-            let (fx, fy) = (qc.wrapping_add(1 << 21) >> 22, qr.wrapping_add(1 << 21) >> 22);
-            let (i0, j0) = ((fx >> 10) - view.x0, (fy >> 10) - view.y0);
-            (c >= 0 && c < w_lim && r >= 0 && r < h_lim && (i0 as u64) < wl && (j0 as u64) < hl, i0 as usize, j0 as usize)
-        };
-        // Positions are linear and the rounding monotone, so the two ends
-        // bound every pixel between; the 8-byte loads of the farthest
-        // corner they span must stay inside the bytes too.
-        let ((first_in, i_a, j_a), (last_in, i_b, j_b)) = (at(0), at(n as i64 - 1));
-        let loads_fit = || (j_a.max(j_b) + 1) * src.row + i_a.max(i_b) * B + 8 <= src.bytes.len();
-        if first_in && last_in && loads_fit() {
-            let bytes: &mut [u8] = bytemuck::cast_slice_mut(out);
-            bilinear_u8::span_inside::<B>(src.bytes, src.row, (view.x0, view.y0), (qc, qr), (dqc, dqr), bytes);
-            valid.fill(true);
-            return false;
-        }
-    }
     let mut clamped = false;
     for (px, v) in out.chunks_exact_mut(B).zip(valid.iter_mut()) {
         let px: &mut [T; B] = px.try_into().expect("B samples");
