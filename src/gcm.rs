@@ -176,19 +176,30 @@ impl Span {
         }
     }
 
-    /// The span cut where it crosses the edges of tiles `tile` columns
-    /// wide that start at column `origin`: (tile index from `origin`, the
-    /// piece), left to right.
-    pub fn by_tile(&self, origin: usize, tile: usize) -> impl Iterator<Item = (usize, Span)> + '_ {
-        let mut first = self.first;
-        std::iter::from_fn(move || {
-            (first < self.end).then(|| {
-                let t = (first - origin) / tile;
-                let end = (origin + (t + 1) * tile).min(self.end);
-                let piece = Span { first, end, ..*self };
-                first = end;
-                (t, piece)
-            })
+    /// Consecutive spans (left to right, as [`Gcm::row_spans`] makes them)
+    /// cut where they cross the edges of tiles `tile` columns wide that
+    /// start at column `origin`: (tile index from `origin`, the piece). The
+    /// tile is followed along the row, with no division per span.
+    pub fn by_tile(spans: &[Span], origin: usize, tile: usize) -> impl Iterator<Item = (usize, Span)> + '_ {
+        let mut rest = spans.iter();
+        let mut current: Option<(&Span, usize)> = None;
+        let (mut t, mut tile_end) = (0, origin + tile);
+        std::iter::from_fn(move || loop {
+            let (span, first) = match current {
+                Some((s, first)) if first < s.end => (s, first),
+                _ => {
+                    let s = rest.next()?;
+                    current = Some((s, s.first));
+                    continue;
+                }
+            };
+            while first >= tile_end {
+                t += 1;
+                tile_end += tile;
+            }
+            let end = tile_end.min(span.end);
+            current = Some((span, end));
+            return Some((t, Span { first, end, ..*span }));
         })
     }
 
@@ -701,5 +712,36 @@ fn leaf(q: &Quad, u: f64, v: f64) -> Option<&Quad> {
                 q = &k[i];
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spans_are_cut_at_every_tile_edge_and_nowhere_else() {
+        let span = |first, end, c| Span { linear: true, first, end, anchor: first, c, r: 0.0, dc: 1.0, dr: 0.0 };
+        // Spans of 13 to 171 pixels from column 100, tiles of 16 from 100.
+        let bounds = [100, 113, 129, 300, 301, 333];
+        let spans: Vec<Span> = bounds.windows(2).map(|w| span(w[0], w[1], w[0] as f64)).collect();
+        let pieces: Vec<(usize, Span)> = Span::by_tile(&spans, 100, 16).collect();
+        // The same cut worked out pixel by pixel: a new piece where the
+        // tile or the span changes.
+        let mut want: Vec<(usize, usize, usize, f64)> = Vec::new();
+        for s in &spans {
+            for x in s.first..s.end {
+                let t = (x - 100) / 16;
+                match want.last_mut() {
+                    Some(p) if p.0 == t && p.2 == x && p.3 == s.c => p.2 = x + 1,
+                    _ => want.push((t, x, x + 1, s.c)),
+                }
+            }
+        }
+        let got: Vec<(usize, usize, usize, f64)> = pieces.iter().map(|(t, p)| (*t, p.first, p.end, p.c)).collect();
+        assert_eq!(got, want);
+        // Each piece keeps its span's line.
+        assert!(pieces.iter().all(|(_, p)| p.anchor == p.c as usize && p.dc == 1.0 && p.linear));
+        assert_eq!(Span::by_tile(&[], 0, 16).count(), 0);
     }
 }

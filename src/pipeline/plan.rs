@@ -4,7 +4,7 @@
 //! `A + c`, and tiles are grouped left to right while the window stays under
 //! the memory budget.
 
-use crate::gcm::{BandGcm, Gcm};
+use crate::gcm::{BandGcm, Gcm, Span};
 
 /// A run of output tiles of one band and the scan window it reads.
 #[derive(Clone, Debug, PartialEq)]
@@ -47,7 +47,7 @@ fn tile_bboxes(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, tile: u32, (t0, 
     for &y in &ys {
         if gcm.row_spans(band, y, x_lo as u32, w, &mut spans) && spans.iter().all(|s| s.linear) {
             // Straight spans: their ends (cut at tile edges) bound them.
-            for (t, piece) in spans.iter().flat_map(|s| s.by_tile(x_lo, tile)) {
+            for (t, piece) in Span::by_tile(&spans, x_lo, tile) {
                 grow(&mut boxes[t], piece.at(piece.first));
                 grow(&mut boxes[t], piece.at(piece.end - 1));
             }

@@ -7,7 +7,7 @@ use crate::accuracy;
 use crate::camera::file::Camera;
 use crate::dem::{Dem, Height, Lookup};
 use crate::error::{Error, Result};
-use crate::gcm::{BandGcm, Gcm};
+use crate::gcm::{BandGcm, Gcm, Span};
 use crate::geom::OutputGrid;
 use crate::io::source::{SampleType, SourceImage, Window};
 use crate::io::tiff_out::{encode_tile, tiff_write_error, verify, write_tiled, Chunking, GeoTags, OutputSpec, PendingFile, WriteError};
@@ -703,7 +703,7 @@ fn resample_chunk<T: Sample + Recycle>(
                     // Straight spans: positions step in fixed point. Each
                     // piece of a span inside one tile goes straight into the
                     // tile where the output has the scan's bands.
-                    for (tx, sub) in spans.iter().flat_map(|s| s.by_tile(x0, t)) {
+                    for (tx, sub) in Span::by_tile(spans, x0, t) {
                         let (first, end) = (sub.first, sub.end);
                         let (a, b) = (first - x0, end - x0);
                         let out: &mut [T] = if direct { &mut row_pieces[tx][(a - tx * t) * bo..(b - tx * t) * bo] } else { &mut px[a * bands_in..b * bands_in] };

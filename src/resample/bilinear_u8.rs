@@ -80,11 +80,13 @@ pub fn bilerp_pixel<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32
 #[inline(always)]
 pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), q: (i64, i64), dq: (i64, i64), out: &mut [u8]) {
     // Counted from the window's origin (whole pixels: the fractions, and so
-    // the weights, stay as they are).
-    let (mut qc, mut qr) = (q.0.wrapping_sub(origin.0 << 32), q.1.wrapping_sub(origin.1 << 32));
+    // the weights, stay as they are), plus half of 1/1024 pixel, so that
+    // dropping the low 22 bits rounds to the weights' resolution.
+    let start = |q: i64, o: i64| q.wrapping_sub(o << 32).wrapping_add(1 << 21);
+    let (mut qc, mut qr) = (start(q.0, origin.0), start(q.1, origin.1));
     let pixel = |qc: i64, qr: i64| {
-        // In 1/1024 pixel, rounded: the weights' resolution.
-        let (fx, fy) = ((qc.wrapping_add(1 << 21) >> 22) as usize, (qr.wrapping_add(1 << 21) >> 22) as usize);
+        // In 1/1024 pixel.
+        let (fx, fy) = ((qc >> 22) as usize, (qr >> 22) as usize);
         let s = (fy >> 10) * row + (fx >> 10) * B;
         // Both rows' 8 bytes under one bounds check.
         let both = &bytes[s..s + row + 8];
