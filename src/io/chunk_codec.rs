@@ -12,7 +12,9 @@
 //! are undone row by row. Like libtiff, LZW stops once the chunk's bytes are
 //! out, whether or not an end code follows.
 
+use std::fs::File;
 use std::io::Read;
+use std::path::Path;
 
 /// How the chunks of one file are coded.
 #[derive(Clone, Copy, Debug)]
@@ -47,6 +49,20 @@ impl ChunkCodec {
             3 => Err("the floating-point predictor on integer samples".into()),
             p => Err(format!("predictor {p}")),
         }
+    }
+
+    /// Chunk `k` of the file at `path`, stored as `count` bytes from
+    /// `offset`, read with `pread` and decoded: `rows` rows of `width`
+    /// pixels, native-endian. Errors name the file and the chunk.
+    pub fn read_chunk(&self, file: &File, path: &Path, k: usize, (offset, count): (u64, u64), width: usize, rows: usize) -> crate::error::Result<Vec<u8>> {
+        use crate::error::Error;
+        use std::os::unix::fs::FileExt;
+        if count > crate::io::source::decoder_limits().intermediate_buffer_size as u64 {
+            return Err(Error::limits(path, format!("chunk {k} holds {count} compressed bytes")));
+        }
+        let mut coded = vec![0u8; count as usize];
+        file.read_exact_at(&mut coded, offset).map_err(|e| Error::io(path, e))?;
+        self.decode(&coded, width, rows).map_err(|e| Error::format(path, format!("chunk {k}: {e}")))
     }
 
     /// The chunk's pixels: `rows` rows of `width` pixels, native-endian.

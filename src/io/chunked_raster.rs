@@ -7,7 +7,6 @@ use crate::error::{Error, Result};
 use crate::io::chunk_codec::{file_is_big_endian, ChunkCodec};
 use std::fs::File;
 use std::io::BufReader;
-use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 use tiff::decoder::Decoder;
 use tiff::tags::Tag;
@@ -146,13 +145,7 @@ impl ChunkedRaster {
     pub fn chunk(&self, k: usize) -> Result<Vec<f32>> {
         let (cw, ch) = self.chunk;
         let rows = if self.tiled { ch } else { ch.min(self.height - k * ch) };
-        let (o, n) = (self.offsets[k], self.counts[k]);
-        if n > crate::io::source::decoder_limits().intermediate_buffer_size as u64 {
-            return Err(Error::limits(&self.path, format!("chunk {k} holds {n} compressed bytes")));
-        }
-        let mut coded = vec![0u8; n as usize];
-        self.file.read_exact_at(&mut coded, o).map_err(|e| Error::io(&self.path, e))?;
-        let bytes = self.codec.decode(&coded, cw, rows).map_err(|e| Error::format(&self.path, format!("chunk {k}: {e}")))?;
+        let bytes = self.codec.read_chunk(&self.file, &self.path, k, (self.offsets[k], self.counts[k]), cw, rows)?;
         Ok(self.sample.to_f32(&bytes))
     }
 

@@ -565,17 +565,11 @@ impl SourceImage {
     /// Chunk `k` decoded by `chunk_codec`: tiles are stored whole, so the
     /// bytes come out at the chunk's full width and height already.
     fn decode_own(&self, k: u32, codec: &ChunkCodec, file: &File) -> Result<Vec<u8>> {
-        use std::os::unix::fs::FileExt;
         let info = &self.info;
-        let (o, n) = (info.offsets[k as usize], info.byte_counts[k as usize]);
-        if n > decoder_limits().intermediate_buffer_size as u64 {
-            return Err(Error::limits(&self.path, format!("chunk {k} holds {n} compressed bytes")));
-        }
-        let mut coded = vec![0u8; n as usize];
-        file.read_exact_at(&mut coded, o).map_err(|e| Error::io(&self.path, e))?;
         let (cw, ch) = info.chunk;
         let rows = if info.tiled { ch } else { (info.height - k % info.chunks_per_plane() * ch).min(ch) };
-        codec.decode(&coded, cw as usize, rows as usize).map_err(|e| Error::format(&self.path, format!("chunk {k}: {e}")))
+        let stored = (info.offsets[k as usize], info.byte_counts[k as usize]);
+        codec.read_chunk(file, &self.path, k as usize, stored, cw as usize, rows as usize)
     }
 
     /// Rows `[y0, y0+h)`, columns `[x0, x0+w)` in place in the mapped file,
