@@ -129,6 +129,8 @@ pub struct Gcm<'a> {
     /// The first pixel whose centre lies at or right of each node column,
     /// the widest gap between node columns, and 0, 1, 2, … as wide.
     first_px: Vec<usize>,
+    /// From each node column to its first pixel's centre (a span's anchor).
+    anchor_off: Vec<f64>,
     max_gap: f64,
     ramp: Vec<f64>,
     /// The DEM's bilinear kinks in output coordinates, where the DEM grid is
@@ -248,10 +250,11 @@ impl<'a> Gcm<'a> {
             }
         };
         let inv_dx = xs.windows(2).map(|p| 1.0 / (p[1] - p[0])).collect();
-        let first_px = xs.iter().map(|&x| (x - 0.5).ceil().max(0.0) as usize).collect();
+        let first_px: Vec<usize> = xs.iter().map(|&x| (x - 0.5).ceil().max(0.0) as usize).collect();
+        let anchor_off = first_px.iter().zip(&xs).map(|(&p, &x)| p as f64 + 0.5 - x).collect();
         let max_gap = xs.windows(2).map(|p| p[1] - p[0]).fold(k as f64, f64::max);
         let ramp = (0..=max_gap.ceil() as usize + 1).map(|m| m as f64).collect();
-        Gcm { t, a, spec, first_node, nodes_x: xs.len(), xs, ys, inv_dx, first_px, max_gap, ramp, kinks }
+        Gcm { t, a, spec, first_node, nodes_x: xs.len(), xs, ys, inv_dx, first_px, anchor_off, max_gap, ramp, kinks }
     }
 
     /// Whether the DEM's own lines were added to the node lines (bilinear
@@ -501,30 +504,40 @@ impl<'a> Gcm<'a> {
             return false;
         }
         let (a, b) = (&band.rows[(j0 - band.first_j) as usize], &band.rows[(j1 - band.first_j) as usize]);
-        let cells = band.cells.get((j0 - band.first_j) as usize);
         let (lo, hi) = self.node_span(x0, len);
-        // The position at node column i: A there plus the correction.
-        let at = |i: usize| {
-            let (ac, ar) = ra.at(self.xs[i]);
-            (ac + a.dc[i] + fy * (b.dc[i] - a.dc[i]), ar + a.dr[i] + fy * (b.dr[i] - a.dr[i]))
-        };
+        // Node columns lo..=hi and the gaps lo..hi between them, cut out
+        // once (no bounds checks per gap below).
+        let nodes = lo..hi + 1;
+        let (xs, first_px) = (&self.xs[nodes.clone()], &self.first_px[nodes.clone()]);
+        let (adc, adr, bdc, bdr) = (&a.dc[nodes.clone()], &a.dr[nodes.clone()], &b.dc[nodes.clone()], &b.dr[nodes]);
+        let (inv_dx, anchor_off) = (&self.inv_dx[lo..hi], &self.anchor_off[lo..hi]);
+        // Refined cells (only with --max-error: then every gap has its entry).
+        let refined = band.cells.get((j0 - band.first_j) as usize).map(|c| &c[lo..hi]);
+        // The position at each node column: A there plus the correction.
+        let mut positions = xs.iter().zip(adc.iter().zip(adr)).zip(bdc.iter().zip(bdr)).map(|((&u, (&adc, &adr)), (&bdc, &bdr))| {
+            let (ac, ar) = ra.at(u);
+            (ac + adc + fy * (bdc - adc), ar + adr + fy * (bdr - adr))
+        });
         let x_end = x0 as usize + len;
-        let mut right = at(lo);
+        let last_gap = self.nodes_x - 2;
+        let Some(mut right) = positions.next() else {
+            return true;
+        };
         let mut x = x0 as usize;
-        for i in lo..hi {
+        for (g, next) in positions.enumerate() {
             let left = right;
-            right = at(i + 1);
-            let end = if i + 2 >= self.nodes_x { x_end } else { self.first_px[i + 1].clamp(x, x_end) };
+            right = next;
+            let end = if lo + g >= last_gap { x_end } else { first_px[g + 1].clamp(x, x_end) };
             if end > x {
-                let inv = self.inv_dx[i];
+                let inv = inv_dx[g];
                 let (dc, dr) = ((right.0 - left.0) * inv, (right.1 - left.1) * inv);
-                let anchor = self.first_px[i];
-                let off = anchor as f64 + 0.5 - self.xs[i];
+                let off = anchor_off[g];
                 let (c, r) = (left.0 + off * dc, left.1 + off * dr);
-                let refined = cells.and_then(|c| c.get(i)).is_some_and(|q| q.is_some());
+                let refined = refined.is_some_and(|q| q[g].is_some());
                 // Within what 32-bit fixed point holds (a scan of 2³⁰ pixels a side).
-                let linear = !refined && [c, r, dc * 1024.0, dr * 1024.0].iter().all(|v| v.abs() < (1u64 << 30) as f64);
-                spans.push(Span { linear, first: x, end, anchor, c, r, dc, dr });
+                const FIXED: f64 = (1u64 << 30) as f64;
+                let linear = !refined && c.abs() < FIXED && r.abs() < FIXED && dc.abs() * 1024.0 < FIXED && dr.abs() * 1024.0 < FIXED;
+                spans.push(Span { linear, first: x, end, anchor: first_px[g], c, r, dc, dr });
             }
             x = end;
         }

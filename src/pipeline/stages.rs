@@ -7,11 +7,11 @@ use crate::accuracy;
 use crate::camera::file::Camera;
 use crate::dem::{Dem, Height, Lookup};
 use crate::error::{Error, Result};
-use crate::gcm::{BandGcm, Gcm, Span};
+use crate::gcm::{BandGcm, Gcm};
 use crate::geom::OutputGrid;
 use crate::io::source::{SampleType, SourceImage, Window};
 use crate::io::tiff_out::{encode_tile, tiff_write_error, verify, write_tiled, Chunking, GeoTags, OutputSpec, PendingFile, WriteError};
-use crate::resample::{resample_row, resample_span, span_position, Kernel, Sample, View};
+use crate::resample::{resample_row, resample_spans, span_position, Kernel, Sample, SpanOutcome, View};
 use crate::transform::footprint::{auto_grid, mean_gsd};
 use crate::transform::{Approx, Transform, Trend};
 use crossbeam_channel::bounded;
@@ -693,40 +693,48 @@ fn resample_chunk<T: Sample + Recycle>(
                 let y = y0 + r as u32;
                 // Pixels whose kernel would leave the window: read their
                 // neighbourhood on their own (rare; the plan adds a margin).
-                let reread = |(c, rr): (f64, f64), out: &mut [T]| {
-                    if !(c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3]) {
-                        single_pixel(src, cfg, c, rr, out, fill);
+                let is_safe = |(c, rr): (f64, f64)| c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3];
+                let reread = |at: (f64, f64), out: &mut [T]| {
+                    if !is_safe(at) {
+                        single_pixel(src, cfg, at.0, at.1, out, fill);
                     }
                 };
                 let x0 = x0 as usize;
                 if cfg.kernel == Kernel::Bilinear && gcm.row_spans(&msg.gcm, y, x0 as u32, w, spans) {
-                    // Straight spans: positions step in fixed point. Each
-                    // piece of a span inside one tile goes straight into the
-                    // tile where the output has the scan's bands.
-                    for (tx, sub) in Span::by_tile(spans, x0, t) {
-                        let (first, end) = (sub.first, sub.end);
+                    // Straight spans: positions step in fixed point, runs
+                    // of them in one call; the rest (refined cells) pixel
+                    // by pixel.
+                    for run in spans.chunk_by(|p, q| p.linear == q.linear) {
+                        let (first, end) = (run[0].first, run[run.len() - 1].end);
                         let (a, b) = (first - x0, end - x0);
-                        let out: &mut [T] = if direct { &mut row_pieces[tx][(a - tx * t) * bo..(b - tx * t) * bo] } else { &mut px[a * bands_in..b * bands_in] };
+                        let out: &mut [T] = &mut px[a * bands_in..b * bands_in];
                         let valid = &mut valid[a..b];
-                        let clamped = if sub.linear {
-                            resample_span(&view, &sub, out, valid, fill)
+                        let linear = run[0].linear;
+                        let outcome = if linear {
+                            resample_spans(&view, run, out, valid, fill)
                         } else {
                             gcm.fill_exact(&msg.gcm, y, first as u32, &mut cols[a..b], &mut rws[a..b], &mut miss);
-                            resample_row(cfg.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill)
+                            SpanOutcome::Checked { clamped: resample_row(cfg.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill) }
                         };
-                        if clamped {
-                            for (j, px) in out.chunks_exact_mut(bands_in).enumerate().filter(|(j, _)| valid[*j]) {
-                                let at = if sub.linear { span_position(&sub, first + j) } else { (cols[a + j], rws[a + j]) };
-                                reread(at, px);
+                        if outcome == SpanOutcome::Inside && !direct {
+                            // The alpha band below reads it.
+                            valid.fill(true);
+                        }
+                        if outcome == (SpanOutcome::Checked { clamped: true }) {
+                            for s in run {
+                                // A straight span whose ends are safe is safe throughout.
+                                if linear && is_safe(span_position(s, s.first)) && is_safe(span_position(s, s.end - 1)) {
+                                    continue;
+                                }
+                                for x in s.first..s.end {
+                                    let j = x - first;
+                                    if valid[j] {
+                                        let at = if linear { span_position(s, x) } else { (cols[x - x0], rws[x - x0]) };
+                                        reread(at, &mut out[j * bands_in..(j + 1) * bands_in]);
+                                    }
+                                }
                             }
                         }
-                    }
-                    if direct {
-                        // Beyond the grid's right edge.
-                        if let Some(last) = row_pieces.last_mut() {
-                            last[(w - (n_tiles - 1) * t) * bo..].fill(T::default());
-                        }
-                        return miss;
                     }
                 } else {
                     gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, &mut miss);

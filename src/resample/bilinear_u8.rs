@@ -92,10 +92,18 @@ pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64),
         let both = &bytes[s..s + row + 8];
         bilerp_pixel::<B>(&both[..8], &both[row..], (fx & 1023) as u32, (fy & 1023) as u32)
     };
-    for px in out.chunks_exact_mut(B) {
-        px.copy_from_slice(&pixel(qc, qr).to_le_bytes()[..B]);
+    // Four bytes a pixel, also for three bands (the fourth is written over
+    // by the next pixel), but for the last pixel.
+    let body = out.len().saturating_sub(B);
+    let mut o = 0;
+    while o < body {
+        out[o..o + 4].copy_from_slice(&pixel(qc, qr).to_le_bytes());
         qc = qc.wrapping_add(dq.0);
         qr = qr.wrapping_add(dq.1);
+        o += B;
+    }
+    if let Some(last) = out.get_mut(o..o + B) {
+        last.copy_from_slice(&pixel(qc, qr).to_le_bytes()[..B]);
     }
 }
 

@@ -170,21 +170,13 @@ pub struct View<'a, T> {
     /// Size of the whole scan (for "outside" and edge clamping).
     pub img_w: f64,
     pub img_h: f64,
+    /// The window lies wholly inside the scan.
+    in_scan: bool,
 }
 
 impl<'a, T: Sample> View<'a, T> {
     pub fn new(win: &'a Window, bands: u32, img_w: u32, img_h: u32) -> View<'a, T> {
-        View {
-            data: bytemuck::cast_slice(win.bytes()),
-            x0: win.x0 as i64,
-            y0: win.y0 as i64,
-            w: win.w as i64,
-            h: win.h as i64,
-            stride: win.w as i64,
-            bands: bands as usize,
-            img_w: img_w as f64,
-            img_h: img_h as f64,
-        }
+        Self::in_place(bytemuck::cast_slice(win.bytes()), win.x0, win.y0, win.w, win.h, win.w as usize, bands, img_w, img_h)
     }
 
     /// A view of samples in place (in a mapped file): `w`×`h` pixels at scan
@@ -201,6 +193,7 @@ impl<'a, T: Sample> View<'a, T> {
             bands: bands as usize,
             img_w: img_w as f64,
             img_h: img_h as f64,
+            in_scan: x0 as u64 + w as u64 <= img_w as u64 && y0 as u64 + h as u64 <= img_h as u64,
         }
     }
 
@@ -443,12 +436,25 @@ fn gather_clamped<T: Sample, const B: usize>(view: &View<'_, T>, i0: i64, j0: i6
     }
 }
 
+/// What [`resample_span`] leaves to its caller.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpanOutcome {
+    /// Every pixel's neighbours lay inside the window: all have a value,
+    /// and `valid` was not touched.
+    Inside,
+    /// Pixel by pixel: `valid` says which have a value; `clamped` as
+    /// [`resample_row`] returns it.
+    Checked { clamped: bool },
+}
+
 /// Bilinear along a straight span of scan positions (output pixels
 /// `span.first..span.end`, `B` bands each into `out`): the position steps
 /// by a constant in fixed point with 32 fractional bits, counted from the
 /// span's anchor so that a pixel's value does not depend on where a piece
-/// of the row starts. Same contract as [`resample_row`].
-pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span, out: &mut [T], valid: &mut [bool], fill: T) -> bool {
+/// of the row starts. As [`resample_row`], except that a span wholly
+/// inside the window leaves `valid` as it is ([`SpanOutcome::Inside`]).
+#[inline(always)]
+pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span, out: &mut [T], valid: &mut [bool], fill: T) -> SpanOutcome {
     let ([mut qc, mut qr], [dqc, dqr]) = span_fixed(span, span.first);
     let n = out.len() / B;
     // 8-bit RGB/RGBA wholly inside the window (nearly every span): a loop
@@ -467,14 +473,12 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
         // ends span must stay inside the bytes.
         let ((ia, ja), (ib, jb)) = (corner(0), corner(n as i64 - 1));
         let (wl, hl) = ((view.w - 1).max(0) as u64, (view.h - 1).max(0) as u64);
-        let window_in_scan = view.x0 >= 0 && view.y0 >= 0 && (view.x0 + view.w) as f64 <= view.img_w && (view.y0 + view.h) as f64 <= view.img_h;
-        if window_in_scan && (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl {
+        if view.in_scan && (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl {
             let bytes: &[u8] = bytemuck::cast_slice(view.data);
             let row = view.stride as usize * B;
             if (ja.max(jb) as usize + 1) * row + ia.max(ib) as usize * B + 8 <= bytes.len() {
                 bilinear_u8::span_inside::<B>(bytes, row, (view.x0, view.y0), (qc, qr), (dqc, dqr), bytemuck::cast_slice_mut(out));
-                valid.fill(true);
-                return false;
+                return SpanOutcome::Inside;
             }
         }
     }
@@ -505,7 +509,7 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
             gather_clamped(view, i0, j0, w, px);
         }
     }
-    clamped
+    SpanOutcome::Checked { clamped }
 }
 
 /// (position − ½)·2³² (the kernel's origin) at output pixel `x` of a span,
@@ -528,13 +532,47 @@ pub fn span_position(span: &Span, x: usize) -> (f64, f64) {
 }
 
 /// [`bilinear_span`] for 1 to 4 bands.
-pub fn resample_span<T: Sample>(view: &View<'_, T>, span: &Span, out: &mut [T], valid: &mut [bool], fill: T) -> bool {
+pub fn resample_span<T: Sample>(view: &View<'_, T>, span: &Span, out: &mut [T], valid: &mut [bool], fill: T) -> SpanOutcome {
+    resample_spans(view, std::slice::from_ref(span), out, valid, fill)
+}
+
+/// [`bilinear_span`] along consecutive straight spans (a row or a piece of
+/// one, as [`crate::gcm::Gcm::row_spans`] makes them), into `out` and
+/// `valid` from the first span's first pixel on: one call for the whole
+/// run, so that the work per span stays small beside its ~16 pixels.
+/// [`SpanOutcome::Inside`] when every span was; otherwise `valid` is
+/// written for every pixel.
+pub fn resample_spans<T: Sample>(view: &View<'_, T>, spans: &[Span], out: &mut [T], valid: &mut [bool], fill: T) -> SpanOutcome {
     match view.bands {
-        1 => bilinear_span::<T, 1>(view, span, out, valid, fill),
-        2 => bilinear_span::<T, 2>(view, span, out, valid, fill),
-        3 => bilinear_span::<T, 3>(view, span, out, valid, fill),
-        _ => bilinear_span::<T, 4>(view, span, out, valid, fill),
+        1 => bilinear_spans::<T, 1>(view, spans, out, valid, fill),
+        2 => bilinear_spans::<T, 2>(view, spans, out, valid, fill),
+        3 => bilinear_spans::<T, 3>(view, spans, out, valid, fill),
+        _ => bilinear_spans::<T, 4>(view, spans, out, valid, fill),
     }
+}
+
+fn bilinear_spans<T: Sample, const B: usize>(view: &View<'_, T>, spans: &[Span], out: &mut [T], valid: &mut [bool], fill: T) -> SpanOutcome {
+    let Some(x0) = spans.first().map(|s| s.first) else {
+        return SpanOutcome::Inside;
+    };
+    let mut outcome = SpanOutcome::Inside;
+    for span in spans {
+        let (a, b) = (span.first - x0, span.end - x0);
+        let here = bilinear_span::<T, B>(view, span, &mut out[a * B..b * B], &mut valid[a..b], fill);
+        outcome = match (outcome, here) {
+            (SpanOutcome::Inside, SpanOutcome::Inside) => outcome,
+            (SpanOutcome::Inside, SpanOutcome::Checked { .. }) => {
+                valid[..a].fill(true);
+                here
+            }
+            (SpanOutcome::Checked { .. }, SpanOutcome::Inside) => {
+                valid[a..b].fill(true);
+                outcome
+            }
+            (SpanOutcome::Checked { clamped: before }, SpanOutcome::Checked { clamped }) => SpanOutcome::Checked { clamped: before || clamped },
+        };
+    }
+    outcome
 }
 
 #[cfg(test)]
@@ -670,7 +708,9 @@ mod tests {
                 let n = span.end - span.first;
                 let b = bands as usize;
                 let (mut a, mut va) = (vec![0u8; n * b], vec![false; n]);
-                resample_span(&view, &span, &mut a, &mut va, 9);
+                if resample_span(&view, &span, &mut a, &mut va, 9) == SpanOutcome::Inside {
+                    va.fill(true);
+                }
                 let (cols, rows): (Vec<f64>, Vec<f64>) = (span.first..span.end).map(|x| span_position(&span, x)).unzip();
                 let (mut e, mut ve) = (vec![0u8; n * b], vec![false; n]);
                 resample_row(Kernel::Bilinear, &view, &cols, &rows, &mut e, &mut ve, 9);
