@@ -13,7 +13,7 @@ use gcm_ortho::gcm::{CorrectionMode, Gcm, GcmSpec};
 use gcm_ortho::geom::OutputGrid;
 use gcm_ortho::io::source::Window;
 use gcm_ortho::gcm::Span;
-use gcm_ortho::resample::{resample_row, resample_span, Kernel, View};
+use gcm_ortho::resample::{resample_row, resample_span, resample_spans, Kernel, View};
 use gcm_ortho::transform::{Approx, Transform};
 use nalgebra::Vector3;
 use std::path::Path;
@@ -101,6 +101,9 @@ fn kernels(c: &mut Criterion) {
             }
         })
     });
+    // All of them in one call, as rectify hands over a row.
+    let m = spans.len() * 16;
+    g.bench_function("bilinear_span_run", |b| b.iter(|| resample_spans(&view, &spans, &mut out[..m * 3], &mut valid[..m], 0)));
     g.finish();
 }
 
