@@ -678,6 +678,50 @@ mod tests {
     }
 
     #[test]
+    fn a_run_of_spans_equals_its_spans_one_by_one() {
+        // Consecutive spans of a row (each anchored at its own first pixel,
+        // as the GCM makes them), some wholly inside the window and some
+        // running off it or off the scan, in either order: one call for the
+        // run gives the values and validity of one call per span, and says
+        // `Inside` only when no pixel needed checking.
+        let (w, h) = (50u32, 20u32);
+        let bytes: Vec<u8> = (0..w * h * 3).map(|k| (k.wrapping_mul(2654435761) >> 24) as u8).collect();
+        let win = Window::from_bytes(5, 5, w, h, &bytes);
+        let view = View::<u8>::new(&win, 3, 60, 40);
+        let span = |first: usize, end: usize, c: f64, r: f64| Span { linear: true, first, end, anchor: first, c, r, dc: 0.93, dr: 0.11 };
+        let inside = [span(10, 22, 8.3, 7.2), span(22, 35, 19.5, 8.6), span(35, 47, 31.6, 10.0)];
+        let off_window = span(47, 60, 46.0, 11.3);
+        let off_scan = span(0, 10, -3.0, 6.0);
+        let runs: [(Vec<Span>, bool); 4] = [
+            (inside.to_vec(), true),
+            ([&inside[..], &[off_window]].concat(), false),
+            ([&[off_scan], &inside[..]].concat(), false),
+            ([&inside[..1], &[span(22, 35, 19.5, 24.0)], &inside[2..]].concat(), false),
+        ];
+        for (run, all_inside) in runs {
+            let (first, end) = (run[0].first, run[run.len() - 1].end);
+            let n = end - first;
+            let (mut out, mut valid) = (vec![0u8; n * 3], vec![false; n]);
+            let outcome = resample_spans(&view, &run, &mut out, &mut valid, 9);
+            assert_eq!(outcome == SpanOutcome::Inside, all_inside, "{run:?}");
+            if outcome == SpanOutcome::Inside {
+                assert!(valid.iter().all(|v| !v), "valid left as it was");
+                valid.fill(true);
+            }
+            let (mut e, mut ve) = (vec![0u8; n * 3], vec![false; n]);
+            for s in &run {
+                let (a, b) = (s.first - first, s.end - first);
+                if resample_span(&view, s, &mut e[a * 3..b * 3], &mut ve[a..b], 9) == SpanOutcome::Inside {
+                    ve[a..b].fill(true);
+                }
+            }
+            assert_eq!(valid, ve, "validity of {run:?}");
+            assert_eq!(out, e, "values of {run:?}");
+            assert_eq!(valid.iter().all(|&v| v), all_inside || run.iter().all(|s| s.c >= 0.0), "{run:?}");
+        }
+    }
+
+    #[test]
     fn weights_sum_to_one() {
         for t in [0.0f32, 0.25, 0.5, 0.9] {
             let c: f32 = cubic_weights(t).iter().sum();
