@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::gcm::{BandGcm, Gcm};
 use crate::geom::OutputGrid;
 use crate::io::source::{SampleType, SourceImage, Window};
-use crate::io::tiff_out::{encode_tile, tiff_write_error, verify, write_tiled, Chunking, GeoTags, OutputSpec, PendingFile, WriteError};
+use crate::io::tiff_out::{encode_tile, reserve, tiff_write_error, verify, write_tiled, Chunking, GeoTags, OutputSpec, PendingFile, WriteError};
 use crate::resample::{resample_row, resample_spans, span_position, Kernel, Sample, SpanOutcome, View};
 use crate::transform::footprint::{auto_grid, mean_gsd};
 use crate::transform::{Approx, Transform, Trend};
@@ -269,6 +269,10 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     // are still being made: the sync before the rename then has little
     // left to wait for (0.6 s at the end of a 1 GiB output without it).
     let flush_file = out_file.try_clone().map_err(|e| Error::io(pending.path(), e))?;
+    if cfg.compress == crate::io::tiff_out::Compression::None {
+        // The tiles' bytes, all of which the file will hold.
+        reserve(&out_file, spec.tile_bytes() as u64 * spec.tiles_across() as u64 * spec.tiles_down() as u64);
+    }
 
     // Stage results: each returns its busy time or an error.
     let (tx_dem, rx_dem) = bounded::<DemMsg>(2);
