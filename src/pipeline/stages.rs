@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::gcm::{BandGcm, Gcm};
 use crate::geom::OutputGrid;
 use crate::io::source::{SampleType, SourceImage, Window};
-use crate::io::tiff_out::{encode_tile, reserve, tiff_write_error, verify, write_tiled, Chunking, GeoTags, OutputSpec, PendingFile, WriteError};
+use crate::io::tiff_out::{encode_tile, reserve, tiff_write_error, verify, write_tiled, Chunking, Compression, GeoTags, OutputSpec, PendingFile, WriteError};
 use crate::resample::{resample_row, resample_spans, span_position, Kernel, Sample, SpanOutcome, View};
 use crate::transform::footprint::{auto_grid, mean_gsd};
 use crate::transform::{Approx, Transform, Trend};
@@ -269,7 +269,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     // are still being made: the sync before the rename then has little
     // left to wait for (0.6 s at the end of a 1 GiB output without it).
     let flush_file = out_file.try_clone().map_err(|e| Error::io(pending.path(), e))?;
-    if cfg.compress == crate::io::tiff_out::Compression::None {
+    if cfg.compress == Compression::None {
         // The tiles' bytes, all of which the file will hold.
         reserve(&out_file, spec.tile_bytes() as u64 * spec.tiles_across() as u64 * spec.tiles_down() as u64);
     }
@@ -466,7 +466,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
             let rx_raw = rx_raw;
             let mut busy = Duration::ZERO;
             let tb = spec.tile_bytes();
-            let plain = spec.compression == crate::io::tiff_out::Compression::None;
+            let plain = spec.compression == Compression::None;
             for raw in rx_raw.iter() {
                 if stop() {
                     return Err(Error::Cancelled);
