@@ -104,6 +104,21 @@ fn kernels(c: &mut Criterion) {
     // All of them in one call, as rectify hands over a row.
     let m = spans.len() * 16;
     g.bench_function("bilinear_span_run", |b| b.iter(|| resample_spans(&view, &spans, &mut out[..m * 3], &mut valid[..m], 0)));
+    // Gaps cut where the DEM's kinks fall: lengths vary as in a real row.
+    let mut varied = Vec::new();
+    let mut x = 0;
+    for len in [16usize, 9, 7, 16, 16, 12, 4, 16, 14, 2, 16, 11, 5].iter().cycle() {
+        if x + len > m {
+            break;
+        }
+        varied.push(Span { linear: true, first: x, end: x + len, anchor: x, c: cols[0] + x as f64 * 0.87, r: rows[0] + x as f64 * 0.5, dc: 0.87, dr: 0.5 });
+        x += len;
+    }
+    let mv = x;
+    g.bench_function("bilinear_span_run_varied", |b| b.iter(|| resample_spans(&view, &varied, &mut out[..mv * 3], &mut valid[..mv], 0)));
+    // The same pixels as one span: what the set-up of ~13-pixel spans costs.
+    let long = [Span { linear: true, first: 0, end: m, anchor: 0, c: cols[0], r: rows[0], dc: 0.87, dr: 0.5 }];
+    g.bench_function("bilinear_one_long_span", |b| b.iter(|| resample_spans(&view, &long, &mut out[..m * 3], &mut valid[..m], 0)));
     g.finish();
 }
 
