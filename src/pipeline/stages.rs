@@ -258,7 +258,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         .map_err(|e| Error::Usage(format!("cannot start {} threads: {e}", cfg.threads)))?;
     let mut times = StageTimes { setup: wall.elapsed().as_secs_f64(), ..Default::default() };
     let n_bands = trh;
-    let progress = crate::progress::bar(spec.tiles_across() as u64 * n_bands as u64, "tiles", cfg.quiet);
+    let progress = crate::progress::rows_bar(spec.tiles_across() as u64 * n_bands as u64, piece_h as u64, src.info.data_bytes(), cfg.quiet);
     let failed = AtomicBool::new(false);
     let stop = || cancel.load(Ordering::Relaxed) || failed.load(Ordering::Relaxed);
     let chunks_done = AtomicU64::new(0);
