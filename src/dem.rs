@@ -235,7 +235,7 @@ impl GridDem {
     }
 
     /// `lookup_gradient` for many points: `out[k]` is (Z, dZ/dX, dZ/dY) at
-    /// (x[k], y[k]), with Z NaN where that gives `None`. The same numbers;
+    /// `(x[k], y[k])`, with Z NaN where that gives `None`. The same numbers;
     /// in one loop without a branch per point for a grid in memory without
     /// a nodata value (the scene generator's), point by point otherwise.
     pub fn lookup_gradient_many(&self, x: &[f64], y: &[f64], out: &mut [(f64, f64, f64)]) {

@@ -42,7 +42,7 @@ pub trait SensorModel: Send + Sync {
     /// cannot be imaged (behind the camera, outside the model's domain).
     fn project(&self, x: f64, y: f64, z: f64) -> Option<(f64, f64)>;
 
-    /// `project` for many points: (col[k], row[k]) of (x[k], y[k], z[k]),
+    /// `project` for many points: `(col[k], row[k])` of `(x[k], y[k], z[k])`,
     /// NaN where the point cannot be imaged. All slices of one length.
     fn project_many(&self, x: &[f64], y: &[f64], z: &[f64], col: &mut [f64], row: &mut [f64]) {
         assert!(y.len() == x.len() && z.len() == x.len() && col.len() == x.len() && row.len() == x.len(), "project_many: arrays of one length");
