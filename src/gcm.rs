@@ -534,8 +534,9 @@ impl<'a> Gcm<'a> {
                 let off = anchor_off[g];
                 let (c, r) = (left.0 + off * dc, left.1 + off * dr);
                 let refined = refined.is_some_and(|q| q[g].is_some());
-                // Within what 32-bit fixed point holds (a scan of 2³⁰ pixels a side).
-                const FIXED: f64 = (1u64 << 30) as f64;
+                // Within what the fixed point's conversion holds exactly
+                // (positions ·2³² below 2⁵¹: a scan of 2¹⁸ pixels a side).
+                const FIXED: f64 = (1u64 << 18) as f64;
                 let linear = !refined && c.abs() < FIXED && r.abs() < FIXED && dc.abs() * 1024.0 < FIXED && dr.abs() * 1024.0 < FIXED;
                 spans.push(Span { linear, first: x, end, anchor: first_px[g], c, r, dc, dr });
             }

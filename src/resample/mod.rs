@@ -517,7 +517,8 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
 #[inline]
 fn span_fixed(span: &Span, x: usize) -> ([i64; 2], [i64; 2]) {
     const ONE: f64 = 4_294_967_296.0;
-    let fixed = |v: f64| floor_i64(v * ONE + 0.5);
+    // Exact for what a straight span holds (|v| < 2¹⁸, see `Gcm::row_spans`).
+    let fixed = |v: f64| floor_split(v * ONE + 0.5).0;
     let (dqc, dqr) = (fixed(span.dc), fixed(span.dr));
     let skip = x as i64 - span.anchor as i64;
     ([fixed(span.c - 0.5).wrapping_add(skip.wrapping_mul(dqc)), fixed(span.r - 0.5).wrapping_add(skip.wrapping_mul(dqr))], [dqc, dqr])
@@ -599,6 +600,31 @@ mod tests {
             let (i, f) = floor_split(x);
             assert_eq!(f, x.floor(), "{x}");
             assert_eq!(i, x.floor() as i64, "{x}");
+        }
+    }
+
+    /// The fixed point of a straight span, by the float trick, equals the
+    /// plain conversion for every position and step a straight span may
+    /// hold (below 2¹⁸ pixels, `Gcm::row_spans`), up to its edges.
+    #[test]
+    fn span_fixed_is_the_plain_conversion() {
+        let plain = |v: f64| floor_i64(v * 4_294_967_296.0 + 0.5);
+        let edge = (1u64 << 18) as f64;
+        let mut vals = vec![0.0, 0.5, -0.5, 1.0 / 3.0, edge.next_down(), -edge.next_down(), edge - 0.5, 1e-12, -1e-12];
+        let mut seed = 7u64;
+        for _ in 0..20_000 {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            let u = (seed >> 11) as f64 / (1u64 << 53) as f64;
+            vals.push((2.0 * u - 1.0) * edge);
+            vals.push((2.0 * u - 1.0) * 3.0);
+        }
+        for w in vals.windows(2) {
+            let (c, dc) = (w[0], w[1]);
+            let span = Span { linear: true, first: 5, end: 20, anchor: 3, c, r: -c, dc, dr: -dc };
+            let (q, dq) = span_fixed(&span, 5);
+            let (pq, pd) = ([plain(c - 0.5), plain(-c - 0.5)], [plain(dc), plain(-dc)]);
+            assert_eq!(dq, pd, "{c} {dc}");
+            assert_eq!(q, [pq[0].wrapping_add(2 * pd[0]), pq[1].wrapping_add(2 * pd[1])], "{c} {dc}");
         }
     }
 
