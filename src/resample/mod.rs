@@ -447,6 +447,30 @@ pub enum SpanOutcome {
     Checked { clamped: bool },
 }
 
+/// Whether the `n` pixels of a straight span from fixed-point position `q`
+/// in steps of `dq` ([`span_fixed`]) can take the loop with nothing to
+/// check per pixel: 8-bit RGB/RGBA whose four neighbours all lie inside a
+/// window that lies in the scan (so every pixel has a value), with the
+/// 8-byte loads of the farthest corner inside the window's bytes.
+#[inline(always)]
+fn span_is_inside<T: Sample, const B: usize>(view: &View<'_, T>, q: [i64; 2], dq: [i64; 2], n: usize) -> bool {
+    if !(T::TYPE == SampleType::U8 && (B == 3 || B == 4) && n > 0 && view.in_scan) {
+        return false;
+    }
+    // The window-relative upper-left neighbour of pixel `i`, rounded as the
+    // weights are (to 1/1024 pixel).
+    let corner = |i: i64| {
+        let (qc, qr) = (q[0].wrapping_add(i.wrapping_mul(dq[0])), q[1].wrapping_add(i.wrapping_mul(dq[1])));
+        ((qc.wrapping_add(1 << 21) >> 32) - view.x0, (qr.wrapping_add(1 << 21) >> 32) - view.y0)
+    };
+    // Positions are linear and the rounding monotone, so the two ends bound
+    // every pixel between.
+    let ((ia, ja), (ib, jb)) = (corner(0), corner(n as i64 - 1));
+    let (wl, hl) = ((view.w - 1).max(0) as u64, (view.h - 1).max(0) as u64);
+    let row = view.stride as usize * B;
+    (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl && (ja.max(jb) as usize + 1) * row + ia.max(ib) as usize * B + 8 <= view.data.len() * std::mem::size_of::<T>()
+}
+
 /// Bilinear along a straight span of scan positions (output pixels
 /// `span.first..span.end`, `B` bands each into `out`): the position steps
 /// by a constant in fixed point with 32 fractional bits, counted from the
@@ -459,28 +483,10 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
     let n = out.len() / B;
     // 8-bit RGB/RGBA wholly inside the window (nearly every span): a loop
     // with nothing to check per pixel.
-    if T::TYPE == SampleType::U8 && (B == 3 || B == 4) && n > 0 {
-        // The window-relative upper-left neighbour of pixel `i`, rounded
-        // as the weights are (to 1/1024 pixel).
-        let corner = |i: i64| {
-            let (qc, qr) = (qc.wrapping_add(i.wrapping_mul(dqc)), qr.wrapping_add(i.wrapping_mul(dqr)));
-            ((qc.wrapping_add(1 << 21) >> 32) - view.x0, (qr.wrapping_add(1 << 21) >> 32) - view.y0)
-        };
-        // Positions are linear and the rounding monotone, so the two ends
-        // bound every pixel between. Where all four neighbours lie in a
-        // window that lies in the scan, the pixel lies in the scan too
-        // (has a value), and the 8-byte loads of the farthest corner the
-        // ends span must stay inside the bytes.
-        let ((ia, ja), (ib, jb)) = (corner(0), corner(n as i64 - 1));
-        let (wl, hl) = ((view.w - 1).max(0) as u64, (view.h - 1).max(0) as u64);
-        if view.in_scan && (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl {
-            let bytes: &[u8] = bytemuck::cast_slice(view.data);
-            let row = view.stride as usize * B;
-            if (ja.max(jb) as usize + 1) * row + ia.max(ib) as usize * B + 8 <= bytes.len() {
-                bilinear_u8::span_inside::<B>(bytes, row, (view.x0, view.y0), (qc, qr), (dqc, dqr), bytemuck::cast_slice_mut(out));
-                return SpanOutcome::Inside;
-            }
-        }
+    if span_is_inside::<T, B>(view, [qc, qr], [dqc, dqr], n) {
+        let bytes: &[u8] = bytemuck::cast_slice(view.data);
+        bilinear_u8::span_inside::<B>(bytes, view.stride as usize * B, (view.x0, view.y0), (qc, qr), (dqc, dqr), bytemuck::cast_slice_mut(out));
+        return SpanOutcome::Inside;
     }
     let half = 1i64 << 31;
     let (w_lim, h_lim) = ((view.img_w as i64) << 32, (view.img_h as i64) << 32);
@@ -557,21 +563,52 @@ fn bilinear_spans<T: Sample, const B: usize>(view: &View<'_, T>, spans: &[Span],
         return SpanOutcome::Inside;
     };
     let mut outcome = SpanOutcome::Inside;
-    for span in spans {
-        let (a, b) = (span.first - x0, span.end - x0);
-        let here = bilinear_span::<T, B>(view, span, &mut out[a * B..b * B], &mut valid[a..b], fill);
-        outcome = match (outcome, here) {
-            (SpanOutcome::Inside, SpanOutcome::Inside) => outcome,
-            (SpanOutcome::Inside, SpanOutcome::Checked { .. }) => {
-                valid[..a].fill(true);
-                here
-            }
-            (SpanOutcome::Checked { .. }, SpanOutcome::Inside) => {
-                valid[a..b].fill(true);
-                outcome
-            }
-            (SpanOutcome::Checked { clamped: before }, SpanOutcome::Checked { clamped }) => SpanOutcome::Checked { clamped: before || clamped },
-        };
+    // Where `valid` is written: for every pixel once one span was checked.
+    let merge = |outcome: SpanOutcome, here: SpanOutcome, valid: &mut [bool], (a, b): (usize, usize)| match (outcome, here) {
+        (SpanOutcome::Inside, SpanOutcome::Inside) => outcome,
+        (SpanOutcome::Inside, SpanOutcome::Checked { .. }) => {
+            valid[..a].fill(true);
+            here
+        }
+        (SpanOutcome::Checked { .. }, SpanOutcome::Inside) => {
+            valid[a..b].fill(true);
+            outcome
+        }
+        (SpanOutcome::Checked { clamped: before }, SpanOutcome::Checked { clamped }) => SpanOutcome::Checked { clamped: before || clamped },
+    };
+    if !(T::TYPE == SampleType::U8 && (B == 3 || B == 4) && view.in_scan && spans.len() > 1) {
+        for span in spans {
+            let (a, b) = (span.first - x0, span.end - x0);
+            let here = bilinear_span::<T, B>(view, span, &mut out[a * B..b * B], &mut valid[a..b], fill);
+            outcome = merge(outcome, here, valid, (a, b));
+        }
+        return outcome;
+    }
+    // 8-bit RGB/RGBA, spans a block at a time: first every span's fixed
+    // point and whether it lies inside (no span waits for another, so these
+    // overlap), then their pixel loops, each starting at once. Span by span,
+    // every span's set-up (~40 cycles of dependent steps) waited for the
+    // loop before it: 14 ns a span in `resample_rgb8/bilinear_span_run_varied`,
+    // 10 ns this way.
+    const BLOCK: usize = 32;
+    let bytes: &[u8] = bytemuck::cast_slice(view.data);
+    let row = view.stride as usize * B;
+    let mut prepared = [([0i64; 2], [0i64; 2], false); BLOCK];
+    for block in spans.chunks(BLOCK) {
+        for (p, span) in prepared.iter_mut().zip(block) {
+            let (q, dq) = span_fixed(span, span.first);
+            *p = (q, dq, span_is_inside::<T, B>(view, q, dq, span.end.saturating_sub(span.first)));
+        }
+        for (&(q, dq, inside), span) in prepared.iter().zip(block) {
+            let (a, b) = (span.first - x0, span.end - x0);
+            let here = if inside {
+                bilinear_u8::span_inside::<B>(bytes, row, (view.x0, view.y0), (q[0], q[1]), (dq[0], dq[1]), bytemuck::cast_slice_mut(&mut out[a * B..b * B]));
+                SpanOutcome::Inside
+            } else {
+                bilinear_span::<T, B>(view, span, &mut out[a * B..b * B], &mut valid[a..b], fill)
+            };
+            outcome = merge(outcome, here, valid, (a, b));
+        }
     }
     outcome
 }
