@@ -755,11 +755,27 @@ mod tests {
         let inside = [span(10, 22, 8.3, 7.2), span(22, 35, 19.5, 8.6), span(35, 47, 31.6, 10.0)];
         let off_window = span(47, 60, 46.0, 11.3);
         let off_scan = span(0, 10, -3.0, 6.0);
-        let runs: [(Vec<Span>, bool); 4] = [
+        // Many short spans (more than one block of the 8-bit path), some
+        // off the window or the scan on either side of a block's edge.
+        let many = |odd: &[usize]| -> Vec<Span> {
+            let mut x = 0;
+            (0..80)
+                .map(|k| {
+                    let len = 1 + k % 3;
+                    let (c, r) = if odd.contains(&k) { if k == 70 { (-3.0, 8.0) } else { (20.0, 30.0) } } else { (8.0 + 0.4 * k as f64, 7.0 + 0.05 * k as f64) };
+                    let s = Span { linear: true, first: x, end: x + len, anchor: x, c, r, dc: 0.1, dr: 0.02 };
+                    x += len;
+                    s
+                })
+                .collect()
+        };
+        let runs: [(Vec<Span>, bool); 6] = [
             (inside.to_vec(), true),
             ([&inside[..], &[off_window]].concat(), false),
             ([&[off_scan], &inside[..]].concat(), false),
             ([&inside[..1], &[span(22, 35, 19.5, 24.0)], &inside[2..]].concat(), false),
+            (many(&[]), true),
+            (many(&[31, 32, 64, 70]), false),
         ];
         for (run, all_inside) in runs {
             let (first, end) = (run[0].first, run[run.len() - 1].end);
