@@ -339,7 +339,7 @@ fn separable<T: Sample, const N: usize>(view: &View<'_, T>, c: f64, r: f64, weig
 /// gathers those and leaves the rest to the clamping generic path.
 /// Returns whether any pixel needed a neighbour outside the window.
 fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], rows: &[f64], out: &mut [T], valid: &mut [bool], fill: T) -> bool {
-    const BLOCK: usize = 256;
+    const BLOCK: usize = 32;
     // Positions are shifted by PAD pixels so that every one that matters is
     // positive, and clamped to a harmless range; adding 2^52 then rounds to
     // an integer held in the low bits of the f64 (no conversion instruction).
@@ -471,6 +471,25 @@ fn span_is_inside<T: Sample, const B: usize>(view: &View<'_, T>, q: [i64; 2], dq
     (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl && (ja.max(jb) as usize + 1) * row + ia.max(ib) as usize * B + 8 <= view.data.len() * std::mem::size_of::<T>()
 }
 
+/// Asks the processor to fetch the window's bytes at the upper-left
+/// neighbour of pixel `n − 1` of a span, in its row and the next (a hint:
+/// nothing where they lie outside the bytes, nothing off x86-64).
+#[inline(always)]
+fn prefetch_corner<const B: usize>(view: &View<'_, impl Sample>, bytes: &[u8], row: usize, q: [i64; 2], dq: [i64; 2], n: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let last = n as i64 - 1;
+        let at = |k: usize, o: i64| ((q[k].wrapping_add(last.wrapping_mul(dq[k])).wrapping_add(1 << 21) >> 32) - o) as usize;
+        let s = at(1, view.y0).wrapping_mul(row).wrapping_add(at(0, view.x0).wrapping_mul(B));
+        if let Some(b) = bytes.get(s) {
+            safe_arch::prefetch_t0(b);
+        }
+        if let Some(b) = bytes.get(s.wrapping_add(row)) {
+            safe_arch::prefetch_t0(b);
+        }
+    }
+}
+
 /// Bilinear along a straight span of scan positions (output pixels
 /// `span.first..span.end`, `B` bands each into `out`): the position steps
 /// by a constant in fixed point with 32 fractional bits, counted from the
@@ -597,7 +616,11 @@ fn bilinear_spans<T: Sample, const B: usize>(view: &View<'_, T>, spans: &[Span],
     for block in spans.chunks(BLOCK) {
         for (p, span) in prepared.iter_mut().zip(block) {
             let (q, dq) = span_fixed(span, span.first);
-            *p = (q, dq, span_is_inside::<T, B>(view, q, dq, span.end.saturating_sub(span.first)));
+            let n = span.end.saturating_sub(span.first);
+            *p = (q, dq, span_is_inside::<T, B>(view, q, dq, n));
+            // The scan bytes at the span's last pixel, in both rows, asked
+            // for now: its loop runs after the rest of the block's.
+            prefetch_corner::<B>(view, bytes, row, q, dq, n);
         }
         for (&(q, dq, inside), span) in prepared.iter().zip(block) {
             let (a, b) = (span.first - x0, span.end - x0);
