@@ -513,34 +513,44 @@ impl<'a> Gcm<'a> {
         let (inv_dx, anchor_off) = (&self.inv_dx[lo..hi], &self.anchor_off[lo..hi]);
         // Refined cells (only with --max-error: then every gap has its entry).
         let refined = band.cells.get((j0 - band.first_j) as usize).map(|c| &c[lo..hi]);
-        // The position at each node column: A there plus the correction.
-        let mut positions = xs.iter().zip(adc.iter().zip(adr)).zip(bdc.iter().zip(bdr)).map(|((&u, (&adc, &adr)), (&bdc, &bdr))| {
-            let (ac, ar) = ra.at(u);
-            (ac + adc + fy * (bdc - adc), ar + adr + fy * (bdr - adr))
-        });
         let x_end = x0 as usize + len;
         let last_gap = self.nodes_x - 2;
-        let Some(mut right) = positions.next() else {
-            return true;
-        };
         let mut x = x0 as usize;
-        for (g, next) in positions.enumerate() {
-            let left = right;
-            right = next;
-            let end = if lo + g >= last_gap { x_end } else { first_px[g + 1].clamp(x, x_end) };
-            if end > x {
-                let inv = inv_dx[g];
-                let (dc, dr) = ((right.0 - left.0) * inv, (right.1 - left.1) * inv);
-                let off = anchor_off[g];
-                let (c, r) = (left.0 + off * dc, left.1 + off * dr);
-                let refined = refined.is_some_and(|q| q[g].is_some());
-                // Within what the fixed point's conversion holds exactly
-                // (positions ·2³² below 2⁵¹: a scan of 2¹⁸ pixels a side).
-                const FIXED: f64 = (1u64 << 18) as f64;
-                let linear = !refined && c.abs() < FIXED && r.abs() < FIXED && dc.abs() * 1024.0 < FIXED && dr.abs() * 1024.0 < FIXED;
-                spans.push(Span { linear, first: x, end, anchor: first_px[g], c, r, dc, dr });
+        // Node columns a block at a time: first the position at each (A
+        // there plus the correction; the divisions of a block independent
+        // of each other, two at a time), then the block's gaps.
+        const BLOCK: usize = 32;
+        let (mut pc, mut pr) = ([0.0f64; BLOCK + 1], [0.0f64; BLOCK + 1]);
+        let n_gaps = xs.len() - 1;
+        let mut g0 = 0;
+        while g0 < n_gaps {
+            // Nodes g0..=g0+m (the first one is the last of the block before).
+            let m = (n_gaps - g0).min(BLOCK);
+            let nodes = g0..g0 + m + 1;
+            let (xs, adc, adr, bdc, bdr) = (&xs[nodes.clone()], &adc[nodes.clone()], &adr[nodes.clone()], &bdc[nodes.clone()], &bdr[nodes]);
+            for (((&u, (&adc, &adr)), (&bdc, &bdr)), (oc, or)) in xs.iter().zip(adc.iter().zip(adr)).zip(bdc.iter().zip(bdr)).zip(pc.iter_mut().zip(pr.iter_mut())) {
+                let (ac, ar) = ra.at(u);
+                (*oc, *or) = (ac + adc + fy * (bdc - adc), ar + adr + fy * (bdr - adr));
             }
-            x = end;
+            for k in 0..m {
+                let g = g0 + k;
+                let (left, right) = ((pc[k], pr[k]), (pc[k + 1], pr[k + 1]));
+                let end = if lo + g >= last_gap { x_end } else { first_px[g + 1].clamp(x, x_end) };
+                if end > x {
+                    let inv = inv_dx[g];
+                    let (dc, dr) = ((right.0 - left.0) * inv, (right.1 - left.1) * inv);
+                    let off = anchor_off[g];
+                    let (c, r) = (left.0 + off * dc, left.1 + off * dr);
+                    let refined = refined.is_some_and(|q| q[g].is_some());
+                    // Within what the fixed point's conversion holds exactly
+                    // (positions ·2³² below 2⁵¹: a scan of 2¹⁸ pixels a side).
+                    const FIXED: f64 = (1u64 << 18) as f64;
+                    let linear = !refined && c.abs() < FIXED && r.abs() < FIXED && dc.abs() * 1024.0 < FIXED && dr.abs() * 1024.0 < FIXED;
+                    spans.push(Span { linear, first: x, end, anchor: first_px[g], c, r, dc, dr });
+                }
+                x = end;
+            }
+            g0 += m;
         }
         true
     }
