@@ -320,18 +320,28 @@ impl<'a> Gcm<'a> {
         let v = self.node_v(j);
         let mut dc = vec![f64::NAN; self.nodes_x];
         let mut dr = vec![f64::NAN; self.nodes_x];
+        // The ground points of the nodes that have a height, projected in
+        // one call (`project_many`: the numbers of `project`, in passes the
+        // compiler vectorises).
+        let (mut at, mut gx, mut gy, mut gz) = (Vec::with_capacity(heights.len()), Vec::with_capacity(heights.len()), Vec::with_capacity(heights.len()), Vec::with_capacity(heights.len()));
         for (i, h) in heights.iter().enumerate() {
-            let u = self.xs[i];
-            let (x, y) = self.t.grid.ground(u, v);
-            let z = match *h {
-                Height::Value(z) => z,
-                Height::Nodata => continue,
+            let (x, y) = self.t.grid.ground(self.xs[i], v);
+            match *h {
+                Height::Value(z) => {
+                    at.push(i);
+                    (gx.push(x), gy.push(y), gz.push(z));
+                }
+                Height::Nodata => {}
                 Height::Missing(l) => {
                     miss.get_or_insert((x, y, l));
-                    continue;
                 }
-            };
-            if let (Some((c, r)), Some((ac, ar))) = (self.t.model.project(x, y, z), self.a.at(u, v)) {
+            }
+        }
+        let (mut col, mut row) = (vec![0.0; at.len()], vec![0.0; at.len()]);
+        self.t.model.project_many(&gx, &gy, &gz, &mut col, &mut row);
+        for ((&i, c), r) in at.iter().zip(col).zip(row) {
+            // NaN where the point is not imaged, as A where it is behind.
+            if let (false, Some((ac, ar))) = (c.is_nan(), self.a.at(self.xs[i], v)) {
                 dc[i] = c - ac;
                 dr[i] = r - ar;
             }
