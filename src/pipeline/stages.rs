@@ -279,9 +279,10 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let (tx_gcm, rx_gcm) = bounded::<Arc<BandGcm>>(2);
     let (tx_read, rx_read) = bounded::<ReadMsg>(1);
     // The memory plan: four scan windows in flight (being read, queued, two
-    // being resampled), four output chunks (two being made, queued, being
-    // encoded) and the encoded tiles (in hand and queued), each a 24th of
-    // the budget; the DEM an eighth (larger ones are read a chunk at a
+    // being resampled; read in place instead, up to eight shares of mapped
+    // scan rows, see below), four output chunks (two being made, queued,
+    // being encoded) and the encoded tiles (in hand and queued), each a 24th
+    // of the budget; the DEM an eighth (larger ones are read a chunk at a
     // time). What is left (~45 %) covers the GCM rows, the threads, the
     // program and the allocator's per-thread arenas (20–30 MB measured on
     // 1 GiB scans), so that the peak resident size stays under the budget
@@ -426,12 +427,18 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                         return Err(Error::Cancelled);
                     }
                     let rows_now = msg.in_place.map(|_| (msg.win.y0, msg.win.y0 + msg.win.h));
-                    // Mapped rows stay within the six shares the read stage
-                    // allows one chunk: where the chunks in flight and this one
-                    // would map more together (the first chunk of a band
+                    // Mapped rows stay within eight shares (the windows' four,
+                    // unused when chunks are read in place, and four of the
+                    // budget's slack): where the chunks in flight and this
+                    // one would map more together (the first chunk of a band
                     // beside the last of the one before), the older ones are
-                    // finished first.
-                    while !chunks.is_empty() && chunks.rows_hull(rows_now).is_some_and(|(a, b)| (b - a) as u64 * row_bytes > 6 * share) {
+                    // finished first, and the workers idle through the
+                    // older one's last rows. With six shares, the bound of
+                    // one chunk, that happened at 52 of 75 band edges of a
+                    // 1 GiB scan (its chunks span ~400 rows); with eight the
+                    // run took 0.976× the time, and its peak grew from
+                    // 71–75 to 76–85 MiB (6 runs each).
+                    while !chunks.is_empty() && chunks.rows_hull(rows_now).is_some_and(|(a, b)| (b - a) as u64 * row_bytes > 8 * share) {
                         forward_oldest(&mut chunks)?;
                     }
                     chunks.release_finished_rows(&src, rows_now);
