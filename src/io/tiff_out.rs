@@ -210,6 +210,13 @@ fn write_kind<K: TiffKind, E, B: AsRef<[u8]>>(
     let mut offsets = Vec::with_capacity(n);
     let mut counts = Vec::with_capacity(n);
     let mut dir = enc.image_directory()?;
+    if let Some(pad) = page_padding(spec) {
+        // Unreferenced bytes (TIFF allows them) so that every tile of an
+        // uncompressed output starts on a page of the file: the page cache
+        // then takes whole pages, without zeroing and merging the pages
+        // two tiles share.
+        dir.write_data(&vec![0u8; pad][..])?;
+    }
     while let Some(tile) = next_tile().map_err(WriteError::Source)? {
         let tile = tile.as_ref();
         offsets.push(dir.write_data(tile)?);
@@ -259,6 +266,18 @@ fn write_kind<K: TiffKind, E, B: AsRef<[u8]>>(
     }
     dir.finish()?;
     Ok(())
+}
+
+/// The page size tiles of an uncompressed output are aligned to.
+pub const PAGE: u64 = 4096;
+
+/// Bytes to write after the header so that the first tile (and so, each
+/// tile being a whole number of pages, every tile) starts on a page:
+/// `None` for compressed tiles, whose sizes vary, or tiles that are not
+/// whole pages.
+pub fn page_padding(spec: &OutputSpec) -> Option<usize> {
+    let header = if spec.bigtiff { 16 } else { 8 };
+    (spec.compression == Compression::None && spec.tile_bytes() as u64 % PAGE == 0).then_some((PAGE - header) as usize)
 }
 
 /// Allocates the first `len` bytes of `file` on disk ahead of the writes
@@ -459,6 +478,34 @@ mod tests {
         let mut out = Vec::new();
         flate2::read::ZlibDecoder::new(bytes).read_to_end(&mut out).unwrap();
         out
+    }
+
+    #[test]
+    fn uncompressed_tiles_start_on_pages_and_read_back() {
+        // 64×64 RGB tiles are three pages each: after the padding every
+        // tile starts on a page, in classic TIFF and BigTIFF; compressed
+        // tiles are not padded. The pixels read back as written.
+        for (compression, bigtiff) in [(Compression::None, false), (Compression::None, true), (Compression::Deflate, false)] {
+            let spec = OutputSpec { width: 150, height: 70, chunking: Chunking::Tiles(64), compression, bigtiff, ..spec(3, SampleType::U8) };
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("t.tif");
+            let value = |x: usize, y: usize, b: usize| ((x * 7 + y * 13 + b * 29) % 251) as u8;
+            write_raster(&path, &spec, |y0, y1, buf| {
+                for (k, v) in buf.iter_mut().enumerate() {
+                    let (p, b) = (k / 3, k % 3);
+                    *v = value(p % 150, y0 as usize + p / 150, b);
+                }
+                assert_eq!(buf.len(), (y1 - y0) as usize * 150 * 3);
+            })
+            .unwrap();
+            let mut dec = tiff::decoder::Decoder::new(std::fs::File::open(&path).unwrap()).unwrap();
+            let offsets = dec.get_tag_u64_vec(Tag::TileOffsets).unwrap();
+            let paged = offsets.iter().all(|o| o % PAGE == 0);
+            assert_eq!(paged, compression == Compression::None, "{compression:?} {bigtiff}: {offsets:?}");
+            assert_eq!(page_padding(&spec).is_some(), compression == Compression::None);
+            let tiff::decoder::DecodingResult::U8(px) = dec.read_image().unwrap() else { panic!("8-bit") };
+            assert!(px.iter().enumerate().all(|(k, &v)| v == value((k / 3) % 150, k / 3 / 150, k % 3)), "{compression:?} {bigtiff}");
+        }
     }
 
     #[test]

@@ -271,7 +271,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let flush_file = out_file.try_clone().map_err(|e| Error::io(pending.path(), e))?;
     if cfg.compress == Compression::None {
         // The tiles' bytes, all of which the file will hold.
-        reserve(&out_file, spec.tile_bytes() as u64 * spec.tiles_across() as u64 * spec.tiles_down() as u64);
+        reserve(&out_file, crate::io::tiff_out::PAGE + spec.tile_bytes() as u64 * spec.tiles_across() as u64 * spec.tiles_down() as u64);
     }
 
     // Stage results: each returns its busy time or an error.
