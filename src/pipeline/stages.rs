@@ -286,8 +286,8 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     // time). What is left (~45 %) covers the GCM rows, the threads, the
     // program and the allocator's per-thread arenas (20–30 MB measured on
     // 1 GiB scans), so that the peak resident size stays under the budget
-    // (measured at 128 MiB on a 1 GiB scan: 76 MiB, and 116 MiB with the
-    // scan turned 90°, where every window is copied).
+    // (measured at 128 MiB: 76–85 MiB on a 1 GiB scan, 66 MiB with the scan
+    // turned 90°, where every window is copied, 76–81 MiB on a 4 GiB scan).
     let share = cfg.memory / 24;
     let budget_px = share / src.info.pixel_bytes().max(1) as u64;
     let max_tiles = (share / spec.tile_bytes() as u64).max(1) as u32;
