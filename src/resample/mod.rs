@@ -339,7 +339,7 @@ fn separable<T: Sample, const N: usize>(view: &View<'_, T>, c: f64, r: f64, weig
 /// gathers those and leaves the rest to the clamping generic path.
 /// Returns whether any pixel needed a neighbour outside the window.
 fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], rows: &[f64], out: &mut [T], valid: &mut [bool], fill: T) -> bool {
-    const BLOCK: usize = 32;
+    const BLOCK: usize = 256;
     // Positions are shifted by PAD pixels so that every one that matters is
     // positive, and clamped to a harmless range; adding 2^52 then rounds to
     // an integer held in the low bits of the f64 (no conversion instruction).
