@@ -269,7 +269,7 @@ fn write_kind<K: TiffKind, E, B: AsRef<[u8]>>(
 }
 
 /// The page size tiles of an uncompressed output are aligned to.
-pub const PAGE: u64 = 4096;
+const PAGE: u64 = 4096;
 
 /// Bytes to write after the header so that the first tile (and so, each
 /// tile being a whole number of pages, every tile) starts on a page:

@@ -270,8 +270,10 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     // left to wait for (0.6 s at the end of a 1 GiB output without it).
     let flush_file = out_file.try_clone().map_err(|e| Error::io(pending.path(), e))?;
     if cfg.compress == Compression::None {
-        // The tiles' bytes, all of which the file will hold.
-        reserve(&out_file, crate::io::tiff_out::PAGE + spec.tile_bytes() as u64 * spec.tiles_across() as u64 * spec.tiles_down() as u64);
+        // The padding before the tiles and the tiles' bytes, all of which the
+        // file will hold.
+        let pad = crate::io::tiff_out::page_padding(&spec).unwrap_or(0) as u64;
+        reserve(&out_file, pad + spec.tile_bytes() as u64 * spec.tiles_across() as u64 * spec.tiles_down() as u64);
     }
 
     // Stage results: each returns its busy time or an error.
