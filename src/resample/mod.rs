@@ -197,6 +197,19 @@ impl<'a, T: Sample> View<'a, T> {
         }
     }
 
+    /// Whether the bilinear neighbours of window pixel (i0, j0) (it, the
+    /// next to the right and the two below) leave the window across an
+    /// edge that the scan goes on past: there the clamped value differs
+    /// from the scan's, and the caller reads the pixel again. At the scan's
+    /// own edges clamping is what is meant.
+    #[inline]
+    fn leaves_into_scan(&self, i0: i64, j0: i64) -> bool {
+        (i0 < 0 && self.x0 > 0)
+            || (i0 + 1 >= self.w && ((self.x0 + self.w) as f64) < self.img_w)
+            || (j0 < 0 && self.y0 > 0)
+            || (j0 + 1 >= self.h && ((self.y0 + self.h) as f64) < self.img_h)
+    }
+
     /// Sample index of window-relative (clamped) pixel (i, j).
     #[inline]
     fn at(&self, i: i64, j: i64) -> usize {
@@ -248,9 +261,10 @@ fn lanczos3_weights(t: f32) -> [f32; 6] {
 /// Resamples one output row segment: `out` gets `cols.len()` pixels of
 /// `view.bands` samples; `valid[i]` says whether pixel i got a value (else
 /// its samples are `fill`). Neighbours outside the view repeat its edge
-/// pixels; the result says whether any pixel may have needed one (then the
-/// caller, if the view's edge is not the scan's, reads those pixels again
-/// from a wider window).
+/// pixels; the result says whether any pixel may have needed one across an
+/// edge of the view that is not the scan's (then the caller reads those
+/// pixels again from a wider window). Bilinear tells exactly; the other
+/// kernels always say yes.
 pub fn resample_row<T: Sample>(
     kernel: Kernel,
     view: &View<'_, T>,
@@ -337,7 +351,8 @@ fn separable<T: Sample, const N: usize>(view: &View<'_, T>, c: f64, r: f64, weig
 /// 1/1024 pixel, rounded (the fixed-point weights' resolution), and says
 /// which pixels have all four neighbours inside the window; the second
 /// gathers those and leaves the rest to the clamping generic path.
-/// Returns whether any pixel needed a neighbour outside the window.
+/// Returns whether any pixel needed a neighbour outside the window where
+/// the scan goes on past it ([`View::leaves_into_scan`]).
 fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], rows: &[f64], out: &mut [T], valid: &mut [bool], fill: T) -> bool {
     const BLOCK: usize = 256;
     // Positions are shifted by PAD pixels so that every one that matters is
@@ -380,9 +395,9 @@ fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], row
                     gather_inside(&src, (j0 * view.stride as usize + i0) * B, w, px);
                 }
                 _ => {
-                    clamped = true;
                     let (x, y) = (cb[i] - 0.5, rb[i] - 0.5);
                     let (xi, yi) = (floor_i64(x), floor_i64(y));
+                    clamped |= view.leaves_into_scan(xi - view.x0, yi - view.y0);
                     let w = Weights::new(x - xi as f64, y - yi as f64);
                     gather_clamped(view, xi - view.x0, yi - view.y0, w, px);
                 }
@@ -530,7 +545,7 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
         if (i0 as u64) < wl && (j0 as u64) < hl {
             gather_inside(&src, (j0 as usize * stride + i0 as usize) * B, w, px);
         } else {
-            clamped = true;
+            clamped |= view.leaves_into_scan(i0, j0);
             gather_clamped(view, i0, j0, w, px);
         }
     }
@@ -829,6 +844,51 @@ mod tests {
             let c: f32 = cubic_weights(t).iter().sum();
             let l: f32 = lanczos3_weights(t).iter().sum();
             assert!((c - 1.0).abs() < 1e-6 && (l - 1.0).abs() < 1e-6);
+        }
+    }
+
+    /// Clamping is reported only where a window's edge is not the scan's:
+    /// there the caller must read the pixel again, at the scan's own edges
+    /// the clamped value is the answer.
+    #[test]
+    fn clamping_is_reported_only_at_edges_inside_the_scan() {
+        let (sw, sh) = (60u32, 40u32);
+        let scan: Vec<u8> = (0..sw * sh * 3).map(|k| (k * 7 % 251) as u8).collect();
+        let crop = |x0: u32, y0: u32, w: u32, h: u32| {
+            let rows: Vec<u8> = (y0..y0 + h).flat_map(|y| scan[((y * sw + x0) * 3) as usize..((y * sw + x0 + w) * 3) as usize].to_vec()).collect();
+            Window::from_bytes(x0, y0, w, h, &rows)
+        };
+        // (window, which of its edges — left, top, right, bottom — are the scan's)
+        let windows = [
+            (crop(0, 0, sw, sh), [true, true, true, true]),
+            (crop(10, 5, 40, 30), [false, false, false, false]),
+            (crop(0, 5, sw, 30), [true, false, true, false]),
+            (crop(10, 0, 40, sh), [false, true, false, true]),
+        ];
+        for (win, scan_edge) in &windows {
+            let view = View::<u8>::new(win, 3, sw, sh);
+            let (x0, y0, x1, y1) = (win.x0 as f64, win.y0 as f64, (win.x0 + win.w) as f64, (win.y0 + win.h) as f64);
+            let my = (y0 + y1) / 2.0;
+            let mx = (x0 + x1) / 2.0;
+            // Straight spans across each edge, 0.2 px inside the scan's
+            // edge where it is one (a kernel there clamps), and one
+            // wholly inside.
+            let cases = [
+                (x0 + 0.2, my, 0.5, 0.0, scan_edge[0]),
+                (mx, y0 + 0.2, 0.0, 0.5, scan_edge[1]),
+                (x1 - 6.0, my, 1.0, 0.0, scan_edge[2]),
+                (mx, y1 - 6.0, 0.0, 1.0, scan_edge[3]),
+                (mx - 3.0, my, 0.5, 0.25, true),
+            ];
+            for (k, &(c, r, dc, dr, at_scan_edge)) in cases.iter().enumerate() {
+                let span = Span { linear: true, first: 0, end: 10, anchor: 0, c, r, dc, dr };
+                let (mut out, mut valid) = (vec![0u8; 30], vec![false; 10]);
+                let outcome = resample_span(&view, &span, &mut out, &mut valid, 0);
+                assert_eq!(outcome == (SpanOutcome::Checked { clamped: true }), !at_scan_edge, "window at {},{} case {k}: {outcome:?}", win.x0, win.y0);
+                let (cols, rows): (Vec<f64>, Vec<f64>) = (0..10).map(|x| span_position(&span, x)).unzip();
+                let clamped = resample_row(Kernel::Bilinear, &view, &cols, &rows, &mut out, &mut valid, 0);
+                assert_eq!(clamped, !at_scan_edge, "row kernel, window at {},{} case {k}", win.x0, win.y0);
+            }
         }
     }
 
