@@ -281,7 +281,7 @@ fn block_cameras(interior: &Path, csv: &Path) -> Result<Vec<(String, CameraFile,
             continue;
         }
         let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        let nums: Option<Vec<f64>> = f.get(1..7).map(|v| v.iter().map(|x| x.parse::<f64>().ok().filter(|v| v.is_finite())).collect()).flatten();
+        let nums: Option<Vec<f64>> = f.get(1..7).and_then(|v| v.iter().map(|x| x.parse::<f64>().ok().filter(|v| v.is_finite())).collect());
         match (f.len(), nums) {
             (7, Some(v)) => {
                 let mut cam = base.clone();
