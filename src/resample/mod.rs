@@ -663,7 +663,7 @@ mod tests {
 
     #[test]
     fn floor_split_is_floor() {
-        let cases = [0.0, -0.0, 0.5, 1.0, 2.5, 3.5, -0.5, -1.0, -1.5, -2.5, 0.999_999_999_999, -1e-300, 1e-300, 123_456.789, -98_765.4321];
+        let cases = [0.0, -0.0, 0.5, 1.0, 2.5, 3.5, -0.5, -1.0, -1.5, -2.5, 0.999_999_999_999, -1e-300, 1e-300, 123_456.789, -98_765.432_1];
         let mut all = cases.to_vec();
         // Integers and the numbers just beside them, up to the stated range.
         for e in [1.0, 1e3, 1e9, 2f64.powi(50), 2f64.powi(51) - 1.0] {
