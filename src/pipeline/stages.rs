@@ -696,12 +696,19 @@ fn resample_chunk<T: Sample + Recycle>(
         .with_min_len(8)
         .enumerate()
         .map_init(
-            || (vec![0.0f64; w], vec![0.0f64; w], vec![T::default(); w * bands_in], vec![false; w], Vec::new()),
+            // Scan positions (`cols`, `rws`) only where a row is not all
+            // straight spans: made on first need, not zeroed for every
+            // split of the chunk (1.6 % of the instructions).
+            || (Vec::new(), Vec::new(), vec![T::default(); w * bands_in], vec![false; w], Vec::new()),
             |(cols, rws, px, valid, spans), (r, row_pieces)| {
                 if r >= rows {
                     row_pieces.iter_mut().for_each(|p| p.fill(T::default()));
                     return None;
                 }
+                let positions = |cols: &mut Vec<f64>, rws: &mut Vec<f64>| {
+                    cols.resize(w, 0.0);
+                    rws.resize(w, 0.0);
+                };
                 let mut miss = None;
                 let y = y0 + r as u32;
                 // Pixels whose kernel would leave the window: read their
@@ -726,6 +733,7 @@ fn resample_chunk<T: Sample + Recycle>(
                         let outcome = if linear {
                             resample_spans(&view, run, out, valid, fill)
                         } else {
+                            positions(cols, rws);
                             gcm.fill_exact(&msg.gcm, y, first as u32, &mut cols[a..b], &mut rws[a..b], &mut miss);
                             SpanOutcome::Checked { clamped: resample_row(cfg.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill) }
                         };
@@ -750,6 +758,7 @@ fn resample_chunk<T: Sample + Recycle>(
                         }
                     }
                 } else {
+                    positions(cols, rws);
                     gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, &mut miss);
                     if resample_row(cfg.kernel, &view, cols, rws, px, valid, fill) {
                         for (i, p) in px.chunks_exact_mut(bands_in).enumerate().filter(|(i, _)| valid[*i]) {
