@@ -141,12 +141,13 @@ pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64),
     let start = |q: i64, o: i64| q.wrapping_sub(o << 32).wrapping_add(1 << 21);
     let (mut qc, mut qr) = (start(q.0, origin.0), start(q.1, origin.1));
     let pixel = |qc: i64, qr: i64| {
-        // In 1/1024 pixel.
-        let (fx, fy) = ((qc >> 22) as usize, (qr >> 22) as usize);
-        let s = (fy >> 10) * row + (fx >> 10) * B;
+        // Whole pixels above the 32 fractional bits; the weights (1/1024
+        // pixel) are the fraction's top 10 bits.
+        let s = (qr >> 32) as usize * row + (qc >> 32) as usize * B;
+        let (wx, wy) = (qc as u32 >> 22, qr as u32 >> 22);
         // Both rows' 8 bytes under one bounds check.
         let both = &bytes[s..s + row + 8];
-        bilerp_pixel::<B>(&both[..8], &both[row..], (fx & 1023) as u32, (fy & 1023) as u32)
+        bilerp_pixel::<B>(&both[..8], &both[row..], wx, wy)
     };
     // Four bytes a pixel, also for three bands (the fourth is written over
     // by the next pixel), but for the last pixel.
