@@ -545,7 +545,8 @@ impl<'a> Gcm<'a> {
             for k in 0..m {
                 let g = g0 + k;
                 let (left, right) = ((pc[k], pr[k]), (pc[k + 1], pr[k + 1]));
-                let end = if lo + g >= last_gap { x_end } else { first_px[g + 1].clamp(x, x_end) };
+                // (max, min rather than clamp: no check that x ≤ x_end, which holds.)
+                let end = if lo + g >= last_gap { x_end } else { first_px[g + 1].max(x).min(x_end) };
                 if end > x {
                     let inv = inv_dx[g];
                     let (dc, dr) = ((right.0 - left.0) * inv, (right.1 - left.1) * inv);
