@@ -466,9 +466,10 @@ pub enum SpanOutcome {
 /// in steps of `dq` ([`span_fixed`]) can take the loop with nothing to
 /// check per pixel: 8-bit RGB/RGBA whose four neighbours all lie inside a
 /// window that lies in the scan (so every pixel has a value), with the
-/// 8-byte loads of the farthest corner inside the window's bytes.
+/// 8-byte loads inside the window's bytes: every upper-left neighbour
+/// below `limits` ([`inside_limits`], worked out once for the window).
 #[inline(always)]
-fn span_is_inside<T: Sample, const B: usize>(view: &View<'_, T>, q: [i64; 2], dq: [i64; 2], n: usize) -> bool {
+fn span_is_inside<T: Sample, const B: usize>(view: &View<'_, T>, q: [i64; 2], dq: [i64; 2], n: usize, (wl, hl): (u64, u64)) -> bool {
     if !(T::TYPE == SampleType::U8 && (B == 3 || B == 4) && n > 0 && view.in_scan) {
         return false;
     }
@@ -481,9 +482,22 @@ fn span_is_inside<T: Sample, const B: usize>(view: &View<'_, T>, q: [i64; 2], dq
     // Positions are linear and the rounding monotone, so the two ends bound
     // every pixel between.
     let ((ia, ja), (ib, jb)) = (corner(0), corner(n as i64 - 1));
+    (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl
+}
+
+/// The bounds (columns, rows) below which the upper-left neighbour (i, j)
+/// of a pixel must lie for [`bilinear_u8::span_inside`]: its right and
+/// lower neighbours in the window (i < w − 1, j < h − 1), and the 8-byte
+/// loads at any such column of row j + 1 inside the window's bytes:
+/// (j + 1)·row + (w − 2)·B + 8 ≤ len, which a window's last row may fail
+/// (its spans then take the checked path, with the same result).
+fn inside_limits<T: Sample, const B: usize>(view: &View<'_, T>) -> (u64, u64) {
     let (wl, hl) = ((view.w - 1).max(0) as u64, (view.h - 1).max(0) as u64);
-    let row = view.stride as usize * B;
-    (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl && (ja.max(jb) as usize + 1) * row + ia.max(ib) as usize * B + 8 <= view.data.len() * std::mem::size_of::<T>()
+    let row = view.stride.max(0) as u64 * B as u64;
+    let len = (view.data.len() * std::mem::size_of::<T>()) as u64;
+    let farthest = wl.saturating_sub(1) * B as u64 + 8;
+    let loads = if row == 0 { 0 } else { len.checked_sub(farthest).map_or(0, |room| room / row) };
+    (wl, hl.min(loads))
 }
 
 /// Asks the processor to fetch the window's bytes at the upper-left
@@ -517,7 +531,7 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
     let n = out.len() / B;
     // 8-bit RGB/RGBA wholly inside the window (nearly every span): a loop
     // with nothing to check per pixel.
-    if span_is_inside::<T, B>(view, [qc, qr], [dqc, dqr], n) {
+    if span_is_inside::<T, B>(view, [qc, qr], [dqc, dqr], n, inside_limits::<T, B>(view)) {
         let bytes: &[u8] = bytemuck::cast_slice(view.data);
         bilinear_u8::span_inside::<B>(bytes, view.stride as usize * B, (view.x0, view.y0), (qc, qr), (dqc, dqr), bytemuck::cast_slice_mut(out));
         return SpanOutcome::Inside;
@@ -628,11 +642,12 @@ fn bilinear_spans<T: Sample, const B: usize>(view: &View<'_, T>, spans: &[Span],
     let bytes: &[u8] = bytemuck::cast_slice(view.data);
     let row = view.stride as usize * B;
     let mut prepared = [([0i64; 2], [0i64; 2], false); BLOCK];
+    let limits = inside_limits::<T, B>(view);
     for block in spans.chunks(BLOCK) {
         for (p, span) in prepared.iter_mut().zip(block) {
             let (q, dq) = span_fixed(span, span.first);
             let n = span.end.saturating_sub(span.first);
-            *p = (q, dq, span_is_inside::<T, B>(view, q, dq, n));
+            *p = (q, dq, span_is_inside::<T, B>(view, q, dq, n, limits));
             // The scan bytes at the span's last pixel, in both rows, asked
             // for now: its loop runs after the rest of the block's.
             prefetch_corner::<B>(view, bytes, row, q, dq, n);
@@ -845,6 +860,32 @@ mod tests {
             let l: f32 = lanczos3_weights(t).iter().sum();
             assert!((c - 1.0).abs() < 1e-6 && (l - 1.0).abs() < 1e-6);
         }
+    }
+
+    /// Below `inside_limits` every 8-byte load of both rows lies in the
+    /// window's bytes, and the limits are the largest with that property.
+    #[test]
+    fn inside_limits_keep_every_load_in_the_bytes() {
+        for (w, h) in [(1u32, 1u32), (2, 2), (3, 5), (40, 30), (7, 2)] {
+            for bands in [3usize, 4] {
+                let bytes = vec![0u8; w as usize * h as usize * bands];
+                let win = Window::from_bytes(0, 0, w, h, &bytes);
+                let view = View::<u8>::new(&win, bands as u32, w, h);
+                let (wl, hl) = if bands == 3 { inside_limits::<u8, 3>(&view) } else { inside_limits::<u8, 4>(&view) };
+                let row = w as u64 * bands as u64;
+                let fits = |i: u64, j: u64| (j + 1) * row + i * bands as u64 + 8 <= bytes.len() as u64;
+                assert_eq!(wl, (w as u64).saturating_sub(1), "{w}x{h}x{bands}");
+                assert!((0..wl).all(|i| (0..hl).all(|j| fits(i, j))), "{w}x{h}x{bands}: {hl}");
+                // One row more would hold a load past the end or a neighbour past the window.
+                assert!(hl + 1 >= h as u64 || wl == 0 || !fits(wl - 1, hl), "{w}x{h}x{bands}: {hl}");
+            }
+        }
+        // RGBA loads fit in the last row but one; RGB's do not.
+        let bytes = vec![0u8; 40 * 30 * 4];
+        let win = Window::from_bytes(0, 0, 40, 30, &bytes);
+        assert_eq!(inside_limits::<u8, 4>(&View::<u8>::new(&win, 4, 40, 30)), (39, 29));
+        let win = Window::from_bytes(0, 0, 40, 30, &bytes[..40 * 30 * 3]);
+        assert_eq!(inside_limits::<u8, 3>(&View::<u8>::new(&win, 3, 40, 30)), (39, 28));
     }
 
     /// Clamping is reported only where a window's edge is not the scan's:
