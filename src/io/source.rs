@@ -601,13 +601,14 @@ impl SourceImage {
         Ok(Some((&m[start..end], row_bytes)))
     }
 
-    /// Gives the mapped pages of rows `[y0, y0+h)` back to the kernel (after
-    /// `mapped_rows`); a later read of them faults the same bytes in again.
-    pub fn release_rows(&self, y0: u32, h: u32) {
-        let Backend::Raw { map: Some(m), .. } = &self.backend else { return };
+    /// The mapping and the whole pages that hold rows `[y0, y0+h)` of a
+    /// striped, chunky uncompressed scan (from the first row's strip to the
+    /// last one's: the strips between, where they lie back to back).
+    fn row_pages(&self, y0: u32, h: u32) -> Option<(&memmap2::Mmap, usize, usize)> {
+        let Backend::Raw { map: Some(m), .. } = &self.backend else { return None };
         let info = &self.info;
-        if info.planar || info.tiled || h == 0 {
-            return;
+        if info.planar || info.tiled || h == 0 || y0 as u64 + h as u64 > info.height as u64 {
+            return None;
         }
         let row_bytes = info.width as u64 * info.pixel_bytes() as u64;
         let rps = info.chunk.1 as u64;
@@ -616,10 +617,25 @@ impl SourceImage {
         let end = info.offsets[k1] + ((y0 + h) as u64 - k1 as u64 * rps) * row_bytes;
         let page = 4096;
         let (s, e) = ((start / page * page) as usize, (end.div_ceil(page) * page).min(m.len() as u64) as usize);
-        if e > s {
-            // SAFETY: the range lies inside the mapping (clamped above). The
-            // mapping is read-only and nothing ever writes the file through
-            // it, so MADV_DONTNEED only drops our page-table entries: slices
+        (e > s).then_some((m, s, e))
+    }
+
+    /// Asks the kernel to start reading rows `[y0, y0+h)` from disk now
+    /// (`MADV_WILLNEED`: one large read ahead of the faults that would
+    /// each wait for a small one); nothing where they are in memory.
+    pub fn will_need_rows(&self, y0: u32, h: u32) {
+        if let Some((m, s, e)) = self.row_pages(y0, h) {
+            let _ = m.advise_range(memmap2::Advice::WillNeed, s, e - s);
+        }
+    }
+
+    /// Gives the mapped pages of rows `[y0, y0+h)` back to the kernel (after
+    /// `mapped_rows`); a later read of them faults the same bytes in again.
+    pub fn release_rows(&self, y0: u32, h: u32) {
+        if let Some((m, s, e)) = self.row_pages(y0, h) {
+            // SAFETY: the range lies inside the mapping (`row_pages` clamps
+            // it). The mapping is read-only and nothing ever writes the file
+            // through it, so MADV_DONTNEED only drops our page-table entries: slices
             // still alive into these pages (another window of the same rows)
             // read the same bytes again, faulted in from the file.
             let _ = unsafe { m.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, s, e - s) };
@@ -760,6 +776,47 @@ mod tests {
             }
         }
         assert_eq!(cases, 81);
+    }
+
+    /// The pages that read-ahead asks for and release gives back hold
+    /// exactly the rows asked for (from the first row's first byte to the
+    /// last row's last, rounded out to whole pages), and nothing for rows
+    /// past the scan or a compressed file.
+    #[test]
+    fn row_pages_are_the_rows_rounded_out_to_pages() {
+        let dir = tempfile::tempdir().unwrap();
+        let plain = dir.path().join("plain.tif");
+        // Rows of 1500 bytes: pages hold 2.7 rows, strips 7.
+        let spec = OutputSpec {
+            width: 500,
+            height: 30,
+            bands: 3,
+            sample: SampleType::U8,
+            chunking: Chunking::Strips(7),
+            compression: Compression::None,
+            bigtiff: false,
+            photometric: 2,
+            alpha: false,
+            geo: None,
+        };
+        write_raster(&plain, &spec, |_, _, buf| buf.fill(7)).unwrap();
+        let img = SourceImage::open(&plain, 1 << 20).unwrap();
+        let (offsets, _) = img.info.chunk_table();
+        let row = 500 * 3;
+        for (y0, h) in [(0u32, 1u32), (0, 30), (5, 3), (6, 2), (13, 17), (29, 1), (8, 1)] {
+            let (m, s, e) = img.row_pages(y0, h).unwrap();
+            let first = offsets[(y0 / 7) as usize] as usize + (y0 % 7) as usize * row;
+            let last = offsets[((y0 + h - 1) / 7) as usize] as usize + ((y0 + h - 1) % 7 + 1) as usize * row;
+            assert_eq!((s, e), (first / 4096 * 4096, (last.div_ceil(4096) * 4096).min(m.len())), "rows {y0}+{h}");
+            img.will_need_rows(y0, h);
+            img.release_rows(y0, h);
+        }
+        assert!(img.row_pages(29, 2).is_none() && img.row_pages(3, 0).is_none());
+        img.will_need_rows(29, 2);
+        img.release_rows(40, 5);
+        let packed = dir.path().join("packed.tif");
+        raster(&packed, 3, SampleType::U8, Chunking::Strips(7), Compression::Deflate);
+        assert!(SourceImage::open(&packed, 1 << 20).unwrap().row_pages(0, 5).is_none());
     }
 
     #[test]

@@ -359,10 +359,27 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
             let margin = cfg.kernel.radius() + 2;
             // Scan windows are copied from here on (see below).
             let mut copying = false;
+            // The scan rows of the band before (for the read-ahead below).
+            let mut band_rows_before: Option<(u32, u32)> = None;
             for (b, band) in rx_gcm.iter().enumerate() {
                 let b = tr0 + b as u32;
                 let (y0, y1) = band_rows(&grid, cfg.tile, b);
                 let chunks = timed(&mut busy, || plan_band(&gcm, &band, y0, y1, cfg.tile, (sw, sh), margin, budget_px, max_tiles, (tc0, tc1)));
+                // The band's scan rows, and as many again the way the bands
+                // move through the scan, asked for at once where they will
+                // be read in place: a scan that is not in memory yet then
+                // comes in large reads ahead of the workers, instead of
+                // small ones that each hold up a worker's fault. Nothing is
+                // read where the rows are in memory.
+                let rows = chunks.iter().filter(|c| c.win[2] > c.win[0] && c.win[3] > c.win[1]).fold(None, |acc: Option<(u32, u32)>, c| {
+                    Some(acc.map_or((c.win[1], c.win[3]), |(a, b)| (a.min(c.win[1]), b.max(c.win[3]))))
+                });
+                if let Some((r0, r1)) = rows.filter(|&(r0, r1)| !copying && (r1 - r0) as u64 * sw as u64 * src.info.pixel_bytes() as u64 <= 8 * share) {
+                    let ext = r1 - r0;
+                    let (a, b) = if band_rows_before.is_none_or(|(p0, _)| p0 <= r0) { (r0, r1.saturating_add(ext).min(sh)) } else { (r0.saturating_sub(ext), r1) };
+                    src.will_need_rows(a, b - a);
+                }
+                band_rows_before = rows;
                 for chunk in chunks {
                     if stop() {
                         return Err(Error::Cancelled);
