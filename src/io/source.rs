@@ -329,7 +329,12 @@ impl SourceImage {
             // file is opened read-only and we never write through the map.
             let map = unsafe { memmap2::MmapOptions::new().map(&file) }.ok();
             if let Some(m) = &map {
-                let _ = m.advise(memmap2::Advice::Sequential);
+                // The rectifier asks for the rows it will read itself
+                // (`will_need_rows`); the kernel's own sequential readahead
+                // on top walked the page cache again at every few faults
+                // (1 GiB after dropping the cache: 0.86x the time with
+                // MADV_NORMAL, 6 pairs; from memory 0.98x, 10 pairs).
+                let _ = m.advise(memmap2::Advice::Normal);
                 crate::io::mmap_guard::watch_mapped(path);
             }
             Backend::Raw { map, file }
