@@ -115,3 +115,46 @@ pub fn plan_band(
     chunks.push(Chunk { x0: start * tile, x1: (t1 * tile).min(width), win: acc.map(clip).unwrap_or([0; 4]) });
     chunks
 }
+
+/// The scan rows `[r0, r1)` that a band's chunks read (their windows'
+/// rows, hull of those that see the scan), if any.
+pub fn band_scan_rows(chunks: &[Chunk]) -> Option<(u32, u32)> {
+    chunks.iter().filter(|c| c.win[2] > c.win[0] && c.win[3] > c.win[1]).fold(None, |acc, c| {
+        Some(acc.map_or((c.win[1], c.win[3]), |(a, b): (u32, u32)| (a.min(c.win[1]), b.max(c.win[3]))))
+    })
+}
+
+/// The scan rows to ask for ahead when a band reads `rows`: those, and as
+/// many again the way the bands move through the scan (down unless this
+/// band starts above the one `before`), within the scan's `height` rows.
+pub fn read_ahead_rows(rows: (u32, u32), before: Option<(u32, u32)>, height: u32) -> (u32, u32) {
+    let (r0, r1) = rows;
+    let ext = r1 - r0;
+    if before.is_none_or(|(p0, _)| p0 <= r0) {
+        (r0, r1.saturating_add(ext).min(height))
+    } else {
+        (r0.saturating_sub(ext), r1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_band_reads_ahead_the_way_the_bands_move() {
+        let chunk = |win: [u32; 4]| Chunk { x0: 0, x1: 256, win };
+        // A chunk that sees no scan (empty window) does not count.
+        let chunks = [chunk([0, 120, 50, 400]), chunk([40, 100, 90, 380]), chunk([0, 0, 0, 0]), chunk([5, 900, 5, 990])];
+        assert_eq!(band_scan_rows(&chunks), Some((100, 400)));
+        assert_eq!(band_scan_rows(&chunks[2..]), None);
+        // First band, and bands moving down: the rows and as many below.
+        assert_eq!(read_ahead_rows((100, 400), None, 10_000), (100, 700));
+        assert_eq!(read_ahead_rows((100, 400), Some((0, 130)), 10_000), (100, 700));
+        // Moving up (a scan turned 180°): as many above.
+        assert_eq!(read_ahead_rows((100, 400), Some((350, 650)), 10_000), (0, 400));
+        assert_eq!(read_ahead_rows((500, 800), Some((750, 1000)), 10_000), (200, 800));
+        // Never past the scan's last row.
+        assert_eq!(read_ahead_rows((9_800, 9_990), Some((9_500, 9_810)), 10_000), (9_800, 10_000));
+    }
+}

@@ -1,7 +1,7 @@
 //! The stages of `rectify` and the threads that run them (see `mod.rs`).
 
 use super::config::{BigTiff, DemSource, RectifyConfig};
-use super::plan::{plan_band, Chunk};
+use super::plan::{band_scan_rows, plan_band, read_ahead_rows, Chunk};
 use super::report::{peak_rss_mib, Report, ScanInfo, StageTimes};
 use crate::accuracy;
 use crate::camera::file::Camera;
@@ -371,12 +371,9 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                 // comes in large reads ahead of the workers, instead of
                 // small ones that each hold up a worker's fault. Nothing is
                 // read where the rows are in memory.
-                let rows = chunks.iter().filter(|c| c.win[2] > c.win[0] && c.win[3] > c.win[1]).fold(None, |acc: Option<(u32, u32)>, c| {
-                    Some(acc.map_or((c.win[1], c.win[3]), |(a, b)| (a.min(c.win[1]), b.max(c.win[3]))))
-                });
-                if let Some((r0, r1)) = rows.filter(|&(r0, r1)| !copying && (r1 - r0) as u64 * sw as u64 * src.info.pixel_bytes() as u64 <= 8 * share) {
-                    let ext = r1 - r0;
-                    let (a, b) = if band_rows_before.is_none_or(|(p0, _)| p0 <= r0) { (r0, r1.saturating_add(ext).min(sh)) } else { (r0.saturating_sub(ext), r1) };
+                let rows = band_scan_rows(&chunks);
+                if let Some(rows) = rows.filter(|&(r0, r1)| !copying && (r1 - r0) as u64 * sw as u64 * src.info.pixel_bytes() as u64 <= 8 * share) {
+                    let (a, b) = read_ahead_rows(rows, band_rows_before, sh);
                     src.will_need_rows(a, b - a);
                 }
                 band_rows_before = rows;

@@ -531,7 +531,9 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
     let n = out.len() / B;
     // 8-bit RGB/RGBA wholly inside the window (nearly every span): a loop
     // with nothing to check per pixel.
-    if span_is_inside::<T, B>(view, [qc, qr], [dqc, dqr], n, inside_limits::<T, B>(view)) {
+    // (The limits, with their division, only for a type the loop takes.)
+    let loop_type = T::TYPE == SampleType::U8 && (B == 3 || B == 4) && view.in_scan;
+    if loop_type && span_is_inside::<T, B>(view, [qc, qr], [dqc, dqr], n, inside_limits::<T, B>(view)) {
         let bytes: &[u8] = bytemuck::cast_slice(view.data);
         bilinear_u8::span_inside::<B>(bytes, view.stride as usize * B, (view.x0, view.y0), (qc, qr), (dqc, dqr), bytemuck::cast_slice_mut(out));
         return SpanOutcome::Inside;
