@@ -193,10 +193,12 @@ mod tests {
         assert_eq!(bilerp(0, 255, 0, 255, 512, 0), 128);
     }
 
+    /// A kernel for one band count: (upper, lower, wx, wy) → bands.
+    type Kernel = fn(&[u8], &[u8], u32, u32) -> u32;
+
     /// Every kernel this build compiles, for 3 and 4 bands.
-    #[allow(clippy::type_complexity)]
-    fn kernels() -> Vec<(&'static str, fn(&[u8], &[u8], u32, u32) -> u32, fn(&[u8], &[u8], u32, u32) -> u32)> {
-        let mut k: Vec<(&'static str, fn(&[u8], &[u8], u32, u32) -> u32, fn(&[u8], &[u8], u32, u32) -> u32)> =
+    fn kernels() -> Vec<(&'static str, Kernel, Kernel)> {
+        let mut k: Vec<(&'static str, Kernel, Kernel)> =
             vec![("scalar", bilerp_pixel_scalar::<3>, bilerp_pixel_scalar::<4>), ("chosen", bilerp_pixel::<3>, bilerp_pixel::<4>)];
         #[cfg(target_arch = "x86_64")]
         k.push(("sse2", bilerp_pixel_sse2::<3>, bilerp_pixel_sse2::<4>));
