@@ -470,7 +470,7 @@ pub enum SpanOutcome {
 /// below `limits` ([`inside_limits`], worked out once for the window).
 #[inline(always)]
 fn span_is_inside<T: Sample, const B: usize>(view: &View<'_, T>, q: [i64; 2], dq: [i64; 2], n: usize, (wl, hl): (u64, u64)) -> bool {
-    if !(T::TYPE == SampleType::U8 && (B == 3 || B == 4) && n > 0 && view.in_scan) {
+    if !(n > 0 && byte_loop_applies::<T, B>(view)) {
         return false;
     }
     // The window-relative upper-left neighbour of pixel `i`, rounded as the
@@ -483,6 +483,13 @@ fn span_is_inside<T: Sample, const B: usize>(view: &View<'_, T>, q: [i64; 2], dq
     // every pixel between.
     let ((ia, ja), (ib, jb)) = (corner(0), corner(n as i64 - 1));
     (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl
+}
+
+/// Whether [`bilinear_u8::span_inside`] can serve this window at all:
+/// 8-bit RGB or RGBA, the window lying in the scan.
+#[inline(always)]
+fn byte_loop_applies<T: Sample, const B: usize>(view: &View<'_, T>) -> bool {
+    T::TYPE == SampleType::U8 && (B == 3 || B == 4) && view.in_scan
 }
 
 /// The bounds (columns, rows) below which the upper-left neighbour (i, j)
@@ -531,9 +538,8 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
     let n = out.len() / B;
     // 8-bit RGB/RGBA wholly inside the window (nearly every span): a loop
     // with nothing to check per pixel.
-    // (The limits, with their division, only for a type the loop takes.)
-    let loop_type = T::TYPE == SampleType::U8 && (B == 3 || B == 4) && view.in_scan;
-    if loop_type && span_is_inside::<T, B>(view, [qc, qr], [dqc, dqr], n, inside_limits::<T, B>(view)) {
+    // (The limits, with their division, only for a window the loop takes.)
+    if byte_loop_applies::<T, B>(view) && span_is_inside::<T, B>(view, [qc, qr], [dqc, dqr], n, inside_limits::<T, B>(view)) {
         let bytes: &[u8] = bytemuck::cast_slice(view.data);
         bilinear_u8::span_inside::<B>(bytes, view.stride as usize * B, (view.x0, view.y0), (qc, qr), (dqc, dqr), bytemuck::cast_slice_mut(out));
         return SpanOutcome::Inside;
@@ -626,7 +632,7 @@ fn bilinear_spans<T: Sample, const B: usize>(view: &View<'_, T>, spans: &[Span],
         }
         (SpanOutcome::Checked { clamped: before }, SpanOutcome::Checked { clamped }) => SpanOutcome::Checked { clamped: before || clamped },
     };
-    if !(T::TYPE == SampleType::U8 && (B == 3 || B == 4) && view.in_scan && spans.len() > 1) {
+    if !(byte_loop_applies::<T, B>(view) && spans.len() > 1) {
         for span in spans {
             let (a, b) = (span.first - x0, span.end - x0);
             let here = bilinear_span::<T, B>(view, span, &mut out[a * B..b * B], &mut valid[a..b], fill);
