@@ -176,7 +176,23 @@ pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>) -> Result<Vec<u8>> {
 pub fn write_tiled<E, B: AsRef<[u8]>>(
     file: std::fs::File,
     spec: &OutputSpec,
-    next_tile: impl FnMut() -> std::result::Result<Option<B>, E>,
+    mut next_tile: impl FnMut() -> std::result::Result<Option<B>, E>,
+) -> std::result::Result<(), WriteError<E>> {
+    let mut index = 0;
+    write_placed(file, spec, || {
+        let tile = next_tile()?.map(|t| (index, t));
+        index += 1;
+        Ok(tile)
+    })
+}
+
+/// As [`write_tiled`], for tiles that come in any order: `next_tile` yields
+/// each tile with its row-major index; every index must come exactly once.
+/// The file holds the tiles in the order they came.
+pub fn write_placed<E, B: AsRef<[u8]>>(
+    file: std::fs::File,
+    spec: &OutputSpec,
+    next_tile: impl FnMut() -> std::result::Result<Option<(usize, B)>, E>,
 ) -> std::result::Result<(), WriteError<E>> {
     // Unbuffered on purpose: tiles are large single writes, and every write
     // error (a full disk) must reach us rather than vanish in a buffer's drop.
@@ -204,11 +220,13 @@ impl<E> From<tiff::TiffError> for WriteError<E> {
 fn write_kind<K: TiffKind, E, B: AsRef<[u8]>>(
     mut enc: TiffEncoder<std::fs::File, K>,
     spec: &OutputSpec,
-    mut next_tile: impl FnMut() -> std::result::Result<Option<B>, E>,
+    mut next_tile: impl FnMut() -> std::result::Result<Option<(usize, B)>, E>,
 ) -> std::result::Result<(), WriteError<E>> {
     let n = (spec.tiles_across() * spec.tiles_down()) as usize;
-    let mut offsets = Vec::with_capacity(n);
-    let mut counts = Vec::with_capacity(n);
+    // A byte count of 0 marks a tile not written yet (no tile is empty).
+    let mut offsets = vec![0u64; n];
+    let mut counts = vec![0u64; n];
+    let mut written = 0usize;
     let mut dir = enc.image_directory()?;
     if let Some(pad) = page_padding(spec) {
         // Unreferenced bytes (TIFF allows them) so that every tile of an
@@ -217,13 +235,18 @@ fn write_kind<K: TiffKind, E, B: AsRef<[u8]>>(
         // two tiles share.
         dir.write_data(&vec![0u8; pad][..])?;
     }
-    while let Some(tile) = next_tile().map_err(WriteError::Source)? {
+    let misplaced = |k: usize| WriteError::Tiff(tiff::TiffError::UsageError(tiff::UsageError::InvalidCodingUnit(k as u32, n as u32)));
+    while let Some((k, tile)) = next_tile().map_err(WriteError::Source)? {
         let tile = tile.as_ref();
-        offsets.push(dir.write_data(tile)?);
-        counts.push(tile.len() as u64);
+        if k >= n || counts[k] != 0 || tile.is_empty() {
+            return Err(misplaced(k));
+        }
+        offsets[k] = dir.write_data(tile)?;
+        counts[k] = tile.len() as u64;
+        written += 1;
     }
-    if offsets.len() != n {
-        return Err(WriteError::Tiff(tiff::TiffError::UsageError(tiff::UsageError::InvalidCodingUnit(offsets.len() as u32, n as u32))));
+    if written != n {
+        return Err(misplaced(written));
     }
     dir.write_tag(Tag::ImageWidth, spec.width)?;
     dir.write_tag(Tag::ImageLength, spec.height)?;
@@ -506,6 +529,33 @@ mod tests {
             let tiff::decoder::DecodingResult::U8(px) = dec.read_image().unwrap() else { panic!("8-bit") };
             assert!(px.iter().enumerate().all(|(k, &v)| v == value((k / 3) % 150, k / 3 / 150, k % 3)), "{compression:?} {bigtiff}");
         }
+    }
+
+    #[test]
+    fn tiles_written_column_by_column_read_back_in_place() {
+        // 3 × 2 tiles of 16×16 grey, sent column by column: the directory
+        // puts each where it belongs. A tile sent twice, or one missing, is
+        // an error.
+        let spec = OutputSpec { width: 40, height: 20, compression: Compression::None, photometric: 1, ..spec(1, SampleType::U8) };
+        let tile = |k: usize| vec![k as u8 * 10 + 1; 16 * 16];
+        let write = |order: &[usize]| {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("t.tif");
+            let mut next = order.iter();
+            let r = write_placed(std::fs::File::create(&path).unwrap(), &spec, || -> std::result::Result<_, ()> { Ok(next.next().map(|&k| (k, tile(k)))) });
+            (r.map_err(|_| ()), std::fs::read(&path).unwrap())
+        };
+        let (r, bytes) = write(&[0, 3, 1, 4, 2, 5]);
+        assert!(r.is_ok());
+        let mut dec = tiff::decoder::Decoder::new(std::io::Cursor::new(bytes)).unwrap();
+        let offsets = dec.get_tag_u64_vec(Tag::TileOffsets).unwrap();
+        assert!(offsets.windows(2).any(|p| p[1] < p[0]), "stored column by column: {offsets:?}");
+        let tiff::decoder::DecodingResult::U8(px) = dec.read_image().unwrap() else { panic!("8-bit") };
+        let want = |x: usize, y: usize| (y / 16 * 3 + x / 16) as u8 * 10 + 1;
+        assert!(px.iter().enumerate().all(|(k, &v)| v == want(k % 40, k / 40)));
+        assert!(write(&[0, 3, 1, 4, 2, 2]).0.is_err(), "a tile twice");
+        assert!(write(&[0, 3, 1, 4, 2]).0.is_err(), "a tile missing");
+        assert!(write(&[0, 3, 1, 4, 2, 6]).0.is_err(), "a tile past the end");
     }
 
     #[test]
