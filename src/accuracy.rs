@@ -136,7 +136,7 @@ pub fn evaluate_where(gcm: &Gcm<'_>, step: u32, max_slope_deg: Option<f64>, mut 
                 gcm.fill_row(g, y, 0, &mut cols, &mut rows, &mut miss);
                 for x in (0..grid.width).step_by(step as usize) {
                     if let Some(t) = max_tan {
-                        let (gx, gy) = grid.ground(x as f64 + 0.5, y as f64 + 0.5);
+                        let (gx, gy) = gcm.t.ground(x as f64 + 0.5, y as f64 + 0.5);
                         match gcm.t.dem.height_gradient(gx, gy) {
                             Some((_, dx, dy)) if dx.hypot(dy) <= t => {}
                             _ => continue,

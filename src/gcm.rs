@@ -233,7 +233,11 @@ impl<'a> Gcm<'a> {
             crate::dem::HeightModel::Grid(g) if t.dem.to_dem.is_none() && g.transform[2] == 0.0 && g.transform[4] == 0.0 => {
                 let gt = g.transform;
                 let grid = &t.grid;
-                Some([(gt[0] + 0.5 * gt[1] - grid.x0) / grid.gsd, gt[1] / grid.gsd, (grid.y0 - gt[3] - 0.5 * gt[5]) / grid.gsd, -gt[5] / grid.gsd])
+                let u = [(gt[0] + 0.5 * gt[1] - grid.x0) / grid.gsd, gt[1] / grid.gsd];
+                let v = [(grid.y0 - gt[3] - 0.5 * gt[5]) / grid.gsd, -gt[5] / grid.gsd];
+                // Walked by columns, the DEM's columns are lines of v.
+                let [u, v] = if t.is_transposed() { [v, u] } else { [u, v] };
+                Some([u[0], u[1], v[0], v[1]])
             }
             _ => None,
         };
@@ -309,7 +313,7 @@ impl<'a> Gcm<'a> {
         self.xs
             .iter()
             .map(|&u| {
-                let (x, y) = self.t.grid.ground(u, v);
+                let (x, y) = self.t.ground(u, v);
                 self.t.dem.height(x, y)
             })
             .collect()
@@ -325,7 +329,7 @@ impl<'a> Gcm<'a> {
         // compiler vectorises).
         let (mut at, mut gx, mut gy, mut gz) = (Vec::with_capacity(heights.len()), Vec::with_capacity(heights.len()), Vec::with_capacity(heights.len()), Vec::with_capacity(heights.len()));
         for (i, h) in heights.iter().enumerate() {
-            let (x, y) = self.t.grid.ground(self.xs[i], v);
+            let (x, y) = self.t.ground(self.xs[i], v);
             match *h {
                 Height::Value(z) => {
                     at.push(i);

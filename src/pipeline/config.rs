@@ -26,6 +26,32 @@ pub enum BigTiff {
     No,
 }
 
+/// Which way the output is made: bands of tile rows, or bands of tile
+/// columns (the tiles then go to the file in that order). A band's pixels
+/// read the scan rows it crosses; bands along the scan's rows read fewer of
+/// them, in place from the mapped file, where bands across them (a scan
+/// turned ~90° against the output) would copy tall windows a row at a time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BandOrder {
+    /// Whichever of the two crosses fewer scan rows a band.
+    Auto,
+    Rows,
+    Columns,
+}
+
+impl std::str::FromStr for BandOrder {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(BandOrder::Auto),
+            "rows" => Ok(BandOrder::Rows),
+            "columns" => Ok(BandOrder::Columns),
+            _ => Err(format!("'{s}' is not auto, rows or columns")),
+        }
+    }
+}
+
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct RectifyConfig {
     pub image: PathBuf,
@@ -53,6 +79,7 @@ pub struct RectifyConfig {
     pub trend: Trend,
     pub kernel: Kernel,
     pub tile: u32,
+    pub band_order: BandOrder,
     pub compress: Compression,
     pub bigtiff: BigTiff,
     /// Nodata value written where there is no image (ignored with `alpha`).
@@ -89,6 +116,7 @@ impl RectifyConfig {
             trend: Trend::Plane,
             kernel: Kernel::Bilinear,
             tile: 256,
+            band_order: BandOrder::Auto,
             compress: Compression::Deflate,
             bigtiff: BigTiff::Auto,
             nodata: 0.0,

@@ -3,13 +3,18 @@
 //! joined by bounded channels, so a few bands at most are in flight and
 //! memory does not grow with the image:
 //!
+//! Bands run along the output's rows, or along its columns where that
+//! reads the scan along its rows (a scan turned ~90°; see `BandOrder`): the
+//! stages then walk a transposed grid, and each tile is turned back before
+//! it is written.
+//!
 //! 1. DEM lookup — heights at the GCM nodes of the next band;
 //! 2. GCM — exact `T` at the nodes (and refinement under `--max-error`);
 //! 3. read — plan the band's chunks and read their scan windows;
 //! 4. resample — rows of a chunk in parallel (rayon), two chunks at once so
 //!    that a worker done with one starts on the next;
 //! 5. encode — the chunk's tiles compressed in parallel;
-//! 6. write — one thread appends tiles in order.
+//! 6. write — one thread appends tiles as they come, recording where.
 //!
 //! The first error anywhere cancels every stage; the output is a temporary
 //! file that is removed unless the whole run succeeds.
@@ -18,8 +23,9 @@ mod config;
 mod plan;
 mod report;
 mod stages;
+mod transpose;
 
-pub use config::{BigTiff, DemSource, RectifyConfig};
+pub use config::{BandOrder, BigTiff, DemSource, RectifyConfig};
 pub use plan::{plan_band, Chunk};
 pub use report::{Report, StageTimes};
 pub use stages::rectify;

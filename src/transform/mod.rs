@@ -25,22 +25,49 @@ pub enum Mapped {
     DemMiss(f64, f64, Lookup),
 }
 
-/// The exact operator `T` for one output grid.
+/// The exact operator `T` for one output grid, walked by rows, or by
+/// columns (`transposed`).
 pub struct Transform<'a> {
     pub model: &'a dyn SensorModel,
     pub dem: &'a Dem,
+    /// The grid as walked: the output grid itself, or, transposed, the same
+    /// ground with its width and height swapped. Its ground coordinates come
+    /// from [`Transform::ground`].
     pub grid: OutputGrid,
+    transposed: bool,
 }
 
 impl<'a> Transform<'a> {
     pub fn new(model: &'a dyn SensorModel, dem: &'a Dem, grid: OutputGrid) -> Self {
-        Transform { model, dem, grid }
+        Transform { model, dem, grid, transposed: false }
+    }
+
+    /// `T` of `grid` walked by columns: its (u, v) is (v, u) of `grid`, so
+    /// that its rows are `grid`'s columns. A scan turned ~90° against the
+    /// output then reads scan rows along each of them.
+    pub fn transposed(model: &'a dyn SensorModel, dem: &'a Dem, grid: OutputGrid) -> Self {
+        let walked = OutputGrid { width: grid.height, height: grid.width, ..grid };
+        Transform { model, dem, grid: walked, transposed: true }
+    }
+
+    pub fn is_transposed(&self) -> bool {
+        self.transposed
+    }
+
+    /// Ground (X, Y) of walked coordinates (u, v).
+    #[inline]
+    pub fn ground(&self, u: f64, v: f64) -> (f64, f64) {
+        if self.transposed {
+            self.grid.ground(v, u)
+        } else {
+            self.grid.ground(u, v)
+        }
     }
 
     /// `T(u, v)`.
     #[inline]
     pub fn exact(&self, u: f64, v: f64) -> Mapped {
-        let (x, y) = self.grid.ground(u, v);
+        let (x, y) = self.ground(u, v);
         match self.dem.height(x, y) {
             Height::Value(z) => match self.model.project(x, y, z) {
                 Some((c, r)) => Mapped::Px(c, r),
@@ -126,6 +153,15 @@ impl Approx {
         // Scale to a unit denominator at the centre: keeps the numbers O(1).
         h /= centre.z;
         Some(Approx { h, plane })
+    }
+
+    /// `A` with its output axes swapped: `transposed().at(v, u) == at(u, v)`
+    /// (for a [`Transform::transposed`] walk).
+    #[must_use]
+    pub fn transposed(&self) -> Approx {
+        let mut h = self.h;
+        h.swap_columns(0, 1);
+        Approx { h, plane: self.plane }
     }
 
     /// The six coefficients of row `v` (2.4.5–2.4.7): `M, P, E` are the same
