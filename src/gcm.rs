@@ -143,6 +143,11 @@ pub struct Gcm<'a> {
 /// the 1/1024 pixel the bilinear kernel's weights resolve.
 pub const A_LINEAR_TOLERANCE: f64 = 1.0 / 4096.0;
 
+/// The most straight pieces [`Gcm::row_spans`] cuts a gap between node
+/// columns into where `A` curves: beyond, pieces of a few pixels cost more
+/// in set-up than working every position out.
+pub const MAX_SPANS_A_GAP: usize = 4;
+
 /// Output pixels `first..end` of a row, in one gap between node columns.
 /// Where `linear`, the scan position is a straight line: at pixel x,
 /// `(c + (x − anchor)·dc, r + (x − anchor)·dr)`, where `anchor` is the
@@ -494,12 +499,18 @@ impl<'a> Gcm<'a> {
 
     /// Output row `y`'s columns `x0..x0+len` as [`Span`]s, one per gap
     /// between node columns, into `spans`; `false` (and `spans` empty)
-    /// where the row cannot have straight spans: cell mode, or A, whose
-    /// denominator is linear in u, curving by more than
-    /// [`A_LINEAR_TOLERANCE`] across a gap or behind the camera anywhere
-    /// along the row. Both tests look at the whole row or the gap alone,
-    /// and each line is anchored at its gap's first pixel, so a pixel's
-    /// position does not depend on which piece of the row is asked for.
+    /// where the row cannot have straight spans: cell mode, A behind the
+    /// camera anywhere along the row, or A, whose denominator is linear in
+    /// u, curving so much that a gap would need more than
+    /// [`MAX_SPANS_A_GAP`] straight pieces to stay within
+    /// [`A_LINEAR_TOLERANCE`] of it. Where A curves by more than that across
+    /// the widest gap, every gap is cut into as many equal pieces as bring
+    /// the widest within it (A's deviation from a chord grows with the
+    /// square of its length), each piece the chord of `A + c` between its
+    /// first and last pixels. The tests look at the whole row or the gap
+    /// alone, and each line is anchored at its gap's (or piece's) first
+    /// pixel, so a pixel's position does not depend on which piece of the
+    /// row is asked for.
     pub fn row_spans(&self, band: &BandGcm, y: u32, x0: u32, len: usize, spans: &mut Vec<Span>) -> bool {
         spans.clear();
         if self.spec.mode != CorrectionMode::Bilinear || len == 0 {
@@ -514,9 +525,11 @@ impl<'a> Gcm<'a> {
         }
         // The largest |A''| of either coordinate, at the smallest denominator.
         let bend = 2.0 * ra.e.abs() * (ra.m * ra.f - ra.e * ra.n).abs().max((ra.p * ra.f - ra.e * ra.q).abs()) / (d * d * d);
-        if !(bend * self.max_gap * self.max_gap <= 8.0 * A_LINEAR_TOLERANCE) {
+        let cuts = (bend * self.max_gap * self.max_gap / (8.0 * A_LINEAR_TOLERANCE)).sqrt().ceil().max(1.0);
+        if !(cuts <= MAX_SPANS_A_GAP as f64) {
             return false;
         }
+        let cuts = cuts as usize;
         let (a, b) = (&band.rows[(j0 - band.first_j) as usize], &band.rows[(j1 - band.first_j) as usize]);
         let (lo, hi) = self.node_span(x0, len);
         // Node columns lo..=hi and the gaps lo..hi between them, cut out
@@ -551,17 +564,51 @@ impl<'a> Gcm<'a> {
                 let (left, right) = ((pc[k], pr[k]), (pc[k + 1], pr[k + 1]));
                 // (max, min rather than clamp: no check that x ≤ x_end, which holds.)
                 let end = if lo + g >= last_gap { x_end } else { first_px[g + 1].max(x).min(x_end) };
-                if end > x {
+                // Within what the fixed point's conversion holds exactly
+                // (positions ·2³² below 2⁵¹: a scan of 2¹⁸ pixels a side).
+                const FIXED: f64 = (1u64 << 18) as f64;
+                let refined = refined.is_some_and(|q| q[g].is_some());
+                let linear = |c: f64, r: f64, dc: f64, dr: f64| !refined && c.abs() < FIXED && r.abs() < FIXED && dc.abs() * 1024.0 < FIXED && dr.abs() * 1024.0 < FIXED;
+                if end > x && cuts == 1 {
                     let inv = inv_dx[g];
                     let (dc, dr) = ((right.0 - left.0) * inv, (right.1 - left.1) * inv);
                     let off = anchor_off[g];
                     let (c, r) = (left.0 + off * dc, left.1 + off * dr);
-                    let refined = refined.is_some_and(|q| q[g].is_some());
-                    // Within what the fixed point's conversion holds exactly
-                    // (positions ·2³² below 2⁵¹: a scan of 2¹⁸ pixels a side).
-                    const FIXED: f64 = (1u64 << 18) as f64;
-                    let linear = !refined && c.abs() < FIXED && r.abs() < FIXED && dc.abs() * 1024.0 < FIXED && dr.abs() * 1024.0 < FIXED;
-                    spans.push(Span { linear, first: x, end, anchor: first_px[g], c, r, dc, dr });
+                    spans.push(Span { linear: linear(c, r, dc, dr), first: x, end, anchor: first_px[g], c, r, dc, dr });
+                } else if end > x {
+                    // The gap's pixels (all of them, wherever the asked
+                    // piece of the row begins and ends) in `cuts` pieces.
+                    let (gap_first, gap_end) = (first_px[g], first_px[g + 1].max(end));
+                    let n = gap_end - gap_first;
+                    let (u0, inv) = (xs[k], inv_dx[g]);
+                    // The correction at either node (linear in between).
+                    let correction = |(c, r): (f64, f64), u: f64| {
+                        let (ac, ar) = ra.at(u);
+                        (c - ac, r - ar)
+                    };
+                    let (cl, cr) = (correction(left, u0), correction(right, xs[k + 1]));
+                    let at = |px: usize| {
+                        let u = px as f64 + 0.5;
+                        let (ac, ar) = ra.at(u);
+                        let t = (u - u0) * inv;
+                        (ac + cl.0 + t * (cr.0 - cl.0), ar + cl.1 + t * (cr.1 - cl.1))
+                    };
+                    for i in 0..cuts {
+                        let (p0, p1) = (gap_first + n * i / cuts, gap_first + n * (i + 1) / cuts);
+                        let (first, stop) = (p0.max(x), p1.min(end));
+                        if first >= stop {
+                            continue;
+                        }
+                        let (c, r) = at(p0);
+                        let (dc, dr) = if p1 - p0 > 1 {
+                            let (lc, lr) = at(p1 - 1);
+                            let steps = (p1 - p0 - 1) as f64;
+                            ((lc - c) / steps, (lr - r) / steps)
+                        } else {
+                            (0.0, 0.0)
+                        };
+                        spans.push(Span { linear: linear(c, r, dc, dr), first, end: stop, anchor: p0, c, r, dc, dr });
+                    }
                 }
                 x = end;
             }

@@ -26,26 +26,27 @@ fn rectify(sc: &gcm_ortho::synth::SynthReport, out: &Path, extra: &[&str]) -> se
 }
 
 /// The two orders agree: same grid, and samples equal but for rounding
-/// (one level, in under 0.1 % of them) and the rare pixel at the scan's
-/// edge that one order finds inside the scan and the other just outside.
-/// Both walks interpolate the same corrections from the same nodes
-/// bilinearly, so only floating-point rounding tells them apart.
+/// (by up to a 255th of the sample's range, in under 2 % of them) and the
+/// rare pixel at the scan's edge that one order finds inside the scan and
+/// the other just outside. Both walks interpolate the same corrections
+/// from the same nodes bilinearly; where `A` curves along the walk, its
+/// straight pieces stay within 1/4096 px of it, a quarter of the 1/1024 px
+/// the kernel's weights resolve, so a weight moves by one step now and
+/// then (in 16-bit samples, a step can move a value by tens of levels).
 fn assert_same_orthophoto(rows: &Path, columns: &Path, bytes_per_sample: usize) {
     let (a, wa, ha, ga) = samples(rows);
     let (b, wb, hb, gb) = samples(columns);
     assert_eq!((wa, ha, &ga), (wb, hb, &gb));
     assert_eq!(a.len(), b.len());
-    let value = |v: &[u8]| -> Vec<i64> {
-        match bytes_per_sample {
-            1 => v.iter().map(|&x| x as i64).collect(),
-            _ => v.chunks_exact(2).map(|p| u16::from_le_bytes([p[0], p[1]]) as i64).collect(),
-        }
+    let (value, unit): (fn(&[u8]) -> Vec<u64>, u64) = match bytes_per_sample {
+        1 => (|v| v.iter().map(|&x| x as u64).collect(), 1),
+        _ => (|v| v.chunks_exact(2).map(|p| u16::from_le_bytes([p[0], p[1]]) as u64).collect(), 257),
     };
     let (a, b) = (value(&a), value(&b));
-    let one_level = a.iter().zip(&b).filter(|(x, y)| x.abs_diff(**y) == 1).count();
-    let more = a.iter().zip(&b).filter(|(x, y)| x.abs_diff(**y) > 1).count();
-    assert!(one_level * 1000 < a.len(), "{one_level} of {} samples differ by one level", a.len());
-    assert!(more * 10_000 < a.len(), "{more} of {} samples differ by more than one level", a.len());
+    let rounding = a.iter().zip(&b).filter(|(x, y)| x != y && x.abs_diff(**y) <= unit).count();
+    let more = a.iter().zip(&b).filter(|(x, y)| x.abs_diff(**y) > unit).count();
+    assert!(rounding * 50 < a.len(), "{rounding} of {} samples differ by rounding", a.len());
+    assert!(more * 10_000 < a.len(), "{more} of {} samples differ by more", a.len());
 }
 
 #[test]
