@@ -25,14 +25,15 @@ pub fn bar(total: u64, what: &str, quiet: bool) -> ProgressBar {
 }
 
 /// A bar counted in `units` of work (tiles written) that shows what they
-/// stand for: output rows out of `rows`, and megabytes of the scan's
-/// `input_bytes` read a second; hidden when `quiet` or not on a terminal.
-pub fn rows_bar(units: u64, rows: u64, input_bytes: u64, quiet: bool) -> ProgressBar {
+/// stand for: output rows (or columns, `lines` named `what`) out of `rows`,
+/// and megabytes of the scan's `input_bytes` read a second; hidden when
+/// `quiet` or not on a terminal.
+pub fn rows_bar(units: u64, rows: u64, what: &str, input_bytes: u64, quiet: bool) -> ProgressBar {
     if hidden(quiet) {
         return ProgressBar::with_draw_target(Some(units), ProgressDrawTarget::hidden());
     }
     let pb = ProgressBar::new(units);
-    let style = ProgressStyle::with_template("rectify [{bar:40}] {rows} rows {input_rate} ETA {eta}")
+    let style = ProgressStyle::with_template(&format!("rectify [{{bar:40}}] {{rows}} {what} {{input_rate}} ETA {{eta}}"))
         .expect("valid template")
         .with_key("rows", move |s: &ProgressState, w: &mut dyn Write| {
             let _ = write!(w, "{}/{rows}", rows_done(s.pos(), units, rows));

@@ -288,7 +288,8 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         .map_err(|e| Error::Usage(format!("cannot start {} threads: {e}", cfg.threads)))?;
     let mut times = StageTimes { setup: wall.elapsed().as_secs_f64(), ..Default::default() };
     let n_bands = wr1 - wr0;
-    let progress = crate::progress::rows_bar(spec.tiles_across() as u64 * spec.tiles_down() as u64, piece_h as u64, src.info.data_bytes(), cfg.quiet);
+    let (lines, what) = if columns { (piece_w, "columns") } else { (piece_h, "rows") };
+    let progress = crate::progress::rows_bar(spec.tiles_across() as u64 * spec.tiles_down() as u64, lines as u64, what, src.info.data_bytes(), cfg.quiet);
     let failed = AtomicBool::new(false);
     let stop = || cancel.load(Ordering::Relaxed) || failed.load(Ordering::Relaxed);
     let chunks_done = AtomicU64::new(0);
