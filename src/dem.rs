@@ -94,6 +94,25 @@ impl ChunkedSamples {
             None => f32::NAN,
         }
     }
+
+    /// Samples (i0, j0), (i1, j0), (i0, j1), (i1, j1): from one look into
+    /// the cache where the four share a chunk (all but the cells on a
+    /// chunk's edge). Four looks (lock, hash, reference count) for each
+    /// bilinear height took ~9 % of a 1 GiB RPC run's CPU time.
+    fn corners(&self, i0: usize, j0: usize, i1: usize, j1: usize) -> [f32; 4] {
+        let (cw, ch) = self.raster.chunk;
+        let (tx, ty) = (i0 / cw, j0 / ch);
+        if i1 / cw != tx || j1 / ch != ty {
+            return [self.get(i0, j0), self.get(i1, j0), self.get(i0, j1), self.get(i1, j1)];
+        }
+        match self.chunk(ty * self.raster.across() + tx) {
+            Some(c) => {
+                let at = |i: usize, j: usize| c.get((j - ty * ch) * cw + (i - tx * cw)).copied().unwrap_or(f32::NAN);
+                [at(i0, j0), at(i1, j0), at(i0, j1), at(i1, j1)]
+            }
+            None => [f32::NAN; 4],
+        }
+    }
 }
 
 /// DEMs larger than this are read a chunk at a time.
@@ -132,6 +151,15 @@ impl GridDem {
         }
     }
 
+    /// Samples (i0, j0), (i1, j0), (i0, j1), (i1, j1): a bilinear cell.
+    #[inline]
+    fn corners(&self, i0: usize, j0: usize, i1: usize, j1: usize) -> [f32; 4] {
+        match &self.data {
+            Samples::Memory(v) => [v[j0 * self.width + i0], v[j0 * self.width + i1], v[j1 * self.width + i0], v[j1 * self.width + i1]],
+            Samples::Chunked(c) => c.corners(i0, j0, i1, j1),
+        }
+    }
+
     /// Every `step`-th sample, row-major (for summaries: mean height).
     pub fn samples(&self, step: usize) -> Vec<f32> {
         let n = self.width * self.height;
@@ -162,8 +190,7 @@ impl GridDem {
         let i1 = (i0 + 1).min(self.width - 1);
         let j1 = (j0 + 1).min(self.height - 1);
         let (fx, fy) = (c - i0 as f64, r - j0 as f64);
-        let v = |i: usize, j: usize| self.sample(i, j);
-        let (z00, z10, z01, z11) = (v(i0, j0), v(i1, j0), v(i0, j1), v(i1, j1));
+        let [z00, z10, z01, z11] = self.corners(i0, j0, i1, j1);
         let need = |z: f32, wgt: f64| wgt > 0.0 && self.is_nodata(z);
         if need(z00, (1.0 - fx) * (1.0 - fy))
             || need(z10, fx * (1.0 - fy))
@@ -203,9 +230,9 @@ impl GridDem {
                 let (top, bottom) = (&v[k..k + 2], &v[k + self.width..k + self.width + 2]);
                 (top[0], top[1], bottom[0], bottom[1])
             }
-            Samples::Chunked(_) => {
-                let v = |i: usize, j: usize| self.sample(i, j);
-                (v(i0, j0), v(i0 + 1, j0), v(i0, j0 + 1), v(i0 + 1, j0 + 1))
+            Samples::Chunked(c) => {
+                let [z00, z10, z01, z11] = c.corners(i0, j0, i0 + 1, j0 + 1);
+                (z00, z10, z01, z11)
             }
         };
         let holes = match self.nodata {
@@ -584,6 +611,47 @@ mod tests {
         let holed = GridDem::new(2, 2, vec![100.0, f32::NAN, 120.0, 132.0], [1000.0, 10.0, 0.0, 2000.0, 0.0, -10.0], None, None);
         assert!(holed.lookup_gradient(1007.5, 1990.0).is_none());
         assert!(g.lookup_gradient(1030.0, 1990.0).is_none());
+    }
+
+    #[test]
+    fn a_dem_read_in_chunks_gives_the_heights_of_one_read_whole() {
+        // 100×70 samples in 16×16 tiles (7×5 chunks, partial at the right
+        // and bottom), read whole and through a cache of a few chunks:
+        // every lookup, on chunk edges and across them, the same.
+        use crate::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("dem.tif");
+        let (w, h) = (100usize, 70usize);
+        let z = |i: usize, j: usize| 200.0 + (i as f32 * 0.37).sin() * 20.0 + j as f32 * 0.5 + ((i * 7 + j * 3) % 5) as f32;
+        let spec = OutputSpec {
+            width: w as u32, height: h as u32, bands: 1, sample: crate::io::source::SampleType::F32,
+            chunking: Chunking::Tiles(16), compression: Compression::Deflate, bigtiff: false, photometric: 1, alpha: false,
+            geo: Some(GeoTags { x0: 1000.0, y0: 2000.0, gsd: 10.0, epsg: 32631, nodata: None }),
+        };
+        write_raster(&path, &spec, |y0, y1, buf| {
+            let out: &mut [f32] = bytemuck::cast_slice_mut(buf);
+            for j in y0 as usize..y1 as usize {
+                for i in 0..w {
+                    out[(j - y0 as usize) * w + i] = z(i, j);
+                }
+            }
+        })
+        .unwrap();
+        let whole = GridDem::read(&path).unwrap();
+        let chunked = GridDem::read_within(&path, 4 * 16 * 16 * 4).unwrap();
+        assert!(!whole.is_chunked() && chunked.is_chunked());
+        let mut n = 0;
+        for jj in 0..(h * 4) {
+            for ii in 0..(w * 4) {
+                // Quarter-sample steps: every cell, chunk edges included.
+                let (x, y) = (1000.0 + (ii as f64 + 0.3) * 2.5, 2000.0 - (jj as f64 + 0.6) * 2.5);
+                assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", chunked.lookup(x, y)), "at ({x}, {y})");
+                assert_eq!(whole.lookup_gradient(x, y), chunked.lookup_gradient(x, y), "at ({x}, {y})");
+                n += 1;
+            }
+        }
+        assert_eq!(n, 400 * 280);
+        assert_eq!(whole.sample(99, 69), z(99, 69));
     }
 
     #[test]
