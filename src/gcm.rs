@@ -266,6 +266,11 @@ impl<'a> Gcm<'a> {
         Gcm { t, a, spec, first_node, nodes_x: xs.len(), xs, ys, inv_dx, first_px, anchor_off, max_gap, ramp, kinks }
     }
 
+    /// Nodes in a node row.
+    pub fn nodes_per_row(&self) -> usize {
+        self.nodes_x
+    }
+
     /// Whether the DEM's own lines were added to the node lines (bilinear
     /// mode, DEM aligned with the output grid and posted at least `k` apart).
     pub fn dem_aligned_lines(&self) -> bool {

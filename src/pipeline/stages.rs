@@ -91,6 +91,42 @@ impl Drop for Tile {
 struct DemMsg {
     first_j: i64,
     heights: Vec<Vec<Height>>,
+    /// Rows the band shares with the band before.
+    reused: usize,
+}
+
+/// The node rows of the band before, kept for the next: neighbouring bands
+/// share the node rows at their edge (two of 18 a band of 256 rows at
+/// k = 16, two of 23 at k = 12), which need not be worked out again.
+struct SharedRows<T> {
+    first_j: i64,
+    rows: Vec<T>,
+}
+
+impl<T> Default for SharedRows<T> {
+    fn default() -> Self {
+        SharedRows { first_j: 0, rows: Vec::new() }
+    }
+}
+
+impl<T: Clone> SharedRows<T> {
+    /// Rows `j0..=j1`: those of the band before as they were, the others
+    /// from `make`; and how many were the band before's.
+    fn rows(&mut self, j0: i64, j1: i64, mut make: impl FnMut(i64) -> T) -> (Vec<T>, usize) {
+        let mut reused = 0;
+        let rows: Vec<T> = (j0..=j1)
+            .map(|j| match usize::try_from(j - self.first_j).ok().and_then(|k| self.rows.get(k)) {
+                Some(row) => {
+                    reused += 1;
+                    row.clone()
+                }
+                None => make(j),
+            })
+            .collect();
+        self.first_j = j0;
+        self.rows.clone_from(&rows);
+        (rows, reused)
+    }
 }
 
 struct ReadMsg<'a> {
@@ -337,6 +373,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let results: Vec<Result<Duration>> = std::thread::scope(|s| {
         let h_dem = s.spawn(|| {
             let mut busy = Duration::ZERO;
+            let mut before = SharedRows::default();
             for b in wr0..wr1 {
                 if stop() {
                     return Err(Error::Cancelled);
@@ -345,7 +382,8 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                     let (y0, y1) = band_rows(&walked, cfg.tile, b);
                     let (j0, _, _) = gcm.rows_for(y0);
                     let (_, j1, _) = gcm.rows_for(y1 - 1);
-                    DemMsg { first_j: j0, heights: (j0..=j1).map(|j| gcm.node_heights(j)).collect() }
+                    let (heights, reused) = before.rows(j0, j1, |j| gcm.node_heights(j));
+                    DemMsg { first_j: j0, heights, reused }
                 });
                 if tx_dem.send(msg).is_err() {
                     return Err(Error::Cancelled);
@@ -359,19 +397,20 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
             // as soon as this stage returns, by success or by error.
             let rx_dem = rx_dem;
             let mut busy = Duration::ZERO;
+            let mut before = SharedRows::default();
             for msg in rx_dem.iter() {
                 if stop() {
                     return Err(Error::Cancelled);
                 }
                 let band = timed(&mut busy, || {
                     let mut miss = None;
-                    let rows: Vec<_> = msg
-                        .heights
-                        .iter()
-                        .enumerate()
-                        .map(|(n, h)| gcm.node_row(msg.first_j + n as i64, h, &mut miss))
-                        .collect();
-                    gcm.finish_band(msg.first_j, rows, miss)
+                    let last_j = msg.first_j + msg.heights.len() as i64 - 1;
+                    let (rows, reused) = before.rows(msg.first_j, last_j, |j| gcm.node_row(j, &msg.heights[(j - msg.first_j) as usize], &mut miss));
+                    debug_assert_eq!(reused, msg.reused);
+                    let mut band = gcm.finish_band(msg.first_j, rows, miss);
+                    // Nodes worked out for this band, not those it shares with the one before.
+                    band.stats.nodes -= (reused * gcm.nodes_per_row()) as u64;
+                    band
                 });
                 if let Some(m) = band.miss {
                     return Err(fail(dem_miss_error(&dem, m)));
@@ -1022,4 +1061,28 @@ fn single_pixel<T: Sample>(src: &SourceImage, cfg: &RectifyConfig, c: f64, r: f6
     let view = View::<T>::new(&win, info.bands, info.width, info.height);
     let mut valid = [false];
     resample_row(cfg.kernel, &view, &[c], &[r], out, &mut valid, fill);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bands_take_the_rows_they_share_with_the_band_before() {
+        let mut made = Vec::new();
+        let mut before = SharedRows::default();
+        let mut rows = |j0, j1, made: &mut Vec<i64>| {
+            before.rows(j0, j1, |j| {
+                made.push(j);
+                j * 10
+            })
+        };
+        assert_eq!(rows(-1, 3, &mut made), (vec![-10, 0, 10, 20, 30], 0));
+        // Two rows shared at the edge.
+        assert_eq!(rows(2, 6, &mut made), (vec![20, 30, 40, 50, 60], 2));
+        // None shared (a jump), then one.
+        assert_eq!(rows(9, 10, &mut made), (vec![90, 100], 0));
+        assert_eq!(rows(10, 11, &mut made), (vec![100, 110], 1));
+        assert_eq!(made, [-1, 0, 1, 2, 3, 4, 5, 6, 9, 10, 11]);
+    }
 }
