@@ -1,5 +1,6 @@
 //! Tile layout of the output raster: tiles of `tile × tile` pixels, a band is
-//! one row of tiles (the unit of work of the pipeline).
+//! one row of tiles (the unit of work of the pipeline; one column of tiles
+//! where the pipeline walks the grid transposed).
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TileLayout {

@@ -1,12 +1,7 @@
 //! `rectify`: a scan through a bounded streaming pipeline into a tiled
-//! GeoTIFF. Output is made a band (one row of tiles) at a time by stages
-//! joined by bounded channels, so a few bands at most are in flight and
-//! memory does not grow with the image:
-//!
-//! Bands run along the output's rows, or along its columns where that
-//! reads the scan along its rows (a scan turned ~90°; see `BandOrder`): the
-//! stages then walk a transposed grid, and each tile is turned back before
-//! it is written.
+//! GeoTIFF. Output is made a band (one row of tiles, or one column) at a
+//! time by stages joined by bounded channels, so a few bands at most are in
+//! flight and memory does not grow with the image:
 //!
 //! 1. DEM lookup — heights at the GCM nodes of the next band;
 //! 2. GCM — exact `T` at the nodes (and refinement under `--max-error`);
@@ -15,6 +10,11 @@
 //!    that a worker done with one starts on the next;
 //! 5. encode — the chunk's tiles compressed in parallel;
 //! 6. write — one thread appends tiles as they come, recording where.
+//!
+//! Bands run along the output's rows, or along its columns where that
+//! reads the scan along its rows (a scan turned ~90°; see `BandOrder`): the
+//! stages then walk a transposed grid, whose rows the resampler writes
+//! across, as columns, into the tiles.
 //!
 //! The first error anywhere cancels every stage; the output is a temporary
 //! file that is removed unless the whole run succeeds.
