@@ -91,8 +91,6 @@ impl Drop for Tile {
 struct DemMsg {
     first_j: i64,
     heights: Vec<Vec<Height>>,
-    /// Rows the band shares with the band before.
-    reused: usize,
 }
 
 /// The node rows of the band before, kept for the next: neighbouring bands
@@ -382,8 +380,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                     let (y0, y1) = band_rows(&walked, cfg.tile, b);
                     let (j0, _, _) = gcm.rows_for(y0);
                     let (_, j1, _) = gcm.rows_for(y1 - 1);
-                    let (heights, reused) = before.rows(j0, j1, |j| gcm.node_heights(j));
-                    DemMsg { first_j: j0, heights, reused }
+                    DemMsg { first_j: j0, heights: before.rows(j0, j1, |j| gcm.node_heights(j)).0 }
                 });
                 if tx_dem.send(msg).is_err() {
                     return Err(Error::Cancelled);
@@ -406,7 +403,6 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
                     let mut miss = None;
                     let last_j = msg.first_j + msg.heights.len() as i64 - 1;
                     let (rows, reused) = before.rows(msg.first_j, last_j, |j| gcm.node_row(j, &msg.heights[(j - msg.first_j) as usize], &mut miss));
-                    debug_assert_eq!(reused, msg.reused);
                     let mut band = gcm.finish_band(msg.first_j, rows, miss);
                     // Nodes worked out for this band, not those it shares with the one before.
                     band.stats.nodes -= (reused * gcm.nodes_per_row()) as u64;
