@@ -491,6 +491,35 @@ impl Dem {
                 None => Lookup::Outside,
             },
         };
+        self.after_policy(found)
+    }
+
+    /// Where the DEM is in WGS84 longitude/latitude (EPSG:4326) under
+    /// another ground CRS: that CRS's EPSG code. Its lookups then convert
+    /// ground points with the CRS's `to_lonlat`, as an RPC camera does.
+    pub fn lonlat_from(&self) -> Option<u32> {
+        match (&self.model, &self.to_dem) {
+            (HeightModel::Grid(_), Some(r)) => r.to_wgs84_from(),
+            _ => None,
+        }
+    }
+
+    /// `height` and, where [`Dem::lonlat_from`] is some, the point's WGS84
+    /// (longitude, latitude) it looked up (`None` where it has none).
+    #[inline]
+    pub fn height_and_lonlat(&self, x: f64, y: f64) -> (Height, Option<(f64, f64)>) {
+        match (&self.model, self.lonlat_from()) {
+            (HeightModel::Grid(g), Some(_)) => {
+                let ll = self.in_grid_crs(x, y);
+                let found = ll.map_or(Lookup::Outside, |(lon, lat)| g.lookup(lon, lat));
+                (self.after_policy(found), ll)
+            }
+            _ => (self.height(x, y), None),
+        }
+    }
+
+    /// What a lookup's result becomes under the hole and outside policies.
+    fn after_policy(&self, found: Lookup) -> Height {
         let policy = match found {
             Lookup::Height(z) => return Height::Value(z),
             Lookup::Hole => self.on_hole,

@@ -62,6 +62,17 @@ pub struct NodeRow {
     pub dr: Vec<f64>,
 }
 
+/// Heights at the nodes of a node row, and, where the DEM (in EPSG:4326)
+/// and the sensor model (an RPC) convert ground points to WGS84
+/// longitude/latitude alike, the longitude and latitude of each node
+/// (`None` where the conversion failed): the camera then projects from
+/// them instead of converting again (~10 % of an RPC run's CPU time).
+#[derive(Clone, Debug)]
+pub struct NodeHeights {
+    pub heights: Vec<Height>,
+    pub lonlat: Option<Vec<Option<(f64, f64)>>>,
+}
+
 /// The quadtree of one refined cell.
 #[derive(Clone, Debug)]
 struct Quad {
@@ -318,19 +329,29 @@ impl<'a> Gcm<'a> {
     }
 
     /// Heights at the nodes of node row `j` (the pipeline's DEM stage).
-    pub fn node_heights(&self, j: i64) -> Vec<Height> {
+    pub fn node_heights(&self, j: i64) -> NodeHeights {
         let v = self.node_v(j);
-        self.xs
-            .iter()
-            .map(|&u| {
-                let (x, y) = self.t.ground(u, v);
-                self.t.dem.height(x, y)
-            })
-            .collect()
+        let ground = |u: f64| self.t.ground(u, v);
+        // A DEM in EPSG:4326 under an RPC camera converts each node to
+        // longitude/latitude as the camera would: kept for the camera.
+        let from = self.t.model.lonlat_from();
+        if from.is_some() && from == self.t.dem.lonlat_from() {
+            let (heights, lonlat) = self.xs.iter().map(|&u| {
+                let (x, y) = ground(u);
+                self.t.dem.height_and_lonlat(x, y)
+            }).unzip();
+            return NodeHeights { heights, lonlat: Some(lonlat) };
+        }
+        let heights = self.xs.iter().map(|&u| {
+            let (x, y) = ground(u);
+            self.t.dem.height(x, y)
+        }).collect();
+        NodeHeights { heights, lonlat: None }
     }
 
     /// Node row `j` from its heights (the pipeline's GCM stage).
-    pub fn node_row(&self, j: i64, heights: &[Height], miss: &mut Option<(f64, f64, Lookup)>) -> NodeRow {
+    pub fn node_row(&self, j: i64, nodes: &NodeHeights, miss: &mut Option<(f64, f64, Lookup)>) -> NodeRow {
+        let heights = &nodes.heights;
         let v = self.node_v(j);
         let mut dc = vec![f64::NAN; self.nodes_x];
         let mut dr = vec![f64::NAN; self.nodes_x];
@@ -352,7 +373,14 @@ impl<'a> Gcm<'a> {
             }
         }
         let (mut col, mut row) = (vec![0.0; at.len()], vec![0.0; at.len()]);
-        self.t.model.project_many(&gx, &gy, &gz, &mut col, &mut row);
+        match &nodes.lonlat {
+            Some(lonlat) => {
+                // Where the conversion failed the camera's own fails too: NaN.
+                let (lon, lat): (Vec<f64>, Vec<f64>) = at.iter().map(|&i| lonlat[i].unwrap_or((f64::NAN, f64::NAN))).unzip();
+                self.t.model.project_many_lonlat(&lon, &lat, &gz, &mut col, &mut row);
+            }
+            None => self.t.model.project_many(&gx, &gy, &gz, &mut col, &mut row),
+        }
         for ((&i, c), r) in at.iter().zip(col).zip(row) {
             // NaN where the point is not imaged, as A where it is behind.
             if let (false, Some((ac, ar))) = (c.is_nan(), self.a.at(self.xs[i], v)) {

@@ -481,3 +481,39 @@ fn digitalglobe_tile_offsets_are_read() {
     assert_eq!(Rpc::tile_offset(&moved, &name), Some([8192.0, 4096.0]));
     assert_eq!(Rpc::tile_offset(&xml, "another.tif"), None);
 }
+
+/// A DEM in EPSG:4326 under an RPC camera: the DEM stage's conversion of
+/// each node to longitude/latitude is the camera's own, handed over rather
+/// than made twice. Node rows from it equal those the camera makes from
+/// ground (X, Y), bit for bit, with and without a geoid (real Pléiades
+/// crop over Mont Ventoux, SRTM, EGM96).
+#[test]
+fn nodes_projected_from_the_dems_longitude_latitude_equal_the_cameras_own() {
+    use gcm_ortho::gcm::{CorrectionMode, Gcm, GcmSpec, NodeHeights};
+    let rpc = Rpc::read(&ventoux("left_image.geom")).unwrap().cropped(5000.0, 5000.0);
+    let dem = gcm_ortho::dem::Dem::open(&ventoux("srtm_N44E005_crop.tif"), 32631).unwrap();
+    assert_eq!(dem.lonlat_from(), Some(32631));
+    let (x0, y0, gsd, w, h) = VENTOUX_GRID;
+    let grid = gcm_ortho::geom::OutputGrid { x0, y0, gsd, width: w, height: h };
+    for geoid in [None, Some(gcm_ortho::geodesy::Geoid::read(&ventoux("egm96_15_ventoux.gtx")).unwrap())] {
+        let with_geoid = geoid.is_some();
+        let model = gcm_ortho::camera::RpcCamera::new(rpc.clone(), gcm_ortho::geodesy::GroundCrs::from_epsg(32631).unwrap(), geoid);
+        let t = gcm_ortho::transform::Transform::new(&model, &dem, grid);
+        let plane = dem.trend_plane([x0, y0 - h as f64 * gsd, x0 + w as f64 * gsd, y0]).unwrap();
+        let a = gcm_ortho::transform::Approx::new(&model, &grid, plane).unwrap();
+        let gcm = Gcm::new(&t, a, GcmSpec { k: 8, mode: CorrectionMode::Bilinear, max_error: None });
+        let mut valid = 0;
+        for j in -1..=h.div_ceil(8) as i64 {
+            let shared = gcm.node_heights(j);
+            let lonlat = shared.lonlat.as_ref().expect("longitudes and latitudes kept");
+            assert_eq!(lonlat.len(), shared.heights.len());
+            let own = NodeHeights { heights: shared.heights.clone(), lonlat: None };
+            let mut miss = None;
+            let (a, b) = (gcm.node_row(j, &shared, &mut miss), gcm.node_row(j, &own, &mut miss));
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!((bits(&a.dc), bits(&a.dr)), (bits(&b.dc), bits(&b.dr)), "node row {j}, geoid {with_geoid}");
+            valid += a.dc.iter().filter(|v| v.is_finite()).count();
+        }
+        assert!(valid > 900, "{valid} nodes with a value");
+    }
+}

@@ -51,6 +51,24 @@ pub trait SensorModel: Send + Sync {
         }
     }
 
+    /// For a model whose `project` starts by converting ground (X, Y) to
+    /// WGS84 longitude/latitude (an RPC): the EPSG code of the ground CRS it
+    /// converts from. A caller holding that conversion's result for its
+    /// points (a DEM in EPSG:4326 looked them up) hands it to
+    /// [`SensorModel::project_many_lonlat`] instead of converting again.
+    fn lonlat_from(&self) -> Option<u32> {
+        None
+    }
+
+    /// `project_many` from the points' WGS84 (longitude, latitude), as the
+    /// CRS of [`SensorModel::lonlat_from`] converts them: the same numbers.
+    /// NaN for models without it.
+    fn project_many_lonlat(&self, lon: &[f64], lat: &[f64], z: &[f64], col: &mut [f64], row: &mut [f64]) {
+        let _ = (lon, lat, z);
+        col.fill(f64::NAN);
+        row.fill(f64::NAN);
+    }
+
     /// An approximate inverse: ground (X, Y) at height `z` seen at the scan
     /// pixel (column, row). Within a few pixels of the truth is enough; the
     /// callers refine it against `project`.

@@ -52,6 +52,18 @@ impl SensorModel for RpcCamera {
         self.rpc.project(lon, lat, h)
     }
 
+    fn lonlat_from(&self) -> Option<u32> {
+        Some(self.crs.epsg)
+    }
+
+    fn project_many_lonlat(&self, lon: &[f64], lat: &[f64], z: &[f64], col: &mut [f64], row: &mut [f64]) {
+        assert!(lat.len() == lon.len() && z.len() == lon.len() && col.len() == lon.len() && row.len() == lon.len(), "project_many_lonlat: arrays of one length");
+        for k in 0..lon.len() {
+            let p = self.ellipsoidal(lon[k], lat[k], z[k]).and_then(|h| self.rpc.project(lon[k], lat[k], h));
+            (col[k], row[k]) = p.unwrap_or((f64::NAN, f64::NAN));
+        }
+    }
+
     fn locate_approx(&self, col: f64, row: f64, z: f64) -> Option<(f64, f64)> {
         let n = self.geoid.as_ref().and_then(|g| g.undulation(self.rpc.long_off, self.rpc.lat_off)).unwrap_or(0.0);
         let (lon, lat) = self.rpc.locate(col, row, z + n, 0.01)?;

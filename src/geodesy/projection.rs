@@ -81,6 +81,12 @@ impl Reprojection {
     }
 
     #[inline]
+    /// The EPSG code converted from, where the target is WGS84 itself
+    /// (EPSG:4326): `apply` then gives that CRS's `to_lonlat` as it is.
+    pub fn to_wgs84_from(&self) -> Option<u32> {
+        (!self.identity && self.to.proj.is_none()).then_some(self.from.epsg)
+    }
+
     pub fn apply(&self, x: f64, y: f64) -> Option<(f64, f64)> {
         if self.identity {
             return Some((x, y));

@@ -5,9 +5,9 @@ use super::plan::{band_scan_rows, plan_band, read_ahead_rows, Chunk};
 use super::report::{peak_rss_mib, Report, ScanInfo, StageTimes};
 use crate::accuracy;
 use crate::camera::file::Camera;
-use crate::dem::{Dem, Height, Lookup};
+use crate::dem::{Dem, Lookup};
 use crate::error::{Error, Result};
-use crate::gcm::{BandGcm, Gcm};
+use crate::gcm::{BandGcm, Gcm, NodeHeights};
 use crate::geom::OutputGrid;
 use crate::io::source::{SampleType, SourceImage, Window};
 use crate::io::tiff_out::{encode_tile, reserve, tiff_write_error, verify, write_placed, Chunking, Compression, GeoTags, OutputSpec, PendingFile, WriteError};
@@ -90,7 +90,7 @@ impl Drop for Tile {
 
 struct DemMsg {
     first_j: i64,
-    heights: Vec<Vec<Height>>,
+    heights: Vec<NodeHeights>,
 }
 
 /// The node rows of the band before, kept for the next: neighbouring bands
