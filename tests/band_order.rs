@@ -4,15 +4,12 @@
 
 mod common;
 use common::*;
-use gcm_ortho::io::source::{SourceImage, Window};
 use std::path::Path;
 
 /// Every sample of an image, as bytes, with its width, height and georeferencing.
 fn samples(path: &Path) -> (Vec<u8>, u32, u32, String) {
-    let img = SourceImage::open(path, 1 << 20).unwrap();
-    let mut win = Window::default();
-    img.read_window(0, 0, img.info.width, img.info.height, &mut win).unwrap();
-    (win.bytes().to_vec(), img.info.width, img.info.height, format!("{:?}", img.info.georef))
+    let (bytes, info) = whole_image(path);
+    (bytes, info.width, info.height, format!("{:?}", info.georef))
 }
 
 /// Runs rectify on `sc` with `extra` arguments; returns the report.

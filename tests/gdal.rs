@@ -210,7 +210,6 @@ fn a_jpeg_compressed_rgb_scan_gives_the_orthophoto_within_jpeg_loss() {
         eprintln!("skipped: gdal_translate not installed (apt-get install gdal-bin)");
         return;
     }
-    use gcm_ortho::io::source::{SourceImage, Window};
     let dir = tempfile::tempdir().unwrap();
     let sc = scene(&dir.path().join("scene"), 400, |_| {});
     let jpeg = dir.path().join("jpeg.tif");
@@ -218,10 +217,7 @@ fn a_jpeg_compressed_rgb_scan_gives_the_orthophoto_within_jpeg_loss() {
     let pixels = |bytes: Vec<u8>, name: &str| {
         let p = dir.path().join(name);
         std::fs::write(&p, bytes).unwrap();
-        let img = SourceImage::open(&p, 1 << 20).unwrap();
-        let mut win = Window::default();
-        img.read_window(0, 0, img.info.width, img.info.height, &mut win).unwrap();
-        win.bytes().to_vec()
+        whole_image(&p).0
     };
     let want = pixels(ortho(&sc, &sc.scan, &sc.dem, &dir.path().join("a.tif")), "plain-copy.tif");
     let got = pixels(ortho(&sc, &jpeg, &sc.dem, &dir.path().join("b.tif")), "jpeg-copy.tif");
@@ -250,7 +246,6 @@ fn gdal_reads_tiles_stored_column_by_column_where_they_belong() {
         eprintln!("skipped: gdal_translate not installed (apt-get install gdal-bin)");
         return;
     }
-    use gcm_ortho::io::source::{SourceImage, Window};
     // A scan turned 90°: made in bands of tile columns, its tiles stored
     // column by column. GDAL's copy of it into a striped file (its own
     // reading of the tile table) holds the same pixels as our reader sees,
@@ -266,10 +261,8 @@ fn gdal_reads_tiles_stored_column_by_column_where_they_belong() {
     let copy = dir.path().join("copy.tif");
     assert!(gdal_copy(&out, &copy, &["COMPRESS=NONE", "TILED=NO"]));
     let pixels = |p: &std::path::Path| {
-        let img = SourceImage::open(p, 1 << 20).unwrap();
-        let mut win = Window::default();
-        img.read_window(0, 0, img.info.width, img.info.height, &mut win).unwrap();
-        (win.bytes().to_vec(), img.info.georef)
+        let (bytes, info) = whole_image(p);
+        (bytes, info.georef)
     };
     let (ours, gdals) = (pixels(&out), pixels(&copy));
     assert!(ours.0.iter().any(|&v| v != 0));

@@ -110,3 +110,12 @@ pub fn read_f64(path: &Path) -> (u32, u32, u32, Vec<f64>) {
         _ => panic!("not Float64"),
     }
 }
+
+/// Every sample of an image file as bytes (chunky), with what the reader
+/// found in it (size, georeferencing, …).
+pub fn whole_image(path: &Path) -> (Vec<u8>, gcm_ortho::io::source::SourceInfo) {
+    let img = gcm_ortho::io::source::SourceImage::open(path, 1 << 20).expect("the image opens");
+    let mut win = gcm_ortho::io::source::Window::default();
+    img.read_window(0, 0, img.info.width, img.info.height, &mut win).expect("the image reads");
+    (win.bytes().to_vec(), img.info.clone())
+}
