@@ -19,13 +19,17 @@
 //! The first error anywhere cancels every stage; the output is a temporary
 //! file that is removed unless the whole run succeeds.
 
+mod chunk;
 mod config;
 mod plan;
+mod rectify;
 mod report;
-mod stages;
+mod sequential;
+mod steps;
+mod threaded;
 mod transpose;
 
 pub use config::{BandOrder, BigTiff, DemSource, RectifyConfig};
 pub use plan::{plan_band, Chunk};
 pub use report::{Report, StageTimes};
-pub use stages::rectify;
+pub use rectify::rectify;
