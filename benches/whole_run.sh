@@ -16,11 +16,11 @@
 #   rect2-sync     rectify --threads 2 (default: the output is synced
 #                  before it is renamed into place, like cat+sync)
 #   rect2-nosync   rectify --threads 2 --no-sync (left to the kernel, like cat)
-#   rect1-nosync   rectify --threads 1 --no-sync
-#   rect1-onecore  the same on one processor (`taskset -c 0`): the
-#                  pipeline's other threads (writer, planner, GCM) then
-#                  share that core, as under a batch scheduler's one-CPU
-#                  allocation; without it "1 thread" keeps ~1.4 cores busy
+#   rect1-nosync   rectify --threads 1 --no-sync (every step one after
+#                  the other, one processor busy)
+#   rect1-onecore  the same pinned to one processor (`taskset -c 0`), as
+#                  under a batch scheduler's one-CPU allocation: should
+#                  take the time of rect1-nosync
 # Before each command the previous outputs are deleted and the disk is
 # synced (not timed), so no command pays for another's write-back or for
 # deleting an old 1 GiB file. Prints each run's wall time (s) and peak

@@ -142,7 +142,8 @@ pub struct BatchArgs {
     /// The number of shares when the index comes from JOB_COMPLETION_INDEX.
     #[arg(long)]
     pub shard_count: Option<usize>,
-    /// Worker threads per job (0: the cores shared among the jobs).
+    /// Worker threads per job (0: the cores shared among the jobs; a job of
+    /// one thread runs its steps one after the other, one processor busy).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
     /// Only validate the manifest and list the jobs of this shard.
@@ -322,7 +323,8 @@ pub struct RectifyArgs {
     /// Add an alpha band instead of a nodata value.
     #[arg(long)]
     pub alpha: bool,
-    /// Worker threads (0: all cores).
+    /// Worker threads (0: all cores; 1: every step one after the other,
+    /// one processor busy).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
     /// Memory budget, e.g. 128M or 1G.
