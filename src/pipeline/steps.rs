@@ -232,7 +232,7 @@ impl<'a> Run<'a> {
             None => {
                 // A chunk that sees no pixel of the scan decides nothing.
                 reader.copying |= c1 > c0 && r1 > r0;
-                timed(&mut reader.busy, || self.src.read_window(c0, r0, c1 - c0, r1 - r0, &mut win)).map_err(|e| self.fail(e))?
+                timed(&mut reader.busy, || self.src.read_window_on(&self.pool, c0, r0, c1 - c0, r1 - r0, &mut win)).map_err(|e| self.fail(e))?
             }
         }
         Ok(ReadMsg { band: b, gcm: band, chunk, win, in_place })
