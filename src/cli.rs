@@ -116,6 +116,7 @@ pub struct AssembleArgs {
     /// The pieces (GeoTIFFs written by `rectify --window`).
     #[arg(required = true)]
     pub pieces: Vec<PathBuf>,
+    /// The assembled orthophoto
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
 }
@@ -149,6 +150,7 @@ pub struct BatchArgs {
     /// Only validate the manifest and list the jobs of this shard.
     #[arg(long)]
     pub dry_run: bool,
+    /// No progress bar (there is none anyway when stderr is not a terminal)
     #[arg(long)]
     pub quiet: bool,
 }
@@ -161,12 +163,16 @@ pub struct SynthArgs {
     /// Scan size WxH in pixels.
     #[arg(long, default_value = "4000x4000")]
     pub size: String,
+    /// Bands of the scan: 1 (grey), 3 (RGB) or 4 (RGB + near infrared)
     #[arg(long, default_value_t = 3)]
     pub bands: u32,
+    /// Bits a sample: 8 or 16
     #[arg(long, default_value_t = 8)]
     pub bits: u32,
+    /// Terrain of the generated DEM
     #[arg(long, default_value = "hilly", value_parser = ["flat", "hilly", "mountain"])]
     pub relief: String,
+    /// A film scan with fiducial marks, a digital frame, or a satellite image with RPCs
     #[arg(long, default_value = "film", value_parser = ["film", "digital", "rpc"])]
     pub camera: String,
     /// Off-nadir angle of an RPC (satellite) scene, degrees: 2 to 35.
@@ -175,8 +181,10 @@ pub struct SynthArgs {
     /// Swing of the camera, degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub kappa: f64,
+    /// The scan file's layout
     #[arg(long, default_value = "strips", value_parser = ["strips", "tiles"])]
     pub layout: String,
+    /// The scan file's compression
     #[arg(long, default_value = "none", value_parser = ["none", "deflate", "lzw"])]
     pub compress: String,
     /// DEM posting, metres.
@@ -191,8 +199,10 @@ pub struct SynthArgs {
     /// Film image frame, mm: 230 (23 × 23 cm) or 180 (18 × 18 cm).
     #[arg(long, default_value_t = 230.0)]
     pub frame: f64,
+    /// Seed of the scene's texture and relief: the same seed, the same files
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// No progress bar (there is none anyway when stderr is not a terminal)
     #[arg(long)]
     pub quiet: bool,
     /// Write only camera.toml, dem.tif and checkpoints.csv (no scan, no
@@ -259,6 +269,7 @@ pub struct DemoArgs {
     /// Scan size of the demo scene.
     #[arg(long, default_value = "6000x6000")]
     pub size: String,
+    /// No progress bar (there is none anyway when stderr is not a terminal)
     #[arg(long)]
     pub quiet: bool,
 }
@@ -300,12 +311,18 @@ pub struct RectifyArgs {
     /// Error bound of the GCM in scan pixels (refines cells that miss it).
     #[arg(long)]
     pub max_error: Option<f64>,
+    /// How the corrections between GCM nodes are found: interpolated
+    /// bilinearly from the four nodes around, or one per cell (thesis)
     #[arg(long, default_value = "bilinear", value_parser = ["bilinear", "cell"])]
     pub corrections: String,
+    /// The terrain plane of the approximation A: the DEM's least-squares
+    /// trend plane over the output area, or its mean height
     #[arg(long, default_value = "plane", value_parser = ["plane", "mean"])]
     pub trend: String,
+    /// Resampling kernel
     #[arg(long, default_value = "bilinear", value_parser = ["nearest", "bilinear", "cubic", "lanczos3"])]
     pub resample: String,
+    /// Output tile size in pixels (a multiple of 16)
     #[arg(long, default_value_t = 256)]
     pub tile: u32,
     /// Make the output in bands of tile rows or of tile columns (auto: the
@@ -313,8 +330,10 @@ pub struct RectifyArgs {
     /// ~90°). The pixels agree to the GCM's accuracy either way.
     #[arg(long, default_value = "auto", value_parser = ["auto", "rows", "columns"])]
     pub band_order: String,
+    /// Tile compression (with the horizontal predictor for integer samples)
     #[arg(long, default_value = "deflate", value_parser = ["none", "deflate", "lzw", "zstd"])]
     pub compress: String,
+    /// BigTIFF output (auto: when the output may pass 4 GB)
     #[arg(long, default_value = "auto", value_parser = ["auto", "yes", "no"])]
     pub bigtiff: String,
     /// Nodata value of the output.
@@ -330,6 +349,7 @@ pub struct RectifyArgs {
     /// Memory budget, e.g. 128M or 1G.
     #[arg(long, default_value = "128M")]
     pub memory: String,
+    /// No progress bar (there is none anyway when stderr is not a terminal)
     #[arg(long)]
     pub quiet: bool,
     /// Do not wait for the output to reach the disk before renaming it into
@@ -441,10 +461,13 @@ pub struct AccuracyArgs {
     /// A scene folder made by `synth` (scan.tif, camera.toml, dem.tif, checkpoints.csv).
     #[arg(long)]
     pub scene: Option<PathBuf>,
+    /// The scan (instead of --scene)
     #[arg(long)]
     pub image: Option<PathBuf>,
+    /// The camera file (instead of --scene)
     #[arg(long)]
     pub camera: Option<PathBuf>,
+    /// The DEM (instead of --scene)
     #[arg(long)]
     pub dem: Option<PathBuf>,
     /// Scan size WxH, when there is no scan file (`synth --no-scan`).
@@ -456,6 +479,7 @@ pub struct AccuracyArgs {
     /// Error bounds to tabulate (bilinear, at the largest sparsity).
     #[arg(long, value_delimiter = ',')]
     pub max_error: Vec<f64>,
+    /// The terrain plane of the approximation A: the DEM's trend plane, or its mean height
     #[arg(long, default_value = "plane", value_parser = ["plane", "mean"])]
     pub trend: String,
     /// Count only pixels where the terrain is at most this steep (degrees).
@@ -479,6 +503,7 @@ pub struct AccuracyArgs {
     /// Also rectify and check the checkpoints (needs an output path).
     #[arg(long)]
     pub ortho: Option<PathBuf>,
+    /// Write the table here as JSON
     #[arg(long)]
     pub json: Option<PathBuf>,
 }
