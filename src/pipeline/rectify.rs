@@ -168,8 +168,9 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     // The memory plan: four scan windows in flight (being read, queued, two
     // being resampled; read in place instead, up to eight shares of mapped
     // scan rows, see the threaded runner), four output chunks (two being
-    // made, queued, being encoded) and the encoded tiles (in hand and
-    // queued), each a 24th of the budget; the DEM an eighth (larger ones
+    // made, queued, being encoded; three being made in bands of tile
+    // columns, whose windows are read in place) and the encoded tiles (in
+    // hand and queued), each a 24th of the budget; the DEM an eighth (larger ones
     // are read a chunk at a time). What is left (~45 %) covers the GCM rows,
     // the threads, the program and the allocator's per-thread arenas
     // (20–30 MB measured on 1 GiB scans), so that the peak resident size
