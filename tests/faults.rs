@@ -57,14 +57,16 @@ fn full_disk_is_a_clear_error_and_leaves_nothing() {
     }
     let sc = scene(&dir.path().join("scene"), 600, |_| {});
     let out = mnt.join("ortho.tif");
-    // With and without waiting for the disk: the error comes from the
-    // writes either way.
+    // With and without waiting for the disk, one thread and two: the error
+    // comes from the writes either way.
     let mut results = Vec::new();
     for sync in [&[][..], &["--no-sync"][..]] {
-        let mut args = vec!["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--compress", "none", "--gsd", "2"];
-        args.extend(sync);
-        let r = run(&args);
-        results.push((r, files_containing(&mnt, "")));
+        for threads in ["1", "2"] {
+            let mut args = vec!["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--compress", "none", "--gsd", "2", "--threads", threads];
+            args.extend(sync);
+            let r = run(&args);
+            results.push((r, files_containing(&mnt, "")));
+        }
     }
     let _ = Command::new("umount").arg(&mnt).status();
     for (r, left) in results {
