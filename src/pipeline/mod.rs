@@ -16,6 +16,11 @@
 //! stages then walk a transposed grid, whose rows the resampler writes
 //! across, as columns, into the tiles.
 //!
+//! With two threads or more each stage runs on a thread of its own
+//! (`threaded.rs`); with one, the same steps (`steps.rs`) run one after the
+//! other, pulled by the writer (`sequential.rs`), so that the run keeps one
+//! processor busy. Both write the same file.
+//!
 //! The first error anywhere cancels every stage; the output is a temporary
 //! file that is removed unless the whole run succeeds.
 
