@@ -7,15 +7,13 @@
 
 use super::chunk::Raw;
 use super::plan::Chunk;
-use super::steps::{dem_miss_error, release_outside, timed, Reader, Run, SharedRows, Tile};
+use super::steps::{release_outside, timed, Reader, Run, SharedRows, Tile};
 use super::threaded::Busy;
 use crate::error::Result;
 use crate::gcm::BandGcm;
 use crate::io::source::Window;
 use std::collections::VecDeque;
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
-use std::time::Duration;
 
 /// Runs every step of `run` one after the other, writing `out_file`:
 /// resampling and encoding on the pool (of one worker), the rest on this
@@ -35,7 +33,6 @@ pub(super) fn run_sequential(run: &Run, out_file: std::fs::File, flush_file: std
     let mut win = Window::default();
     // The scan rows the chunk before read in place.
     let mut mapped: Option<(u32, u32)> = None;
-    let mut resample_busy = Duration::ZERO;
     let written = run.write(out_file, flush_file, || loop {
         if let Some(tile) = tiles.pop_front() {
             return Ok(Some(tile));
@@ -60,11 +57,10 @@ pub(super) fn run_sequential(run: &Run, out_file: std::fs::File, flush_file: std
             release_outside(run.src, rows, rows_now);
         }
         mapped = rows_now;
-        let raw = timed(&mut resample_busy, || run.pool.install(|| run.resample(&msg, freed.try_recv().ok()))).map_err(|m| run.fail(dem_miss_error(run.dem, m)))?;
-        run.chunks_done.fetch_add(1, Ordering::Relaxed);
-        let first_col = msg.chunk.x0 / run.cfg.tile;
+        let raw = timed(&mut busy.resample, || run.pool.install(|| run.resample(&msg, freed.try_recv().ok())));
+        let made = run.made(b, msg.chunk.x0, raw)?;
         win = msg.win;
-        for tile in run.tiles(super::steps::Made { band: b, first_col, raw }, &free, &mut busy.encode) {
+        for tile in run.tiles(made, &free, &mut busy.encode) {
             tiles.push_back(tile?);
         }
     });
@@ -73,6 +69,5 @@ pub(super) fn run_sequential(run: &Run, out_file: std::fs::File, flush_file: std
     }
     written?;
     busy.read = reader.busy;
-    busy.resample = resample_busy;
     Ok(busy)
 }

@@ -2,7 +2,7 @@
 //! heights, GCM rows, the plan and scan windows, resampling, tile encoding
 //! and writing. The threaded runner (`threaded.rs`) gives each step a thread
 //! joined to the next by a bounded channel; the sequential one
-//! (`sequential.rs`) runs them one after the other on one thread.
+//! (`sequential.rs`) runs them one after the other.
 
 use super::chunk::{resample_chunk, Raw, ReadMsg};
 use super::config::RectifyConfig;
@@ -250,6 +250,15 @@ impl<'a> Run<'a> {
         }
     }
 
+    /// The resampled chunk of band `band` from output column `x0`, counted,
+    /// on its way to the encoder; where the DEM had no height (under the
+    /// `error` policy), the run's failure.
+    pub fn made(&self, band: u32, x0: u32, raw: std::result::Result<Raw, (f64, f64, Lookup)>) -> Result<Made> {
+        let raw = raw.map_err(|m| self.fail(dem_miss_error(self.dem, m)))?;
+        self.chunks_done.fetch_add(1, Ordering::Relaxed);
+        Ok(Made { band, first_col: x0 / self.cfg.tile, raw })
+    }
+
     /// A resampled chunk, passed on as its tiles with their places in the
     /// file: compressed in parallel; uncompressed, pieces of the chunk,
     /// which goes back through `free` when the last is written.
@@ -313,7 +322,7 @@ impl<'a> Run<'a> {
     }
 }
 
-pub(super) fn dem_miss_error(dem: &Dem, (x, y, l): (f64, f64, Lookup)) -> Error {
+fn dem_miss_error(dem: &Dem, (x, y, l): (f64, f64, Lookup)) -> Error {
     let what = match l {
         Lookup::Hole => "a hole (nodata) in the DEM",
         _ => "outside the DEM",

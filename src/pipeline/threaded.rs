@@ -3,13 +3,12 @@
 //! pool, two chunks at once.
 
 use super::chunk::{Raw, ReadMsg};
-use super::steps::{dem_miss_error, release_outside, timed, DemMsg, Made, Reader, Run, SharedRows, Tile};
+use super::steps::{release_outside, timed, DemMsg, Made, Reader, Run, SharedRows, Tile};
 use crate::dem::Lookup;
 use crate::error::{Error, Result};
 use crate::gcm::BandGcm;
 use crate::io::source::{SourceImage, Window};
 use crossbeam_channel::bounded;
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -112,9 +111,8 @@ pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::
                 let forward_oldest = |chunks: &mut InFlight| -> Result<()> {
                     let done = chunks.finish_oldest(&rx_done)?;
                     let _ = tx_free_win.try_send(done.win);
-                    let raw = done.raw.map_err(|m| run.fail(dem_miss_error(run.dem, m)))?;
-                    run.chunks_done.fetch_add(1, Ordering::Relaxed);
-                    tx_raw.send(Made { band: done.band, first_col: done.first_col, raw }).map_err(|_| Error::Cancelled)
+                    let made = run.made(done.band, done.x0, done.raw)?;
+                    tx_raw.send(made).map_err(|_| Error::Cancelled)
                 };
                 for (seq, msg) in rx_read.iter().enumerate() {
                     let seq = seq as u64;
@@ -142,8 +140,7 @@ pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::
                     chunks.start(seq, rows_now);
                     scope.spawn(move |_| {
                         let raw = run.resample(&msg, spare);
-                        let (band, first_col) = (msg.band, msg.chunk.x0 / run.cfg.tile);
-                        let _ = tx_done.send(Resampled { seq, raw, win: msg.win, band, first_col });
+                        let _ = tx_done.send(Resampled { seq, raw, win: msg.win, band: msg.band, x0: msg.chunk.x0 });
                     });
                     while chunks.len() >= in_flight {
                         forward_oldest(&mut chunks)?;
@@ -212,7 +209,8 @@ struct Resampled {
     raw: std::result::Result<Raw, (f64, f64, Lookup)>,
     win: Window,
     band: u32,
-    first_col: u32,
+    /// The chunk's first output column.
+    x0: u32,
 }
 
 /// The chunks being resampled, oldest first, with the scan rows each reads
