@@ -218,7 +218,8 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     pending.publish_synced(cfg.sync)?;
     let wall_s = wall.elapsed().as_secs_f64();
     times.write = (wall_s - times.setup).max(0.0);
-    let mut estimate = accuracy::sample_errors(&gcm, (t.grid.height / 64).max(1), 7);
+    // On the run's own workers: `--threads 1` stays one thread to the end.
+    let mut estimate = run.pool.install(|| accuracy::sample_errors(&gcm, (t.grid.height / 64).max(1), 7));
     if columns {
         // Where the largest error is, on the output grid.
         estimate.argmax.swap(0, 1);
