@@ -151,9 +151,10 @@ impl<'a> Run<'a> {
         e
     }
 
-    /// Walked rows of band `b`.
+    /// Walked rows of band `b`: a band is a row of tiles of the walked grid.
     pub fn band_rows(&self, b: u32) -> (u32, u32) {
-        band_rows(&self.walked, self.cfg.tile, b)
+        let tile = self.cfg.tile;
+        (b * tile, ((b + 1) * tile).min(self.walked.height))
     }
 
     /// Where the tile of band `band` and walked tile column `col` goes in
@@ -331,11 +332,6 @@ fn dem_miss_error(dem: &Dem, (x, y, l): (f64, f64, Lookup)) -> Error {
         &dem.path,
         format!("no height at ground point ({x:.2}, {y:.2}), {what}; choose --dem-hole / --dem-outside nodata or a height"),
     )
-}
-
-/// Output row band `b` of a grid cut in `tile`-row bands.
-pub(super) fn band_rows(grid: &OutputGrid, tile: u32, b: u32) -> (u32, u32) {
-    (b * tile, ((b + 1) * tile).min(grid.height))
 }
 
 /// Runs `f`, adding its wall time to `acc`.
