@@ -290,12 +290,14 @@ impl<'a> Run<'a> {
     pub fn write(&self, out_file: std::fs::File, flush_file: std::fs::File, mut next: impl FnMut() -> Result<Option<(usize, Tile)>>) -> Result<()> {
         let (tx_flush, rx_flush) = crossbeam_channel::bounded::<()>(1);
         std::thread::scope(|s| {
-            s.spawn(move || {
-                // Errors show again, and are reported, at the final sync.
-                for () in rx_flush.iter() {
-                    let _ = flush_file.sync_data();
-                }
-            });
+            if self.cfg.sync {
+                s.spawn(move || {
+                    // Errors show again, and are reported, at the final sync.
+                    for () in rx_flush.iter() {
+                        let _ = flush_file.sync_data();
+                    }
+                });
+            }
             let mut unsynced = 0usize;
             let r = write_placed(out_file, self.spec, || -> Result<Option<(usize, Tile)>> {
                 if self.cancel.load(Ordering::Relaxed) {
