@@ -56,6 +56,13 @@ fn one_thread_and_two_write_the_same_file() {
         let rep = assert_same_file(&rgb, d, extra);
         assert!(rep["chunks"].as_u64().unwrap() >= 2, "{extra:?}");
     }
+    // A tiled, deflated scan: windows decoded tile by tile.
+    let packed = scene(&d.join("packed"), 700, |o| {
+        o.tiled = true;
+        o.compress = gcm_ortho::io::tiff_out::Compression::Deflate;
+    });
+    let rep = assert_same_file(&packed, d, &["--compress", "none", "--tile", "64", "--memory", "16M"]);
+    assert_eq!(rep["chunks_in_place"], 0);
     // 16-bit, turned 90°, 5 MB of scan: bands of tile columns, read in
     // place; and bands of tile rows, whose windows span more scan rows than
     // `--memory 16M` lets a chunk read in place, and are copied.
