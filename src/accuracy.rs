@@ -98,10 +98,7 @@ pub fn evaluate_where(gcm: &Gcm<'_>, step: u32, max_slope_deg: Option<f64>, mut 
     }
     // Timing pass: prepare and fill every row, as rectify would.
     let t0 = Instant::now();
-    let prepared: Vec<_> = bands
-        .par_iter()
-        .map(|&b| gcm.prepare(b * band, ((b + 1) * band).min(grid.height)))
-        .collect();
+    let prepared: Vec<_> = bands.par_iter().map(|&b| gcm.prepare(b * band, ((b + 1) * band).min(grid.height))).collect();
     let prepare = t0.elapsed();
     let t1 = Instant::now();
     let exact_pixels: u64 = prepared
@@ -111,9 +108,7 @@ pub fn evaluate_where(gcm: &Gcm<'_>, step: u32, max_slope_deg: Option<f64>, mut 
             let mut cols = vec![0.0; grid.width as usize];
             let mut rows = vec![0.0; grid.width as usize];
             let mut miss = None;
-            (b * band..((b + 1) * band).min(grid.height))
-                .map(|y| gcm.fill_row(g, y, 0, &mut cols, &mut rows, &mut miss))
-                .sum::<u64>()
+            (b * band..((b + 1) * band).min(grid.height)).map(|y| gcm.fill_row(g, y, 0, &mut cols, &mut rows, &mut miss)).sum::<u64>()
         })
         .sum();
     let fill = t1.elapsed();
@@ -233,7 +228,11 @@ pub fn read_checkpoints(path: &std::path::Path) -> crate::Result<Vec<Checkpoint>
         if line.trim().is_empty() {
             continue;
         }
-        let v: Vec<f64> = line.split(',').map(|s| s.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| crate::Error::format(path, format!("line {}: not six numbers", n + 1)))?;
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|s| s.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| crate::Error::format(path, format!("line {}: not six numbers", n + 1)))?;
         if v.len() != 6 {
             return Err(crate::Error::format(path, format!("line {}: expected id,X,Y,Z,col,row", n + 1)));
         }

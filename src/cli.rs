@@ -7,8 +7,8 @@ use gcm_ortho::gcm::{CorrectionMode, GcmSpec};
 use gcm_ortho::io::tiff_out::Compression;
 use gcm_ortho::pipeline::{BigTiff, DemSource, RectifyConfig};
 use gcm_ortho::resample::Kernel;
-use gcm_ortho::transform::Trend;
 use gcm_ortho::synth::{CameraKind, Relief, SynthOptions};
+use gcm_ortho::transform::Trend;
 use std::path::PathBuf;
 
 #[derive(Parser, Debug)]
@@ -384,7 +384,8 @@ fn parse_bounds(s: &str) -> Result<Option<[f64; 4]>, String> {
     if s == "auto" {
         return Ok(None);
     }
-    let v: Vec<f64> = s.split(',').map(|p| p.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| format!("--bounds '{s}' is not minx,miny,maxx,maxy"))?;
+    let v: Vec<f64> =
+        s.split(',').map(|p| p.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| format!("--bounds '{s}' is not minx,miny,maxx,maxy"))?;
     if v.len() != 4 || v.iter().any(|x| !x.is_finite()) || v[2] <= v[0] || v[3] <= v[1] {
         return Err(format!("--bounds '{s}' is not minx,miny,maxx,maxy with min < max"));
     }
@@ -420,18 +421,18 @@ impl RectifyArgs {
         cfg.window = match &self.window {
             None => None,
             Some(w) => {
-                let v: Vec<u32> = w.split(',').map(|p| p.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(|_| format!("--window '{w}' is not col,row,width,height"))?;
+                let v: Vec<u32> = w
+                    .split(',')
+                    .map(|p| p.trim().parse::<u32>())
+                    .collect::<Result<_, _>>()
+                    .map_err(|_| format!("--window '{w}' is not col,row,width,height"))?;
                 match v[..] {
                     [c, r, ww, hh] if ww > 0 && hh > 0 => Some([c, r, ww, hh]),
                     _ => return Err(format!("--window '{w}' is not col,row,width,height (tiles, width and height > 0)")),
                 }
             }
         };
-        cfg.gcm = GcmSpec {
-            k: self.sparsity.unwrap_or(16),
-            mode: self.corrections.parse::<CorrectionMode>()?,
-            max_error: self.max_error,
-        };
+        cfg.gcm = GcmSpec { k: self.sparsity.unwrap_or(16), mode: self.corrections.parse::<CorrectionMode>()?, max_error: self.max_error };
         cfg.auto_sparsity = self.sparsity.is_none();
         if self.max_error.is_some() && cfg.gcm.mode == CorrectionMode::Cell {
             return Err("--max-error works with --corrections bilinear".into());

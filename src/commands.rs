@@ -99,7 +99,13 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
         let count = |s: Status| results.iter().filter(|r| r.status == s).count();
         println!(
             "shard {}/{}: {} jobs, {} done, {} skipped (current), {} failed, {} cancelled",
-            shard.0 + 1, shard.1, results.len(), count(Status::Done), count(Status::Skipped), count(Status::Failed), count(Status::Cancelled)
+            shard.0 + 1,
+            shard.1,
+            results.len(),
+            count(Status::Done),
+            count(Status::Skipped),
+            count(Status::Failed),
+            count(Status::Cancelled)
         );
     }
     if signals.exit_code().is_some() {
@@ -119,7 +125,14 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
     if !a.quiet {
         println!(
             "synth: {}x{} {} scan, GSD {} m, flying height {:.0} m, relief {:.0}–{:.0} m (steepest {:.0}°), {:.1} s",
-            o.width, o.height, a.relief, r.gsd, r.flying_height, r.relief_range[0], r.relief_range[1], r.max_slope_deg,
+            o.width,
+            o.height,
+            a.relief,
+            r.gsd,
+            r.flying_height,
+            r.relief_range[0],
+            r.relief_range[1],
+            r.max_slope_deg,
             t.elapsed().as_secs_f64()
         );
         for p in [Some(&r.scan), Some(&r.camera), Some(&r.dem), r.truth.as_ref(), Some(&r.checkpoints)].into_iter().flatten() {
@@ -251,7 +264,11 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         let max = offs.iter().map(|(_, d)| d[0].hypot(d[1])).fold(0.0, f64::max);
         println!(
             "checkpoints (thesis Table 2), k = {} bilinear: {} points, RMS {:.4} px = {:.4} m, max {:.4} px",
-            a.map_sparsity, offs.len(), rms, rms * grid.gsd, max
+            a.map_sparsity,
+            offs.len(),
+            rms,
+            rms * grid.gsd,
+            max
         );
         rows.push(serde_json::json!({"checkpoints": offs.len(), "k": a.map_sparsity, "rms_px": rms, "rms_m": rms * grid.gsd, "max_px": max}));
     }
@@ -314,11 +331,20 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     std::fs::write(&vrt_path, vrt).with_context(|| vrt_path.display().to_string())?;
     println!(
         "rpc-grid: {}x{} nodes every {} px for {w}x{h} px; {} nodes failed the {} px back-check, {} corrected",
-        grid.cols, grid.rows, a.step, grid.bad, rpcgrid::BACK_CHECK_PX, grid.corrected
+        grid.cols,
+        grid.rows,
+        a.step,
+        grid.bad,
+        rpcgrid::BACK_CHECK_PX,
+        grid.corrected
     );
     println!("  {}\n  {} (gdalwarp -geoloc {} …)", a.output.display(), vrt_path.display(), vrt_path.display());
     if let Some(steps) = &a.accuracy {
-        let steps: Vec<u32> = steps.split(',').map(|s| s.trim().parse::<u32>()).collect::<std::result::Result<_, _>>().map_err(|_| usage(format!("--accuracy '{steps}' is not a list of steps")))?;
+        let steps: Vec<u32> = steps
+            .split(',')
+            .map(|s| s.trim().parse::<u32>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| usage(format!("--accuracy '{steps}' is not a list of steps")))?;
         println!("accuracy of the grid against the exact solve, every {} px (seed 004's table):", a.sample);
         println!("{:>5} | {:>9} {:>9} {:>9} | {:>6} {:>6} {:>6} {:>6} | {:>9}", "step", "mean m", "RMS m", "max m", "<0.5", "<1", "<2.5", "<5", "corrected");
         let mut rows = Vec::new();

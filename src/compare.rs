@@ -155,7 +155,11 @@ fn window_shift(a: &Grey, b: &Grey, x0: usize, y0: usize, w: usize, r: i64) -> O
     let at = |x: i64, y: i64| ncc[y as usize * size + x as usize];
     let para = |m: f64, c: f64, p: f64| {
         let d = m - 2.0 * c + p;
-        if d.abs() < 1e-12 { 0.0 } else { 0.5 * (m - p) / d }
+        if d.abs() < 1e-12 {
+            0.0
+        } else {
+            0.5 * (m - p) / d
+        }
     };
     let sx = (px - r) as f64 + para(at(px - 1, py), at(px, py), at(px + 1, py));
     let sy = (py - r) as f64 + para(at(px, py - 1), at(px, py), at(px, py + 1));

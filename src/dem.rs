@@ -36,12 +36,7 @@ impl std::str::FromStr for Miss {
         match s {
             "error" => Ok(Miss::Error),
             "nodata" => Ok(Miss::Nodata),
-            h => h
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .map(Miss::Height)
-                .ok_or_else(|| format!("'{s}' is neither error, nodata nor a height")),
+            h => h.parse::<f64>().ok().filter(|v| v.is_finite()).map(Miss::Height).ok_or_else(|| format!("'{s}' is neither error, nodata nor a height")),
         }
     }
 }
@@ -192,17 +187,11 @@ impl GridDem {
         let (fx, fy) = (c - i0 as f64, r - j0 as f64);
         let [z00, z10, z01, z11] = self.corners(i0, j0, i1, j1);
         let need = |z: f32, wgt: f64| wgt > 0.0 && self.is_nodata(z);
-        if need(z00, (1.0 - fx) * (1.0 - fy))
-            || need(z10, fx * (1.0 - fy))
-            || need(z01, (1.0 - fx) * fy)
-            || need(z11, fx * fy)
-        {
+        if need(z00, (1.0 - fx) * (1.0 - fy)) || need(z10, fx * (1.0 - fy)) || need(z01, (1.0 - fx) * fy) || need(z11, fx * fy) {
             return Lookup::Hole;
         }
         let z = |z: f32, wgt: f64| if wgt > 0.0 { z as f64 * wgt } else { 0.0 };
-        Lookup::Height(
-            z(z00, (1.0 - fx) * (1.0 - fy)) + z(z10, fx * (1.0 - fy)) + z(z01, (1.0 - fx) * fy) + z(z11, fx * fy),
-        )
+        Lookup::Height(z(z00, (1.0 - fx) * (1.0 - fy)) + z(z10, fx * (1.0 - fy)) + z(z01, (1.0 - fx) * fy) + z(z11, fx * fy))
     }
 
     /// Height and its gradient (dZ/dX, dZ/dY) at ground (X, Y), from the
@@ -316,13 +305,11 @@ impl GridDem {
             return read_hgt(path);
         }
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-        let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file))
-            .map_err(|e| Error::from_tiff(path, e))?
-            .with_limits(crate::io::source::decoder_limits());
+        let mut dec =
+            tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(|e| Error::from_tiff(path, e))?.with_limits(crate::io::source::decoder_limits());
         let raster = ChunkedRaster::open(&mut dec, path)?;
         let (w, h) = (raster.width as u32, raster.height as u32);
-        let geo = read_georef(&mut dec, path)?
-            .ok_or_else(|| Error::format(path, "the DEM has no georeferencing (no ModelPixelScale/ModelTiepoint)"))?;
+        let geo = read_georef(&mut dec, path)?.ok_or_else(|| Error::format(path, "the DEM has no georeferencing (no ModelPixelScale/ModelTiepoint)"))?;
         check_north_up(&geo, path)?;
         let pixels = (w as u64) * (h as u64);
         if pixels > 1 << 40 {
@@ -386,7 +373,13 @@ fn read_hgt(path: &Path) -> Result<GridDem> {
         let lat: f64 = rest[..lat_end].parse().ok()?;
         let (ew, lon) = rest[lat_end..].split_at(1);
         let lon: f64 = lon.parse().ok()?;
-        let lat = if ns == "S" { -lat } else if ns == "N" { lat } else { return None };
+        let lat = if ns == "S" {
+            -lat
+        } else if ns == "N" {
+            lat
+        } else {
+            return None;
+        };
         let lon = if ew == "W" { -lon } else { lon };
         Some((lat, lon))
     };
@@ -653,8 +646,15 @@ mod tests {
         let (w, h) = (100usize, 70usize);
         let z = |i: usize, j: usize| 200.0 + (i as f32 * 0.37).sin() * 20.0 + j as f32 * 0.5 + ((i * 7 + j * 3) % 5) as f32;
         let spec = OutputSpec {
-            width: w as u32, height: h as u32, bands: 1, sample: crate::io::source::SampleType::F32,
-            chunking: Chunking::Tiles(16), compression: Compression::Deflate, bigtiff: false, photometric: 1, alpha: false,
+            width: w as u32,
+            height: h as u32,
+            bands: 1,
+            sample: crate::io::source::SampleType::F32,
+            chunking: Chunking::Tiles(16),
+            compression: Compression::Deflate,
+            bigtiff: false,
+            photometric: 1,
+            alpha: false,
             geo: Some(GeoTags { x0: 1000.0, y0: 2000.0, gsd: 10.0, epsg: 32631, nodata: None }),
         };
         write_raster(&path, &spec, |y0, y1, buf| {

@@ -21,11 +21,7 @@ pub enum Error {
     Unsupported { path: PathBuf, msg: String },
     /// A configuration file (camera, manifest) has a bad or missing field.
     #[error("{path}: {field}: {msg}")]
-    Config {
-        path: PathBuf,
-        field: String,
-        msg: String,
-    },
+    Config { path: PathBuf, field: String, msg: String },
     /// A size or count is beyond what we accept (protects memory).
     #[error("{path}: limit exceeded: {msg}")]
     Limits { path: PathBuf, msg: String },
@@ -44,44 +40,26 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 impl Error {
     pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
-        Error::Io {
-            path: path.as_ref().to_path_buf(),
-            source,
-        }
+        Error::Io { path: path.as_ref().to_path_buf(), source }
     }
     pub fn format(path: impl AsRef<Path>, msg: impl Into<String>) -> Self {
-        Error::Format {
-            path: path.as_ref().to_path_buf(),
-            msg: msg.into(),
-        }
+        Error::Format { path: path.as_ref().to_path_buf(), msg: msg.into() }
     }
     pub fn unsupported(path: impl AsRef<Path>, msg: impl Into<String>) -> Self {
-        Error::Unsupported {
-            path: path.as_ref().to_path_buf(),
-            msg: msg.into(),
-        }
+        Error::Unsupported { path: path.as_ref().to_path_buf(), msg: msg.into() }
     }
     pub fn config(path: impl AsRef<Path>, field: impl Into<String>, msg: impl Into<String>) -> Self {
-        Error::Config {
-            path: path.as_ref().to_path_buf(),
-            field: field.into(),
-            msg: msg.into(),
-        }
+        Error::Config { path: path.as_ref().to_path_buf(), field: field.into(), msg: msg.into() }
     }
     pub fn limits(path: impl AsRef<Path>, msg: impl Into<String>) -> Self {
-        Error::Limits {
-            path: path.as_ref().to_path_buf(),
-            msg: msg.into(),
-        }
+        Error::Limits { path: path.as_ref().to_path_buf(), msg: msg.into() }
     }
 
     /// Converts an error of the `tiff` crate met while reading `path`.
     pub fn from_tiff(path: impl AsRef<Path>, e: tiff::TiffError) -> Self {
         use tiff::TiffError as T;
         match e {
-            T::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
-                Error::format(path, "file is truncated (unexpected end of file)")
-            }
+            T::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => Error::format(path, "file is truncated (unexpected end of file)"),
             T::IoError(io) => Error::io(path, io),
             T::UnsupportedError(u) => Error::unsupported(path, u.to_string()),
             T::LimitsExceeded => Error::limits(path, "the TIFF decoder's memory limits"),

@@ -230,10 +230,19 @@ impl Span {
 }
 
 const CHECK_POINTS: [(f64, f64); 13] = [
-    (0.25, 0.25), (0.5, 0.25), (0.75, 0.25),
-    (0.25, 0.5), (0.5, 0.5), (0.75, 0.5),
-    (0.25, 0.75), (0.5, 0.75), (0.75, 0.75),
-    (0.5, 0.0), (0.0, 0.5), (1.0, 0.5), (0.5, 1.0),
+    (0.25, 0.25),
+    (0.5, 0.25),
+    (0.75, 0.25),
+    (0.25, 0.5),
+    (0.5, 0.5),
+    (0.75, 0.5),
+    (0.25, 0.75),
+    (0.5, 0.75),
+    (0.75, 0.75),
+    (0.5, 0.0),
+    (0.0, 0.5),
+    (1.0, 0.5),
+    (0.5, 1.0),
 ];
 
 impl<'a> Gcm<'a> {
@@ -336,16 +345,24 @@ impl<'a> Gcm<'a> {
         // longitude/latitude as the camera would: kept for the camera.
         let from = self.t.model.lonlat_from();
         if from.is_some() && from == self.t.dem.lonlat_from() {
-            let (heights, lonlat) = self.xs.iter().map(|&u| {
-                let (x, y) = ground(u);
-                self.t.dem.height_and_lonlat(x, y)
-            }).unzip();
+            let (heights, lonlat) = self
+                .xs
+                .iter()
+                .map(|&u| {
+                    let (x, y) = ground(u);
+                    self.t.dem.height_and_lonlat(x, y)
+                })
+                .unzip();
             return NodeHeights { heights, lonlat: Some(lonlat) };
         }
-        let heights = self.xs.iter().map(|&u| {
-            let (x, y) = ground(u);
-            self.t.dem.height(x, y)
-        }).collect();
+        let heights = self
+            .xs
+            .iter()
+            .map(|&u| {
+                let (x, y) = ground(u);
+                self.t.dem.height(x, y)
+            })
+            .collect();
         NodeHeights { heights, lonlat: None }
     }
 
@@ -358,7 +375,8 @@ impl<'a> Gcm<'a> {
         // The ground points of the nodes that have a height, projected in
         // one call (`project_many`: the numbers of `project`, in passes the
         // compiler vectorises).
-        let (mut at, mut gx, mut gy, mut gz) = (Vec::with_capacity(heights.len()), Vec::with_capacity(heights.len()), Vec::with_capacity(heights.len()), Vec::with_capacity(heights.len()));
+        let (mut at, mut gx, mut gy, mut gz) =
+            (Vec::with_capacity(heights.len()), Vec::with_capacity(heights.len()), Vec::with_capacity(heights.len()), Vec::with_capacity(heights.len()));
         for (i, h) in heights.iter().enumerate() {
             let (x, y) = self.t.ground(self.xs[i], v);
             match *h {
@@ -438,16 +456,8 @@ impl<'a> Gcm<'a> {
                             return None;
                         }
                         let (v0, v1) = (self.node_v(a.j), self.node_v(b.j));
-                        let mut q = Quad {
-                            u0: self.xs[i],
-                            v0,
-                            du: self.xs[i + 1] - self.xs[i],
-                            dv: v1 - v0,
-                            corners,
-                            split: (0.0, 0.0),
-                            kids: None,
-                            exact: false,
-                        };
+                        let mut q =
+                            Quad { u0: self.xs[i], v0, du: self.xs[i + 1] - self.xs[i], dv: v1 - v0, corners, split: (0.0, 0.0), kids: None, exact: false };
                         let refined = self.refine(&mut q, bound, &mut stats, &mut miss);
                         if refined {
                             stats.refined_cells += 1;
@@ -588,7 +598,9 @@ impl<'a> Gcm<'a> {
             let m = (n_gaps - g0).min(BLOCK);
             let nodes = g0..g0 + m + 1;
             let (xs, adc, adr, bdc, bdr) = (&xs[nodes.clone()], &adc[nodes.clone()], &adr[nodes.clone()], &bdc[nodes.clone()], &bdr[nodes]);
-            for (((&u, (&adc, &adr)), (&bdc, &bdr)), (oc, or)) in xs.iter().zip(adc.iter().zip(adr)).zip(bdc.iter().zip(bdr)).zip(pc.iter_mut().zip(pr.iter_mut())) {
+            for (((&u, (&adc, &adr)), (&bdc, &bdr)), (oc, or)) in
+                xs.iter().zip(adc.iter().zip(adr)).zip(bdc.iter().zip(bdr)).zip(pc.iter_mut().zip(pr.iter_mut()))
+            {
                 let (ac, ar) = ra.at(u);
                 (*oc, *or) = (ac + adc + fy * (bdc - adc), ar + adr + fy * (bdr - adr));
             }
@@ -601,7 +613,8 @@ impl<'a> Gcm<'a> {
                 // (positions ·2³² below 2⁵¹: a scan of 2¹⁸ pixels a side).
                 const FIXED: f64 = (1u64 << 18) as f64;
                 let refined = refined.is_some_and(|q| q[g].is_some());
-                let linear = |c: f64, r: f64, dc: f64, dr: f64| !refined && c.abs() < FIXED && r.abs() < FIXED && dc.abs() * 1024.0 < FIXED && dr.abs() * 1024.0 < FIXED;
+                let linear =
+                    |c: f64, r: f64, dc: f64, dr: f64| !refined && c.abs() < FIXED && r.abs() < FIXED && dc.abs() * 1024.0 < FIXED && dr.abs() * 1024.0 < FIXED;
                 if end > x && cuts == 1 {
                     let inv = inv_dx[g];
                     let (dc, dr) = ((right.0 - left.0) * inv, (right.1 - left.1) * inv);
@@ -811,10 +824,7 @@ fn with_dem_lines(uniform: Vec<f64>, a: f64, b: f64, k: f64) -> Vec<f64> {
 #[inline]
 fn bilerp(c: &[[f64; 2]; 4], fu: f64, fv: f64) -> [f64; 2] {
     let w = [(1.0 - fu) * (1.0 - fv), fu * (1.0 - fv), (1.0 - fu) * fv, fu * fv];
-    [
-        c[0][0] * w[0] + c[1][0] * w[1] + c[2][0] * w[2] + c[3][0] * w[3],
-        c[0][1] * w[0] + c[1][1] * w[1] + c[2][1] * w[2] + c[3][1] * w[3],
-    ]
+    [c[0][0] * w[0] + c[1][0] * w[1] + c[2][0] * w[2] + c[3][0] * w[3], c[0][1] * w[0] + c[1][1] * w[1] + c[2][1] * w[2] + c[3][1] * w[3]]
 }
 
 /// The leaf of `q` containing (u, v); `None` for a leaf marked exact.

@@ -150,7 +150,20 @@ fn block_of_exterior_orientations() {
     // The block camera equals the camera file: the same orthophoto as a plain rectify.
     let single = d.join("single.tif");
     let sc = d.join("scene");
-    assert!(run(&["rectify", "--image", s(&d.join("scans/s00.tif")), "--camera", s(&sc.join("camera.toml")), "--dem", s(&sc.join("dem.tif")), "-o", s(&single), "--quiet"]).status.success());
+    assert!(run(&[
+        "rectify",
+        "--image",
+        s(&d.join("scans/s00.tif")),
+        "--camera",
+        s(&sc.join("camera.toml")),
+        "--dem",
+        s(&sc.join("dem.tif")),
+        "-o",
+        s(&single),
+        "--quiet"
+    ])
+    .status
+    .success());
     let a = gcm_ortho::compare::read_grey(&single, 0.0).unwrap();
     let b = gcm_ortho::compare::read_grey(&d.join("ortho/s00.tif"), 0.0).unwrap();
     let diff = a.v.iter().zip(&b.v).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);

@@ -125,8 +125,26 @@ fn small_memory_budget_and_many_chunks_change_nothing() {
         let out = dir.path().join(format!("o{mem}.tif"));
         let json = dir.path().join(format!("r{mem}.json"));
         let r = run(&[
-            "rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet",
-            "--memory", mem, "--tile", tile, "--threads", threads, "--compress", "none", "--json", s(&json),
+            "rectify",
+            "--image",
+            s(&sc.scan),
+            "--camera",
+            s(&sc.camera),
+            "--dem",
+            s(&sc.dem),
+            "-o",
+            s(&out),
+            "--quiet",
+            "--memory",
+            mem,
+            "--tile",
+            tile,
+            "--threads",
+            threads,
+            "--compress",
+            "none",
+            "--json",
+            s(&json),
         ]);
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
         outs.push(read_grey(&out, 0.0).unwrap());
@@ -156,8 +174,15 @@ fn a_dem_too_large_for_memory_is_read_in_chunks_with_the_same_result() {
     let gt = small.transform;
     let big = dir.path().join("big_dem.tif");
     let spec = OutputSpec {
-        width: w as u32, height: h as u32, bands: 1, sample: gcm_ortho::io::source::SampleType::F32,
-        chunking: Chunking::Tiles(256), compression: Compression::Deflate, bigtiff: false, photometric: 1, alpha: false,
+        width: w as u32,
+        height: h as u32,
+        bands: 1,
+        sample: gcm_ortho::io::source::SampleType::F32,
+        chunking: Chunking::Tiles(256),
+        compression: Compression::Deflate,
+        bigtiff: false,
+        photometric: 1,
+        alpha: false,
         geo: Some(GeoTags { x0: gt[0], y0: gt[3], gsd: gt[1] / f as f64, epsg: 32631, nodata: None }),
     };
     write_raster(&big, &spec, |y0, y1, buf| {
@@ -183,7 +208,20 @@ fn a_dem_too_large_for_memory_is_read_in_chunks_with_the_same_result() {
     }
     // And rectify runs on it, in bounded memory.
     let out = dir.path().join("o.tif");
-    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&big), "-o", s(&out), "--quiet", "--json", s(&dir.path().join("r.json"))]);
+    let r = run(&[
+        "rectify",
+        "--image",
+        s(&sc.scan),
+        "--camera",
+        s(&sc.camera),
+        "--dem",
+        s(&big),
+        "-o",
+        s(&out),
+        "--quiet",
+        "--json",
+        s(&dir.path().join("r.json")),
+    ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let rep: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.path().join("r.json")).unwrap()).unwrap();
     // Less than the DEM alone would take in memory (89 MB).

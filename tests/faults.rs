@@ -62,7 +62,24 @@ fn full_disk_is_a_clear_error_and_leaves_nothing() {
     let mut results = Vec::new();
     for sync in [&[][..], &["--no-sync"][..]] {
         for threads in ["1", "2"] {
-            let mut args = vec!["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--compress", "none", "--gsd", "2", "--threads", threads];
+            let mut args = vec![
+                "rectify",
+                "--image",
+                s(&sc.scan),
+                "--camera",
+                s(&sc.camera),
+                "--dem",
+                s(&sc.dem),
+                "-o",
+                s(&out),
+                "--quiet",
+                "--compress",
+                "none",
+                "--gsd",
+                "2",
+                "--threads",
+                threads,
+            ];
             args.extend(sync);
             let r = run(&args);
             results.push((r, files_containing(&mnt, "")));

@@ -22,8 +22,24 @@ fn gdal_reads_size_blocks_crs_geotransform_and_nodata() {
     let sc = scene(&dir.path().join("scene"), 600, |_| {});
     let out = dir.path().join("ortho.tif");
     let r = run(&[
-        "rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet",
-        "--gsd", "2.5", "--bounds", "649000,4889000,651000,4891000", "--tile", "128", "--nodata", "7",
+        "rectify",
+        "--image",
+        s(&sc.scan),
+        "--camera",
+        s(&sc.camera),
+        "--dem",
+        s(&sc.dem),
+        "-o",
+        s(&out),
+        "--quiet",
+        "--gsd",
+        "2.5",
+        "--bounds",
+        "649000,4889000,651000,4891000",
+        "--tile",
+        "128",
+        "--nodata",
+        "7",
     ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let j = gdalinfo_json(&out);
@@ -55,8 +71,21 @@ fn gdal_reads_alpha_bigtiff_and_every_compression() {
     for comp in ["none", "deflate", "lzw", "zstd"] {
         let out = dir.path().join(format!("{comp}.tif"));
         let r = run(&[
-            "rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet",
-            "--compress", comp, "--alpha", "--bigtiff", if comp == "lzw" { "yes" } else { "no" },
+            "rectify",
+            "--image",
+            s(&sc.scan),
+            "--camera",
+            s(&sc.camera),
+            "--dem",
+            s(&sc.dem),
+            "-o",
+            s(&out),
+            "--quiet",
+            "--compress",
+            comp,
+            "--alpha",
+            "--bigtiff",
+            if comp == "lzw" { "yes" } else { "no" },
         ]);
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
         let j = gdalinfo_json(&out);
@@ -89,7 +118,10 @@ fn planar_input_made_by_gdal_gives_the_same_orthophoto() {
     let dir = tempfile::tempdir().unwrap();
     let sc = scene(&dir.path().join("scene"), 500, |_| {});
     let planar = dir.path().join("planar.tif");
-    let t = Command::new("gdal_translate").args(["-q", "-co", "INTERLEAVE=BAND", "-co", "TILED=YES", "-co", "COMPRESS=PACKBITS", s(&sc.scan), s(&planar)]).status().unwrap();
+    let t = Command::new("gdal_translate")
+        .args(["-q", "-co", "INTERLEAVE=BAND", "-co", "TILED=YES", "-co", "COMPRESS=PACKBITS", s(&sc.scan), s(&planar)])
+        .status()
+        .unwrap();
     assert!(t.success());
     let mut outs = Vec::new();
     for (name, img) in [("chunky", &sc.scan), ("planar", &planar)] {
@@ -184,7 +216,13 @@ fn a_dem_compressed_by_gdal_gives_the_same_orthophoto_in_every_coding() {
     ] {
         let copy = dir.path().join(format!("{name}.tif"));
         let ok = if name.starts_with("float64") {
-            Command::new("gdal_translate").args(["-q", "-ot", "Float64"]).args(opts.iter().flat_map(|o| ["-co", o])).args([s(&sc.dem), s(&copy)]).status().unwrap().success()
+            Command::new("gdal_translate")
+                .args(["-q", "-ot", "Float64"])
+                .args(opts.iter().flat_map(|o| ["-co", o]))
+                .args([s(&sc.dem), s(&copy)])
+                .status()
+                .unwrap()
+                .success()
         } else {
             gdal_copy(&sc.dem, &copy, opts)
         };
@@ -196,7 +234,10 @@ fn a_dem_compressed_by_gdal_gives_the_same_orthophoto_in_every_coding() {
     let int16 = dir.path().join("int16.tif");
     assert!(Command::new("gdal_translate").args(["-q", "-ot", "Int16", s(&sc.dem), s(&int16)]).status().unwrap().success());
     let want16 = ortho(&sc, &sc.scan, &int16, &dir.path().join("int16-ortho.tif"));
-    for (name, opts) in [("int16-lzw-h-tiles", &["COMPRESS=LZW", "PREDICTOR=2", "TILED=YES", "BLOCKXSIZE=32", "BLOCKYSIZE=16"][..]), ("int16-deflate-big", &["COMPRESS=DEFLATE", "ENDIANNESS=BIG"][..])] {
+    for (name, opts) in [
+        ("int16-lzw-h-tiles", &["COMPRESS=LZW", "PREDICTOR=2", "TILED=YES", "BLOCKXSIZE=32", "BLOCKYSIZE=16"][..]),
+        ("int16-deflate-big", &["COMPRESS=DEFLATE", "ENDIANNESS=BIG"][..]),
+    ] {
         let copy = dir.path().join(format!("{name}.tif"));
         assert!(gdal_copy(&int16, &copy, opts), "GDAL could not write {name}");
         let got = ortho(&sc, &sc.scan, &copy, &dir.path().join(format!("{name}-ortho.tif")));
@@ -254,7 +295,8 @@ fn gdal_reads_tiles_stored_column_by_column_where_they_belong() {
     let sc = scene(&dir.path().join("scene"), 500, |o| o.kappa_deg = 90.0);
     let out = dir.path().join("ortho.tif");
     let json = dir.path().join("r.json");
-    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--tile", "64", "--json", s(&json)]);
+    let r =
+        run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet", "--tile", "64", "--json", s(&json)]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let rep: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     assert_eq!(rep["config"]["band_order"], "columns");

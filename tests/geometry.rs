@@ -28,20 +28,8 @@ fn film_interior() -> InteriorOrientation {
 }
 
 fn camera(conv: AngleConvention, angles_deg: [f64; 3], full: bool) -> FrameCamera {
-    let (d, r, c) = if full {
-        (Distortion::Radial([0.0, 2.1e-8, -3.0e-10]), Refraction::Auto, true)
-    } else {
-        (Distortion::None, Refraction::None, false)
-    };
-    FrameCamera::new(
-        152.0,
-        Vector3::new(5000.0, 5000.0, 1800.0),
-        conv.matrix(angles_deg.map(f64::to_radians)),
-        film_interior(),
-        d,
-        r,
-        c,
-    )
+    let (d, r, c) = if full { (Distortion::Radial([0.0, 2.1e-8, -3.0e-10]), Refraction::Auto, true) } else { (Distortion::None, Refraction::None, false) };
+    FrameCamera::new(152.0, Vector3::new(5000.0, 5000.0, 1800.0), conv.matrix(angles_deg.map(f64::to_radians)), film_interior(), d, r, c)
 }
 
 fn grid() -> OutputGrid {

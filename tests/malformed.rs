@@ -48,7 +48,11 @@ fn patch(b: &mut [u8], tag: u16, value: u32) {
 fn tag_value(b: &[u8], tag: u16) -> u32 {
     let (_, _, ty, count, v) = *entries(b).iter().find(|x| x.1 == tag).unwrap();
     if (ty == 3 && count <= 2) || (ty == 4 && count <= 1) {
-        if ty == 3 { v & 0xffff } else { v }
+        if ty == 3 {
+            v & 0xffff
+        } else {
+            v
+        }
     } else {
         u32::from_le_bytes(b[v as usize..v as usize + 4].try_into().unwrap())
     }
@@ -140,7 +144,9 @@ fn regenerate_corpus() {
     let rpc_txt = std::fs::read_to_string(root().join("fixtures/rpc/rpc_IKONOS.txt")).unwrap();
     let r = |name: &str, data: &[u8]| w("rpc", name, data);
     let without = |t: &str, key: &str| t.lines().filter(|l| !l.trim_start().starts_with(key)).map(|l| format!("{l}\n")).collect::<String>();
-    let with = |t: &str, key: &str, v: &str| t.lines().map(|l| if l.trim_start().starts_with(key) { format!("{key} {v}\n") } else { format!("{l}\n") }).collect::<String>();
+    let with = |t: &str, key: &str, v: &str| {
+        t.lines().map(|l| if l.trim_start().starts_with(key) { format!("{key} {v}\n") } else { format!("{l}\n") }).collect::<String>()
+    };
     r("empty.txt", b"");
     r("binary_junk.bin", &[0xff, 0xfe, 0x00, 0x01, 0x80, 0x81, 0x82, 0xc3, 0x28]);
     r("missing_coefficient.txt", without(&rpc_txt, "SAMP_DEN_COEFF_7:").as_bytes());
@@ -214,8 +220,15 @@ fn rgb_dem() -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("rgb.tif");
     let spec = OutputSpec {
-        width: 8, height: 8, bands: 3, sample: gcm_ortho::io::source::SampleType::U8, chunking: Chunking::Strips(8),
-        compression: Compression::None, bigtiff: false, photometric: 2, alpha: false,
+        width: 8,
+        height: 8,
+        bands: 3,
+        sample: gcm_ortho::io::source::SampleType::U8,
+        chunking: Chunking::Strips(8),
+        compression: Compression::None,
+        bigtiff: false,
+        photometric: 2,
+        alpha: false,
         geo: Some(GeoTags { x0: 649000.0, y0: 4891000.0, gsd: 100.0, epsg: 32631, nodata: None }),
     };
     write_raster(&p, &spec, |_, _, buf| buf.fill(100)).unwrap();

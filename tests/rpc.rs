@@ -325,7 +325,10 @@ fn ventoux_orthophoto_matches_gdalwarp() {
     for geoid in [false, true] {
         let (_dir, ours, theirs) = ventoux_maps(geoid, &["--max-error", "0.02"], true);
         let m = coordinate_map_difference(&ours, &theirs, 500, 500);
-        eprintln!("Ventoux vs gdalwarp (geoid {geoid}): {} px, offset ({:.4}, {:.4}) px, mean {:.4} px, max {:.4} px", m.pixels, m.offset[0], m.offset[1], m.mean, m.max);
+        eprintln!(
+            "Ventoux vs gdalwarp (geoid {geoid}): {} px, offset ({:.4}, {:.4}) px, mean {:.4} px, max {:.4} px",
+            m.pixels, m.offset[0], m.offset[1], m.mean, m.max
+        );
         assert!(m.pixels > 50_000, "{} px compared", m.pixels);
         assert!(m.offset[0].hypot(m.offset[1]) < 0.005 && m.max < 0.06, "offset {:?}, max {}", m.offset, m.max);
     }
@@ -352,7 +355,22 @@ fn synthetic_rpc_scene_matches_gdalwarp() {
     coordinate_image(&d.join("coords.tif"), 1000, 1000);
     std::fs::copy(d.join("scan_RPC.TXT"), d.join("coords_RPC.TXT")).unwrap();
     let ours = d.join("ours.tif");
-    let out = run(&["rectify", "--image", s(&d.join("coords.tif")), "--camera", s(&rep.camera), "--dem", s(&rep.dem), "--nodata", "-1", "--compress", "none", "--quiet", "-o", s(&ours)]);
+    let out = run(&[
+        "rectify",
+        "--image",
+        s(&d.join("coords.tif")),
+        "--camera",
+        s(&rep.camera),
+        "--dem",
+        s(&rep.dem),
+        "--nodata",
+        "-1",
+        "--compress",
+        "none",
+        "--quiet",
+        "-o",
+        s(&ours),
+    ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let (gt, w, h) = georef(&ours);
     let theirs = d.join("gdal.tif");
@@ -360,7 +378,30 @@ fn synthetic_rpc_scene_matches_gdalwarp() {
     let te = [gt[0], gt[3] + gt[5] * h as f64, gt[0] + gt[1] * w as f64, gt[3]].map(|v| v.to_string());
     let tr = gt[1].to_string();
     let dem_opt = format!("RPC_DEM={}", s(&rep.dem));
-    let args = ["-q", "-rpc", "-to", &dem_opt, "-et", "0", "-r", "bilinear", "-t_srs", "EPSG:32631", "-dstnodata", "-1", "-te", &te[0], &te[1], &te[2], &te[3], "-tr", &tr, &tr, s(&coords), s(&theirs)];
+    let args = [
+        "-q",
+        "-rpc",
+        "-to",
+        &dem_opt,
+        "-et",
+        "0",
+        "-r",
+        "bilinear",
+        "-t_srs",
+        "EPSG:32631",
+        "-dstnodata",
+        "-1",
+        "-te",
+        &te[0],
+        &te[1],
+        &te[2],
+        &te[3],
+        "-tr",
+        &tr,
+        &tr,
+        s(&coords),
+        s(&theirs),
+    ];
     let out = Command::new("gdalwarp").args(args).output().unwrap();
     assert!(out.status.success(), "gdalwarp: {}", String::from_utf8_lossy(&out.stderr));
     let m = coordinate_map_difference(&ours, &theirs, 1000, 1000);
@@ -373,7 +414,28 @@ fn synthetic_rpc_scene_matches_gdalwarp() {
     let (ours_img, gdal_img) = (d.join("ours_img.tif"), d.join("gdal_img.tif"));
     let out = run(&["rectify", "--image", s(&rep.scan), "--camera", s(&rep.camera), "--dem", s(&rep.dem), "--quiet", "-o", s(&ours_img)]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let args = ["-q", "-rpc", "-to", &dem_opt, "-et", "0", "-r", "bilinear", "-t_srs", "EPSG:32631", "-te", &te[0], &te[1], &te[2], &te[3], "-tr", &tr, &tr, s(&rep.scan), s(&gdal_img)];
+    let args = [
+        "-q",
+        "-rpc",
+        "-to",
+        &dem_opt,
+        "-et",
+        "0",
+        "-r",
+        "bilinear",
+        "-t_srs",
+        "EPSG:32631",
+        "-te",
+        &te[0],
+        &te[1],
+        &te[2],
+        &te[3],
+        "-tr",
+        &tr,
+        &tr,
+        s(&rep.scan),
+        s(&gdal_img),
+    ];
     let out = Command::new("gdalwarp").args(args).output().unwrap();
     assert!(out.status.success(), "gdalwarp: {}", String::from_utf8_lossy(&out.stderr));
     let c = gcm_ortho::compare::compare(&gcm_ortho::compare::read_grey(&ours_img, 0.0).unwrap(), &gcm_ortho::compare::read_grey(&gdal_img, 0.0).unwrap(), 48);
@@ -406,7 +468,25 @@ fn rpc_grid_is_read_by_gdal_and_matches_the_checkpoints() {
     });
     let grid = d.join("grid.tif");
     let json = d.join("acc.json");
-    let out = run(&["rpc-grid", "--image", s(&rep.scan), "--camera", s(&rep.camera), "--dem", s(&rep.dem), "--step", "8", "--accuracy", "4,32", "--sample", "3", "--json", s(&json), "-o", s(&grid)]);
+    let out = run(&[
+        "rpc-grid",
+        "--image",
+        s(&rep.scan),
+        "--camera",
+        s(&rep.camera),
+        "--dem",
+        s(&rep.dem),
+        "--step",
+        "8",
+        "--accuracy",
+        "4,32",
+        "--sample",
+        "3",
+        "--json",
+        s(&json),
+        "-o",
+        s(&grid),
+    ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let (gw, gh, bands, v) = read_f64(&grid);
     assert_eq!((gw, gh, bands), (76, 76, 3));
@@ -477,7 +557,11 @@ fn digitalglobe_tile_offsets_are_read() {
     let name = xml.split("<FILENAME>").nth(1).unwrap().split('<').next().unwrap().trim().to_string();
     assert_eq!(Rpc::tile_offset(&xml, &name), Some([0.0, 0.0]));
     assert_eq!(Rpc::tile_offset(&xml, &name.to_lowercase()), Some([0.0, 0.0]));
-    let moved = xml.replacen("<ULCOLOFFSET>0</ULCOLOFFSET>", "<ULCOLOFFSET>8192</ULCOLOFFSET>", 1).replacen("<ULROWOFFSET>0</ULROWOFFSET>", "<ULROWOFFSET>4096</ULROWOFFSET>", 1);
+    let moved = xml.replacen("<ULCOLOFFSET>0</ULCOLOFFSET>", "<ULCOLOFFSET>8192</ULCOLOFFSET>", 1).replacen(
+        "<ULROWOFFSET>0</ULROWOFFSET>",
+        "<ULROWOFFSET>4096</ULROWOFFSET>",
+        1,
+    );
     assert_eq!(Rpc::tile_offset(&moved, &name), Some([8192.0, 4096.0]));
     assert_eq!(Rpc::tile_offset(&xml, "another.tif"), None);
 }

@@ -42,7 +42,25 @@ impl Options {
     /// `self` with unset fields taken from `base`.
     fn over(&self, base: &Options) -> Options {
         macro_rules! pick { ($($f:ident),*) => { Options { $($f: self.$f.clone().or_else(|| base.$f.clone()),)* } } }
-        pick!(dem, height, dem_hole, dem_outside, gsd, bounds, sparsity, max_error, corrections, trend, resample, tile, compress, bigtiff, nodata, alpha, output_dir)
+        pick!(
+            dem,
+            height,
+            dem_hole,
+            dem_outside,
+            gsd,
+            bounds,
+            sparsity,
+            max_error,
+            corrections,
+            trend,
+            resample,
+            tile,
+            compress,
+            bigtiff,
+            nodata,
+            alpha,
+            output_dir
+        )
     }
 }
 
@@ -111,7 +129,11 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let rel = |p: &str| -> PathBuf {
         let p = Path::new(p);
-        if p.is_absolute() { p.to_path_buf() } else { base.join(p) }
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            base.join(p)
+        }
     };
     let mut errors = Vec::new();
     let mut jobs = Vec::new();
@@ -179,7 +201,11 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         let problem = (!problems.is_empty()).then(|| format!("{}: {}", at(line), problems.join("; ")));
         jobs.push(Job { name, config: cfg, problem });
     }
-    if errors.is_empty() { Ok(jobs) } else { Err(ManifestErrors(errors)) }
+    if errors.is_empty() {
+        Ok(jobs)
+    } else {
+        Err(ManifestErrors(errors))
+    }
 }
 
 /// One job as written, before validation.
@@ -285,11 +311,16 @@ fn block_cameras(interior: &Path, csv: &Path) -> Result<Vec<(String, CameraFile,
         match (f.len(), nums) {
             (7, Some(v)) => {
                 let mut cam = base.clone();
-                cam.exterior = Some(ExteriorSection { position: [v[0], v[1], v[2]], angles_deg: [v[3], v[4], v[5]], convention: AngleConvention::OmegaPhiKappa });
+                cam.exterior =
+                    Some(ExteriorSection { position: [v[0], v[1], v[2]], angles_deg: [v[3], v[4], v[5]], convention: AngleConvention::OmegaPhiKappa });
                 out.push((f[0].to_string(), cam, n + 1));
             }
             _ => errors.push(format!("{}: line {}: expected name and six numbers", csv.display(), n + 1)),
         }
     }
-    if errors.is_empty() { Ok(out) } else { Err(errors) }
+    if errors.is_empty() {
+        Ok(out)
+    } else {
+        Err(errors)
+    }
 }

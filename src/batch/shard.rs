@@ -6,11 +6,7 @@
 //! i mod N, so every job runs exactly once over the N shards.
 
 /// `(index, count)` with a 0-based index.
-pub fn resolve(
-    explicit: Option<&str>,
-    shard_count: Option<usize>,
-    env: &dyn Fn(&str) -> Option<String>,
-) -> Result<(usize, usize), String> {
+pub fn resolve(explicit: Option<&str>, shard_count: Option<usize>, env: &dyn Fn(&str) -> Option<String>) -> Result<(usize, usize), String> {
     let num = |v: String, what: &str| v.trim().parse::<usize>().map_err(|_| format!("{what}='{v}' is not a whole number"));
     if let Some(s) = explicit {
         let (i, n) = s.split_once('/').ok_or_else(|| format!("--shard '{s}' is not I/N"))?;

@@ -52,8 +52,7 @@ pub fn kushtin_arcsec(ha_km: f64, hg_km: f64, tan_zeta: f64) -> f64 {
         481.3 * tan_zeta / dh * (ground - air)
     } else {
         let (t, ts) = (T_STRATOSPHERE_K, T_STRATOSPHERE_K);
-        tan_zeta
-            * (481.3 / dh * ground - (108.0 / dh + 3686.0 / ts) * (-34.15 * (ha_km - 11.0) / t).exp())
+        tan_zeta * (481.3 / dh * ground - (108.0 / dh + 3686.0 / ts) * (-34.15 * (ha_km - 11.0) / t).exp())
     }
 }
 

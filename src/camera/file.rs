@@ -11,8 +11,8 @@ use super::rotation::AngleConvention;
 use super::rpc::Rpc;
 use super::satellite::RpcCamera;
 use super::SensorModel;
-use crate::geodesy::{utm_zone_epsg, Geoid, GroundCrs};
 use crate::error::{Error, Result};
+use crate::geodesy::{utm_zone_epsg, Geoid, GroundCrs};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -194,9 +194,7 @@ impl CameraFile {
 
         let distortion = match &self.distortion {
             None => Distortion::None,
-            Some(DistortionSection { radial_mm: Some(_), brown: Some(_) }) => {
-                return Err(err("distortion", "give radial_mm or brown, not both".into()))
-            }
+            Some(DistortionSection { radial_mm: Some(_), brown: Some(_) }) => return Err(err("distortion", "give radial_mm or brown, not both".into())),
             Some(DistortionSection { radial_mm: Some(r), brown: None }) => {
                 all_finite(r).map_err(|m| err("distortion.radial_mm", m))?;
                 Distortion::Radial(*r)
@@ -213,15 +211,7 @@ impl CameraFile {
         all_finite(&ext.angles_deg).map_err(|m| err("exterior.angles_deg", m))?;
         let angles = ext.angles_deg.map(f64::to_radians);
         let r = ext.convention.matrix(angles);
-        let frame = FrameCamera::new(
-            f,
-            Vector3::from(ext.position),
-            r,
-            io,
-            distortion,
-            self.corrections.refraction,
-            self.corrections.earth_curvature,
-        );
+        let frame = FrameCamera::new(f, Vector3::from(ext.position), r, io, distortion, self.corrections.refraction, self.corrections.earth_curvature);
         Ok(Camera { crs, sensor: Sensor::Frame(frame), file: self })
     }
 
@@ -265,7 +255,10 @@ impl CameraFile {
             Some(g) => {
                 let geoid = Geoid::read(&near(g))?;
                 if geoid.undulation(rpc.long_off, rpc.lat_off).is_none() {
-                    return Err(Error::format(&geoid.path, format!("the geoid grid does not cover the scene's centre ({:.4}°, {:.4}°)", rpc.long_off, rpc.lat_off)));
+                    return Err(Error::format(
+                        &geoid.path,
+                        format!("the geoid grid does not cover the scene's centre ({:.4}°, {:.4}°)", rpc.long_off, rpc.lat_off),
+                    ));
                 }
                 Some(geoid)
             }
@@ -345,16 +338,9 @@ fn finite_positive(v: f64) -> std::result::Result<(), String> {
 
 fn build_interior(s: &InteriorSection) -> std::result::Result<InteriorOrientation, (String, String)> {
     let e = |f: &str, m: String| (format!("interior.{f}"), m);
-    let forms = [
-        s.fiducials_mm.is_some(),
-        s.fiducial_distances_mm.is_some(),
-        s.pixel_size_mm.is_some(),
-    ];
+    let forms = [s.fiducials_mm.is_some(), s.fiducial_distances_mm.is_some(), s.pixel_size_mm.is_some()];
     if forms.iter().filter(|&&b| b).count() != 1 {
-        return Err((
-            "interior".into(),
-            "give exactly one of fiducials_mm, fiducial_distances_mm or pixel_size_mm".into(),
-        ));
+        return Err(("interior".into(), "give exactly one of fiducials_mm, fiducial_distances_mm or pixel_size_mm".into()));
     }
     let pp = s.principal_point_mm.unwrap_or([0.0, 0.0]);
     all_finite(&pp).map_err(|m| e("principal_point_mm", m))?;

@@ -6,9 +6,9 @@
 use super::atmosphere::{curvature_drop, Refraction};
 use super::distortion::Distortion;
 use super::interior::InteriorOrientation;
+use super::lanes::Lanes;
 use super::{Plane, SensorModel};
 use crate::geom::OutputGrid;
-use super::lanes::Lanes;
 use nalgebra::{Matrix3, Vector3};
 use wide::f64x2;
 
@@ -205,11 +205,7 @@ impl SensorModel for FrameCamera {
         let g = grid.gsd;
         let cx = grid.x0 - self.centre.x;
         let cy = grid.y0 - self.centre.y;
-        let l = Matrix3::new(
-            g, 0.0, cx,
-            0.0, -g, cy,
-            plane.b * g, -plane.c * g, plane.a + plane.b * grid.x0 + plane.c * grid.y0 - self.centre.z,
-        );
+        let l = Matrix3::new(g, 0.0, cx, 0.0, -g, cy, plane.b * g, -plane.c * g, plane.a + plane.b * grid.x0 + plane.c * grid.y0 - self.centre.z);
         let f = self.focal_mm;
         // Photo (x, y, w) homogeneous = (−f p.x, −f p.y, p.z) with p = Rᵀ L (u, v, 1).
         let k = Matrix3::new(-f, 0.0, 0.0, 0.0, -f, 0.0, 0.0, 0.0, 1.0);
@@ -307,7 +303,9 @@ mod tests {
                     cam.project_many(&x, &y, &z, &mut col, &mut row);
                     for k in 0..n {
                         match cam.project(x[k], y[k], z[k]) {
-                            Some((c, r)) => assert!(c.to_bits() == col[k].to_bits() && r.to_bits() == row[k].to_bits(), "{k}: {c} {r} vs {} {}", col[k], row[k]),
+                            Some((c, r)) => {
+                                assert!(c.to_bits() == col[k].to_bits() && r.to_bits() == row[k].to_bits(), "{k}: {c} {r} vs {} {}", col[k], row[k])
+                            }
                             None => assert!(col[k].is_nan() && row[k].is_nan(), "{k}"),
                         }
                     }

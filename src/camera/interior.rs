@@ -53,28 +53,21 @@ impl std::fmt::Display for InteriorError {
 
 impl InteriorOrientation {
     fn from_affine(to_px: Affine2, residuals: Vec<FiducialResidual>) -> Result<Self, InteriorError> {
-        let to_mm = to_px
-            .inverse()
-            .ok_or(InteriorError::Degenerate("the fitted map is singular"))?;
+        let to_mm = to_px.inverse().ok_or(InteriorError::Degenerate("the fitted map is singular"))?;
         Ok(InteriorOrientation { to_px, to_mm, residuals })
     }
 
     /// Form (a): calibrated fiducial coordinates (mm, fiducial system, y up),
     /// their measured scan positions, and the principal point's offset from
     /// the fiducial centre (mm).
-    pub fn from_fiducials(
-        fiducials_mm: &[[f64; 2]],
-        fiducials_px: &[[f64; 2]],
-        principal_point_mm: [f64; 2],
-    ) -> Result<Self, InteriorError> {
+    pub fn from_fiducials(fiducials_mm: &[[f64; 2]], fiducials_px: &[[f64; 2]], principal_point_mm: [f64; 2]) -> Result<Self, InteriorError> {
         if fiducials_mm.len() != fiducials_px.len() {
             return Err(InteriorError::MismatchedCounts(fiducials_mm.len(), fiducials_px.len()));
         }
         if fiducials_mm.len() < 3 {
             return Err(InteriorError::TooFewMarks(fiducials_mm.len()));
         }
-        let fid = Affine2::fit(fiducials_mm, fiducials_px)
-            .ok_or(InteriorError::Degenerate("the marks lie on one line"))?;
+        let fid = Affine2::fit(fiducials_mm, fiducials_px).ok_or(InteriorError::Degenerate("the marks lie on one line"))?;
         // Photo coordinates are relative to the principal point:
         // fiducial-system mm = photo mm + principal_point_mm.
         let pp = Vector2::new(principal_point_mm[0], principal_point_mm[1]);
@@ -95,11 +88,7 @@ impl InteriorOrientation {
 
     /// Form (b): calibrated distances `[lx, ly]` between opposite marks and
     /// four measured positions: 1→2 along photo +x, 3→4 along photo +y.
-    pub fn from_fiducial_distances(
-        distances_mm: [f64; 2],
-        fiducials_px: &[[f64; 2]],
-        principal_point_mm: [f64; 2],
-    ) -> Result<Self, InteriorError> {
+    pub fn from_fiducial_distances(distances_mm: [f64; 2], fiducials_px: &[[f64; 2]], principal_point_mm: [f64; 2]) -> Result<Self, InteriorError> {
         if fiducials_px.len() != 4 {
             return Err(InteriorError::MismatchedCounts(4, fiducials_px.len()));
         }
@@ -135,12 +124,7 @@ impl InteriorOrientation {
         let to_px = Affine2 { m: fid.m, t: fid.t + fid.m * pp };
         // Residuals: where each mark should be at its calibrated position
         // (±lx/2 on x, ±ly/2 on y).
-        let nominal = [
-            [-distances_mm[0] / 2.0, 0.0],
-            [distances_mm[0] / 2.0, 0.0],
-            [0.0, -distances_mm[1] / 2.0],
-            [0.0, distances_mm[1] / 2.0],
-        ];
+        let nominal = [[-distances_mm[0] / 2.0, 0.0], [distances_mm[0] / 2.0, 0.0], [0.0, -distances_mm[1] / 2.0], [0.0, distances_mm[1] / 2.0]];
         let inv = fid.inverse().ok_or(InteriorError::Degenerate("the fitted map is singular"))?;
         let residuals = nominal
             .iter()
@@ -159,10 +143,8 @@ impl InteriorOrientation {
         if !(pixel_size_mm > 0.0) {
             return Err(InteriorError::Degenerate("pixel size must be positive"));
         }
-        let to_px = Affine2 {
-            m: Matrix2::new(1.0 / pixel_size_mm, 0.0, 0.0, -1.0 / pixel_size_mm),
-            t: Vector2::new(principal_point_px[0], principal_point_px[1]),
-        };
+        let to_px =
+            Affine2 { m: Matrix2::new(1.0 / pixel_size_mm, 0.0, 0.0, -1.0 / pixel_size_mm), t: Vector2::new(principal_point_px[0], principal_point_px[1]) };
         Self::from_affine(to_px, Vec::new())
     }
 
@@ -247,12 +229,7 @@ mod tests {
     #[test]
     fn distance_form_recovers_rotation_and_scales() {
         let (lx, ly) = (212.0, 211.0);
-        let px = [
-            scanner(-lx / 2.0, 0.0),
-            scanner(lx / 2.0, 0.0),
-            scanner(0.0, -ly / 2.0),
-            scanner(0.0, ly / 2.0),
-        ];
+        let px = [scanner(-lx / 2.0, 0.0), scanner(lx / 2.0, 0.0), scanner(0.0, -ly / 2.0), scanner(0.0, ly / 2.0)];
         let io = InteriorOrientation::from_fiducial_distances([lx, ly], &px, [0.0, 0.0]).unwrap();
         for (x, y) in [(0.0, 0.0), (70.0, -30.0), (-100.0, 100.0)] {
             let (c, r) = io.mm_to_px(x, y);
@@ -264,14 +241,8 @@ mod tests {
     #[test]
     fn collinear_and_too_few_marks_are_rejected() {
         let mm = [[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]];
-        assert!(matches!(
-            InteriorOrientation::from_fiducials(&mm, &mm, [0.0, 0.0]),
-            Err(InteriorError::Degenerate(_))
-        ));
-        assert!(matches!(
-            InteriorOrientation::from_fiducials(&mm[..2], &mm[..2], [0.0, 0.0]),
-            Err(InteriorError::TooFewMarks(2))
-        ));
+        assert!(matches!(InteriorOrientation::from_fiducials(&mm, &mm, [0.0, 0.0]), Err(InteriorError::Degenerate(_))));
+        assert!(matches!(InteriorOrientation::from_fiducials(&mm[..2], &mm[..2], [0.0, 0.0]), Err(InteriorError::TooFewMarks(2))));
     }
 
     #[test]

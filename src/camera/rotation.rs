@@ -47,12 +47,8 @@ impl AngleConvention {
     #[must_use]
     pub fn matrix(self, angles: [f64; 3]) -> Matrix3<f64> {
         match self {
-            AngleConvention::AlphaOmegaKappa => {
-                ry(-angles[0]) * rx(angles[1]) * rz(angles[2])
-            }
-            AngleConvention::OmegaAlphaChi | AngleConvention::OmegaPhiKappa => {
-                rx(angles[0]) * ry(angles[1]) * rz(angles[2])
-            }
+            AngleConvention::AlphaOmegaKappa => ry(-angles[0]) * rx(angles[1]) * rz(angles[2]),
+            AngleConvention::OmegaAlphaChi | AngleConvention::OmegaPhiKappa => rx(angles[0]) * ry(angles[1]) * rz(angles[2]),
         }
     }
 
@@ -100,11 +96,7 @@ mod tests {
         let (sa, ca) = alpha.sin_cos();
         let (sw, cw) = omega.sin_cos();
         let (sk, ck) = kappa.sin_cos();
-        Matrix3::new(
-            ca * ck - sa * sw * sk, -ca * sk - sa * sw * ck, -sa * cw,
-            cw * sk,                cw * ck,                 -sw,
-            sa * ck + ca * sw * sk, -sa * sk + ca * sw * ck, ca * cw,
-        )
+        Matrix3::new(ca * ck - sa * sw * sk, -ca * sk - sa * sw * ck, -sa * cw, cw * sk, cw * ck, -sw, sa * ck + ca * sw * sk, -sa * sk + ca * sw * ck, ca * cw)
     }
 
     /// Seed 001 eq. (1), typed from the seed.
@@ -112,11 +104,7 @@ mod tests {
         let (sa, ca) = alpha.sin_cos();
         let (sw, cw) = omega.sin_cos();
         let (sk, ck) = chi.sin_cos();
-        Matrix3::new(
-            ca * ck,                     -ca * sk,                     sa,
-            sw * sa * ck + cw * sk,      -sw * sa * sk + cw * ck,      -sw * ca,
-            -cw * sa * ck + sw * sk,     cw * sa * sk + sw * ck,       cw * ca,
-        )
+        Matrix3::new(ca * ck, -ca * sk, sa, sw * sa * ck + cw * sk, -sw * sa * sk + cw * ck, -sw * ca, -cw * sa * ck + sw * sk, cw * sa * sk + sw * ck, cw * ca)
     }
 
     #[test]
@@ -136,11 +124,7 @@ mod tests {
 
     #[test]
     fn angles_round_trip_in_every_convention() {
-        for conv in [
-            AngleConvention::AlphaOmegaKappa,
-            AngleConvention::OmegaAlphaChi,
-            AngleConvention::OmegaPhiKappa,
-        ] {
+        for conv in [AngleConvention::AlphaOmegaKappa, AngleConvention::OmegaAlphaChi, AngleConvention::OmegaPhiKappa] {
             for angles in [[0.01, -0.02, 0.3], [0.2, 0.1, -2.9], [-0.4, 0.3, 1.5707]] {
                 let m = conv.matrix(angles);
                 let back = conv.angles(&m);

@@ -57,7 +57,10 @@ impl SensorModel for RpcCamera {
     }
 
     fn project_many_lonlat(&self, lon: &[f64], lat: &[f64], z: &[f64], col: &mut [f64], row: &mut [f64]) {
-        assert!(lat.len() == lon.len() && z.len() == lon.len() && col.len() == lon.len() && row.len() == lon.len(), "project_many_lonlat: arrays of one length");
+        assert!(
+            lat.len() == lon.len() && z.len() == lon.len() && col.len() == lon.len() && row.len() == lon.len(),
+            "project_many_lonlat: arrays of one length"
+        );
         for k in 0..lon.len() {
             let p = self.ellipsoidal(lon[k], lat[k], z[k]).and_then(|h| self.rpc.project(lon[k], lat[k], h));
             (col[k], row[k]) = p.unwrap_or((f64::NAN, f64::NAN));

@@ -39,14 +39,18 @@ impl Geoid {
         let (lat0, lon0, dlat, dlon) = (f(0), f(1), f(2), f(3));
         let rows = i32::from_be_bytes(bytes[32..36].try_into().expect("4 bytes"));
         let cols = i32::from_be_bytes(bytes[36..40].try_into().expect("4 bytes"));
-        let sane = [lat0, lon0, dlat, dlon].iter().all(|v| v.is_finite()) && dlat > 0.0 && dlon > 0.0 && (-90.0..=90.0).contains(&lat0) && rows >= 2 && cols >= 2;
+        let sane =
+            [lat0, lon0, dlat, dlon].iter().all(|v| v.is_finite()) && dlat > 0.0 && dlon > 0.0 && (-90.0..=90.0).contains(&lat0) && rows >= 2 && cols >= 2;
         if !sane {
             return Err(Error::format(path, format!("not a .gtx geoid grid: header {lat0} {lon0} {dlat} {dlon} {rows}×{cols}")));
         }
         let (rows, cols) = (rows as usize, cols as usize);
         let want = rows.checked_mul(cols).and_then(|n| n.checked_mul(4)).and_then(|n| n.checked_add(40));
         if want != Some(bytes.len()) {
-            return Err(Error::format(path, format!(".gtx grid of {rows}×{cols} needs {} bytes, the file has {}", want.map_or("too many".into(), |w| w.to_string()), bytes.len())));
+            return Err(Error::format(
+                path,
+                format!(".gtx grid of {rows}×{cols} needs {} bytes, the file has {}", want.map_or("too many".into(), |w| w.to_string()), bytes.len()),
+            ));
         }
         let n = bytes[40..].chunks_exact(4).map(|b| f32::from_be_bytes([b[0], b[1], b[2], b[3]])).collect();
         let global = (dlon * cols as f64 - 360.0).abs() < dlon * 1.01;

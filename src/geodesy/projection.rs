@@ -64,7 +64,11 @@ impl GroundCrs {
 /// 327zz south.
 pub fn utm_zone_epsg(lon: f64, lat: f64) -> u32 {
     let zone = (((lon + 180.0) / 6.0).floor() as i64).rem_euclid(60) as u32 + 1;
-    if lat >= 0.0 { 32600 + zone } else { 32700 + zone }
+    if lat >= 0.0 {
+        32600 + zone
+    } else {
+        32700 + zone
+    }
 }
 
 /// Points of one CRS into another, through WGS84 (identity when both are
@@ -105,7 +109,9 @@ mod tests {
     #[test]
     fn utm_matches_proj() {
         let utm = GroundCrs::from_epsg(32631).unwrap();
-        for ((lon, lat), (x, y)) in [((5.2786, 44.1741), (682_151.139_274_756, 4_893_734.670_923_61)), ((0.5, 45.2), (303_648.799_038_255, 5_008_208.824_334_69))] {
+        for ((lon, lat), (x, y)) in
+            [((5.2786, 44.1741), (682_151.139_274_756, 4_893_734.670_923_61)), ((0.5, 45.2), (303_648.799_038_255, 5_008_208.824_334_69))]
+        {
             let (px, py) = utm.from_lonlat(lon, lat).unwrap();
             assert!((px - x).abs() < 1e-3 && (py - y).abs() < 1e-3, "({px}, {py}) vs ({x}, {y})");
             let (l, p) = utm.to_lonlat(x, y).unwrap();

@@ -12,19 +12,13 @@ pub struct Affine2 {
 
 impl Affine2 {
     pub fn identity() -> Self {
-        Affine2 {
-            m: Matrix2::identity(),
-            t: Vector2::zeros(),
-        }
+        Affine2 { m: Matrix2::identity(), t: Vector2::zeros() }
     }
 
     #[inline]
     #[must_use]
     pub fn apply(&self, x: f64, y: f64) -> (f64, f64) {
-        (
-            self.m[(0, 0)] * x + self.m[(0, 1)] * y + self.t.x,
-            self.m[(1, 0)] * x + self.m[(1, 1)] * y + self.t.y,
-        )
+        (self.m[(0, 0)] * x + self.m[(0, 1)] * y + self.t.x, self.m[(1, 0)] * x + self.m[(1, 1)] * y + self.t.y)
     }
 
     /// The inverse map, `None` when the linear part is singular.
@@ -35,10 +29,7 @@ impl Affine2 {
             return None;
         }
         let mi = self.m.try_inverse()?;
-        Some(Affine2 {
-            m: mi,
-            t: -(mi * self.t),
-        })
+        Some(Affine2 { m: mi, t: -(mi * self.t) })
     }
 
     /// Least-squares affine map taking `from[i]` to `to[i]` (n ≥ 3, not all on
@@ -52,10 +43,7 @@ impl Affine2 {
         // Centre the source points for a well-conditioned system.
         let cx = from.iter().map(|p| p[0]).sum::<f64>() / n as f64;
         let cy = from.iter().map(|p| p[1]).sum::<f64>() / n as f64;
-        let spread = from
-            .iter()
-            .map(|p| (p[0] - cx).hypot(p[1] - cy))
-            .fold(0.0, f64::max);
+        let spread = from.iter().map(|p| (p[0] - cx).hypot(p[1] - cy)).fold(0.0, f64::max);
         if spread == 0.0 {
             return None;
         }
@@ -93,10 +81,7 @@ mod tests {
 
     #[test]
     fn fit_recovers_known_map_and_inverse() {
-        let truth = Affine2 {
-            m: Matrix2::new(2.0, 0.1, -0.2, 1.5),
-            t: Vector2::new(10.0, -3.0),
-        };
+        let truth = Affine2 { m: Matrix2::new(2.0, 0.1, -0.2, 1.5), t: Vector2::new(10.0, -3.0) };
         let from = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [3.0, 4.0]];
         let to: Vec<[f64; 2]> = from
             .iter()

@@ -49,13 +49,7 @@ impl OutputGrid {
         if w < 1.0 || h < 1.0 || w > u32::MAX as f64 || h > u32::MAX as f64 {
             return None;
         }
-        Some(OutputGrid {
-            x0,
-            y0,
-            gsd,
-            width: w as u32,
-            height: h as u32,
-        })
+        Some(OutputGrid { x0, y0, gsd, width: w as u32, height: h as u32 })
     }
 
     /// GDAL geotransform `[x0, gsd, 0, y0, 0, −gsd]`.

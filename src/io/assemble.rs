@@ -29,9 +29,17 @@ pub fn assemble(pieces: &[PathBuf], out: &Path) -> Result<()> {
     for (s, p) in srcs.iter().zip(pieces) {
         let i = &s.info;
         let g = i.georef.as_ref().ok_or_else(|| Error::format(p, "has no georeferencing"))?;
-        let same = i.tiled && i.chunk == first.chunk && i.bands == first.bands && i.sample == first.sample
-            && i.compression == first.compression && i.predictor == first.predictor && i.photometric == first.photometric
-            && i.has_alpha == first.has_alpha && (g.transform[1] - gsd).abs() < 1e-12 * gsd && g.epsg == geo0.epsg && g.nodata == geo0.nodata;
+        let same = i.tiled
+            && i.chunk == first.chunk
+            && i.bands == first.bands
+            && i.sample == first.sample
+            && i.compression == first.compression
+            && i.predictor == first.predictor
+            && i.photometric == first.photometric
+            && i.has_alpha == first.has_alpha
+            && (g.transform[1] - gsd).abs() < 1e-12 * gsd
+            && g.epsg == geo0.epsg
+            && g.nodata == geo0.nodata;
         if !same {
             return Err(Error::format(p, format!("is not a piece of the same orthophoto as {}", pieces[0].display())));
         }

@@ -63,11 +63,7 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
     let scale = dec.find_tag(Tag::ModelPixelScaleTag).map_err(tf)?.and_then(as_f64_list);
     let tie = dec.find_tag(Tag::ModelTiepointTag).map_err(tf)?.and_then(as_f64_list);
     let matrix = dec.find_tag(Tag::ModelTransformationTag).map_err(tf)?.and_then(as_f64_list);
-    let keys = dec
-        .find_tag(Tag::GeoKeyDirectoryTag)
-        .map_err(tf)?
-        .and_then(as_f64_list)
-        .unwrap_or_default();
+    let keys = dec.find_tag(Tag::GeoKeyDirectoryTag).map_err(tf)?.and_then(as_f64_list).unwrap_or_default();
     let nodata = match dec.find_tag(Tag::GdalNodata).map_err(tf)? {
         Some(Value::Ascii(s)) => {
             let s = s.trim_matches(char::from(0)).trim();
@@ -87,9 +83,7 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
             }
             match id {
                 GT_RASTER_TYPE => pixel_is_point = value as u16 == RASTER_PIXEL_IS_POINT,
-                PROJECTED_CS_TYPE | GEOGRAPHIC_TYPE if (1.0..32767.0).contains(&value) => {
-                    epsg = epsg.or(Some(value as u32))
-                }
+                PROJECTED_CS_TYPE | GEOGRAPHIC_TYPE if (1.0..32767.0).contains(&value) => epsg = epsg.or(Some(value as u32)),
                 _ => {}
             }
         }
@@ -131,10 +125,22 @@ pub fn write_georef<W: Write + Seek, K: TiffKind>(
     let geographic = is_geographic(epsg).unwrap_or(false);
     let (model, cs_key) = if geographic { (2u16, GEOGRAPHIC_TYPE) } else { (1u16, PROJECTED_CS_TYPE) };
     let keys: [u16; 16] = [
-        1, 1, 0, 3, //
-        GT_MODEL_TYPE, 0, 1, model, //
-        GT_RASTER_TYPE, 0, 1, 1, // PixelIsArea
-        cs_key, 0, 1, epsg as u16,
+        1,
+        1,
+        0,
+        3, //
+        GT_MODEL_TYPE,
+        0,
+        1,
+        model, //
+        GT_RASTER_TYPE,
+        0,
+        1,
+        1, // PixelIsArea
+        cs_key,
+        0,
+        1,
+        epsg as u16,
     ];
     dir.write_tag(Tag::GeoKeyDirectoryTag, &keys[..])?;
     if let Some(nd) = nodata {

@@ -273,17 +273,11 @@ fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_len: u64) -> 
     let planes = if info.planar { bands } else { 1 };
     let want = info.chunks_per_plane() as u64 * planes as u64;
     if info.offsets.len() as u64 != want || info.byte_counts.len() as u64 != want {
-        return Err(Error::format(
-            path,
-            format!("{} chunk offsets and {} byte counts, the image needs {want}", info.offsets.len(), info.byte_counts.len()),
-        ));
+        return Err(Error::format(path, format!("{} chunk offsets and {} byte counts, the image needs {want}", info.offsets.len(), info.byte_counts.len())));
     }
     for (k, (&o, &n)) in info.offsets.iter().zip(&info.byte_counts).enumerate() {
         if o.checked_add(n).is_none_or(|end| end > file_len) {
-            return Err(Error::format(
-                path,
-                format!("chunk {k} ({n} bytes at offset {o}) runs past the end of the {file_len}-byte file: truncated?"),
-            ));
+            return Err(Error::format(path, format!("chunk {k} ({n} bytes at offset {o}) runs past the end of the {file_len}-byte file: truncated?")));
         }
     }
     // A compressed chunk is decoded whole into memory.
@@ -462,10 +456,7 @@ impl SourceImage {
         if let Backend::Raw { map: Some(m), file } = &self.backend {
             let now = file.metadata().map_err(|e| Error::io(&self.path, e))?.len();
             if now < m.len() as u64 {
-                return Err(Error::format(
-                    &self.path,
-                    format!("the input file was truncated while being read ({} bytes, was {})", now, m.len()),
-                ));
+                return Err(Error::format(&self.path, format!("the input file was truncated while being read ({} bytes, was {})", now, m.len())));
             }
         }
         Ok(())
@@ -475,7 +466,15 @@ impl SourceImage {
     /// `plane`, whose first pixel is `origin`) into `bytes`, which hold
     /// rows of `w` pixels from `(x0, y0)`.
     #[allow(clippy::too_many_arguments)]
-    fn copy_chunk(&self, k: u32, plane: u32, origin: (u32, u32), r: (u32, u32, u32, u32), (win_x0, win_y0, win_w): (u32, u32, usize), bytes: &mut [u8]) -> Result<()> {
+    fn copy_chunk(
+        &self,
+        k: u32,
+        plane: u32,
+        origin: (u32, u32),
+        r: (u32, u32, u32, u32),
+        (win_x0, win_y0, win_w): (u32, u32, usize),
+        bytes: &mut [u8],
+    ) -> Result<()> {
         let info = &self.info;
         let sb = info.sample.bytes();
         let pb = info.pixel_bytes();
@@ -580,9 +579,8 @@ impl SourceImage {
         let (cw, ch) = info.chunk;
         let rows = (info.chunk_data_bytes(k) / (cw as u64 * spp as u64 * info.sample.bytes() as u64)) as u32;
         let data_w = if info.tiled { cw } else { info.width };
-        let bytes = decoding_bytes(result, info.sample).ok_or_else(|| {
-            Error::format(&self.path, format!("chunk {k} decodes to a sample type other than the header's"))
-        })?;
+        let bytes = decoding_bytes(result, info.sample)
+            .ok_or_else(|| Error::format(&self.path, format!("chunk {k} decodes to a sample type other than the header's")))?;
         // Tiles at the right edge decode cropped: re-pad them to the chunk
         // width so that every chunk has the same row stride.
         let sb = info.sample.bytes();
@@ -830,7 +828,18 @@ mod tests {
         for chunking in [Chunking::Strips(7), Chunking::Tiles(16)] {
             let path = dir.path().join("tall.tif");
             let (w, h) = (37u32, 400u32);
-            let spec = OutputSpec { width: w, height: h, bands: 3, sample: SampleType::U8, chunking, compression: Compression::None, bigtiff: false, photometric: 2, alpha: false, geo: None };
+            let spec = OutputSpec {
+                width: w,
+                height: h,
+                bands: 3,
+                sample: SampleType::U8,
+                chunking,
+                compression: Compression::None,
+                bigtiff: false,
+                photometric: 2,
+                alpha: false,
+                geo: None,
+            };
             write_raster(&path, &spec, |y0, _, buf| {
                 for (i, v) in buf.iter_mut().enumerate() {
                     *v = ((y0 as usize * w as usize * 3 + i) * 31 % 253) as u8;

@@ -343,11 +343,7 @@ impl PendingFile {
             _ => PathBuf::from("."),
         };
         let name = target.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-        let tmp = tempfile::Builder::new()
-            .prefix(&format!(".{name}."))
-            .suffix(".partial")
-            .tempfile_in(&dir)
-            .map_err(|e| Error::io(&dir, e))?;
+        let tmp = tempfile::Builder::new().prefix(&format!(".{name}.")).suffix(".partial").tempfile_in(&dir).map_err(|e| Error::io(&dir, e))?;
         crate::io::mmap_guard::register_cleanup(tmp.path());
         Ok(PendingFile { tmp: Some(tmp), target: target.to_path_buf() })
     }
@@ -394,9 +390,8 @@ impl PendingFile {
 pub fn verify(path: &Path, spec: &OutputSpec) -> Result<()> {
     let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let len = f.metadata().map_err(|e| Error::io(path, e))?.len();
-    let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(f))
-        .map_err(|e| Error::from_tiff(path, e))?
-        .with_limits(crate::io::source::decoder_limits());
+    let mut dec =
+        tiff::decoder::Decoder::new(std::io::BufReader::new(f)).map_err(|e| Error::from_tiff(path, e))?.with_limits(crate::io::source::decoder_limits());
     let bad = |m: String| Error::format(path, format!("written file failed verification: {m}"));
     let (w, h) = dec.dimensions().map_err(|e| Error::from_tiff(path, e))?;
     if (w, h) != (spec.width, spec.height) {
@@ -593,7 +588,13 @@ mod tests {
             let values: Vec<u16> = (0..n as u32).map(|i| (i.wrapping_mul(2654435761) >> 16) as u16 & mask).collect();
             let row = 16 * b;
             let want: Vec<u16> = (0..n).map(|i| if i % row < b { values[i] } else { values[i].wrapping_sub(values[i - b]) & mask }).collect();
-            let bytes = |v: &[u16]| -> Vec<u8> { if sample == SampleType::U8 { v.iter().map(|&x| x as u8).collect() } else { v.iter().flat_map(|x| x.to_ne_bytes()).collect() } };
+            let bytes = |v: &[u16]| -> Vec<u8> {
+                if sample == SampleType::U8 {
+                    v.iter().map(|&x| x as u8).collect()
+                } else {
+                    v.iter().flat_map(|x| x.to_ne_bytes()).collect()
+                }
+            };
             let (raw, want) = (bytes(&values), bytes(&want));
             let encoded = encode_tile(&s, raw).unwrap();
             assert_eq!(inflate(&encoded), want, "{bands} bands of {sample:?}");

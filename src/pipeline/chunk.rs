@@ -147,7 +147,13 @@ pub(super) fn resample_chunk<T: Sample + Recycle>(
     // needs it); scan positions (`cols`, `rws`) only where a row is not all
     // straight spans: made on first need, not zeroed for every split of the
     // chunk (1.6 % of the instructions).
-    let make_row = |r: usize, cols: &mut Vec<f64>, rws: &mut Vec<f64>, px: &mut [T], valid: &mut [bool], spans: &mut Vec<crate::gcm::Span>, miss: &mut Option<(f64, f64, Lookup)>| {
+    let make_row = |r: usize,
+                    cols: &mut Vec<f64>,
+                    rws: &mut Vec<f64>,
+                    px: &mut [T],
+                    valid: &mut [bool],
+                    spans: &mut Vec<crate::gcm::Span>,
+                    miss: &mut Option<(f64, f64, Lookup)>| {
         let positions = |cols: &mut Vec<f64>, rws: &mut Vec<f64>| {
             cols.resize(w, 0.0);
             rws.resize(w, 0.0);
@@ -255,21 +261,21 @@ pub(super) fn resample_chunk<T: Sample + Recycle>(
                         continue;
                     }
                     make_row(r, cols, rws, px, valid, spans, &mut miss);
-            for (tx, piece) in row_pieces.iter_mut().enumerate() {
-                let xs = tx * t;
-                let n = t.min(w - xs);
-                let (seg_out, pad) = piece.split_at_mut(n * bo);
-                pad.fill(T::default());
-                if direct {
-                    seg_out.copy_from_slice(&px[xs * bands_in..(xs + n) * bands_in]);
-                } else {
-                    for i in 0..n {
-                        let s = (xs + i) * bands_in;
-                        seg_out[i * bo..i * bo + bands_in].copy_from_slice(&px[s..s + bands_in]);
-                        seg_out[i * bo + bands_in] = if valid[xs + i] { opaque } else { T::default() };
+                    for (tx, piece) in row_pieces.iter_mut().enumerate() {
+                        let xs = tx * t;
+                        let n = t.min(w - xs);
+                        let (seg_out, pad) = piece.split_at_mut(n * bo);
+                        pad.fill(T::default());
+                        if direct {
+                            seg_out.copy_from_slice(&px[xs * bands_in..(xs + n) * bands_in]);
+                        } else {
+                            for i in 0..n {
+                                let s = (xs + i) * bands_in;
+                                seg_out[i * bo..i * bo + bands_in].copy_from_slice(&px[s..s + bands_in]);
+                                seg_out[i * bo + bands_in] = if valid[xs + i] { opaque } else { T::default() };
+                            }
+                        }
                     }
-                }
-            }
                 }
                 miss
             },
@@ -298,4 +304,3 @@ fn single_pixel<T: Sample>(src: &SourceImage, cfg: &RectifyConfig, c: f64, r: f6
     let mut valid = [false];
     resample_row(cfg.kernel, &view, &[c], &[r], out, &mut valid, fill);
 }
-

@@ -36,5 +36,5 @@ mod transpose;
 
 pub use config::{BandOrder, BigTiff, DemSource, RectifyConfig};
 pub use plan::{plan_band, Chunk};
-pub use report::{Report, StageTimes};
 pub use rectify::rectify;
+pub use report::{Report, StageTimes};

@@ -119,9 +119,10 @@ pub fn plan_band(
 /// The scan rows `[r0, r1)` that a band's chunks read (their windows'
 /// rows, hull of those that see the scan), if any.
 pub fn band_scan_rows(chunks: &[Chunk]) -> Option<(u32, u32)> {
-    chunks.iter().filter(|c| c.win[2] > c.win[0] && c.win[3] > c.win[1]).fold(None, |acc, c| {
-        Some(acc.map_or((c.win[1], c.win[3]), |(a, b): (u32, u32)| (a.min(c.win[1]), b.max(c.win[3]))))
-    })
+    chunks
+        .iter()
+        .filter(|c| c.win[2] > c.win[0] && c.win[3] > c.win[1])
+        .fold(None, |acc, c| Some(acc.map_or((c.win[1], c.win[3]), |(a, b): (u32, u32)| (a.min(c.win[1]), b.max(c.win[3])))))
 }
 
 /// The scan rows to ask for ahead when a band reads `rows`: those, and as

@@ -67,8 +67,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         None => mean_gsd(model, &dem, sw, sh, z_guess).map_err(on_dem)?,
     };
     let grid = match cfg.bounds {
-        Some(b) => OutputGrid::snapped(b[0], b[1], b[2], b[3], gsd)
-            .ok_or_else(|| Error::Usage(format!("--bounds {b:?} at GSD {gsd} is empty")))?,
+        Some(b) => OutputGrid::snapped(b[0], b[1], b[2], b[3], gsd).ok_or_else(|| Error::Usage(format!("--bounds {b:?} at GSD {gsd} is empty")))?,
         None => auto_grid(model, &dem, sw, sh, z_guess, gsd).map_err(on_dem)?,
     };
     if grid.width > 1 << 21 || grid.height > 1 << 21 {
@@ -80,8 +79,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
         Trend::Mean => dem.mean_plane(area),
     }
     .ok_or_else(|| Error::format(&dem.path, "no height anywhere inside the output area"))?;
-    let approx = Approx::new(model, &grid, plane)
-        .ok_or_else(|| Error::Geometry("the terrain plane is not in front of the camera".into()))?;
+    let approx = Approx::new(model, &grid, plane).ok_or_else(|| Error::Geometry("the terrain plane is not in front of the camera".into()))?;
     let band_order = match cfg.band_order {
         BandOrder::Auto => fewer_scan_rows(&approx, &grid, cfg.tile),
         order => order,
@@ -89,11 +87,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     // Bands of tile columns walk the transposed grid: its rows are the
     // output's columns.
     let columns = band_order == BandOrder::Columns;
-    let (t, approx) = if columns {
-        (Transform::transposed(model, &dem, grid), approx.transposed())
-    } else {
-        (Transform::new(model, &dem, grid), approx)
-    };
+    let (t, approx) = if columns { (Transform::transposed(model, &dem, grid), approx.transposed()) } else { (Transform::new(model, &dem, grid), approx) };
     let mut spec_gcm = cfg.gcm;
     if cfg.auto_sparsity {
         spec_gcm.k = auto_sparsity(&dem, &grid, camera.crs.epsg);
@@ -105,9 +99,7 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     let (tx_all, ty_all) = (grid.width.div_ceil(cfg.tile), grid.height.div_ceil(cfg.tile));
     let [tc0, tr0, tcw, trh] = cfg.window.unwrap_or([0, 0, tx_all, ty_all]);
     if tcw == 0 || trh == 0 || tc0 + tcw > tx_all || tr0 + trh > ty_all {
-        return Err(Error::Usage(format!(
-            "--window {tc0},{tr0},{tcw},{trh} is not inside the output's {tx_all}×{ty_all} tiles"
-        )));
+        return Err(Error::Usage(format!("--window {tc0},{tr0},{tcw},{trh} is not inside the output's {tx_all}×{ty_all} tiles")));
     }
     let (tc1, tr1) = (tc0 + tcw, tr0 + trh);
     // The piece as walked: bands `wr0..wr1` of tile columns `wc0..wc1`
@@ -146,10 +138,8 @@ pub fn rectify(cfg: &RectifyConfig, cancel: &AtomicBool) -> Result<Report> {
     // on the pool's one worker, while this thread waits), so that
     // `--threads 1` keeps one processor busy, not one and a half.
     let sequential = cfg.threads == 1;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(cfg.threads)
-        .build()
-        .map_err(|e| Error::Usage(format!("cannot start {} threads: {e}", cfg.threads)))?;
+    let pool =
+        rayon::ThreadPoolBuilder::new().num_threads(cfg.threads).build().map_err(|e| Error::Usage(format!("cannot start {} threads: {e}", cfg.threads)))?;
     let mut times = StageTimes { setup: wall.elapsed().as_secs_f64(), ..Default::default() };
     let n_bands = wr1 - wr0;
     let (lines, what) = if columns { (piece_w, "columns") } else { (piece_h, "rows") };

@@ -330,10 +330,7 @@ fn dem_miss_error(dem: &Dem, (x, y, l): (f64, f64, Lookup)) -> Error {
         Lookup::Hole => "a hole (nodata) in the DEM",
         _ => "outside the DEM",
     };
-    Error::format(
-        &dem.path,
-        format!("no height at ground point ({x:.2}, {y:.2}), {what}; choose --dem-hole / --dem-outside nodata or a height"),
-    )
+    Error::format(&dem.path, format!("no height at ground point ({x:.2}, {y:.2}), {what}; choose --dem-hole / --dem-outside nodata or a height"))
 }
 
 /// Runs `f`, adding its wall time to `acc`.

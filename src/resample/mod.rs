@@ -265,15 +265,7 @@ fn lanczos3_weights(t: f32) -> [f32; 6] {
 /// edge of the view that is not the scan's (then the caller reads those
 /// pixels again from a wider window). Bilinear tells exactly; the other
 /// kernels always say yes.
-pub fn resample_row<T: Sample>(
-    kernel: Kernel,
-    view: &View<'_, T>,
-    cols: &[f64],
-    rows: &[f64],
-    out: &mut [T],
-    valid: &mut [bool],
-    fill: T,
-) -> bool {
+pub fn resample_row<T: Sample>(kernel: Kernel, view: &View<'_, T>, cols: &[f64], rows: &[f64], out: &mut [T], valid: &mut [bool], fill: T) -> bool {
     // The common kernels with the band count known at compile time.
     match (kernel, view.bands) {
         (Kernel::Bilinear, 1) => return bilinear_row::<T, 1>(view, cols, rows, out, valid, fill),
@@ -823,7 +815,15 @@ mod tests {
             (0..80)
                 .map(|k| {
                     let len = 1 + k % 3;
-                    let (c, r) = if odd.contains(&k) { if k == 70 { (-3.0, 8.0) } else { (20.0, 30.0) } } else { (8.0 + 0.4 * k as f64, 7.0 + 0.05 * k as f64) };
+                    let (c, r) = if odd.contains(&k) {
+                        if k == 70 {
+                            (-3.0, 8.0)
+                        } else {
+                            (20.0, 30.0)
+                        }
+                    } else {
+                        (8.0 + 0.4 * k as f64, 7.0 + 0.05 * k as f64)
+                    };
                     let s = Span { linear: true, first: x, end: x + len, anchor: x, c, r, dc: 0.1, dr: 0.02 };
                     x += len;
                     s
@@ -958,7 +958,8 @@ mod tests {
                 .collect();
             let win = Window::from_bytes(10, 5, w, h, &bytes);
             let view = View::<u8>::new(&win, bands, 60, 40);
-            for (c, r, dc, dr) in [(12.3, 7.9, 0.731, 0.213), (8.0, 6.0, 1.117, -0.05), (45.5, 30.2, 0.9, 0.4), (55.1, 38.7, 0.3, 0.2), (14.0, 33.9, 1.1, 0.0)] {
+            for (c, r, dc, dr) in [(12.3, 7.9, 0.731, 0.213), (8.0, 6.0, 1.117, -0.05), (45.5, 30.2, 0.9, 0.4), (55.1, 38.7, 0.3, 0.2), (14.0, 33.9, 1.1, 0.0)]
+            {
                 let span = Span { linear: true, first: 100, end: 130, anchor: 97, c, r, dc, dr };
                 let n = span.end - span.first;
                 let b = bands as usize;

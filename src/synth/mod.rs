@@ -10,9 +10,9 @@ mod render;
 mod satellite;
 pub mod texture;
 
-use crate::camera::file::{CameraFile, CameraSection, CorrectionsSection, DistortionSection, ExteriorSection, InteriorSection};
 use crate::camera::atmosphere::Refraction;
 use crate::camera::distortion::Brown;
+use crate::camera::file::{CameraFile, CameraSection, CorrectionsSection, DistortionSection, ExteriorSection, InteriorSection};
 use crate::camera::rotation::AngleConvention;
 use crate::camera::SensorModel;
 use crate::dem::{Dem, GridDem, Height};
@@ -21,9 +21,9 @@ use crate::io::source::SampleType;
 use crate::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
 use crate::transform::footprint::{auto_grid, mean_gsd};
 use rayon::prelude::*;
+use render::render_scan;
 use std::io::Write;
 use std::path::PathBuf;
-use render::render_scan;
 use texture::Texture;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -187,12 +187,7 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
             CameraFile {
                 crs: format!("EPSG:{EPSG}"),
                 camera: CameraSection { model: "frame".into(), focal_length_mm: Some(FILM_FOCAL) },
-                interior: Some(InteriorSection {
-                    fiducials_mm: Some(marks),
-                    fiducials_px: Some(px_marks),
-                    principal_point_mm: Some(pp),
-                    ..Default::default()
-                }),
+                interior: Some(InteriorSection { fiducials_mm: Some(marks), fiducials_px: Some(px_marks), principal_point_mm: Some(pp), ..Default::default() }),
                 distortion: Some(DistortionSection { radial_mm: Some([0.0, 1.5e-7, -2.0e-9]), brown: None }),
                 exterior: Some(ExteriorSection {
                     position: [centre_x, centre_y, ground_h + flying],
@@ -214,10 +209,7 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
                     principal_point_px: Some([o.width as f64 / 2.0 + 3.7, o.height as f64 / 2.0 - 2.9]),
                     ..Default::default()
                 }),
-                distortion: Some(DistortionSection {
-                    radial_mm: None,
-                    brown: Some(Brown { k1: -0.02, k2: 0.004, k3: 0.0, p1: 1.0e-5, p2: -2.0e-5 }),
-                }),
+                distortion: Some(DistortionSection { radial_mm: None, brown: Some(Brown { k1: -0.02, k2: 0.004, k3: 0.0, p1: 1.0e-5, p2: -2.0e-5 }) }),
                 exterior: Some(ExteriorSection {
                     position: [centre_x, centre_y, ground_h + flying],
                     angles_deg: [omega, tilt2, o.kappa_deg],

@@ -7,9 +7,7 @@ use crate::resample::floor_split;
 #[inline]
 pub fn hash(a: i64, b: i64, seed: u64) -> u64 {
     // SplitMix64 over a mix of the inputs.
-    let mut z = seed
-        .wrapping_add((a as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15))
-        .wrapping_add((b as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F));
+    let mut z = seed.wrapping_add((a as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)).wrapping_add((b as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F));
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)

@@ -55,14 +55,7 @@ struct Road {
     half: f64,
 }
 
-const PALETTE: [[f32; 3]; 6] = [
-    [0.32, 0.45, 0.20],
-    [0.55, 0.50, 0.28],
-    [0.70, 0.62, 0.35],
-    [0.25, 0.35, 0.18],
-    [0.45, 0.38, 0.26],
-    [0.60, 0.58, 0.40],
-];
+const PALETTE: [[f32; 3]; 6] = [[0.32, 0.45, 0.20], [0.55, 0.50, 0.28], [0.70, 0.62, 0.35], [0.25, 0.35, 0.18], [0.45, 0.38, 0.26], [0.60, 0.58, 0.40]];
 
 /// (cos, sin) of the angle whose half-angle tangent is `t` (rational, so
 /// exactly reproducible).
@@ -80,18 +73,11 @@ impl Texture {
         let roads: Vec<Road> = (0..4)
             .map(|k| {
                 let (c, s) = rational_rotation(u(10 + k) * 2.0 - 1.0);
-                Road {
-                    x: cx + (u(20 + k) - 0.5) * size * 0.6,
-                    y: cy + (u(30 + k) - 0.5) * size * 0.6,
-                    dx: c,
-                    dy: s,
-                    half: gsd * (2.0 + 3.0 * u(40 + k)),
-                }
+                Road { x: cx + (u(20 + k) - 0.5) * size * 0.6, y: cy + (u(30 + k) - 0.5) * size * 0.6, dx: c, dy: s, half: gsd * (2.0 + 3.0 * u(40 + k)) }
             })
             .collect();
-        let landmarks: Vec<(f64, f64, f64)> = (0..12)
-            .map(|k| (cx + (u(50 + k) - 0.5) * size * 0.8, cy + (u(70 + k) - 0.5) * size * 0.8, gsd * (6.0 + 10.0 * u(90 + k))))
-            .collect();
+        let landmarks: Vec<(f64, f64, f64)> =
+            (0..12).map(|k| (cx + (u(50 + k) - 0.5) * size * 0.8, cy + (u(70 + k) - 0.5) * size * 0.8, gsd * (6.0 + 10.0 * u(90 + k)))).collect();
         // Cells of the feature grid: a 64×64 grid over twice the scene's size.
         let n = 64usize;
         let cell = 2.0 * size / n as f64;

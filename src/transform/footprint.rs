@@ -26,10 +26,7 @@ pub fn footprint(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f6
         }
     }
     if hits < 4 {
-        return Err(Error::Geometry(format!(
-            "only {hits} of {} points on the scan's edges meet the DEM: does the DEM cover the scan?",
-            4 * (n + 1)
-        )));
+        return Err(Error::Geometry(format!("only {hits} of {} points on the scan's edges meet the DEM: does the DEM cover the scan?", 4 * (n + 1))));
     }
     Ok(b)
 }
@@ -56,6 +53,5 @@ pub fn mean_gsd(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64
 /// The default grid: footprint snapped to `gsd`.
 pub fn auto_grid(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64, gsd: f64) -> Result<OutputGrid> {
     let b = footprint(model, dem, w, h, z_guess)?;
-    OutputGrid::snapped(b[0], b[1], b[2], b[3], gsd)
-        .ok_or_else(|| Error::Geometry(format!("footprint {b:?} at GSD {gsd} gives an empty grid")))
+    OutputGrid::snapped(b[0], b[1], b[2], b[3], gsd).ok_or_else(|| Error::Geometry(format!("footprint {b:?} at GSD {gsd} gives an empty grid")))
 }

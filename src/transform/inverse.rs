@@ -166,7 +166,6 @@ fn newton_step(p: [[f64; 3]; 2], gx: f64, gy: f64, e: (f64, f64)) -> Option<(f64
     Some(((d * e.0 - b * e.1) * inv, (a * e.1 - c * e.0) * inv))
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::{newton_step, RayCaster, RunScratch};
@@ -194,7 +193,9 @@ mod tests {
         let dem = Dem::grid(GridDem::new(n, n, data, [2500.0, 5.0, 0.0, 7500.0, 0.0, -5.0], None, None), std::path::Path::new("hills"));
         let mut caster = RayCaster::new(&cam, &dem);
         let cols: Vec<f64> = (0..600).map(|i| 4000.5 + i as f64).collect();
-        let cast_row = |caster: &mut RayCaster<'_, FrameCamera>, r: f64| -> Vec<[f64; 3]> { cols.iter().map(|&c| caster.cast(c, r, None, 300.0, 1e-3).unwrap()).collect() };
+        let cast_row = |caster: &mut RayCaster<'_, FrameCamera>, r: f64| -> Vec<[f64; 3]> {
+            cols.iter().map(|&c| caster.cast(c, r, None, 300.0, 1e-3).unwrap()).collect()
+        };
         let (a, b) = (cast_row(&mut caster, 5000.5), cast_row(&mut caster, 5001.5));
         let guess: Vec<(f64, f64)> = a.iter().zip(&b).map(|(a, b)| (2.0 * b[0] - a[0], 2.0 * b[1] - a[1])).collect();
         let mut found = vec![None; cols.len()];

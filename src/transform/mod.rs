@@ -169,14 +169,7 @@ impl Approx {
     #[inline]
     pub fn row(&self, v: f64) -> RowApprox {
         let h = &self.h;
-        RowApprox {
-            m: h[(0, 0)],
-            n: h[(0, 1)] * v + h[(0, 2)],
-            p: h[(1, 0)],
-            q: h[(1, 1)] * v + h[(1, 2)],
-            e: h[(2, 0)],
-            f: h[(2, 1)] * v + h[(2, 2)],
-        }
+        RowApprox { m: h[(0, 0)], n: h[(0, 1)] * v + h[(0, 2)], p: h[(1, 0)], q: h[(1, 1)] * v + h[(1, 2)], e: h[(2, 0)], f: h[(2, 1)] * v + h[(2, 2)] }
     }
 
     /// `A(u, v)`; `None` where the denominator is not positive (the plane

@@ -31,10 +31,8 @@ pub fn fit_rpc(points: &[Correspondence]) -> Option<Fitted> {
     // Offsets and scales of the image in RPC (0-based centre) coordinates.
     let (samp_off, samp_scale) = range(&|p| p.1 .0 - 0.5);
     let (line_off, line_scale) = range(&|p| p.1 .1 - 0.5);
-    let terms: Vec<[f64; 20]> = points
-        .iter()
-        .map(|p| super::terms((p.0 .0 - long_off) / long_scale, (p.0 .1 - lat_off) / lat_scale, (p.0 .2 - height_off) / height_scale))
-        .collect();
+    let terms: Vec<[f64; 20]> =
+        points.iter().map(|p| super::terms((p.0 .0 - long_off) / long_scale, (p.0 .1 - lat_off) / lat_scale, (p.0 .2 - height_off) / height_scale)).collect();
     let solve = |value: &dyn Fn(&Correspondence) -> f64| -> Option<([f64; 20], [f64; 20])> {
         let n = points.len();
         let mut a = nalgebra::DMatrix::<f64>::zeros(n, 39);

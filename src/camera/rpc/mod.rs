@@ -11,8 +11,20 @@ mod read;
 
 /// GDAL's metadata names of the 14 RPC items (the other readers map onto them).
 pub const GDAL_NAMES: [&str; 14] = [
-    "LINE_OFF", "SAMP_OFF", "LAT_OFF", "LONG_OFF", "HEIGHT_OFF", "LINE_SCALE", "SAMP_SCALE", "LAT_SCALE", "LONG_SCALE", "HEIGHT_SCALE",
-    "LINE_NUM_COEFF", "LINE_DEN_COEFF", "SAMP_NUM_COEFF", "SAMP_DEN_COEFF",
+    "LINE_OFF",
+    "SAMP_OFF",
+    "LAT_OFF",
+    "LONG_OFF",
+    "HEIGHT_OFF",
+    "LINE_SCALE",
+    "SAMP_SCALE",
+    "LAT_SCALE",
+    "LONG_SCALE",
+    "HEIGHT_SCALE",
+    "LINE_NUM_COEFF",
+    "LINE_DEN_COEFF",
+    "SAMP_NUM_COEFF",
+    "SAMP_DEN_COEFF",
 ];
 
 use crate::error::{Error, Result};
@@ -41,8 +53,26 @@ pub struct Rpc {
 #[inline]
 pub(crate) fn terms(l: f64, p: f64, h: f64) -> [f64; 20] {
     [
-        1.0, l, p, h, l * p, l * h, p * h, l * l, p * p, h * h,
-        p * l * h, l * l * l, l * p * p, l * h * h, l * l * p, p * p * p, p * h * h, l * l * h, p * p * h, h * h * h,
+        1.0,
+        l,
+        p,
+        h,
+        l * p,
+        l * h,
+        p * h,
+        l * l,
+        p * p,
+        h * h,
+        p * l * h,
+        l * l * l,
+        l * p * p,
+        l * h * h,
+        l * l * p,
+        p * p * p,
+        p * h * h,
+        l * l * h,
+        p * p * h,
+        h * h * h,
     ]
 }
 
@@ -69,8 +99,16 @@ impl Rpc {
     pub fn to_gdal_text(&self) -> String {
         let mut t = String::new();
         let scalars = [
-            self.line_off, self.samp_off, self.lat_off, self.long_off, self.height_off,
-            self.line_scale, self.samp_scale, self.lat_scale, self.long_scale, self.height_scale,
+            self.line_off,
+            self.samp_off,
+            self.lat_off,
+            self.long_off,
+            self.height_off,
+            self.line_scale,
+            self.samp_scale,
+            self.lat_scale,
+            self.long_scale,
+            self.height_scale,
         ];
         for (name, v) in read::SCALARS.iter().zip(scalars) {
             t += &format!("{name}: {v:?}\n");
@@ -162,7 +200,13 @@ impl Rpc {
                 return Err(Error::format(path, format!("RPC: {k} is all zero (no denominator)")));
             }
         }
-        for (k, v) in [("LINE_SCALE", rpc.line_scale), ("SAMP_SCALE", rpc.samp_scale), ("LAT_SCALE", rpc.lat_scale), ("LONG_SCALE", rpc.long_scale), ("HEIGHT_SCALE", rpc.height_scale)] {
+        for (k, v) in [
+            ("LINE_SCALE", rpc.line_scale),
+            ("SAMP_SCALE", rpc.samp_scale),
+            ("LAT_SCALE", rpc.lat_scale),
+            ("LONG_SCALE", rpc.long_scale),
+            ("HEIGHT_SCALE", rpc.height_scale),
+        ] {
             if v == 0.0 {
                 return Err(Error::format(path, format!("RPC: {k} is zero")));
             }

@@ -147,10 +147,7 @@ impl Rpc {
     /// The RPC00B tagged record extension of a NITF file (STDI-0002 App. E):
     /// fixed-width text after the tag name and its 5-digit length.
     pub fn parse_nitf(bytes: &[u8], path: &Path) -> Result<Rpc> {
-        let at = bytes
-            .windows(6)
-            .position(|w| w == b"RPC00B")
-            .ok_or_else(|| Error::format(path, "NITF without an RPC00B TRE"))?;
+        let at = bytes.windows(6).position(|w| w == b"RPC00B").ok_or_else(|| Error::format(path, "NITF without an RPC00B TRE"))?;
         let widths = [6usize, 5, 8, 9, 5, 6, 5, 8, 9, 5];
         // tag (6) + length (5) + SUCCESS (1) + ERR_BIAS (7) + ERR_RAND (7)
         let mut pos = at + 6 + 5 + 1 + 7 + 7;
@@ -179,10 +176,8 @@ impl Rpc {
     pub fn from_geotiff(path: &Path) -> Result<Rpc> {
         let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
         let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(f)).map_err(|e| Error::from_tiff(path, e))?;
-        let v = dec
-            .find_tag(tiff::tags::Tag::Unknown(50844))
-            .map_err(|e| Error::from_tiff(path, e))?
-            .ok_or_else(|| Error::format(path, "no RPC tag (50844)"))?;
+        let v =
+            dec.find_tag(tiff::tags::Tag::Unknown(50844)).map_err(|e| Error::from_tiff(path, e))?.ok_or_else(|| Error::format(path, "no RPC tag (50844)"))?;
         let v: Vec<f64> = match v {
             tiff::decoder::ifd::Value::List(items) => items.into_iter().filter_map(|x| x.into_f64().ok()).collect(),
             _ => Vec::new(),
@@ -205,9 +200,10 @@ impl Rpc {
     /// `<FILENAME>` is `image_name` (case-insensitive), to shift the RPC by.
     pub fn tile_offset(xml: &str, image_name: &str) -> Option<[f64; 2]> {
         let doc = roxmltree::Document::parse(xml).ok()?;
-        let tile = doc.descendants().filter(|n| n.has_tag_name("TILE")).find(|t| {
-            t.children().any(|c| c.has_tag_name("FILENAME") && c.text().is_some_and(|f| f.trim().eq_ignore_ascii_case(image_name)))
-        })?;
+        let tile = doc
+            .descendants()
+            .filter(|n| n.has_tag_name("TILE"))
+            .find(|t| t.children().any(|c| c.has_tag_name("FILENAME") && c.text().is_some_and(|f| f.trim().eq_ignore_ascii_case(image_name))))?;
         let get = |name: &str| tile.children().find(|c| c.has_tag_name(name))?.text()?.trim().parse::<f64>().ok();
         Some([get("ULCOLOFFSET")?, get("ULROWOFFSET")?])
     }
