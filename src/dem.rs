@@ -2,12 +2,11 @@
 //! 9.35), a constant "flat" DEM, and the policy for holes and for points
 //! outside the grid. The rest of the program sees only `Dem::height`.
 
-use crate::camera::Plane;
 use crate::error::{Error, Result};
 use crate::geodesy::Reprojection;
+use crate::geom::{floor_split, Plane};
 use crate::io::chunked_raster::ChunkedRaster;
 use crate::io::geotiff::{read_georef, GeoRef};
-use crate::resample::floor_split;
 use std::path::{Path, PathBuf};
 
 /// What a raw lookup found.

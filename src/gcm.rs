@@ -25,6 +25,7 @@
 //! never holds the whole matrix.
 
 use crate::dem::{Height, Lookup};
+use crate::geom::Span;
 use crate::transform::{Approx, Mapped, Transform};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -158,76 +159,6 @@ pub const A_LINEAR_TOLERANCE: f64 = 1.0 / 4096.0;
 /// columns into where `A` curves: beyond, pieces of a few pixels cost more
 /// in set-up than working every position out.
 pub const MAX_SPANS_A_GAP: usize = 4;
-
-/// Output pixels `first..end` of a row, in one gap between node columns.
-/// Where `linear`, the scan position is a straight line: at pixel x,
-/// `(c + (x − anchor)·dc, r + (x − anchor)·dr)`, where `anchor` is the
-/// gap's first pixel. Where not (a refined cell, a node without a value),
-/// [`Gcm::fill_exact`] works the positions out pixel by pixel.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Span {
-    pub linear: bool,
-    pub first: usize,
-    pub end: usize,
-    pub anchor: usize,
-    pub c: f64,
-    pub r: f64,
-    pub dc: f64,
-    pub dr: f64,
-}
-
-impl Span {
-    /// The positions of pixels `first..end`; `ramp` holds 0, 1, 2, … at
-    /// least as many.
-    #[inline]
-    pub fn fill(&self, ramp: &[f64], cols: &mut [f64], rows: &mut [f64]) {
-        let off = (self.first - self.anchor) as f64;
-        if ramp.len() < cols.len() {
-            for (j, (oc, or)) in cols.iter_mut().zip(rows.iter_mut()).enumerate() {
-                (*oc, *or) = self.at(self.first + j);
-            }
-            return;
-        }
-        for ((oc, or), m) in cols.iter_mut().zip(rows.iter_mut()).zip(ramp) {
-            *oc = self.c + (off + m) * self.dc;
-            *or = self.r + (off + m) * self.dr;
-        }
-    }
-
-    /// Consecutive spans (left to right, as [`Gcm::row_spans`] makes them)
-    /// cut where they cross the edges of tiles `tile` columns wide that
-    /// start at column `origin`: (tile index from `origin`, the piece). The
-    /// tile is followed along the row, with no division per span.
-    pub fn by_tile(spans: &[Span], origin: usize, tile: usize) -> impl Iterator<Item = (usize, Span)> + '_ {
-        let mut rest = spans.iter();
-        let mut current: Option<(&Span, usize)> = None;
-        let (mut t, mut tile_end) = (0, origin + tile);
-        std::iter::from_fn(move || loop {
-            let (span, first) = match current {
-                Some((s, first)) if first < s.end => (s, first),
-                _ => {
-                    let s = rest.next()?;
-                    current = Some((s, s.first));
-                    continue;
-                }
-            };
-            while first >= tile_end {
-                t += 1;
-                tile_end += tile;
-            }
-            let end = tile_end.min(span.end);
-            current = Some((span, end));
-            return Some((t, Span { first, end, ..*span }));
-        })
-    }
-
-    /// The scan position at output column `x`.
-    #[inline]
-    pub fn at(&self, x: usize) -> (f64, f64) {
-        let m = x as f64 - self.anchor as f64;
-        (self.c + m * self.dc, self.r + m * self.dr)
-    }
-}
 
 const CHECK_POINTS: [(f64, f64); 13] = [
     (0.25, 0.25),

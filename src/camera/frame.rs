@@ -7,8 +7,9 @@ use super::atmosphere::{curvature_drop, Refraction};
 use super::distortion::Distortion;
 use super::interior::InteriorOrientation;
 use super::lanes::Lanes;
-use super::{Plane, SensorModel};
+use super::SensorModel;
 use crate::geom::OutputGrid;
+use crate::geom::Plane;
 use nalgebra::{Matrix3, Vector3};
 use wide::f64x2;
 

@@ -15,26 +15,8 @@ pub use file::{CameraFile, Crs};
 pub use frame::FrameCamera;
 pub use satellite::RpcCamera;
 
-use crate::geom::OutputGrid;
+use crate::geom::{OutputGrid, Plane};
 use nalgebra::Matrix3;
-
-/// A plane `Z = a + b·X + c·Y` in ground coordinates (the trend of the DEM).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct Plane {
-    pub a: f64,
-    pub b: f64,
-    pub c: f64,
-}
-
-impl Plane {
-    pub fn flat(z: f64) -> Plane {
-        Plane { a: z, b: 0.0, c: 0.0 }
-    }
-    #[inline]
-    pub fn height(&self, x: f64, y: f64) -> f64 {
-        self.a + self.b * x + self.c * y
-    }
-}
 
 /// The mapping `T` from ground to image, without the DEM.
 pub trait SensorModel: Send + Sync {

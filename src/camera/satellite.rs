@@ -6,9 +6,10 @@
 //! the relief and what of the RPC is not projective.
 
 use super::rpc::Rpc;
-use super::{Plane, SensorModel};
+use super::SensorModel;
 use crate::geodesy::{Geoid, GroundCrs};
 use crate::geom::OutputGrid;
+use crate::geom::Plane;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 pub struct RpcCamera {

@@ -152,7 +152,7 @@ pub(super) fn resample_chunk<T: Sample + Recycle>(
                     rws: &mut Vec<f64>,
                     px: &mut [T],
                     valid: &mut [bool],
-                    spans: &mut Vec<crate::gcm::Span>,
+                    spans: &mut Vec<crate::geom::Span>,
                     miss: &mut Option<(f64, f64, Lookup)>| {
         let positions = |cols: &mut Vec<f64>, rws: &mut Vec<f64>| {
             cols.resize(w, 0.0);

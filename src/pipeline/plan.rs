@@ -4,7 +4,8 @@
 //! `A + c`, and tiles are grouped left to right while the window stays under
 //! the memory budget.
 
-use crate::gcm::{BandGcm, Gcm, Span};
+use crate::gcm::{BandGcm, Gcm};
+use crate::geom::Span;
 
 /// A run of output tiles of one band and the scan window it reads.
 #[derive(Clone, Debug, PartialEq)]

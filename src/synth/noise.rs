@@ -2,7 +2,7 @@
 //! noise with a quintic fade. Only +, −, ×, ÷ and floor, so the same seed
 //! gives the same bytes on every IEEE-754 machine (no libm calls).
 
-use crate::resample::floor_split;
+use crate::geom::floor_split;
 
 #[inline]
 pub fn hash(a: i64, b: i64, seed: u64) -> u64 {

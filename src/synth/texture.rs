@@ -4,7 +4,7 @@
 //! resolved (no aliasing) yet sharp. Colours in [0, 1].
 
 use super::noise::{hash, unit, Lattice};
-use crate::resample::floor_split;
+use crate::geom::floor_split;
 
 pub struct Texture {
     seed: u64,

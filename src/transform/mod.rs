@@ -10,9 +10,10 @@
 pub mod footprint;
 pub mod inverse;
 
-use crate::camera::{Plane, SensorModel};
+use crate::camera::SensorModel;
 use crate::dem::{Dem, Height, Lookup};
 use crate::geom::OutputGrid;
+use crate::geom::Plane;
 use nalgebra::{Matrix3, Vector3};
 
 /// Result of the exact mapping of one point.
