@@ -1,15 +1,31 @@
-//! Command-line arguments (clap) and their validation into the library's
-//! option structs. Raw flags stop here.
+//! Command-line arguments (clap) into the library's options. Choices are
+//! typed here, by the library's own parsers; ranges are checked by the
+//! library (`RectifyOptions::validate`), whose errors name the setting by
+//! its key, which `flag` turns back into the flag. Raw flags stop here.
 
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
-use gcm_ortho::dem::Miss;
-use gcm_ortho::gcm::{CorrectionMode, GcmSpec};
+use gcm_ortho::gcm::GcmSpec;
 use gcm_ortho::io::tiff_out::Compression;
-use gcm_ortho::pipeline::{BigTiff, DemSource, RectifyConfig};
+use gcm_ortho::options::{
+    parse_bounds, parse_bytes, parse_miss, parse_offset, parse_size, parse_window, BandOrder, BigTiff, Choice, DemSource, ModelSource, RectifyOptions,
+};
 use gcm_ortho::resample::Kernel;
 use gcm_ortho::synth::{CameraKind, Relief, SynthOptions};
 use gcm_ortho::transform::Trend;
+use gcm_ortho::Result;
 use std::path::PathBuf;
+
+/// A flag taking one of `T`'s names, parsed into `T` (clap lists the names
+/// in `--help` and refuses others).
+fn choice<T: Choice>() -> impl TypedValueParser<Value = T> {
+    PossibleValuesParser::new(T::NAMES).map(|s| T::from_name(&s).expect("a listed name"))
+}
+
+/// The flag of a setting named by its key (`dem_hole` → `--dem-hole`).
+pub fn flag(setting: &str) -> String {
+    format!("--{}", setting.replace('_', "-"))
+}
 
 #[derive(Parser, Debug)]
 #[command(name = "gcm-ortho", version, about = "Orthorectification of huge scans on small machines by the generalized correction matrix")]
@@ -32,8 +48,8 @@ pub enum Command {
     Batch(BatchArgs),
     /// Put pieces made with `rectify --window` together into one GeoTIFF.
     Assemble(AssembleArgs),
-    /// The image → ground regular grid of an RPC image (seed 004), as GDAL
-    /// geolocation arrays, with its accuracy table.
+    /// The image → ground regular grid of an RPC image (Chibunichev and
+    /// Sonyushkin), as GDAL geolocation arrays, with its accuracy table.
     RpcGrid(RpcGridArgs),
 }
 
@@ -65,23 +81,17 @@ pub struct SensorArgs {
 }
 
 impl SensorArgs {
-    /// The camera file or RPC file named, and with --rpc the camera file
-    /// made from it (`crs`: the ground CRS, None for the scene's UTM zone).
-    pub fn model(&self, crs: Option<u32>) -> Result<(PathBuf, Option<gcm_ortho::camera::CameraFile>), String> {
+    /// The camera file or RPC file named, and how it becomes the sensor
+    /// model (`crs`: the ground CRS, None for the scene's UTM zone). No
+    /// file is read here: the library does that when it sets up the run.
+    pub fn model(&self, crs: Option<u32>) -> Result<(PathBuf, ModelSource)> {
         match (&self.camera, &self.rpc) {
-            (Some(c), None) => Ok((c.clone(), None)),
+            (Some(c), None) => Ok((c.clone(), ModelSource::CameraFile)),
             (None, Some(r)) => {
-                let offset = match self.rpc_offset.as_deref() {
-                    Some(o) => Some(parse_offset(o)?),
-                    // A tile of a DigitalGlobe product: its offset is in the XML.
-                    None => std::fs::read_to_string(r).ok().and_then(|xml| {
-                        let name = self.image.file_name()?.to_str()?;
-                        gcm_ortho::camera::rpc::Rpc::tile_offset(&xml, name)
-                    }),
-                };
-                Ok((r.clone(), Some(gcm_ortho::camera::file::Camera::rpc_file(r, crs, offset, self.geoid.as_deref()))))
+                let offset = self.rpc_offset.as_deref().map(|o| parse_offset("rpc_offset", o)).transpose()?;
+                Ok((r.clone(), ModelSource::Rpc { offset, geoid: self.geoid.clone(), crs }))
             }
-            _ => Err("give --camera FILE or --rpc FILE".into()),
+            _ => Err(gcm_ortho::Error::setting("camera", "give a camera file or an RPC file")),
         }
     }
 }
@@ -96,7 +106,7 @@ pub struct RpcGridArgs {
     /// Grid step, image pixels.
     #[arg(long, default_value_t = 8)]
     pub step: u32,
-    /// Also print seed 004's accuracy table for these steps, e.g. 2,4,8,16,32.
+    /// Also print the grid's accuracy table for these steps, e.g. 2,4,8,16,32.
     #[arg(long)]
     pub accuracy: Option<String>,
     /// Accuracy over every N-th pixel of each row and column.
@@ -170,11 +180,11 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 8)]
     pub bits: u32,
     /// Terrain of the generated DEM
-    #[arg(long, default_value = "hilly", value_parser = ["flat", "hilly", "mountain"])]
-    pub relief: String,
+    #[arg(long, default_value = "hilly", value_parser = choice::<Relief>())]
+    pub relief: Relief,
     /// A film scan with fiducial marks, a digital frame, or a satellite image with RPCs
-    #[arg(long, default_value = "film", value_parser = ["film", "digital", "rpc"])]
-    pub camera: String,
+    #[arg(long, default_value = "film", value_parser = choice::<CameraKind>())]
+    pub camera: CameraKind,
     /// Off-nadir angle of an RPC (satellite) scene, degrees: 2 to 35.
     #[arg(long, default_value_t = 25.0)]
     pub off_nadir: f64,
@@ -185,8 +195,8 @@ pub struct SynthArgs {
     #[arg(long, default_value = "strips", value_parser = ["strips", "tiles"])]
     pub layout: String,
     /// The scan file's compression
-    #[arg(long, default_value = "none", value_parser = ["none", "deflate", "lzw"])]
-    pub compress: String,
+    #[arg(long, default_value = "none", value_parser = PossibleValuesParser::new(["none", "deflate", "lzw"]).map(|s| Compression::from_name(&s).expect("a listed name")))]
+    pub compress: Compression,
     /// DEM posting, metres.
     #[arg(long, default_value_t = 5.0)]
     pub dem_posting: f64,
@@ -211,51 +221,26 @@ pub struct SynthArgs {
     pub no_scan: bool,
 }
 
-/// `col,row` of `--rpc-offset`.
-pub fn parse_offset(o: &str) -> Result<[f64; 2], String> {
-    let v: Vec<f64> = o.split(',').map(|p| p.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| format!("--rpc-offset '{o}' is not col,row"))?;
-    match v[..] {
-        [c, r] if c.is_finite() && r.is_finite() => Ok([c, r]),
-        _ => Err(format!("--rpc-offset '{o}' is not col,row")),
-    }
-}
-
-pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("--size '{s}' is not WxH"))?;
-    let w = w.trim().parse().map_err(|_| format!("--size '{s}': bad width"))?;
-    let h = h.trim().parse().map_err(|_| format!("--size '{s}': bad height"))?;
-    Ok((w, h))
-}
-
 impl SynthArgs {
-    pub fn options(&self) -> Result<SynthOptions, String> {
-        let (width, height) = parse_size(&self.size)?;
+    pub fn options(&self) -> Result<SynthOptions> {
+        let (width, height) = parse_size("size", &self.size)?;
         Ok(SynthOptions {
             out: self.out.clone(),
             width,
             height,
             bands: self.bands,
             bits: self.bits,
-            relief: match self.relief.as_str() {
-                "flat" => Relief::Flat,
-                "mountain" => Relief::Mountain,
-                _ => Relief::Hilly,
-            },
-            camera: match self.camera.as_str() {
-                "digital" => CameraKind::Digital,
-                "rpc" => CameraKind::Rpc,
-                _ => CameraKind::Film,
-            },
+            relief: self.relief,
+            camera: self.camera,
             kappa_deg: self.kappa,
             tiled: self.layout == "tiles",
-            compress: self.compress.parse::<Compression>()?,
+            compress: self.compress,
             dem_posting: self.dem_posting,
             scale: self.scale,
             fiducials: self.fiducials,
             frame_mm: self.frame,
             off_nadir_deg: self.off_nadir,
             seed: self.seed,
-            quiet: self.quiet,
             no_scan: self.no_scan,
         })
     }
@@ -312,30 +297,30 @@ pub struct RectifyArgs {
     #[arg(long)]
     pub max_error: Option<f64>,
     /// How the corrections between GCM nodes are found: interpolated
-    /// bilinearly from the four nodes around, or one per cell (thesis)
-    #[arg(long, default_value = "bilinear", value_parser = ["bilinear", "cell"])]
-    pub corrections: String,
+    /// bilinearly from the four nodes around, or one per cell (as in Beloshapkin's thesis)
+    #[arg(long, default_value = "bilinear", value_parser = choice::<gcm_ortho::gcm::CorrectionMode>())]
+    pub corrections: gcm_ortho::gcm::CorrectionMode,
     /// The terrain plane of the approximation A: the DEM's least-squares
     /// trend plane over the output area, or its mean height
-    #[arg(long, default_value = "plane", value_parser = ["plane", "mean"])]
-    pub trend: String,
+    #[arg(long, default_value = "plane", value_parser = choice::<Trend>())]
+    pub trend: Trend,
     /// Resampling kernel
-    #[arg(long, default_value = "bilinear", value_parser = ["nearest", "bilinear", "cubic", "lanczos3"])]
-    pub resample: String,
+    #[arg(long, default_value = "bilinear", value_parser = choice::<Kernel>())]
+    pub resample: Kernel,
     /// Output tile size in pixels (a multiple of 16)
     #[arg(long, default_value_t = 256)]
     pub tile: u32,
     /// Make the output in bands of tile rows or of tile columns (auto: the
     /// one that reads the scan along its rows; columns for a scan turned
     /// ~90°). The pixels agree to the GCM's accuracy either way.
-    #[arg(long, default_value = "auto", value_parser = ["auto", "rows", "columns"])]
-    pub band_order: String,
+    #[arg(long, default_value = "auto", value_parser = choice::<BandOrder>())]
+    pub band_order: BandOrder,
     /// Tile compression (with the horizontal predictor for integer samples)
-    #[arg(long, default_value = "deflate", value_parser = ["none", "deflate", "lzw", "zstd"])]
-    pub compress: String,
+    #[arg(long, default_value = "deflate", value_parser = choice::<Compression>())]
+    pub compress: Compression,
     /// BigTIFF output (auto: when the output may pass 4 GB)
-    #[arg(long, default_value = "auto", value_parser = ["auto", "yes", "no"])]
-    pub bigtiff: String,
+    #[arg(long, default_value = "auto", value_parser = choice::<BigTiff>())]
+    pub bigtiff: BigTiff,
     /// Nodata value of the output.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, conflicts_with = "alpha")]
     pub nodata: f64,
@@ -365,95 +350,44 @@ pub struct RectifyArgs {
     pub output: PathBuf,
 }
 
-pub fn parse_bytes(s: &str) -> Result<u64, String> {
-    let t = s.trim();
-    let (num, mult) = match t.chars().last() {
-        Some('K' | 'k') => (&t[..t.len() - 1], 1u64 << 10),
-        Some('M' | 'm') => (&t[..t.len() - 1], 1 << 20),
-        Some('G' | 'g') => (&t[..t.len() - 1], 1 << 30),
-        _ => (t, 1),
-    };
-    let v: f64 = num.parse().map_err(|_| format!("'{s}' is not a size like 128M"))?;
-    if !(v > 0.0) {
-        return Err(format!("'{s}' must be positive"));
-    }
-    Ok((v * mult as f64) as u64)
-}
-
-fn parse_bounds(s: &str) -> Result<Option<[f64; 4]>, String> {
-    if s == "auto" {
-        return Ok(None);
-    }
-    let v: Vec<f64> =
-        s.split(',').map(|p| p.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| format!("--bounds '{s}' is not minx,miny,maxx,maxy"))?;
-    if v.len() != 4 || v.iter().any(|x| !x.is_finite()) || v[2] <= v[0] || v[3] <= v[1] {
-        return Err(format!("--bounds '{s}' is not minx,miny,maxx,maxy with min < max"));
-    }
-    Ok(Some([v[0], v[1], v[2], v[3]]))
-}
-
 impl RectifyArgs {
-    pub fn config(&self) -> Result<RectifyConfig, String> {
+    /// The run's options; the library checks their ranges when it runs.
+    pub fn options(&self) -> Result<RectifyOptions> {
         let dem = match (&self.dem, self.height) {
             (Some(p), None) => DemSource::File(p.clone()),
-            (None, Some(h)) if h.is_finite() => DemSource::Height(h),
-            (None, Some(h)) => return Err(format!("--height {h} is not a finite number")),
+            (None, Some(h)) => DemSource::Height(h),
             // An RPC has a height of its own (HEIGHT_OFF).
             (None, None) if self.sensor.rpc.is_some() => DemSource::ModelHeight,
-            _ => return Err("give --dem FILE or --height METRES".into()),
+            _ => return Err(gcm_ortho::Error::setting("dem", "give a DEM file or a constant height")),
         };
-        if let Some(e) = self.max_error {
-            if !(e > 0.0) || !e.is_finite() {
-                return Err(format!("--max-error {e} must be a positive number"));
-            }
-        }
         let crs = match &self.crs {
             None => None,
-            Some(c) => Some(gcm_ortho::camera::Crs::parse(c).ok_or_else(|| format!("--crs '{c}' is not of the form EPSG:<code>"))?.epsg),
-        };
-        let (camera, file) = self.sensor.model(crs)?;
-        let mut cfg = RectifyConfig::new(self.sensor.image.clone(), camera, dem, self.output.clone());
-        cfg.camera_file = file;
-        cfg.dem_hole = self.dem_hole.parse::<Miss>().map_err(|e| format!("--dem-hole: {e}"))?;
-        cfg.dem_outside = self.dem_outside.parse::<Miss>().map_err(|e| format!("--dem-outside: {e}"))?;
-        cfg.gsd = self.gsd;
-        cfg.bounds = parse_bounds(&self.bounds)?;
-        cfg.window = match &self.window {
-            None => None,
-            Some(w) => {
-                let v: Vec<u32> = w
-                    .split(',')
-                    .map(|p| p.trim().parse::<u32>())
-                    .collect::<Result<_, _>>()
-                    .map_err(|_| format!("--window '{w}' is not col,row,width,height"))?;
-                match v[..] {
-                    [c, r, ww, hh] if ww > 0 && hh > 0 => Some([c, r, ww, hh]),
-                    _ => return Err(format!("--window '{w}' is not col,row,width,height (tiles, width and height > 0)")),
-                }
+            Some(c) => {
+                Some(gcm_ortho::camera::Crs::parse(c).ok_or_else(|| gcm_ortho::Error::setting("crs", format!("'{c}' is not of the form EPSG:<code>")))?.epsg)
             }
         };
-        cfg.gcm = GcmSpec { k: self.sparsity.unwrap_or(16), mode: self.corrections.parse::<CorrectionMode>()?, max_error: self.max_error };
-        cfg.auto_sparsity = self.sparsity.is_none();
-        if self.max_error.is_some() && cfg.gcm.mode == CorrectionMode::Cell {
-            return Err("--max-error works with --corrections bilinear".into());
-        }
-        cfg.trend = if self.trend == "mean" { Trend::Mean } else { Trend::Plane };
-        cfg.kernel = self.resample.parse::<Kernel>()?;
-        cfg.tile = self.tile;
-        cfg.band_order = self.band_order.parse()?;
-        cfg.compress = self.compress.parse::<Compression>()?;
-        cfg.bigtiff = match self.bigtiff.as_str() {
-            "yes" => BigTiff::Yes,
-            "no" => BigTiff::No,
-            _ => BigTiff::Auto,
-        };
-        cfg.nodata = self.nodata;
-        cfg.alpha = self.alpha;
-        cfg.threads = self.threads;
-        cfg.memory = parse_bytes(&self.memory).map_err(|e| format!("--memory: {e}"))?;
-        cfg.quiet = self.quiet;
-        cfg.sync = !self.no_sync;
-        Ok(cfg)
+        let (camera, model) = self.sensor.model(crs)?;
+        let mut o = RectifyOptions::new(self.sensor.image.clone(), camera, dem, self.output.clone());
+        o.model = model;
+        o.dem_hole = parse_miss("dem_hole", &self.dem_hole)?;
+        o.dem_outside = parse_miss("dem_outside", &self.dem_outside)?;
+        o.gsd = self.gsd;
+        o.bounds = parse_bounds("bounds", &self.bounds)?;
+        o.window = self.window.as_deref().map(|w| parse_window("window", w)).transpose()?;
+        o.gcm = GcmSpec { k: self.sparsity.unwrap_or(16), mode: self.corrections, max_error: self.max_error };
+        o.auto_sparsity = self.sparsity.is_none();
+        o.trend = self.trend;
+        o.kernel = self.resample;
+        o.tile = self.tile;
+        o.band_order = self.band_order;
+        o.compress = self.compress;
+        o.bigtiff = self.bigtiff;
+        o.nodata = self.nodata;
+        o.alpha = self.alpha;
+        o.threads = self.threads;
+        o.memory = parse_bytes("memory", &self.memory)?;
+        o.sync = !self.no_sync;
+        Ok(o)
     }
 }
 
@@ -481,8 +415,8 @@ pub struct AccuracyArgs {
     #[arg(long, value_delimiter = ',')]
     pub max_error: Vec<f64>,
     /// The terrain plane of the approximation A: the DEM's trend plane, or its mean height
-    #[arg(long, default_value = "plane", value_parser = ["plane", "mean"])]
-    pub trend: String,
+    #[arg(long, default_value = "plane", value_parser = choice::<Trend>())]
+    pub trend: Trend,
     /// Count only pixels where the terrain is at most this steep (degrees).
     #[arg(long)]
     pub max_slope: Option<f64>,

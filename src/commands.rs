@@ -2,35 +2,39 @@
 //! print a summary.
 
 use crate::cli::{AccuracyArgs, BatchArgs, Cli, Command, DemoArgs, RectifyArgs, SynthArgs};
+use crate::progress_bar::Bar;
 use anyhow::{anyhow, Context, Result};
-use gcm_ortho::accuracy::evaluate;
 use gcm_ortho::camera::file::Camera;
-use gcm_ortho::compare::{compare, read_grey};
 use gcm_ortho::dem::Dem;
 use gcm_ortho::gcm::{CorrectionMode, Gcm, GcmSpec};
 use gcm_ortho::io::source::SourceImage;
-use gcm_ortho::pipeline::{rectify, DemSource, RectifyConfig, Report};
+use gcm_ortho::options::{parse_bytes, parse_size, DemSource, RectifyOptions};
+use gcm_ortho::study::accuracy::evaluate;
+use gcm_ortho::study::compare::{compare, read_grey};
 use gcm_ortho::synth::{synth, SynthOptions};
 use gcm_ortho::transform::footprint::{auto_grid, mean_gsd};
-use gcm_ortho::transform::{Approx, Transform};
+use gcm_ortho::transform::{Approx, Transform, Trend};
+use gcm_ortho::{rectify, Cancel, Report};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-/// SIGINT / SIGTERM turn into a cancel flag the pipeline polls.
+/// SIGINT / SIGTERM turn into the cancel flag the library polls; SIGBUS on
+/// a scan truncated under its memory map into one line and exit code 1.
 pub struct Signals {
-    pub cancel: Arc<AtomicBool>,
+    pub cancel: Cancel,
     int: Arc<AtomicBool>,
     term: Arc<AtomicBool>,
 }
 
 impl Signals {
     pub fn install() -> std::io::Result<Signals> {
-        let s = Signals { cancel: Arc::default(), int: Arc::default(), term: Arc::default() };
+        let s = Signals { cancel: Cancel::new(), int: Arc::default(), term: Arc::default() };
         for (sig, flag) in [(signal_hook::consts::SIGINT, &s.int), (signal_hook::consts::SIGTERM, &s.term)] {
             signal_hook::flag::register(sig, flag.clone())?;
-            signal_hook::flag::register(sig, s.cancel.clone())?;
+            signal_hook::flag::register(sig, s.cancel.flag())?;
         }
+        gcm_ortho::io::mmap_guard::install_sigbus_handler();
         Ok(s)
     }
     pub fn exit_code(&self) -> Option<u8> {
@@ -63,8 +67,8 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
 
 fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
     use gcm_ortho::batch::{self, BatchOptions, ReportWriter, Status};
-    let shard = batch::shard::resolve(a.shard.as_deref(), a.shard_count, &|k| std::env::var(k).ok()).map_err(usage)?;
-    let memory = crate::cli::parse_bytes(&a.memory).map_err(|e| usage(format!("--memory: {e}")))?;
+    let shard = batch::shard::resolve(a.shard.as_deref(), a.shard_count, &|k| std::env::var(k).ok())?;
+    let memory = parse_bytes("memory", &a.memory)?;
     let jobs = batch::manifest::load(&a.manifest).map_err(|e| anyhow!("{}: {e}", a.manifest.display()))?;
     let o = BatchOptions { manifest: a.manifest.clone(), jobs: a.jobs, memory, force: a.force, report: a.report.clone(), shard, threads: a.threads };
     if a.dry_run {
@@ -119,15 +123,15 @@ fn usage(msg: String) -> anyhow::Error {
 }
 
 fn run_synth(a: &SynthArgs) -> Result<()> {
-    let o = a.options().map_err(usage)?;
+    let o = a.options()?;
     let t = std::time::Instant::now();
-    let r = synth(&o)?;
+    let r = synth(&o, &Bar::new(a.quiet))?;
     if !a.quiet {
         println!(
             "synth: {}x{} {} scan, GSD {} m, flying height {:.0} m, relief {:.0}–{:.0} m (steepest {:.0}°), {:.1} s",
             o.width,
             o.height,
-            a.relief,
+            format!("{:?}", o.relief).to_lowercase(),
             r.gsd,
             r.flying_height,
             r.relief_range[0],
@@ -166,8 +170,8 @@ fn print_report(r: &Report) {
 }
 
 fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
-    let cfg = a.config().map_err(usage)?;
-    let report = rectify(&cfg, &signals.cancel)?;
+    let opts = a.options()?;
+    let report = rectify(&opts, &Bar::new(a.quiet), &signals.cancel)?;
     if let Some(j) = &a.json {
         std::fs::write(j, serde_json::to_string_pretty(&report)?).with_context(|| j.display().to_string())?;
     }
@@ -193,7 +197,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     let (image, camera, dem_path) = scene_inputs(a)?;
     let cam = Camera::read(&camera)?;
     let (w, h) = match &a.size {
-        Some(sz) => crate::cli::parse_size(sz).map_err(usage)?,
+        Some(sz) => parse_size("size", sz)?,
         None => {
             let src = SourceImage::open(&image, 1 << 20)?;
             (src.info.width, src.info.height)
@@ -204,7 +208,8 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     let gsd = mean_gsd(cam.model(), &dem, w, h, z0)?;
     let grid = auto_grid(cam.model(), &dem, w, h, z0, gsd)?;
     let area = [grid.x0, grid.y0 - grid.gsd * grid.height as f64, grid.x0 + grid.gsd * grid.width as f64, grid.y0];
-    let plane = if a.trend == "mean" { dem.mean_plane(area) } else { dem.trend_plane(area) }.ok_or_else(|| anyhow!("no DEM heights in the output area"))?;
+    let plane =
+        if a.trend == Trend::Mean { dem.mean_plane(area) } else { dem.trend_plane(area) }.ok_or_else(|| anyhow!("no DEM heights in the output area"))?;
     let approx = Approx::new(cam.model(), &grid, plane).ok_or_else(|| anyhow!("plane behind the camera"))?;
     let t = Transform::new(cam.model(), &dem, grid);
     println!(
@@ -213,7 +218,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         grid.height,
         gsd,
         a.step,
-        a.trend,
+        format!("{:?}", a.trend).to_lowercase(),
         a.max_slope.map(|m| format!(", only where the slope is at most {m}°")).unwrap_or_default()
     );
     println!(
@@ -232,7 +237,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     }
     for (k, mode, bound) in cases {
         let gcm = Gcm::new(&t, approx, GcmSpec { k, mode, max_error: bound });
-        let ev = gcm_ortho::accuracy::evaluate_where(&gcm, a.step, a.max_slope, None);
+        let ev = gcm_ortho::study::accuracy::evaluate_where(&gcm, a.step, a.max_slope, None);
         let e = &ev.errors;
         let refined = 100.0 * ev.gcm.refined_cells as f64 / ev.gcm.cells.max(1) as f64;
         println!(
@@ -256,14 +261,14 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     }
     let cp_path = a.scene.as_ref().map(|d| d.join("checkpoints.csv")).filter(|p| p.exists());
     if let Some(cp_path) = cp_path {
-        let cps = gcm_ortho::accuracy::read_checkpoints(&cp_path)?;
+        let cps = gcm_ortho::study::accuracy::read_checkpoints(&cp_path)?;
         let gcm = Gcm::new(&t, approx, GcmSpec { k: a.map_sparsity, mode: CorrectionMode::Bilinear, max_error: None });
-        let offs = gcm_ortho::accuracy::checkpoint_offsets(&gcm, &cps);
+        let offs = gcm_ortho::study::accuracy::checkpoint_offsets(&gcm, &cps);
         let n = offs.len().max(1) as f64;
         let rms = (offs.iter().map(|(_, d)| d[0] * d[0] + d[1] * d[1]).sum::<f64>() / n).sqrt();
         let max = offs.iter().map(|(_, d)| d[0].hypot(d[1])).fold(0.0, f64::max);
         println!(
-            "checkpoints (thesis Table 2), k = {} bilinear: {} points, RMS {:.4} px = {:.4} m, max {:.4} px",
+            "checkpoints (as Beloshapkin's Table 2), k = {} bilinear: {} points, RMS {:.4} px = {:.4} m, max {:.4} px",
             a.map_sparsity,
             offs.len(),
             rms,
@@ -278,15 +283,15 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         evaluate(&gcm, a.step, Some(&mut map));
         let (mw, mh) = (grid.width.div_ceil(a.step), grid.height.div_ceil(a.step));
         if let Some(p) = &a.error_map {
-            gcm_ortho::io::maps::write_error_map(p, &map, mw, mh, &grid, a.step, cam.crs.epsg)?;
+            gcm_ortho::study::maps::write_error_map(p, &map, mw, mh, &grid, a.step, cam.crs.epsg)?;
         }
         if let Some(p) = &a.png {
-            gcm_ortho::io::maps::write_error_png(p, &map, mw, mh)?;
+            gcm_ortho::study::maps::write_error_png(p, &map, mw, mh)?;
         }
     }
     if let Some(p) = &a.gcm_png {
         let gcm = Gcm::new(&t, approx, GcmSpec { k: a.map_sparsity, mode: CorrectionMode::Cell, max_error: None });
-        gcm_ortho::io::maps::write_gcm_png(p, &gcm)?;
+        gcm_ortho::study::maps::write_gcm_png(p, &gcm)?;
     }
     if let Some(j) = &a.json {
         std::fs::write(j, serde_json::to_string_pretty(&serde_json::json!({"grid": grid, "rows": rows}))?)?;
@@ -299,12 +304,8 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     use gcm_ortho::camera::RpcCamera;
     use gcm_ortho::geodesy::GroundCrs;
     use gcm_ortho::rpcgrid;
-    let (origin, file) = a.sensor.model(None).map_err(usage)?;
-    let file = match file {
-        Some(f) => f,
-        None => gcm_ortho::camera::CameraFile::read(&origin)?,
-    };
-    let cam = file.build(&origin)?;
+    let (origin, model) = a.sensor.model(None)?;
+    let cam = model.load(&a.sensor.image, &origin)?;
     let Sensor::Rpc(r) = &cam.sensor else {
         return Err(gcm_ortho::error::Error::unsupported(&origin, "rpc-grid needs an RPC model (camera.model = \"rpc\")").into());
     };
@@ -345,12 +346,12 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
             .map(|s| s.trim().parse::<u32>())
             .collect::<std::result::Result<_, _>>()
             .map_err(|_| usage(format!("--accuracy '{steps}' is not a list of steps")))?;
-        println!("accuracy of the grid against the exact solve, every {} px (seed 004's table):", a.sample);
+        println!("accuracy of the grid against the exact solve, every {} px:", a.sample);
         println!("{:>5} | {:>9} {:>9} {:>9} | {:>6} {:>6} {:>6} {:>6} | {:>9}", "step", "mean m", "RMS m", "max m", "<0.5", "<1", "<2.5", "<5", "corrected");
         let mut rows = Vec::new();
         for s in steps {
             let g = rpcgrid::build(&model, &dem, w, h, s, z0).map_err(on_dem)?;
-            let acc = rpcgrid::accuracy(&g, &model, &dem, w, h, a.sample, z0);
+            let acc = gcm_ortho::study::rpc_grid::accuracy(&g, &model, &dem, w, h, a.sample, z0);
             println!(
                 "{:>5} | {:>9.4} {:>9.4} {:>9.4} | {:>6.1} {:>6.1} {:>6.1} {:>6.1} | {:>9}",
                 s, acc.mean_abs_m, acc.rms_m, acc.max_m, acc.pct_under[0], acc.pct_under[1], acc.pct_under[2], acc.pct_under[3], acc.corrected_nodes
@@ -373,16 +374,15 @@ fn run_demo(a: &DemoArgs, signals: &Signals) -> Result<()> {
             tmp.path()
         }
     };
-    let (width, height) = crate::cli::parse_size(&a.size).map_err(usage)?;
-    let opts = SynthOptions { out: dir.join("scene"), width, height, kappa_deg: 30.0, quiet: a.quiet, ..Default::default() };
+    let (width, height) = parse_size("size", &a.size)?;
+    let opts = SynthOptions { out: dir.join("scene"), width, height, kappa_deg: 30.0, ..Default::default() };
     println!("demo: generating a {width}x{height} hilly film scene (swing 30°) in {}", opts.out.display());
     let t = std::time::Instant::now();
-    let scene = synth(&opts)?;
+    let scene = synth(&opts, &Bar::new(a.quiet))?;
     println!("  synth: {:.1} s, GSD {} m, flying height {:.0} m", t.elapsed().as_secs_f64(), scene.gsd, scene.flying_height);
     let out = dir.join("ortho.tif");
-    let mut cfg = RectifyConfig::new(scene.scan.clone(), scene.camera.clone(), DemSource::File(scene.dem.clone()), out.clone());
-    cfg.quiet = a.quiet;
-    let report = rectify(&cfg, &signals.cancel)?;
+    let opts = RectifyOptions::new(scene.scan.clone(), scene.camera.clone(), DemSource::File(scene.dem.clone()), out.clone());
+    let report = rectify(&opts, &Bar::new(a.quiet), &signals.cancel)?;
     print_report(&report);
     let truth = scene.truth.ok_or_else(|| anyhow!("the demo scene has no truth image"))?;
     let c = compare(&read_grey(&out, 0.0)?, &read_grey(&truth, 0.0)?, 48);

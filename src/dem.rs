@@ -29,17 +29,6 @@ pub enum Miss {
     Height(f64),
 }
 
-impl std::str::FromStr for Miss {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Miss, String> {
-        match s {
-            "error" => Ok(Miss::Error),
-            "nodata" => Ok(Miss::Nodata),
-            h => h.parse::<f64>().ok().filter(|v| v.is_finite()).map(Miss::Height).ok_or_else(|| format!("'{s}' is neither error, nodata nor a height")),
-        }
-    }
-}
-
 /// Heights of a grid: in memory, or read a chunk at a time from the file
 /// into a bounded cache (large DEMs: a 1 m DEM of 20×20 km is 1.6 GB).
 enum Samples {

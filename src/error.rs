@@ -28,6 +28,10 @@ pub enum Error {
     /// The geometry cannot be solved (degenerate camera, empty footprint, ...).
     #[error("geometry: {0}")]
     Geometry(String),
+    /// A setting out of range or contradicting another, named by its key
+    /// (`tile`, `dem_hole`: the manifest's key; the binary prints the flag).
+    #[error("{}: {msg}", setting.replace('_', " "))]
+    Setting { setting: &'static str, msg: String },
     /// Arguments that contradict each other or are out of range.
     #[error("{0}")]
     Usage(String),
@@ -50,6 +54,9 @@ impl Error {
     }
     pub fn config(path: impl AsRef<Path>, field: impl Into<String>, msg: impl Into<String>) -> Self {
         Error::Config { path: path.as_ref().to_path_buf(), field: field.into(), msg: msg.into() }
+    }
+    pub fn setting(setting: &'static str, msg: impl Into<String>) -> Self {
+        Error::Setting { setting, msg: msg.into() }
     }
     pub fn limits(path: impl AsRef<Path>, msg: impl Into<String>) -> Self {
         Error::Limits { path: path.as_ref().to_path_buf(), msg: msg.into() }

@@ -35,17 +35,6 @@ pub enum CorrectionMode {
     Bilinear,
 }
 
-impl std::str::FromStr for CorrectionMode {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "cell" => Ok(CorrectionMode::Cell),
-            "bilinear" => Ok(CorrectionMode::Bilinear),
-            _ => Err(format!("'{s}' is neither cell nor bilinear")),
-        }
-    }
-}
-
 /// What the caller chose: sparsity, mode, optional error bound (source px).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct GcmSpec {

@@ -3,6 +3,7 @@
 
 mod cli;
 mod commands;
+mod progress_bar;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -29,9 +30,17 @@ fn main() -> ExitCode {
             if e.chain().any(|c| c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)) {
                 return ExitCode::SUCCESS;
             }
-            let msg = e.chain().map(|c| c.to_string()).collect::<Vec<_>>().join(": ");
+            // A setting named by its key is printed as the flag that sets it.
+            let msg = e
+                .chain()
+                .map(|c| match c.downcast_ref::<gcm_ortho::Error>() {
+                    Some(gcm_ortho::Error::Setting { setting, msg }) => format!("{}: {msg}", cli::flag(setting)),
+                    _ => c.to_string(),
+                })
+                .collect::<Vec<_>>()
+                .join(": ");
             eprintln!("gcm-ortho: error: {}", msg.replace('\n', " "));
-            let usage = e.chain().any(|c| matches!(c.downcast_ref::<gcm_ortho::Error>(), Some(gcm_ortho::Error::Usage(_))));
+            let usage = e.chain().any(|c| matches!(c.downcast_ref::<gcm_ortho::Error>(), Some(gcm_ortho::Error::Usage(_) | gcm_ortho::Error::Setting { .. })));
             ExitCode::from(if usage { 2 } else { 1 })
         }
     }

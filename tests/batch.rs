@@ -164,8 +164,8 @@ fn block_of_exterior_orientations() {
     ])
     .status
     .success());
-    let a = gcm_ortho::compare::read_grey(&single, 0.0).unwrap();
-    let b = gcm_ortho::compare::read_grey(&d.join("ortho/s00.tif"), 0.0).unwrap();
+    let a = gcm_ortho::study::compare::read_grey(&single, 0.0).unwrap();
+    let b = gcm_ortho::study::compare::read_grey(&d.join("ortho/s00.tif"), 0.0).unwrap();
     let diff = a.v.iter().zip(&b.v).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
     assert!(diff <= 1.0, "{diff}");
 }

@@ -4,8 +4,8 @@
 
 mod common;
 use common::*;
-use gcm_ortho::compare::{compare, read_grey};
 use gcm_ortho::io::source::SourceImage;
+use gcm_ortho::study::compare::{compare, read_grey};
 
 /// synth (with `tweak`) → rectify at the defaults → compare with the truth.
 fn rectifies_onto_its_truth(size: u32, tweak: impl FnOnce(&mut gcm_ortho::synth::SynthOptions)) -> (gcm_ortho::synth::SynthReport, tempfile::TempDir) {
@@ -67,7 +67,9 @@ fn checkpoints_agree_to_a_quarter_pixel_at_k16() {
     let line = text.lines().find(|l| l.starts_with("checkpoints")).expect("checkpoint line");
     let rms: f64 = line.split("RMS ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
     assert!(rms <= 0.25, "{line}");
-    assert!(line.contains(" 50 points") || line.contains(" 4"), "{line}");
+    let points: usize = line.split(": ").nth(1).unwrap().split(" points").next().unwrap().parse().unwrap();
+    let written = std::fs::read_to_string(&sc.checkpoints).unwrap().lines().filter(|l| l.starts_with(|c: char| c.is_ascii_digit())).count();
+    assert_eq!((points, written), (50, 50), "{line}");
     drop(sc);
 }
 

@@ -128,7 +128,7 @@ fn bilinear_corrections_beat_cell_corrections_on_hills() {
     let a = Approx::new(&cam, &g, dem.trend_plane([g.x0, g.y0 - 2000.0, g.x0 + 2000.0, g.y0]).unwrap()).unwrap();
     let run = |mode| {
         let gcm = Gcm::new(&t, a, GcmSpec { k: 8, mode, max_error: None });
-        gcm_ortho::accuracy::evaluate(&gcm, 7, None).errors
+        gcm_ortho::study::accuracy::evaluate(&gcm, 7, None).errors
     };
     let cell = run(CorrectionMode::Cell);
     let bil = run(CorrectionMode::Bilinear);
@@ -145,7 +145,7 @@ fn error_bound_holds_over_every_pixel() {
     let t = Transform::new(&cam, &dem, g);
     let a = Approx::new(&cam, &g, dem.mean_plane([g.x0, g.y0 - 1200.0, g.x0 + 1200.0, g.y0]).unwrap()).unwrap();
     let gcm = Gcm::new(&t, a, GcmSpec { k: 32, mode: CorrectionMode::Bilinear, max_error: Some(0.05) });
-    let ev = gcm_ortho::accuracy::evaluate(&gcm, 1, None);
+    let ev = gcm_ortho::study::accuracy::evaluate(&gcm, 1, None);
     assert!(ev.errors.max <= 0.05, "{:?}", ev.errors);
     assert!(ev.gcm.refined_cells > 0, "the bound should force some refinement: {:?}", ev.gcm);
     // Fewer exact evaluations than pixels (k = 1 evaluates every pixel).
@@ -167,7 +167,7 @@ fn dem_post_lines_as_node_lines_follow_a_rough_dem() {
     let a = Approx::new(&cam, &g, dem.trend_plane([g.x0, g.y0 - 1600.0, g.x0 + 1600.0, g.y0]).unwrap()).unwrap();
     let gcm = Gcm::new(&t, a, GcmSpec { k: 16, mode: CorrectionMode::Bilinear, max_error: None });
     assert!(gcm.dem_aligned_lines());
-    let ev = gcm_ortho::accuracy::evaluate(&gcm, 1, None);
+    let ev = gcm_ortho::study::accuracy::evaluate(&gcm, 1, None);
     assert!(ev.errors.rms < 0.05 && ev.errors.max < 0.2, "{:?}", ev.errors);
 }
 

@@ -438,7 +438,11 @@ fn synthetic_rpc_scene_matches_gdalwarp() {
     ];
     let out = Command::new("gdalwarp").args(args).output().unwrap();
     assert!(out.status.success(), "gdalwarp: {}", String::from_utf8_lossy(&out.stderr));
-    let c = gcm_ortho::compare::compare(&gcm_ortho::compare::read_grey(&ours_img, 0.0).unwrap(), &gcm_ortho::compare::read_grey(&gdal_img, 0.0).unwrap(), 48);
+    let c = gcm_ortho::study::compare::compare(
+        &gcm_ortho::study::compare::read_grey(&ours_img, 0.0).unwrap(),
+        &gcm_ortho::study::compare::read_grey(&gdal_img, 0.0).unwrap(),
+        48,
+    );
     eprintln!("synthetic RPC pixel values vs gdalwarp: {} px, mean |diff| {:.3} DN", c.pixels, c.mean_abs_diff);
     assert!(c.pixels > 900_000 && c.mean_abs_diff < 0.25, "{} px, mean |diff| {}", c.pixels, c.mean_abs_diff);
 }

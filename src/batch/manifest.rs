@@ -5,12 +5,9 @@
 
 use crate::camera::file::{CameraFile, ExteriorSection};
 use crate::camera::rotation::AngleConvention;
-use crate::dem::Miss;
-use crate::gcm::{CorrectionMode, GcmSpec};
-use crate::io::tiff_out::Compression;
-use crate::pipeline::{BigTiff, DemSource, RectifyConfig};
-use crate::resample::Kernel;
-use crate::transform::Trend;
+use crate::error::Error;
+use crate::gcm::GcmSpec;
+use crate::options::{parse_choice, parse_miss, DemSource, ModelSource, RectifyOptions};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use toml::Spanned;
@@ -99,7 +96,7 @@ struct ManifestFile {
 pub struct Job {
     /// A stable name (the image's file stem), unique in the manifest.
     pub name: String,
-    pub config: RectifyConfig,
+    pub config: RectifyOptions,
     pub problem: Option<String>,
 }
 
@@ -195,7 +192,7 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
             Ok(c) => c,
             Err(e) => {
                 problems.push(e);
-                RectifyConfig::new(image, camera, DemSource::Height(0.0), PathBuf::from(format!("{name}.tif")))
+                RectifyOptions::new(image, camera, DemSource::Height(0.0), PathBuf::from(format!("{name}.tif")))
             }
         };
         let problem = (!problems.is_empty()).then(|| format!("{}: {}", at(line), problems.join("; ")));
@@ -227,7 +224,7 @@ fn config(
     output: Option<PathBuf>,
     o: &Options,
     rel: &dyn Fn(&str) -> PathBuf,
-) -> Result<RectifyConfig, String> {
+) -> Result<RectifyOptions, String> {
     let dem = match (&o.dem, o.height) {
         (Some(d), None) => {
             let p = rel(d);
@@ -245,47 +242,49 @@ fn config(
         (None, Some(dir)) => rel(dir).join(format!("{name}.tif")),
         (None, None) => rel(&format!("{name}.ortho.tif")),
     };
-    let mut c = RectifyConfig::new(image, camera, dem, output);
-    c.camera_file = inline;
-    if let Some(v) = &o.dem_hole {
-        c.dem_hole = v.parse::<Miss>().map_err(|e| format!("dem_hole: {e}"))?;
-    }
-    if let Some(v) = &o.dem_outside {
-        c.dem_outside = v.parse::<Miss>().map_err(|e| format!("dem_outside: {e}"))?;
-    }
-    c.gsd = o.gsd;
-    c.bounds = o.bounds;
-    c.gcm = GcmSpec {
-        k: o.sparsity.unwrap_or(16),
-        mode: o.corrections.as_deref().unwrap_or("bilinear").parse::<CorrectionMode>().map_err(|e| format!("corrections: {e}"))?,
-        max_error: o.max_error,
+    let mut c = RectifyOptions::new(image, camera, dem, output);
+    c.model = inline.map_or(ModelSource::CameraFile, ModelSource::Inline);
+    let mut settings = || -> crate::Result<()> {
+        if let Some(v) = &o.dem_hole {
+            c.dem_hole = parse_miss("dem_hole", v)?;
+        }
+        if let Some(v) = &o.dem_outside {
+            c.dem_outside = parse_miss("dem_outside", v)?;
+        }
+        c.gsd = o.gsd;
+        c.bounds = o.bounds;
+        let mode = match &o.corrections {
+            Some(m) => parse_choice("corrections", m)?,
+            None => c.gcm.mode,
+        };
+        c.gcm = GcmSpec { k: o.sparsity.unwrap_or(16), mode, max_error: o.max_error };
+        c.auto_sparsity = o.sparsity.is_none();
+        if let Some(t) = &o.trend {
+            c.trend = parse_choice("trend", t)?;
+        }
+        if let Some(k) = &o.resample {
+            c.kernel = parse_choice("resample", k)?;
+        }
+        if let Some(t) = o.tile {
+            c.tile = t;
+        }
+        if let Some(z) = &o.compress {
+            c.compress = parse_choice("compress", z)?;
+        }
+        if let Some(b) = &o.bigtiff {
+            c.bigtiff = parse_choice("bigtiff", b)?;
+        }
+        if let Some(n) = o.nodata {
+            c.nodata = n;
+        }
+        c.alpha = o.alpha.unwrap_or(false);
+        c.validate()
     };
-    c.auto_sparsity = o.sparsity.is_none();
-    c.trend = match o.trend.as_deref() {
-        None | Some("plane") => Trend::Plane,
-        Some("mean") => Trend::Mean,
-        Some(t) => return Err(format!("trend: '{t}' is neither plane nor mean")),
-    };
-    if let Some(k) = &o.resample {
-        c.kernel = k.parse::<Kernel>().map_err(|e| format!("resample: {e}"))?;
-    }
-    if let Some(t) = o.tile {
-        c.tile = t;
-    }
-    if let Some(z) = &o.compress {
-        c.compress = z.parse::<Compression>().map_err(|e| format!("compress: {e}"))?;
-    }
-    c.bigtiff = match o.bigtiff.as_deref() {
-        None | Some("auto") => BigTiff::Auto,
-        Some("yes") => BigTiff::Yes,
-        Some("no") => BigTiff::No,
-        Some(b) => return Err(format!("bigtiff: '{b}' is not auto, yes or no")),
-    };
-    if let Some(n) = o.nodata {
-        c.nodata = n;
-    }
-    c.alpha = o.alpha.unwrap_or(false);
-    c.quiet = true;
+    settings().map_err(|e| match e {
+        // The manifest's own key, as written.
+        Error::Setting { setting, msg } => format!("{setting}: {msg}"),
+        e => e.to_string(),
+    })?;
     Ok(c)
 }
 

@@ -8,12 +8,14 @@
 pub mod manifest;
 pub mod shard;
 
-use crate::pipeline::{rectify, DemSource, RectifyConfig};
+use crate::options::{DemSource, RectifyOptions};
+use crate::pipeline::rectify;
+use crate::progress::{Cancel, NoProgress};
 use manifest::Job;
 use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -74,10 +76,10 @@ fn file_stamp(h: &mut u64, p: &Path) {
 
 /// The key of a job: its inputs (path, size, modification time), its camera
 /// and every parameter that changes the output.
-pub fn job_key(c: &RectifyConfig) -> String {
+pub fn job_key(c: &RectifyOptions) -> String {
     let mut h = 0xcbf2_9ce4_8422_2325u64;
     file_stamp(&mut h, &c.image);
-    match &c.camera_file {
+    match c.model.inline() {
         Some(f) => fnv(&mut h, f.to_toml().as_bytes()),
         None => fnv(&mut h, &std::fs::read(&c.camera).unwrap_or_default()),
     }
@@ -87,7 +89,6 @@ pub fn job_key(c: &RectifyConfig) -> String {
     let mut params = c.clone();
     params.threads = 0;
     params.memory = 0;
-    params.quiet = true;
     fnv(&mut h, serde_json::to_string(&params).unwrap_or_default().as_bytes());
     format!("{h:016x}")
 }
@@ -99,7 +100,7 @@ pub fn sidecar(output: &Path) -> PathBuf {
     PathBuf::from(s)
 }
 
-fn is_current(c: &RectifyConfig, key: &str) -> bool {
+fn is_current(c: &RectifyOptions, key: &str) -> bool {
     c.output.is_file() && std::fs::read_to_string(sidecar(&c.output)).map(|s| s.trim() == key).unwrap_or(false)
 }
 
@@ -111,10 +112,10 @@ fn write_sidecar(output: &Path, key: &str) -> std::io::Result<()> {
 }
 
 /// Runs the share of `jobs` chosen by the shard; results in job order.
-pub fn run_jobs(jobs: &[Job], o: &BatchOptions, cancel: &AtomicBool, on_done: &(dyn Fn(&JobResult) + Sync)) -> Vec<JobResult> {
+pub fn run_jobs(jobs: &[Job], o: &BatchOptions, cancel: &Cancel, on_done: &(dyn Fn(&JobResult) + Sync)) -> Vec<JobResult> {
     let mine: Vec<&Job> = jobs.iter().enumerate().filter(|(i, _)| i % o.shard.1 == o.shard.0).map(|(_, j)| j).collect();
     let workers = o.jobs.clamp(1, mine.len().max(1));
-    let per_job_memory = (o.memory / workers as u64).max(16 << 20);
+    let per_job_memory = (o.memory / workers as u64).max(RectifyOptions::MIN_MEMORY);
     let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
     let threads = if o.threads > 0 { o.threads } else { (cores / workers).max(1) };
     let next = AtomicUsize::new(0);
@@ -136,7 +137,7 @@ pub fn run_jobs(jobs: &[Job], o: &BatchOptions, cancel: &AtomicBool, on_done: &(
     results.into_inner().expect("results").into_iter().flatten().collect()
 }
 
-fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &AtomicBool) -> JobResult {
+fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel) -> JobResult {
     let t = Instant::now();
     let mut res = JobResult {
         job: job.name.clone(),
@@ -149,7 +150,7 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &AtomicB
         gcm_rms_px: None,
         gcm_max_px: None,
     };
-    if cancel.load(Ordering::Relaxed) {
+    if cancel.is_cancelled() {
         return res;
     }
     if let Some(p) = &job.problem {
@@ -172,7 +173,7 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &AtomicB
             return res;
         }
     }
-    match rectify(&cfg, cancel) {
+    match rectify(&cfg, &NoProgress, cancel) {
         Ok(r) => {
             res.status = Status::Done;
             res.input_mb_per_s = Some(r.input_mb_per_s);

@@ -5,14 +5,22 @@
 //! jobs (`JOB_COMPLETION_INDEX` with `--shard-count`). Job i goes to shard
 //! i mod N, so every job runs exactly once over the N shards.
 
-/// `(index, count)` with a 0-based index.
-pub fn resolve(explicit: Option<&str>, shard_count: Option<usize>, env: &dyn Fn(&str) -> Option<String>) -> Result<(usize, usize), String> {
-    let num = |v: String, what: &str| v.trim().parse::<usize>().map_err(|_| format!("{what}='{v}' is not a whole number"));
+/// `(index, count)` with a 0-based index; errors name the setting (`shard`,
+/// `shard_count`) or the variable.
+pub fn resolve(explicit: Option<&str>, shard_count: Option<usize>, env: &dyn Fn(&str) -> Option<String>) -> crate::Result<(usize, usize)> {
+    resolve_inner(explicit, shard_count, env).map_err(|(setting, msg)| crate::Error::setting(setting, msg))
+}
+
+type Problem = (&'static str, String);
+
+fn resolve_inner(explicit: Option<&str>, shard_count: Option<usize>, env: &dyn Fn(&str) -> Option<String>) -> Result<(usize, usize), Problem> {
+    let num = |v: String, what: &str| v.trim().parse::<usize>().map_err(|_| ("shard", format!("{what}='{v}' is not a whole number")));
     if let Some(s) = explicit {
-        let (i, n) = s.split_once('/').ok_or_else(|| format!("--shard '{s}' is not I/N"))?;
-        let (i, n) = (num(i.into(), "--shard")?, num(n.into(), "--shard")?);
+        let bad = || ("shard", format!("'{s}' is not I/N with I in 1..=N"));
+        let (i, n) = s.split_once('/').ok_or_else(bad)?;
+        let (i, n) = (i.trim().parse::<usize>().map_err(|_| bad())?, n.trim().parse::<usize>().map_err(|_| bad())?);
         if n == 0 || i == 0 || i > n {
-            return Err(format!("--shard {s}: I must be 1..=N"));
+            return Err(bad());
         }
         return Ok((i - 1, n));
     }
@@ -21,17 +29,17 @@ pub fn resolve(explicit: Option<&str>, shard_count: Option<usize>, env: &dyn Fn(
         let count = match (env("SLURM_ARRAY_TASK_COUNT"), shard_count) {
             (_, Some(n)) => n,
             (Some(c), None) => num(c, "SLURM_ARRAY_TASK_COUNT")?,
-            (None, None) => return Err("SLURM_ARRAY_TASK_ID is set but not SLURM_ARRAY_TASK_COUNT (or give --shard-count)".into()),
+            (None, None) => return Err(("shard_count", "SLURM_ARRAY_TASK_ID is set but not SLURM_ARRAY_TASK_COUNT: give the number of shares".into())),
         };
         let min = env("SLURM_ARRAY_TASK_MIN").map(|m| num(m, "SLURM_ARRAY_TASK_MIN")).transpose()?.unwrap_or(0);
-        let i = id.checked_sub(min).filter(|&i| i < count).ok_or_else(|| format!("SLURM_ARRAY_TASK_ID {id} is outside {min}..{}", min + count))?;
+        let i = id.checked_sub(min).filter(|&i| i < count).ok_or_else(|| ("shard", format!("SLURM_ARRAY_TASK_ID {id} is outside {min}..{}", min + count)))?;
         return Ok((i, count));
     }
     if let Some(idx) = env("JOB_COMPLETION_INDEX") {
         let i = num(idx, "JOB_COMPLETION_INDEX")?;
-        let n = shard_count.ok_or("JOB_COMPLETION_INDEX is set: give --shard-count (the Job's completions)")?;
+        let n = shard_count.ok_or(("shard_count", "JOB_COMPLETION_INDEX is set: give the number of shares (the Job's completions)".to_string()))?;
         if i >= n {
-            return Err(format!("JOB_COMPLETION_INDEX {i} is not below --shard-count {n}"));
+            return Err(("shard_count", format!("JOB_COMPLETION_INDEX {i} is not below the number of shares, {n}")));
         }
         return Ok((i, n));
     }
@@ -48,12 +56,15 @@ mod tests {
 
     #[test]
     fn explicit_slurm_and_kubernetes() {
-        assert_eq!(resolve(Some("2/3"), None, &env(&[])), Ok((1, 3)));
+        assert_eq!(resolve(Some("2/3"), None, &env(&[])).ok(), Some((1, 3)));
         assert!(resolve(Some("0/3"), None, &env(&[])).is_err());
-        assert_eq!(resolve(None, None, &env(&[("SLURM_ARRAY_TASK_ID", "5"), ("SLURM_ARRAY_TASK_COUNT", "4"), ("SLURM_ARRAY_TASK_MIN", "3")])), Ok((2, 4)));
-        assert_eq!(resolve(None, None, &env(&[("SLURM_ARRAY_TASK_ID", "0"), ("SLURM_ARRAY_TASK_COUNT", "2")])), Ok((0, 2)));
-        assert_eq!(resolve(None, Some(5), &env(&[("JOB_COMPLETION_INDEX", "4")])), Ok((4, 5)));
+        assert_eq!(
+            resolve(None, None, &env(&[("SLURM_ARRAY_TASK_ID", "5"), ("SLURM_ARRAY_TASK_COUNT", "4"), ("SLURM_ARRAY_TASK_MIN", "3")])).ok(),
+            Some((2, 4))
+        );
+        assert_eq!(resolve(None, None, &env(&[("SLURM_ARRAY_TASK_ID", "0"), ("SLURM_ARRAY_TASK_COUNT", "2")])).ok(), Some((0, 2)));
+        assert_eq!(resolve(None, Some(5), &env(&[("JOB_COMPLETION_INDEX", "4")])).ok(), Some((4, 5)));
         assert!(resolve(None, None, &env(&[("JOB_COMPLETION_INDEX", "4")])).is_err());
-        assert_eq!(resolve(None, None, &env(&[])), Ok((0, 1)));
+        assert_eq!(resolve(None, None, &env(&[])).ok(), Some((0, 1)));
     }
 }

@@ -1,4 +1,4 @@
-//! The memory map's last line of defence. Sizes are checked before mapping
+//! The memory map's last line of defence, installed by the binary. Sizes are checked before mapping
 //! and before every window, but another process may still truncate a scan
 //! while a page is being copied; the kernel then raises SIGBUS. This guard
 //! turns that into what every other failure looks like: one line naming the
@@ -55,9 +55,15 @@ static MAPPED: PathBuf0 = PathBuf0::new();
 static CLEANUP: [PathBuf0; SLOTS] = [const { PathBuf0::new() }; SLOTS];
 static INSTALL: Once = Once::new();
 
-/// Remembers the file being mapped (for the message) and installs the handler.
+/// Remembers the file being mapped, for the message.
 pub fn watch_mapped(path: &Path) {
     MAPPED.set(path.as_os_str().as_encoded_bytes());
+}
+
+/// Installs the process-wide SIGBUS handler: a program's choice, not a
+/// library's, so the binary calls it; without it SIGBUS kills the process
+/// as usual (and leaves the temporary output behind).
+pub fn install_sigbus_handler() {
     INSTALL.call_once(|| {
         // SAFETY: `on_sigbus` only calls async-signal-safe functions (write,
         // unlink, _exit) on static buffers.

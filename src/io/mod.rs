@@ -4,7 +4,6 @@ pub mod assemble;
 pub mod chunk_codec;
 pub mod chunked_raster;
 pub mod geotiff;
-pub mod maps;
 pub mod mmap_guard;
 pub mod source;
 pub mod tiff_out;

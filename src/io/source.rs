@@ -1,7 +1,7 @@
 //! The scan: a TIFF or BigTIFF, striped or tiled, chunky or planar, read a
 //! window at a time. Uncompressed files are memory-mapped and copied from in
-//! place (the only `unsafe` of the program); compressed ones are decoded
-//! chunk by chunk by the `tiff` crate into a small cache. After each window
+//! place (with `io::mmap_guard`, the only `unsafe` of the program); compressed ones are decoded
+//! chunk by chunk into a small cache. After each window
 //! the mapped pages are handed back to the kernel, so resident memory does
 //! not grow with the scan, whatever the read pattern (a swing of 90° reads
 //! source columns).

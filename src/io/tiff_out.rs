@@ -22,19 +22,6 @@ pub enum Compression {
     Zstd,
 }
 
-impl std::str::FromStr for Compression {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "none" => Ok(Compression::None),
-            "deflate" => Ok(Compression::Deflate),
-            "lzw" => Ok(Compression::Lzw),
-            "zstd" => Ok(Compression::Zstd),
-            _ => Err(format!("'{s}' is not one of none, deflate, lzw, zstd")),
-        }
-    }
-}
-
 impl Compression {
     fn tag(self) -> u16 {
         match self {

@@ -1,8 +1,8 @@
 //! What a run did and how fast: written as JSON with `--json`.
 
-use crate::accuracy::ErrorStats;
 use crate::gcm::GcmStats;
 use crate::geom::OutputGrid;
+use crate::study::accuracy::ErrorStats;
 
 /// Busy seconds of each stage (waiting on channels excluded).
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -18,7 +18,7 @@ pub struct StageTimes {
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Report {
-    pub config: super::RectifyConfig,
+    pub config: crate::options::RectifyOptions,
     pub grid: OutputGrid,
     pub crs: String,
     pub scan: ScanInfo,

@@ -5,10 +5,14 @@
 //! (a batch scheduler's one-core allocation, or one job a core) then uses
 //! one, and holds one scan window and one chunk at a time.
 
-use super::chunk::Raw;
-use super::plan::Chunk;
-use super::steps::{release_outside, timed, Reader, Run, SharedRows, Tile};
-use super::threaded::Busy;
+use super::context::Run;
+use super::stages::dem::node_heights;
+use super::stages::encode::{tiles, Tile};
+use super::stages::gcm::band_gcm;
+use super::stages::read::{plan, read, release_outside, Chunk, Reader};
+use super::stages::resample::{made, resample, Raw};
+use super::stages::write::write;
+use super::stages::{timed, Busy, SharedRows};
 use crate::error::Result;
 use crate::gcm::BandGcm;
 use crate::io::source::Window;
@@ -18,54 +22,54 @@ use std::sync::Arc;
 /// Runs every step of `run` one after the other, writing `out_file`:
 /// resampling and encoding on the pool (of one worker), the rest on this
 /// thread, which waits meanwhile.
-pub(super) fn run_sequential(run: &Run, out_file: std::fs::File, flush_file: std::fs::File) -> Result<Busy> {
+pub fn run_sequential(run: &Run, out_file: std::fs::File, flush_file: std::fs::File) -> Result<Busy> {
     let mut busy = Busy::default();
     let (mut heights, mut node_rows) = (SharedRows::default(), SharedRows::default());
     let mut reader = Reader::default();
-    let mut bands = run.bands.0..run.bands.1;
+    let mut bands = run.walk.bands.0..run.walk.bands.1;
     // The band being made and its chunks still to make.
     let mut band: Option<(u32, Arc<BandGcm>)> = None;
     let mut chunks: VecDeque<Chunk> = VecDeque::new();
-    let mut tiles: VecDeque<(usize, Tile)> = VecDeque::new();
+    let mut ready: VecDeque<(usize, Tile)> = VecDeque::new();
     // Buffers used again, chunk after chunk; a chunk's buffer comes back
     // through `free` once its last tile is written.
     let (free, freed) = crossbeam_channel::bounded::<Raw>(1);
     let mut win = Window::default();
     // The scan rows the chunk before read in place.
     let mut mapped: Option<(u32, u32)> = None;
-    let written = run.write(out_file, flush_file, || loop {
-        if let Some(tile) = tiles.pop_front() {
+    let written = write(run, out_file, flush_file, || loop {
+        if let Some(tile) = ready.pop_front() {
             return Ok(Some(tile));
         }
-        if run.stop() {
+        if run.stop.now() {
             return Err(crate::error::Error::Cancelled);
         }
         let Some(chunk) = chunks.pop_front() else {
             let Some(b) = bands.next() else {
                 return Ok(None);
             };
-            let msg = timed(&mut busy.dem, || run.node_heights(b, &mut heights));
-            let gcm = Arc::new(timed(&mut busy.gcm, || run.band_gcm(msg, &mut node_rows))?);
-            chunks.extend(run.plan(b, &gcm, &mut reader));
+            let msg = timed(&mut busy.dem, || node_heights(run, b, &mut heights));
+            let gcm = Arc::new(timed(&mut busy.gcm, || band_gcm(run, msg, &mut node_rows))?);
+            chunks.extend(plan(run, b, &gcm, &mut reader));
             band = Some((b, gcm));
             continue;
         };
         let (b, gcm) = band.clone().expect("a band for its chunks");
-        let msg = run.read(b, gcm, chunk, &mut reader, std::mem::take(&mut win))?;
+        let msg = read(run, b, gcm, chunk, &mut reader, std::mem::take(&mut win))?;
         let rows_now = msg.in_place.map(|_| (msg.win.y0, msg.win.y0 + msg.win.h));
         if let Some(rows) = mapped.take() {
-            release_outside(run.src, rows, rows_now);
+            release_outside(run.inputs.src, rows, rows_now);
         }
         mapped = rows_now;
-        let raw = timed(&mut busy.resample, || run.pool.install(|| run.resample(&msg, freed.try_recv().ok())));
-        let made = run.made(b, msg.chunk.x0, raw)?;
+        let raw = timed(&mut busy.resample, || run.pool.install(|| resample(run, &msg, freed.try_recv().ok())));
+        let made = made(run, b, msg.chunk.x0, raw)?;
         win = msg.win;
-        for tile in run.tiles(made, &free, &mut busy.encode) {
-            tiles.push_back(tile?);
+        for tile in tiles(run, made, &free, &mut busy.encode) {
+            ready.push_back(tile?);
         }
     });
     if let Some(rows) = mapped {
-        release_outside(run.src, rows, None);
+        release_outside(run.inputs.src, rows, None);
     }
     written?;
     busy.read = reader.busy;

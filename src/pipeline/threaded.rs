@@ -2,9 +2,14 @@
 //! so that a few bands at most are in flight; resampling on the worker
 //! pool, two chunks at once.
 
-use super::chunk::{Raw, ReadMsg};
-use super::steps::{release_outside, timed, DemMsg, Made, Reader, Run, SharedRows, Tile};
-use crate::dem::Lookup;
+use super::context::Run;
+use super::stages::dem::{node_heights, DemMsg};
+use super::stages::encode::{tiles, Tile};
+use super::stages::gcm::band_gcm;
+use super::stages::read::{plan, read, release_outside, ReadMsg, Reader};
+use super::stages::resample::{made, resample, Made, Miss, Raw};
+use super::stages::write::write;
+use super::stages::{timed, Busy, SharedRows};
 use crate::error::{Error, Result};
 use crate::gcm::BandGcm;
 use crate::io::source::{SourceImage, Window};
@@ -12,21 +17,11 @@ use crossbeam_channel::bounded;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// Busy time of each step (the writer's share shows as the run's wall time).
-#[derive(Default)]
-pub(super) struct Busy {
-    pub dem: Duration,
-    pub gcm: Duration,
-    pub read: Duration,
-    pub resample: Duration,
-    pub encode: Duration,
-}
-
 /// Runs every step of `run` on threads of its own, writing `out_file`.
 /// The error is the root cause: the first that is not a consequence of
 /// another's cancelling the run.
-pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::File) -> Result<Busy> {
-    let (src, share) = (run.src, run.share);
+pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::File) -> Result<Busy> {
+    let src = run.inputs.src;
     let (tx_dem, rx_dem) = bounded::<DemMsg>(2);
     let (tx_gcm, rx_gcm) = bounded::<Arc<BandGcm>>(2);
     let (tx_read, rx_read) = bounded::<ReadMsg>(1);
@@ -34,17 +29,17 @@ pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::
     // Buffers going back up the pipeline to be used again.
     let (tx_free_win, rx_free_win) = bounded::<Window>(4);
     let (tx_free_raw, rx_free_raw) = bounded::<Raw>(4);
-    let (tx_enc, rx_enc) = bounded::<(usize, Tile)>(run.max_tiles.max(4) as usize);
+    let (tx_enc, rx_enc) = bounded::<(usize, Tile)>(run.budget.chunk_tiles(run.inputs.spec.tile_bytes()).max(4) as usize);
 
     let results: Vec<Result<Duration>> = std::thread::scope(|s| {
         let h_dem = s.spawn(|| {
             let mut busy = Duration::ZERO;
             let mut before = SharedRows::default();
-            for b in run.bands.0..run.bands.1 {
-                if run.stop() {
+            for b in run.walk.bands.0..run.walk.bands.1 {
+                if run.stop.now() {
                     return Err(Error::Cancelled);
                 }
-                let msg = timed(&mut busy, || run.node_heights(b, &mut before));
+                let msg = timed(&mut busy, || node_heights(run, b, &mut before));
                 if tx_dem.send(msg).is_err() {
                     return Err(Error::Cancelled);
                 }
@@ -59,10 +54,10 @@ pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::
             let mut busy = Duration::ZERO;
             let mut before = SharedRows::default();
             for msg in rx_dem.iter() {
-                if run.stop() {
+                if run.stop.now() {
                     return Err(Error::Cancelled);
                 }
-                let band = timed(&mut busy, || run.band_gcm(msg, &mut before))?;
+                let band = timed(&mut busy, || band_gcm(run, msg, &mut before))?;
                 if tx_gcm.send(Arc::new(band)).is_err() {
                     return Err(Error::Cancelled);
                 }
@@ -74,13 +69,13 @@ pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::
             let rx_gcm = rx_gcm;
             let mut reader = Reader::default();
             for (b, band) in rx_gcm.iter().enumerate() {
-                let b = run.bands.0 + b as u32;
-                for chunk in run.plan(b, &band, &mut reader) {
-                    if run.stop() {
+                let b = run.walk.bands.0 + b as u32;
+                for chunk in plan(run, b, &band, &mut reader) {
+                    if run.stop.now() {
                         return Err(Error::Cancelled);
                     }
                     let win = rx_free_win.try_recv().unwrap_or_default();
-                    let msg = run.read(b, band.clone(), chunk, &mut reader, win)?;
+                    let msg = read(run, b, band.clone(), chunk, &mut reader, win)?;
                     if tx_read.send(msg).is_err() {
                         return Err(Error::Cancelled);
                     }
@@ -102,7 +97,7 @@ pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::
             // while the older one's slower task runs had nothing to take
             // (1 GiB turned 90°: 0.95× the wall time, 8 pairs; peak 88–101
             // MiB against 88–95; with three at 0°: 0.98×, +11 MiB, not kept).
-            let in_flight: usize = if run.columns { 3 } else { 2 };
+            let in_flight: usize = if run.walk.columns { 3 } else { 2 };
             let row_bytes = src.info.width as u64 * src.info.pixel_bytes() as u64;
             let (tx_done, rx_done) = crossbeam_channel::unbounded::<Resampled>();
             let mut chunks = InFlight::default();
@@ -111,12 +106,12 @@ pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::
                 let forward_oldest = |chunks: &mut InFlight| -> Result<()> {
                     let done = chunks.finish_oldest(&rx_done)?;
                     let _ = tx_free_win.try_send(done.win);
-                    let made = run.made(done.band, done.x0, done.raw)?;
+                    let made = made(run, done.band, done.x0, done.raw)?;
                     tx_raw.send(made).map_err(|_| Error::Cancelled)
                 };
                 for (seq, msg) in rx_read.iter().enumerate() {
                     let seq = seq as u64;
-                    if run.stop() {
+                    if run.stop.now() {
                         return Err(Error::Cancelled);
                     }
                     let rows_now = msg.in_place.map(|_| (msg.win.y0, msg.win.y0 + msg.win.h));
@@ -131,7 +126,7 @@ pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::
                     // 1 GiB scan (its chunks span ~400 rows); with eight the
                     // run took 0.976× the time, and its peak grew from
                     // 71–75 to 76–85 MiB (6 runs each).
-                    while !chunks.is_empty() && chunks.rows_hull(rows_now).is_some_and(|(a, b)| (b - a) as u64 * row_bytes > 8 * share) {
+                    while !chunks.is_empty() && chunks.rows_hull(rows_now).is_some_and(|(a, b)| (b - a) as u64 * row_bytes > run.budget.mapped_rows()) {
                         forward_oldest(&mut chunks)?;
                     }
                     chunks.release_finished_rows(src, rows_now);
@@ -139,7 +134,7 @@ pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::
                     let tx_done = tx_done.clone();
                     chunks.start(seq, rows_now);
                     scope.spawn(move |_| {
-                        let raw = run.resample(&msg, spare);
+                        let raw = resample(run, &msg, spare);
                         let _ = tx_done.send(Resampled { seq, raw, win: msg.win, band: msg.band, x0: msg.chunk.x0 });
                     });
                     while chunks.len() >= in_flight {
@@ -160,10 +155,10 @@ pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::
             let rx_raw = rx_raw;
             let mut busy = Duration::ZERO;
             for made in rx_raw.iter() {
-                if run.stop() {
+                if run.stop.now() {
                     return Err(Error::Cancelled);
                 }
-                for tile in run.tiles(made, &tx_free_raw, &mut busy) {
+                for tile in tiles(run, made, &tx_free_raw, &mut busy) {
                     if tx_enc.send(tile?).is_err() {
                         return Err(Error::Cancelled);
                     }
@@ -174,7 +169,7 @@ pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::
         });
         let h_write = s.spawn(|| {
             let rx_enc = rx_enc;
-            run.write(out_file, flush_file, || Ok(rx_enc.recv().ok())).map(|()| Duration::ZERO)
+            write(run, out_file, flush_file, || Ok(rx_enc.recv().ok())).map(|()| Duration::ZERO)
         });
         [h_dem, h_gcm, h_read, h_resample, h_encode, h_write]
             .into_iter()
@@ -206,7 +201,7 @@ pub(super) fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::
 /// and the window buffer to use again.
 struct Resampled {
     seq: u64,
-    raw: std::result::Result<Raw, (f64, f64, Lookup)>,
+    raw: std::result::Result<Raw, Miss>,
     win: Window,
     band: u32,
     /// The chunk's first output column.

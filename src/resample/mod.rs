@@ -24,19 +24,6 @@ pub enum Kernel {
     Lanczos3,
 }
 
-impl std::str::FromStr for Kernel {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "nearest" => Ok(Kernel::Nearest),
-            "bilinear" => Ok(Kernel::Bilinear),
-            "cubic" => Ok(Kernel::Cubic),
-            "lanczos3" | "lanczos" => Ok(Kernel::Lanczos3),
-            _ => Err(format!("'{s}' is not one of nearest, bilinear, cubic, lanczos3")),
-        }
-    }
-}
-
 impl Kernel {
     /// How many source pixels beyond the position's own the kernel reads.
     pub fn radius(self) -> u32 {

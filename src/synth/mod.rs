@@ -19,6 +19,7 @@ use crate::dem::{Dem, GridDem, Height};
 use crate::error::{Error, Result};
 use crate::io::source::SampleType;
 use crate::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
+use crate::progress::Progress;
 use crate::transform::footprint::{auto_grid, mean_gsd};
 use rayon::prelude::*;
 use render::render_scan;
@@ -43,6 +44,20 @@ pub enum CameraKind {
     Rpc,
 }
 
+impl crate::options::Choice for Relief {
+    const NAMES: &'static [&'static str] = &["flat", "hilly", "mountain"];
+    fn from_name(name: &str) -> Option<Self> {
+        [Relief::Flat, Relief::Hilly, Relief::Mountain].into_iter().zip(Self::NAMES).find(|(_, n)| **n == name).map(|(r, _)| r)
+    }
+}
+
+impl crate::options::Choice for CameraKind {
+    const NAMES: &'static [&'static str] = &["film", "digital", "rpc"];
+    fn from_name(name: &str) -> Option<Self> {
+        [CameraKind::Film, CameraKind::Digital, CameraKind::Rpc].into_iter().zip(Self::NAMES).find(|(_, n)| **n == name).map(|(c, _)| c)
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct SynthOptions {
     pub out: PathBuf,
@@ -65,7 +80,6 @@ pub struct SynthOptions {
     /// Off-nadir angle of a satellite scene, degrees (2 to 35).
     pub off_nadir_deg: f64,
     pub seed: u64,
-    pub quiet: bool,
     /// Write only the geometry (camera, DEM, checkpoints): for accuracy
     /// studies of scans too large to render.
     pub no_scan: bool,
@@ -90,7 +104,6 @@ impl Default for SynthOptions {
             frame_mm: 230.0,
             off_nadir_deg: 25.0,
             seed: 1,
-            quiet: true,
             no_scan: false,
         }
     }
@@ -132,30 +145,30 @@ const EPSG: u32 = 32631;
 const ORIGIN: (f64, f64) = (650_000.0, 4_890_000.0);
 
 fn check(o: &SynthOptions) -> Result<()> {
-    let bad = |m: String| Err(Error::Usage(m));
+    let bad = |setting: &'static str, m: String| Err(Error::setting(setting, m));
     if o.width < 64 || o.height < 64 {
-        return bad(format!("--size {}x{} is too small (64×64 at least)", o.width, o.height));
+        return bad("size", format!("{}x{} is too small (64×64 at least)", o.width, o.height));
     }
     if !(1..=4).contains(&o.bands) {
-        return bad(format!("--bands {} (1 to 4)", o.bands));
+        return bad("bands", format!("{} is not 1 to 4", o.bands));
     }
     if o.bits != 8 && o.bits != 16 {
-        return bad(format!("--bits {} (8 or 16)", o.bits));
+        return bad("bits", format!("{} is not 8 or 16", o.bits));
     }
     if !(o.dem_posting > 0.0) || !(o.scale > 0.0) {
-        return bad("--dem-posting and --scale must be positive".into());
+        return bad(if o.dem_posting > 0.0 { "scale" } else { "dem_posting" }, "must be positive".into());
     }
     if o.frame_mm != 230.0 && o.frame_mm != 180.0 {
-        return bad(format!("--frame {} (230 or 180 mm)", o.frame_mm));
+        return bad("frame", format!("{} mm is not 230 or 180", o.frame_mm));
     }
     if o.fiducials != 4 && o.fiducials != 8 {
-        return bad(format!("--fiducials {} (4 or 8)", o.fiducials));
+        return bad("fiducials", format!("{} is not 4 or 8", o.fiducials));
     }
     if o.camera == CameraKind::Rpc && !(2.0..=35.0).contains(&o.off_nadir_deg) {
-        return bad(format!("--off-nadir {} (2° to 35°)", o.off_nadir_deg));
+        return bad("off_nadir", format!("{}° is not 2° to 35°", o.off_nadir_deg));
     }
     if o.compress == Compression::Zstd {
-        return bad("--compress zstd is not written for scans (none, deflate, lzw)".into());
+        return bad("compress", "zstd is not written for scans (none, deflate, lzw)".into());
     }
     Ok(())
 }
@@ -351,11 +364,11 @@ fn pixel_value(rgb: [f32; 3], bands: u32, k: u32) -> f32 {
 }
 
 /// Generates the scene. See the module doc.
-pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
+pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
     check(o)?;
     std::fs::create_dir_all(&o.out).map_err(|e| Error::io(&o.out, e))?;
     if o.camera == CameraKind::Rpc {
-        return satellite::synth_rpc(o);
+        return satellite::synth_rpc(o, progress);
     }
     let cam_path = o.out.join("camera.toml");
     let dem_path = o.out.join("dem.tif");
@@ -390,7 +403,7 @@ pub fn synth(o: &SynthOptions) -> Result<SynthReport> {
     let scene = Scene { model: cam, dem: &dem, colour: &colour, inside: &inside, margin: &|c, r| film_margin(o, cam, c, r), mid_z };
     let scan_spec = scan_spec(o);
     if !o.no_scan {
-        render_scan(o, &scene, &scan_spec, &scan_path)?;
+        render_scan(o, &scene, &scan_spec, &scan_path, progress)?;
     }
     // The truth orthophoto on the grid rectify chooses by default.
     let grid = auto_grid(cam, &dem, o.width, o.height, mid_z, gsd)?;

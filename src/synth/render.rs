@@ -16,6 +16,7 @@ use super::{write_pixel, Scene, SynthOptions};
 use crate::camera::SensorModel;
 use crate::error::Result;
 use crate::io::tiff_out::{write_raster, OutputSpec};
+use crate::progress::{Progress, Task};
 use crate::transform::inverse::{RayCaster, RunScratch};
 use rayon::prelude::*;
 use std::sync::Mutex;
@@ -52,7 +53,7 @@ impl Stripe {
 }
 
 /// Renders the scan (see the module doc), a band of rows at a time.
-pub(super) fn render_scan<M, C, I>(o: &SynthOptions, sc: &Scene<'_, M, C, I>, spec: &OutputSpec, path: &std::path::Path) -> Result<()>
+pub(super) fn render_scan<M, C, I>(o: &SynthOptions, sc: &Scene<'_, M, C, I>, spec: &OutputSpec, path: &std::path::Path, progress: &dyn Progress) -> Result<()>
 where
     M: SensorModel,
     C: Fn(f64, f64) -> [f32; 3] + Sync,
@@ -60,9 +61,9 @@ where
 {
     let pb = o.bands as usize * spec.sample.bytes();
     let width = o.width as usize;
-    let progress = crate::progress::bar(o.height as u64, "synth rows", o.quiet);
+    progress.start(&Task { name: "synth", units: o.height as u64, lines: o.height as u64, line_name: "rows", input_bytes: 0 });
     let stripes = Mutex::new((0..width.div_ceil(STRIPE)).map(|s| Stripe::new(s * STRIPE, STRIPE.min(width - s * STRIPE))).collect::<Vec<_>>());
-    write_raster(path, spec, |y0, y1, buf| {
+    let written = write_raster(path, spec, |y0, y1, buf| {
         // Bands come one after the other: the lock is never contended.
         let mut stripes = stripes.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         let mut parts: Vec<Vec<&mut [u8]>> = stripes.iter().map(|_| Vec::new()).collect();
@@ -77,10 +78,10 @@ where
                 render_row(o, sc, &mut caster, stripe, y0 as usize + k, seg, pb);
             }
         });
-        progress.inc((y1 - y0) as u64);
-    })?;
-    progress.finish_and_clear();
-    Ok(())
+        progress.advance((y1 - y0) as u64);
+    });
+    progress.finish();
+    written
 }
 
 /// Row `y` of one stripe into `out`.

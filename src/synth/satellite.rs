@@ -80,7 +80,7 @@ impl Pushbroom {
     }
 }
 
-pub(super) fn synth_rpc(o: &SynthOptions) -> Result<SynthReport> {
+pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progress) -> Result<SynthReport> {
     let out = |name: &str| o.out.join(name);
     let (cam_path, dem_path, scan_path, rpc_path) = (out("camera.toml"), out("dem.tif"), out("scan.tif"), out("scan_RPC.TXT"));
     let utm = GroundCrs::from_epsg(EPSG).map_err(Error::Geometry)?;
@@ -156,7 +156,7 @@ pub(super) fn synth_rpc(o: &SynthOptions) -> Result<SynthReport> {
     let spec = scan_spec(o);
     if !o.no_scan {
         let scene = Scene { model: &geo, dem: &dem_geo, colour: &colour_geo, inside: &inside, margin: &|_, _| [0.0; 3], mid_z };
-        render_scan(o, &scene, &spec, &scan_path)?;
+        render_scan(o, &scene, &spec, &scan_path, progress)?;
     }
 
     // Truth and checkpoints in UTM, on the grid rectify chooses by default.

@@ -18,17 +18,20 @@ pub fn run(args: &[&str]) -> Output {
 pub fn scene(dir: &Path, size: u32, f: impl FnOnce(&mut SynthOptions)) -> SynthReport {
     let mut o = SynthOptions { out: dir.to_path_buf(), width: size, height: size, kappa_deg: 30.0, ..Default::default() };
     f(&mut o);
-    synth(&o).expect("synth works")
+    synth(&o, &gcm_ortho::NoProgress).expect("synth works")
 }
 
 pub fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
 }
 
-/// Is a GDAL command-line tool installed? Tests that compare with GDAL
-/// print why they are skipped when it is not (CI installs it).
+/// Is a reference tool (GDAL's) installed? Tests that compare with it
+/// print why they are skipped when it is not; under CI (`CI` set), where
+/// `.ci/run` installs it, a missing tool fails the test instead.
 pub fn have(tool: &str) -> bool {
-    Command::new(tool).arg("--version").output().map(|o| o.status.success()).unwrap_or(false)
+    let found = Command::new(tool).arg("--version").output().map(|o| o.status.success()).unwrap_or(false);
+    assert!(found || std::env::var_os("CI").is_none(), "{tool} is missing, and CI must compare with it (install gdal-bin)");
+    found
 }
 
 /// Files in `dir` whose names contain `part`.

@@ -1,11 +1,106 @@
-//! Planning a band: which groups of output tiles ("chunks") to resample
-//! together, and which window of the scan each needs. Like GDAL's chunk
-//! list: the source window of a chunk is found from a lattice of samples of
-//! `A + c`, and tiles are grouped left to right while the window stays under
-//! the memory budget.
+//! Stage 3, read: plan a band's chunks (which groups of output tiles to
+//! resample together, and which window of the scan each needs), then read
+//! each chunk's window — in place from the mapped scan where it can, copied
+//! or decoded where not. Like GDAL's chunk list: the source window of a
+//! chunk is found from a lattice of samples of `A + c`, and tiles are
+//! grouped left to right while the window stays under the memory budget.
 
+use super::timed;
+use crate::error::Result;
 use crate::gcm::{BandGcm, Gcm};
 use crate::geom::Span;
+use crate::io::source::{SourceImage, Window};
+use crate::pipeline::context::Run;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// A chunk's scan window on its way to the resampler.
+pub struct ReadMsg<'a> {
+    pub band: u32,
+    pub gcm: Arc<BandGcm>,
+    pub chunk: Chunk,
+    pub win: Window,
+    /// The window's rows in place in the mapped scan (then `win` only
+    /// carries the position), and their stride in bytes.
+    pub in_place: Option<(&'a [u8], usize)>,
+}
+
+/// What the read stage carries from one band to the next.
+#[derive(Default)]
+pub struct Reader {
+    /// Scan windows are copied from here on (see [`read`]).
+    copying: bool,
+    /// The scan rows of the band before (for the read-ahead).
+    rows_before: Option<(u32, u32)>,
+    pub busy: Duration,
+}
+
+/// The chunks of band `b` and their scan windows. The band's scan rows,
+/// and as many again the way the bands move through the scan, are asked
+/// for at once where they will be read in place: a scan that is not in
+/// memory yet then comes in large reads ahead of the workers, instead of
+/// small ones that each hold up a worker's fault. Nothing is read where
+/// the rows are in memory.
+pub fn plan(run: &Run, b: u32, band: &BandGcm, reader: &mut Reader) -> Vec<Chunk> {
+    let (src, walk) = (run.inputs.src, &run.walk);
+    let (y0, y1) = walk.band_rows(b);
+    let (sw, sh) = (src.info.width, src.info.height);
+    let margin = run.inputs.pixels.kernel.radius() + 2;
+    let (budget_px, max_tiles) = (run.budget.window_pixels(src.info.pixel_bytes()), run.budget.chunk_tiles(run.inputs.spec.tile_bytes()));
+    let chunks = timed(&mut reader.busy, || plan_band(run.inputs.gcm, band, y0, y1, walk.tile, (sw, sh), margin, budget_px, max_tiles, walk.cols));
+    let rows = band_scan_rows(&chunks);
+    if let Some(rows) = rows.filter(|&(r0, r1)| !reader.copying && (r1 - r0) as u64 * sw as u64 * src.info.pixel_bytes() as u64 <= run.budget.mapped_rows()) {
+        let (a, b) = read_ahead_rows(rows, reader.rows_before, sh);
+        src.will_need_rows(a, b - a);
+    }
+    reader.rows_before = rows;
+    chunks
+}
+
+/// The scan window of `chunk` (of band `b`), into `win` or in place.
+pub fn read<'a>(run: &Run<'a>, b: u32, band: Arc<BandGcm>, chunk: Chunk, reader: &mut Reader, mut win: Window) -> Result<ReadMsg<'a>> {
+    let src = run.inputs.src;
+    let [c0, r0, c1, r1] = chunk.win;
+    // In place when the rows it spans fit the budget's in-place share: no
+    // window is copied and the only scan pages resident are the rows of the
+    // chunks being resampled (at most whole rows: the kernel maps pages
+    // around each fault). A tall, narrow window of a turned scan would map
+    // far more pages than it uses: copy those. Once one chunk is copied,
+    // the rest of the run is copied too: mapped rows on top of the copies'
+    // buffers would go past the budget.
+    let span = (r1 - r0) as u64 * src.info.width as u64 * src.info.pixel_bytes() as u64;
+    let in_place =
+        if span <= run.budget.in_place_rows() && !reader.copying { src.mapped_rows(c0, r0, c1 - c0, r1 - r0).map_err(|e| run.stop.fail(e))? } else { None };
+    match in_place {
+        Some(_) => {
+            (win.x0, win.y0, win.w, win.h) = (c0, r0, c1 - c0, r1 - r0);
+            run.counters.chunks_in_place.fetch_add(1, Ordering::Relaxed);
+        }
+        None => {
+            // A chunk that sees no pixel of the scan decides nothing.
+            reader.copying |= c1 > c0 && r1 > r0;
+            timed(&mut reader.busy, || src.read_window_on(&run.pool, c0, r0, c1 - c0, r1 - r0, &mut win)).map_err(|e| run.stop.fail(e))?
+        }
+    }
+    Ok(ReadMsg { band: b, gcm: band, chunk, win, in_place })
+}
+
+/// Gives back the mapped scan rows `rows` except those inside `keep`.
+pub fn release_outside(src: &SourceImage, rows: (u32, u32), keep: Option<(u32, u32)>) {
+    let (a, b) = rows;
+    match keep {
+        Some((ka, kb)) if ka < b && kb > a => {
+            if ka > a {
+                src.release_rows(a, ka - a);
+            }
+            if kb < b {
+                src.release_rows(kb, b - kb);
+            }
+        }
+        _ => src.release_rows(a, b - a),
+    }
+}
 
 /// A run of output tiles of one band and the scan window it reads.
 #[derive(Clone, Debug, PartialEq)]
@@ -69,6 +164,7 @@ fn tile_bboxes(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, tile: u32, (t0, 
 /// whole tiles whose scan windows
 /// hold at most `budget_px` pixels and that count at most `max_tiles`
 /// tiles (a single tile may exceed the budget).
+#[allow(clippy::too_many_arguments)] // the band, the scan and the budget, each a plain number
 pub fn plan_band(
     gcm: &Gcm<'_>,
     band: &BandGcm,

@@ -1,17 +1,50 @@
-//! One chunk of output: the scan window it reads (copied, or in place in
-//! the mapped scan) and the resampling of its rows into whole tiles.
+//! Stage 4, resample: a chunk's output pixels, row by row across the
+//! chunk, written tile by tile into one buffer (in parallel on the pool).
 
-use super::config::RectifyConfig;
-use super::plan::Chunk;
+use super::read::ReadMsg;
 use crate::dem::Lookup;
-use crate::gcm::{BandGcm, Gcm};
-use crate::io::source::{SampleType, SourceImage, Window};
+use crate::error::Result;
+use crate::gcm::Gcm;
+use crate::io::source::{SampleType, SourceImage, SourceInfo, Window};
+use crate::pipeline::context::{PixelOptions, Run};
 use crate::resample::{resample_row, resample_spans, span_position, Kernel, Sample, SpanOutcome, View};
 use rayon::prelude::*;
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
+
+/// A resampled chunk's tiles on their way to the encoder: band `band`,
+/// walked tile columns from `first_col`.
+pub struct Made {
+    pub band: u32,
+    pub first_col: u32,
+    pub raw: Raw,
+}
+
+/// A ground point where the DEM had no height (under the `error` policy).
+pub type Miss = (f64, f64, Lookup);
+
+/// The chunk's pixels, tile by tile, in the buffer `spare` if given; or
+/// the ground point where the DEM had no height.
+pub fn resample(run: &Run, msg: &ReadMsg, spare: Option<Raw>) -> std::result::Result<Raw, Miss> {
+    let (y0, y1) = run.walk.band_rows(msg.band);
+    let (gcm, src, opts) = (run.inputs.gcm, run.inputs.src, run.inputs.pixels);
+    match src.info.sample {
+        SampleType::U8 => resample_chunk::<u8>(gcm, src, msg, y0, y1, opts, spare).map(Raw::U8),
+        SampleType::U16 => resample_chunk::<u16>(gcm, src, msg, y0, y1, opts, spare).map(Raw::U16),
+        SampleType::F32 => resample_chunk::<f32>(gcm, src, msg, y0, y1, opts, spare).map(Raw::F32),
+    }
+}
+
+/// The resampled chunk of band `band` from output column `x0`, counted,
+/// on its way to the encoder; where the DEM had no height (under the
+/// `error` policy), the run's failure.
+pub fn made(run: &Run, band: u32, x0: u32, raw: std::result::Result<Raw, Miss>) -> Result<Made> {
+    let raw = raw.map_err(|m| run.stop.fail(super::gcm::dem_miss_error(run.inputs.dem, m)))?;
+    run.counters.chunks_done.fetch_add(1, Ordering::Relaxed);
+    Ok(Made { band, first_col: x0 / run.walk.tile, raw })
+}
 
 /// The output pixels of one chunk, tile by tile, in the output sample type.
-pub(super) enum Raw {
+pub enum Raw {
     U8(Vec<u8>),
     U16(Vec<u16>),
     F32(Vec<f32>),
@@ -20,7 +53,7 @@ pub(super) enum Raw {
 /// Output buffers handed back by the encoder for the next chunk: allocating
 /// and freeing multi-MB buffers on different threads leaves the allocator's
 /// per-thread arenas holding tens of MB nobody uses.
-pub(super) trait Recycle: Sized {
+pub trait Recycle: Sized {
     fn take(raw: Option<Raw>) -> Vec<Self>;
 }
 
@@ -41,7 +74,7 @@ recycle!(u16, U16);
 recycle!(f32, F32);
 
 impl Raw {
-    pub(super) fn bytes(&self) -> &[u8] {
+    pub fn bytes(&self) -> &[u8] {
         match self {
             Raw::U8(v) => v,
             Raw::U16(v) => bytemuck::cast_slice(v),
@@ -50,26 +83,15 @@ impl Raw {
     }
 }
 
-pub(super) struct ReadMsg<'a> {
-    pub band: u32,
-    pub gcm: Arc<BandGcm>,
-    pub chunk: Chunk,
-    pub win: Window,
-    /// The window's rows in place in the mapped scan (then `win` only
-    /// carries the position), and their stride in bytes.
-    pub in_place: Option<(&'a [u8], usize)>,
-}
-
-impl ReadMsg<'_> {
-    fn view<'v, T: Sample>(&'v self, info: &crate::io::source::SourceInfo) -> View<'v, T> {
-        let w = &self.win;
-        match self.in_place {
-            Some((bytes, stride)) => {
-                let data = bytemuck::try_cast_slice(bytes).expect("mapped_rows checks alignment");
-                View::in_place(data, w.x0, w.y0, w.w, w.h, stride / info.pixel_bytes(), info.bands, info.width, info.height)
-            }
-            None => View::new(w, info.bands, info.width, info.height),
+/// The chunk's scan window as samples of type `T`.
+fn view<'v, T: Sample>(msg: &'v ReadMsg, info: &SourceInfo) -> View<'v, T> {
+    let w = &msg.win;
+    match msg.in_place {
+        Some((bytes, stride)) => {
+            let data = bytemuck::try_cast_slice(bytes).expect("mapped_rows checks alignment");
+            View::in_place(data, w.x0, w.y0, w.w, w.h, stride / info.pixel_bytes(), info.bands, info.width, info.height)
         }
+        None => View::new(w, info.bands, info.width, info.height),
     }
 }
 
@@ -83,26 +105,24 @@ fn column_group(tile: usize) -> usize {
     [128, 64, 32, 16].into_iter().find(|g| tile % g == 0).unwrap_or(1)
 }
 /// Resamples the rows of one chunk; returns a DEM miss under the `error` policy.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn resample_chunk<T: Sample + Recycle>(
+pub fn resample_chunk<T: Sample + Recycle>(
     gcm: &Gcm<'_>,
     src: &SourceImage,
     msg: &ReadMsg,
     y0: u32,
     y1: u32,
-    cfg: &RectifyConfig,
-    bands_out: u32,
+    opts: PixelOptions,
     spare: Option<Raw>,
-) -> std::result::Result<Vec<T>, (f64, f64, Lookup)> {
+) -> std::result::Result<Vec<T>, Miss> {
     let info = &src.info;
     let bands_in = info.bands as usize;
-    let bo = bands_out as usize;
+    let bo = opts.bands_out as usize;
     let (x0, x1) = (msg.chunk.x0, msg.chunk.x1);
     let w = (x1 - x0) as usize;
-    let view = msg.view::<T>(info);
+    let view = view::<T>(msg, info);
     // Where the kernel stays inside the window (or the window reaches the
     // scan's edge, where clamping is the intended behaviour).
-    let r = cfg.kernel.radius() as f64 + 1.0;
+    let r = opts.kernel.radius() as f64 + 1.0;
     let [c0, r0, c1, r1] = msg.chunk.win;
     let safe = [
         if c0 == 0 { f64::NEG_INFINITY } else { c0 as f64 + r },
@@ -110,7 +130,7 @@ pub(super) fn resample_chunk<T: Sample + Recycle>(
         if c1 == info.width { f64::INFINITY } else { c1 as f64 - r },
         if r1 == info.height { f64::INFINITY } else { r1 as f64 - r },
     ];
-    let fill = T::from_f32(if cfg.alpha { 0.0 } else { cfg.nodata as f32 });
+    let fill = T::from_f32(opts.fill as f32);
     let opaque = T::from_f32(match T::TYPE {
         SampleType::U8 => 255.0,
         SampleType::U16 => 65535.0,
@@ -121,7 +141,7 @@ pub(super) fn resample_chunk<T: Sample + Recycle>(
     // Tile-major: the chunk's tiles one after the other, each `tile` rows
     // of `tile` pixels; what lies beyond the grid's right or bottom edge is
     // zero (the writer sends tiles as they are).
-    let t = cfg.tile as usize;
+    let t = opts.tile as usize;
     let rows = (y1 - y0) as usize;
     let n_tiles = w.div_ceil(t);
     out.resize(n_tiles * t * t * bo, T::default());
@@ -147,75 +167,70 @@ pub(super) fn resample_chunk<T: Sample + Recycle>(
     // needs it); scan positions (`cols`, `rws`) only where a row is not all
     // straight spans: made on first need, not zeroed for every split of the
     // chunk (1.6 % of the instructions).
-    let make_row = |r: usize,
-                    cols: &mut Vec<f64>,
-                    rws: &mut Vec<f64>,
-                    px: &mut [T],
-                    valid: &mut [bool],
-                    spans: &mut Vec<crate::geom::Span>,
-                    miss: &mut Option<(f64, f64, Lookup)>| {
-        let positions = |cols: &mut Vec<f64>, rws: &mut Vec<f64>| {
-            cols.resize(w, 0.0);
-            rws.resize(w, 0.0);
-        };
-        let y = y0 + r as u32;
-        // Pixels whose kernel would leave the window: read their
-        // neighbourhood on their own (rare; the plan adds a margin).
-        let is_safe = |(c, rr): (f64, f64)| c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3];
-        let reread = |at: (f64, f64), out: &mut [T]| {
-            if !is_safe(at) {
-                single_pixel(src, cfg, at.0, at.1, out, fill);
-            }
-        };
-        let x0 = x0 as usize;
-        if cfg.kernel == Kernel::Bilinear && gcm.row_spans(&msg.gcm, y, x0 as u32, w, spans) {
-            // Straight spans: positions step in fixed point, runs
-            // of them in one call; the rest (refined cells) pixel
-            // by pixel.
-            for run in spans.chunk_by(|p, q| p.linear == q.linear) {
-                let (first, end) = (run[0].first, run[run.len() - 1].end);
-                let (a, b) = (first - x0, end - x0);
-                let out: &mut [T] = &mut px[a * bands_in..b * bands_in];
-                let valid = &mut valid[a..b];
-                let linear = run[0].linear;
-                let outcome = if linear {
-                    resample_spans(&view, run, out, valid, fill)
-                } else {
-                    positions(cols, rws);
-                    gcm.fill_exact(&msg.gcm, y, first as u32, &mut cols[a..b], &mut rws[a..b], miss);
-                    SpanOutcome::Checked { clamped: resample_row(cfg.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill) }
-                };
-                if outcome == SpanOutcome::Inside && !direct {
-                    // The alpha band below reads it.
-                    valid.fill(true);
+    let make_row =
+        |r: usize, cols: &mut Vec<f64>, rws: &mut Vec<f64>, px: &mut [T], valid: &mut [bool], spans: &mut Vec<crate::geom::Span>, miss: &mut Option<Miss>| {
+            let positions = |cols: &mut Vec<f64>, rws: &mut Vec<f64>| {
+                cols.resize(w, 0.0);
+                rws.resize(w, 0.0);
+            };
+            let y = y0 + r as u32;
+            // Pixels whose kernel would leave the window: read their
+            // neighbourhood on their own (rare; the plan adds a margin).
+            let is_safe = |(c, rr): (f64, f64)| c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3];
+            let reread = |at: (f64, f64), out: &mut [T]| {
+                if !is_safe(at) {
+                    single_pixel(src, opts.kernel, at.0, at.1, out, fill);
                 }
-                if outcome == (SpanOutcome::Checked { clamped: true }) {
-                    for s in run {
-                        // A straight span whose ends are safe is safe throughout.
-                        if linear && is_safe(span_position(s, s.first)) && is_safe(span_position(s, s.end - 1)) {
-                            continue;
-                        }
-                        for x in s.first..s.end {
-                            let j = x - first;
-                            if valid[j] {
-                                let at = if linear { span_position(s, x) } else { (cols[x - x0], rws[x - x0]) };
-                                reread(at, &mut out[j * bands_in..(j + 1) * bands_in]);
+            };
+            let x0 = x0 as usize;
+            if opts.kernel == Kernel::Bilinear && gcm.row_spans(&msg.gcm, y, x0 as u32, w, spans) {
+                // Straight spans: positions step in fixed point, runs
+                // of them in one call; the rest (refined cells) pixel
+                // by pixel.
+                for run in spans.chunk_by(|p, q| p.linear == q.linear) {
+                    let (first, end) = (run[0].first, run[run.len() - 1].end);
+                    let (a, b) = (first - x0, end - x0);
+                    let out: &mut [T] = &mut px[a * bands_in..b * bands_in];
+                    let valid = &mut valid[a..b];
+                    let linear = run[0].linear;
+                    let outcome = if linear {
+                        resample_spans(&view, run, out, valid, fill)
+                    } else {
+                        positions(cols, rws);
+                        gcm.fill_exact(&msg.gcm, y, first as u32, &mut cols[a..b], &mut rws[a..b], miss);
+                        SpanOutcome::Checked { clamped: resample_row(opts.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill) }
+                    };
+                    if outcome == SpanOutcome::Inside && !direct {
+                        // The alpha band below reads it.
+                        valid.fill(true);
+                    }
+                    if outcome == (SpanOutcome::Checked { clamped: true }) {
+                        for s in run {
+                            // A straight span whose ends are safe is safe throughout.
+                            if linear && is_safe(span_position(s, s.first)) && is_safe(span_position(s, s.end - 1)) {
+                                continue;
+                            }
+                            for x in s.first..s.end {
+                                let j = x - first;
+                                if valid[j] {
+                                    let at = if linear { span_position(s, x) } else { (cols[x - x0], rws[x - x0]) };
+                                    reread(at, &mut out[j * bands_in..(j + 1) * bands_in]);
+                                }
                             }
                         }
                     }
                 }
-            }
-        } else {
-            positions(cols, rws);
-            gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, miss);
-            if resample_row(cfg.kernel, &view, cols, rws, px, valid, fill) {
-                for (i, p) in px.chunks_exact_mut(bands_in).enumerate().filter(|(i, _)| valid[*i]) {
-                    reread((cols[i], rws[i]), p);
+            } else {
+                positions(cols, rws);
+                gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, miss);
+                if resample_row(opts.kernel, &view, cols, rws, px, valid, fill) {
+                    for (i, p) in px.chunks_exact_mut(bands_in).enumerate().filter(|(i, _)| valid[*i]) {
+                        reread((cols[i], rws[i]), p);
+                    }
                 }
             }
-        }
-    };
-    let misses: Vec<Option<(f64, f64, Lookup)>> = pieces
+        };
+    let misses: Vec<Option<Miss>> = pieces
         .par_iter_mut()
         .with_min_len((8 / group).max(1))
         .enumerate()
@@ -287,9 +302,9 @@ pub(super) fn resample_chunk<T: Sample + Recycle>(
     }
 }
 /// Resamples one pixel from a window read just for it.
-fn single_pixel<T: Sample>(src: &SourceImage, cfg: &RectifyConfig, c: f64, r: f64, out: &mut [T], fill: T) {
+fn single_pixel<T: Sample>(src: &SourceImage, kernel: Kernel, c: f64, r: f64, out: &mut [T], fill: T) {
     let info = &src.info;
-    let rad = cfg.kernel.radius() as i64 + 1;
+    let rad = kernel.radius() as i64 + 1;
     let (ci, ri) = (c.floor() as i64, r.floor() as i64);
     let c0 = (ci - rad).clamp(0, info.width as i64) as u32;
     let r0 = (ri - rad).clamp(0, info.height as i64) as u32;
@@ -302,5 +317,5 @@ fn single_pixel<T: Sample>(src: &SourceImage, cfg: &RectifyConfig, c: f64, r: f6
     }
     let view = View::<T>::new(&win, info.bands, info.width, info.height);
     let mut valid = [false];
-    resample_row(cfg.kernel, &view, &[c], &[r], out, &mut valid, fill);
+    resample_row(kernel, &view, &[c], &[r], out, &mut valid, fill);
 }

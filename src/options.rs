@@ -1,0 +1,323 @@
+//! What a run is asked to do, typed and checked in one place for every
+//! caller: the CLI and the batch manifest build a [`RectifyOptions`] with
+//! the parsers here, and [`RectifyOptions::validate`] checks the ranges, so
+//! that both give the same message for the same mistake. Errors name the
+//! setting by its manifest key (`tile`, `dem_hole`); the binary turns the
+//! key into its flag.
+
+use crate::camera::file::Camera;
+use crate::camera::CameraFile;
+use crate::dem::Miss;
+use crate::error::{Error, Result};
+use crate::gcm::{CorrectionMode, GcmSpec};
+use crate::io::tiff_out::Compression;
+use crate::resample::Kernel;
+use crate::transform::Trend;
+use std::path::{Path, PathBuf};
+
+/// A setting chosen by name from a fixed list.
+pub trait Choice: Sized + Copy + Send + Sync + 'static {
+    /// The names, in the order `--help` lists them.
+    const NAMES: &'static [&'static str];
+    fn from_name(name: &str) -> Option<Self>;
+}
+
+macro_rules! choice {
+    ($t:ty: $($name:literal => $v:expr),* $(,)?) => {
+        impl Choice for $t {
+            const NAMES: &'static [&'static str] = &[$($name),*];
+            fn from_name(name: &str) -> Option<Self> {
+                match name {
+                    $($name => Some($v),)*
+                    _ => None,
+                }
+            }
+        }
+    };
+}
+
+choice!(Kernel: "nearest" => Kernel::Nearest, "bilinear" => Kernel::Bilinear, "cubic" => Kernel::Cubic, "lanczos3" => Kernel::Lanczos3);
+choice!(Compression: "none" => Compression::None, "deflate" => Compression::Deflate, "lzw" => Compression::Lzw, "zstd" => Compression::Zstd);
+choice!(CorrectionMode: "bilinear" => CorrectionMode::Bilinear, "cell" => CorrectionMode::Cell);
+choice!(Trend: "plane" => Trend::Plane, "mean" => Trend::Mean);
+choice!(BandOrder: "auto" => BandOrder::Auto, "rows" => BandOrder::Rows, "columns" => BandOrder::Columns);
+choice!(BigTiff: "auto" => BigTiff::Auto, "yes" => BigTiff::Yes, "no" => BigTiff::No);
+
+/// `name` as one of `T`'s choices.
+pub fn parse_choice<T: Choice>(setting: &'static str, name: &str) -> Result<T> {
+    T::from_name(name.trim()).ok_or_else(|| Error::setting(setting, format!("'{name}' is not one of {}", T::NAMES.join(", "))))
+}
+
+/// What to do where the DEM has no height: `error`, `nodata` or a height.
+pub fn parse_miss(setting: &'static str, s: &str) -> Result<Miss> {
+    match s.trim() {
+        "error" => Ok(Miss::Error),
+        "nodata" => Ok(Miss::Nodata),
+        h => h
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .map(Miss::Height)
+            .ok_or_else(|| Error::setting(setting, format!("'{s}' is neither error, nodata nor a height"))),
+    }
+}
+
+/// A size like `128M`, `1.5G`, `64k` or a byte count.
+pub fn parse_bytes(setting: &'static str, s: &str) -> Result<u64> {
+    let t = s.trim();
+    let (num, mult) = match t.chars().last() {
+        Some('K' | 'k') => (&t[..t.len() - 1], 1u64 << 10),
+        Some('M' | 'm') => (&t[..t.len() - 1], 1 << 20),
+        Some('G' | 'g') => (&t[..t.len() - 1], 1 << 30),
+        _ => (t, 1),
+    };
+    let v: f64 = num.parse().map_err(|_| Error::setting(setting, format!("'{s}' is not a size like 128M")))?;
+    if !(v > 0.0) {
+        return Err(Error::setting(setting, format!("'{s}' must be positive")));
+    }
+    Ok((v * mult as f64) as u64)
+}
+
+/// `minx,miny,maxx,maxy`, or `auto` (None).
+pub fn parse_bounds(setting: &'static str, s: &str) -> Result<Option<[f64; 4]>> {
+    if s.trim() == "auto" {
+        return Ok(None);
+    }
+    let bad = || Error::setting(setting, format!("'{s}' is not minx,miny,maxx,maxy with min < max"));
+    let v: Vec<f64> = s.split(',').map(|p| p.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|_| bad())?;
+    match v[..] {
+        [x0, y0, x1, y1] if v.iter().all(|x| x.is_finite()) && x1 > x0 && y1 > y0 => Ok(Some([x0, y0, x1, y1])),
+        _ => Err(bad()),
+    }
+}
+
+/// `col,row,width,height` in output tiles, width and height above zero.
+pub fn parse_window(setting: &'static str, s: &str) -> Result<[u32; 4]> {
+    let bad = || Error::setting(setting, format!("'{s}' is not col,row,width,height (tiles, width and height > 0)"));
+    let v: Vec<u32> = s.split(',').map(|p| p.trim().parse::<u32>()).collect::<std::result::Result<_, _>>().map_err(|_| bad())?;
+    match v[..] {
+        [c, r, w, h] if w > 0 && h > 0 => Ok([c, r, w, h]),
+        _ => Err(bad()),
+    }
+}
+
+/// `col,row` of a crop's offset in its scene.
+pub fn parse_offset(setting: &'static str, s: &str) -> Result<[f64; 2]> {
+    let bad = || Error::setting(setting, format!("'{s}' is not col,row"));
+    let v: Vec<f64> = s.split(',').map(|p| p.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|_| bad())?;
+    match v[..] {
+        [c, r] if c.is_finite() && r.is_finite() => Ok([c, r]),
+        _ => Err(bad()),
+    }
+}
+
+/// `WxH` in pixels.
+pub fn parse_size(setting: &'static str, s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| Error::setting(setting, format!("'{s}' is not WxH")))?;
+    let w = w.trim().parse().map_err(|_| Error::setting(setting, format!("'{s}': bad width")))?;
+    let h = h.trim().parse().map_err(|_| Error::setting(setting, format!("'{s}': bad height")))?;
+    Ok((w, h))
+}
+
+/// How the `camera` path of a run becomes its sensor model.
+#[derive(Clone, Debug, Default)]
+pub enum ModelSource {
+    /// A camera file (TOML).
+    #[default]
+    CameraFile,
+    /// An RPC file in any supported format (or the image itself).
+    Rpc {
+        /// The image is a crop from this column, row of the RPC's scene;
+        /// None: the tile offset a DigitalGlobe XML records for the image's
+        /// file name, else none.
+        offset: Option<[f64; 2]>,
+        /// The DEM's heights are above this geoid (PROJ .gtx).
+        geoid: Option<PathBuf>,
+        /// The ground CRS (EPSG code); None: the scene's UTM zone.
+        crs: Option<u32>,
+    },
+    /// Built already (a block's interior file with one row of exterior
+    /// orientations); `camera` names where it came from.
+    Inline(CameraFile),
+}
+
+impl ModelSource {
+    /// The sensor model of `image` described at `origin`.
+    pub fn load(&self, image: &Path, origin: &Path) -> Result<Camera> {
+        match self {
+            ModelSource::CameraFile => Camera::read(origin),
+            ModelSource::Inline(f) => f.clone().build(origin),
+            ModelSource::Rpc { offset, geoid, crs } => {
+                let offset = offset.or_else(|| {
+                    let xml = std::fs::read_to_string(origin).ok()?;
+                    crate::camera::rpc::Rpc::tile_offset(&xml, image.file_name()?.to_str()?)
+                });
+                Camera::rpc_file(origin, *crs, offset, geoid.as_deref()).build(origin)
+            }
+        }
+    }
+
+    /// The camera file it stands for, where there is one without reading `origin`.
+    pub fn inline(&self) -> Option<&CameraFile> {
+        match self {
+            ModelSource::Inline(f) => Some(f),
+            _ => None,
+        }
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub enum DemSource {
+    File(PathBuf),
+    /// A constant height, metres.
+    Height(f64),
+    /// The sensor model's own: an RPC's HEIGHT_OFF (in the DEM datum, so
+    /// less the geoid's undulation when there is one); an error for frame
+    /// cameras, which have none.
+    ModelHeight,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BigTiff {
+    Auto,
+    Yes,
+    No,
+}
+
+/// Which way the output is made: bands of tile rows, or bands of tile
+/// columns (the tiles then go to the file in that order). A band's pixels
+/// read the scan rows it crosses; bands along the scan's rows read fewer of
+/// them, in place from the mapped file, where bands across them (a scan
+/// turned ~90° against the output) would copy tall windows a row at a time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BandOrder {
+    /// Whichever of the two crosses fewer scan rows a band.
+    Auto,
+    Rows,
+    Columns,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RectifyOptions {
+    pub image: PathBuf,
+    /// The camera file, the RPC file, or where an inline camera came from
+    /// (named in messages).
+    pub camera: PathBuf,
+    /// How `camera` becomes the sensor model.
+    #[serde(skip)]
+    pub model: ModelSource,
+    pub dem: DemSource,
+    pub dem_hole: Miss,
+    pub dem_outside: Miss,
+    pub output: PathBuf,
+    /// Output pixel size, ground units; `None`: the scan's mean GSD.
+    pub gsd: Option<f64>,
+    /// `[minx, miny, maxx, maxy]`; `None`: the scan's footprint on the DEM.
+    pub bounds: Option<[f64; 4]>,
+    /// Only this piece of the output grid, in tiles: `[col, row, w, h]`.
+    /// Pieces made separately assemble into the whole, pixel for pixel.
+    pub window: Option<[u32; 4]>,
+    pub gcm: GcmSpec,
+    /// Choose `gcm.k` from the DEM (see `rectify`); off when the user gives
+    /// `--sparsity`.
+    pub auto_sparsity: bool,
+    pub trend: Trend,
+    pub kernel: Kernel,
+    pub tile: u32,
+    pub band_order: BandOrder,
+    pub compress: Compression,
+    pub bigtiff: BigTiff,
+    /// Nodata value written where there is no image (ignored with `alpha`).
+    pub nodata: f64,
+    pub alpha: bool,
+    /// Worker threads (0 = all cores; 1 = every step one after the other).
+    pub threads: usize,
+    /// Memory budget, bytes.
+    pub memory: u64,
+    /// Put the output on disk (fsync) before it gets its name, so that not
+    /// even a power failure leaves an incomplete file under that name. Off
+    /// (`--no-sync`): the kernel writes it back in its own time, as after
+    /// `cat` or `gdalwarp`.
+    pub sync: bool,
+}
+
+impl RectifyOptions {
+    /// Tile sizes: multiples of 16 (the TIFF rule) up to this.
+    pub const MAX_TILE: u32 = 4096;
+    /// The least memory budget a run can keep to.
+    pub const MIN_MEMORY: u64 = 16 << 20;
+
+    /// Checks every setting's range and the settings against each other;
+    /// the first problem, named by its setting.
+    pub fn validate(&self) -> Result<()> {
+        if self.tile == 0 || self.tile % 16 != 0 || self.tile > Self::MAX_TILE {
+            return Err(Error::setting("tile", format!("{} must be a multiple of 16 up to {}", self.tile, Self::MAX_TILE)));
+        }
+        if self.gcm.k == 0 {
+            return Err(Error::setting("sparsity", "must be at least 1"));
+        }
+        if let Some(e) = self.gcm.max_error {
+            if !(e > 0.0) || !e.is_finite() {
+                return Err(Error::setting("max_error", format!("{e} must be a positive number")));
+            }
+            if self.gcm.mode == CorrectionMode::Cell {
+                return Err(Error::setting("max_error", "works with bilinear corrections, not cell"));
+            }
+        }
+        if self.memory < Self::MIN_MEMORY {
+            return Err(Error::setting("memory", "must be at least 16M"));
+        }
+        if let Some(g) = self.gsd {
+            if !(g > 0.0 && g.is_finite()) {
+                return Err(Error::setting("gsd", format!("{g} must be positive")));
+            }
+        }
+        if let DemSource::Height(h) = self.dem {
+            if !h.is_finite() {
+                return Err(Error::setting("height", format!("{h} is not a finite number")));
+            }
+        }
+        if let Some(b) = self.bounds {
+            if !(b.iter().all(|x| x.is_finite()) && b[2] > b[0] && b[3] > b[1]) {
+                return Err(Error::setting("bounds", format!("{b:?} is not minx,miny,maxx,maxy with min < max")));
+            }
+        }
+        if let Some([_, _, w, h]) = self.window {
+            if w == 0 || h == 0 {
+                return Err(Error::setting("window", "width and height must be above zero"));
+            }
+        }
+        Ok(())
+    }
+
+    /// A configuration with the documented defaults.
+    pub fn new(image: PathBuf, camera: PathBuf, dem: DemSource, output: PathBuf) -> RectifyOptions {
+        RectifyOptions {
+            image,
+            camera,
+            model: ModelSource::CameraFile,
+            dem,
+            dem_hole: Miss::Error,
+            dem_outside: Miss::Nodata,
+            output,
+            gsd: None,
+            bounds: None,
+            window: None,
+            gcm: GcmSpec { k: 16, mode: CorrectionMode::Bilinear, max_error: None },
+            auto_sparsity: true,
+            trend: Trend::Plane,
+            kernel: Kernel::Bilinear,
+            tile: 256,
+            band_order: BandOrder::Auto,
+            compress: Compression::Deflate,
+            bigtiff: BigTiff::Auto,
+            nodata: 0.0,
+            alpha: false,
+            threads: 0,
+            memory: 128 << 20,
+            sync: true,
+        }
+    }
+}

@@ -1,0 +1,88 @@
+//! The memory plan of a run, all in one place (as GDAL's warper keeps its
+//! cost model in `CollectChunkListInternal`). The budget (`--memory`,
+//! 128 MiB by default) is cut into 24 shares:
+//!
+//! * four scan windows in flight (being read, queued, two being
+//!   resampled), a share each; read in place from the mapped scan instead,
+//!   they hold no buffer, and the mapped rows may take up to eight shares
+//!   (the windows' four and four of the slack below);
+//! * four output chunks (two being made, queued, being encoded; three being
+//!   made in bands of tile columns, whose windows are read in place) and
+//!   the encoded tiles in hand and queued, a share each;
+//! * the DEM, three shares (an eighth): larger DEMs are read a chunk at a
+//!   time through a cache of that size;
+//! * the decoded chunks of a compressed scan, two shares (a twelfth);
+//! * what is left (~45 %) covers the GCM rows, the threads, the program and
+//!   the allocator's per-thread arenas (20–30 MB on 1 GiB scans), so that
+//!   the peak resident size stays under the budget.
+//!
+//! The sequential runner (one thread) holds one window and one chunk at a
+//! time, well inside the same plan.
+
+/// The budget and its named shares, in bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemoryBudget {
+    total: u64,
+}
+
+impl MemoryBudget {
+    pub fn new(total: u64) -> MemoryBudget {
+        MemoryBudget { total }
+    }
+
+    /// One 24th: a scan window, an output chunk, the queued tiles.
+    pub fn share(&self) -> u64 {
+        self.total / 24
+    }
+
+    /// The cache of decoded chunks of a compressed (or JPEG) scan.
+    pub fn scan_cache(&self) -> u64 {
+        self.total / 12
+    }
+
+    /// A DEM up to this is read whole; a larger one through a cache this big.
+    pub fn dem(&self) -> u64 {
+        self.total / 8
+    }
+
+    /// Scan pixels of `pixel_bytes` a chunk's window may hold.
+    pub fn window_pixels(&self, pixel_bytes: usize) -> u64 {
+        self.share() / pixel_bytes.max(1) as u64
+    }
+
+    /// Output tiles of `tile_bytes` a chunk may hold (at least one).
+    pub fn chunk_tiles(&self, tile_bytes: usize) -> u32 {
+        (self.share() / tile_bytes as u64).max(1) as u32
+    }
+
+    /// A chunk whose scan rows span at most this is read in place, with no
+    /// copy (a quarter of the budget): the rows of the chunks being
+    /// resampled are then all that is resident of the scan.
+    pub fn in_place_rows(&self) -> u64 {
+        6 * self.share()
+    }
+
+    /// The mapped scan rows of the chunks in flight together stay under
+    /// this; and a band's rows are asked for ahead only up to it.
+    pub fn mapped_rows(&self) -> u64 {
+        8 * self.share()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_default_budget_in_its_shares() {
+        let b = MemoryBudget::new(128 << 20);
+        assert_eq!(b.share(), 5_592_405);
+        assert_eq!(b.scan_cache(), 11_184_810);
+        assert_eq!(b.dem(), 16 << 20);
+        assert_eq!(b.window_pixels(3), 1_864_135);
+        // 256×256 RGB tiles: 28 a chunk; a tile larger than a share: one.
+        assert_eq!(b.chunk_tiles(256 * 256 * 3), 28);
+        assert_eq!(b.chunk_tiles(8 << 20), 1);
+        assert_eq!((b.in_place_rows(), b.mapped_rows()), (6 * 5_592_405, 8 * 5_592_405));
+    }
+}

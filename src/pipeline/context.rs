@@ -1,0 +1,121 @@
+//! What the stages of one run share, split by concern: the inputs, the grid
+//! as walked, the memory budget, the counters, and the stop.
+
+use super::budget::MemoryBudget;
+use crate::dem::Dem;
+use crate::error::Error;
+use crate::gcm::{Gcm, GcmStats};
+use crate::geom::OutputGrid;
+use crate::io::source::SourceImage;
+use crate::io::tiff_out::OutputSpec;
+use crate::progress::{Cancel, Progress};
+use crate::resample::Kernel;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Mutex;
+
+/// What the per-pixel code needs to know of the options.
+#[derive(Clone, Copy, Debug)]
+pub struct PixelOptions {
+    pub kernel: Kernel,
+    /// Output tile side, pixels.
+    pub tile: u32,
+    /// Written where there is no image (0 under an alpha band).
+    pub fill: f64,
+    /// An alpha band is added after the scan's bands.
+    pub alpha: bool,
+    /// Bands written: the scan's, and the alpha band.
+    pub bands_out: u32,
+}
+
+/// The run's inputs, ready.
+pub struct Inputs<'a> {
+    pub gcm: &'a Gcm<'a>,
+    pub src: &'a SourceImage,
+    pub dem: &'a Dem,
+    pub spec: &'a OutputSpec,
+    pub pixels: PixelOptions,
+    /// The output's final name (for messages).
+    pub output: &'a Path,
+    /// Write back the output as it is written (see the write stage).
+    pub sync: bool,
+}
+
+/// The piece of the grid being made, as the stages walk it: bands of tile
+/// rows of the grid, or of tile columns, walking the transposed grid.
+#[derive(Clone, Copy, Debug)]
+pub struct Walk {
+    /// The grid as walked (transposed for bands of tile columns).
+    pub grid: OutputGrid,
+    pub tile: u32,
+    /// Bands `bands.0..bands.1` of walked tile columns `cols.0..cols.1`.
+    pub bands: (u32, u32),
+    pub cols: (u32, u32),
+    /// Bands of the output's tile columns.
+    pub columns: bool,
+    /// The piece's first tile (column, row) and its width in tiles.
+    pub piece: (u32, u32, u32),
+}
+
+impl Walk {
+    /// Walked rows of band `b`: a band is a row of tiles of the walked grid.
+    pub fn band_rows(&self, b: u32) -> (u32, u32) {
+        (b * self.tile, ((b + 1) * self.tile).min(self.grid.height))
+    }
+
+    /// Where the tile of band `band` and walked tile column `col` goes in
+    /// the file, row-major.
+    pub fn tile_index(&self, band: u32, col: u32) -> usize {
+        let (tc0, tr0, tcw) = self.piece;
+        let (row, col) = if self.columns { (col, band) } else { (band, col) };
+        ((row - tr0) * tcw + (col - tc0)) as usize
+    }
+}
+
+/// What the run counts as it goes.
+#[derive(Default)]
+pub struct Counters {
+    pub chunks_done: AtomicU64,
+    /// Chunks read in place from the mapped scan.
+    pub chunks_in_place: AtomicU64,
+    pub gcm: Mutex<GcmStats>,
+}
+
+/// Cancelled from outside, or failed in one stage (the others then stop).
+pub struct Stop<'a> {
+    cancel: &'a Cancel,
+    failed: AtomicBool,
+}
+
+impl<'a> Stop<'a> {
+    pub fn new(cancel: &'a Cancel) -> Stop<'a> {
+        Stop { cancel, failed: AtomicBool::new(false) }
+    }
+
+    pub fn cancelled(&self) -> bool {
+        self.cancel.is_cancelled()
+    }
+
+    /// Cancelled, or failed in another stage.
+    pub fn now(&self) -> bool {
+        self.cancel.is_cancelled() || self.failed.load(Ordering::Relaxed)
+    }
+
+    /// Records `e` as the run's failure (the other stages stop).
+    pub fn fail(&self, e: Error) -> Error {
+        self.failed.store(true, Ordering::Relaxed);
+        e
+    }
+}
+
+/// Everything one run's stages share.
+pub struct Run<'a> {
+    pub inputs: Inputs<'a>,
+    pub walk: Walk,
+    pub budget: MemoryBudget,
+    pub counters: Counters,
+    pub stop: Stop<'a>,
+    /// The workers of resampling and encoding.
+    pub pool: rayon::ThreadPool,
+    pub progress: &'a dyn Progress,
+}
