@@ -36,10 +36,13 @@ enum Samples {
     Chunked(ChunkedSamples),
 }
 
+/// Decoded chunks by number, each with the tick it was last used.
+type ChunkMap = std::collections::HashMap<usize, (std::sync::Arc<Vec<f32>>, u64)>;
+
 /// Out-of-core samples: the file's strips or tiles, decoded on demand.
 struct ChunkedSamples {
     raster: ChunkedRaster,
-    cache: std::sync::Mutex<(std::collections::HashMap<usize, (std::sync::Arc<Vec<f32>>, u64)>, u64)>,
+    cache: std::sync::Mutex<(ChunkMap, u64)>,
     /// Chunks kept at most.
     keep: usize,
 }
@@ -378,6 +381,7 @@ fn read_hgt(path: &Path) -> Result<GridDem> {
 }
 
 /// Where heights come from.
+#[allow(clippy::large_enum_variant)] // one a run
 pub enum HeightModel {
     Flat(f64),
     Grid(GridDem),

@@ -302,7 +302,9 @@ impl<'a> Gcm<'a> {
             match *h {
                 Height::Value(z) => {
                     at.push(i);
-                    (gx.push(x), gy.push(y), gz.push(z));
+                    gx.push(x);
+                    gy.push(y);
+                    gz.push(z);
                 }
                 Height::Nodata => {}
                 Height::Missing(l) => {

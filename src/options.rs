@@ -121,6 +121,7 @@ pub fn parse_size(setting: &'static str, s: &str) -> Result<(u32, u32)> {
 
 /// How the `camera` path of a run becomes its sensor model.
 #[derive(Clone, Debug, Default)]
+#[allow(clippy::large_enum_variant)] // one a run
 pub enum ModelSource {
     /// A camera file (TOML).
     #[default]

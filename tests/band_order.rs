@@ -35,7 +35,8 @@ fn assert_same_orthophoto(rows: &Path, columns: &Path, bytes_per_sample: usize) 
     let (b, wb, hb, gb) = samples(columns);
     assert_eq!((wa, ha, &ga), (wb, hb, &gb));
     assert_eq!(a.len(), b.len());
-    let (value, unit): (fn(&[u8]) -> Vec<u64>, u64) = match bytes_per_sample {
+    type Samples = fn(&[u8]) -> Vec<u64>;
+    let (value, unit): (Samples, u64) = match bytes_per_sample {
         1 => (|v| v.iter().map(|&x| x as u64).collect(), 1),
         _ => (|v| v.chunks_exact(2).map(|p| u16::from_le_bytes([p[0], p[1]]) as u64).collect(), 257),
     };

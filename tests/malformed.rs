@@ -159,7 +159,7 @@ fn regenerate_corpus() {
     }
     r("zero_denominator.txt", zero_den.as_bytes());
     let dimap = std::fs::read_to_string(root().join("fixtures/ventoux/RPC_PHR1B_P_201308051042194_SEN_690908101-001.XML")).unwrap();
-    r("dimap_truncated.xml", dimap[..dimap.len() / 2].as_bytes());
+    r("dimap_truncated.xml", &dimap.as_bytes()[..dimap.len() / 2]);
     r("dimap_missing_samp_off.xml", without(&dimap, "<SAMP_OFF>").as_bytes());
     r("xml_without_rpc.xml", b"<?xml version=\"1.0\"?>\n<Dimap_Document><Metadata_Identification/></Dimap_Document>\n");
     let wv = std::fs::read_to_string(root().join("fixtures/rpc/rpc_WV2.xml")).unwrap();

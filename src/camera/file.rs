@@ -137,6 +137,7 @@ pub struct CameraFile {
 }
 
 /// The sensor model a camera file describes.
+#[allow(clippy::large_enum_variant)] // one a run, never moved about in numbers
 pub enum Sensor {
     Frame(FrameCamera),
     Rpc(RpcCamera),

@@ -168,7 +168,8 @@ impl SensorModel for FrameCamera {
                 let (pairs, rows) = (col.chunks_exact_mut(2), row.chunks_exact_mut(2));
                 for (c, r) in pairs.zip(rows) {
                     let (x, y) = Distortion::radial(b, f64x2::new([c[0], c[1]]), f64x2::new([r[0], r[1]]));
-                    (c.copy_from_slice(&x.to_array()), r.copy_from_slice(&y.to_array()));
+                    c.copy_from_slice(&x.to_array());
+                    r.copy_from_slice(&y.to_array());
                 }
                 if n % 2 == 1 {
                     (col[n - 1], row[n - 1]) = Distortion::radial(b, col[n - 1], row[n - 1]);

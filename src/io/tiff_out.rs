@@ -149,7 +149,7 @@ pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>) -> Result<Vec<u8>> {
         }
         Compression::Lzw => {
             let mut out = Vec::with_capacity(tile.len() / 2);
-            Lzw::default().write_to(&mut out, &tile).map_err(io)?;
+            Lzw.write_to(&mut out, &tile).map_err(io)?;
             out
         }
         Compression::Zstd => zstd::bulk::compress(&tile, 9).map_err(io)?,

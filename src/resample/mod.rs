@@ -291,8 +291,8 @@ fn separable<T: Sample, const N: usize>(view: &View<'_, T>, c: f64, r: f64, weig
         for (di, wxi) in wx.iter().enumerate() {
             let s = view.at(i0 + di as i64, j0 + dj as i64);
             let w = wxi * wyj;
-            for k in 0..b {
-                acc[k] += w * view.data[s + k].to_f32();
+            for (a, v) in acc[..b].iter_mut().zip(&view.data[s..s + b]) {
+                *a += w * v.to_f32();
             }
         }
     }
@@ -456,7 +456,7 @@ fn byte_loop_applies<T: Sample, const B: usize>(view: &View<'_, T>) -> bool {
 fn inside_limits<T: Sample, const B: usize>(view: &View<'_, T>) -> (u64, u64) {
     let (wl, hl) = ((view.w - 1).max(0) as u64, (view.h - 1).max(0) as u64);
     let row = view.stride.max(0) as u64 * B as u64;
-    let len = (view.data.len() * std::mem::size_of::<T>()) as u64;
+    let len = std::mem::size_of_val(view.data) as u64;
     let farthest = wl.saturating_sub(1) * B as u64 + 8;
     let loads = if row == 0 { 0 } else { len.checked_sub(farthest).map_or(0, |room| room / row) };
     (wl, hl.min(loads))

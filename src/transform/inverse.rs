@@ -8,6 +8,9 @@
 use crate::camera::SensorModel;
 use crate::dem::Dem;
 
+/// d(col, row)/d(X, Y, Z): the image's partial derivatives in the ground.
+type Partials = [[f64; 3]; 2];
+
 /// Casts rays from scan pixels onto the DEM. Generic over the sensor
 /// model so that a caller that knows its model (the scene generator casts
 /// one ray per scan pixel) gets `project` inlined; `dyn SensorModel` by
@@ -16,7 +19,7 @@ pub struct RayCaster<'a, M: SensorModel + ?Sized = dyn SensorModel> {
     pub model: &'a M,
     pub dem: &'a Dem,
     /// d(col, row)/d(X, Y, Z) near `at`.
-    partials: Option<([[f64; 3]; 2], (f64, f64))>,
+    partials: Option<(Partials, (f64, f64))>,
     /// How far (ground units) the partials stay good: 5000 ground steps.
     stale_after: f64,
 }
