@@ -5,6 +5,7 @@
 use crate::error::{Error, Result};
 use crate::geodesy::Reprojection;
 use crate::geom::{floor_split, Plane};
+use crate::io::chunk_cache::ChunkCache;
 use crate::io::chunked_raster::ChunkedRaster;
 use crate::io::geotiff::{read_georef, GeoRef};
 use std::path::{Path, PathBuf};
@@ -36,37 +37,19 @@ enum Samples {
     Chunked(ChunkedSamples),
 }
 
-/// Decoded chunks by number, each with the tick it was last used.
-type ChunkMap = std::collections::HashMap<usize, (std::sync::Arc<Vec<f32>>, u64)>;
-
 /// Out-of-core samples: the file's strips or tiles, decoded on demand.
 struct ChunkedSamples {
     raster: ChunkedRaster,
-    cache: std::sync::Mutex<(ChunkMap, u64)>,
-    /// Chunks kept at most.
-    keep: usize,
+    cache: std::sync::Mutex<ChunkCache<f32>>,
 }
 
 impl ChunkedSamples {
     fn chunk(&self, k: usize) -> Option<std::sync::Arc<Vec<f32>>> {
-        {
-            let mut c = self.cache.lock().ok()?;
-            c.1 += 1;
-            let tick = c.1;
-            if let Some(e) = c.0.get_mut(&k) {
-                e.1 = tick;
-                return Some(e.0.clone());
-            }
+        if let Some(c) = self.cache.lock().ok()?.get(k) {
+            return Some(c);
         }
         let v = std::sync::Arc::new(self.raster.chunk(k).ok()?);
-        let mut c = self.cache.lock().ok()?;
-        c.1 += 1;
-        let tick = c.1;
-        c.0.insert(k, (v.clone(), tick));
-        if c.0.len() > self.keep {
-            let (&old, _) = c.0.iter().min_by_key(|(_, e)| e.1)?;
-            c.0.remove(&old);
-        }
+        self.cache.lock().ok()?.put(k, v.clone());
         Some(v)
     }
 
@@ -297,7 +280,7 @@ impl GridDem {
         }
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
         let mut dec =
-            tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(|e| Error::from_tiff(path, e))?.with_limits(crate::io::source::decoder_limits());
+            tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(|e| Error::from_tiff(path, e))?.with_limits(crate::io::format::decoder_limits());
         let raster = ChunkedRaster::open(&mut dec, path)?;
         let (w, h) = (raster.width as u32, raster.height as u32);
         let geo = read_georef(&mut dec, path)?.ok_or_else(|| Error::format(path, "the DEM has no georeferencing (no ModelPixelScale/ModelTiepoint)"))?;
@@ -313,8 +296,10 @@ impl GridDem {
             raster.chunk(0)?;
             let (cw, ch) = raster.chunk;
             let cache = (max_bytes as usize).min(16 << 20);
-            let keep = (cache / (cw * ch * 4)).max(4);
-            let chunked = ChunkedSamples { raster, cache: std::sync::Mutex::new((Default::default(), 0)), keep };
+            // At least four chunks: the corners of a cell may lie in four.
+            let chunk_bytes = cw * ch * 4;
+            let keep = (cache / chunk_bytes).max(4);
+            let chunked = ChunkedSamples { raster, cache: std::sync::Mutex::new(ChunkCache::new(keep * chunk_bytes)) };
             let gt = geo.transform;
             let g = GridDem {
                 width: w as usize,

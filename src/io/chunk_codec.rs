@@ -57,7 +57,7 @@ impl ChunkCodec {
     pub fn read_chunk(&self, file: &File, path: &Path, k: usize, (offset, count): (u64, u64), width: usize, rows: usize) -> crate::error::Result<Vec<u8>> {
         use crate::error::Error;
         use std::os::unix::fs::FileExt;
-        if count > crate::io::source::decoder_limits().intermediate_buffer_size as u64 {
+        if count > crate::io::format::decoder_limits().intermediate_buffer_size as u64 {
             return Err(Error::limits(path, format!("chunk {k} holds {count} compressed bytes")));
         }
         let mut coded = vec![0u8; count as usize];

@@ -109,7 +109,7 @@ impl ChunkedRaster {
             return Err(Error::format(path, format!("chunks of {}×{} samples", chunk.0, chunk.1)));
         }
         // A chunk is decoded whole into memory.
-        if (chunk.0 as u64 * chunk.1 as u64).saturating_mul(sample.bytes() as u64) > crate::io::source::decoder_limits().decoding_buffer_size as u64 {
+        if (chunk.0 as u64 * chunk.1 as u64).saturating_mul(sample.bytes() as u64) > crate::io::format::decoder_limits().decoding_buffer_size as u64 {
             return Err(Error::limits(path, format!("chunks of {}×{} samples are too large to decode (re-tile the file)", chunk.0, chunk.1)));
         }
         let offsets = dec.get_tag_u64_vec(ot).map_err(tf)?;

@@ -1,8 +1,10 @@
 //! Reading scans and rasters, writing the tiled GeoTIFF.
 
 pub mod assemble;
+pub mod chunk_cache;
 pub mod chunk_codec;
 pub mod chunked_raster;
+pub mod format;
 pub mod geotiff;
 pub mod mmap_guard;
 pub mod source;

@@ -555,7 +555,7 @@ pub fn resample_span<T: Sample>(view: &View<'_, T>, span: &Span, out: &mut [T], 
 }
 
 /// [`bilinear_span`] along consecutive straight spans (a row or a piece of
-/// one, as [`crate::gcm::Gcm::row_spans`] makes them), into `out` and
+/// one, as the GCM's `row_spans` makes them), into `out` and
 /// `valid` from the first span's first pixel on: one call for the whole
 /// run, so that the work per span stays small beside its ~16 pixels.
 /// [`SpanOutcome::Inside`] when every span was; otherwise `valid` is

@@ -1,0 +1,238 @@
+//! The orthophoto file: a tiled TIFF or BigTIFF with GeoTIFF georeferencing,
+//! written on the `tiff` crate's `DirectoryEncoder` (tiles through
+//! `write_data`, the tile tables and tags through `write_tag`). Its layout
+//! is an [`OutputSpec`]; tiles are compressed by the caller's threads
+//! (`encode.rs`) and appended by one writer (`writer.rs`). The file is born
+//! under a temporary name in the target folder (`publish.rs`) and renamed
+//! into place only after it has been re-read and checked (`verify.rs`).
+
+mod encode;
+mod publish;
+mod verify;
+mod writer;
+
+pub use encode::encode_tile;
+pub use publish::{reserve, PendingFile};
+pub use verify::verify;
+pub use writer::{page_padding, tiff_write_error, write_placed, write_raster, write_tiled, WriteError};
+
+use crate::io::format::SampleType;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Compression {
+    None,
+    Deflate,
+    Lzw,
+    Zstd,
+}
+
+impl Compression {
+    fn tag(self) -> u16 {
+        match self {
+            Compression::None => 1,
+            Compression::Lzw => 5,
+            Compression::Deflate => 8,
+            Compression::Zstd => 50000,
+        }
+    }
+}
+
+/// North-up georeferencing of a written raster.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GeoTags {
+    /// Ground X of the west edge, Y of the north edge, pixel size.
+    pub x0: f64,
+    pub y0: f64,
+    pub gsd: f64,
+    pub epsg: u32,
+    pub nodata: Option<f64>,
+}
+
+/// How the pixels are cut into chunks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Chunking {
+    /// Square tiles of this size (a multiple of 16).
+    Tiles(u32),
+    /// Strips of this many rows (the last one may be shorter).
+    Strips(u32),
+}
+
+/// Everything about the output file but its pixels.
+#[derive(Clone, Debug)]
+pub struct OutputSpec {
+    pub width: u32,
+    pub height: u32,
+    /// Samples per pixel, alpha included.
+    pub bands: u32,
+    pub sample: SampleType,
+    pub chunking: Chunking,
+    pub compression: Compression,
+    pub bigtiff: bool,
+    /// Photometric: 1 grey, 2 RGB.
+    pub photometric: u16,
+    /// The last band is (unassociated) alpha.
+    pub alpha: bool,
+    pub geo: Option<GeoTags>,
+}
+
+impl OutputSpec {
+    /// Chunk width and height.
+    pub fn chunk(&self) -> (u32, u32) {
+        match self.chunking {
+            Chunking::Tiles(t) => (t, t),
+            Chunking::Strips(r) => (self.width, r.min(self.height)),
+        }
+    }
+    pub fn tiles_across(&self) -> u32 {
+        self.width.div_ceil(self.chunk().0)
+    }
+    pub fn tiles_down(&self) -> u32 {
+        self.height.div_ceil(self.chunk().1)
+    }
+    /// Uncompressed bytes of a full chunk.
+    pub fn tile_bytes(&self) -> usize {
+        let (w, h) = self.chunk();
+        w as usize * h as usize * self.bands as usize * self.sample.bytes()
+    }
+    /// Horizontal differencing for integer samples under compression.
+    fn predictor(&self) -> u16 {
+        if self.compression != Compression::None && self.sample != SampleType::F32 {
+            2
+        } else {
+            1
+        }
+    }
+    /// Would a classic TIFF overflow its 32-bit offsets? (uncompressed size
+    /// plus tables, with a margin; compressed output is assumed no larger).
+    pub fn needs_bigtiff(&self) -> bool {
+        let data = self.tile_bytes() as u64 * self.tiles_across() as u64 * self.tiles_down() as u64;
+        data + (data >> 6) + (1 << 20) > u32::MAX as u64
+    }
+}
+
+#[cfg(test)]
+#[cfg(test)]
+mod tests {
+    use super::writer::PAGE;
+    use super::*;
+    use std::io::Read;
+    use tiff::tags::Tag;
+
+    fn spec(bands: u32, sample: SampleType) -> OutputSpec {
+        OutputSpec {
+            width: 40,
+            height: 16,
+            bands,
+            sample,
+            chunking: Chunking::Tiles(16),
+            compression: Compression::Deflate,
+            bigtiff: false,
+            photometric: 2,
+            alpha: false,
+            geo: None,
+        }
+    }
+
+    fn inflate(bytes: &[u8]) -> Vec<u8> {
+        let mut out = Vec::new();
+        flate2::read::ZlibDecoder::new(bytes).read_to_end(&mut out).unwrap();
+        out
+    }
+
+    #[test]
+    fn uncompressed_tiles_start_on_pages_and_read_back() {
+        // 64×64 RGB tiles are three pages each: after the padding every
+        // tile starts on a page, in classic TIFF and BigTIFF; compressed
+        // tiles are not padded. The pixels read back as written.
+        for (compression, bigtiff) in [(Compression::None, false), (Compression::None, true), (Compression::Deflate, false)] {
+            let spec = OutputSpec { width: 150, height: 70, chunking: Chunking::Tiles(64), compression, bigtiff, ..spec(3, SampleType::U8) };
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("t.tif");
+            let value = |x: usize, y: usize, b: usize| ((x * 7 + y * 13 + b * 29) % 251) as u8;
+            write_raster(&path, &spec, |y0, y1, buf| {
+                for (k, v) in buf.iter_mut().enumerate() {
+                    let (p, b) = (k / 3, k % 3);
+                    *v = value(p % 150, y0 as usize + p / 150, b);
+                }
+                assert_eq!(buf.len(), (y1 - y0) as usize * 150 * 3);
+            })
+            .unwrap();
+            let mut dec = tiff::decoder::Decoder::new(std::fs::File::open(&path).unwrap()).unwrap();
+            let offsets = dec.get_tag_u64_vec(Tag::TileOffsets).unwrap();
+            let paged = offsets.iter().all(|o| o % PAGE == 0);
+            assert_eq!(paged, compression == Compression::None, "{compression:?} {bigtiff}: {offsets:?}");
+            assert_eq!(page_padding(&spec).is_some(), compression == Compression::None);
+            let tiff::decoder::DecodingResult::U8(px) = dec.read_image().unwrap() else { panic!("8-bit") };
+            assert!(px.iter().enumerate().all(|(k, &v)| v == value((k / 3) % 150, k / 3 / 150, k % 3)), "{compression:?} {bigtiff}");
+        }
+    }
+
+    #[test]
+    fn tiles_written_column_by_column_read_back_in_place() {
+        // 3 × 2 tiles of 16×16 grey, sent column by column: the directory
+        // puts each where it belongs. A tile sent twice, or one missing, is
+        // an error.
+        let spec = OutputSpec { width: 40, height: 20, compression: Compression::None, photometric: 1, ..spec(1, SampleType::U8) };
+        let tile = |k: usize| vec![k as u8 * 10 + 1; 16 * 16];
+        let write = |order: &[usize]| {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("t.tif");
+            let mut next = order.iter();
+            let r = write_placed(std::fs::File::create(&path).unwrap(), &spec, || -> std::result::Result<_, ()> { Ok(next.next().map(|&k| (k, tile(k)))) });
+            (r.map_err(|_| ()), std::fs::read(&path).unwrap())
+        };
+        let (r, bytes) = write(&[0, 3, 1, 4, 2, 5]);
+        assert!(r.is_ok());
+        let mut dec = tiff::decoder::Decoder::new(std::io::Cursor::new(bytes)).unwrap();
+        let offsets = dec.get_tag_u64_vec(Tag::TileOffsets).unwrap();
+        assert!(offsets.windows(2).any(|p| p[1] < p[0]), "stored column by column: {offsets:?}");
+        let tiff::decoder::DecodingResult::U8(px) = dec.read_image().unwrap() else { panic!("8-bit") };
+        let want = |x: usize, y: usize| (y / 16 * 3 + x / 16) as u8 * 10 + 1;
+        assert!(px.iter().enumerate().all(|(k, &v)| v == want(k % 40, k / 40)));
+        assert!(write(&[0, 3, 1, 4, 2, 2]).0.is_err(), "a tile twice");
+        assert!(write(&[0, 3, 1, 4, 2]).0.is_err(), "a tile missing");
+        assert!(write(&[0, 3, 1, 4, 2, 6]).0.is_err(), "a tile past the end");
+    }
+
+    #[test]
+    fn reserving_space_leaves_the_file_as_it_was() {
+        use std::io::{Seek, Write};
+        use std::os::unix::fs::MetadataExt;
+        let mut f = tempfile::tempfile().unwrap();
+        reserve(&f, 1 << 20);
+        let m = f.metadata().unwrap();
+        assert_eq!(m.len(), 0, "the size is the writes' to set");
+        // Allocated where the file system can (ext4, XFS, tmpfs), else nothing.
+        assert!(m.blocks() == 0 || m.blocks() * 512 >= 1 << 20, "{} blocks", m.blocks());
+        f.write_all(b"II*\0").unwrap();
+        f.rewind().unwrap();
+        let mut back = String::new();
+        f.read_to_string(&mut back).unwrap();
+        assert_eq!((back.as_str(), f.metadata().unwrap().len()), ("II*\0", 4));
+    }
+
+    #[test]
+    fn the_horizontal_predictor_is_each_sample_less_the_same_band_one_pixel_before() {
+        // TIFF 6.0, section 14: per row, per band, modulo the sample size.
+        for (bands, sample) in [(3u32, SampleType::U8), (4, SampleType::U8), (3, SampleType::U16), (1, SampleType::U16)] {
+            let s = spec(bands, sample);
+            let b = bands as usize;
+            let n = s.tile_bytes() / sample.bytes();
+            let mask = if sample == SampleType::U8 { 0xff } else { 0xffff };
+            let values: Vec<u16> = (0..n as u32).map(|i| (i.wrapping_mul(2654435761) >> 16) as u16 & mask).collect();
+            let row = 16 * b;
+            let want: Vec<u16> = (0..n).map(|i| if i % row < b { values[i] } else { values[i].wrapping_sub(values[i - b]) & mask }).collect();
+            let bytes = |v: &[u16]| -> Vec<u8> {
+                if sample == SampleType::U8 {
+                    v.iter().map(|&x| x as u8).collect()
+                } else {
+                    v.iter().flat_map(|x| x.to_ne_bytes()).collect()
+                }
+            };
+            let (raw, want) = (bytes(&values), bytes(&want));
+            let encoded = encode_tile(&s, raw).unwrap();
+            assert_eq!(inflate(&encoded), want, "{bands} bands of {sample:?}");
+        }
+    }
+}
