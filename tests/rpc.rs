@@ -459,7 +459,7 @@ fn georef(path: &Path) -> ([f64; 6], u32, u32) {
     (g.transform, w, h)
 }
 
-/// `rpc-grid` (seed 004) on a synthetic satellite scene: GDAL reads the
+/// `rpc-grid` (Chibunichev and Sonyushkin) on a synthetic satellite scene: GDAL reads the
 /// geolocation arrays as we meant them (its geolocation transformer gives
 /// our node values at node pixels), the grid between nodes matches the
 /// scene's checkpoints (truth) to centimetres, and the accuracy table

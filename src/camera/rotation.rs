@@ -9,7 +9,7 @@
 //! * `alpha-omega-kappa` (thesis eq. 2.1.1): `R = A_α A_ω A_κ` with
 //!   `A_α = R_y(−α)`, `A_ω = R_x(ω)`, `A_κ = R_z(κ)`.
 //! * `omega-phi-kappa` (western): `R = R_x(ω) R_y(φ) R_z(κ)`.
-//! * `omega-alpha-chi` (seed 001 eq. 1): multiplying out its nine direction
+//! * `omega-alpha-chi` (Dobrynin and Pimshina, eq. 1): multiplying out its nine direction
 //!   cosines gives exactly `R_x(ω) R_y(α) R_z(χ)` — the ω-φ-κ matrix with
 //!   φ = α and κ = χ. The two are the same convention under other names.
 //!
@@ -91,7 +91,7 @@ impl AngleConvention {
 mod tests {
     use super::*;
 
-    /// The thesis' nine direction cosines, typed from METHOD.md §2.
+    /// The thesis' nine direction cosines, typed from Beloshapkin's thesis (eq. 2.1.1).
     fn thesis(alpha: f64, omega: f64, kappa: f64) -> Matrix3<f64> {
         let (sa, ca) = alpha.sin_cos();
         let (sw, cw) = omega.sin_cos();
@@ -99,7 +99,7 @@ mod tests {
         Matrix3::new(ca * ck - sa * sw * sk, -ca * sk - sa * sw * ck, -sa * cw, cw * sk, cw * ck, -sw, sa * ck + ca * sw * sk, -sa * sk + ca * sw * ck, ca * cw)
     }
 
-    /// Seed 001 eq. (1), typed from the seed.
+    /// Dobrynin and Pimshina, eq. (1), typed from their paper.
     fn seed001(omega: f64, alpha: f64, chi: f64) -> Matrix3<f64> {
         let (sa, ca) = alpha.sin_cos();
         let (sw, cw) = omega.sin_cos();

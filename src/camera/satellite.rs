@@ -2,7 +2,7 @@
 //! the orthophoto's CRS → WGS84 longitude/latitude; the height Z of the DEM,
 //! above the geoid when a geoid grid is given, → ellipsoidal height; then the
 //! RPC. The approximation `A` of the GCM is the homography that best fits
-//! the mapping on the terrain plane (METHOD.md §6): corrections then hold
+//! the mapping on the terrain plane (docs/METHOD.md): corrections then hold
 //! the relief and what of the RPC is not projective.
 
 use super::rpc::Rpc;

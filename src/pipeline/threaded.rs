@@ -89,14 +89,9 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
             // Two chunks are resampled at once: when a worker runs out of
             // rows of the older one it starts on the newer one instead of
             // waiting for the other worker to finish (and for the pool to be
-            // woken again). Measured on a 1 GiB scan with one chunk at a time:
-            // the second worker started its first row 2–6 ms late in many
-            // chunks, and both workers together idled ~1.4 s of 14. Three
-            // in bands of tile columns, where a chunk is two tasks of 128
-            // walked rows: a worker done with both of the newer chunk's
-            // while the older one's slower task runs had nothing to take
-            // (1 GiB turned 90°: 0.95× the wall time, 8 pairs; peak 88–101
-            // MiB against 88–95; with three at 0°: 0.98×, +11 MiB, not kept).
+            // woken again). Three in bands of tile columns, where a chunk is
+            // only two tasks: a worker done with both of the newer chunk's
+            // while the older one's slower task runs has something to take.
             let in_flight: usize = if run.walk.columns { 3 } else { 2 };
             let row_bytes = src.info.width as u64 * src.info.pixel_bytes() as u64;
             let (tx_done, rx_done) = crossbeam_channel::unbounded::<Resampled>();
@@ -121,11 +116,8 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
                     // one would map more together (the first chunk of a band
                     // beside the last of the one before), the older ones are
                     // finished first, and the workers idle through the
-                    // older one's last rows. With six shares, the bound of
-                    // one chunk, that happened at 52 of 75 band edges of a
-                    // 1 GiB scan (its chunks span ~400 rows); with eight the
-                    // run took 0.976× the time, and its peak grew from
-                    // 71–75 to 76–85 MiB (6 runs each).
+                    // older one's last rows (eight shares, not the six of
+                    // one chunk, so that this is rare at band edges).
                     while !chunks.is_empty() && chunks.rows_hull(rows_now).is_some_and(|(a, b)| (b - a) as u64 * row_bytes > run.budget.mapped_rows()) {
                         forward_oldest(&mut chunks)?;
                     }

@@ -1,6 +1,6 @@
 //! Multilevel B-spline approximation of scattered data (Lee, Wolberg and
-//! Shin, 1997), as seed 004 uses it to fill the "dead-zone" nodes of its
-//! grid: a hierarchy of uniform cubic B-spline lattices, each coarse level
+//! Shin, 1997), as Chibunichev and Sonyushkin use it to fill the
+//! "dead-zone" nodes of their grid: a hierarchy of uniform cubic B-spline lattices, each coarse level
 //! fitted to the data (the BA algorithm: every point pulls its 4×4 control
 //! points by w/Σw²), each finer level fitted to what the coarser ones left.
 

@@ -1,4 +1,4 @@
-//! The inverse regular grid of seed 004 (`gcm-ortho rpc-grid`): for image
+//! The inverse regular grid of Chibunichev and Sonyushkin (`gcm-ortho rpc-grid`): for image
 //! nodes every `step` pixels, the ground point (longitude, latitude, height
 //! on the DEM) each sees — the linearised solve of 004 eq. (1) (RPC partials
 //! and the DEM's slope), iterated to convergence from the neighbouring
@@ -23,7 +23,7 @@ use mba::Mba;
 use rayon::prelude::*;
 use std::path::Path;
 
-/// Seed 004's back-check threshold, pixels.
+/// Chibunichev and Sonyushkin's back-check threshold, pixels.
 pub const BACK_CHECK_PX: f64 = 0.025;
 pub const METRES_PER_DEGREE: f64 = 111_320.0;
 

@@ -1,6 +1,7 @@
 //! How far `A + c` is from `T`: per-pixel distance in scan pixels over an
-//! output grid, summarised as the seeds publish it (mean abs, RMS, max,
-//! share of pixels under 0.1 / 0.25 / 0.5 / 1 px), with the time the GCM took.
+//! output grid, summarised as Beloshapkin and Chibunichev & Sonyushkin
+//! publish it (mean abs, RMS, max, share of pixels under 0.1 / 0.25 / 0.5
+//! / 1 px), with the time the GCM took.
 
 use crate::gcm::{Gcm, GcmStats};
 use crate::transform::Mapped;

@@ -1,6 +1,6 @@
 //! The inverse mapping of orthorectification: output pixel (u, v) → ground
 //! (X, Y) → height Z from the DEM → scan pixel. `exact` is the operator `T`
-//! of thesis eq. 2.1.1; `Approx` is its analytic approximation `A`
+//! of Beloshapkin's eq. 2.1.1; `Approx` is its analytic approximation `A`
 //! (2.4.5–2.4.7): collinearity on a plane, fractional-linear along each row.
 //!
 //! Coordinates: (u, v) are continuous output coordinates (pixel centres at

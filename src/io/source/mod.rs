@@ -61,9 +61,7 @@ impl SourceImage {
             if let Some(m) = &map {
                 // The rectifier asks for the rows it will read itself
                 // (`will_need_rows`); the kernel's own sequential readahead
-                // on top walked the page cache again at every few faults
-                // (1 GiB after dropping the cache: 0.86x the time with
-                // MADV_NORMAL, 6 pairs; from memory 0.98x, 10 pairs).
+                // on top walked the page cache again at every few faults.
                 let _ = m.advise(memmap2::Advice::Normal);
                 crate::io::mmap_guard::watch_mapped(path);
             }
@@ -240,8 +238,8 @@ impl SourceImage {
                 // window: through the mapping, every row of a tall, narrow
                 // window (a scan turned 90°) cost a page fault that mapped
                 // 64 KiB around it, and dropping them again a TLB flush on
-                // both cores: ~5.6 µs a row, 7–8 s of system time on a 1 GiB
-                // scan. In place, unneeded: the resampler reads the mapping.
+                // both cores. In place, unneeded: the resampler reads the
+                // mapping.
                 use std::os::unix::fs::FileExt;
                 let o = info.offsets[k as usize];
                 for y in iy0..iy1 {

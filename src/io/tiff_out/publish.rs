@@ -7,12 +7,11 @@ use std::path::{Path, PathBuf};
 
 /// Allocates the first `len` bytes of `file` on disk ahead of the writes
 /// (its size stays as it is): ext4 and XFS then skip, for every page
-/// written, the bookkeeping of delayed allocation (about 0.15 s of system
-/// time for a 1.1 GB output). Where the file system cannot, nothing
-/// happens; the writes allocate as usual. Not on tmpfs, whose "disk" is
-/// memory: there it would take every page of the output up front, on one
-/// thread before any tile is made (0.34 s for a 1.1 GB output), instead of
-/// page by page as the writer writes them, beside the resampling.
+/// written, the bookkeeping of delayed allocation. Where the file system
+/// cannot, nothing happens; the writes allocate as usual. Not on tmpfs,
+/// whose "disk" is memory: there it would take every page of the output up
+/// front, on one thread before any tile is made, instead of page by page as
+/// the writer writes them, beside the resampling.
 pub fn reserve(file: &std::fs::File, len: u64) {
     const TMPFS_MAGIC: u64 = 0x0102_1994;
     if rustix::fs::fstatfs(file).is_ok_and(|s| s.f_type as u64 == TMPFS_MAGIC) {

@@ -98,9 +98,7 @@ fn view<'v, T: Sample>(msg: &'v ReadMsg, info: &SourceInfo) -> View<'v, T> {
 /// Rows of a transposed chunk made by one task: the most of 128, 64, 32
 /// and 16 (a tile is a multiple of 16) that divides the tile. Each task
 /// writes its rows across the whole chunk, so fewer, larger tasks sweep it
-/// fewer times: on a 1 GiB scan turned 90°, user time 2.1 s with 128 rows
-/// against 2.4–2.7 s with 64 and 2.9–3.5 s with 16 (3 runs each); 256, one
-/// task a chunk, 2.7–3.2 s.
+/// fewer times; one task a chunk would leave the second worker idle.
 fn column_group(tile: usize) -> usize {
     [128, 64, 32, 16].into_iter().find(|g| tile % g == 0).unwrap_or(1)
 }
@@ -166,7 +164,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
     // Row `r` of the chunk into `px` (and `valid`, where the alpha band
     // needs it); scan positions (`cols`, `rws`) only where a row is not all
     // straight spans: made on first need, not zeroed for every split of the
-    // chunk (1.6 % of the instructions).
+    // chunk.
     let make_row =
         |r: usize, cols: &mut Vec<f64>, rws: &mut Vec<f64>, px: &mut [T], valid: &mut [bool], spans: &mut Vec<crate::geom::Span>, miss: &mut Option<Miss>| {
             let positions = |cols: &mut Vec<f64>, rws: &mut Vec<f64>| {
