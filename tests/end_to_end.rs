@@ -61,15 +61,16 @@ fn an_18_cm_frame_with_eight_marks_rectifies_onto_its_truth() {
 fn checkpoints_agree_to_a_quarter_pixel_at_k16() {
     let dir = tempfile::tempdir().unwrap();
     let sc = scene(&dir.path().join("scene"), 1200, |o| o.kappa_deg = 31.0);
-    let r = run(&["accuracy", "--scene", s(&dir.path().join("scene")), "--sparsity", "16", "--step", "4"]);
+    let json = dir.path().join("accuracy.json");
+    let r = run(&["accuracy", "--scene", s(&dir.path().join("scene")), "--sparsity", "16", "--step", "4", "--json", s(&json)]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let text = String::from_utf8_lossy(&r.stdout);
-    let line = text.lines().find(|l| l.starts_with("checkpoints")).expect("checkpoint line");
-    let rms: f64 = line.split("RMS ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
-    assert!(rms <= 0.25, "{line}");
-    let points: usize = line.split(": ").nth(1).unwrap().split(" points").next().unwrap().parse().unwrap();
+    let table: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let row = table["rows"].as_array().unwrap().iter().find(|r| r.get("checkpoints").is_some()).expect("a checkpoint row");
     let written = std::fs::read_to_string(&sc.checkpoints).unwrap().lines().filter(|l| l.starts_with(|c: char| c.is_ascii_digit())).count();
-    assert_eq!((points, written), (50, 50), "{line}");
+    assert_eq!((row["checkpoints"].as_u64(), written), (Some(50), 50), "{row}");
+    assert_eq!(row["k"].as_u64(), Some(16));
+    let rms = row["rms_px"].as_f64().unwrap();
+    assert!(rms > 0.0 && rms <= 0.25, "{row}");
     drop(sc);
 }
 
