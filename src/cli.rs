@@ -8,7 +8,8 @@ use clap::{Args, Parser, Subcommand};
 use gcm_ortho::gcm::GcmSpec;
 use gcm_ortho::io::tiff_out::Compression;
 use gcm_ortho::options::{
-    parse_bounds, parse_bytes, parse_miss, parse_offset, parse_size, parse_window, BandOrder, BigTiff, Choice, DemSource, ModelSource, RectifyOptions,
+    parse_bounds, parse_bytes, parse_count, parse_miss, parse_offset, parse_size, parse_window, BandOrder, BigTiff, Choice, DemSource, ModelSource,
+    RectifyOptions,
 };
 use gcm_ortho::resample::Kernel;
 use gcm_ortho::synth::{CameraKind, Relief, SynthOptions};
@@ -334,6 +335,10 @@ pub struct RectifyArgs {
     /// Memory budget, e.g. 128M or 1G.
     #[arg(long, default_value = "128M")]
     pub memory: String,
+    /// The most output pixels, e.g. 20G (default: 16 times the scan's,
+    /// which only a GSD or bounds typo passes).
+    #[arg(long)]
+    pub max_output_pixels: Option<String>,
     /// No progress bar (there is none anyway when stderr is not a terminal)
     #[arg(long)]
     pub quiet: bool,
@@ -386,6 +391,7 @@ impl RectifyArgs {
         o.alpha = self.alpha;
         o.threads = self.threads;
         o.memory = parse_bytes("memory", &self.memory)?;
+        o.max_output_pixels = self.max_output_pixels.as_deref().map(|m| parse_count("max_output_pixels", m)).transpose()?;
         o.sync = !self.no_sync;
         Ok(o)
     }
@@ -435,9 +441,6 @@ pub struct AccuracyArgs {
     /// The k of the maps.
     #[arg(long, default_value_t = 16)]
     pub map_sparsity: u32,
-    /// Also rectify and check the checkpoints (needs an output path).
-    #[arg(long)]
-    pub ortho: Option<PathBuf>,
     /// Write the table here as JSON
     #[arg(long)]
     pub json: Option<PathBuf>,

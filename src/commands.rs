@@ -7,6 +7,8 @@ use anyhow::{anyhow, Context, Result};
 use gcm_ortho::camera::file::Camera;
 use gcm_ortho::dem::Dem;
 use gcm_ortho::gcm::{CorrectionMode, Gcm, GcmSpec};
+use gcm_ortho::io::overwrite::{check_outputs, check_writable, Role};
+use gcm_ortho::io::publish::write_file;
 use gcm_ortho::io::source::SourceImage;
 use gcm_ortho::options::{parse_bytes, parse_size, DemSource, RectifyOptions};
 use gcm_ortho::study::accuracy::evaluate;
@@ -28,9 +30,17 @@ pub struct Signals {
 }
 
 impl Signals {
-    pub fn install() -> std::io::Result<Signals> {
+    /// `polls`: the command stops at the cancel flag (rectify, batch, demo),
+    /// cleaning up as it goes; a second signal then ends it at once. A
+    /// command that does not poll ends at the first (its temporary output
+    /// is removed by the next run in that folder).
+    pub fn install(polls: bool) -> std::io::Result<Signals> {
         let s = Signals { cancel: Cancel::new(), int: Arc::default(), term: Arc::default() };
-        for (sig, flag) in [(signal_hook::consts::SIGINT, &s.int), (signal_hook::consts::SIGTERM, &s.term)] {
+        let now = Arc::new(AtomicBool::new(!polls));
+        for (sig, flag, code) in [(signal_hook::consts::SIGINT, &s.int, 130), (signal_hook::consts::SIGTERM, &s.term, 143)] {
+            // Before the flags are set: it sees whether one already was.
+            signal_hook::flag::register_conditional_shutdown(sig, code, s.cancel.flag())?;
+            signal_hook::flag::register_conditional_shutdown(sig, code, now.clone())?;
             signal_hook::flag::register(sig, flag.clone())?;
             signal_hook::flag::register(sig, s.cancel.flag())?;
         }
@@ -69,8 +79,30 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
     use gcm_ortho::batch::{self, BatchOptions, ReportWriter, Status};
     let shard = batch::shard::resolve(a.shard.as_deref(), a.shard_count, &|k| std::env::var(k).ok())?;
     let memory = parse_bytes("memory", &a.memory)?;
+    if memory < RectifyOptions::MIN_MEMORY {
+        return Err(gcm_ortho::Error::setting("memory", "must be at least 16M").into());
+    }
     let jobs = batch::manifest::load(&a.manifest).map_err(|e| anyhow!("{}: {e}", a.manifest.display()))?;
-    let o = BatchOptions { manifest: a.manifest.clone(), jobs: a.jobs, memory, force: a.force, report: a.report.clone(), shard, threads: a.threads };
+    if let Some(report) = &a.report {
+        let (mut ins, outs) = batch::manifest::files(&jobs);
+        ins.push(("manifest".into(), a.manifest.clone()));
+        let ins: Vec<Role> = ins.iter().map(|(w, p)| Role::new(w, p)).collect();
+        let mut outs: Vec<Role> = outs.iter().map(|(w, p)| Role::new(w, p)).collect();
+        outs.push(Role::new("report", report));
+        check_writable(Role::new("report", report))?;
+        check_outputs(&ins, &outs)?;
+    }
+    let at_once = batch::jobs_within(memory, a.jobs);
+    if at_once < a.jobs {
+        eprintln!(
+            "gcm-ortho: warning: --memory {} gives {} jobs at once at least {} MiB each: running {at_once} at a time, not {}",
+            a.memory,
+            a.jobs,
+            RectifyOptions::MIN_MEMORY >> 20,
+            a.jobs
+        );
+    }
+    let o = BatchOptions { manifest: a.manifest.clone(), jobs: at_once, memory, force: a.force, report: a.report.clone(), shard, threads: a.threads };
     if a.dry_run {
         for (i, j) in jobs.iter().enumerate().filter(|(i, _)| i % shard.1 == shard.0) {
             println!("{i:>5}  {}  {} -> {}", j.name, j.config.image.display(), j.config.output.display());
@@ -84,7 +116,8 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
     let quiet = a.quiet;
     let results = batch::run_jobs(&jobs, &o, &signals.cancel, &|r| {
         report.push(r);
-        if !quiet {
+        // A failed job's error is shown even when quiet: quiet hides progress, not failures.
+        if !quiet || r.status == Status::Failed {
             eprintln!("{:<24} {:?}{}", r.job, r.status, r.error.as_ref().map(|e| format!(": {e}")).unwrap_or_default());
         }
     });
@@ -171,9 +204,11 @@ fn print_report(r: &Report) {
 
 fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
     let opts = a.options()?;
+    let json: Vec<Role> = a.json.iter().map(|j| Role::new("report", j)).collect();
+    opts.check_outputs(&json)?;
     let report = rectify(&opts, &Bar::new(a.quiet), &signals.cancel)?;
     if let Some(j) = &a.json {
-        std::fs::write(j, serde_json::to_string_pretty(&report)?).with_context(|| j.display().to_string())?;
+        write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
     }
     if !a.quiet {
         print_report(&report);
@@ -195,6 +230,19 @@ fn scene_inputs(a: &AccuracyArgs) -> Result<(PathBuf, PathBuf, PathBuf)> {
 
 fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     let (image, camera, dem_path) = scene_inputs(a)?;
+    {
+        let checkpoints = a.scene.as_ref().map(|d| d.join("checkpoints.csv"));
+        let mut ins = vec![Role::new("image", &image), Role::new("camera file", &camera), Role::new("DEM", &dem_path)];
+        ins.extend(checkpoints.as_deref().map(|c| Role::new("checkpoints", c)));
+        let outs: Vec<Role> = [("error map", &a.error_map), ("error picture", &a.png), ("GCM picture", &a.gcm_png), ("table", &a.json)]
+            .into_iter()
+            .filter_map(|(what, p)| p.as_deref().map(|p| Role::new(what, p)))
+            .collect();
+        for o in &outs {
+            check_writable(*o)?;
+        }
+        check_outputs(&ins, &outs)?;
+    }
     let cam = Camera::read(&camera)?;
     let (w, h) = match &a.size {
         Some(sz) => parse_size("size", sz)?,
@@ -294,7 +342,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         gcm_ortho::study::maps::write_gcm_png(p, &gcm)?;
     }
     if let Some(j) = &a.json {
-        std::fs::write(j, serde_json::to_string_pretty(&serde_json::json!({"grid": grid, "rows": rows}))?)?;
+        write_file(j, serde_json::to_string_pretty(&serde_json::json!({"grid": grid, "rows": rows}))?.as_bytes())?;
     }
     Ok(())
 }
@@ -305,6 +353,17 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     use gcm_ortho::geodesy::GroundCrs;
     use gcm_ortho::rpcgrid;
     let (origin, model) = a.sensor.model(None)?;
+    let vrt_path = a.output.with_extension("vrt");
+    {
+        let mut ins = vec![Role::new("image", &a.sensor.image), Role::new("sensor model", &origin), Role::new("DEM", &a.dem)];
+        ins.extend(a.sensor.geoid.as_deref().map(|g| Role::new("geoid grid", g)));
+        let mut outs = vec![Role::new("grid", &a.output), Role::new("VRT", &vrt_path)];
+        outs.extend(a.json.as_deref().map(|j| Role::new("table", j)));
+        for o in &outs {
+            check_writable(*o)?;
+        }
+        check_outputs(&ins, &outs)?;
+    }
     let cam = model.load(&a.sensor.image, &origin)?;
     let Sensor::Rpc(r) = &cam.sensor else {
         return Err(gcm_ortho::error::Error::unsupported(&origin, "rpc-grid needs an RPC model (camera.model = \"rpc\")").into());
@@ -321,7 +380,6 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     };
     let grid = rpcgrid::build(&model, &dem, w, h, a.step, z0).map_err(on_dem)?;
     grid.write(&a.output)?;
-    let vrt_path = a.output.with_extension("vrt");
     let data_type = match src.info.sample {
         gcm_ortho::io::source::SampleType::U8 => "Byte",
         gcm_ortho::io::source::SampleType::U16 => "UInt16",
@@ -329,7 +387,7 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     };
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
     let vrt = rpcgrid::geolocation_vrt(&abs(&a.sensor.image), &abs(&a.output), w, h, src.info.bands, data_type, a.step);
-    std::fs::write(&vrt_path, vrt).with_context(|| vrt_path.display().to_string())?;
+    write_file(&vrt_path, vrt.as_bytes())?;
     println!(
         "rpc-grid: {}x{} nodes every {} px for {w}x{h} px; {} nodes failed the {} px back-check, {} corrected",
         grid.cols,
@@ -359,7 +417,7 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
             rows.push(acc);
         }
         if let Some(j) = &a.json {
-            std::fs::write(j, serde_json::to_string_pretty(&rows)?).with_context(|| j.display().to_string())?;
+            write_file(j, serde_json::to_string_pretty(&rows)?.as_bytes())?;
         }
     }
     Ok(())

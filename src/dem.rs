@@ -336,7 +336,8 @@ fn check_north_up(geo: &GeoRef, path: &Path) -> Result<()> {
 /// An SRTM `.hgt` tile: big-endian Int16, 1201² (3″) or 3601² (1″) samples on
 /// whole-degree lines, named after its south-west corner (e.g. N44E005).
 fn read_hgt(path: &Path) -> Result<GridDem> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    // The size says which tile it is: read only one that is a tile.
+    let bytes = crate::io::bounded_read::read_bounded(path, "an SRTM tile", 3601 * 3601 * 2)?;
     let n = match bytes.len() {
         l if l == 1201 * 1201 * 2 => 1201,
         l if l == 3601 * 3601 * 2 => 3601,

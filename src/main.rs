@@ -12,7 +12,8 @@ use std::process::ExitCode;
 /// which some jobs failed, 130 SIGINT, 143 SIGTERM.
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
-    let signals = match commands::Signals::install() {
+    let polls = matches!(cli.command, cli::Command::Rectify(_) | cli::Command::Batch(_) | cli::Command::Demo(_));
+    let signals = match commands::Signals::install(polls) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("gcm-ortho: cannot install signal handlers: {e}");

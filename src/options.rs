@@ -10,6 +10,7 @@ use crate::camera::CameraFile;
 use crate::dem::Miss;
 use crate::error::{Error, Result};
 use crate::gcm::{CorrectionMode, GcmSpec};
+use crate::io::overwrite::{check_outputs, check_writable, Role};
 use crate::io::tiff_out::Compression;
 use crate::resample::Kernel;
 use crate::transform::Trend;
@@ -75,7 +76,29 @@ pub fn parse_bytes(setting: &'static str, s: &str) -> Result<u64> {
     if !(v > 0.0) {
         return Err(Error::setting(setting, format!("'{s}' must be positive")));
     }
-    Ok((v * mult as f64) as u64)
+    let bytes = v * mult as f64;
+    if !(bytes < u64::MAX as f64) {
+        return Err(Error::setting(setting, format!("'{s}' is beyond any machine")));
+    }
+    Ok(bytes as u64)
+}
+
+/// A count like `2000000000`, `2G`, `500M` or `64k` (powers of 1000).
+pub fn parse_count(setting: &'static str, s: &str) -> Result<u64> {
+    let t = s.trim();
+    let (num, mult) = match t.chars().last() {
+        Some('K' | 'k') => (&t[..t.len() - 1], 1e3),
+        Some('M' | 'm') => (&t[..t.len() - 1], 1e6),
+        Some('G' | 'g') => (&t[..t.len() - 1], 1e9),
+        Some('T' | 't') => (&t[..t.len() - 1], 1e12),
+        _ => (t, 1.0),
+    };
+    let v: f64 = num.parse().map_err(|_| Error::setting(setting, format!("'{s}' is not a count like 2G")))?;
+    let n = v * mult;
+    if !(n >= 1.0 && n < u64::MAX as f64) {
+        return Err(Error::setting(setting, format!("'{s}' must be a count from 1 on")));
+    }
+    Ok(n as u64)
 }
 
 /// `minx,miny,maxx,maxy`, or `auto` (None).
@@ -119,6 +142,13 @@ pub fn parse_size(setting: &'static str, s: &str) -> Result<(u32, u32)> {
     Ok((w, h))
 }
 
+/// This machine's memory, bytes (None where it cannot be told).
+pub fn physical_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let kib: u64 = info.lines().find_map(|l| l.strip_prefix("MemTotal:"))?.trim().trim_end_matches("kB").trim().parse().ok()?;
+    Some(kib << 10)
+}
+
 /// How the `camera` path of a run becomes its sensor model.
 #[derive(Clone, Debug, Default)]
 #[allow(clippy::large_enum_variant)] // one a run
@@ -150,7 +180,7 @@ impl ModelSource {
             ModelSource::Inline(f) => f.clone().build(origin),
             ModelSource::Rpc { offset, geoid, crs } => {
                 let offset = offset.or_else(|| {
-                    let xml = std::fs::read_to_string(origin).ok()?;
+                    let xml = crate::io::bounded_read::read_text_bounded(origin, "an RPC file", crate::io::bounded_read::SMALL).ok()?;
                     crate::camera::rpc::Rpc::tile_offset(&xml, image.file_name()?.to_str()?)
                 });
                 Camera::rpc_file(origin, *crs, offset, geoid.as_deref()).build(origin)
@@ -237,6 +267,9 @@ pub struct RectifyOptions {
     pub threads: usize,
     /// Memory budget, bytes.
     pub memory: u64,
+    /// The most output pixels the run may make; `None`: 16 times the
+    /// scan's pixels (at least 2²⁸), which a GSD or bounds typo passes.
+    pub max_output_pixels: Option<u64>,
     /// Put the output on disk (fsync) before it gets its name, so that not
     /// even a power failure leaves an incomplete file under that name. Off
     /// (`--no-sync`): the kernel writes it back in its own time, as after
@@ -249,6 +282,10 @@ impl RectifyOptions {
     pub const MAX_TILE: u32 = 4096;
     /// The least memory budget a run can keep to.
     pub const MIN_MEMORY: u64 = 16 << 20;
+    /// Threads beyond this are a typo, not a machine.
+    pub const MAX_THREADS: usize = 1024;
+    /// GCM node spacing beyond this (output pixels) is no approximation.
+    pub const MAX_SPARSITY: u32 = 1024;
 
     /// Checks every setting's range and the settings against each other;
     /// the first problem, named by its setting.
@@ -256,8 +293,11 @@ impl RectifyOptions {
         if self.tile == 0 || self.tile % 16 != 0 || self.tile > Self::MAX_TILE {
             return Err(Error::setting("tile", format!("{} must be a multiple of 16 up to {}", self.tile, Self::MAX_TILE)));
         }
-        if self.gcm.k == 0 {
-            return Err(Error::setting("sparsity", "must be at least 1"));
+        if self.gcm.k == 0 || self.gcm.k > Self::MAX_SPARSITY {
+            return Err(Error::setting("sparsity", format!("{} is not 1 to {}", self.gcm.k, Self::MAX_SPARSITY)));
+        }
+        if self.threads > Self::MAX_THREADS {
+            return Err(Error::setting("threads", format!("{} is more than {} (0 takes every core)", self.threads, Self::MAX_THREADS)));
         }
         if let Some(e) = self.gcm.max_error {
             if !(e > 0.0) || !e.is_finite() {
@@ -269,6 +309,15 @@ impl RectifyOptions {
         }
         if self.memory < Self::MIN_MEMORY {
             return Err(Error::setting("memory", "must be at least 16M"));
+        }
+        if let Some(ram) = physical_memory().filter(|&ram| self.memory > ram) {
+            return Err(Error::setting("memory", format!("{} MiB is more than this machine's {} MiB", self.memory >> 20, ram >> 20)));
+        }
+        if !self.nodata.is_finite() && !self.nodata.is_nan() {
+            return Err(Error::setting("nodata", format!("{} is not a number a raster can hold", self.nodata)));
+        }
+        if self.max_output_pixels == Some(0) {
+            return Err(Error::setting("max_output_pixels", "must be at least 1"));
         }
         if let Some(g) = self.gsd {
             if !(g > 0.0 && g.is_finite()) {
@@ -291,6 +340,36 @@ impl RectifyOptions {
             }
         }
         Ok(())
+    }
+
+    /// The files the run reads, each with what it is.
+    pub fn inputs(&self) -> Vec<(&'static str, PathBuf)> {
+        let mut v = vec![("image", self.image.clone())];
+        let what = match self.model {
+            ModelSource::Rpc { .. } => "RPC file",
+            _ => "camera file",
+        };
+        v.push((what, self.camera.clone()));
+        if let ModelSource::Rpc { geoid: Some(g), .. } = &self.model {
+            v.push(("geoid grid", g.clone()));
+        }
+        if let DemSource::File(d) = &self.dem {
+            v.push(("DEM", d.clone()));
+        }
+        v
+    }
+
+    /// Refuses an output that cannot be written, or that is one of the
+    /// inputs or another of `also` (outputs beside the orthophoto).
+    pub fn check_outputs(&self, also: &[Role]) -> Result<()> {
+        let inputs = self.inputs();
+        let ins: Vec<Role> = inputs.iter().map(|(w, p)| Role::new(w, p)).collect();
+        let mut outs = vec![Role::new("output", &self.output)];
+        outs.extend_from_slice(also);
+        for o in &outs {
+            check_writable(*o)?;
+        }
+        check_outputs(&ins, &outs)
     }
 
     /// A configuration with the documented defaults.
@@ -318,6 +397,7 @@ impl RectifyOptions {
             alpha: false,
             threads: 0,
             memory: 128 << 20,
+            max_output_pixels: None,
             sync: true,
         }
     }

@@ -125,7 +125,7 @@ fn planar_input_made_by_gdal_gives_the_same_orthophoto() {
     assert!(t.success());
     let mut outs = Vec::new();
     for (name, img) in [("chunky", &sc.scan), ("planar", &planar)] {
-        let out = dir.path().join(format!("{name}.tif"));
+        let out = dir.path().join(format!("ortho_{name}.tif"));
         let r = run(&["rectify", "--image", s(img), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet"]);
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
         outs.push(std::fs::read(&out).unwrap());

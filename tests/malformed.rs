@@ -341,8 +341,9 @@ fn unwritable_output_folder_fails_before_work() {
     let out = dir.path().join("no/such/folder/out.tif");
     let r = run(&["rectify", "--image", s(&mini("scan.tif")), "--camera", s(&mini("camera.toml")), "--dem", s(&mini("dem.tif")), "-o", s(&out), "--quiet"]);
     let err = String::from_utf8_lossy(&r.stderr);
-    assert_eq!(r.status.code(), Some(1));
-    assert!(err.contains("no/such/folder") && err.trim_end().lines().count() == 1, "{err}");
+    // A path that cannot be an output is a bad argument, told before work.
+    assert_eq!(r.status.code(), Some(2));
+    assert!(err.contains("no/such/folder") && err.contains("does not exist") && err.trim_end().lines().count() == 1, "{err}");
 }
 
 #[test]

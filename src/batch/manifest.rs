@@ -7,6 +7,8 @@ use crate::camera::file::{CameraFile, ExteriorSection};
 use crate::camera::rotation::AngleConvention;
 use crate::error::Error;
 use crate::gcm::GcmSpec;
+use crate::io::bounded_read::{read_text_bounded, LIST};
+use crate::io::overwrite::{check_outputs, Role};
 use crate::options::{parse_choice, parse_miss, DemSource, ModelSource, RectifyOptions};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -118,7 +120,7 @@ fn line_of(text: &str, offset: usize) -> usize {
 /// manifest that cannot be read as a whole is an error listing every
 /// problem; a job with a bad input comes back with its `problem` set.
 pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
-    let text = std::fs::read_to_string(path).map_err(|e| ManifestErrors(vec![format!("{}: {e}", path.display())]))?;
+    let text = read_text_bounded(path, "a manifest", LIST).map_err(|e| ManifestErrors(vec![e.to_string()]))?;
     let m: ManifestFile = toml::from_str(&text).map_err(|e| {
         let line = e.span().map(|s| format!(" line {}", line_of(&text, s.start))).unwrap_or_default();
         ManifestErrors(vec![format!("{}:{line}: {}", path.display(), e.message().replace('\n', " "))])
@@ -198,11 +200,44 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         let problem = (!problems.is_empty()).then(|| format!("{}: {}", at(line), problems.join("; ")));
         jobs.push(Job { name, config: cfg, problem });
     }
+    // No job may write over what any job reads, nor two jobs to one file.
+    if errors.is_empty() {
+        let mut inputs = vec![("manifest".to_string(), path.to_path_buf())];
+        if let Some(b) = &m.block {
+            let b = b.get_ref();
+            inputs.push(("interior file".into(), rel(&b.interior)));
+            inputs.push(("exterior orientations".into(), rel(&b.exterior_csv)));
+        }
+        let (job_inputs, outputs) = files(&jobs);
+        inputs.extend(job_inputs);
+        let ins: Vec<Role> = inputs.iter().map(|(w, p)| Role::new(w, p)).collect();
+        let outs: Vec<Role> = outputs.iter().map(|(w, p)| Role::new(w, p)).collect();
+        if let Err(e) = check_outputs(&ins, &outs) {
+            errors.push(format!("{}: {e}", path.display()));
+        }
+    }
     if errors.is_empty() {
         Ok(jobs)
     } else {
         Err(ManifestErrors(errors))
     }
+}
+
+/// Files, each with what it is to its job.
+pub type Files = Vec<(String, PathBuf)>;
+
+/// What the jobs read and what they write (each output with its `.done`
+/// record), each named by its job.
+pub fn files(jobs: &[Job]) -> (Files, Files) {
+    let (mut ins, mut outs) = (Vec::new(), Vec::new());
+    for j in jobs {
+        for (what, p) in j.config.inputs() {
+            ins.push((format!("{what} of job {}", j.name), p));
+        }
+        outs.push((format!("output of job {}", j.name), j.config.output.clone()));
+        outs.push((format!("record of job {}", j.name), super::sidecar(&j.config.output)));
+    }
+    (ins, outs)
 }
 
 /// One job as written, before validation.
@@ -293,7 +328,7 @@ fn config(
 /// (`name,X,Y,Z,omega,phi,kappa`, degrees, ω-φ-κ, header row first).
 fn block_cameras(interior: &Path, csv: &Path) -> Result<Vec<(String, CameraFile, usize)>, Vec<String>> {
     let base = CameraFile::read(interior).map_err(|e| vec![e.to_string()])?;
-    let text = std::fs::read_to_string(csv).map_err(|e| vec![format!("{}: {e}", csv.display())])?;
+    let text = read_text_bounded(csv, "a list of exterior orientations", LIST).map_err(|e| vec![e.to_string()])?;
     let mut out = Vec::new();
     let mut errors = Vec::new();
     let mut lines = text.lines().enumerate();

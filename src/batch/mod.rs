@@ -81,7 +81,7 @@ pub fn job_key(c: &RectifyOptions) -> String {
     file_stamp(&mut h, &c.image);
     match c.model.inline() {
         Some(f) => fnv(&mut h, f.to_toml().as_bytes()),
-        None => fnv(&mut h, &std::fs::read(&c.camera).unwrap_or_default()),
+        None => fnv(&mut h, &crate::io::bounded_read::read_bounded(&c.camera, "a camera file", crate::io::bounded_read::SMALL).unwrap_or_default()),
     }
     if let DemSource::File(p) = &c.dem {
         file_stamp(&mut h, p);
@@ -100,21 +100,35 @@ pub fn sidecar(output: &Path) -> PathBuf {
     PathBuf::from(s)
 }
 
-fn is_current(c: &RectifyOptions, key: &str) -> bool {
-    c.output.is_file() && std::fs::read_to_string(sidecar(&c.output)).map(|s| s.trim() == key).unwrap_or(false)
+/// What a record says of a finished output: the job's key, and the
+/// output's size and modification time, so that an output damaged or
+/// replaced since is made again.
+fn record(output: &Path, key: &str) -> Option<String> {
+    let m = std::fs::metadata(output).ok()?;
+    let t = m.modified().ok()?.duration_since(std::time::UNIX_EPOCH).ok()?;
+    Some(format!("{key} {} {}", m.len(), t.as_nanos()))
 }
 
-fn write_sidecar(output: &Path, key: &str) -> std::io::Result<()> {
-    let p = sidecar(output);
-    let tmp = p.with_extension("done.partial");
-    std::fs::write(&tmp, format!("{key}\n"))?;
-    std::fs::rename(tmp, p)
+fn is_current(c: &RectifyOptions, key: &str) -> bool {
+    let recorded = crate::io::bounded_read::read_text_bounded(&sidecar(&c.output), "a record", 4096);
+    matches!((recorded, record(&c.output, key)), (Ok(r), Some(now)) if r.trim() == now)
+}
+
+fn write_sidecar(output: &Path, key: &str) -> crate::Result<()> {
+    let r = record(output, key).ok_or_else(|| crate::Error::format(output, "the finished output cannot be read back"))?;
+    crate::io::publish::write_file(&sidecar(output), format!("{r}\n").as_bytes())
+}
+
+/// How many of `jobs` can run at once within `memory`, each with the least
+/// budget a run can keep to.
+pub fn jobs_within(memory: u64, jobs: usize) -> usize {
+    jobs.clamp(1, (memory / RectifyOptions::MIN_MEMORY).max(1) as usize)
 }
 
 /// Runs the share of `jobs` chosen by the shard; results in job order.
 pub fn run_jobs(jobs: &[Job], o: &BatchOptions, cancel: &Cancel, on_done: &(dyn Fn(&JobResult) + Sync)) -> Vec<JobResult> {
     let mine: Vec<&Job> = jobs.iter().enumerate().filter(|(i, _)| i % o.shard.1 == o.shard.0).map(|(_, j)| j).collect();
-    let workers = o.jobs.clamp(1, mine.len().max(1));
+    let workers = jobs_within(o.memory, o.jobs).min(mine.len().max(1));
     let per_job_memory = (o.memory / workers as u64).max(RectifyOptions::MIN_MEMORY);
     let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
     let threads = if o.threads > 0 { o.threads } else { (cores / workers).max(1) };
@@ -182,7 +196,7 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
             res.gcm_max_px = Some(r.accuracy_estimate.max);
             if let Err(e) = write_sidecar(&cfg.output, &key) {
                 res.status = Status::Failed;
-                res.error = Some(format!("{}: {e}", sidecar(&cfg.output).display()));
+                res.error = Some(e.to_string());
             }
         }
         Err(crate::Error::Cancelled) => res.status = Status::Cancelled,

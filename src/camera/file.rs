@@ -157,7 +157,7 @@ fn line_of(text: &str, offset: usize) -> usize {
 
 impl CameraFile {
     pub fn read(path: &Path) -> Result<CameraFile> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::bounded_read::read_text_bounded(path, "a camera file", crate::io::bounded_read::SMALL)?;
         Self::parse(&text, path)
     }
 

@@ -44,6 +44,48 @@ impl FrameCamera {
         FrameCamera { focal_mm, centre, r, interior, distortion, refraction, earth_curvature, nadir_mm }
     }
 
+    /// Checks, before any footprint is sought, that this camera can see
+    /// the ground of an image of `w`×`h` pixels at height `ground_z`: its
+    /// principal point in the image, a focal length that gives a field of
+    /// view, the axis below the horizon, the centre above the ground. Each
+    /// has its own message naming the camera file.
+    pub fn check_sees_ground(&self, w: u32, h: u32, ground_z: f64, path: &std::path::Path) -> crate::error::Result<()> {
+        use crate::error::Error;
+        let (w, h) = (w as f64, h as f64);
+        let (pc, pr) = self.interior.mm_to_px(0.0, 0.0);
+        if !(pc > -0.5 * w && pc < 1.5 * w && pr > -0.5 * h && pr < 1.5 * h) {
+            return Err(Error::config(path, "interior", format!("the principal point falls at pixel ({pc:.0}, {pr:.0}), far outside the {w}×{h} image")));
+        }
+        let (x0, y0) = self.interior.px_to_mm(0.0, 0.0);
+        let (x1, y1) = self.interior.px_to_mm(w, h);
+        let diagonal = (x1 - x0).hypot(y1 - y0);
+        let fov = 2.0 * (diagonal / 2.0 / self.focal_mm).atan().to_degrees();
+        if !(self.focal_mm > 0.0 && (0.2..=175.0).contains(&fov)) {
+            return Err(Error::config(
+                path,
+                "camera.focal_length_mm",
+                format!("{} mm across the image's {diagonal:.1} mm diagonal is a field of view of {fov:.2}°: not this image's lens", self.focal_mm),
+            ));
+        }
+        let axis = self.r * Vector3::new(0.0, 0.0, -1.0);
+        if !(axis.z < 0.0) {
+            let off_nadir = (-axis.z).clamp(-1.0, 1.0).acos().to_degrees();
+            return Err(Error::config(
+                path,
+                "exterior.angles_deg",
+                format!("the camera looks {off_nadir:.0}° away from straight down, at or above the horizon: check the angles and their convention"),
+            ));
+        }
+        if !(self.centre.z > ground_z) {
+            return Err(Error::config(
+                path,
+                "exterior.position",
+                format!("the projection centre is at {:.1} m, not above the ground ({ground_z:.1} m)", self.centre.z),
+            ));
+        }
+        Ok(())
+    }
+
     /// Ground point → ideal photo point (mm from the principal point, y up),
     /// before refraction and distortion. `None` behind the camera.
     #[inline]

@@ -27,7 +27,19 @@ pub struct Geoid {
 
 impl Geoid {
     pub fn read(path: &Path) -> Result<Geoid> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        // The header says how large the grid is: a file of another size is
+        // refused before it is read.
+        let head = crate::io::bounded_read::read_head(path, 40)?;
+        let len = std::fs::metadata(path).map_err(|e| Error::io(path, e))?.len();
+        if head.len() == 40 {
+            let rows = i32::from_be_bytes(head[32..36].try_into().expect("4 bytes")) as i64;
+            let cols = i32::from_be_bytes(head[36..40].try_into().expect("4 bytes")) as i64;
+            let want = rows.checked_mul(cols).and_then(|n| n.checked_mul(4)).and_then(|n| n.checked_add(40));
+            if rows < 2 || cols < 2 || want != Some(len as i64) {
+                return Err(Error::format(path, format!("not a .gtx geoid grid: a header of {rows}×{cols} in a file of {len} bytes")));
+            }
+        }
+        let bytes = crate::io::bounded_read::read_bounded(path, "a geoid grid", len.max(40))?;
         Geoid::parse(&bytes, path)
     }
 

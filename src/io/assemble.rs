@@ -4,6 +4,7 @@
 //! pixels as a single run.
 
 use crate::error::{Error, Result};
+use crate::io::overwrite::{check_outputs, check_writable, Role};
 use crate::io::source::SourceImage;
 use crate::io::tiff_out::{tiff_write_error, verify, write_tiled, Chunking, Compression, GeoTags, OutputSpec, PendingFile, WriteError};
 use std::os::unix::fs::FileExt;
@@ -15,6 +16,9 @@ pub fn assemble(pieces: &[PathBuf], out: &Path) -> Result<()> {
     if pieces.is_empty() {
         return Err(Error::Usage("assemble needs at least one piece".into()));
     }
+    let ins: Vec<Role> = pieces.iter().map(|p| Role::new("piece", p)).collect();
+    check_writable(Role::new("output", out))?;
+    check_outputs(&ins, &[Role::new("output", out)])?;
     let srcs: Vec<SourceImage> = pieces.iter().map(|p| SourceImage::open(p, 1 << 20)).collect::<Result<_>>()?;
     let first = &srcs[0].info;
     let geo0 = first.georef.clone().ok_or_else(|| Error::format(&pieces[0], "has no georeferencing"))?;

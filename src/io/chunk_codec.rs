@@ -176,9 +176,27 @@ pub fn file_is_big_endian(file: &std::fs::File) -> std::io::Result<bool> {
     Ok(&order == b"MM")
 }
 
-/// Reads up to `want` bytes of a decompressing reader into `out`.
-fn read_up_to(r: impl Read, want: usize, out: &mut Vec<u8>, what: &str) -> Result<(), String> {
-    r.take(want as u64).read_to_end(out).map(|_| ()).map_err(|e| format!("{what}: {e}"))
+/// Reads up to `want` bytes of a decompressing reader into `out`, then on
+/// to the stream's end, so that the codec checks what it carries to check
+/// (zlib's Adler-32, zstd's checksum): a chunk that does not check out is
+/// an error, not pixels. What a stream holds past the chunk (a last strip
+/// written at full height) is passed over, up to another chunk's worth.
+fn read_up_to(mut r: impl Read, want: usize, out: &mut Vec<u8>, what: &str) -> Result<(), String> {
+    let err = |e: std::io::Error| format!("{what}: {e}");
+    (&mut r).take(want as u64).read_to_end(out).map_err(err)?;
+    let mut rest = [0u8; 4096];
+    let mut past = 0usize;
+    loop {
+        match r.read(&mut rest) {
+            Ok(0) => return Ok(()),
+            Ok(n) => past += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(err(e)),
+        }
+        if past > want.max(4096) {
+            return Err(format!("{what}: the stream runs on past the chunk's {want} bytes"));
+        }
+    }
 }
 
 /// Apple PackBits, as TIFF uses it: a header byte n, then n+1 literal bytes
@@ -335,5 +353,43 @@ mod tests {
         assert!(e.contains("its pixels need 64"), "{e}");
         assert!(codec(7, 1, 1, 4, false).check().is_err());
         assert!(codec(8, 3, 2, 4, false).check().is_err());
+    }
+
+    #[test]
+    fn a_chunk_that_fails_its_checksum_is_an_error() {
+        use std::io::Write;
+        let pixels: Vec<u8> = (0..64u8).collect();
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+        z.write_all(&pixels).unwrap();
+        let mut deflated = z.finish().unwrap();
+        let c = codec(8, 1, 1, 4, false);
+        assert_eq!(c.decode(&deflated, 4, 4).unwrap(), pixels);
+        // The Adler-32 at the end, one bit off: the pixels are all there,
+        // but the chunk is not what was written.
+        *deflated.last_mut().unwrap() ^= 1;
+        let e = c.decode(&deflated, 4, 4).unwrap_err();
+        assert!(e.contains("deflate"), "{e}");
+        // A larger chunk, whose pixels come out before the checksum is read.
+        let big: Vec<u8> = (0..64 * 64 * 4).map(|i: u32| (i.wrapping_mul(2_654_435_761) >> 24) as u8).collect();
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+        z.write_all(&big).unwrap();
+        let mut deflated = z.finish().unwrap();
+        assert_eq!(c.decode(&deflated, 64, 64).unwrap(), big);
+        *deflated.last_mut().unwrap() ^= 1;
+        assert!(c.decode(&deflated, 64, 64).unwrap_err().contains("deflate"));
+        // zstd with its content checksum, one bit of it off.
+        let mut enc = zstd::stream::write::Encoder::new(Vec::new(), 3).unwrap();
+        enc.include_checksum(true).unwrap();
+        enc.write_all(&pixels).unwrap();
+        let mut zst = enc.finish().unwrap();
+        let c = codec(50000, 1, 1, 4, false);
+        assert_eq!(c.decode(&zst, 4, 4).unwrap(), pixels);
+        *zst.last_mut().unwrap() ^= 1;
+        assert!(c.decode(&zst, 4, 4).unwrap_err().contains("zstd"));
+        // A stream that runs on far past its chunk is not this chunk.
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+        z.write_all(&vec![7u8; 64 * 1024]).unwrap();
+        let long = z.finish().unwrap();
+        assert!(codec(8, 1, 1, 4, false).decode(&long, 4, 4).unwrap_err().contains("runs on past"));
     }
 }

@@ -1,11 +1,14 @@
 //! Reading scans and rasters, writing the tiled GeoTIFF.
 
 pub mod assemble;
+pub mod bounded_read;
 pub mod chunk_cache;
 pub mod chunk_codec;
 pub mod chunked_raster;
 pub mod format;
 pub mod geotiff;
 pub mod mmap_guard;
+pub mod overwrite;
+pub mod publish;
 pub mod source;
 pub mod tiff_out;

@@ -22,9 +22,16 @@ use std::time::Instant;
 pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) -> Result<Report> {
     let wall = Instant::now();
     opts.validate()?;
+    opts.check_outputs(&[])?;
     // The output folder must take a file before any work starts.
     let pending = PendingFile::create(&opts.output)?;
+    if cancel.is_cancelled() {
+        return Err(Error::Cancelled);
+    }
     let plan = RunPlan::new(opts)?;
+    if cancel.is_cancelled() {
+        return Err(Error::Cancelled);
+    }
     let (src, dem, spec) = (&plan.src, &plan.dem, &plan.spec);
     let model = plan.camera.model();
     let columns = plan.columns();

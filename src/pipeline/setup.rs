@@ -11,7 +11,7 @@ use crate::gcm::GcmSpec;
 use crate::geodesy::GroundCrs;
 use crate::geom::OutputGrid;
 use crate::io::geotiff::is_geographic;
-use crate::io::source::SourceImage;
+use crate::io::source::{SampleType, SourceImage};
 use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec};
 use crate::options::{BandOrder, BigTiff, DemSource, RectifyOptions};
 use crate::transform::footprint::{auto_grid, mean_gsd};
@@ -58,6 +58,14 @@ impl RunPlan {
         let model = camera.model();
         let (sw, sh) = (src.info.width, src.info.height);
         let z_guess = dem.mean_height().unwrap_or_else(|| camera.height_hint());
+        if let Sensor::Frame(f) = &camera.sensor {
+            // The ground under the camera where the DEM has it, else its mean.
+            let below = match dem.height(f.centre.x, f.centre.y) {
+                crate::dem::Height::Value(z) => z,
+                _ => z_guess,
+            };
+            f.check_sees_ground(sw, sh, below, &opts.camera)?;
+        }
         // Where the scan and the DEM do not meet, the DEM is the file to name.
         let on_dem = |e: Error| match e {
             Error::Geometry(m) => Error::format(&dem.path, m),
@@ -72,7 +80,25 @@ impl RunPlan {
             None => auto_grid(model, &dem, sw, sh, z_guess, gsd).map_err(on_dem)?,
         };
         if grid.width > MAX_SIDE || grid.height > MAX_SIDE {
-            return Err(Error::limits(&opts.output, format!("an output of {}×{} pixels is beyond 2M pixels a side", grid.width, grid.height)));
+            return Err(Error::setting(
+                "gsd",
+                format!("an output of {}×{} pixels is beyond 2M pixels a side; check the GSD and bounds", grid.width, grid.height),
+            ));
+        }
+        // A GSD or bounds typo makes an output of days; refused before any work.
+        let pixels = grid.width as u64 * grid.height as u64;
+        let limit = opts.max_output_pixels.unwrap_or_else(|| (16 * sw as u64 * sh as u64).max(1 << 28));
+        if pixels > limit {
+            return Err(Error::setting(
+                "max_output_pixels",
+                format!(
+                    "an output of {}×{} pixels ({:.2} Gpx at GSD {gsd}) is more than the {:.2} Gpx allowed; check the GSD and bounds, or raise this limit",
+                    grid.width,
+                    grid.height,
+                    pixels as f64 / 1e9,
+                    limit as f64 / 1e9
+                ),
+            ));
         }
         let area = [grid.x0, grid.y0 - grid.gsd * grid.height as f64, grid.x0 + grid.gsd * grid.width as f64, grid.y0];
         let plane = match opts.trend {
@@ -101,6 +127,9 @@ impl RunPlan {
         let (tc1, tr1) = (tc0 + tcw, tr0 + trh);
         let piece_w = (tc1 * tile).min(grid.width) - tc0 * tile;
         let piece_h = (tr1 * tile).min(grid.height) - tr0 * tile;
+        if !opts.alpha {
+            check_nodata(opts.nodata, src.info.sample)?;
+        }
         let bands_in = src.info.bands;
         let bands_out = bands_in + u32::from(opts.alpha);
         let photometric = if src.info.photometric == 2 && bands_in >= 3 { 2 } else { 1 };
@@ -134,6 +163,26 @@ impl RunPlan {
     /// Bands of tile columns: the stages walk the transposed grid.
     pub fn columns(&self) -> bool {
         self.band_order == BandOrder::Columns
+    }
+}
+
+/// Refuses a nodata value the output's samples cannot hold (they take the
+/// scan's type): it would be written as another value than the tag says.
+fn check_nodata(nodata: f64, sample: SampleType) -> Result<()> {
+    let (lo, hi, what) = match sample {
+        SampleType::U8 => (0.0, 255.0, "8-bit samples (0 to 255)"),
+        SampleType::U16 => (0.0, 65535.0, "16-bit samples (0 to 65535)"),
+        SampleType::F32 => {
+            if nodata.is_nan() || (nodata as f32).is_finite() {
+                return Ok(());
+            }
+            return Err(Error::setting("nodata", format!("{nodata} is beyond 32-bit floating-point samples")));
+        }
+    };
+    if nodata.fract() == 0.0 && (lo..=hi).contains(&nodata) {
+        Ok(())
+    } else {
+        Err(Error::setting("nodata", format!("{nodata} is not a value of the output's {what}, which are the scan's")))
     }
 }
 

@@ -223,7 +223,7 @@ pub struct Checkpoint {
 
 /// Reads `id,X,Y,Z,col,row` with a header line.
 pub fn read_checkpoints(path: &std::path::Path) -> crate::Result<Vec<Checkpoint>> {
-    let text = std::fs::read_to_string(path).map_err(|e| crate::Error::io(path, e))?;
+    let text = crate::io::bounded_read::read_text_bounded(path, "a list of checkpoints", crate::io::bounded_read::LIST)?;
     let mut out = Vec::new();
     for (n, line) in text.lines().enumerate().skip(1) {
         if line.trim().is_empty() {

@@ -41,12 +41,14 @@ fn ramp(t: f32) -> [u8; 3] {
 }
 
 fn save_png(path: &Path, w: u32, h: u32, rgb: &[u8]) -> Result<()> {
-    let f = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(f), w, h);
+    let mut bytes = Vec::new();
+    let mut enc = png::Encoder::new(&mut bytes, w, h);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
     let mut wr = enc.write_header().map_err(|e| Error::format(path, e.to_string()))?;
-    wr.write_image_data(rgb).map_err(|e| Error::format(path, e.to_string()))
+    wr.write_image_data(rgb).map_err(|e| Error::format(path, e.to_string()))?;
+    wr.finish().map_err(|e| Error::format(path, e.to_string()))?;
+    crate::io::publish::write_file(path, &bytes)
 }
 
 /// Draws digits 0-9 and '.' from a 3×5 font, scaled.

@@ -211,6 +211,27 @@ impl Rpc {
                 return Err(Error::format(path, format!("RPC: {k} is zero")));
             }
         }
+        // Offsets and scales outside the Earth: a unit or field mix-up, told
+        // here rather than as a footprint that meets no DEM.
+        let bad = |k: &str, v: f64, range: &str| Err(Error::format(path, format!("RPC: {k} {v} is not {range}")));
+        if !(-90.0..=90.0).contains(&rpc.lat_off) {
+            return bad("LAT_OFF", rpc.lat_off, "a latitude (-90 to 90 degrees)");
+        }
+        if !(-180.0..=360.0).contains(&rpc.long_off) {
+            return bad("LONG_OFF", rpc.long_off, "a longitude (-180 to 360 degrees)");
+        }
+        if !(rpc.lat_scale.abs() <= 90.0) {
+            return bad("LAT_SCALE", rpc.lat_scale, "a span of latitudes (up to 90 degrees)");
+        }
+        if !(rpc.long_scale.abs() <= 180.0) {
+            return bad("LONG_SCALE", rpc.long_scale, "a span of longitudes (up to 180 degrees)");
+        }
+        if !(rpc.height_off.abs() <= 20_000.0 && rpc.height_scale.abs() <= 20_000.0) {
+            return bad("HEIGHT_OFF / HEIGHT_SCALE", rpc.height_off.abs().max(rpc.height_scale.abs()), "a height on the Earth (within 20 km)");
+        }
+        if !(rpc.line_scale > 0.0 && rpc.samp_scale > 0.0) {
+            return bad("LINE_SCALE / SAMP_SCALE", rpc.line_scale.min(rpc.samp_scale), "a positive number of pixels");
+        }
         Ok(rpc)
     }
 }

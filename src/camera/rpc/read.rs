@@ -16,6 +16,7 @@
 
 use super::Rpc;
 use crate::error::{Error, Result};
+use crate::io::bounded_read::{read_bounded, read_head, read_text_bounded, SMALL};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -27,17 +28,37 @@ pub(super) const SCALARS: [&str; 10] =
 /// The four coefficient sets, in the same order.
 pub(super) const SETS: [&str; 4] = ["LINE_NUM_COEFF", "LINE_DEN_COEFF", "SAMP_NUM_COEFF", "SAMP_DEN_COEFF"];
 
+/// The headers of a NITF file, where its TREs are: the file header and the
+/// first image's subheader (its length, LISH001, is in the file header),
+/// never the pixels after them.
+fn nitf_headers(path: &Path) -> Result<Vec<u8>> {
+    let head = read_head(path, 1 << 16)?;
+    let num = |a: usize, b: usize| std::str::from_utf8(head.get(a..b)?).ok()?.trim().parse::<u64>().ok();
+    // NITF 2.1 / NSIF: HL at 354..360, NUMI at 360..363, LISH001 at 363..369.
+    let end = match (num(354, 360), num(360, 363), num(363, 369)) {
+        (Some(hl), Some(numi), Some(lish)) if numi > 0 => hl + lish,
+        (Some(hl), _, _) => hl,
+        _ => return Err(Error::format(path, "a NITF file header cut short")),
+    };
+    if end > SMALL {
+        return Err(Error::format(path, format!("NITF headers of {end} bytes: not a NITF file this reads")));
+    }
+    read_head(path, end.max(head.len() as u64))
+}
+
 impl Rpc {
     /// Reads an RPC model from any supported file, recognising the format
     /// by its content (not its name).
     pub fn read(path: &Path) -> Result<Rpc> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        if bytes.starts_with(b"II*\0") || bytes.starts_with(b"MM\0*") || bytes.starts_with(b"II+\0") || bytes.starts_with(b"MM\0+") {
+        // An image carrying its RPC may be of any size: only its header is read.
+        let head = read_head(path, 8)?;
+        if head.starts_with(b"II*\0") || head.starts_with(b"MM\0*") || head.starts_with(b"II+\0") || head.starts_with(b"MM\0+") {
             return Rpc::from_geotiff(path);
         }
-        if bytes.starts_with(b"NITF") || bytes.starts_with(b"NSIF") {
-            return Rpc::parse_nitf(&bytes, path);
+        if head.starts_with(b"NITF") || head.starts_with(b"NSIF") {
+            return Rpc::parse_nitf(&nitf_headers(path)?, path);
         }
+        let bytes = read_bounded(path, "an RPC file", SMALL)?;
         let text = std::str::from_utf8(&bytes).map_err(|_| Error::unsupported(path, "not an RPC file: neither TIFF, NITF nor text"))?;
         let head = text.trim_start();
         if head.starts_with('<') {
@@ -54,7 +75,7 @@ impl Rpc {
 
     /// Reads a text RPC file (`KEY: value` lines).
     pub fn read_text(path: &Path) -> Result<Rpc> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = read_text_bounded(path, "an RPC file", SMALL)?;
         Rpc::parse_text(&text, path)
     }
 

@@ -3,16 +3,16 @@
 //! `write_data`, the tile tables and tags through `write_tag`). Its layout
 //! is an [`OutputSpec`]; tiles are compressed by the caller's threads
 //! (`encode.rs`) and appended by one writer (`writer.rs`). The file is born
-//! under a temporary name in the target folder (`publish.rs`) and renamed
-//! into place only after it has been re-read and checked (`verify.rs`).
+//! under a temporary name in the target folder (`io/publish.rs`) and
+//! renamed into place only after it has been re-read and checked
+//! (`verify.rs`).
 
 mod encode;
-mod publish;
 mod verify;
 mod writer;
 
+pub use crate::io::publish::{reserve, PendingFile};
 pub use encode::encode_tile;
-pub use publish::{reserve, PendingFile};
 pub use verify::verify;
 pub use writer::{page_padding, tiff_write_error, write_placed, write_raster, write_tiled, WriteError};
 

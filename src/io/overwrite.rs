@@ -1,0 +1,120 @@
+//! No command writes over one of its own inputs, nor writes two of its
+//! outputs to one file. Every command names its inputs and outputs before
+//! any work, and [`check_outputs`] compares them as files, not as
+//! spellings: an existing file by device and inode (so `dir/../scan.tif`, a
+//! symbolic link and a hard link are all caught), a file still to be made
+//! by its folder's real path and its name.
+
+use crate::error::{Error, Result};
+use std::os::unix::fs::MetadataExt;
+use std::path::{Path, PathBuf};
+
+/// A file a command reads or writes, and what it is to the command
+/// (`image`, `DEM`, `output`): named in the message.
+#[derive(Clone, Copy, Debug)]
+pub struct Role<'a> {
+    pub what: &'a str,
+    pub path: &'a Path,
+}
+
+impl<'a> Role<'a> {
+    pub fn new(what: &'a str, path: &'a Path) -> Role<'a> {
+        Role { what, path }
+    }
+}
+
+/// What makes two paths one file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+enum Identity {
+    Inode(u64, u64),
+    /// Not there yet: the real path of its folder, and its name.
+    Planned(PathBuf),
+}
+
+fn identity(path: &Path) -> Option<Identity> {
+    if let Ok(m) = std::fs::metadata(path) {
+        return Some(Identity::Inode(m.dev(), m.ino()));
+    }
+    let name = path.file_name()?;
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    Some(Identity::Planned(std::fs::canonicalize(dir).ok()?.join(name)))
+}
+
+/// Refuses, naming both paths, an output that is the same file as an input
+/// or as another output. Inputs that do not exist are left to their
+/// readers to report.
+pub fn check_outputs(inputs: &[Role], outputs: &[Role]) -> Result<()> {
+    let ins: Vec<(Role, Identity)> = inputs.iter().filter_map(|r| Some((*r, identity(r.path).filter(|i| matches!(i, Identity::Inode(..)))?))).collect();
+    let mut outs: Vec<(Role, Identity)> = Vec::with_capacity(outputs.len());
+    for out in outputs {
+        let Some(id) = identity(out.path) else { continue };
+        if let Some((input, _)) = ins.iter().find(|(_, i)| *i == id) {
+            return Err(Error::Usage(format!(
+                "the {} {} is the {} {}: refusing to write over an input",
+                out.what,
+                out.path.display(),
+                input.what,
+                input.path.display()
+            )));
+        }
+        if let Some((other, _)) = outs.iter().find(|(_, o)| *o == id) {
+            return Err(Error::Usage(format!("the {} {} and the {} {} are one file", other.what, other.path.display(), out.what, out.path.display())));
+        }
+        outs.push((*out, id));
+    }
+    Ok(())
+}
+
+/// Refuses an output path that cannot become a file: a folder, or a path
+/// whose folder does not exist.
+pub fn check_writable(out: Role) -> Result<()> {
+    if out.path.is_dir() {
+        return Err(Error::Usage(format!("the {} {} is a folder, not a file", out.what, out.path.display())));
+    }
+    let dir = match out.path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(Error::Usage(format!("the {} {}: the folder {} does not exist", out.what, out.path.display(), dir.display())));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_same_file_under_any_spelling_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir(d.join("sub")).unwrap();
+        std::fs::write(d.join("scan.tif"), b"x").unwrap();
+        std::os::unix::fs::symlink(d.join("scan.tif"), d.join("link.tif")).unwrap();
+        std::fs::hard_link(d.join("scan.tif"), d.join("hard.tif")).unwrap();
+        let scan = d.join("scan.tif");
+        let inputs = [Role::new("image", &scan)];
+        for spelling in [d.join("scan.tif"), d.join("sub/../scan.tif"), d.join("link.tif"), d.join("hard.tif")] {
+            let e = check_outputs(&inputs, &[Role::new("output", &spelling)]).unwrap_err().to_string();
+            assert!(e.contains("refusing to write over an input") && e.contains(&*scan.to_string_lossy()), "{e}");
+        }
+        // A new file is fine; two outputs that are one new file are not.
+        let (a, b) = (d.join("ortho.tif"), d.join("sub/../ortho.tif"));
+        check_outputs(&inputs, &[Role::new("output", &a)]).unwrap();
+        let e = check_outputs(&inputs, &[Role::new("output", &a), Role::new("report", &b)]).unwrap_err().to_string();
+        assert!(e.contains("are one file"), "{e}");
+    }
+
+    #[test]
+    fn folders_and_missing_folders_are_not_outputs() {
+        let dir = tempfile::tempdir().unwrap();
+        assert!(check_writable(Role::new("output", dir.path())).unwrap_err().to_string().contains("is a folder"));
+        let missing = dir.path().join("no/such/out.tif");
+        assert!(check_writable(Role::new("output", &missing)).unwrap_err().to_string().contains("does not exist"));
+        check_writable(Role::new("output", &dir.path().join("out.tif"))).unwrap();
+    }
+}

@@ -1,0 +1,172 @@
+//! Every output is born as a temporary file in the target folder, its
+//! space reserved up front where it is large, and published under its final
+//! name (synced first where asked) only when complete; a run that does not
+//! finish removes it.
+
+use crate::error::{Error, Result};
+use std::path::{Path, PathBuf};
+
+/// Allocates the first `len` bytes of `file` on disk ahead of the writes
+/// (its size stays as it is): ext4 and XFS then skip, for every page
+/// written, the bookkeeping of delayed allocation. Where the file system
+/// cannot, nothing happens; the writes allocate as usual. Not on tmpfs,
+/// whose "disk" is memory: there it would take every page of the output up
+/// front, on one thread before any tile is made, instead of page by page as
+/// the writer writes them, beside the resampling.
+pub fn reserve(file: &std::fs::File, len: u64) {
+    const TMPFS_MAGIC: u64 = 0x0102_1994;
+    if rustix::fs::fstatfs(file).is_ok_and(|s| s.f_type as u64 == TMPFS_MAGIC) {
+        return;
+    }
+    let _ = rustix::fs::fallocate(file, rustix::fs::FallocateFlags::KEEP_SIZE, 0, len);
+}
+
+/// A temporary file next to the output that becomes the output only when
+/// `publish` is called; dropped, it is removed.
+pub struct PendingFile {
+    /// `None` once published.
+    tmp: Option<tempfile::NamedTempFile>,
+    target: PathBuf,
+}
+
+impl Drop for PendingFile {
+    fn drop(&mut self) {
+        // The NamedTempFile removes itself right after this.
+        if let Some(t) = &self.tmp {
+            crate::io::mmap_guard::unregister_cleanup(t.path());
+        }
+    }
+}
+
+/// The end of every temporary output's name.
+const SUFFIX: &str = ".gcm-partial";
+
+/// This machine's name: temporaries on a shared disk are told apart by it.
+fn host() -> String {
+    let uname = rustix::system::uname();
+    uname.nodename().to_string_lossy().replace(['~', '/'], "_")
+}
+
+/// `.NAME~PID@HOST~` — then tempfile's random letters, then [`SUFFIX`]:
+/// whoever finds it later can tell whether the process that made it still
+/// runs. NAME is cut to keep the whole under the 255 bytes a name may have.
+fn temp_prefix(target_name: &str, pid: u32, host: &str) -> String {
+    let mut cut = target_name.len().min(120);
+    while !target_name.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    let host = &host[..host.len().min(64)];
+    format!(".{}~{pid}@{host}~", &target_name[..cut])
+}
+
+/// The process and machine that made a temporary output named `name`.
+fn temp_owner(name: &str) -> Option<(u32, &str)> {
+    let body = name.strip_prefix('.')?.strip_suffix(SUFFIX)?;
+    let (rest, _random) = body.rsplit_once('~')?;
+    let (_, owner) = rest.rsplit_once('~')?;
+    let (pid, host) = owner.split_once('@')?;
+    Some((pid.parse().ok()?, host))
+}
+
+/// Removes the temporary outputs in `dir` left by processes of this machine
+/// that are gone (killed, say by the out-of-memory killer, before they
+/// could clean up). Those of other machines sharing the disk are left.
+pub fn remove_dead_temporaries(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    let me = host();
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let Some((pid, host)) = name.to_str().and_then(temp_owner) else { continue };
+        if host == me && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
+impl PendingFile {
+    pub fn create(target: &Path) -> Result<PendingFile> {
+        let dir = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        remove_dead_temporaries(&dir);
+        let name = target.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+        let prefix = temp_prefix(name, std::process::id(), &host());
+        let tmp = tempfile::Builder::new().prefix(&prefix).suffix(SUFFIX).tempfile_in(&dir).map_err(|e| Error::io(&dir, e))?;
+        crate::io::mmap_guard::register_cleanup(tmp.path());
+        Ok(PendingFile { tmp: Some(tmp), target: target.to_path_buf() })
+    }
+
+    fn tmp(&self) -> &tempfile::NamedTempFile {
+        self.tmp.as_ref().expect("not yet published")
+    }
+
+    pub fn file(&self) -> Result<std::fs::File> {
+        self.tmp().reopen().map_err(|e| Error::io(self.tmp().path(), e))
+    }
+
+    pub fn path(&self) -> &Path {
+        self.tmp().path()
+    }
+
+    /// Syncs, then renames onto the target (readable by all, as a plain
+    /// new file would be; the temporary file was private).
+    pub fn publish(self) -> Result<()> {
+        self.publish_synced(true)
+    }
+
+    /// [`publish`](Self::publish), with the sync only when `sync` (without
+    /// it, a power failure soon after may leave the target incomplete).
+    pub fn publish_synced(mut self, sync: bool) -> Result<()> {
+        use std::os::unix::fs::PermissionsExt;
+        let f = self.tmp().as_file();
+        f.set_permissions(std::fs::Permissions::from_mode(0o644)).map_err(|e| Error::io(&self.target, e))?;
+        if sync {
+            f.sync_all().map_err(|e| Error::io(&self.target, e))?;
+        }
+        let target = self.target.clone();
+        let tmp = self.tmp.take().expect("not yet published");
+        let tmp_path = tmp.path().to_path_buf();
+        crate::io::mmap_guard::unregister_cleanup(&tmp_path);
+        tmp.persist(&target).map_err(|e| Error::io(&target, e.error))?;
+        Ok(())
+    }
+}
+
+/// Writes `bytes` to `path` as every output is written: a temporary file
+/// beside it, synced, renamed into place.
+pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let pending = PendingFile::create(path)?;
+    pending.file()?.write_all(bytes).map_err(|e| Error::io(path, e))?;
+    pending.publish()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temporaries_of_dead_processes_are_found_and_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let me = host();
+        // A long name still makes a temporary name a file system takes.
+        let long = "a".repeat(250);
+        let p = PendingFile::create(&dir.path().join(&long)).unwrap();
+        let name = p.path().file_name().unwrap().to_str().unwrap().to_string();
+        assert!(name.len() <= 255, "{}", name.len());
+        assert_eq!(temp_owner(&name), Some((std::process::id(), me.as_str())));
+        // One of a process that is gone (pid 0 is never a process's), one
+        // of another machine, one not ours: only the first goes.
+        let dead = dir.path().join(format!("{}abcdef{SUFFIX}", temp_prefix("x.tif", 0, &me)));
+        let other = dir.path().join(format!("{}abcdef{SUFFIX}", temp_prefix("x.tif", 0, "elsewhere")));
+        let user = dir.path().join(".x.tif~0@me~keep.partial");
+        for f in [&dead, &other, &user] {
+            std::fs::write(f, b"").unwrap();
+        }
+        remove_dead_temporaries(dir.path());
+        assert!(!dead.exists() && other.exists() && user.exists() && p.path().exists());
+        p.publish().unwrap();
+        assert!(dir.path().join(&long).exists());
+    }
+}
