@@ -1,0 +1,260 @@
+//! Tried as a careless or unlucky user would: outputs named like inputs,
+//! absurd settings, files of the wrong kind, killed runs, damaged data. No
+//! input is ever changed, nothing is left at an output path after a
+//! failure, and the message names the real cause.
+
+mod common;
+use common::*;
+use std::path::{Path, PathBuf};
+
+fn fixture(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini");
+    for f in ["scan.tif", "camera.toml", "dem.tif"] {
+        std::fs::copy(root.join(f), dir.join(f)).unwrap();
+    }
+    (dir.join("scan.tif"), dir.join("camera.toml"), dir.join("dem.tif"))
+}
+
+/// The bytes of every file in `dir`, by name.
+fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_type().map(|t| t.is_file()).unwrap_or(false))
+        .map(|e| (e.file_name().to_string_lossy().into_owned(), std::fs::read(e.path()).unwrap()))
+        .collect();
+    v.sort();
+    v
+}
+
+/// Runs `args`, which must be refused with exit code 2 and one line that
+/// contains every one of `words`, leaving `dir` exactly as it was.
+fn refused(dir: &Path, args: &[&str], words: &[&str]) {
+    let before = snapshot(dir);
+    let r = run(args);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    for w in words {
+        assert!(err.contains(w), "{args:?}: '{w}' not in: {err}");
+    }
+    assert!(snapshot(dir) == before, "{args:?} changed the folder");
+}
+
+#[test]
+fn rectify_never_writes_over_an_input_under_any_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    std::fs::create_dir(d.join("sub")).unwrap();
+    std::os::unix::fs::symlink(&scan, d.join("link.tif")).unwrap();
+    std::fs::hard_link(&dem, d.join("hard.tif")).unwrap();
+    let base = ["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet"];
+    let with = |extra: &[&str]| -> Vec<String> { base.iter().chain(extra).map(|a| a.to_string()).collect() };
+    let cases: Vec<(Vec<String>, Vec<&str>)> = vec![
+        (with(&["-o", s(&scan)]), vec!["image", "refusing to write over an input"]),
+        (with(&["-o", s(&d.join("sub/../scan.tif"))]), vec!["image"]),
+        (with(&["-o", s(&d.join("link.tif"))]), vec!["link.tif", "image"]),
+        (with(&["-o", s(&d.join("hard.tif"))]), vec!["hard.tif", "DEM"]),
+        (with(&["-o", s(&camera)]), vec!["camera file"]),
+        (with(&["-o", s(&d.join("o.tif")), "--json", s(&scan)]), vec!["report", "image"]),
+        (with(&["-o", s(&d.join("o.tif")), "--json", s(&d.join("o.tif"))]), vec!["are one file"]),
+        (with(&["-o", s(d)]), vec!["is a folder"]),
+    ];
+    for (args, words) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        refused(d, &args, &words);
+    }
+}
+
+#[test]
+fn assemble_accuracy_and_rpc_grid_never_write_over_an_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    let piece = d.join("piece.tif");
+    let r = run(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&piece)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    refused(d, &["assemble", "-o", s(&piece), s(&piece)], &["piece", "refusing"]);
+    refused(d, &["accuracy", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--json", s(&dem)], &["table", "DEM"]);
+    // rpc-grid: the image itself, and a grid named .vrt whose VRT would be itself.
+    let v = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/ventoux");
+    let image = d.join("left.tif");
+    std::fs::copy(v.join("left_image.tif"), &image).unwrap();
+    let rpc = v.join("left_image.geom");
+    let srtm = v.join("srtm_N44E005_crop.tif");
+    let grid = ["rpc-grid", "--image", s(&image), "--rpc", s(&rpc), "--rpc-offset", "5000,5000", "--dem", s(&srtm)];
+    refused(d, &[&grid[..], &["-o", s(&image)]].concat(), &["grid", "image"]);
+    refused(d, &[&grid[..], &["-o", s(&d.join("grid.vrt"))]].concat(), &["are one file"]);
+}
+
+#[test]
+fn batch_refuses_outputs_over_inputs_and_collisions() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fixture(d);
+    std::fs::copy(d.join("scan.tif"), d.join("b.tif")).unwrap();
+    let manifest = d.join("m.toml");
+    let cases = [
+        // output_dir holding the scans: scan.tif -> ./scan.tif
+        ("[defaults]\ndem = \"dem.tif\"\noutput_dir = \".\"\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\n", "refusing to write over an input"),
+        // a job's output is another job's image
+        (
+            "[defaults]\ndem = \"dem.tif\"\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\noutput = \"b.tif\"\n[[job]]\nimage = \"b.tif\"\ncamera = \"camera.toml\"\noutput = \"c.tif\"\n",
+            "refusing to write over an input",
+        ),
+        // two jobs, one output
+        (
+            "[defaults]\ndem = \"dem.tif\"\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\noutput = \"o.tif\"\n[[job]]\nimage = \"b.tif\"\ncamera = \"camera.toml\"\noutput = \"o.tif\"\n",
+            "are one file",
+        ),
+    ];
+    for (text, word) in cases {
+        std::fs::write(&manifest, text).unwrap();
+        let before = snapshot(d);
+        for extra in [&["--dry-run"][..], &[][..]] {
+            let r = run(&[&["batch", s(&manifest), "--quiet"][..], extra].concat());
+            let err = String::from_utf8_lossy(&r.stderr);
+            assert_ne!(r.status.code(), Some(0), "{text}");
+            assert!(err.contains(word), "{text}: {err}");
+        }
+        assert!(snapshot(d) == before, "{text}");
+    }
+    // The report over the manifest.
+    std::fs::write(&manifest, "[defaults]\ndem = \"dem.tif\"\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\n").unwrap();
+    refused(d, &["batch", s(&manifest), "--quiet", "--report", s(&manifest)], &["report", "manifest"]);
+}
+
+#[test]
+fn absurd_settings_are_refused_before_any_work_with_their_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    let out = d.join("o.tif");
+    let base = ["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&out)];
+    for (extra, flag) in [
+        (&["--memory", "1e20"][..], "--memory"),
+        (&["--memory", "100T"][..], "--memory"),
+        (&["--threads", "100000"][..], "--threads"),
+        (&["--sparsity", "100000000"][..], "--sparsity"),
+        (&["--gsd", "0.00001"][..], "--gsd"),
+        (&["--gsd", "0.01"][..], "--max-output-pixels"),
+        (&["--nodata", "300"][..], "--nodata"),
+        (&["--nodata", "0.5"][..], "--nodata"),
+        (&["--window", "4294967295,0,2,1"][..], "--window"),
+        (&["--tile", "100"][..], "--tile"),
+    ] {
+        let t = std::time::Instant::now();
+        refused(d, &[&base[..], extra].concat(), &[flag]);
+        assert!(t.elapsed().as_secs() < 10, "{extra:?} took {:?}", t.elapsed());
+        assert!(files_containing(d, "partial").is_empty());
+    }
+    // The limit is the user's to set, down or up.
+    refused(d, &[&base[..], &["--max-output-pixels", "1k"]].concat(), &["--max-output-pixels", "0.00 Gpx allowed"]);
+    let r = run(&[&base[..], &["--max-output-pixels", "1G"]].concat());
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+}
+
+#[test]
+fn a_long_output_name_works_and_dead_runs_leave_nothing_for_long() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    // What a run killed by SIGKILL leaves: its temporary, under a process
+    // that is gone (pid 0 is no process's) of this host.
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap().trim().to_string();
+    let stale = d.join(format!(".o.tif~0@{host}~abcdef.gcm-partial"));
+    std::fs::write(&stale, vec![0u8; 4096]).unwrap();
+    let name = format!("{}.tif", "n".repeat(246));
+    assert_eq!(name.len(), 250);
+    let out = d.join(&name);
+    let r = run(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&out)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(out.exists() && !stale.exists());
+    assert!(files_containing(d, "partial").is_empty());
+}
+
+#[test]
+fn a_chunk_that_fails_its_checksum_is_an_error_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene(&d.join("scene"), 400, |o| o.compress = gcm_ortho::io::tiff_out::Compression::Deflate);
+    let src = gcm_ortho::io::source::SourceImage::open(&sc.scan, 1 << 20).unwrap();
+    let (offsets, counts) = src.info.chunk_table();
+    let (at, len) = (offsets[1], counts[1]);
+    drop(src);
+    // The last byte of chunk 1's stream is its Adler-32's last byte.
+    let mut bytes = std::fs::read(&sc.scan).unwrap();
+    bytes[(at + len - 1) as usize] ^= 0x01;
+    std::fs::write(&sc.scan, bytes).unwrap();
+    let out = d.join("o.tif");
+    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.contains("scan.tif") && err.contains("chunk 1") && err.contains("deflate"), "{err}");
+    assert!(!out.exists() && files_containing(d, "partial").is_empty());
+}
+
+#[test]
+fn an_rpc_tag_is_read_from_a_large_image_without_reading_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let small = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/rpc/PHR1B_P_201709281038393_SEN_PRG_FC_178609-001.tif");
+    // The same TIFF, grown to 2 GB (a hole in the file): the directory and
+    // the pixels are where they were, and the RPC tag is in the directory.
+    let big = d.join("big.tif");
+    std::fs::copy(&small, &big).unwrap();
+    std::fs::OpenOptions::new().write(true).open(&big).unwrap().set_len(2 << 30).unwrap();
+    let json = d.join("r.json");
+    let out = d.join("o.tif");
+    // Any image will do for the geometry: the point is the RPC file's size.
+    let image = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/ventoux/left_image.tif");
+    let r = run(&["rectify", "--image", s(&image), "--rpc", s(&big), "--quiet", "--json", s(&json), "-o", s(&out)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let peak = report["peak_rss_mib"].as_f64().unwrap();
+    assert!(peak < 256.0, "peak {peak} MiB");
+    // A text RPC file that is in fact that image is refused from its size.
+    let r = run(&["rectify", "--image", s(&image), "--camera", s(&big), "--height", "100", "--quiet", "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.contains("too large for a camera file"), "{err}");
+}
+
+#[test]
+fn a_batch_rerun_redoes_an_output_damaged_since() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fixture(d);
+    let manifest = d.join("m.toml");
+    std::fs::write(&manifest, "[defaults]\ndem = \"dem.tif\"\noutput_dir = \"out\"\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\n").unwrap();
+    let report = d.join("r.jsonl");
+    let status = || -> String {
+        let r = run(&["batch", s(&manifest), "--quiet", "--report", s(&report)]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let line: serde_json::Value = serde_json::from_str(std::fs::read_to_string(&report).unwrap().lines().next().unwrap()).unwrap();
+        line["status"].as_str().unwrap().to_string()
+    };
+    assert_eq!(status(), "done");
+    assert_eq!(status(), "skipped");
+    let out = d.join("out/scan.tif");
+    let good = std::fs::read(&out).unwrap();
+    // Cut short by something else: made again, whole.
+    std::fs::write(&out, &good[..good.len() / 2]).unwrap();
+    assert_eq!(status(), "done");
+    assert!(std::fs::read(&out).unwrap() == good);
+}
+
+#[test]
+fn a_command_that_does_not_poll_still_ends_at_sigterm() {
+    let dir = tempfile::tempdir().unwrap();
+    let child = std::process::Command::new(bin())
+        .args(["synth", "--out", s(&dir.path().join("scene")), "--size", "6000x6000", "--quiet"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    assert!(std::process::Command::new("kill").args(["-15", &child.id().to_string()]).status().unwrap().success());
+    let out = wait_deadline(child, 10);
+    assert_eq!(out.status.code(), Some(143), "{}", String::from_utf8_lossy(&out.stderr));
+}
