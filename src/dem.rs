@@ -285,6 +285,9 @@ impl GridDem {
         let (w, h) = (raster.width as u32, raster.height as u32);
         let geo = read_georef(&mut dec, path)?.ok_or_else(|| Error::format(path, "the DEM has no georeferencing (no ModelPixelScale/ModelTiepoint)"))?;
         check_north_up(&geo, path)?;
+        if w < 2 || h < 2 {
+            return Err(Error::format(path, format!("a DEM of {w}×{h} posts: heights are interpolated between posts, so at least 2×2 are needed")));
+        }
         let pixels = (w as u64) * (h as u64);
         if pixels > 1 << 40 {
             return Err(Error::limits(path, format!("DEM of {w}×{h} samples is too large")));
@@ -366,6 +369,26 @@ fn read_hgt(path: &Path) -> Result<GridDem> {
     Ok(GridDem::new(n, n, data, [lon - 0.5 * d, d, 0.0, lat + 1.0 + 0.5 * d, 0.0, -d], Some(-32768.0), Some(4326)))
 }
 
+/// Refuses a DEM without a nodata tag whose heights include a value that
+/// only a void has (-32768, -32767, -9999, -99999, -3.4e38): read as a
+/// height, each void would pull the terrain kilometres down.
+fn check_untagged_voids(g: &GridDem, path: &Path) -> Result<()> {
+    if g.nodata.is_some() {
+        return Ok(());
+    }
+    let step = (g.width * g.height / 250_000).max(1);
+    let void = g.samples(step).into_iter().find(|&v| [-32768.0, -32767.0, -9999.0, -99999.0].contains(&v) || v < -1.0e30);
+    match void {
+        Some(v) => Err(Error::format(
+            path,
+            format!(
+                "heights of {v} m and no nodata tag: voids? Tag them (gdal_edit.py -a_nodata {v} FILE), then choose what fills them with the DEM hole policy"
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Where heights come from.
 #[allow(clippy::large_enum_variant)] // one a run
 pub enum HeightModel {
@@ -413,6 +436,7 @@ impl Dem {
     /// As `open`, holding at most about `max_bytes` of heights in memory.
     pub fn open_within(path: &Path, ground: u32, max_bytes: u64) -> Result<Dem> {
         let g = GridDem::read_within(path, max_bytes)?;
+        check_untagged_voids(&g, path)?;
         let to_dem = match g.epsg {
             Some(e) if e != ground => {
                 let r = Reprojection::new(ground, e).map_err(|m| Error::format(path, format!("cannot reproject the DEM: {m}")))?;

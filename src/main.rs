@@ -32,14 +32,18 @@ fn main() -> ExitCode {
                 return ExitCode::SUCCESS;
             }
             // A setting named by its key is printed as the flag that sets it.
-            let msg = e
-                .chain()
-                .map(|c| match c.downcast_ref::<gcm_ortho::Error>() {
+            let mut parts: Vec<String> = Vec::new();
+            for c in e.chain() {
+                let part = match c.downcast_ref::<gcm_ortho::Error>() {
                     Some(gcm_ortho::Error::Setting { setting, msg }) => format!("{}: {msg}", cli::flag(setting)),
                     _ => c.to_string(),
-                })
-                .collect::<Vec<_>>()
-                .join(": ");
+                };
+                // A cause its error already quotes is said once.
+                if !parts.last().is_some_and(|p| p.ends_with(&part)) {
+                    parts.push(part);
+                }
+            }
+            let msg = parts.join(": ");
             eprintln!("gcm-ortho: error: {}", msg.replace('\n', " "));
             let usage = e.chain().any(|c| matches!(c.downcast_ref::<gcm_ortho::Error>(), Some(gcm_ortho::Error::Usage(_) | gcm_ortho::Error::Setting { .. })));
             ExitCode::from(if usage { 2 } else { 1 })

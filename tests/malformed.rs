@@ -125,6 +125,10 @@ fn regenerate_corpus() {
     let fid_line = cam.lines().find(|l| l.starts_with("fiducials_mm")).unwrap().to_string();
     c("collinear_fiducials.toml", cam.replace(&fid_line, "fiducials_mm = [[-117.5, -117.5], [0.0, 0.0], [117.5, 117.5], [50.0, 50.0]]"));
     c("not_toml.toml", "this is [not toml\n".into());
+    let angles_line = cam.lines().find(|l| l.starts_with("angles_deg")).unwrap().to_string();
+    c("looks_up.toml", cam.replace(&angles_line, "angles_deg = [0.0, 180.0, 0.0]"));
+    c("focal_in_micrometres.toml", cam.replace("focal_length_mm = 152.0", "focal_length_mm = 152000.0"));
+    c("principal_point_outside.toml", cam.replace("principal_point_mm = [0.004, -0.009]", "principal_point_mm = [400.0, -0.009]"));
 
     // --- DEMs ---
     let dem = std::fs::read(mini("dem.tif")).unwrap();
@@ -139,6 +143,8 @@ fn regenerate_corpus() {
     w("dem", "other_crs.tif", &keys);
     w("dem", "all_nodata.tif", &dem_all_nodata(&dem));
     w("dem", "far_away.tif", &dem_shifted(&dem, 50_000.0));
+    w("dem", "one_post.tif", &small_dem(1, 1, |_| 300.0));
+    w("dem", "untagged_voids.tif", &small_dem(64, 64, |k| if k % 7 == 0 { -32768.0 } else { 300.0 }));
 
     // --- RPC files (for the Ventoux crop) ---
     let rpc_txt = std::fs::read_to_string(root().join("fixtures/rpc/rpc_IKONOS.txt")).unwrap();
@@ -168,6 +174,8 @@ fn regenerate_corpus() {
     let geom = std::fs::read_to_string(root().join("fixtures/ventoux/left_image.geom")).unwrap();
     r("rpc00a.geom", geom.replace("polynomial_format:  B", "polynomial_format:  A").as_bytes());
     r("geom_missing_coefficient.geom", without(&geom, "samp_num_coeff_19:").as_bytes());
+    let lat_line = geom.lines().find(|l| l.starts_with("lat_off:")).unwrap().to_string();
+    r("lat_off_95.geom", geom.replace(&lat_line, "lat_off:  95.0").as_bytes());
     let rpb = std::fs::read_to_string(root().join("fixtures/rpc/PHR1B_P_201709281038393_SEN_PRG_FC_178609-001.RPB")).unwrap();
     r("rpb_bad_number.RPB", rpb.replacen("lineOffset = 11469.5;", "lineOffset = 11469.5.5;", 1).as_bytes());
     let ntf = std::fs::read(root().join("fixtures/rpc/wv3_20.NTF")).unwrap();
@@ -232,6 +240,33 @@ fn rgb_dem() -> Vec<u8> {
         geo: Some(GeoTags { x0: 649000.0, y0: 4891000.0, gsd: 100.0, epsg: 32631, nodata: None }),
     };
     write_raster(&p, &spec, |_, _, buf| buf.fill(100)).unwrap();
+    std::fs::read(&p).unwrap()
+}
+
+/// A Float32 DEM of `w`×`h` posts over the mini scene, no nodata tag,
+/// sample `k` (row-major) `height(k)`.
+fn small_dem(w: u32, h: u32, height: impl Fn(usize) -> f32 + Sync) -> Vec<u8> {
+    use gcm_ortho::io::tiff_out::*;
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("dem.tif");
+    let spec = OutputSpec {
+        width: w,
+        height: h,
+        bands: 1,
+        sample: gcm_ortho::io::source::SampleType::F32,
+        chunking: Chunking::Strips(h),
+        compression: Compression::None,
+        bigtiff: false,
+        photometric: 1,
+        alpha: false,
+        geo: Some(GeoTags { x0: 649000.0, y0: 4893000.0, gsd: 4000.0 / w as f64, epsg: 32631, nodata: None }),
+    };
+    write_raster(&p, &spec, |y0, _, buf| {
+        for (i, v) in buf.chunks_exact_mut(4).enumerate() {
+            v.copy_from_slice(&height(y0 as usize * w as usize + i).to_le_bytes());
+        }
+    })
+    .unwrap();
     std::fs::read(&p).unwrap()
 }
 
@@ -353,4 +388,37 @@ fn usage_errors_exit_2() {
     let r = run(&["rectify", "--image", "a.tif", "--camera", "c.toml", "--height", "10", "--memory", "lots", "-o", "o.tif"]);
     assert_eq!(r.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&r.stderr).contains("--memory"));
+}
+
+/// Six problems that all used to say "the scan's centre does not meet the
+/// DEM": each is told as what it is.
+#[test]
+fn each_cause_has_its_own_message() {
+    let m = |what: &str, name: &str| root().join("tests/malformed").join(what).join(name);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.tif");
+    for (what, name, cause) in [
+        ("camera", "looks_up.toml", "above the horizon"),
+        ("camera", "focal_in_micrometres.toml", "field of view"),
+        ("camera", "principal_point_outside.toml", "principal point"),
+        ("dem", "one_post.tif", "at least 2×2"),
+        ("dem", "untagged_voids.tif", "no nodata tag"),
+        ("rpc", "lat_off_95.geom", "LAT_OFF"),
+    ] {
+        let f = m(what, name);
+        let ventoux = |n: &str| root().join("fixtures/ventoux").join(n);
+        let args: Vec<String> = match what {
+            "camera" => ["rectify", "--image", s(&mini("scan.tif")), "--camera", s(&f), "--dem", s(&mini("dem.tif"))].map(String::from).to_vec(),
+            "dem" => ["rectify", "--image", s(&mini("scan.tif")), "--camera", s(&mini("camera.toml")), "--dem", s(&f)].map(String::from).to_vec(),
+            _ => ["rectify", "--image", s(&ventoux("left_image.tif")), "--rpc", s(&f), "--rpc-offset", "5000,5000", "--height", "1000"]
+                .map(String::from)
+                .to_vec(),
+        };
+        let mut args: Vec<&str> = args.iter().map(String::as_str).collect();
+        args.extend(["-o", s(&out), "--quiet"]);
+        let r = run(&args);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(1), "{name}: {err}");
+        assert!(err.contains(name) && err.contains(cause) && !err.contains("does not meet"), "{name}: {err}");
+    }
 }
