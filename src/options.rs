@@ -402,3 +402,48 @@ impl RectifyOptions {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn parsers_take_what_the_help_says_and_name_the_setting_otherwise() {
+        assert_eq!(parse_bytes("memory", "128M").unwrap(), 128 << 20);
+        assert_eq!(parse_bytes("memory", "1.5g").unwrap(), 3 << 29);
+        assert_eq!(parse_count("max_output_pixels", "2G").unwrap(), 2_000_000_000);
+        assert_eq!(parse_bounds("bounds", "1,2,3,4").unwrap(), Some([1.0, 2.0, 3.0, 4.0]));
+        assert_eq!(parse_bounds("bounds", "auto").unwrap(), None);
+        assert_eq!(parse_window("window", "0, 1, 2, 3").unwrap(), [0, 1, 2, 3]);
+        assert_eq!(parse_choice::<Kernel>("resample", "cubic").unwrap(), Kernel::Cubic);
+        for (e, key) in [
+            (parse_bytes("memory", "1e20").unwrap_err(), "memory"),
+            (parse_bytes("memory", "-5M").unwrap_err(), "memory"),
+            (parse_bounds("bounds", "3,2,1,4").unwrap_err(), "bounds"),
+            (parse_window("window", "0,0,0,1").unwrap_err(), "window"),
+            (parse_choice::<Kernel>("resample", "bicubic").unwrap_err(), "resample"),
+            (parse_miss("dem_hole", "zero").unwrap_err(), "dem_hole"),
+        ] {
+            assert!(matches!(&e, Error::Setting { setting, .. } if *setting == key), "{e}");
+        }
+        let mut o = RectifyOptions::new("s".into(), "c".into(), DemSource::Height(0.0), "o".into());
+        o.validate().unwrap();
+        o.tile = 100;
+        assert!(o.validate().unwrap_err().to_string().starts_with("tile: 100"));
+    }
+
+    proptest! {
+        #[test]
+        fn no_text_makes_a_parser_panic(text in ".{0,40}") {
+            let _ = parse_bytes("memory", &text);
+            let _ = parse_count("max_output_pixels", &text);
+            let _ = parse_bounds("bounds", &text);
+            let _ = parse_window("window", &text);
+            let _ = parse_offset("rpc_offset", &text);
+            let _ = parse_size("size", &text);
+            let _ = parse_miss("dem_hole", &text);
+            let _ = parse_choice::<Compression>("compress", &text);
+        }
+    }
+}
