@@ -200,11 +200,11 @@ fn an_rpc_tag_is_read_from_a_large_image_without_reading_the_image() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let small = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/rpc/PHR1B_P_201709281038393_SEN_PRG_FC_178609-001.tif");
-    // The same TIFF, grown to 2 GB (a hole in the file): the directory and
+    // The same TIFF, grown to 20 GB (a hole in the file): the directory and
     // the pixels are where they were, and the RPC tag is in the directory.
     let big = d.join("big.tif");
     std::fs::copy(&small, &big).unwrap();
-    std::fs::OpenOptions::new().write(true).open(&big).unwrap().set_len(2 << 30).unwrap();
+    std::fs::OpenOptions::new().write(true).open(&big).unwrap().set_len(20 << 30).unwrap();
     let json = d.join("r.json");
     let out = d.join("o.tif");
     // Any image will do for the geometry: the point is the RPC file's size.
@@ -219,6 +219,20 @@ fn an_rpc_tag_is_read_from_a_large_image_without_reading_the_image() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(1), "{err}");
     assert!(err.contains("too large for a camera file"), "{err}");
+}
+
+#[test]
+fn a_batch_of_more_jobs_than_its_memory_holds_runs_fewer_at_once_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fixture(d);
+    let manifest = d.join("m.toml");
+    std::fs::write(&manifest, "[defaults]\ndem = \"dem.tif\"\noutput_dir = \"out\"\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\n").unwrap();
+    let r = run(&["batch", s(&manifest), "--quiet", "--jobs", "96", "--memory", "64M"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("warning") && err.contains("running 4 at a time, not 96"), "{err}");
+    assert!(d.join("out/scan.tif").exists());
 }
 
 #[test]

@@ -9,7 +9,7 @@ use std::path::Path;
 /// Camera files, RPC files in text, XML or NITF headers, world files.
 pub const SMALL: u64 = 16 << 20;
 /// Manifests, exterior orientations and checkpoint lists of big blocks.
-pub const LIST: u64 = 256 << 20;
+pub const LIST: u64 = 64 << 20;
 
 /// The bytes of `path`, refused (naming `what` it should be) if it holds
 /// more than `limit`.
