@@ -8,8 +8,8 @@ use clap::{Args, Parser, Subcommand};
 use gcm_ortho::gcm::GcmSpec;
 use gcm_ortho::io::tiff_out::Compression;
 use gcm_ortho::options::{
-    parse_bounds, parse_bytes, parse_count, parse_miss, parse_offset, parse_size, parse_window, BandOrder, BigTiff, Choice, DemSource, ModelSource,
-    RectifyOptions,
+    parse_bounds, parse_bytes, parse_count, parse_max_error, parse_miss, parse_offset, parse_size, parse_window, BandOrder, BigTiff, Choice, DemSource,
+    ModelSource, RectifyOptions,
 };
 use gcm_ortho::resample::Kernel;
 use gcm_ortho::synth::{CameraKind, Relief, SynthOptions};
@@ -291,12 +291,14 @@ pub struct RectifyArgs {
     #[arg(long)]
     pub window: Option<String>,
     /// GCM node spacing k, output pixels (default: 16, or the DEM's posting
-    /// in output pixels where finer, but at least 12).
+    /// in output pixels where finer, but at least 4).
     #[arg(long)]
     pub sparsity: Option<u32>,
-    /// Error bound of the GCM in scan pixels (refines cells that miss it).
+    /// The most the GCM may be off the exact model at any output pixel,
+    /// scan pixels, or `none` (default: 0.1, or none with a given
+    /// --sparsity or --corrections cell; the error is reported either way).
     #[arg(long)]
-    pub max_error: Option<f64>,
+    pub max_error: Option<String>,
     /// How the corrections between GCM nodes are found: interpolated
     /// bilinearly from the four nodes around, or one per cell (as in Beloshapkin's thesis)
     #[arg(long, default_value = "bilinear", value_parser = choice::<gcm_ortho::gcm::CorrectionMode>())]
@@ -379,7 +381,11 @@ impl RectifyArgs {
         o.gsd = self.gsd;
         o.bounds = parse_bounds("bounds", &self.bounds)?;
         o.window = self.window.as_deref().map(|w| parse_window("window", w)).transpose()?;
-        o.gcm = GcmSpec { k: self.sparsity.unwrap_or(16), mode: self.corrections, max_error: self.max_error };
+        let max_error = match &self.max_error {
+            Some(e) => parse_max_error("max_error", e)?,
+            None => RectifyOptions::default_max_error(self.sparsity.is_some(), self.corrections),
+        };
+        o.gcm = GcmSpec { k: self.sparsity.unwrap_or(16), mode: self.corrections, max_error };
         o.auto_sparsity = self.sparsity.is_none();
         o.trend = self.trend;
         o.kernel = self.resample;

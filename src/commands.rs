@@ -285,7 +285,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     }
     for (k, mode, bound) in cases {
         let gcm = Gcm::new(&t, approx, GcmSpec { k, mode, max_error: bound });
-        let ev = gcm_ortho::study::accuracy::evaluate_where(&gcm, a.step, a.max_slope, None);
+        let ev = gcm_ortho::study::accuracy::evaluate_where(&gcm, a.step, a.max_slope, Some((w, h)), None);
         let e = &ev.errors;
         let refined = 100.0 * ev.gcm.refined_cells as f64 / ev.gcm.cells.max(1) as f64;
         println!(

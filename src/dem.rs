@@ -140,6 +140,38 @@ impl GridDem {
         v.is_nan() || self.nodata.is_some_and(|nd| v as f64 == nd)
     }
 
+    /// Continuous sample coordinates of (X, Y) in the grid's CRS: sample
+    /// (i, j) at (i, j).
+    #[inline]
+    pub fn sample_coords(&self, x: f64, y: f64) -> (f64, f64) {
+        let gt = &self.transform;
+        ((x - gt[0]) * self.inv_step.0 - 0.5, (y - gt[3]) * self.inv_step.1 - 0.5)
+    }
+
+    /// The height at continuous sample coordinates (c, r), bilinear; NaN
+    /// outside the grid or where a sample it needs is nodata.
+    pub fn height_at_sample(&self, c: f64, r: f64) -> f64 {
+        let gt = &self.transform;
+        let (x, y) = (gt[0] + (c + 0.5) * gt[1], gt[3] + (r + 0.5) * gt[5]);
+        match self.lookup(x, y) {
+            Lookup::Height(z) => z,
+            _ => f64::NAN,
+        }
+    }
+
+    /// Sample (i, j) as a height; NaN outside or nodata.
+    pub fn post(&self, i: i64, j: i64) -> f64 {
+        if i < 0 || j < 0 || i as usize >= self.width || j as usize >= self.height {
+            return f64::NAN;
+        }
+        let v = self.sample(i as usize, j as usize);
+        if self.is_nodata(v) {
+            f64::NAN
+        } else {
+            v as f64
+        }
+    }
+
     /// Bilinear height at ground (X, Y) (textbook 9.35).
     #[inline]
     pub fn lookup(&self, x: f64, y: f64) -> Lookup {
@@ -474,6 +506,16 @@ impl Dem {
         match &self.to_dem {
             None => Some((x, y)),
             Some(r) => r.apply(x, y),
+        }
+    }
+
+    /// Where ground (X, Y) falls among a grid DEM's samples (continuous
+    /// sample coordinates); `None` for a flat DEM or where the CRS
+    /// conversion fails.
+    pub fn sample_coords(&self, x: f64, y: f64) -> Option<(f64, f64)> {
+        match &self.model {
+            HeightModel::Grid(g) => self.in_grid_crs(x, y).map(|(gx, gy)| g.sample_coords(gx, gy)),
+            HeightModel::Flat(_) => None,
         }
     }
 

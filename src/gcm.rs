@@ -14,12 +14,25 @@
 //! corrections. This halves the worst error on posted DEMs for a few more
 //! nodes.
 //!
-//! With `max_error` (bilinear only) each cell between four nodes is checked
-//! against `T` at 13 interior points and split as a quadtree where it misses
-//! the bound — at the DEM's own grid lines where one crosses the cell (a
-//! bilinear DEM bends only there, so the pieces are smooth), else in the
-//! middle; cells that would cost more to split than to compute (≤ 52 px)
-//! are evaluated exactly.
+//! With `max_error` (bilinear only) every cell between four nodes is held to
+//! the bound at every pixel, by two estimates that see what a few check
+//! points cannot:
+//!
+//! * the terrain's part, complete: within a cell the DEM is piecewise
+//!   bilinear, bending only along its post lines, so its greatest departure
+//!   from the plane of the cell's four corners is at the posts inside the
+//!   cell or where post lines cross its edges. That height error times the
+//!   image's displacement per metre of height (the relief rate, at the
+//!   cell) bounds what the corrections' interpolation can miss of the
+//!   terrain: a wall or a roof edge between the nodes shows there, however
+//!   thin;
+//! * the smooth part (the lens, `A`'s curvature, slopes): from the second
+//!   differences of the corrections at the nodes around the cell.
+//!
+//! A cell over the bound is split as a quadtree — at the DEM's own lines
+//! where one crosses it (the pieces are then smooth), else in the middle —
+//! and pieces that would cost more to split than to compute (≤ 52 px) are
+//! evaluated exactly.
 //!
 //! Everything is computed a band of rows at a time (`prepare`), so a caller
 //! never holds the whole matrix.
@@ -50,6 +63,14 @@ pub struct NodeRow {
     pub j: i64,
     pub dc: Vec<f64>,
     pub dr: Vec<f64>,
+    /// The terrain's height at each node, NaN where it has none.
+    pub z: Vec<f64>,
+    /// Under an error bound: how the image moves a metre of height up at
+    /// each node (scan pixels, column and row); empty without one.
+    pub tz: Vec<[f64; 2]>,
+    /// Under an error bound, a DEM not aligned with the output: where each
+    /// node falls among the DEM's samples (NaN where it does not).
+    pub dp: Vec<[f64; 2]>,
 }
 
 /// Heights at the nodes of a node row, and, where the DEM (in EPSG:4326)
@@ -77,6 +98,17 @@ struct Quad {
     kids: Option<Box<[Quad; 4]>>,
     /// Too fine to split further and still over the bound: use `T` itself.
     exact: bool,
+    /// The estimated interpolation error of the corrections' smooth part
+    /// over this cell, scan pixels.
+    smooth: f64,
+    /// The terrain's height at the corners, in the order of `corners`.
+    z: [f64; 4],
+    /// Scan pixels a metre of height moves the image here, with a margin
+    /// (from the corner nodes); NaN where not known.
+    rate: f64,
+    /// A DEM not aligned with the output: where the corners fall among its
+    /// samples (NaN where not known).
+    dp: [[f64; 2]; 4],
 }
 
 /// Counters for the report: how much the GCM cost.
@@ -108,7 +140,7 @@ pub struct BandGcm {
     rows: Vec<NodeRow>,
     /// `cells[n][i]`: the refinement of the cell between node rows n, n+1
     /// and node columns i, i+1 (index from the first node).
-    cells: Vec<Vec<Option<Quad>>>,
+    cells: Vec<Vec<Option<Box<Quad>>>>,
     pub stats: GcmStats,
     /// The first DEM miss met under the `error` policy.
     pub miss: Option<(f64, f64, Lookup)>,
@@ -137,6 +169,13 @@ pub struct Gcm<'a> {
     /// The DEM's bilinear kinks in output coordinates, where the DEM grid is
     /// aligned with the output grid: lines u = au + bu·i and v = av + bv·j.
     kinks: Option<[f64; 4]>,
+    /// Where the DEM is a grid not aligned with the output (another CRS, or
+    /// turned): the spacing, output pixels, at which a cell's heights are
+    /// sampled for its terrain error (half the DEM's posting).
+    dem_sampling: Option<f64>,
+    /// Over the grid, with a margin: the most scan pixels a metre of height
+    /// moves the image (R), and the most its rate changes a metre (|∂²T/∂Z²|).
+    relief: (f64, f64),
 }
 
 /// How far (in scan pixels) a straight line between node columns may stray
@@ -148,22 +187,6 @@ pub const A_LINEAR_TOLERANCE: f64 = 1.0 / 4096.0;
 /// columns into where `A` curves: beyond, pieces of a few pixels cost more
 /// in set-up than working every position out.
 pub const MAX_SPANS_A_GAP: usize = 4;
-
-const CHECK_POINTS: [(f64, f64); 13] = [
-    (0.25, 0.25),
-    (0.5, 0.25),
-    (0.75, 0.25),
-    (0.25, 0.5),
-    (0.5, 0.5),
-    (0.75, 0.5),
-    (0.25, 0.75),
-    (0.5, 0.75),
-    (0.75, 0.75),
-    (0.5, 0.0),
-    (0.0, 0.5),
-    (1.0, 0.5),
-    (0.5, 1.0),
-];
 
 impl<'a> Gcm<'a> {
     pub fn new(t: &'a Transform<'a>, a: Approx, spec: GcmSpec) -> Gcm<'a> {
@@ -203,7 +226,18 @@ impl<'a> Gcm<'a> {
         let anchor_off = first_px.iter().zip(&xs).map(|(&p, &x)| p as f64 + 0.5 - x).collect();
         let max_gap = xs.windows(2).map(|p| p[1] - p[0]).fold(k as f64, f64::max);
         let ramp = (0..=max_gap.ceil() as usize + 1).map(|m| m as f64).collect();
-        Gcm { t, a, spec, first_node, nodes_x: xs.len(), xs, ys, inv_dx, first_px, anchor_off, max_gap, ramp, kinks }
+        let dem_sampling = match &t.dem.model {
+            crate::dem::HeightModel::Grid(g) if kinks.is_none() => {
+                // The posting in metres: degrees count their shortest, at 60° of latitude.
+                let deg = g.epsg.and_then(crate::io::geotiff::is_geographic).unwrap_or(false);
+                let m = if deg { 111_320.0 * 0.5 } else { 1.0 };
+                let posting = g.transform[1].abs().hypot(g.transform[2].abs()).min(g.transform[5].abs().hypot(g.transform[4].abs())) * m;
+                Some((posting / t.grid.gsd / 2.0).max(1.0))
+            }
+            _ => None,
+        };
+        let relief = relief_rates(t);
+        Gcm { t, a, spec, first_node, nodes_x: xs.len(), xs, ys, inv_dx, first_px, anchor_off, max_gap, ramp, kinks, dem_sampling, relief }
     }
 
     /// Nodes in a node row.
@@ -321,6 +355,24 @@ impl<'a> Gcm<'a> {
             }
             None => self.t.model.project_many(&gx, &gy, &gz, &mut col, &mut row),
         }
+        // Under a bound, where the image goes a metre higher: the refinement
+        // tells the terrain's part of the corrections from the rest by it.
+        let mut tz = Vec::new();
+        if self.spec.max_error.is_some() {
+            let up: Vec<f64> = gz.iter().map(|z| z + 1.0).collect();
+            let (mut c1, mut r1) = (vec![0.0; at.len()], vec![0.0; at.len()]);
+            match &nodes.lonlat {
+                Some(lonlat) => {
+                    let (lon, lat): (Vec<f64>, Vec<f64>) = at.iter().map(|&i| lonlat[i].unwrap_or((f64::NAN, f64::NAN))).unzip();
+                    self.t.model.project_many_lonlat(&lon, &lat, &up, &mut c1, &mut r1);
+                }
+                None => self.t.model.project_many(&gx, &gy, &up, &mut c1, &mut r1),
+            }
+            tz = vec![[f64::NAN; 2]; self.nodes_x];
+            for (k, &i) in at.iter().enumerate() {
+                tz[i] = [c1[k] - col[k], r1[k] - row[k]];
+            }
+        }
         for ((&i, c), r) in at.iter().zip(col).zip(row) {
             // NaN where the point is not imaged, as A where it is behind.
             if let (false, Some((ac, ar))) = (c.is_nan(), self.a.at(self.xs[i], v)) {
@@ -328,7 +380,16 @@ impl<'a> Gcm<'a> {
                 dr[i] = r - ar;
             }
         }
-        NodeRow { j, dc, dr }
+        let z = heights
+            .iter()
+            .map(|h| match *h {
+                Height::Value(z) => z,
+                _ => f64::NAN,
+            })
+            .collect();
+        let dp =
+            if self.spec.max_error.is_some() && self.dem_sampling.is_some() { self.xs.iter().map(|&u| self.dem_coords(u, v)).collect() } else { Vec::new() };
+        NodeRow { j, dc, dr, z, tz, dp }
     }
 
     /// Node rows `(j0, j1)` and the weight of `j1` for output row `y`.
@@ -349,10 +410,24 @@ impl<'a> Gcm<'a> {
         }
     }
 
+    /// The node rows a band of output rows `[y0, y1)` needs: those it
+    /// interpolates between, and under an error bound one more each side,
+    /// so that the curvature at its edge rows is measured as in the middle
+    /// of a band (the result must not depend on where bands begin).
+    pub fn node_rows_for(&self, y0: u32, y1: u32) -> (i64, i64) {
+        let (j0, _, _) = self.rows_for(y0);
+        let (_, j1, _) = self.rows_for(y1 - 1);
+        if self.spec.max_error.is_some() && self.spec.mode == CorrectionMode::Bilinear {
+            let last = self.first_node + self.ys.len() as i64 - 1;
+            ((j0 - 1).max(self.first_node), (j1 + 1).min(last))
+        } else {
+            (j0, j1)
+        }
+    }
+
     /// Everything needed to fill output rows `[y0, y1)`.
     pub fn prepare(&self, y0: u32, y1: u32) -> BandGcm {
-        let (j_first, _, _) = self.rows_for(y0);
-        let (_, j_last, _) = self.rows_for(y1 - 1);
+        let (j_first, j_last) = self.node_rows_for(y0, y1);
         let mut miss = None;
         let rows: Vec<NodeRow> = (j_first..=j_last)
             .map(|j| {
@@ -368,6 +443,7 @@ impl<'a> Gcm<'a> {
         let mut stats = GcmStats { nodes: (rows.len() * self.nodes_x) as u64, ..Default::default() };
         let mut cells = Vec::new();
         if let (Some(bound), CorrectionMode::Bilinear) = (self.spec.max_error, self.spec.mode) {
+            let curvature = self.smooth_curvature(&rows);
             for n in 0..rows.len().saturating_sub(1) {
                 let (a, b) = (&rows[n], &rows[n + 1]);
                 let row_cells = (0..self.nodes_x - 1)
@@ -378,12 +454,23 @@ impl<'a> Gcm<'a> {
                             return None;
                         }
                         let (v0, v1) = (self.node_v(a.j), self.node_v(b.j));
-                        let mut q =
-                            Quad { u0: self.xs[i], v0, du: self.xs[i + 1] - self.xs[i], dv: v1 - v0, corners, split: (0.0, 0.0), kids: None, exact: false };
+                        let (du, dv) = (self.xs[i + 1] - self.xs[i], v1 - v0);
+                        let smooth = self.smooth_error(&curvature, n, i, du, dv);
+                        let z = [a.z[i], a.z[i + 1], b.z[i], b.z[i + 1]];
+                        // The image moves with height about alike at the four
+                        // corners; a quarter again for the change between them.
+                        let rate = [a.tz.get(i), a.tz.get(i + 1), b.tz.get(i), b.tz.get(i + 1)]
+                            .into_iter()
+                            .map(|t| t.map_or(f64::NAN, |t| (t[0] * t[0] + t[1] * t[1]).sqrt()))
+                            .fold(0.0f64, |m, r| if r.is_nan() || m.is_nan() { f64::NAN } else { m.max(r) })
+                            * 1.25;
+                        let dp = |row: &NodeRow, m: usize| row.dp.get(m).copied().unwrap_or([f64::NAN; 2]);
+                        let dp = [dp(a, i), dp(a, i + 1), dp(b, i), dp(b, i + 1)];
+                        let mut q = Quad { u0: self.xs[i], v0, du, dv, corners, split: (0.0, 0.0), kids: None, exact: false, smooth, z, rate, dp };
                         let refined = self.refine(&mut q, bound, &mut stats, &mut miss);
                         if refined {
                             stats.refined_cells += 1;
-                            Some(q)
+                            Some(Box::new(q))
                         } else {
                             None
                         }
@@ -395,26 +482,282 @@ impl<'a> Gcm<'a> {
         BandGcm { first_j, rows, cells, stats, miss }
     }
 
-    /// Checks `q` against `T`; splits it where it misses `bound`. Returns
-    /// whether it had to be refined.
-    fn refine(&self, q: &mut Quad, bound: f64, stats: &mut GcmStats, miss: &mut Option<(f64, f64, Lookup)>) -> bool {
-        // Checking at a few points cannot see every pixel: hold them to half
-        // the bound so that the pixels between them stay under it.
-        let limit = 0.5 * bound;
-        let mut worst = 0.0f64;
-        for &(fu, fv) in CHECK_POINTS.iter() {
-            let c = self.correction(q.u0 + fu * q.du, q.v0 + fv * q.dv, miss);
-            stats.checks += 1;
-            let interp = bilerp(&q.corners, fu, fv);
-            let err = (c[0] - interp[0]).hypot(c[1] - interp[1]);
-            worst = if err.is_nan() { f64::INFINITY } else { worst.max(err) };
+    /// The second derivatives of the corrections' smooth part at every
+    /// node of `rows` (scan pixels a pixel²), along u and along v: from
+    /// their second differences with the neighbouring nodes, the terrain's
+    /// part taken out first (the height's change from the node times the
+    /// image's movement a metre there), so that what is measured is the
+    /// lens, `A`'s curvature and the slopes; the terrain's kinks are
+    /// `terrain_error`'s. NaN where a neighbour has no value; along v, a
+    /// band's first and last rows take their neighbour's.
+    fn smooth_curvature(&self, rows: &[NodeRow]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+        // |f''| from three values at three positions.
+        let second = |x: [f64; 3], f: [f64; 3]| 2.0 * ((f[2] - f[1]) / (x[2] - x[1]) - (f[1] - f[0]) / (x[1] - x[0])).abs() / (x[2] - x[0]);
+        let both = |x: [f64; 3], nodes: [(&NodeRow, usize); 3]| {
+            let (mid, m) = nodes[1];
+            let [tc, tr] = mid.tz.get(m).copied().unwrap_or([0.0; 2]);
+            let zm = mid.z[m];
+            let s = |k: usize| {
+                let (row, at) = nodes[k];
+                let dz = if tc.is_nan() { 0.0 } else { row.z[at] - zm };
+                (row.dc[at] - tc * dz, row.dr[at] - tr * dz)
+            };
+            let (a, b, c) = (s(0), s(1), s(2));
+            let (sc, sr) = (second(x, [a.0, b.0, c.0]), second(x, [a.1, b.1, c.1]));
+            (sc * sc + sr * sr).sqrt()
+        };
+        let n = self.nodes_x;
+        let uu: Vec<Vec<f64>> = rows
+            .iter()
+            .map(|row| {
+                (0..n)
+                    .map(|m| match m {
+                        0 => f64::NAN,
+                        m if m + 1 == n => f64::NAN,
+                        m => both([self.xs[m - 1], self.xs[m], self.xs[m + 1]], [(row, m - 1), (row, m), (row, m + 1)]),
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut vv: Vec<Vec<f64>> = (0..rows.len())
+            .map(|r| {
+                if r == 0 || r + 1 == rows.len() {
+                    return Vec::new();
+                }
+                let (p, c, q) = (&rows[r - 1], &rows[r], &rows[r + 1]);
+                let y = [self.node_v(p.j), self.node_v(c.j), self.node_v(q.j)];
+                (0..n).map(|m| both(y, [(p, m), (c, m), (q, m)])).collect()
+            })
+            .collect();
+        let last = rows.len() - 1;
+        if rows.len() >= 3 {
+            vv[0] = vv[1].clone();
+            vv[last] = vv[last - 1].clone();
+        } else {
+            // Too few rows for a difference across them: as steep as along u.
+            vv = uu.clone();
         }
-        if worst <= limit {
+        (uu, vv)
+    }
+
+    /// The interpolation error over a cell of `du`×`dv` pixels between node
+    /// rows `n`, `n + 1` and columns `i`, `i + 1`, of the corrections'
+    /// smooth part (bilinear interpolation misses at most h²/8 of the second
+    /// derivative along each side of length h): the largest curvature at the
+    /// cell's nodes and their neighbours along each axis. Infinite where a
+    /// node has no value.
+    fn smooth_error(&self, (uu, vv): &(Vec<Vec<f64>>, Vec<Vec<f64>>), n: usize, i: usize, du: f64, dv: f64) -> f64 {
+        let most = |g: &Vec<Vec<f64>>| {
+            let mut m = f64::NEG_INFINITY;
+            for row in &g[n..n + 2] {
+                for &x in &row[i.saturating_sub(1)..(i + 3).min(row.len())] {
+                    if !x.is_nan() {
+                        m = m.max(x);
+                    }
+                }
+            }
+            m
+        };
+        let (cu, cv) = (most(uu), most(vv));
+        let e = (du * du * cu + dv * dv * cv) / 8.0;
+        if e.is_finite() && e >= 0.0 {
+            e
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    /// Where output position (u, v) falls among the DEM's samples.
+    fn dem_coords(&self, u: f64, v: f64) -> [f64; 2] {
+        let (x, y) = self.t.ground(u, v);
+        self.t.dem.sample_coords(x, y).map_or([f64::NAN; 2], |(c, r)| [c, r])
+    }
+
+    /// The greatest departure of a DEM not aligned with the output from the
+    /// plane through `q`'s corner heights, and the range of heights met:
+    /// at the DEM's samples inside the cell and where its sample lines
+    /// cross the edges (the cell is a near-parallelogram among the samples,
+    /// mapped by its corners). `None` where the corners' places are unknown.
+    fn unaligned_departure(&self, q: &Quad, plane: &dyn Fn(f64, f64) -> f64) -> Option<(f64, f64, f64)> {
+        let crate::dem::HeightModel::Grid(g) = &self.t.dem.model else { return None };
+        let p = q.dp;
+        if p.iter().flatten().any(|v| !v.is_finite()) {
+            return None;
+        }
+        // (fu, fv) in the cell → sample coordinates, bilinear in the corners.
+        let at = |fu: f64, fv: f64| {
+            let top = [p[0][0] + fu * (p[1][0] - p[0][0]), p[0][1] + fu * (p[1][1] - p[0][1])];
+            let bottom = [p[2][0] + fu * (p[3][0] - p[2][0]), p[2][1] + fu * (p[3][1] - p[2][1])];
+            [top[0] + fv * (bottom[0] - top[0]), top[1] + fv * (bottom[1] - top[1])]
+        };
+        let (mut worst, mut lo, mut hi) = (0.0f64, f64::INFINITY, f64::NEG_INFINITY);
+        let mut look = |fu: f64, fv: f64, z: f64| {
+            let d = (z - plane(q.u0 + fu * q.du, q.v0 + fv * q.dv)).abs();
+            worst = if d.is_nan() { f64::INFINITY } else { worst.max(d) };
+            (lo, hi) = (lo.min(z), hi.max(z));
+        };
+        // Where sample lines cross the four edges.
+        for (a, b, fixed_u) in [(0usize, 1usize, None), (2, 3, None), (0, 2, Some(0.0)), (1, 3, Some(1.0))] {
+            for (s0, s1) in [(p[a][0], p[b][0]), (p[a][1], p[b][1])] {
+                let (first, last) = (s0.min(s1).floor() as i64 + 1, s0.max(s1).ceil() as i64 - 1);
+                if last - first > 4096 {
+                    return None;
+                }
+                for line in first..=last {
+                    let t = (line as f64 - s0) / (s1 - s0);
+                    let (fu, fv) = match fixed_u {
+                        None => (t, if a == 0 { 0.0 } else { 1.0 }),
+                        Some(u) => (u, t),
+                    };
+                    let [c, r] = at(fu, fv);
+                    look(fu, fv, g.height_at_sample(c, r));
+                }
+            }
+        }
+        // The samples inside: found in sample space, placed in the cell by
+        // inverting the corners' map (nearly affine over a cell: a few
+        // Newton steps).
+        let (ilo, ihi) = (p.iter().map(|c| c[0]).fold(f64::INFINITY, f64::min), p.iter().map(|c| c[0]).fold(f64::NEG_INFINITY, f64::max));
+        let (jlo, jhi) = (p.iter().map(|c| c[1]).fold(f64::INFINITY, f64::min), p.iter().map(|c| c[1]).fold(f64::NEG_INFINITY, f64::max));
+        let (i0, i1, j0, j1) = (ilo.floor() as i64 + 1, ihi.ceil() as i64 - 1, jlo.floor() as i64 + 1, jhi.ceil() as i64 - 1);
+        // More samples than pixels: the pixel centres say as much, for less.
+        if ((i1 - i0 + 1).max(0) * (j1 - j0 + 1).max(0)) as f64 > q.du * q.dv {
+            return None;
+        }
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                let target = [i as f64, j as f64];
+                let (mut fu, mut fv) = (0.5, 0.5);
+                for _ in 0..4 {
+                    let c = at(fu, fv);
+                    let (e, h) = (1e-3, 1e-3);
+                    let (cu, cv) = (at(fu + e, fv), at(fu, fv + h));
+                    let (a11, a21) = ((cu[0] - c[0]) / e, (cu[1] - c[1]) / e);
+                    let (a12, a22) = ((cv[0] - c[0]) / h, (cv[1] - c[1]) / h);
+                    let det = a11 * a22 - a12 * a21;
+                    if det == 0.0 {
+                        break;
+                    }
+                    let (rx, ry) = (target[0] - c[0], target[1] - c[1]);
+                    fu += (a22 * rx - a12 * ry) / det;
+                    fv += (a11 * ry - a21 * rx) / det;
+                }
+                if (0.0..=1.0).contains(&fu) && (0.0..=1.0).contains(&fv) {
+                    look(fu, fv, g.post(i, j));
+                }
+            }
+        }
+        Some((worst, lo, hi))
+    }
+
+    /// The height at output position (u, v), NaN where there is none.
+    fn height_at(&self, u: f64, v: f64) -> f64 {
+        let (x, y) = self.t.ground(u, v);
+        match self.t.dem.height(x, y) {
+            Height::Value(z) => z,
+            _ => f64::NAN,
+        }
+    }
+
+    /// The terrain's part of `q`'s interpolation error, scan pixels. The
+    /// DEM departs from the plane through the heights at the cell's corners
+    /// at most where it bends: at its posts inside the cell and where its
+    /// post lines cross the edges (or, a DEM not aligned with the output,
+    /// on a lattice of half its posting); that departure moves the image by
+    /// at most R a metre. And the image moves with height not quite
+    /// linearly: over the cell's span of heights 2h, by up to |∂²T/∂Z²|·h²/2
+    /// off the line (a wall seen from the side).
+    fn terrain_error(&self, q: &Quad) -> f64 {
+        if matches!(self.t.dem.model, crate::dem::HeightModel::Flat(_)) {
+            return 0.0;
+        }
+        let (global_rate, bend) = self.relief;
+        let rate = if q.rate.is_finite() { q.rate } else { global_rate };
+        let (u1, v1) = (q.u0 + q.du, q.v0 + q.dv);
+        let corners = q.z;
+        let plane = |u: f64, v: f64| {
+            let (fu, fv) = ((u - q.u0) / q.du, (v - q.v0) / q.dv);
+            let top = corners[0] + fu * (corners[1] - corners[0]);
+            let bottom = corners[2] + fu * (corners[3] - corners[2]);
+            top + fv * (bottom - top)
+        };
+        let (mut lo, mut hi) = corners.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &z| (a.min(z), b.max(z)));
+        let mut off_plane = 0.0f64;
+        // The lines a + b·i strictly inside (lo, hi): (a, b, first i, last i).
+        let lines = |a: f64, b: f64, lo: f64, hi: f64| {
+            let (mut first, mut last) = (((lo - a) / b).floor() as i64 + 1, ((hi - a) / b).ceil() as i64 - 1);
+            while first <= last && !(a + b * first as f64 > lo) {
+                first += 1;
+            }
+            while first <= last && !((a + b * last as f64) < hi) {
+                last -= 1;
+            }
+            (a, b, first, last)
+        };
+        let none = (0.0, 1.0, 0, -1);
+        // The bound is at pixel centres: a DEM posted finer than the
+        // pixels is looked at there (no more lookups than pixels).
+        let centres = |b: f64| if b < 1.0 { (0.5, 1.0) } else { (f64::NAN, b) };
+        let (us, vs) = match (self.kinks, self.dem_sampling) {
+            (Some([au, bu, av, bv]), _) if bu > 0.0 && bv > 0.0 => {
+                let ((cu, bu2), (cv, bv2)) = (centres(bu), centres(bv));
+                let (au, av) = (if cu.is_nan() { au } else { cu }, if cv.is_nan() { av } else { cv });
+                (lines(au, bu2, q.u0, u1), lines(av, bv2, q.v0, v1))
+            }
+            (_, Some(s)) => match self.unaligned_departure(q, &plane) {
+                Some((d, zl, zh)) => {
+                    (off_plane, lo, hi) = (d, lo.min(zl), hi.max(zh));
+                    (none, none)
+                }
+                // Where the corners' places are unknown: a lattice of half
+                // the DEM's posting, and at least three lines a side.
+                None => {
+                    let s = s.min(q.du / 4.0).min(q.dv / 4.0).floor().max(1.0);
+                    (lines(0.5, s, q.u0, u1), lines(0.5, s, q.v0, v1))
+                }
+            },
+            _ => (none, none),
+        };
+        let mut look = |u: f64, v: f64| {
+            let z = self.height_at(u, v);
+            let d = (z - plane(u, v)).abs();
+            off_plane = if d.is_nan() { f64::INFINITY } else { off_plane.max(d) };
+            (lo, hi) = (lo.min(z), hi.max(z));
+        };
+        // Inside one piece of the DEM it is bilinear, reproduced exactly:
+        // only where its lines cross the cell can it depart from the plane.
+        let at = |(a, b, _, _): (f64, f64, i64, i64), i: i64| a + b * i as f64;
+        for i in us.2..=us.3 {
+            let u = at(us, i);
+            look(u, q.v0);
+            look(u, v1);
+            for j in vs.2..=vs.3 {
+                look(u, at(vs, j));
+            }
+        }
+        for j in vs.2..=vs.3 {
+            let v = at(vs, j);
+            look(q.u0, v);
+            look(u1, v);
+        }
+        let h = (hi - lo) / 2.0;
+        let e = off_plane * rate + 0.5 * bend * h * h;
+        if e.is_nan() {
+            f64::INFINITY
+        } else {
+            e
+        }
+    }
+
+    /// Holds `q` to `bound` at every pixel: splits it where its smooth or
+    /// its terrain error may miss it. Returns whether it had to be refined.
+    fn refine(&self, q: &mut Quad, bound: f64, stats: &mut GcmStats, miss: &mut Option<(f64, f64, Lookup)>) -> bool {
+        if q.smooth + self.terrain_error(q) <= bound {
             return false;
         }
-        // Splitting costs 4 × 13 checks; below that many pixels, computing
-        // every pixel exactly is cheaper (and exact).
-        if q.du * q.dv <= (4 * CHECK_POINTS.len()) as f64 {
+        // Splitting costs 5 exact evaluations and the pieces' checks; below
+        // about 52 pixels, computing every pixel exactly is cheaper (and exact).
+        if q.du * q.dv <= 52.0 {
             q.exact = true;
             return true;
         }
@@ -429,12 +772,24 @@ impl<'a> Gcm<'a> {
         };
         let (top, left, right, bottom, centre) = (at(su, q.v0), at(q.u0, sv), at(u1, sv), at(su, v1), at(su, sv));
         let [c00, c10, c01, c11] = q.corners;
-        let mk = |u0: f64, v0: f64, du: f64, dv: f64, corners: [[f64; 2]; 4]| Quad { u0, v0, du, dv, corners, split: (0.0, 0.0), kids: None, exact: false };
+        let [z00, z10, z01, z11] = q.z;
+        let [p00, p10, p01, p11] = q.dp;
+        let (pt, pl, pr, pb, pc) = if self.dem_sampling.is_some() {
+            (self.dem_coords(su, q.v0), self.dem_coords(q.u0, sv), self.dem_coords(u1, sv), self.dem_coords(su, v1), self.dem_coords(su, sv))
+        } else {
+            ([f64::NAN; 2], [f64::NAN; 2], [f64::NAN; 2], [f64::NAN; 2], [f64::NAN; 2])
+        };
+        let (zt, zl, zr, zb, zc) = (self.height_at(su, q.v0), self.height_at(q.u0, sv), self.height_at(u1, sv), self.height_at(su, v1), self.height_at(su, sv));
+        // A piece's smooth error shrinks with the square of its size.
+        let mk = |u0: f64, v0: f64, du: f64, dv: f64, corners: [[f64; 2]; 4], z: [f64; 4], dp: [[f64; 2]; 4]| {
+            let shrink = (du / q.du).max(dv / q.dv);
+            Quad { u0, v0, du, dv, corners, split: (0.0, 0.0), kids: None, exact: false, smooth: q.smooth * shrink * shrink, z, rate: q.rate, dp }
+        };
         let mut kids = Box::new([
-            mk(q.u0, q.v0, su - q.u0, sv - q.v0, [c00, top, left, centre]),
-            mk(su, q.v0, u1 - su, sv - q.v0, [top, c10, centre, right]),
-            mk(q.u0, sv, su - q.u0, v1 - sv, [left, centre, c01, bottom]),
-            mk(su, sv, u1 - su, v1 - sv, [centre, right, bottom, c11]),
+            mk(q.u0, q.v0, su - q.u0, sv - q.v0, [c00, top, left, centre], [z00, zt, zl, zc], [p00, pt, pl, pc]),
+            mk(su, q.v0, u1 - su, sv - q.v0, [top, c10, centre, right], [zt, z10, zc, zr], [pt, p10, pc, pr]),
+            mk(q.u0, sv, su - q.u0, v1 - sv, [left, centre, c01, bottom], [zl, zc, z01, zb], [pl, pc, p01, pb]),
+            mk(su, sv, u1 - su, v1 - sv, [centre, right, bottom, c11], [zc, zr, zb, z11], [pc, pr, pb, p11]),
         ]);
         for kid in kids.iter_mut() {
             if kid.corners.iter().flatten().any(|v| v.is_nan()) {
@@ -764,6 +1119,26 @@ fn leaf(q: &Quad, u: f64, v: f64) -> Option<&Quad> {
             }
         }
     }
+}
+
+/// Over `t`'s grid, with half again as margin: the most scan pixels a metre
+/// of height moves the image (R), and the most that rate changes a metre
+/// (|∂²T/∂Z²|), from projections at a 7×7 lattice of the grid at the DEM's
+/// mean height, ±50 m.
+fn relief_rates(t: &Transform<'_>) -> (f64, f64) {
+    let z = t.dem.mean_height().unwrap_or(0.0);
+    let (w, h) = (t.grid.width as f64, t.grid.height as f64);
+    let (mut rate, mut bend) = (0.0f64, 0.0f64);
+    for i in 0..7 {
+        for j in 0..7 {
+            let (x, y) = t.ground(w * i as f64 / 6.0, h * j as f64 / 6.0);
+            if let (Some(a), Some(b), Some(c)) = (t.model.project(x, y, z - 50.0), t.model.project(x, y, z), t.model.project(x, y, z + 50.0)) {
+                rate = rate.max((c.0 - a.0).hypot(c.1 - a.1) / 100.0);
+                bend = bend.max((c.0 + a.0 - 2.0 * b.0).hypot(c.1 + a.1 - 2.0 * b.1) / 2500.0);
+            }
+        }
+    }
+    (1.5 * rate, 1.5 * bend)
 }
 
 #[cfg(test)]

@@ -49,6 +49,17 @@ pub fn parse_choice<T: Choice>(setting: &'static str, name: &str) -> Result<T> {
     T::from_name(name.trim()).ok_or_else(|| Error::setting(setting, format!("'{name}' is not one of {}", T::NAMES.join(", "))))
 }
 
+/// An error bound in scan pixels, or `none`.
+pub fn parse_max_error(setting: &'static str, s: &str) -> Result<Option<f64>> {
+    match s.trim() {
+        "none" => Ok(None),
+        t => match t.parse::<f64>() {
+            Ok(e) if e > 0.0 && e.is_finite() => Ok(Some(e)),
+            _ => Err(Error::setting(setting, format!("'{s}' is neither a positive number of scan pixels nor none"))),
+        },
+    }
+}
+
 /// What to do where the DEM has no height: `error`, `nodata` or a height.
 pub fn parse_miss(setting: &'static str, s: &str) -> Result<Miss> {
     match s.trim() {
@@ -278,6 +289,18 @@ pub struct RectifyOptions {
 }
 
 impl RectifyOptions {
+    /// The error bound by default, scan pixels: `A + c` is held within it
+    /// of the exact model at every output pixel.
+    pub const DEFAULT_MAX_ERROR: f64 = 0.1;
+
+    /// The bound a run takes unless the user chose one: the default, but
+    /// none for a fixed node spacing or cell corrections (the thesis'
+    /// method as it stands, its error reported), which ask for the matrix
+    /// as given.
+    pub fn default_max_error(sparsity_given: bool, mode: CorrectionMode) -> Option<f64> {
+        (!sparsity_given && mode == CorrectionMode::Bilinear).then_some(Self::DEFAULT_MAX_ERROR)
+    }
+
     /// Tile sizes: multiples of 16 (the TIFF rule) up to this.
     pub const MAX_TILE: u32 = 4096;
     /// The least memory budget a run can keep to.
@@ -385,7 +408,7 @@ impl RectifyOptions {
             gsd: None,
             bounds: None,
             window: None,
-            gcm: GcmSpec { k: 16, mode: CorrectionMode::Bilinear, max_error: None },
+            gcm: GcmSpec { k: 16, mode: CorrectionMode::Bilinear, max_error: Some(Self::DEFAULT_MAX_ERROR) },
             auto_sparsity: true,
             trend: Trend::Plane,
             kernel: Kernel::Bilinear,

@@ -9,10 +9,18 @@ use crate::error::Error;
 use crate::gcm::GcmSpec;
 use crate::io::bounded_read::{read_text_bounded, LIST};
 use crate::io::overwrite::{check_outputs, Role};
-use crate::options::{parse_choice, parse_miss, DemSource, ModelSource, RectifyOptions};
+use crate::options::{parse_choice, parse_max_error, parse_miss, DemSource, ModelSource, RectifyOptions};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use toml::Spanned;
+
+/// `max_error = 0.1`, or `max_error = "none"`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum MaxError {
+    Pixels(f64),
+    Word(String),
+}
 
 /// Every rectify option a manifest may set, in `[defaults]` or per job.
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -25,7 +33,7 @@ pub struct Options {
     pub gsd: Option<f64>,
     pub bounds: Option<[f64; 4]>,
     pub sparsity: Option<u32>,
-    pub max_error: Option<f64>,
+    pub max_error: Option<MaxError>,
     pub corrections: Option<String>,
     pub trend: Option<String>,
     pub resample: Option<String>,
@@ -292,7 +300,12 @@ fn config(
             Some(m) => parse_choice("corrections", m)?,
             None => c.gcm.mode,
         };
-        c.gcm = GcmSpec { k: o.sparsity.unwrap_or(16), mode, max_error: o.max_error };
+        let max_error = match &o.max_error {
+            Some(MaxError::Pixels(e)) => Some(*e),
+            Some(MaxError::Word(w)) => parse_max_error("max_error", w)?,
+            None => RectifyOptions::default_max_error(o.sparsity.is_some(), mode),
+        };
+        c.gcm = GcmSpec { k: o.sparsity.unwrap_or(16), mode, max_error };
         c.auto_sparsity = o.sparsity.is_none();
         if let Some(t) = &o.trend {
             c.trend = parse_choice("trend", t)?;

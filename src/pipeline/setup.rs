@@ -206,10 +206,11 @@ fn fewer_scan_rows(approx: &Approx, grid: &OutputGrid, tile: u32) -> BandOrder {
 }
 
 /// The default node spacing: 16 output pixels, or the DEM's posting in
-/// output pixels where that is finer, but not under 12. Between nodes the
-/// corrections are interpolated bilinearly while the DEM bends at its own
-/// posts; Chibunichev and Sonyushkin likewise ask for grid nodes no sparser
-/// than the DEM.
+/// output pixels where that is finer, but not under 4: the DEM's post lines
+/// are then node lines too, so no cell holds a bend of the DEM and the
+/// corrections are smooth between nodes (Chibunichev and Sonyushkin likewise
+/// ask for grid nodes no sparser than the DEM). A DEM posted finer still (a
+/// drone's DSM) is left to the refinement under the error bound.
 fn auto_sparsity(dem: &Dem, grid: &OutputGrid, ground_epsg: u32) -> u32 {
     let HeightModel::Grid(g) = &dem.model else { return 16 };
     let metres = |epsg: Option<u32>, v: f64, lat_scale: f64| {
@@ -232,5 +233,9 @@ fn auto_sparsity(dem: &Dem, grid: &OutputGrid, ground_epsg: u32) -> u32 {
     if !(post > 0.0 && gsd > 0.0) {
         return 16;
     }
-    ((post / gsd).floor() as u32).clamp(12, 16)
+    let posts = post / gsd;
+    if posts < 4.0 {
+        return 16;
+    }
+    (posts.floor() as u32).clamp(4, 16)
 }

@@ -80,13 +80,15 @@ pub struct Evaluation {
 /// when given, receives the per-pixel error of the sampled pixels (NaN
 /// elsewhere), row-major over the sampled grid ⌈W/step⌉ × ⌈H/step⌉.
 pub fn evaluate(gcm: &Gcm<'_>, step: u32, error_map: Option<&mut Vec<f32>>) -> Evaluation {
-    evaluate_where(gcm, step, None, error_map)
+    evaluate_where(gcm, step, None, None, error_map)
 }
 
 /// As `evaluate`, counting only pixels whose terrain slope (from the DEM's
 /// gradient) is at most `max_slope_deg` when given — the thesis judges
 /// mountains "wherever the slope is below 35°".
-pub fn evaluate_where(gcm: &Gcm<'_>, step: u32, max_slope_deg: Option<f64>, mut error_map: Option<&mut Vec<f32>>) -> Evaluation {
+/// `scan`: count only the pixels that see a scan of that many columns and
+/// rows (the others are nodata in an orthophoto).
+pub fn evaluate_where(gcm: &Gcm<'_>, step: u32, max_slope_deg: Option<f64>, scan: Option<(u32, u32)>, mut error_map: Option<&mut Vec<f32>>) -> Evaluation {
     let max_tan = max_slope_deg.map(|d| d.to_radians().tan());
     let grid = gcm.t.grid;
     let band = 256u32;
@@ -140,7 +142,7 @@ pub fn evaluate_where(gcm: &Gcm<'_>, step: u32, max_slope_deg: Option<f64>, mut 
                     }
                     if let Mapped::Px(c, r) = gcm.t.exact(x as f64 + 0.5, y as f64 + 0.5) {
                         let (ac, ar) = (cols[x as usize], rows[x as usize]);
-                        if ac.is_nan() {
+                        if ac.is_nan() || scan.is_some_and(|(w, h)| !(c >= 0.0 && r >= 0.0 && c <= w as f64 && r <= h as f64)) {
                             continue;
                         }
                         let e = (c - ac).hypot(r - ar);

@@ -33,6 +33,9 @@ pub enum Relief {
     Flat,
     Hilly,
     Mountain,
+    /// A town on gentle terrain: flat-roofed buildings with vertical walls,
+    /// trees, streets — what a drone's photogrammetric DSM holds.
+    Urban,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -42,19 +45,22 @@ pub enum CameraKind {
     Digital,
     /// A pushbroom satellite described by a fitted RPC.
     Rpc,
+    /// A drone's small-format frame looking obliquely (`off_nadir_deg`),
+    /// with strong Brown distortion.
+    Drone,
 }
 
 impl crate::options::Choice for Relief {
-    const NAMES: &'static [&'static str] = &["flat", "hilly", "mountain"];
+    const NAMES: &'static [&'static str] = &["flat", "hilly", "mountain", "urban"];
     fn from_name(name: &str) -> Option<Self> {
-        [Relief::Flat, Relief::Hilly, Relief::Mountain].into_iter().zip(Self::NAMES).find(|(_, n)| **n == name).map(|(r, _)| r)
+        [Relief::Flat, Relief::Hilly, Relief::Mountain, Relief::Urban].into_iter().zip(Self::NAMES).find(|(_, n)| **n == name).map(|(r, _)| r)
     }
 }
 
 impl crate::options::Choice for CameraKind {
-    const NAMES: &'static [&'static str] = &["film", "digital", "rpc"];
+    const NAMES: &'static [&'static str] = &["film", "digital", "rpc", "drone"];
     fn from_name(name: &str) -> Option<Self> {
-        [CameraKind::Film, CameraKind::Digital, CameraKind::Rpc].into_iter().zip(Self::NAMES).find(|(_, n)| **n == name).map(|(c, _)| c)
+        [CameraKind::Film, CameraKind::Digital, CameraKind::Rpc, CameraKind::Drone].into_iter().zip(Self::NAMES).find(|(_, n)| **n == name).map(|(c, _)| c)
     }
 }
 
@@ -139,6 +145,9 @@ impl SynthOptions {
     }
 }
 const DIGITAL_FOCAL: f64 = 100.0;
+/// A drone camera: 8.8 mm lens on a 13.2 mm-wide sensor (a 1" sensor).
+const DRONE_FOCAL: f64 = 8.8;
+const DRONE_SENSOR_MM: f64 = 13.2;
 const BASE_HEIGHT: f64 = 300.0;
 /// Scene origin: UTM zone 31N, southern France.
 const EPSG: u32 = 32631;
@@ -164,7 +173,7 @@ fn check(o: &SynthOptions) -> Result<()> {
     if o.fiducials != 4 && o.fiducials != 8 {
         return bad("fiducials", format!("{} is not 4 or 8", o.fiducials));
     }
-    if o.camera == CameraKind::Rpc && !(2.0..=35.0).contains(&o.off_nadir_deg) {
+    if matches!(o.camera, CameraKind::Rpc | CameraKind::Drone) && !(2.0..=35.0).contains(&o.off_nadir_deg) {
         return bad("off_nadir", format!("{}° is not 2° to 35°", o.off_nadir_deg));
     }
     if o.compress == Compression::Zstd {
@@ -208,6 +217,29 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
                     convention: AngleConvention::AlphaOmegaKappa,
                 }),
                 corrections: CorrectionsSection { refraction: Refraction::Auto, earth_curvature: true },
+                rpc: None,
+            }
+        }
+        CameraKind::Drone => {
+            let px = DRONE_SENSOR_MM / o.width.max(o.height) as f64;
+            let flying = DRONE_FOCAL * o.scale / 1000.0;
+            CameraFile {
+                crs: format!("EPSG:{EPSG}"),
+                camera: CameraSection { model: "frame".into(), focal_length_mm: Some(DRONE_FOCAL) },
+                interior: Some(InteriorSection {
+                    pixel_size_mm: Some(px),
+                    principal_point_px: Some([o.width as f64 / 2.0 - 11.3, o.height as f64 / 2.0 + 6.1]),
+                    ..Default::default()
+                }),
+                // Strong barrel distortion, monotonic over the whole image.
+                distortion: Some(DistortionSection { radial_mm: None, brown: Some(Brown { k1: -0.11, k2: 0.035, k3: 0.0, p1: 4.0e-4, p2: -2.5e-4 }) }),
+                exterior: Some(ExteriorSection {
+                    position: [centre_x, centre_y, ground_h + flying],
+                    // Tilted forward by the off-nadir angle, then swung.
+                    angles_deg: [omega, o.off_nadir_deg, o.kappa_deg],
+                    convention: AngleConvention::OmegaPhiKappa,
+                }),
+                corrections: CorrectionsSection { refraction: Refraction::None, earth_curvature: false },
                 rpc: None,
             }
         }
@@ -266,6 +298,7 @@ fn relief_grid(
                 Relief::Flat => 0.0,
                 Relief::Hilly => noise::fbm(x / 700.0, y / 700.0, 3, seed),
                 Relief::Mountain => noise::ridged(x / 900.0, y / 900.0, 4, seed),
+                Relief::Urban => noise::fbm(x / 900.0, y / 900.0, 2, seed),
             }
         })
         .collect();
@@ -274,9 +307,56 @@ fn relief_grid(
         Relief::Flat => 0.0,
         Relief::Hilly => 20f64.to_radians().tan() / max_slope(&raw, (nx, ny), posting_m).max(1e-12),
         Relief::Mountain => mountain_range / (hi - lo).max(1e-12),
+        // Gentle ground under the town: 4° at the steepest.
+        Relief::Urban => 4f64.to_radians().tan() / max_slope(&raw, (nx, ny), posting_m).max(1e-12),
     };
-    let data = raw.iter().map(|v| (BASE_HEIGHT + amp * (v - lo)) as f32).collect();
+    let data = raw
+        .iter()
+        .enumerate()
+        .map(|(k, v)| {
+            let ground = BASE_HEIGHT + amp * (v - lo);
+            let above = if o.relief == Relief::Urban {
+                let (x, y) = metres(gt[0] + ((k % nx) as f64 + 0.5) * gt[1], gt[3] + ((k / nx) as f64 + 0.5) * gt[5]);
+                town(x, y, seed)
+            } else {
+                0.0
+            };
+            (ground + above) as f32
+        })
+        .collect();
     GridDem::new(nx, ny, data, gt, None, Some(epsg))
+}
+
+/// Height above the ground of the town at (x, y), metres: lots of 32 m
+/// along streets 8 m wide; most hold one flat-roofed building of 8 to 22 m
+/// a side and 4 to 30 m high (vertical walls), the others trees, domes of
+/// 2 to 4 m radius and 5 to 12 m high.
+fn town(x: f64, y: f64, seed: u64) -> f64 {
+    const LOT: f64 = 32.0;
+    let (i, j) = ((x / LOT).floor(), (y / LOT).floor());
+    let (lx, ly) = (x - i * LOT, y - j * LOT);
+    let (i, j) = (i as i64, j as i64);
+    let u = |k: u64| noise::unit(i, j, seed.wrapping_add(k));
+    if u(1) < 0.75 {
+        // A building within the lot's 24 m, leaving the street.
+        let (w, d) = (8.0 + 14.0 * u(2), 8.0 + 14.0 * u(3));
+        let (x0, y0) = ((24.0 - w) * u(4), (24.0 - d) * u(5));
+        if lx >= x0 && lx < x0 + w && ly >= y0 && ly < y0 + d {
+            return 4.0 + 26.0 * u(6) * u(6);
+        }
+        return 0.0;
+    }
+    // Trees: up to three in the lot.
+    let mut h = 0.0f64;
+    for t in 0..3 {
+        let k = 10 + 4 * t;
+        let (cx, cy, r, top) = (3.0 + 18.0 * u(k), 3.0 + 18.0 * u(k + 1), 2.0 + 2.0 * u(k + 2), 5.0 + 7.0 * u(k + 3));
+        let d2 = ((lx - cx).powi(2) + (ly - cy).powi(2)) / (r * r);
+        if d2 < 1.0 {
+            h = h.max(top * (1.0 - d2).sqrt());
+        }
+    }
+    h
 }
 
 /// Writes a relief raster as a Float32 GeoTIFF (square postings).
@@ -321,7 +401,7 @@ fn in_image(o: &SynthOptions, cam: &crate::camera::FrameCamera, c: f64, r: f64) 
             let (x, y) = cam.interior.px_to_mm(c, r);
             x.abs() <= o.frame_half() && y.abs() <= o.frame_half()
         }
-        CameraKind::Digital | CameraKind::Rpc => c >= 0.0 && r >= 0.0 && c < o.width as f64 && r < o.height as f64,
+        CameraKind::Digital | CameraKind::Rpc | CameraKind::Drone => c >= 0.0 && r >= 0.0 && c < o.width as f64 && r < o.height as f64,
     }
 }
 
@@ -385,8 +465,11 @@ pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
     let (focal, film_half) = match o.camera {
         CameraKind::Film => (FILM_FOCAL, o.film_mm() / 2.0),
         CameraKind::Digital | CameraKind::Rpc => (DIGITAL_FOCAL, cam.interior.pixel_size_mm() * o.width.max(o.height) as f64 / 2.0),
+        CameraKind::Drone => (DRONE_FOCAL, cam.interior.pixel_size_mm() * o.width.max(o.height) as f64 / 2.0),
     };
-    let half = 1.8 * film_half / focal * flying + 200.0;
+    // Far enough to hold the footprint, an oblique one's far side too.
+    let tilt = if o.camera == CameraKind::Drone { o.off_nadir_deg.to_radians() } else { 0.0 };
+    let half = 1.8 * (tilt + (film_half / focal).atan()).min(1.3).tan() * flying + 200.0;
     let grid_dem = relief(o, cam.centre.x, cam.centre.y, half, flying);
     let zs: Vec<f64> = grid_dem.samples(1).iter().map(|&v| v as f64).collect();
     let (zlo, zhi) = zs.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
@@ -553,7 +636,7 @@ fn write_checkpoints(o: &SynthOptions, sc: &Scene<'_>, grid: &crate::geom::Outpu
 
 /// Film base with the fiducial marks: bright crosses on dark film.
 fn film_margin(o: &SynthOptions, cam: &crate::camera::FrameCamera, c: f64, r: f64) -> [f32; 3] {
-    if o.camera == CameraKind::Digital {
+    if o.camera != CameraKind::Film {
         return [0.0; 3];
     }
     let (x, y) = cam.interior.px_to_mm(c, r);

@@ -16,7 +16,6 @@ pub struct DemMsg {
 pub fn node_heights(run: &Run, b: u32, before: &mut SharedRows<NodeHeights>) -> DemMsg {
     let gcm = run.inputs.gcm;
     let (y0, y1) = run.walk.band_rows(b);
-    let (j0, _, _) = gcm.rows_for(y0);
-    let (_, j1, _) = gcm.rows_for(y1 - 1);
+    let (j0, j1) = gcm.node_rows_for(y0, y1);
     DemMsg { first_j: j0, heights: before.rows(j0, j1, |j| gcm.node_heights(j)).0 }
 }
