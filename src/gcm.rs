@@ -444,6 +444,10 @@ impl<'a> Gcm<'a> {
         let mut cells = Vec::new();
         if let (Some(bound), CorrectionMode::Bilinear) = (self.spec.max_error, self.spec.mode) {
             let curvature = self.smooth_curvature(&rows);
+            if self.band_within(&rows, &curvature, bound) {
+                stats.cells = (rows.len().saturating_sub(1) * (self.nodes_x - 1)) as u64;
+                return BandGcm { first_j, rows, cells, stats, miss };
+            }
             for n in 0..rows.len().saturating_sub(1) {
                 let (a, b) = (&rows[n], &rows[n + 1]);
                 let row_cells = (0..self.nodes_x - 1)
@@ -482,6 +486,46 @@ impl<'a> Gcm<'a> {
         BandGcm { first_j, rows, cells, stats, miss }
     }
 
+    /// Whether every cell of the band is within `bound` without a look at
+    /// each: where no DEM line runs inside a cell (a flat DEM, or its post
+    /// lines among the node lines), the band's largest curvature over its
+    /// widest cell and its largest height span hold the bound for all.
+    fn band_within(&self, rows: &[NodeRow], (uu, vv): &(Vec<Vec<f64>>, Vec<Vec<f64>>), bound: f64) -> bool {
+        let flat = matches!(self.t.dem.model, crate::dem::HeightModel::Flat(_));
+        if !(flat || self.dem_aligned_lines()) || rows.len() < 2 {
+            return false;
+        }
+        let n = self.nodes_x;
+        // The first and last node columns have no second difference.
+        let most = |g: &Vec<Vec<f64>>| -> f64 {
+            let mut m = 0.0f64;
+            for row in g {
+                for &x in &row[1..n - 1] {
+                    m = if x.is_nan() { f64::INFINITY } else { m.max(x) };
+                }
+            }
+            m
+        };
+        let (cu, cv) = (most(uu), most(vv));
+        let du = self.max_gap;
+        let dv = rows.windows(2).map(|p| self.node_v(p[1].j) - self.node_v(p[0].j)).fold(0.0, f64::max);
+        let mut span = 0.0f64;
+        if !flat {
+            for p in rows.windows(2) {
+                for i in 0..n - 1 {
+                    let z = [p[0].z[i], p[0].z[i + 1], p[1].z[i], p[1].z[i + 1]];
+                    let (lo, hi) = z.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+                    // Cells without heights are the nodata cells, filled by T.
+                    if lo.is_finite() {
+                        span = span.max(hi - lo);
+                    }
+                }
+            }
+        }
+        let h = span / 2.0;
+        (du * du * cu + dv * dv * cv) / 8.0 + 0.5 * self.relief.1 * h * h <= bound
+    }
+
     /// The second derivatives of the corrections' smooth part at every
     /// node of `rows` (scan pixels a pixel²), along u and along v: from
     /// their second differences with the neighbouring nodes, the terrain's
@@ -491,32 +535,36 @@ impl<'a> Gcm<'a> {
     /// `terrain_error`'s. NaN where a neighbour has no value; along v, a
     /// band's first and last rows take their neighbour's.
     fn smooth_curvature(&self, rows: &[NodeRow]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
-        // |f''| from three values at three positions.
-        let second = |x: [f64; 3], f: [f64; 3]| 2.0 * ((f[2] - f[1]) / (x[2] - x[1]) - (f[1] - f[0]) / (x[1] - x[0])).abs() / (x[2] - x[0]);
-        let both = |x: [f64; 3], nodes: [(&NodeRow, usize); 3]| {
-            let (mid, m) = nodes[1];
-            let [tc, tr] = mid.tz.get(m).copied().unwrap_or([0.0; 2]);
-            let zm = mid.z[m];
-            let s = |k: usize| {
-                let (row, at) = nodes[k];
-                let dz = if tc.is_nan() { 0.0 } else { row.z[at] - zm };
-                (row.dc[at] - tc * dz, row.dr[at] - tr * dz)
-            };
-            let (a, b, c) = (s(0), s(1), s(2));
-            let (sc, sr) = (second(x, [a.0, b.0, c.0]), second(x, [a.1, b.1, c.1]));
-            (sc * sc + sr * sr).sqrt()
-        };
         let n = self.nodes_x;
+        // |f''| at the middle of three nodes `a`, `b`, `c` (the terrain's
+        // part, as the middle node sees it, taken out), their spacings `d1`,
+        // `d2`: one division for both coordinates.
+        #[inline(always)]
+        fn curvature(d1: f64, d2: f64, (ac, ar, az): (f64, f64, f64), (bc, br, bz, [tc, tr]): (f64, f64, f64, [f64; 2]), (cc, cr, cz): (f64, f64, f64)) -> f64 {
+            let k = 2.0 / (d1 * d2 * (d1 + d2));
+            let (tc, tr) = if tc.is_nan() { (0.0, 0.0) } else { (tc, tr) };
+            let (ac, ar) = (ac - tc * (az - bz), ar - tr * (az - bz));
+            let (cc, cr) = (cc - tc * (cz - bz), cr - tr * (cz - bz));
+            let sc = ((cc - bc) * d1 - (bc - ac) * d2) * k;
+            let sr = ((cr - br) * d1 - (br - ar) * d2) * k;
+            (sc * sc + sr * sr).sqrt()
+        }
+        let tz = |row: &NodeRow, m: usize| row.tz.get(m).copied().unwrap_or([0.0; 2]);
         let uu: Vec<Vec<f64>> = rows
             .iter()
             .map(|row| {
-                (0..n)
-                    .map(|m| match m {
-                        0 => f64::NAN,
-                        m if m + 1 == n => f64::NAN,
-                        m => both([self.xs[m - 1], self.xs[m], self.xs[m + 1]], [(row, m - 1), (row, m), (row, m + 1)]),
-                    })
-                    .collect()
+                let mut out = vec![f64::NAN; n];
+                let (dc, dr, z, xs) = (&row.dc[..n], &row.dr[..n], &row.z[..n], &self.xs[..n]);
+                for m in 1..n - 1 {
+                    out[m] = curvature(
+                        xs[m] - xs[m - 1],
+                        xs[m + 1] - xs[m],
+                        (dc[m - 1], dr[m - 1], z[m - 1]),
+                        (dc[m], dr[m], z[m], tz(row, m)),
+                        (dc[m + 1], dr[m + 1], z[m + 1]),
+                    );
+                }
+                out
             })
             .collect();
         let mut vv: Vec<Vec<f64>> = (0..rows.len())
@@ -525,8 +573,8 @@ impl<'a> Gcm<'a> {
                     return Vec::new();
                 }
                 let (p, c, q) = (&rows[r - 1], &rows[r], &rows[r + 1]);
-                let y = [self.node_v(p.j), self.node_v(c.j), self.node_v(q.j)];
-                (0..n).map(|m| both(y, [(p, m), (c, m), (q, m)])).collect()
+                let (d1, d2) = (self.node_v(c.j) - self.node_v(p.j), self.node_v(q.j) - self.node_v(c.j));
+                (0..n).map(|m| curvature(d1, d2, (p.dc[m], p.dr[m], p.z[m]), (c.dc[m], c.dr[m], c.z[m], tz(c, m)), (q.dc[m], q.dr[m], q.z[m]))).collect()
             })
             .collect();
         let last = rows.len() - 1;
