@@ -122,3 +122,35 @@ pub fn whole_image(path: &Path) -> (Vec<u8>, gcm_ortho::io::source::SourceInfo) 
     img.read_window(0, 0, img.info.width, img.info.height, &mut win).expect("the image reads");
     (win.bytes().to_vec(), img.info.clone())
 }
+
+/// Per-pixel differences between two coordinate-image orthophotos where
+/// both are valid and away from the scan's edge (where bilinear
+/// resampling differs by design).
+pub struct MapDifference {
+    pub pixels: usize,
+    /// Mean (column, row) displacement: the geometric offset between the two.
+    pub offset: [f64; 2],
+    pub mean: f64,
+    pub max: f64,
+}
+
+pub fn coordinate_map_difference(a: &Path, b: &Path, w: u32, h: u32) -> MapDifference {
+    let (aw, ah, _, va) = read_f32(a);
+    let (bw, bh, _, vb) = read_f32(b);
+    assert_eq!((aw, ah), (bw, bh), "same output grid");
+    let inside = |c: f32, r: f32| c > 1.5 && r > 1.5 && c < w as f32 - 1.5 && r < h as f32 - 1.5;
+    let (mut n, mut sum, mut max, mut off) = (0usize, 0f64, 0f64, [0f64; 2]);
+    for k in 0..(aw * ah) as usize {
+        let (ca, ra, cb, rb) = (va[2 * k], va[2 * k + 1], vb[2 * k], vb[2 * k + 1]);
+        if inside(ca, ra) && inside(cb, rb) {
+            let (dc, dr) = ((ca - cb) as f64, (ra - rb) as f64);
+            n += 1;
+            sum += dc.hypot(dr);
+            max = max.max(dc.hypot(dr));
+            off = [off[0] + dc, off[1] + dr];
+        }
+    }
+    let m = n.max(1) as f64;
+    MapDifference { pixels: n, offset: [off[0] / m, off[1] / m], mean: sum / m, max }
+}
+
