@@ -116,20 +116,24 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
     let quiet = a.quiet;
     let results = batch::run_jobs(&jobs, &o, &signals.cancel, &|r| {
         report.push(r);
+        for w in &r.warnings {
+            eprintln!("gcm-ortho: warning: job {}: {w}", r.job);
+        }
         // A failed job's error is shown even when quiet: quiet hides progress, not failures.
         if !quiet || r.status == Status::Failed {
             eprintln!("{:<24} {:?}{}", r.job, r.status, r.error.as_ref().map(|e| format!(": {e}")).unwrap_or_default());
         }
     });
     if !a.quiet {
-        println!("{:<24} {:>9} {:>8} {:>8}  output", "job", "status", "time s", "MB/s");
+        println!("{:<24} {:>9} {:>8} {:>8} {:>9}  output", "job", "status", "time s", "MB/s", "max px");
         for r in &results {
             println!(
-                "{:<24} {:>9} {:>8.2} {:>8}  {}",
+                "{:<24} {:>9} {:>8.2} {:>8} {:>9}  {}",
                 r.job,
                 format!("{:?}", r.status).to_lowercase(),
                 r.seconds,
                 r.input_mb_per_s.map(|v| format!("{v:.1}")).unwrap_or_else(|| "-".into()),
+                r.gcm_max_px.map(|v| format!("{v:.3}")).unwrap_or_else(|| "-".into()),
                 r.output.display()
             );
         }
@@ -199,7 +203,8 @@ fn print_report(r: &Report) {
         s.setup, s.dem, s.gcm, s.read, s.resample, s.encode
     );
     let e = &r.accuracy_estimate;
-    println!("  GCM vs exact model (sampled): RMS {:.4} px, max {:.4} px over {} pixels", e.rms, e.max, e.count);
+    let bound = r.error_bound.map(|b| format!(", bound {b} px {}", if r.error_within { "held" } else { "MISSED" })).unwrap_or_default();
+    println!("  GCM vs exact model (sampled): RMS {:.4} px, max {:.4} px over {} pixels{bound}", e.rms, e.max, e.count);
 }
 
 fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {

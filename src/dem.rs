@@ -401,24 +401,21 @@ fn read_hgt(path: &Path) -> Result<GridDem> {
     Ok(GridDem::new(n, n, data, [lon - 0.5 * d, d, 0.0, lat + 1.0 + 0.5 * d, 0.0, -d], Some(-32768.0), Some(4326)))
 }
 
-/// Refuses a DEM without a nodata tag whose heights include a value that
-/// only a void has (-32768, -32767, -9999, -99999, -3.4e38): read as a
-/// height, each void would pull the terrain kilometres down.
-fn check_untagged_voids(g: &GridDem, path: &Path) -> Result<()> {
+/// A DEM without a nodata tag whose heights include a value that only a
+/// void has (-32768, -32767, -9999, -99999, below -1e30): read as a height,
+/// each void would pull the terrain kilometres down. That value becomes its
+/// nodata, and the warning says so.
+fn tag_untagged_voids(g: &mut GridDem, path: &Path) -> Option<String> {
     if g.nodata.is_some() {
-        return Ok(());
+        return None;
     }
     let step = (g.width * g.height / 250_000).max(1);
-    let void = g.samples(step).into_iter().find(|&v| [-32768.0, -32767.0, -9999.0, -99999.0].contains(&v) || v < -1.0e30);
-    match void {
-        Some(v) => Err(Error::format(
-            path,
-            format!(
-                "heights of {v} m and no nodata tag: voids? Tag them (gdal_edit.py -a_nodata {v} FILE), then choose what fills them with the DEM hole policy"
-            ),
-        )),
-        None => Ok(()),
-    }
+    let void = g.samples(step).into_iter().find(|&v| [-32768.0, -32767.0, -9999.0, -99999.0].contains(&v) || v < -1.0e30)?;
+    g.nodata = Some(void as f64);
+    Some(format!(
+        "{}: heights of {void} m and no nodata tag: taken as voids (holes), not heights; tag them to say so (gdal_edit.py -a_nodata {void})",
+        path.display()
+    ))
 }
 
 /// Where heights come from.
@@ -437,6 +434,8 @@ pub struct Dem {
     pub path: PathBuf,
     /// Ground (orthophoto CRS) → the grid's own CRS, when they differ.
     pub to_dem: Option<Reprojection>,
+    /// What reading it found doubtful (for the run's warnings).
+    pub warnings: Vec<String>,
 }
 
 /// The height at a ground point after the policy, or why there is none.
@@ -451,11 +450,11 @@ pub enum Height {
 
 impl Dem {
     pub fn flat(z: f64) -> Dem {
-        Dem { model: HeightModel::Flat(z), on_hole: Miss::Error, on_outside: Miss::Error, path: PathBuf::from("(flat)"), to_dem: None }
+        Dem { model: HeightModel::Flat(z), on_hole: Miss::Error, on_outside: Miss::Error, path: PathBuf::from("(flat)"), to_dem: None, warnings: Vec::new() }
     }
 
     pub fn grid(g: GridDem, path: &Path) -> Dem {
-        Dem { model: HeightModel::Grid(g), on_hole: Miss::Error, on_outside: Miss::Error, path: path.to_path_buf(), to_dem: None }
+        Dem { model: HeightModel::Grid(g), on_hole: Miss::Error, on_outside: Miss::Error, path: path.to_path_buf(), to_dem: None, warnings: Vec::new() }
     }
 
     /// Reads a DEM for an orthophoto in EPSG:`ground`. A DEM in another CRS
@@ -467,8 +466,8 @@ impl Dem {
 
     /// As `open`, holding at most about `max_bytes` of heights in memory.
     pub fn open_within(path: &Path, ground: u32, max_bytes: u64) -> Result<Dem> {
-        let g = GridDem::read_within(path, max_bytes)?;
-        check_untagged_voids(&g, path)?;
+        let mut g = GridDem::read_within(path, max_bytes)?;
+        let warning = tag_untagged_voids(&mut g, path);
         let to_dem = match g.epsg {
             Some(e) if e != ground => {
                 let r = Reprojection::new(ground, e).map_err(|m| Error::format(path, format!("cannot reproject the DEM: {m}")))?;
@@ -484,6 +483,7 @@ impl Dem {
         };
         let mut dem = Dem::grid(g, path);
         dem.to_dem = to_dem;
+        dem.warnings.extend(warning);
         Ok(dem)
     }
 

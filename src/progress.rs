@@ -27,6 +27,9 @@ pub trait Progress: Sync {
     fn advance(&self, units: u64);
     /// The work ended (done, failed or cancelled).
     fn finish(&self);
+    /// Something doubtful was met (and how it was taken): to be shown even
+    /// where progress is not. The run's report lists them too.
+    fn warn(&self, _message: &str) {}
 }
 
 /// Progress nobody watches.

@@ -40,6 +40,14 @@ impl Progress for Bar {
             b.finish_and_clear();
         }
     }
+    fn warn(&self, message: &str) {
+        // Quiet hides progress, not warnings.
+        let line = format!("gcm-ortho: warning: {message}");
+        match self.bar.lock().expect("progress bar").as_ref() {
+            Some(b) if self.shown => b.suspend(|| eprintln!("{line}")),
+            _ => eprintln!("{line}"),
+        }
+    }
 }
 
 /// Counted in units of work, shown as the lines they stand for (output rows

@@ -103,3 +103,80 @@ fn the_old_defaults_missed_on_these_scenes() {
     let m = coordinate_map_difference(&out("k16.tif", &["--sparsity", "16"]), &out("exact.tif", &["--sparsity", "1", "--corrections", "cell"]), w, h);
     assert!(m.max > 1.0, "max {} px", m.max);
 }
+
+#[test]
+fn dem_voids_without_a_nodata_tag_are_holes_with_a_warning_not_heights() {
+    use gcm_ortho::io::tiff_out::*;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini");
+    let dem = gcm_ortho::dem::GridDem::read(&root.join("dem.tif")).unwrap();
+    // The mini DEM with three voids of -32768 and no nodata tag.
+    let voids = [(30usize, 40usize), (50, 50), (61, 33)];
+    let path = d.join("voids.tif");
+    let spec = OutputSpec {
+        width: dem.width as u32,
+        height: dem.height as u32,
+        bands: 1,
+        sample: gcm_ortho::io::source::SampleType::F32,
+        chunking: Chunking::Strips(dem.height as u32),
+        compression: Compression::None,
+        bigtiff: false,
+        photometric: 1,
+        alpha: false,
+        geo: Some(GeoTags { x0: dem.transform[0], y0: dem.transform[3], gsd: dem.transform[1], epsg: 32631, nodata: None }),
+    };
+    write_raster(&path, &spec, |_, _, buf| {
+        for (k, v) in buf.chunks_exact_mut(4).enumerate() {
+            let (i, j) = (k % dem.width, k / dem.width);
+            let z = if voids.contains(&(i, j)) { -32768.0 } else { dem.sample(i, j) };
+            v.copy_from_slice(&z.to_le_bytes());
+        }
+    })
+    .unwrap();
+    let out = d.join("o.tif");
+    let r = run(&[
+        "rectify",
+        "--image",
+        s(&root.join("scan.tif")),
+        "--camera",
+        s(&root.join("camera.toml")),
+        "--dem",
+        s(&path),
+        "--dem-hole",
+        "nodata",
+        "--quiet",
+        "-o",
+        s(&out),
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("warning") && err.contains("voids.tif") && err.contains("-32768") && err.contains("no nodata tag"), "{err}");
+}
+
+#[test]
+fn an_unbounded_run_far_off_the_exact_model_says_so_even_when_quiet() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini");
+    let json = dir.path().join("r.json");
+    let (scan, camera, dem, out) = (root.join("scan.tif"), root.join("camera.toml"), root.join("dem.tif"), dir.path().join("o.tif"));
+    let base = ["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet"];
+    let with = |extra: &[&str]| {
+        let mut a = base.to_vec();
+        a.extend_from_slice(extra);
+        a.extend(["-o", s(&out), "--json", s(&json)]);
+        let r = run(&a);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        (String::from_utf8_lossy(&r.stderr).into_owned(), report)
+    };
+    // A fixed spacing of 64 px: no bound, well over half a pixel off.
+    let (err, report) = with(&["--sparsity", "64"]);
+    assert!(err.contains("warning") && err.contains("off the exact model") && err.contains("--max-error"), "{err}");
+    assert_eq!((report["error_bound"].clone(), report["error_within"].clone()), (serde_json::Value::Null, false.into()));
+    assert_eq!(report["warnings"].as_array().unwrap().len(), 1);
+    // The default: bounded, held, nothing to say.
+    let (err, report) = with(&[]);
+    assert!(err.is_empty(), "{err}");
+    assert_eq!((report["error_bound"].as_f64(), report["error_within"].as_bool()), (Some(0.1), Some(true)));
+}

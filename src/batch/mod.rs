@@ -54,6 +54,10 @@ pub struct JobResult {
     pub peak_rss_mib: Option<f64>,
     pub gcm_rms_px: Option<f64>,
     pub gcm_max_px: Option<f64>,
+    /// The bound the job was held to, and whether the sample stayed in it.
+    pub error_bound: Option<f64>,
+    pub error_within: Option<bool>,
+    pub warnings: Vec<String>,
 }
 
 /// A 64-bit FNV-1a hash: stable across runs and machines.
@@ -163,6 +167,9 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
         peak_rss_mib: None,
         gcm_rms_px: None,
         gcm_max_px: None,
+        error_bound: None,
+        error_within: None,
+        warnings: Vec::new(),
     };
     if cancel.is_cancelled() {
         return res;
@@ -194,6 +201,9 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
             res.peak_rss_mib = r.peak_rss_mib;
             res.gcm_rms_px = Some(r.accuracy_estimate.rms);
             res.gcm_max_px = Some(r.accuracy_estimate.max);
+            res.error_bound = r.error_bound;
+            res.error_within = Some(r.error_within);
+            res.warnings = r.warnings;
             if let Err(e) = write_sidecar(&cfg.output, &key) {
                 res.status = Status::Failed;
                 res.error = Some(e.to_string());

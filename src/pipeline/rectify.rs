@@ -2,7 +2,7 @@
 //! publish the output, report.
 
 use super::context::{Counters, Inputs, Run, Stop, Walk};
-use super::report::{peak_rss_mib, Report, ScanInfo, StageTimes};
+use super::report::{peak_rss_mib, Report, ScanInfo, StageTimes, UNBOUNDED_WARNING_PX};
 use super::sequential::run_sequential;
 use super::setup::RunPlan;
 use super::threaded::run_threaded;
@@ -28,7 +28,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     if cancel.is_cancelled() {
         return Err(Error::Cancelled);
     }
-    let plan = RunPlan::new(opts)?;
+    let plan = RunPlan::new(opts, progress)?;
     if cancel.is_cancelled() {
         return Err(Error::Cancelled);
     }
@@ -103,6 +103,21 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         estimate.argmax.swap(0, 1);
     }
     let gcm_stats = *run.counters.gcm.lock().expect("stats");
+    let error_bound = plan.gcm.max_error;
+    // The bound holds by construction at every pixel; the sample checks it.
+    let error_within = estimate.max <= error_bound.map_or(UNBOUNDED_WARNING_PX, |b| b * 1.000_001);
+    let mut warnings = plan.dem.warnings.clone();
+    if !error_within {
+        let w = match error_bound {
+            Some(b) => format!("the GCM missed its bound of {b} px: {:.3} px at output pixel {:?} (please report it)", estimate.max, estimate.argmax),
+            None => format!(
+                "the GCM is up to {:.2} px off the exact model (sampled, at output pixel {:?}); --max-error 0.1 holds it within 0.1 px",
+                estimate.max, estimate.argmax
+            ),
+        };
+        progress.warn(&w);
+        warnings.push(w);
+    }
     Ok(Report {
         config: RectifyOptions { gcm: plan.gcm, auto_sparsity: false, band_order: plan.band_order, ..opts.clone() },
         grid: plan.grid,
@@ -127,6 +142,9 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         peak_rss_mib: peak_rss_mib(),
         gcm: gcm_stats,
         accuracy_estimate: estimate,
+        error_bound,
+        error_within,
         output_bytes,
+        warnings,
     })
 }

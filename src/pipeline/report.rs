@@ -35,8 +35,19 @@ pub struct Report {
     pub gcm: GcmStats,
     /// `|A + c − T|` on a sample of output pixels.
     pub accuracy_estimate: ErrorStats,
+    /// The error bound the run was held to (scan px), if any.
+    pub error_bound: Option<f64>,
+    /// Whether the sampled error stayed within the bound (or, without one,
+    /// within half a pixel).
+    pub error_within: bool,
     pub output_bytes: u64,
+    /// Doubtful inputs met and errors beyond what was asked: the binary
+    /// prints them even when quiet.
+    pub warnings: Vec<String>,
 }
+
+/// Past this (scan px), a run without a bound is warned about.
+pub const UNBOUNDED_WARNING_PX: f64 = 0.5;
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct ScanInfo {

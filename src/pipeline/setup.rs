@@ -14,6 +14,7 @@ use crate::io::geotiff::is_geographic;
 use crate::io::source::{SampleType, SourceImage};
 use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec};
 use crate::options::{BandOrder, BigTiff, DemSource, RectifyOptions};
+use crate::progress::Progress;
 use crate::transform::footprint::{auto_grid, mean_gsd};
 use crate::transform::{Approx, Trend};
 
@@ -41,7 +42,7 @@ pub struct RunPlan {
 }
 
 impl RunPlan {
-    pub fn new(opts: &RectifyOptions) -> Result<RunPlan> {
+    pub fn new(opts: &RectifyOptions, progress: &dyn Progress) -> Result<RunPlan> {
         let budget = MemoryBudget::new(opts.memory);
         let camera = opts.model.load(&opts.image, &opts.camera)?;
         let src = SourceImage::open(&opts.image, budget.scan_cache() as usize)?;
@@ -53,6 +54,9 @@ impl RunPlan {
                 Sensor::Frame(_) => return Err(Error::setting("dem", "a frame camera needs a DEM file or a constant height")),
             },
         };
+        for w in &dem.warnings {
+            progress.warn(w);
+        }
         dem.on_hole = opts.dem_hole;
         dem.on_outside = opts.dem_outside;
         let model = camera.model();

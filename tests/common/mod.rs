@@ -153,4 +153,3 @@ pub fn coordinate_map_difference(a: &Path, b: &Path, w: u32, h: u32) -> MapDiffe
     let m = n.max(1) as f64;
     MapDifference { pixels: n, offset: [off[0] / m, off[1] / m], mean: sum / m, max }
 }
-
