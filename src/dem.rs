@@ -136,7 +136,7 @@ impl GridDem {
     }
 
     #[inline]
-    fn is_nodata(&self, v: f32) -> bool {
+    pub fn is_nodata(&self, v: f32) -> bool {
         v.is_nan() || self.nodata.is_some_and(|nd| v as f64 == nd)
     }
 

@@ -593,3 +593,55 @@ fn ventoux_error_bound_holds_at_every_pixel() {
         assert!(m.pixels > 50_000 && m.max <= bound, "{} px, max {}", m.pixels, m.max);
     }
 }
+
+/// An RPC whose line denominator passes through zero inside the scene (the
+/// image would go to infinity and fold there) is refused, naming the file.
+#[test]
+fn an_rpc_whose_denominator_changes_sign_over_the_scene_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (x0, y0, gsd, w, h) = VENTOUX_GRID;
+    let crs = gcm_ortho::geodesy::GroundCrs::from_epsg(32631).unwrap();
+    let (lon, _) = crs.to_lonlat(x0 + w as f64 * gsd / 2.0, y0 - h as f64 * gsd / 2.0).unwrap();
+    let geom = std::fs::read_to_string(ventoux("left_image.geom")).unwrap();
+    // den = L − L0: zero at the grid's middle longitude.
+    let l0 = (lon - 5.28464655928485) / 0.12870115852264;
+    let bad: String = geom
+        .lines()
+        .map(|l| match l.split(':').next().unwrap_or("") {
+            "line_den_coeff_00" => format!("line_den_coeff_00:  {}\n", -l0),
+            "line_den_coeff_01" => "line_den_coeff_01:  1\n".to_string(),
+            k if k.starts_with("line_den_coeff_") => format!("{k}:  0\n"),
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    let rpc = d.join("folding.geom");
+    std::fs::write(&rpc, bad).unwrap();
+    let (x1, y1) = (x0 + w as f64 * gsd, y0 - h as f64 * gsd);
+    let bounds = format!("{x0},{y1},{x1},{y0}");
+    let out = d.join("o.tif");
+    let r = run(&[
+        "rectify",
+        "--image",
+        s(&ventoux("left_image.tif")),
+        "--rpc",
+        s(&rpc),
+        "--rpc-offset",
+        "5000,5000",
+        "--dem",
+        s(&ventoux("srtm_N44E005_crop.tif")),
+        "--crs",
+        "EPSG:32631",
+        "--bounds",
+        &bounds,
+        "--gsd",
+        "0.5",
+        "--quiet",
+        "-o",
+        s(&out),
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.contains("folding.geom") && err.contains("LINE_DEN_COEFF changes sign"), "{err}");
+    assert!(!out.exists());
+}

@@ -42,6 +42,33 @@ impl Distortion {
         }
     }
 
+    /// The ideal radius (mm from the principal point) past which the lens
+    /// model stops moving points outward: there its radial polynomial turns
+    /// back (d r_distorted / d r falls to nearly nothing), and a point past it
+    /// would land folded back inside the image. Infinite where the model
+    /// never turns within four focal lengths.
+    #[must_use]
+    pub fn fold_radius(&self, f: f64) -> f64 {
+        // d r_d / d r along the radius, at ideal radius r (mm).
+        let slope = |r: f64| match *self {
+            Distortion::None => 1.0,
+            Distortion::Radial([b1, b2, b3]) => 1.0 + b1 + 2.0 * b2 * r + 3.0 * b3 * r * r,
+            Distortion::Brown(b) => {
+                let n2 = (r / f) * (r / f);
+                1.0 + 3.0 * b.k1 * n2 + 5.0 * b.k2 * n2 * n2 + 7.0 * b.k3 * n2 * n2 * n2
+            }
+        };
+        let (step, end) = (f / 2000.0, 4.0 * f);
+        let mut r = step;
+        while r <= end {
+            if !(slope(r) > 0.05) {
+                return r - step;
+            }
+            r += step;
+        }
+        f64::INFINITY
+    }
+
     /// The radial polynomial `[b1, b2, b3]` (mm) at (x, y).
     #[inline(always)]
     #[must_use]

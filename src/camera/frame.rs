@@ -27,6 +27,9 @@ pub struct FrameCamera {
     pub earth_curvature: bool,
     /// Photo coordinates of the nadir point (mm), where refraction is radial from.
     nadir_mm: (f64, f64),
+    /// Ideal radius (mm) past which the lens model folds back: points there
+    /// are not imaged (nodata), never mirrored into the image.
+    fold_mm: f64,
 }
 
 impl FrameCamera {
@@ -41,7 +44,8 @@ impl FrameCamera {
     ) -> Self {
         let q = r.transpose() * Vector3::new(0.0, 0.0, -1.0);
         let nadir_mm = (-focal_mm * q.x / q.z, -focal_mm * q.y / q.z);
-        FrameCamera { focal_mm, centre, r, interior, distortion, refraction, earth_curvature, nadir_mm }
+        let fold_mm = distortion.fold_radius(focal_mm);
+        FrameCamera { focal_mm, centre, r, interior, distortion, refraction, earth_curvature, nadir_mm, fold_mm }
     }
 
     /// Checks, before any footprint is sought, that this camera can see
@@ -183,6 +187,9 @@ impl SensorModel for FrameCamera {
     #[inline]
     fn project(&self, x: f64, y: f64, z: f64) -> Option<(f64, f64)> {
         let (px, py) = self.collinearity(x, y, z)?;
+        if !(px * px + py * py <= self.fold_mm * self.fold_mm) {
+            return None;
+        }
         let (px, py) = self.photo_corrections(px, py, (x, y, z));
         Some(self.interior.mm_to_px(px, py))
     }
@@ -196,6 +203,15 @@ impl SensorModel for FrameCamera {
         assert!(y.len() == n && z.len() == n && col.len() == n && row.len() == n, "project_many: arrays of one length");
         for k in 0..n {
             (col[k], row[k]) = self.ideal_photo(x[k], y[k], z[k]);
+        }
+        // Past the fold the lens model turns back: not imaged.
+        if self.fold_mm.is_finite() {
+            let fold2 = self.fold_mm * self.fold_mm;
+            for (c, r) in col.iter_mut().zip(row.iter_mut()) {
+                if !(*c * *c + *r * *r <= fold2) {
+                    (*c, *r) = (f64::NAN, f64::NAN);
+                }
+            }
         }
         let ha = self.centre.z;
         match self.refraction {
@@ -267,6 +283,29 @@ mod tests {
     fn vertical(centre: Vector3<f64>) -> FrameCamera {
         let io = InteriorOrientation::digital(0.01, [5000.0, 5000.0]).unwrap();
         FrameCamera::new(150.0, centre, Matrix3::identity(), io, Distortion::None, Refraction::None, false)
+    }
+
+    #[test]
+    fn ground_past_the_lens_models_fold_is_not_imaged_never_mirrored() {
+        // k1 = -0.3: r(1 - 0.3 r²) turns back at r = 1/√0.9 ≈ 1.054 (slope
+        // 1 - 0.9 r² reaches 0.05 at r ≈ 1.027 focal lengths).
+        let b = crate::camera::distortion::Brown { k1: -0.3, k2: 0.0, k3: 0.0, p1: 0.0, p2: 0.0 };
+        let io = InteriorOrientation::digital(0.01, [5000.0, 5000.0]).unwrap();
+        let cam = FrameCamera::new(50.0, Vector3::new(0.0, 0.0, 1000.0), Matrix3::identity(), io, Distortion::Brown(b), Refraction::None, false);
+        let fold = Distortion::Brown(b).fold_radius(50.0) / 50.0;
+        assert!((fold - 1.027).abs() < 0.002, "{fold}");
+        // Ground at 0.9 and 1.3 focal lengths from the nadir (1000 m below):
+        // the first is imaged, the second would fold back to r = 0.64, on
+        // the first's side of it — inside the image — and is not.
+        let near = cam.project(900.0, 0.0, 0.0).unwrap();
+        assert!(near.0 > 5000.0);
+        let r_folded = 1.3 * (1.0 - 0.3 * 1.69);
+        assert!(r_folded < 0.9 * (1.0 - 0.3 * 0.81), "the fold would mirror it inside");
+        assert_eq!(cam.project(1300.0, 0.0, 0.0), None);
+        let (mut c, mut r) = ([0.0; 2], [0.0; 2]);
+        cam.project_many(&[900.0, 1300.0], &[0.0, 0.0], &[0.0, 0.0], &mut c, &mut r);
+        assert_eq!((c[0], r[0]), near);
+        assert!(c[1].is_nan() && r[1].is_nan());
     }
 
     #[test]

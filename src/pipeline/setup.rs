@@ -105,6 +105,9 @@ impl RunPlan {
             ));
         }
         let area = [grid.x0, grid.y0 - grid.gsd * grid.height as f64, grid.x0 + grid.gsd * grid.width as f64, grid.y0];
+        if let Sensor::Rpc(r) = &camera.sensor {
+            check_denominators(r, &grid, &dem, &opts.camera)?;
+        }
         let plane = match opts.trend {
             Trend::Plane => dem.trend_plane(area),
             Trend::Mean => dem.mean_plane(area),
@@ -168,6 +171,43 @@ impl RunPlan {
     pub fn columns(&self) -> bool {
         self.band_order == BandOrder::Columns
     }
+}
+
+/// Refuses an RPC whose denominator changes sign over the scene (the output
+/// grid, from the DEM's lowest to its highest height, on a 9×9 lattice):
+/// where it passes through zero the image goes to infinity and folds.
+fn check_denominators(r: &crate::camera::RpcCamera, grid: &OutputGrid, dem: &Dem, path: &std::path::Path) -> Result<()> {
+    let heights: Vec<f64> = match &dem.model {
+        HeightModel::Flat(z) => vec![*z],
+        HeightModel::Grid(g) => {
+            let zs: Vec<f64> = g.samples((g.width * g.height / 10_000).max(1)).into_iter().filter(|v| !g.is_nodata(*v)).map(f64::from).collect();
+            let (lo, hi) = zs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &z| (a.min(z), b.max(z)));
+            if lo.is_finite() {
+                vec![lo, hi]
+            } else {
+                vec![r.rpc.height_off]
+            }
+        }
+    };
+    let (mut line, mut samp) = ([false; 2], [false; 2]);
+    for i in 0..9 {
+        for j in 0..9 {
+            let (x, y) = grid.ground(grid.width as f64 * i as f64 / 8.0, grid.height as f64 * j as f64 / 8.0);
+            let Some((lon, lat)) = r.crs.to_lonlat(x, y) else { continue };
+            for &h in &heights {
+                // Ellipsoidal heights: the geoid moves them by tens of metres at most.
+                let (ld, sd) = r.rpc.denominators(lon, lat, h);
+                line[usize::from(ld > 0.0)] |= ld != 0.0;
+                samp[usize::from(sd > 0.0)] |= sd != 0.0;
+            }
+        }
+    }
+    for (name, seen) in [("LINE_DEN_COEFF", line), ("SAMP_DEN_COEFF", samp)] {
+        if seen == [true, true] {
+            return Err(Error::format(path, format!("RPC: {name} changes sign over the scene: the image would fold where it passes zero")));
+        }
+    }
+    Ok(())
 }
 
 /// Refuses a nodata value the output's samples cannot hold (they take the

@@ -33,10 +33,19 @@ pub fn fit_rpc(points: &[Correspondence]) -> Option<Fitted> {
     let (line_off, line_scale) = range(&|p| p.1 .1 - 0.5);
     let terms: Vec<[f64; 20]> =
         points.iter().map(|p| super::terms((p.0 .0 - long_off) / long_scale, (p.0 .1 - lat_off) / lat_scale, (p.0 .2 - height_off) / height_scale)).collect();
+    // Ridge rows hold the denominator's 19 free coefficients near zero (den
+    // near 1, as providers' RPCs are): unregularised, the fit trades the
+    // denominator against the numerator and lets both pass through zero
+    // over the scene, where the model folds.
+    const RIDGE: f64 = 1e-3;
     let solve = |value: &dyn Fn(&Correspondence) -> f64| -> Option<([f64; 20], [f64; 20])> {
         let n = points.len();
-        let mut a = nalgebra::DMatrix::<f64>::zeros(n, 39);
-        let mut b = nalgebra::DVector::<f64>::zeros(n);
+        let mut a = nalgebra::DMatrix::<f64>::zeros(n + 19, 39);
+        let mut b = nalgebra::DVector::<f64>::zeros(n + 19);
+        let ridge = RIDGE * (n as f64).sqrt();
+        for i in 0..19 {
+            a[(n + i, 20 + i)] = ridge;
+        }
         for (k, (p, t)) in points.iter().zip(&terms).enumerate() {
             let v = value(p);
             for i in 0..20 {

@@ -95,6 +95,14 @@ impl Rpc {
         Some((samp + 0.5, line + 0.5))
     }
 
+    /// The line and sample denominators at ground (longitude °, latitude °,
+    /// height m): where one passes through zero the image goes to infinity
+    /// and folds.
+    pub fn denominators(&self, lon: f64, lat: f64, h: f64) -> (f64, f64) {
+        let t = terms((lon - self.long_off) / self.long_scale, (lat - self.lat_off) / self.lat_scale, (h - self.height_off) / self.height_scale);
+        (dot(&self.line_den, &t), dot(&self.samp_den, &t))
+    }
+
     /// The model as GDAL's `_RPC.TXT` sidecar text (`KEY: value` lines).
     pub fn to_gdal_text(&self) -> String {
         let mut t = String::new();
