@@ -129,6 +129,7 @@ fn regenerate_corpus() {
     c("looks_up.toml", cam.replace(&angles_line, "angles_deg = [0.0, 180.0, 0.0]"));
     c("focal_in_micrometres.toml", cam.replace("focal_length_mm = 152.0", "focal_length_mm = 152000.0"));
     c("principal_point_outside.toml", cam.replace("principal_point_mm = [0.004, -0.009]", "principal_point_mm = [400.0, -0.009]"));
+    c("misplaced_mark.toml", cam.replace("[[14.896953853290603, 190.54974293054275]", "[[44.896953853290603, 190.54974293054275]"));
 
     // --- DEMs ---
     let dem = std::fs::read(mini("dem.tif")).unwrap();
@@ -389,7 +390,7 @@ fn usage_errors_exit_2() {
     assert!(String::from_utf8_lossy(&r.stderr).contains("--memory"));
 }
 
-/// Five problems that all used to say "the scan's centre does not meet the
+/// Problems that used to say "the scan's centre does not meet the
 /// DEM": each is told as what it is.
 #[test]
 fn each_cause_has_its_own_message() {
@@ -400,6 +401,7 @@ fn each_cause_has_its_own_message() {
         ("camera", "looks_up.toml", "above the horizon"),
         ("camera", "focal_in_micrometres.toml", "field of view"),
         ("camera", "principal_point_outside.toml", "principal point"),
+        ("camera", "misplaced_mark.toml", "placed wrong"),
         ("dem", "one_post.tif", "at least 2×2"),
         ("rpc", "lat_off_95.geom", "LAT_OFF"),
     ] {

@@ -645,3 +645,45 @@ fn an_rpc_whose_denominator_changes_sign_over_the_scene_is_refused() {
     assert!(err.contains("folding.geom") && err.contains("LINE_DEN_COEFF changes sign"), "{err}");
     assert!(!out.exists());
 }
+
+/// A geoid grid that does not cover the scene is an error naming the grid,
+/// what it covers and what the scene spans — not half a scene of nodata.
+#[test]
+fn a_geoid_grid_short_of_the_scene_is_refused_with_both_extents() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Longitudes 5.0..5.3, latitudes 44.10..44.17: the RPC's scene centre
+    // (5.28°E, 44.14°N) but not the crop, at ~44.2°N.
+    let mut gtx = Vec::new();
+    for v in [44.1f64, 5.0, 0.07, 0.1] {
+        gtx.extend_from_slice(&v.to_be_bytes());
+    }
+    gtx.extend_from_slice(&2i32.to_be_bytes());
+    gtx.extend_from_slice(&4i32.to_be_bytes());
+    for _ in 0..8 {
+        gtx.extend_from_slice(&50.0f32.to_be_bytes());
+    }
+    let geoid = d.join("west.gtx");
+    std::fs::write(&geoid, gtx).unwrap();
+    let out = d.join("o.tif");
+    let r = run(&[
+        "rectify",
+        "--image",
+        s(&ventoux("left_image.tif")),
+        "--rpc",
+        s(&ventoux("left_image.geom")),
+        "--rpc-offset",
+        "5000,5000",
+        "--dem",
+        s(&ventoux("srtm_N44E005_crop.tif")),
+        "--geoid",
+        s(&geoid),
+        "--quiet",
+        "-o",
+        s(&out),
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.contains("west.gtx") && err.contains("latitudes 44.100..44.170") && err.contains("the image spans"), "{err}");
+    assert!(!out.exists());
+}

@@ -60,6 +60,10 @@ pub struct InteriorSection {
     pub pixel_size_mm: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub principal_point_px: Option<[f64; 2]>,
+    /// The most a fiducial mark may sit off the fitted interior orientation,
+    /// scan pixels (default 2): past it a mark was placed wrong.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_fiducial_residual_px: Option<f64>,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -337,6 +341,23 @@ fn finite_positive(v: f64) -> std::result::Result<(), String> {
     }
 }
 
+/// Refuses fiducial marks that sit further off the fitted interior
+/// orientation than `limit` pixels (default 2), listing every mark's
+/// residual so that the one placed wrong shows.
+fn check_residuals(io: &InteriorOrientation, limit: Option<f64>) -> std::result::Result<(), String> {
+    let limit = limit.unwrap_or(2.0);
+    let off: Vec<f64> = io.residuals.iter().map(|r| r.px[0].hypot(r.px[1])).collect();
+    let worst = off.iter().cloned().fold(0.0, f64::max);
+    if !(worst <= limit) {
+        let list: Vec<String> = off.iter().enumerate().map(|(k, d)| format!("mark {}: {d:.2} px", k + 1)).collect();
+        return Err(format!(
+            "a mark sits {worst:.2} px off the fitted interior orientation, more than {limit} px (max_fiducial_residual_px): {}; one was placed wrong?",
+            list.join(", ")
+        ));
+    }
+    Ok(())
+}
+
 fn build_interior(s: &InteriorSection) -> std::result::Result<InteriorOrientation, (String, String)> {
     let e = |f: &str, m: String| (format!("interior.{f}"), m);
     let forms = [s.fiducials_mm.is_some(), s.fiducial_distances_mm.is_some(), s.pixel_size_mm.is_some()];
@@ -350,7 +371,9 @@ fn build_interior(s: &InteriorSection) -> std::result::Result<InteriorOrientatio
         let px = s.fiducials_px.as_ref().ok_or_else(|| e("fiducials_px", "missing".into()))?;
         all_finite(&flat(mm)).map_err(|m| e("fiducials_mm", m))?;
         all_finite(&flat(px)).map_err(|m| e("fiducials_px", m))?;
-        return InteriorOrientation::from_fiducials(mm, px, pp).map_err(|x| e("fiducials_px", x.to_string()));
+        let io = InteriorOrientation::from_fiducials(mm, px, pp).map_err(|x| e("fiducials_px", x.to_string()))?;
+        check_residuals(&io, s.max_fiducial_residual_px).map_err(|m| e("fiducials_px", m))?;
+        return Ok(io);
     }
     if let Some(d) = s.fiducial_distances_mm {
         let px = s.fiducials_px.as_ref().ok_or_else(|| e("fiducials_px", "missing".into()))?;

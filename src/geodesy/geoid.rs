@@ -71,6 +71,12 @@ impl Geoid {
 
     /// N (metres) at (longitude °, latitude °), or `None` outside the grid
     /// or next to a sample without value.
+    /// What the grid covers: west, south, east, north, degrees.
+    pub fn extent(&self) -> [f64; 4] {
+        let east = if self.global { self.lon0 + 360.0 } else { self.lon0 + self.dlon * (self.cols - 1) as f64 };
+        [self.lon0, self.lat0, east, self.lat0 + self.dlat * (self.rows - 1) as f64]
+    }
+
     pub fn undulation(&self, lon: f64, lat: f64) -> Option<f64> {
         let y = (lat - self.lat0) / self.dlat;
         let mut x = (lon - self.lon0) / self.dlon;

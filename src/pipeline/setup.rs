@@ -62,6 +62,9 @@ impl RunPlan {
         let model = camera.model();
         let (sw, sh) = (src.info.width, src.info.height);
         let z_guess = dem.mean_height().unwrap_or_else(|| camera.height_hint());
+        if let Sensor::Rpc(r) = &camera.sensor {
+            check_geoid_covers(r, sw, sh, z_guess)?;
+        }
         if let Sensor::Frame(f) = &camera.sensor {
             // The ground under the camera where the DEM has it, else its mean.
             let below = match dem.height(f.centre.x, f.centre.y) {
@@ -206,6 +209,33 @@ fn check_denominators(r: &crate::camera::RpcCamera, grid: &OutputGrid, dem: &Dem
         if seen == [true, true] {
             return Err(Error::format(path, format!("RPC: {name} changes sign over the scene: the image would fold where it passes zero")));
         }
+    }
+    Ok(())
+}
+
+/// Refuses a geoid grid that leaves part of the image's ground uncovered
+/// (it would be that much of the scene as nodata): the image's corners,
+/// edges' middles and centre located at height `z` without the geoid (tens
+/// of metres of height move them by far less than a grid cell); names the
+/// grid, what it covers and what the image spans.
+fn check_geoid_covers(r: &crate::camera::RpcCamera, w: u32, h: u32, z: f64) -> Result<()> {
+    let Some(geoid) = &r.geoid else { return Ok(()) };
+    let plain = crate::camera::RpcCamera::new(r.rpc.clone(), crate::geodesy::GroundCrs::from_epsg(4326).map_err(Error::Geometry)?, None);
+    let (mut span, mut uncovered) = ([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], false);
+    for (fc, fr) in [(0.0, 0.0), (0.5, 0.0), (1.0, 0.0), (0.0, 0.5), (0.5, 0.5), (1.0, 0.5), (0.0, 1.0), (0.5, 1.0), (1.0, 1.0)] {
+        let Some((lon, lat)) = crate::camera::locate(&plain, fc * w as f64, fr * h as f64, z, 0.01) else { continue };
+        span = [span[0].min(lon), span[1].min(lat), span[2].max(lon), span[3].max(lat)];
+        uncovered |= geoid.undulation(lon, lat).is_none();
+    }
+    if uncovered {
+        let e = geoid.extent();
+        return Err(Error::format(
+            &geoid.path,
+            format!(
+                "the geoid grid covers longitudes {:.3}..{:.3}, latitudes {:.3}..{:.3}; the image spans {:.3}..{:.3}, {:.3}..{:.3}",
+                e[0], e[2], e[1], e[3], span[0], span[2], span[1], span[3]
+            ),
+        ));
     }
     Ok(())
 }
