@@ -53,8 +53,20 @@ impl ChunkCodec {
 
     /// Chunk `k` of the file at `path`, stored as `count` bytes from
     /// `offset`, read with `pread` and decoded: `rows` rows of `width`
-    /// pixels, native-endian. Errors name the file and the chunk.
-    pub fn read_chunk(&self, file: &File, path: &Path, k: usize, (offset, count): (u64, u64), width: usize, rows: usize) -> crate::error::Result<Vec<u8>> {
+    /// pixels, native-endian, of a chunk `full_rows` high (a last strip may
+    /// hold fewer rows than that, or be written at full height). Errors name
+    /// the file and the chunk.
+    #[allow(clippy::too_many_arguments)] // the chunk's place in the file, and its size
+    pub fn read_chunk(
+        &self,
+        file: &File,
+        path: &Path,
+        k: usize,
+        (offset, count): (u64, u64),
+        width: usize,
+        rows: usize,
+        full_rows: usize,
+    ) -> crate::error::Result<Vec<u8>> {
         use crate::error::Error;
         use std::os::unix::fs::FileExt;
         if count > crate::io::format::decoder_limits().intermediate_buffer_size as u64 {
@@ -62,15 +74,21 @@ impl ChunkCodec {
         }
         let mut coded = vec![0u8; count as usize];
         file.read_exact_at(&mut coded, offset).map_err(|e| Error::io(path, e))?;
-        self.decode(&coded, width, rows).map_err(|e| Error::format(path, format!("chunk {k}: {e}")))
+        self.decode(&coded, width, rows, full_rows).map_err(|e| Error::format(path, format!("chunk {k}: {e}")))
     }
 
     /// The chunk's pixels: `rows` rows of `width` pixels, native-endian.
-    /// `coded` is the chunk's bytes as stored in the file.
-    pub fn decode(&self, coded: &[u8], width: usize, rows: usize) -> Result<Vec<u8>, String> {
+    /// `coded` is the chunk's bytes as stored in the file; it may decode to
+    /// up to `full_rows` rows (a last strip written at full height), and a
+    /// stream that runs on past them, or ends before `rows`, is an error.
+    pub fn decode(&self, coded: &[u8], width: usize, rows: usize, full_rows: usize) -> Result<Vec<u8>, String> {
         let row_bytes = width * self.samples * self.sample_bytes;
         let want = row_bytes * rows;
-        let mut out = self.decompress(coded, want)?;
+        let allowed = row_bytes * full_rows.max(rows);
+        let mut out = self.decompress(coded, want, allowed)?;
+        if out.len() > allowed {
+            return Err(format!("the stream runs on past the chunk's {allowed} bytes"));
+        }
         if out.len() < want {
             return Err(format!("decodes to {} bytes, its pixels need {want}", out.len()));
         }
@@ -85,20 +103,23 @@ impl ChunkCodec {
     }
 
     /// The decompressed bytes: at least `want` of them unless the data ends
-    /// first (the caller reports the shortfall).
-    fn decompress(&self, coded: &[u8], want: usize) -> Result<Vec<u8>, String> {
+    /// first, and one more than `allowed` where it runs on past them (the
+    /// caller reports either).
+    fn decompress(&self, coded: &[u8], want: usize, allowed: usize) -> Result<Vec<u8>, String> {
         let mut out = Vec::with_capacity(want);
         match self.compression {
             1 => out.extend_from_slice(&coded[..want.min(coded.len())]),
-            8 | 32946 => read_up_to(flate2::read::ZlibDecoder::new(coded), want, &mut out, "deflate")?,
-            50000 => read_up_to(zstd::stream::read::Decoder::new(coded).map_err(|e| format!("zstd: {e}"))?, want, &mut out, "zstd")?,
+            8 | 32946 => read_up_to(flate2::read::ZlibDecoder::new(coded), want, allowed, &mut out, "deflate")?,
+            50000 => read_up_to(zstd::stream::read::Decoder::new(coded).map_err(|e| format!("zstd: {e}"))?, want, allowed, &mut out, "zstd")?,
             5 => {
-                // Decoded into a buffer of the chunk's size: a stream that
-                // would expand past it (corrupt or hostile) stops there.
-                out.resize(want, 0);
+                // Decoded into a buffer one byte past what the chunk may
+                // hold: a stream that fills it runs on (corrupt or hostile)
+                // and stops there.
+                let cap = allowed + 1;
+                out.resize(cap, 0);
                 let mut lzw = weezl::decode::Decoder::with_tiff_size_switch(weezl::BitOrder::Msb, 8);
                 let (mut read, mut written) = (0, 0);
-                while written < want {
+                while written < cap {
                     let r = lzw.decode_bytes(&coded[read..], &mut out[written..]);
                     read += r.consumed_in;
                     written += r.consumed_out;
@@ -114,7 +135,7 @@ impl ChunkCodec {
                 // code, junk after it) has given all we need.
                 out.truncate(written);
             }
-            32773 => unpack_bits(coded, want, &mut out),
+            32773 => unpack_bits(coded, allowed + 1, &mut out),
             c => return Err(format!("TIFF compression {c}")),
         }
         Ok(out)
@@ -179,9 +200,10 @@ pub fn file_is_big_endian(file: &std::fs::File) -> std::io::Result<bool> {
 /// Reads up to `want` bytes of a decompressing reader into `out`, then on
 /// to the stream's end, so that the codec checks what it carries to check
 /// (zlib's Adler-32, zstd's checksum): a chunk that does not check out is
-/// an error, not pixels. What a stream holds past the chunk (a last strip
-/// written at full height) is passed over, up to another chunk's worth.
-fn read_up_to(mut r: impl Read, want: usize, out: &mut Vec<u8>, what: &str) -> Result<(), String> {
+/// an error, not pixels. What a stream holds past `want` up to `allowed`
+/// (a last strip written at full height) is passed over; past that, it
+/// runs on, and `out` gets one byte more than `allowed` to say so.
+fn read_up_to(mut r: impl Read, want: usize, allowed: usize, out: &mut Vec<u8>, what: &str) -> Result<(), String> {
     let err = |e: std::io::Error| format!("{what}: {e}");
     (&mut r).take(want as u64).read_to_end(out).map_err(err)?;
     let mut rest = [0u8; 4096];
@@ -193,8 +215,9 @@ fn read_up_to(mut r: impl Read, want: usize, out: &mut Vec<u8>, what: &str) -> R
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
             Err(e) => return Err(err(e)),
         }
-        if past > want.max(4096) {
-            return Err(format!("{what}: the stream runs on past the chunk's {want} bytes"));
+        if want + past > allowed {
+            out.resize(allowed + 1, 0);
+            return Ok(());
         }
     }
 }
@@ -336,7 +359,7 @@ mod tests {
             let compression = [1, 5, 8, 32946, 32773, 50000][which];
             let c = ChunkCodec { compression, predictor, sample_bytes: 1 << sb, float: true, samples: n, big_endian: width % 2 == 0 };
             if c.check().is_ok() {
-                if let Ok(v) = c.decode(&coded, width, rows) {
+                if let Ok(v) = c.decode(&coded, width, rows, rows) {
                     proptest::prop_assert_eq!(v.len(), width * rows * n * (1 << sb));
                 }
             }
@@ -346,10 +369,10 @@ mod tests {
     #[test]
     fn short_or_corrupt_data_is_an_error_not_a_panic() {
         let c = codec(8, 1, 1, 4, false);
-        let e = c.decode(&[1, 2, 3], 4, 4).unwrap_err();
+        let e = c.decode(&[1, 2, 3], 4, 4, 4).unwrap_err();
         assert!(e.contains("deflate"), "{e}");
         let c = codec(32773, 1, 1, 4, false);
-        let e = c.decode(&[0x01, 7, 7], 4, 4).unwrap_err();
+        let e = c.decode(&[0x01, 7, 7], 4, 4, 4).unwrap_err();
         assert!(e.contains("its pixels need 64"), "{e}");
         assert!(codec(7, 1, 1, 4, false).check().is_err());
         assert!(codec(8, 3, 2, 4, false).check().is_err());
@@ -363,33 +386,58 @@ mod tests {
         z.write_all(&pixels).unwrap();
         let mut deflated = z.finish().unwrap();
         let c = codec(8, 1, 1, 4, false);
-        assert_eq!(c.decode(&deflated, 4, 4).unwrap(), pixels);
+        assert_eq!(c.decode(&deflated, 4, 4, 4).unwrap(), pixels);
         // The Adler-32 at the end, one bit off: the pixels are all there,
         // but the chunk is not what was written.
         *deflated.last_mut().unwrap() ^= 1;
-        let e = c.decode(&deflated, 4, 4).unwrap_err();
+        let e = c.decode(&deflated, 4, 4, 4).unwrap_err();
         assert!(e.contains("deflate"), "{e}");
         // A larger chunk, whose pixels come out before the checksum is read.
         let big: Vec<u8> = (0..64 * 64 * 4).map(|i: u32| (i.wrapping_mul(2_654_435_761) >> 24) as u8).collect();
         let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
         z.write_all(&big).unwrap();
         let mut deflated = z.finish().unwrap();
-        assert_eq!(c.decode(&deflated, 64, 64).unwrap(), big);
+        assert_eq!(c.decode(&deflated, 64, 64, 64).unwrap(), big);
         *deflated.last_mut().unwrap() ^= 1;
-        assert!(c.decode(&deflated, 64, 64).unwrap_err().contains("deflate"));
+        assert!(c.decode(&deflated, 64, 64, 64).unwrap_err().contains("deflate"));
         // zstd with its content checksum, one bit of it off.
         let mut enc = zstd::stream::write::Encoder::new(Vec::new(), 3).unwrap();
         enc.include_checksum(true).unwrap();
         enc.write_all(&pixels).unwrap();
         let mut zst = enc.finish().unwrap();
         let c = codec(50000, 1, 1, 4, false);
-        assert_eq!(c.decode(&zst, 4, 4).unwrap(), pixels);
+        assert_eq!(c.decode(&zst, 4, 4, 4).unwrap(), pixels);
         *zst.last_mut().unwrap() ^= 1;
-        assert!(c.decode(&zst, 4, 4).unwrap_err().contains("zstd"));
+        assert!(c.decode(&zst, 4, 4, 4).unwrap_err().contains("zstd"));
         // A stream that runs on far past its chunk is not this chunk.
         let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
         z.write_all(&vec![7u8; 64 * 1024]).unwrap();
         let long = z.finish().unwrap();
-        assert!(codec(8, 1, 1, 4, false).decode(&long, 4, 4).unwrap_err().contains("runs on past"));
+        assert!(codec(8, 1, 1, 4, false).decode(&long, 4, 4, 4).unwrap_err().contains("runs on past"));
+    }
+
+    #[test]
+    fn streams_that_run_on_past_their_chunk_are_errors_a_full_height_last_strip_is_not() {
+        use std::io::Write;
+        // 4 pixels of 4 one-byte samples a row: 16 bytes.
+        let rows2: Vec<u8> = (0..32u8).collect();
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+        z.write_all(&rows2).unwrap();
+        let two_rows = z.finish().unwrap();
+        let deflate = codec(8, 1, 1, 4, false);
+        // A last strip of one row, written at the strip's full two rows.
+        assert_eq!(deflate.decode(&two_rows, 4, 1, 2).unwrap(), rows2[..16]);
+        // The same stream for a chunk of one row: it runs on.
+        assert!(deflate.decode(&two_rows, 4, 1, 1).unwrap_err().contains("runs on past"));
+        // PackBits: 128 copies of one byte where 16 are wanted.
+        let packbits = codec(32773, 1, 1, 4, false);
+        assert!(packbits.decode(&[0x81, 7], 4, 1, 1).unwrap_err().contains("runs on past"));
+        assert_eq!(packbits.decode(&[0xF1, 7], 4, 1, 1).unwrap(), vec![7; 16]);
+        // LZW: 64 bytes where 16 are wanted.
+        let mut lzw = weezl::encode::Encoder::with_tiff_size_switch(weezl::BitOrder::Msb, 8);
+        let coded = lzw.encode(&[3u8; 64]).unwrap();
+        let lzw_codec = codec(5, 1, 1, 4, false);
+        assert!(lzw_codec.decode(&coded, 4, 1, 1).unwrap_err().contains("runs on past"));
+        assert_eq!(lzw_codec.decode(&coded, 4, 4, 4).unwrap(), vec![3; 64]);
     }
 }

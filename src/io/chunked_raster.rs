@@ -145,7 +145,7 @@ impl ChunkedRaster {
     pub fn chunk(&self, k: usize) -> Result<Vec<f32>> {
         let (cw, ch) = self.chunk;
         let rows = if self.tiled { ch } else { ch.min(self.height - k * ch) };
-        let bytes = self.codec.read_chunk(&self.file, &self.path, k, (self.offsets[k], self.counts[k]), cw, rows)?;
+        let bytes = self.codec.read_chunk(&self.file, &self.path, k, (self.offsets[k], self.counts[k]), cw, rows, ch)?;
         Ok(self.sample.to_f32(&bytes))
     }
 

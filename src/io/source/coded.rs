@@ -88,7 +88,7 @@ impl SourceImage {
         let (cw, ch) = info.chunk;
         let rows = if info.tiled { ch } else { (info.height - k % info.chunks_per_plane() * ch).min(ch) };
         let stored = (info.offsets[k as usize], info.byte_counts[k as usize]);
-        codec.read_chunk(file, &self.path, k as usize, stored, cw as usize, rows as usize)
+        codec.read_chunk(file, &self.path, k as usize, stored, cw as usize, rows as usize, ch as usize)
     }
 }
 
