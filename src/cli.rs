@@ -87,6 +87,8 @@ impl SensorArgs {
     /// file is read here: the library does that when it sets up the run.
     pub fn model(&self, crs: Option<u32>) -> Result<(PathBuf, ModelSource)> {
         match (&self.camera, &self.rpc) {
+            (Some(_), None) if self.rpc_offset.is_some() => Err(gcm_ortho::Error::setting("rpc_offset", "goes with --rpc, not a camera file")),
+            (Some(_), None) if self.geoid.is_some() => Err(gcm_ortho::Error::setting("geoid", "goes with --rpc, not a camera file")),
             (Some(c), None) => Ok((c.clone(), ModelSource::CameraFile)),
             (None, Some(r)) => {
                 let offset = self.rpc_offset.as_deref().map(|o| parse_offset("rpc_offset", o)).transpose()?;
@@ -368,6 +370,10 @@ impl RectifyArgs {
             _ => return Err(gcm_ortho::Error::setting("dem", "give a DEM file or a constant height")),
         };
         let crs = match &self.crs {
+            // A frame camera's CRS is its camera file's: refused, not ignored.
+            Some(_) if self.sensor.rpc.is_none() => {
+                return Err(gcm_ortho::Error::setting("crs", "goes with --rpc; a frame camera's CRS is its camera file's crs"));
+            }
             None => None,
             Some(c) => {
                 Some(gcm_ortho::camera::Crs::parse(c).ok_or_else(|| gcm_ortho::Error::setting("crs", format!("'{c}' is not of the form EPSG:<code>")))?.epsg)

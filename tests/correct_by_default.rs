@@ -180,3 +180,28 @@ fn an_unbounded_run_far_off_the_exact_model_says_so_even_when_quiet() {
     assert!(err.is_empty(), "{err}");
     assert_eq!((report["error_bound"].as_f64(), report["error_within"].as_bool()), (Some(0.1), Some(true)));
 }
+
+#[test]
+fn a_crs_given_for_a_frame_camera_is_refused_not_ignored() {
+    // The orthophoto's CRS is the camera file's; --crs would be ignored.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.tif");
+    let r = run(&[
+        "rectify",
+        "--image",
+        s(&root.join("scan.tif")),
+        "--camera",
+        s(&root.join("camera.toml")),
+        "--dem",
+        s(&root.join("dem.tif")),
+        "--crs",
+        "EPSG:4326",
+        "-o",
+        s(&out),
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("--crs") && err.contains("--rpc"), "{err}");
+    assert!(!out.exists());
+}
