@@ -12,6 +12,8 @@
 //! * the DEM, three shares (an eighth): larger DEMs are read a chunk at a
 //!   time through a cache of that size;
 //! * the decoded chunks of a compressed scan, two shares (a twelfth);
+//! * the GCM's node rows of the bands in flight, up to three shares (an
+//!   eighth): the default node spacing grows where finer rows would not fit;
 //! * what is left (~45 %) covers the GCM rows, the threads, the program and
 //!   the allocator's per-thread arenas (20–30 MB on 1 GiB scans), so that
 //!   the peak resident size stays under the budget.
@@ -43,6 +45,20 @@ impl MemoryBudget {
     /// A DEM up to this is read whole; a larger one through a cache this big.
     pub fn dem(&self) -> u64 {
         self.total / 8
+    }
+
+    /// What the node rows of the bands in flight may hold.
+    pub fn node_share(&self) -> u64 {
+        3 * self.share()
+    }
+
+    /// Bytes of node rows (heights, corrections, the image's movement with
+    /// height, about 100 bytes a node) of the four bands in flight at node
+    /// spacing `k`, bands `tile` rows high, rows of up to `width` pixels.
+    pub fn node_rows(&self, k: u32, tile: u32, width: u32) -> u64 {
+        let rows = (tile / k.max(1) + 4) as u64;
+        let across = (width / k.max(1) + 3) as u64;
+        4 * rows * across * 100
     }
 
     /// Scan pixels of `pixel_bytes` a chunk's window may hold.

@@ -124,6 +124,12 @@ impl RunPlan {
         let mut gcm = opts.gcm;
         if opts.auto_sparsity {
             gcm.k = auto_sparsity(&dem, &grid, camera.crs.epsg);
+            // Fine node spacing on a wide output: the node rows of the bands
+            // in flight would outgrow their share of the budget; the error
+            // bound's refinement then does the DEM lines' work instead.
+            if budget.node_rows(gcm.k, opts.tile, grid.width.max(grid.height)) > budget.node_share() {
+                gcm.k = 16;
+            }
         }
 
         // The piece of the grid to make, in tiles (everything by default).
