@@ -11,24 +11,43 @@ use common::*;
 use gcm_ortho::synth::{CameraKind, Relief};
 use std::path::Path;
 
+/// The drone over buildings: an oblique frame with strong barrel
+/// distortion over a DSM posted at 1 m, `w`×`h` px from `scale`.
+fn drone_scene(dir: &Path, (w, h): (u32, u32), scale: f64) -> gcm_ortho::synth::SynthReport {
+    scene(&dir.join("scene"), w, |o| {
+        o.height = h;
+        o.camera = CameraKind::Drone;
+        o.relief = Relief::Urban;
+        o.dem_posting = 1.0;
+        o.scale = scale;
+        o.off_nadir_deg = 25.0;
+        o.kappa_deg = 17.0;
+    })
+}
+
+/// `sc`'s coordinate image (made once) rectified with `extra` into `name`;
+/// and the run's report.
+fn rectify_coords(dir: &Path, sc: &gcm_ortho::synth::SynthReport, (w, h): (u32, u32), name: &str, extra: &[&str]) -> (std::path::PathBuf, serde_json::Value) {
+    let coords = dir.join("coords.tif");
+    if !coords.exists() {
+        coordinate_image(&coords, w, h);
+    }
+    let out = dir.join(name);
+    let json = out.with_extension("json");
+    let mut a = vec!["rectify", "--image", s(&coords), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--nodata", "-1", "--compress", "none", "--quiet"];
+    a.extend_from_slice(extra);
+    a.extend(["-o", s(&out), "--json", s(&json)]);
+    let r = run(&a);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    (out, report)
+}
+
 /// The default run and the exact one on `sc`'s coordinate image, compared
 /// position by position; and the default run's report.
 fn default_against_exact(dir: &Path, sc: &gcm_ortho::synth::SynthReport, w: u32, h: u32) -> (MapDifference, serde_json::Value) {
-    let coords = dir.join("coords.tif");
-    coordinate_image(&coords, w, h);
-    let run_with = |name: &str, extra: &[&str]| {
-        let out = dir.join(name);
-        let json = out.with_extension("json");
-        let mut a = vec!["rectify", "--image", s(&coords), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--nodata", "-1", "--compress", "none", "--quiet"];
-        a.extend_from_slice(extra);
-        a.extend(["-o", s(&out), "--json", s(&json)]);
-        let r = run(&a);
-        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-        let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
-        (out, report)
-    };
-    let (default, report) = run_with("default.tif", &[]);
-    let (exact, _) = run_with("exact.tif", &["--sparsity", "1", "--corrections", "cell"]);
+    let (default, report) = rectify_coords(dir, sc, (w, h), "default.tif", &[]);
+    let (exact, _) = rectify_coords(dir, sc, (w, h), "exact.tif", &["--sparsity", "1", "--corrections", "cell"]);
     (coordinate_map_difference(&default, &exact, w, h), report)
 }
 
@@ -38,15 +57,7 @@ fn an_oblique_drone_frame_over_buildings_is_within_the_bound_at_every_pixel() {
     let (w, h) = (900, 600);
     // 0.33 m pixels from 160 m over a DSM posted at 1 m (3 px): walls
     // 4–30 m high, trees, 25° off nadir, barrel distortion.
-    let sc = scene(&dir.path().join("scene"), w, |o| {
-        o.height = h;
-        o.camera = CameraKind::Drone;
-        o.relief = Relief::Urban;
-        o.dem_posting = 1.0;
-        o.scale = 18_000.0;
-        o.off_nadir_deg = 25.0;
-        o.kappa_deg = 17.0;
-    });
+    let sc = drone_scene(dir.path(), (w, h), 18_000.0);
     let (m, report) = default_against_exact(dir.path(), &sc, w, h);
     eprintln!("drone over buildings: {} px, max {:.4} px, mean {:.5} px", m.pixels, m.max, m.mean);
     assert!(m.pixels > 200_000, "{} px compared", m.pixels);
@@ -83,24 +94,10 @@ fn the_old_defaults_missed_on_these_scenes() {
     // and no bound is pixels off (it would pass the tests above otherwise).
     let dir = tempfile::tempdir().unwrap();
     let (w, h) = (600, 400);
-    let sc = scene(&dir.path().join("scene"), w, |o| {
-        o.height = h;
-        o.camera = CameraKind::Drone;
-        o.relief = Relief::Urban;
-        o.dem_posting = 1.0;
-        o.scale = 12_000.0;
-    });
-    let coords = dir.path().join("coords.tif");
-    coordinate_image(&coords, w, h);
-    let out = |name: &str, extra: &[&str]| {
-        let o = dir.path().join(name);
-        let mut a = vec!["rectify", "--image", s(&coords), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--nodata", "-1", "--compress", "none", "--quiet"];
-        a.extend_from_slice(extra);
-        a.extend(["-o", s(&o)]);
-        assert!(run(&a).status.success());
-        o
-    };
-    let m = coordinate_map_difference(&out("k16.tif", &["--sparsity", "16"]), &out("exact.tif", &["--sparsity", "1", "--corrections", "cell"]), w, h);
+    let sc = drone_scene(dir.path(), (w, h), 12_000.0);
+    let (k16, _) = rectify_coords(dir.path(), &sc, (w, h), "k16.tif", &["--sparsity", "16"]);
+    let (exact, _) = rectify_coords(dir.path(), &sc, (w, h), "exact.tif", &["--sparsity", "1", "--corrections", "cell"]);
+    let m = coordinate_map_difference(&k16, &exact, w, h);
     assert!(m.max > 1.0, "max {} px", m.max);
 }
 
