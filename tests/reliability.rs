@@ -156,6 +156,18 @@ fn absurd_settings_are_refused_before_any_work_with_their_flag() {
 }
 
 #[test]
+fn a_node_spacing_whose_nodes_alone_pass_the_budget_is_refused_with_what_it_takes() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 1000, |_| {});
+    let out = dir.path().join("o.tif");
+    let base = ["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "-o", s(&out), "--memory", "16M"];
+    refused(dir.path(), &[&base[..], &["--sparsity", "1", "--corrections", "cell"]].concat(), &["--sparsity", "MB of GCM nodes", "or more"]);
+    // The same run at a spacing of 8 fits.
+    let r = run(&[&base[..], &["--sparsity", "8"]].concat());
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+}
+
+#[test]
 fn a_long_output_name_works_and_dead_runs_leave_nothing_for_long() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

@@ -32,6 +32,11 @@ impl MemoryBudget {
         MemoryBudget { total }
     }
 
+    /// The whole budget, bytes.
+    pub fn total(&self) -> u64 {
+        self.total
+    }
+
     /// One 24th: a scan window, an output chunk, the queued tiles.
     pub fn share(&self) -> u64 {
         self.total / 24
@@ -52,13 +57,14 @@ impl MemoryBudget {
         3 * self.share()
     }
 
-    /// Bytes of node rows (heights, corrections, the image's movement with
-    /// height, about 100 bytes a node) of the four bands in flight at node
-    /// spacing `k`, bands `tile` rows high, rows of up to `width` pixels.
-    pub fn node_rows(&self, k: u32, tile: u32, width: u32) -> u64 {
+    /// Bytes of node rows of the four bands in flight at node spacing `k`,
+    /// bands `tile` rows high, rows of up to `width` pixels, at
+    /// `bytes_per_node` (heights, corrections and the image's movement with
+    /// height: about 40 measured, 100 at the most).
+    pub fn node_rows(&self, k: u32, tile: u32, width: u32, bytes_per_node: u64) -> u64 {
         let rows = (tile / k.max(1) + 4) as u64;
         let across = (width / k.max(1) + 3) as u64;
-        4 * rows * across * 100
+        4 * rows * across * bytes_per_node
     }
 
     /// Scan pixels of `pixel_bytes` a chunk's window may hold.

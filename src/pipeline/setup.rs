@@ -127,9 +127,25 @@ impl RunPlan {
             // Fine node spacing on a wide output: the node rows of the bands
             // in flight would outgrow their share of the budget; the error
             // bound's refinement then does the DEM lines' work instead.
-            if budget.node_rows(gcm.k, opts.tile, grid.width.max(grid.height)) > budget.node_share() {
+            if budget.node_rows(gcm.k, opts.tile, grid.width.max(grid.height), 100) > budget.node_share() {
                 gcm.k = 16;
             }
+        }
+        // A spacing the user chose so fine that the node rows alone would
+        // pass the budget (`--sparsity 1` on a wide output): refused, with
+        // what it would take.
+        let nodes = budget.node_rows(gcm.k, opts.tile, grid.width.max(grid.height), 40);
+        if !opts.auto_sparsity && nodes > budget.total() {
+            return Err(Error::setting(
+                "sparsity",
+                format!(
+                    "{} keeps about {} MB of GCM nodes in flight at this output's {} px, more than the memory budget: give memory of {} MB or more, or a larger sparsity",
+                    gcm.k,
+                    nodes >> 20,
+                    grid.width.max(grid.height),
+                    (2 * nodes) >> 20
+                ),
+            ));
         }
 
         // The piece of the grid to make, in tiles (everything by default).
