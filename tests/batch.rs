@@ -256,3 +256,25 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("no piece covers tile"));
 }
+
+/// The manifest takes the error bound as the CLI does: 0.1 by default,
+/// `"none"` to opt out, and a bad value fails that job with its line.
+#[test]
+fn the_error_bound_in_a_manifest() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    block(d, 2);
+    let m = d.join("manifest.toml");
+    let report = d.join("r.jsonl");
+    let jobs = "[[job]]\nimage = \"scans/s00.tif\"\ncamera = \"scene/camera.toml\"\n\n[[job]]\nimage = \"scans/s01.tif\"\ncamera = \"scene/camera.toml\"\nmax_error = \"none\"\n";
+    std::fs::write(&m, format!("[defaults]\ndem = \"scene/dem.tif\"\n{jobs}")).unwrap();
+    let r = batch(d, &["--report", s(&report)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let bounds: Vec<serde_json::Value> = lines(&report).iter().map(|l| l["error_bound"].clone()).collect();
+    assert_eq!(bounds, [serde_json::json!(0.1), serde_json::Value::Null]);
+    std::fs::write(&m, "[defaults]\ndem = \"scene/dem.tif\"\nmax_error = -3\n[[job]]\nimage = \"scans/s00.tif\"\ncamera = \"scene/camera.toml\"\n").unwrap();
+    let r = batch(d, &["--force"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(3), "{err}");
+    assert!(err.contains("line") && err.contains("max_error: -3 must be a positive number"), "{err}");
+}

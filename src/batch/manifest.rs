@@ -235,10 +235,11 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
 pub type Files = Vec<(String, PathBuf)>;
 
 /// What the jobs read and what they write (each output with its `.done`
-/// record), each named by its job.
+/// record), each named by its job; jobs already known to fail (their
+/// settings are not theirs) are left out.
 pub fn files(jobs: &[Job]) -> (Files, Files) {
     let (mut ins, mut outs) = (Vec::new(), Vec::new());
-    for j in jobs {
+    for j in jobs.iter().filter(|j| j.problem.is_none()) {
         for (what, p) in j.config.inputs() {
             ins.push((format!("{what} of job {}", j.name), p));
         }
