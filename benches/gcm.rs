@@ -91,7 +91,7 @@ fn kernels(c: &mut Criterion) {
     let spans: Vec<Span> = (0..n / 16)
         .map(|s| {
             let first = s * 16;
-            Span { linear: true, first, end: first + 16, anchor: first, c: cols[first], r: rows[first], dc: 0.87, dr: 0.5 }
+            Span { stepped: true, first, end: first + 16, anchor: first, c: cols[first], r: rows[first], dc: 0.87, dr: 0.5, ddc: 0.0, ddr: 0.0 }
         })
         .collect();
     g.bench_function("bilinear_spans", |b| {
@@ -111,13 +111,24 @@ fn kernels(c: &mut Criterion) {
         if x + len > m {
             break;
         }
-        varied.push(Span { linear: true, first: x, end: x + len, anchor: x, c: cols[0] + x as f64 * 0.87, r: rows[0] + x as f64 * 0.5, dc: 0.87, dr: 0.5 });
+        varied.push(Span {
+            stepped: true,
+            first: x,
+            end: x + len,
+            anchor: x,
+            c: cols[0] + x as f64 * 0.87,
+            r: rows[0] + x as f64 * 0.5,
+            dc: 0.87,
+            dr: 0.5,
+            ddc: 0.0,
+            ddr: 0.0,
+        });
         x += len;
     }
     let mv = x;
     g.bench_function("bilinear_span_run_varied", |b| b.iter(|| resample_spans(&view, &varied, &mut out[..mv * 3], &mut valid[..mv], 0)));
     // The same pixels as one span: what the set-up of ~13-pixel spans costs.
-    let long = [Span { linear: true, first: 0, end: m, anchor: 0, c: cols[0], r: rows[0], dc: 0.87, dr: 0.5 }];
+    let long = [Span { stepped: true, first: 0, end: m, anchor: 0, c: cols[0], r: rows[0], dc: 0.87, dr: 0.5, ddc: 0.0, ddr: 0.0 }];
     g.bench_function("bilinear_one_long_span", |b| b.iter(|| resample_spans(&view, &long, &mut out[..m * 3], &mut valid[..m], 0)));
     g.finish();
 }

@@ -178,15 +178,42 @@ pub struct Gcm<'a> {
     relief: (f64, f64),
 }
 
-/// How far (in scan pixels) a straight line between node columns may stray
-/// from `A` itself for [`Gcm::row_spans`] to stand in for it: a quarter of
-/// the 1/1024 pixel the bilinear kernel's weights resolve.
+/// How far (in scan pixels) a stepped span (a straight line or a
+/// quadratic) between node columns may stray from `A` itself for
+/// [`Gcm::row_spans`] to stand in for it: a quarter of the 1/1024 pixel
+/// the bilinear kernel's weights resolve.
 pub const A_LINEAR_TOLERANCE: f64 = 1.0 / 4096.0;
 
-/// The most straight pieces [`Gcm::row_spans`] cuts a gap between node
+/// The most quadratic pieces [`Gcm::row_spans`] cuts a gap between node
 /// columns into where `A` curves: beyond, pieces of a few pixels cost more
 /// in set-up than working every position out.
 pub const MAX_SPANS_A_GAP: usize = 4;
+
+/// The forward differences (first step, and its step) of the quadratic
+/// through `f` at pixels `p0` (where it is `f0`), the middle one and
+/// `p1 − 1`: the span from `p0` steps `f0, f0 + d, f0 + 2d + dd, …`.
+/// Straight for two pixels, nothing for one.
+fn quadratic_steps(f0: (f64, f64), p0: usize, p1: usize, f: impl Fn(usize) -> (f64, f64)) -> ([f64; 2], [f64; 2]) {
+    let l = p1.saturating_sub(p0 + 1);
+    if l == 0 {
+        return ([0.0; 2], [0.0; 2]);
+    }
+    let fl = f(p1 - 1);
+    if l == 1 {
+        return ([fl.0 - f0.0, fl.1 - f0.1], [0.0; 2]);
+    }
+    let m = l / 2;
+    let fm = f(p0 + m);
+    let (l, m) = (l as f64, m as f64);
+    // Divided differences: f = f0 + b·t + q·t², then d = b + q, dd = 2q.
+    let one = |f0: f64, fm: f64, fl: f64| {
+        let (left, right) = ((fm - f0) / m, (fl - fm) / (l - m));
+        let q = (right - left) / l;
+        (left - q * m + q, 2.0 * q)
+    };
+    let ((dc, ddc), (dr, ddr)) = (one(f0.0, fm.0, fl.0), one(f0.1, fm.1, fl.1));
+    ([dc, dr], [ddc, ddr])
+}
 
 impl<'a> Gcm<'a> {
     pub fn new(t: &'a Transform<'a>, a: Approx, spec: GcmSpec) -> Gcm<'a> {
@@ -867,18 +894,19 @@ impl<'a> Gcm<'a> {
 
     /// Output row `y`'s columns `x0..x0+len` as [`Span`]s, one per gap
     /// between node columns, into `spans`; `false` (and `spans` empty)
-    /// where the row cannot have straight spans: cell mode, A behind the
+    /// where the row cannot have stepped spans: cell mode, A behind the
     /// camera anywhere along the row, or A, whose denominator is linear in
     /// u, curving so much that a gap would need more than
-    /// [`MAX_SPANS_A_GAP`] straight pieces to stay within
-    /// [`A_LINEAR_TOLERANCE`] of it. Where A curves by more than that across
-    /// the widest gap, every gap is cut into as many equal pieces as bring
-    /// the widest within it (A's deviation from a chord grows with the
-    /// square of its length), each piece the chord of `A + c` between its
-    /// first and last pixels. The tests look at the whole row or the gap
-    /// alone, and each line is anchored at its gap's (or piece's) first
-    /// pixel, so a pixel's position does not depend on which piece of the
-    /// row is asked for.
+    /// [`MAX_SPANS_A_GAP`] quadratic pieces to stay within
+    /// [`A_LINEAR_TOLERANCE`] of it. Where A's deviation from a chord
+    /// across the widest gap (|A''|·L²/8) is within the tolerance, each gap
+    /// is one straight span; elsewhere every gap is cut into as many equal
+    /// quadratic pieces as bring the widest within it (the interpolating
+    /// quadratic's error, at most |A'''|·L³/48), each through `A + c` at
+    /// its first, middle and last pixels. The tests look at the whole row
+    /// or the gap alone, and each piece is anchored at its gap's (or
+    /// piece's) first pixel, so a pixel's position does not depend on which
+    /// piece of the row is asked for.
     pub fn row_spans(&self, band: &BandGcm, y: u32, x0: u32, len: usize, spans: &mut Vec<Span>) -> bool {
         spans.clear();
         if self.spec.mode != CorrectionMode::Bilinear || len == 0 {
@@ -891,9 +919,12 @@ impl<'a> Gcm<'a> {
         if !(d > 0.0) {
             return false;
         }
-        // The largest |A''| of either coordinate, at the smallest denominator.
+        // The largest |A''| of either coordinate, at the smallest
+        // denominator, and |A'''| = 3·|e|/d·|A''| there.
         let bend = 2.0 * ra.e.abs() * (ra.m * ra.f - ra.e * ra.n).abs().max((ra.p * ra.f - ra.e * ra.q).abs()) / (d * d * d);
-        let cuts = (bend * self.max_gap * self.max_gap / (8.0 * A_LINEAR_TOLERANCE)).sqrt().ceil().max(1.0);
+        let twist = 3.0 * ra.e.abs() / d * bend;
+        let straight = bend * self.max_gap * self.max_gap / 8.0 <= A_LINEAR_TOLERANCE;
+        let cuts = if straight { 1.0 } else { (self.max_gap * (twist / (48.0 * A_LINEAR_TOLERANCE)).cbrt()).ceil().max(1.0) };
         if !(cuts <= MAX_SPANS_A_GAP as f64) {
             return false;
         }
@@ -916,6 +947,9 @@ impl<'a> Gcm<'a> {
         // of each other, two at a time), then the block's gaps.
         const BLOCK: usize = 32;
         let (mut pc, mut pr) = ([0.0f64; BLOCK + 1], [0.0f64; BLOCK + 1]);
+        // A alone at the nodes, and A + c at the gaps' middles (quadratic spans only).
+        let (mut acs, mut ars) = ([0.0f64; BLOCK + 1], [0.0f64; BLOCK + 1]);
+        let (mut mc, mut mr) = ([0.0f64; BLOCK], [0.0f64; BLOCK]);
         let n_gaps = xs.len() - 1;
         let mut g0 = 0;
         while g0 < n_gaps {
@@ -923,11 +957,20 @@ impl<'a> Gcm<'a> {
             let m = (n_gaps - g0).min(BLOCK);
             let nodes = g0..g0 + m + 1;
             let (xs, adc, adr, bdc, bdr) = (&xs[nodes.clone()], &adc[nodes.clone()], &adr[nodes.clone()], &bdc[nodes.clone()], &bdr[nodes]);
-            for (((&u, (&adc, &adr)), (&bdc, &bdr)), (oc, or)) in
-                xs.iter().zip(adc.iter().zip(adr)).zip(bdc.iter().zip(bdr)).zip(pc.iter_mut().zip(pr.iter_mut()))
+            for ((((&u, (&adc, &adr)), (&bdc, &bdr)), (oc, or)), (a_c, a_r)) in
+                xs.iter().zip(adc.iter().zip(adr)).zip(bdc.iter().zip(bdr)).zip(pc.iter_mut().zip(pr.iter_mut())).zip(acs.iter_mut().zip(ars.iter_mut()))
             {
                 let (ac, ar) = ra.at(u);
                 (*oc, *or) = (ac + adc + fy * (bdc - adc), ar + adr + fy * (bdr - adr));
+                (*a_c, *a_r) = (ac, ar);
+            }
+            if !straight && cuts == 1 {
+                // At each gap's middle: A there, and the mean of its nodes' corrections.
+                for (k, (oc, or)) in mc.iter_mut().zip(mr.iter_mut()).enumerate().take(m) {
+                    let (ac, ar) = ra.at(0.5 * (xs[k] + xs[k + 1]));
+                    *oc = ac + 0.5 * ((pc[k] - acs[k]) + (pc[k + 1] - acs[k + 1]));
+                    *or = ar + 0.5 * ((pr[k] - ars[k]) + (pr[k + 1] - ars[k + 1]));
+                }
             }
             for k in 0..m {
                 let g = g0 + k;
@@ -938,14 +981,25 @@ impl<'a> Gcm<'a> {
                 // (positions ·2³² below 2⁵¹: a scan of 2¹⁸ pixels a side).
                 const FIXED: f64 = (1u64 << 18) as f64;
                 let refined = refined.is_some_and(|q| q[g].is_some());
-                let linear =
-                    |c: f64, r: f64, dc: f64, dr: f64| !refined && c.abs() < FIXED && r.abs() < FIXED && dc.abs() * 1024.0 < FIXED && dr.abs() * 1024.0 < FIXED;
-                if end > x && cuts == 1 {
+                let stepped = |c: f64, r: f64, d: [f64; 4]| !refined && c.abs() < FIXED && r.abs() < FIXED && d.iter().all(|d| d.abs() * 1024.0 < FIXED);
+                if end > x && straight {
                     let inv = inv_dx[g];
                     let (dc, dr) = ((right.0 - left.0) * inv, (right.1 - left.1) * inv);
                     let off = anchor_off[g];
                     let (c, r) = (left.0 + off * dc, left.1 + off * dr);
-                    spans.push(Span { linear: linear(c, r, dc, dr), first: x, end, anchor: first_px[g], c, r, dc, dr });
+                    spans.push(Span { stepped: stepped(c, r, [dc, dr, 0.0, 0.0]), first: x, end, anchor: first_px[g], c, r, dc, dr, ddc: 0.0, ddr: 0.0 });
+                } else if end > x && cuts == 1 {
+                    // The quadratic through A + c at the gap's nodes and
+                    // middle, s = u − u_left: f = fl + b·s + q·s²; stepped
+                    // from the gap's first pixel (s = off).
+                    let (half, off) = (0.5 / inv_dx[g], anchor_off[g]);
+                    let steps = |fl: f64, fm: f64, fr: f64| {
+                        let q = (fl - 2.0 * fm + fr) / (2.0 * half * half);
+                        let b = (fm - fl) / half - q * half;
+                        (fl + off * (b + q * off), b + q * (2.0 * off + 1.0), 2.0 * q)
+                    };
+                    let ((c, dc, ddc), (r, dr, ddr)) = (steps(left.0, mc[k], right.0), steps(left.1, mr[k], right.1));
+                    spans.push(Span { stepped: stepped(c, r, [dc, dr, ddc, ddr]), first: x, end, anchor: first_px[g], c, r, dc, dr, ddc, ddr });
                 } else if end > x {
                     // The gap's pixels (all of them, wherever the asked
                     // piece of the row begins and ends) in `cuts` pieces.
@@ -971,14 +1025,8 @@ impl<'a> Gcm<'a> {
                             continue;
                         }
                         let (c, r) = at(p0);
-                        let (dc, dr) = if p1 - p0 > 1 {
-                            let (lc, lr) = at(p1 - 1);
-                            let steps = (p1 - p0 - 1) as f64;
-                            ((lc - c) / steps, (lr - r) / steps)
-                        } else {
-                            (0.0, 0.0)
-                        };
-                        spans.push(Span { linear: linear(c, r, dc, dr), first, end: stop, anchor: p0, c, r, dc, dr });
+                        let ([dc, dr], [ddc, ddr]) = quadratic_steps((c, r), p0, p1, at);
+                        spans.push(Span { stepped: stepped(c, r, [dc, dr, ddc, ddr]), first, end: stop, anchor: p0, c, r, dc, dr, ddc, ddr });
                     }
                 }
                 x = end;
@@ -1001,7 +1049,7 @@ impl<'a> Gcm<'a> {
         let mut fallback = 0;
         for s in &spans {
             let (a, b) = (s.first - x0 as usize, s.end - x0 as usize);
-            if s.linear {
+            if s.stepped {
                 s.fill(&self.ramp, &mut cols[a..b], &mut rows[a..b]);
             } else {
                 fallback += self.fill_exact(band, y, s.first as u32, &mut cols[a..b], &mut rows[a..b], miss);
@@ -1010,7 +1058,7 @@ impl<'a> Gcm<'a> {
         fallback
     }
 
-    /// [`Gcm::fill_row`] without straight spans: A itself at every pixel.
+    /// [`Gcm::fill_row`] without stepped spans: A itself at every pixel.
     pub fn fill_exact(&self, band: &BandGcm, y: u32, x0: u32, cols: &mut [f64], rows: &mut [f64], miss: &mut Option<(f64, f64, Lookup)>) -> u64 {
         let (j0, j1, fy) = self.rows_for(y);
         let a = &band.rows[(j0 - band.first_j) as usize];
@@ -1194,8 +1242,42 @@ mod tests {
     use super::*;
 
     #[test]
+    fn quadratic_steps_reproduce_a_quadratic_and_bound_a_fractional_linear_one() {
+        // A quadratic in the pixel: its forward differences, exactly.
+        let f = |p: usize| {
+            let t = p as f64;
+            (3.0 + 0.7 * t - 0.004 * t * t, -2.0 + 0.1 * t + 0.0125 * t * t)
+        };
+        for (p0, p1) in [(10, 27), (0, 3), (5, 6), (5, 7), (100, 112)] {
+            let (d, dd) = quadratic_steps(f(p0), p0, p1, f);
+            let span = Span { stepped: true, first: p0, end: p1, anchor: p0, c: f(p0).0, r: f(p0).1, dc: d[0], dr: d[1], ddc: dd[0], ddr: dd[1] };
+            for p in p0..p1 {
+                let (a, b) = (span.at(p), f(p));
+                assert!((a.0 - b.0).abs() < 1e-9 && (a.1 - b.1).abs() < 1e-9, "{p0}..{p1} at {p}: {a:?} {b:?}");
+            }
+            let bounds = span.bounds();
+            assert!((p0..p1).all(|p| {
+                let (c, r) = f(p);
+                c >= bounds[0] && r >= bounds[1] && c <= bounds[2] && r <= bounds[3]
+            }));
+        }
+        // A fractional-linear A across 16 pixels: within |A'''|·L³/48.
+        let (m, n, e, ff) = (0.93, 12.0, -2.0e-3, 1.4);
+        let a = |p: usize| {
+            let u = p as f64 + 0.5;
+            ((m * u + n) / (e * u + ff), 0.0)
+        };
+        let (d, dd) = quadratic_steps(a(0), 0, 17, a);
+        let span = Span { stepped: true, first: 0, end: 17, anchor: 0, c: a(0).0, r: 0.0, dc: d[0], dr: d[1], ddc: dd[0], ddr: dd[1] };
+        let dmin = e * 16.5 + ff;
+        let third = 6.0 * e * e * (m * ff - e * n).abs() / dmin.powi(4);
+        let worst = (0..17).map(|p| (span.at(p).0 - a(p).0).abs()).fold(0.0, f64::max);
+        assert!(worst > 0.0 && worst <= third * 16f64.powi(3) / 48.0, "{worst} {}", third * 16f64.powi(3) / 48.0);
+    }
+
+    #[test]
     fn spans_are_cut_at_every_tile_edge_and_nowhere_else() {
-        let span = |first, end, c| Span { linear: true, first, end, anchor: first, c, r: 0.0, dc: 1.0, dr: 0.0 };
+        let span = |first, end, c| Span { stepped: true, first, end, anchor: first, c, r: 0.0, dc: 1.0, dr: 0.0, ddc: 0.0, ddr: 0.0 };
         // Spans of 13 to 171 pixels from column 100, tiles of 16 from 100.
         let bounds = [100, 113, 129, 300, 301, 333];
         let spans: Vec<Span> = bounds.windows(2).map(|w| span(w[0], w[1], w[0] as f64)).collect();
@@ -1215,7 +1297,7 @@ mod tests {
         let got: Vec<(usize, usize, usize, f64)> = pieces.iter().map(|(t, p)| (*t, p.first, p.end, p.c)).collect();
         assert_eq!(got, want);
         // Each piece keeps its span's line.
-        assert!(pieces.iter().all(|(_, p)| p.anchor == p.c as usize && p.dc == 1.0 && p.linear));
+        assert!(pieces.iter().all(|(_, p)| p.anchor == p.c as usize && p.dc == 1.0 && p.stepped));
         assert_eq!(Span::by_tile(&[], 0, 16).count(), 0);
     }
 }

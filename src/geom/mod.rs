@@ -1,6 +1,6 @@
 //! Plane geometry shared by every stage: the orthophoto grid (ground ↔ output
 //! pixel), 2-D affine maps (interior orientation, GeoTIFF transforms), the
-//! terrain plane, straight spans of scan positions, and fast floors.
+//! terrain plane, stepped spans of scan positions, and fast floors.
 
 mod affine;
 mod floor;

@@ -1,14 +1,17 @@
-//! Straight runs of scan positions along an output row: what the GCM
-//! hands the resampler where `A + c` is linear between node columns.
+//! Runs of scan positions along an output row that step by differences:
+//! what the GCM hands the resampler where `A + c` is smooth between node
+//! columns.
 
 /// Output pixels `first..end` of a row, in one gap between node columns.
-/// Where `linear`, the scan position is a straight line: at pixel x,
-/// `(c + (x − anchor)·dc, r + (x − anchor)·dr)`, where `anchor` is the
-/// gap's first pixel. Where not (a refined cell, a node without a value),
-/// `Gcm::fill_exact` works the positions out pixel by pixel.
+/// Where `stepped`, the scan position at pixel x is a quadratic in
+/// m = x − anchor (`anchor` is the gap's, or the piece's, first pixel),
+/// written in forward differences so that it steps by additions:
+/// `c + m·dc + m(m − 1)/2·ddc` (and so for r). Straight spans have
+/// `ddc = ddr = 0`. Where not stepped (a refined cell, a node without a
+/// value), `Gcm::fill_exact` works the positions out pixel by pixel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Span {
-    pub linear: bool,
+    pub stepped: bool,
     pub first: usize,
     pub end: usize,
     pub anchor: usize,
@@ -16,6 +19,8 @@ pub struct Span {
     pub r: f64,
     pub dc: f64,
     pub dr: f64,
+    pub ddc: f64,
+    pub ddr: f64,
 }
 
 impl Span {
@@ -24,7 +29,7 @@ impl Span {
     #[inline]
     pub fn fill(&self, ramp: &[f64], cols: &mut [f64], rows: &mut [f64]) {
         let off = (self.first - self.anchor) as f64;
-        if ramp.len() < cols.len() {
+        if ramp.len() < cols.len() || self.ddc != 0.0 || self.ddr != 0.0 {
             for (j, (oc, or)) in cols.iter_mut().zip(rows.iter_mut()).enumerate() {
                 (*oc, *or) = self.at(self.first + j);
             }
@@ -67,6 +72,17 @@ impl Span {
     #[inline]
     pub fn at(&self, x: usize) -> (f64, f64) {
         let m = x as f64 - self.anchor as f64;
-        (self.c + m * self.dc, self.r + m * self.dr)
+        let t = 0.5 * m * (m - 1.0);
+        (self.c + m * self.dc + t * self.ddc, self.r + m * self.dr + t * self.ddr)
+    }
+
+    /// A box (columns, rows: `[c_min, r_min, c_max, r_max]`) holding every
+    /// position of pixels `first..end`: the ends', widened by the most a
+    /// quadratic strays from its chord, |dd|·(n − 1)²/8.
+    pub fn bounds(&self) -> [f64; 4] {
+        let ((c0, r0), (c1, r1)) = (self.at(self.first), self.at(self.end.max(self.first + 1) - 1));
+        let n = self.end.saturating_sub(self.first).max(1) as f64 - 1.0;
+        let (sc, sr) = (self.ddc.abs() * n * n / 8.0, self.ddr.abs() * n * n / 8.0);
+        [c0.min(c1) - sc, r0.min(r1) - sr, c0.max(c1) + sc, r0.max(r1) + sr]
     }
 }

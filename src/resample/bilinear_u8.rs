@@ -127,19 +127,20 @@ fn bilerp_pixel_scalar<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: 
     r
 }
 
-/// A straight run of `out.len() / B` pixels whose four neighbours all lie
+/// A stepped run of `out.len() / B` pixels whose four neighbours all lie
 /// inside `bytes` (rows `row` bytes apart): pixel `i` at fixed-point
-/// position `q + i·dq` (32 fractional bits, the kernel's origin: position
+/// position `f.at(i)` (32 fractional bits, the kernel's origin: position
 /// − ½), less the window's origin `origin` in whole pixels. The caller has
-/// checked the first and last pixel; positions are linear, so every pixel
-/// between lies inside too. Same arithmetic as [`bilerp_pixel`].
+/// checked that the span's bounds lie inside. Same arithmetic as
+/// [`bilerp_pixel`].
 #[inline(always)]
-pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), q: (i64, i64), dq: (i64, i64), out: &mut [u8]) {
+pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), f: &super::Fixed, out: &mut [u8]) {
     // Counted from the window's origin (whole pixels: the fractions, and so
     // the weights, stay as they are), plus half of 1/1024 pixel, so that
     // dropping the low 22 bits rounds to the weights' resolution.
     let start = |q: i64, o: i64| q.wrapping_sub(o << 32).wrapping_add(1 << 21);
-    let (mut qc, mut qr) = (start(q.0, origin.0), start(q.1, origin.1));
+    let (mut qc, mut qr) = (start(f.q[0], origin.0), start(f.q[1], origin.1));
+    let ([mut dqc, mut dqr], [ddqc, ddqr]) = (f.dq, f.ddq);
     let pixel = |qc: i64, qr: i64| {
         // Whole pixels above the 32 fractional bits; the weights (1/1024
         // pixel) are the fraction's top 10 bits.
@@ -155,8 +156,10 @@ pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64),
     let mut o = 0;
     while o < body {
         out[o..o + 4].copy_from_slice(&pixel(qc, qr).to_le_bytes());
-        qc = qc.wrapping_add(dq.0);
-        qr = qr.wrapping_add(dq.1);
+        qc = qc.wrapping_add(dqc);
+        qr = qr.wrapping_add(dqr);
+        dqc = dqc.wrapping_add(ddqc);
+        dqr = dqr.wrapping_add(ddqr);
         o += B;
     }
     if let Some(last) = out.get_mut(o..o + B) {

@@ -417,27 +417,30 @@ pub enum SpanOutcome {
     Checked { clamped: bool },
 }
 
-/// Whether the `n` pixels of a straight span from fixed-point position `q`
-/// in steps of `dq` ([`span_fixed`]) can take the loop with nothing to
-/// check per pixel: 8-bit RGB/RGBA whose four neighbours all lie inside a
-/// window that lies in the scan (so every pixel has a value), with the
-/// 8-byte loads inside the window's bytes: every upper-left neighbour
-/// below `limits` ([`inside_limits`], worked out once for the window).
+/// Whether the `n` pixels of a span from fixed-point position `q` in steps
+/// of `dq`, the steps growing by `ddq` ([`span_fixed`]), can take the loop
+/// with nothing to check per pixel: 8-bit RGB/RGBA whose four neighbours
+/// all lie inside a window that lies in the scan (so every pixel has a
+/// value), with the 8-byte loads inside the window's bytes: every
+/// upper-left neighbour below `limits` ([`inside_limits`], worked out once
+/// for the window).
 #[inline(always)]
-fn span_is_inside<T: Sample, const B: usize>(view: &View<'_, T>, q: [i64; 2], dq: [i64; 2], n: usize, (wl, hl): (u64, u64)) -> bool {
+fn span_is_inside<T: Sample, const B: usize>(view: &View<'_, T>, f: &Fixed, n: usize, (wl, hl): (u64, u64)) -> bool {
     if !(n > 0 && byte_loop_applies::<T, B>(view)) {
         return false;
     }
-    // The window-relative upper-left neighbour of pixel `i`, rounded as the
-    // weights are (to 1/1024 pixel).
-    let corner = |i: i64| {
-        let (qc, qr) = (q[0].wrapping_add(i.wrapping_mul(dq[0])), q[1].wrapping_add(i.wrapping_mul(dq[1])));
-        ((qc.wrapping_add(1 << 21) >> 32) - view.x0, (qr.wrapping_add(1 << 21) >> 32) - view.y0)
-    };
-    // Positions are linear and the rounding monotone, so the two ends bound
-    // every pixel between.
-    let ((ia, ja), (ib, jb)) = (corner(0), corner(n as i64 - 1));
-    (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl
+    // Each coordinate's least and greatest position: its ends', widened by
+    // the most a quadratic strays from its chord (|ddq|·(n − 1)²/8, none
+    // for a straight span); then the window-relative upper-left neighbour,
+    // rounded as the weights are (to 1/1024 pixel): monotone, so these
+    // bound every pixel between.
+    let last = f.at(n as i64 - 1);
+    let sag = |k: usize| f.ddq[k].unsigned_abs().saturating_mul(((n - 1) * (n - 1)) as u64).div_ceil(8).min(1 << 62) as i64;
+    let index = |q: i64, o: i64| (q.wrapping_add(1 << 21) >> 32) - o;
+    let (sc, sr) = (sag(0), sag(1));
+    let (ia, ib) = (index(f.q[0].min(last[0]).wrapping_sub(sc), view.x0), index(f.q[0].max(last[0]).wrapping_add(sc), view.x0));
+    let (ja, jb) = (index(f.q[1].min(last[1]).wrapping_sub(sr), view.y0), index(f.q[1].max(last[1]).wrapping_add(sr), view.y0));
+    ia <= ib && ja <= jb && (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl
 }
 
 /// Whether [`bilinear_u8::span_inside`] can serve this window at all:
@@ -466,11 +469,11 @@ fn inside_limits<T: Sample, const B: usize>(view: &View<'_, T>) -> (u64, u64) {
 /// neighbour of pixel `n − 1` of a span, in its row and the next (a hint:
 /// nothing where they lie outside the bytes, nothing off x86-64).
 #[inline(always)]
-fn prefetch_corner<const B: usize>(view: &View<'_, impl Sample>, bytes: &[u8], row: usize, q: [i64; 2], dq: [i64; 2], n: usize) {
+fn prefetch_corner<const B: usize>(view: &View<'_, impl Sample>, bytes: &[u8], row: usize, f: &Fixed, n: usize) {
     #[cfg(target_arch = "x86_64")]
     {
-        let last = n as i64 - 1;
-        let at = |k: usize, o: i64| ((q[k].wrapping_add(last.wrapping_mul(dq[k])).wrapping_add(1 << 21) >> 32) - o) as usize;
+        let last = f.at(n as i64 - 1);
+        let at = |k: usize, o: i64| ((last[k].wrapping_add(1 << 21) >> 32) - o) as usize;
         let s = at(1, view.y0).wrapping_mul(row).wrapping_add(at(0, view.x0).wrapping_mul(B));
         if let Some(b) = bytes.get(s) {
             safe_arch::prefetch_t0(b);
@@ -479,26 +482,30 @@ fn prefetch_corner<const B: usize>(view: &View<'_, impl Sample>, bytes: &[u8], r
             safe_arch::prefetch_t0(b);
         }
     }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (view, bytes, row, f, n);
 }
 
-/// Bilinear along a straight span of scan positions (output pixels
+/// Bilinear along a stepped span of scan positions (output pixels
 /// `span.first..span.end`, `B` bands each into `out`): the position steps
-/// by a constant in fixed point with 32 fractional bits, counted from the
-/// span's anchor so that a pixel's value does not depend on where a piece
-/// of the row starts. As [`resample_row`], except that a span wholly
-/// inside the window leaves `valid` as it is ([`SpanOutcome::Inside`]).
+/// in fixed point with 32 fractional bits, by a step that itself steps by a
+/// constant, counted from the span's anchor so that a pixel's value does
+/// not depend on where a piece of the row starts. As [`resample_row`],
+/// except that a span wholly inside the window leaves `valid` as it is
+/// ([`SpanOutcome::Inside`]).
 #[inline(always)]
 pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span, out: &mut [T], valid: &mut [bool], fill: T) -> SpanOutcome {
-    let ([mut qc, mut qr], [dqc, dqr]) = span_fixed(span, span.first);
+    let f = span_fixed(span, span.first);
     let n = out.len() / B;
     // 8-bit RGB/RGBA wholly inside the window (nearly every span): a loop
     // with nothing to check per pixel.
     // (The limits, with their division, only for a window the loop takes.)
-    if byte_loop_applies::<T, B>(view) && span_is_inside::<T, B>(view, [qc, qr], [dqc, dqr], n, inside_limits::<T, B>(view)) {
+    if byte_loop_applies::<T, B>(view) && span_is_inside::<T, B>(view, &f, n, inside_limits::<T, B>(view)) {
         let bytes: &[u8] = bytemuck::cast_slice(view.data);
-        bilinear_u8::span_inside::<B>(bytes, view.stride as usize * B, (view.x0, view.y0), (qc, qr), (dqc, dqr), bytemuck::cast_slice_mut(out));
+        bilinear_u8::span_inside::<B>(bytes, view.stride as usize * B, (view.x0, view.y0), &f, bytemuck::cast_slice_mut(out));
         return SpanOutcome::Inside;
     }
+    let Fixed { q: [mut qc, mut qr], dq: [mut dqc, mut dqr], ddq: [ddqc, ddqr] } = f;
     let half = 1i64 << 31;
     let (w_lim, h_lim) = ((view.img_w as i64) << 32, (view.img_h as i64) << 32);
     let (wl, hl) = ((view.w - 1).max(0) as u64, (view.h - 1).max(0) as u64);
@@ -513,6 +520,8 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
         let (fx, fy) = (qc.wrapping_add(1 << 21) >> 22, qr.wrapping_add(1 << 21) >> 22);
         qc = qc.wrapping_add(dqc);
         qr = qr.wrapping_add(dqr);
+        dqc = dqc.wrapping_add(ddqc);
+        dqr = dqr.wrapping_add(ddqr);
         if !*v {
             *px = [fill; B];
             continue;
@@ -529,24 +538,56 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
     SpanOutcome::Checked { clamped }
 }
 
-/// (position − ½)·2³² (the kernel's origin) at output pixel `x` of a span,
-/// and its step from one pixel to the next.
+/// A span's positions in fixed point, (position − ½)·2³² (the kernel's
+/// origin), from one of its pixels on: the position `q` there, its step
+/// `dq` to the next pixel, and the step's own step `ddq` (zero on a
+/// straight span). Stepping by additions and [`Fixed::at`] give the same
+/// integers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Fixed {
+    pub q: [i64; 2],
+    pub dq: [i64; 2],
+    pub ddq: [i64; 2],
+}
+
+impl Fixed {
+    /// The position `m` pixels on.
+    #[inline(always)]
+    pub fn at(&self, m: i64) -> [i64; 2] {
+        let t = m.wrapping_mul(m.wrapping_sub(1)) / 2;
+        let one = |k: usize| self.q[k].wrapping_add(m.wrapping_mul(self.dq[k])).wrapping_add(t.wrapping_mul(self.ddq[k]));
+        [one(0), one(1)]
+    }
+}
+
+/// [`Fixed`] at output pixel `x` of a span.
 #[inline]
-fn span_fixed(span: &Span, x: usize) -> ([i64; 2], [i64; 2]) {
+fn span_fixed(span: &Span, x: usize) -> Fixed {
     const ONE: f64 = 4_294_967_296.0;
-    // Exact for what a straight span holds (|v| < 2¹⁸, see `Gcm::row_spans`).
+    // Exact for what a stepped span holds (|v| < 2¹⁸, see `Gcm::row_spans`).
     let fixed = |v: f64| floor_split(v * ONE + 0.5).0;
-    let (dqc, dqr) = (fixed(span.dc), fixed(span.dr));
+    let from_anchor = Fixed { q: [fixed(span.c - 0.5), fixed(span.r - 0.5)], dq: [fixed(span.dc), fixed(span.dr)], ddq: [fixed(span.ddc), fixed(span.ddr)] };
     let skip = x as i64 - span.anchor as i64;
-    ([fixed(span.c - 0.5).wrapping_add(skip.wrapping_mul(dqc)), fixed(span.r - 0.5).wrapping_add(skip.wrapping_mul(dqr))], [dqc, dqr])
+    let dq = |k: usize| from_anchor.dq[k].wrapping_add(skip.wrapping_mul(from_anchor.ddq[k]));
+    Fixed { q: from_anchor.at(skip), dq: [dq(0), dq(1)], ddq: from_anchor.ddq }
 }
 
 /// The scan position [`bilinear_span`] resamples at output pixel `x` of a
 /// span, to 1/1024 pixel: the same value there through [`resample_row`].
 pub fn span_position(span: &Span, x: usize) -> (f64, f64) {
-    let ([qc, qr], _) = span_fixed(span, x);
-    let q = |v: i64| (v.wrapping_add(1 << 21) >> 22) as f64 / 1024.0 + 0.5;
-    (q(qc), q(qr))
+    let q = span_fixed(span, x).q;
+    let to = |v: i64| (v.wrapping_add(1 << 21) >> 22) as f64 / 1024.0 + 0.5;
+    (to(q[0]), to(q[1]))
+}
+
+/// A box (`[c_min, r_min, c_max, r_max]`) holding every position
+/// [`span_position`] gives over the span's pixels.
+pub fn span_bounds(span: &Span) -> [f64; 4] {
+    // Span::bounds on the float positions, widened by the fixed point's
+    // rounding (half of 1/1024 pixel) and the steps' (far below).
+    let b = span.bounds();
+    let e = 1.0 / 1024.0;
+    [b[0] - e, b[1] - e, b[2] + e, b[3] + e]
 }
 
 /// [`bilinear_span`] for 1 to 4 bands.
@@ -554,7 +595,7 @@ pub fn resample_span<T: Sample>(view: &View<'_, T>, span: &Span, out: &mut [T], 
     resample_spans(view, std::slice::from_ref(span), out, valid, fill)
 }
 
-/// [`bilinear_span`] along consecutive straight spans (a row or a piece of
+/// [`bilinear_span`] along consecutive stepped spans (a row or a piece of
 /// one, as the GCM's `row_spans` makes them), into `out` and
 /// `valid` from the first span's first pixel on: one call for the whole
 /// run, so that the work per span stays small beside its ~16 pixels.
@@ -604,21 +645,21 @@ fn bilinear_spans<T: Sample, const B: usize>(view: &View<'_, T>, spans: &[Span],
     const BLOCK: usize = 32;
     let bytes: &[u8] = bytemuck::cast_slice(view.data);
     let row = view.stride as usize * B;
-    let mut prepared = [([0i64; 2], [0i64; 2], false); BLOCK];
+    let mut prepared = [(Fixed::default(), false); BLOCK];
     let limits = inside_limits::<T, B>(view);
     for block in spans.chunks(BLOCK) {
         for (p, span) in prepared.iter_mut().zip(block) {
-            let (q, dq) = span_fixed(span, span.first);
+            let f = span_fixed(span, span.first);
             let n = span.end.saturating_sub(span.first);
-            *p = (q, dq, span_is_inside::<T, B>(view, q, dq, n, limits));
+            *p = (f, span_is_inside::<T, B>(view, &f, n, limits));
             // The scan bytes at the span's last pixel, in both rows, asked
             // for now: its loop runs after the rest of the block's.
-            prefetch_corner::<B>(view, bytes, row, q, dq, n);
+            prefetch_corner::<B>(view, bytes, row, &f, n);
         }
-        for (&(q, dq, inside), span) in prepared.iter().zip(block) {
+        for (&(f, inside), span) in prepared.iter().zip(block) {
             let (a, b) = (span.first - x0, span.end - x0);
             let here = if inside {
-                bilinear_u8::span_inside::<B>(bytes, row, (view.x0, view.y0), (q[0], q[1]), (dq[0], dq[1]), bytemuck::cast_slice_mut(&mut out[a * B..b * B]));
+                bilinear_u8::span_inside::<B>(bytes, row, (view.x0, view.y0), &f, bytemuck::cast_slice_mut(&mut out[a * B..b * B]));
                 SpanOutcome::Inside
             } else {
                 bilinear_span::<T, B>(view, span, &mut out[a * B..b * B], &mut valid[a..b], fill)
@@ -673,8 +714,8 @@ mod tests {
         }
         for w in vals.windows(2) {
             let (c, dc) = (w[0], w[1]);
-            let span = Span { linear: true, first: 5, end: 20, anchor: 3, c, r: -c, dc, dr: -dc };
-            let (q, dq) = span_fixed(&span, 5);
+            let span = Span { stepped: true, first: 5, end: 20, anchor: 3, c, r: -c, dc, dr: -dc, ddc: 0.0, ddr: 0.0 };
+            let Fixed { q, dq, .. } = span_fixed(&span, 5);
             let (pq, pd) = ([plain(c - 0.5), plain(-c - 0.5)], [plain(dc), plain(-dc)]);
             assert_eq!(dq, pd, "{c} {dc}");
             assert_eq!(q, [pq[0].wrapping_add(2 * pd[0]), pq[1].wrapping_add(2 * pd[1])], "{c} {dc}");
@@ -767,7 +808,7 @@ mod tests {
         let bytes: Vec<u8> = (0..w * h * 3).map(|k| (k.wrapping_mul(2654435761) >> 24) as u8).collect();
         let win = Window::from_bytes(5, 5, w, h, &bytes);
         let view = View::<u8>::new(&win, 3, 60, 40);
-        let span = |first: usize, end: usize, c: f64, r: f64| Span { linear: true, first, end, anchor: first, c, r, dc: 0.93, dr: 0.11 };
+        let span = |first: usize, end: usize, c: f64, r: f64| Span { stepped: true, first, end, anchor: first, c, r, dc: 0.93, dr: 0.11, ddc: 0.0, ddr: 0.0 };
         let inside = [span(10, 22, 8.3, 7.2), span(22, 35, 19.5, 8.6), span(35, 47, 31.6, 10.0)];
         let off_window = span(47, 60, 46.0, 11.3);
         let off_scan = span(0, 10, -3.0, 6.0);
@@ -787,7 +828,7 @@ mod tests {
                     } else {
                         (8.0 + 0.4 * k as f64, 7.0 + 0.05 * k as f64)
                     };
-                    let s = Span { linear: true, first: x, end: x + len, anchor: x, c, r, dc: 0.1, dr: 0.02 };
+                    let s = Span { stepped: true, first: x, end: x + len, anchor: x, c, r, dc: 0.1, dr: 0.02, ddc: 0.0, ddr: 0.0 };
                     x += len;
                     s
                 })
@@ -893,13 +934,65 @@ mod tests {
                 (mx - 3.0, my, 0.5, 0.25, true),
             ];
             for (k, &(c, r, dc, dr, at_scan_edge)) in cases.iter().enumerate() {
-                let span = Span { linear: true, first: 0, end: 10, anchor: 0, c, r, dc, dr };
+                let span = Span { stepped: true, first: 0, end: 10, anchor: 0, c, r, dc, dr, ddc: 0.0, ddr: 0.0 };
                 let (mut out, mut valid) = (vec![0u8; 30], vec![false; 10]);
                 let outcome = resample_span(&view, &span, &mut out, &mut valid, 0);
                 assert_eq!(outcome == (SpanOutcome::Checked { clamped: true }), !at_scan_edge, "window at {},{} case {k}: {outcome:?}", win.x0, win.y0);
                 let (cols, rows): (Vec<f64>, Vec<f64>) = (0..10).map(|x| span_position(&span, x)).unzip();
                 let clamped = resample_row(Kernel::Bilinear, &view, &cols, &rows, &mut out, &mut valid, 0);
                 assert_eq!(clamped, !at_scan_edge, "row kernel, window at {},{} case {k}", win.x0, win.y0);
+            }
+        }
+    }
+
+    /// A quadratic span's fixed point from any pixel on equals stepping
+    /// from its anchor, and the float position to the fixed point's
+    /// resolution.
+    #[test]
+    fn a_quadratic_span_steps_to_the_same_integers_from_any_pixel() {
+        let span = Span { stepped: true, first: 40, end: 70, anchor: 37, c: 812.3, r: -5.25, dc: 0.71, dr: 1.02, ddc: -3.1e-3, ddr: 7.7e-4 };
+        let mut f = span_fixed(&span, span.anchor);
+        for x in span.anchor..span.end {
+            assert_eq!(span_fixed(&span, x), f, "{x}");
+            let (c, r) = span_position(&span, x);
+            let (ec, er) = span.at(x);
+            assert!((c - ec).abs() <= 0.5 / 1024.0 + 1e-9 && (r - er).abs() <= 0.5 / 1024.0 + 1e-9, "{x}");
+            for k in 0..2 {
+                f.q[k] = f.q[k].wrapping_add(f.dq[k]);
+                f.dq[k] = f.dq[k].wrapping_add(f.ddq[k]);
+            }
+        }
+    }
+
+    /// Quadratic spans whose ends lie well inside the window but whose
+    /// middles bulge past its edge (or the scan's): the span kernel must
+    /// see the bulge and agree with the row kernel pixel for pixel.
+    #[test]
+    fn a_bulging_quadratic_span_resamples_what_the_row_kernel_does() {
+        for bands in [3u32, 4] {
+            let (w, h) = (40u32, 30u32);
+            let bytes: Vec<u8> = (0..w * h * bands).map(|k| (k * 37 % 251) as u8).collect();
+            let win = Window::from_bytes(10, 5, w, h, &bytes);
+            for (sw, sh) in [(60, 40), (50, 35)] {
+                let view = View::<u8>::new(&win, bands, sw, sh);
+                // Along a row through the middle, then bending up past the
+                // window's top (row 5) and back; and along a column bending
+                // right past its right edge (column 49).
+                for (c, r, dc, dr, ddc, ddr) in [(14.0, 8.0, 1.0, -0.6, 0.0, 0.05), (40.0, 8.0, 0.6, 1.0, -0.05, 0.0), (20.0, 20.0, 0.5, 0.1, 0.0, 0.0)] {
+                    let span = Span { stepped: true, first: 3, end: 28, anchor: 0, c, r, dc, dr, ddc, ddr };
+                    let n = span.end - span.first;
+                    let b = bands as usize;
+                    let (mut a, mut va) = (vec![0u8; n * b], vec![false; n]);
+                    if resample_span(&view, &span, &mut a, &mut va, 9) == SpanOutcome::Inside {
+                        va.fill(true);
+                    }
+                    let (cols, rows): (Vec<f64>, Vec<f64>) = (span.first..span.end).map(|x| span_position(&span, x)).unzip();
+                    let (mut e, mut ve) = (vec![0u8; n * b], vec![false; n]);
+                    resample_row(Kernel::Bilinear, &view, &cols, &rows, &mut e, &mut ve, 9);
+                    assert_eq!((va, a), (ve, e), "{bands} bands, scan {sw}x{sh}, span at {c},{r}");
+                    let bounds = span_bounds(&span);
+                    assert!(cols.iter().zip(&rows).all(|(&c, &r)| c >= bounds[0] && r >= bounds[1] && c <= bounds[2] && r <= bounds[3]));
+                }
             }
         }
     }
@@ -923,7 +1016,7 @@ mod tests {
             let view = View::<u8>::new(&win, bands, 60, 40);
             for (c, r, dc, dr) in [(12.3, 7.9, 0.731, 0.213), (8.0, 6.0, 1.117, -0.05), (45.5, 30.2, 0.9, 0.4), (55.1, 38.7, 0.3, 0.2), (14.0, 33.9, 1.1, 0.0)]
             {
-                let span = Span { linear: true, first: 100, end: 130, anchor: 97, c, r, dc, dr };
+                let span = Span { stepped: true, first: 100, end: 130, anchor: 97, c, r, dc, dr, ddc: 0.0, ddr: 0.0 };
                 let n = span.end - span.first;
                 let b = bands as usize;
                 let (mut a, mut va) = (vec![0u8; n * b], vec![false; n]);

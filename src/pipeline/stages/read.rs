@@ -141,11 +141,12 @@ fn tile_bboxes(gcm: &Gcm<'_>, band: &BandGcm, y0: u32, y1: u32, tile: u32, (t0, 
     let tile = tile as usize;
     let mut spans = Vec::new();
     for &y in &ys {
-        if gcm.row_spans(band, y, x_lo as u32, w, &mut spans) && spans.iter().all(|s| s.linear) {
-            // Straight spans: their ends (cut at tile edges) bound them.
+        if gcm.row_spans(band, y, x_lo as u32, w, &mut spans) && spans.iter().all(|s| s.stepped) {
+            // Stepped spans: their bounds (cut at tile edges) hold them.
             for (t, piece) in Span::by_tile(&spans, x_lo, tile) {
-                grow(&mut boxes[t], piece.at(piece.first));
-                grow(&mut boxes[t], piece.at(piece.end - 1));
+                let b = piece.bounds();
+                grow(&mut boxes[t], (b[0], b[1]));
+                grow(&mut boxes[t], (b[2], b[3]));
             }
             continue;
         }

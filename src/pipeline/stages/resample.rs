@@ -7,7 +7,7 @@ use crate::error::Result;
 use crate::gcm::Gcm;
 use crate::io::source::{SampleType, SourceImage, SourceInfo, Window};
 use crate::pipeline::context::{PixelOptions, Run};
-use crate::resample::{resample_row, resample_spans, span_position, Kernel, Sample, SpanOutcome, View};
+use crate::resample::{resample_row, resample_spans, span_bounds, span_position, Kernel, Sample, SpanOutcome, View};
 use rayon::prelude::*;
 use std::sync::atomic::Ordering;
 
@@ -163,7 +163,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
     let direct = bo == bands_in;
     // Row `r` of the chunk into `px` (and `valid`, where the alpha band
     // needs it); scan positions (`cols`, `rws`) only where a row is not all
-    // straight spans: made on first need, not zeroed for every split of the
+    // stepped spans: made on first need, not zeroed for every split of the
     // chunk.
     let make_row =
         |r: usize, cols: &mut Vec<f64>, rws: &mut Vec<f64>, px: &mut [T], valid: &mut [bool], spans: &mut Vec<crate::geom::Span>, miss: &mut Option<Miss>| {
@@ -175,6 +175,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
             // Pixels whose kernel would leave the window: read their
             // neighbourhood on their own (rare; the plan adds a margin).
             let is_safe = |(c, rr): (f64, f64)| c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3];
+            let is_safe_box = |b: [f64; 4]| is_safe((b[0], b[1])) && is_safe((b[2], b[3]));
             let reread = |at: (f64, f64), out: &mut [T]| {
                 if !is_safe(at) {
                     single_pixel(src, opts.kernel, at.0, at.1, out, fill);
@@ -182,16 +183,16 @@ pub fn resample_chunk<T: Sample + Recycle>(
             };
             let x0 = x0 as usize;
             if opts.kernel == Kernel::Bilinear && gcm.row_spans(&msg.gcm, y, x0 as u32, w, spans) {
-                // Straight spans: positions step in fixed point, runs
+                // Stepped spans: positions step in fixed point, runs
                 // of them in one call; the rest (refined cells) pixel
                 // by pixel.
-                for run in spans.chunk_by(|p, q| p.linear == q.linear) {
+                for run in spans.chunk_by(|p, q| p.stepped == q.stepped) {
                     let (first, end) = (run[0].first, run[run.len() - 1].end);
                     let (a, b) = (first - x0, end - x0);
                     let out: &mut [T] = &mut px[a * bands_in..b * bands_in];
                     let valid = &mut valid[a..b];
-                    let linear = run[0].linear;
-                    let outcome = if linear {
+                    let stepped = run[0].stepped;
+                    let outcome = if stepped {
                         resample_spans(&view, run, out, valid, fill)
                     } else {
                         positions(cols, rws);
@@ -204,14 +205,14 @@ pub fn resample_chunk<T: Sample + Recycle>(
                     }
                     if outcome == (SpanOutcome::Checked { clamped: true }) {
                         for s in run {
-                            // A straight span whose ends are safe is safe throughout.
-                            if linear && is_safe(span_position(s, s.first)) && is_safe(span_position(s, s.end - 1)) {
+                            // A stepped span whose bounds are safe is safe throughout.
+                            if stepped && is_safe_box(span_bounds(s)) {
                                 continue;
                             }
                             for x in s.first..s.end {
                                 let j = x - first;
                                 if valid[j] {
-                                    let at = if linear { span_position(s, x) } else { (cols[x - x0], rws[x - x0]) };
+                                    let at = if stepped { span_position(s, x) } else { (cols[x - x0], rws[x - x0]) };
                                     reread(at, &mut out[j * bands_in..(j + 1) * bands_in]);
                                 }
                             }
