@@ -1,7 +1,10 @@
 //! Lens distortion in the ground → image direction: an ideal photo point
 //! (mm from the principal point, y up) moves to where the lens puts it.
 //! Thesis §2.3: radial `σ(r) = b1 r + b2 r² + b3 r³` (r, σ in mm; `σ = E r³`
-//! is `b3 = E`). Brown–Conrady on normalised coordinates `x/f, y/f`.
+//! is `b3 = E`). Brown–Conrady in OpenCV's convention (`projectPoints`):
+//! on normalised coordinates x right, y **down** (`x/f, −y/f` of the photo
+//! point), with OpenCV's k1, k2, k3, p1, p2, so that a calibration from
+//! OpenCV (or a tool built on it) is used as it is.
 //! Small enough to live in the GCM, never in `A`.
 
 use super::lanes::Lanes;
@@ -80,16 +83,17 @@ impl Distortion {
         (T::if_greater(r, zero, x * s, x), T::if_greater(r, zero, y * s, y))
     }
 
-    /// Brown–Conrady at (x, y) (mm), focal length `f` (mm).
+    /// Brown–Conrady at photo point (x, y) (mm, y up), focal length `f`
+    /// (mm): OpenCV's formula on (x/f, −y/f), turned back to y up.
     #[inline(always)]
     #[must_use]
     pub fn brown(b: &Brown, x: f64, y: f64, f: f64) -> (f64, f64) {
-        let (xn, yn) = (x / f, y / f);
+        let (xn, yn) = (x / f, -y / f);
         let r2 = xn * xn + yn * yn;
         let radial = 1.0 + r2 * (b.k1 + r2 * (b.k2 + r2 * b.k3));
         let xd = xn * radial + 2.0 * b.p1 * xn * yn + b.p2 * (r2 + 2.0 * xn * xn);
         let yd = yn * radial + b.p1 * (r2 + 2.0 * yn * yn) + 2.0 * b.p2 * xn * yn;
-        (xd * f, yd * f)
+        (xd * f, -yd * f)
     }
 }
 
@@ -111,10 +115,15 @@ mod tests {
     fn brown_matches_hand_values() {
         // f = 100, point (10, 0): xn = 0.1, r² = 0.01; k1 = 0.1 → radial 1.001;
         // p2 = 0.001 → +p2·(r² + 2 xn²) = 0.001·0.03 = 3e-5;
-        // p1 = 0.002 → y: p1·(r² + 0) = 2e-5.
+        // p1 = 0.002 → y down: p1·(r² + 0) = 2e-5, so y up: −2e-5.
         let d = Distortion::Brown(Brown { k1: 0.1, k2: 0.0, k3: 0.0, p1: 0.002, p2: 0.001 });
         let (x, y) = d.apply(10.0, 0.0, 100.0);
         assert!((x - (0.1 * 1.001 + 3e-5) * 100.0).abs() < 1e-12);
-        assert!((y - 2e-5 * 100.0).abs() < 1e-12);
+        assert!((y + 2e-5 * 100.0).abs() < 1e-12);
+        // Point (0, 10) (up): yn = −0.1 (down); p1 → y down: p1·(r² + 2yn²) = 6e-5,
+        // 2·p2·xn·yn = 0; x: 2·p1·xn·yn = 0, p2·(r²) = 1e-5.
+        let (x, y) = d.apply(0.0, 10.0, 100.0);
+        assert!((x - 1e-5 * 100.0).abs() < 1e-12);
+        assert!((y - (0.1 * 1.001 - 6e-5) * 100.0).abs() < 1e-12, "{y}");
     }
 }

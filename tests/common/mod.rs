@@ -153,3 +153,13 @@ pub fn coordinate_map_difference(a: &Path, b: &Path, w: u32, h: u32) -> MapDiffe
     let m = n.max(1) as f64;
     MapDifference { pixels: n, offset: [off[0] / m, off[1] / m], mean: sum / m, max }
 }
+
+/// Debian's Python 3 when it can import `module` (`None` otherwise; under
+/// CI a missing module fails the test: install the Debian `package`).
+pub fn python_with(module: &str, package: &str) -> Option<&'static str> {
+    // Debian's own interpreter: the GDAL and OpenCV bindings are its packages.
+    let python = if Path::new("/usr/bin/python3").exists() { "/usr/bin/python3" } else { "python3" };
+    let found = Command::new(python).args(["-c", &format!("import {module}")]).output().map(|o| o.status.success()).unwrap_or(false);
+    assert!(found || std::env::var_os("CI").is_none(), "Python's {module} is missing, and CI must compare with it (install {package})");
+    found.then_some(python)
+}
