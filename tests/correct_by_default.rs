@@ -202,3 +202,64 @@ fn a_crs_given_for_a_frame_camera_is_refused_not_ignored() {
     assert!(err.contains("--crs") && err.contains("--rpc"), "{err}");
     assert!(!out.exists());
 }
+
+#[test]
+fn a_film_scans_margin_is_masked_to_its_format() {
+    use gcm_ortho::camera::file::Camera;
+    let dir = tempfile::tempdir().unwrap();
+    let w = 800;
+    // Marks at ±117.5 mm: the 23 cm format, ±115 mm, the scan reaching
+    // past it into the film's margin.
+    let sc = scene(&dir.path().join("scene"), w, |o| o.kappa_deg = 12.0);
+    let area = Camera::read(&sc.camera).unwrap().model().image_area().expect("a film camera has a format");
+    // The same camera with the whole scan as image.
+    let whole = dir.path().join("whole.toml");
+    let text = std::fs::read_to_string(&sc.camera).unwrap().replace("[interior]\n", "[interior]\nformat_mm = \"scan\"\n");
+    std::fs::write(&whole, text).unwrap();
+    assert!(Camera::read(&whole).unwrap().model().image_area().is_none());
+    let unmasked = gcm_ortho::synth::SynthReport { camera: whole, ..sc.clone() };
+    // The unmasked run's grid for both, so that they compare pixel by pixel.
+    let (open, report) = rectify_coords(dir.path(), &unmasked, (w, w), "whole.tif", &[]);
+    let g = &report["grid"];
+    let (x0, y0, gsd) = (g["x0"].as_f64().unwrap(), g["y0"].as_f64().unwrap(), g["gsd"].as_f64().unwrap());
+    let (gw, gh) = (g["width"].as_f64().unwrap(), g["height"].as_f64().unwrap());
+    // (a quarter pixel inside: snapped outward, they give the same grid)
+    let q = gsd / 4.0;
+    let bounds = format!("{},{},{},{}", x0 + q, y0 - gh * gsd + q, x0 + gw * gsd - q, y0 - q);
+    let gsd = gsd.to_string();
+    let (masked, _) = rectify_coords(dir.path(), &sc, (w, w), "masked.tif", &["--bounds", &bounds, "--gsd", &gsd]);
+    let ((_, _, _, m), (_, _, _, o)) = (read_f32(&masked), read_f32(&open));
+    // Positions a hundredth of a pixel inside or outside the format (the
+    // coordinate image's Float32 rounding), by the corners' mean.
+    let corners = area.corners();
+    let centre = corners.iter().fold((0.0, 0.0), |a, c| (a.0 + c.0 / 4.0, a.1 + c.1 / 4.0));
+    let nudged = |c: f64, r: f64, by: f64| {
+        let (dc, dr) = (centre.0 - c, centre.1 - r);
+        let d = dc.hypot(dr).max(1e-9);
+        (c + by * dc / d, r + by * dr / d)
+    };
+    let (mut kept, mut cut, mut near_edge) = (0, 0, [false; 4]);
+    for k in 0..m.len() / 2 {
+        let (mc, mr, oc, or) = (m[2 * k] as f64, m[2 * k + 1] as f64, o[2 * k] as f64, o[2 * k + 1] as f64);
+        if mc != -1.0 {
+            // A masked pixel's value comes from inside the format ...
+            let (c, r) = nudged(mc, mr, 0.01);
+            assert!(area.contains(c, r), "({mc}, {mr}) lies outside the format");
+            assert_eq!((mc, mr), (oc, or), "the mask changes no position");
+            kept += 1;
+            for (e, near) in near_edge.iter_mut().enumerate() {
+                let (p, q) = (corners[e], corners[(e + 1) % 4]);
+                let (ex, ey) = (q.0 - p.0, q.1 - p.1);
+                let dist = ((mc - p.0) * ey - (mr - p.1) * ex).abs() / ex.hypot(ey);
+                *near |= dist < 1.5;
+            }
+        } else if oc != -1.0 {
+            // ... and only the margin's pixels are cut.
+            let (c, r) = nudged(oc, or, -0.01);
+            assert!(!area.contains(c, r), "({oc}, {or}) is inside the format but masked");
+            cut += 1;
+        }
+    }
+    assert!(kept > 300_000 && cut > 5_000, "{kept} kept, {cut} cut");
+    assert_eq!(near_edge, [true; 4], "image reaches every edge of the format");
+}

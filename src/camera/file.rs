@@ -64,6 +64,33 @@ pub struct InteriorSection {
     /// scan pixels (default 2): past it a mark was placed wrong.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_fiducial_residual_px: Option<f64>,
+    /// A film camera's calibrated format, mm (width, height), centred on
+    /// the fiducial centre; outside it the scan is margin, masked. Default:
+    /// the standard format the fiducial marks belong to ([`standard_format_mm`]);
+    /// `"scan"`: the whole scan is image.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub format_mm: Option<FormatSetting>,
+}
+
+/// `interior.format_mm`: a size, or `"scan"` (no mask).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum FormatSetting {
+    Size([f64; 2]),
+    Word(String),
+}
+
+/// The square film formats of aerial cameras, mm: 18 cm (older and Soviet
+/// cameras), 23 cm (RC, RMK, LMK and most others), 30 cm.
+const STANDARD_FORMATS_MM: [f64; 3] = [180.0, 230.0, 300.0];
+
+/// The standard format that fiducial marks `fiducials_mm` (fiducial-centred)
+/// belong to: the smallest whose edge lies no more than 5 mm inside the
+/// farthest mark (marks sit at the format's corners or edges, at most a few
+/// mm outside it). `None` for marks beyond every standard format.
+pub fn standard_format_mm(fiducials_mm: &[[f64; 2]]) -> Option<f64> {
+    let reach = fiducials_mm.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    STANDARD_FORMATS_MM.into_iter().find(|f| f / 2.0 + 5.0 >= reach)
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -216,7 +243,11 @@ impl CameraFile {
         all_finite(&ext.angles_deg).map_err(|m| err("exterior.angles_deg", m))?;
         let angles = ext.angles_deg.map(f64::to_radians);
         let r = ext.convention.matrix(angles);
-        let frame = FrameCamera::new(f, Vector3::from(ext.position), r, io, distortion, self.corrections.refraction, self.corrections.earth_curvature);
+        let mut frame = FrameCamera::new(f, Vector3::from(ext.position), r, io, distortion, self.corrections.refraction, self.corrections.earth_curvature);
+        if let Some(size) = film_format(&interior).map_err(|m| err("interior.format_mm", m))? {
+            let pp = interior.principal_point_mm.unwrap_or([0.0, 0.0]);
+            frame = frame.with_format(size, pp).ok_or_else(|| err("interior.format_mm", "the format maps to no area of the scan".into()))?;
+        }
         Ok(Camera { crs, sensor: Sensor::Frame(frame), file: self })
     }
 
@@ -358,6 +389,31 @@ fn check_residuals(io: &InteriorOrientation, limit: Option<f64>) -> std::result:
     Ok(())
 }
 
+/// The format a film scan is masked to (mm), or `None`: a digital camera,
+/// `format_mm = "scan"`, or marks beyond every standard format.
+fn film_format(s: &InteriorSection) -> std::result::Result<Option<[f64; 2]>, String> {
+    let film = s.fiducials_mm.is_some() || s.fiducial_distances_mm.is_some();
+    match &s.format_mm {
+        Some(FormatSetting::Word(w)) if w == "scan" => Ok(None),
+        Some(FormatSetting::Word(w)) => Err(format!("'{w}' is neither [width, height] in mm nor \"scan\"")),
+        Some(FormatSetting::Size(_)) if !film => Err("only for a film camera (fiducials); a digital frame is all image".into()),
+        Some(FormatSetting::Size([w, h])) => {
+            finite_positive(w.min(*h)).map_err(|m| format!("{m} (width and height in mm)"))?;
+            all_finite(&[*w, *h])?;
+            Ok(Some([*w, *h]))
+        }
+        None if !film => Ok(None),
+        None => {
+            let marks: Vec<[f64; 2]> = match (&s.fiducials_mm, s.fiducial_distances_mm) {
+                (Some(mm), _) => mm.clone(),
+                (None, Some([dx, dy])) => vec![[dx / 2.0, dy / 2.0]],
+                (None, None) => Vec::new(),
+            };
+            Ok(standard_format_mm(&marks).map(|f| [f, f]))
+        }
+    }
+}
+
 fn build_interior(s: &InteriorSection) -> std::result::Result<InteriorOrientation, (String, String)> {
     let e = |f: &str, m: String| (format!("interior.{f}"), m);
     let forms = [s.fiducials_mm.is_some(), s.fiducial_distances_mm.is_some(), s.pixel_size_mm.is_some()];
@@ -424,6 +480,35 @@ earth_curvature = true
         let frame = cam.frame(Path::new("cam.toml")).unwrap();
         assert_eq!(frame.focal_mm, 152.82);
         assert_eq!(frame.interior.residuals.len(), 4);
+    }
+
+    #[test]
+    fn a_film_camera_is_masked_to_its_format() {
+        // Marks at ±106 mm: the 23 cm format; its corners in scan pixels are
+        // the fiducial fit's image of (±115 − pp) mm.
+        let cam = build(GOOD).unwrap();
+        let frame = cam.frame(Path::new("cam.toml")).unwrap();
+        let area = frame.image_area().expect("a film scan has a format");
+        let pp = [0.003, -0.011];
+        let want = frame.interior.mm_to_px(-115.0 - pp[0], -115.0 - pp[1]);
+        let got = area.corners()[0];
+        assert!((got.0 - want.0).abs() < 1e-9 && (got.1 - want.1).abs() < 1e-9, "{got:?} {want:?}");
+        // Given, or the whole scan.
+        let with = |v: &str| build(&GOOD.replace("[interior]\n", &format!("[interior]\nformat_mm = {v}\n")));
+        let corner = with("[180, 200]").unwrap().model().image_area().unwrap().corners()[2];
+        let want = frame.interior.mm_to_px(90.0 - pp[0], 100.0 - pp[1]);
+        assert!((corner.0 - want.0).abs() < 1e-9 && (corner.1 - want.1).abs() < 1e-9);
+        assert!(with("\"scan\"").unwrap().model().image_area().is_none());
+        for (bad, word) in [("\"all\"", "neither"), ("[0, 230]", "positive"), ("[230, nan]", "finite")] {
+            let e = with(bad).err().unwrap().to_string();
+            assert!(e.contains("interior.format_mm") && e.contains(word), "{bad}: {e}");
+        }
+        // The standard formats the marks belong to.
+        assert_eq!(standard_format_mm(&[[-117.5, 117.5]]), Some(230.0));
+        assert_eq!(standard_format_mm(&[[106.0, -106.0], [0.0, 113.0]]), Some(230.0));
+        assert_eq!(standard_format_mm(&[[88.0, -88.0]]), Some(180.0));
+        assert_eq!(standard_format_mm(&[[150.0, 0.0]]), Some(300.0));
+        assert_eq!(standard_format_mm(&[[170.0, 0.0]]), None);
     }
 
     #[test]

@@ -8,8 +8,8 @@ use super::distortion::Distortion;
 use super::interior::InteriorOrientation;
 use super::lanes::Lanes;
 use super::SensorModel;
-use crate::geom::OutputGrid;
 use crate::geom::Plane;
+use crate::geom::{ImageArea, OutputGrid};
 use nalgebra::{Matrix3, Vector3};
 use wide::f64x2;
 
@@ -30,6 +30,9 @@ pub struct FrameCamera {
     /// Ideal radius (mm) past which the lens model folds back: points there
     /// are not imaged (nodata), never mirrored into the image.
     fold_mm: f64,
+    /// The calibrated format on the film (scan pixels), where the scan
+    /// holds more than the image (film margins): [`FrameCamera::with_format`].
+    area: Option<ImageArea>,
 }
 
 impl FrameCamera {
@@ -45,7 +48,19 @@ impl FrameCamera {
         let q = r.transpose() * Vector3::new(0.0, 0.0, -1.0);
         let nadir_mm = (-focal_mm * q.x / q.z, -focal_mm * q.y / q.z);
         let fold_mm = distortion.fold_radius(focal_mm);
-        FrameCamera { focal_mm, centre, r, interior, distortion, refraction, earth_curvature, nadir_mm, fold_mm }
+        FrameCamera { focal_mm, centre, r, interior, distortion, refraction, earth_curvature, nadir_mm, fold_mm, area: None }
+    }
+
+    /// Limits the image to the calibrated format: a `w × h` mm rectangle
+    /// centred on the fiducial centre (the origin of the fiducial
+    /// coordinates, `principal_point_mm` away from the principal point).
+    /// `None` where the interior orientation makes it degenerate.
+    pub fn with_format(mut self, [w, h]: [f64; 2], principal_point_mm: [f64; 2]) -> Option<Self> {
+        let at = |x: f64, y: f64| self.interior.mm_to_px(x - principal_point_mm[0], y - principal_point_mm[1]);
+        let p0 = at(-w / 2.0, -h / 2.0);
+        let (pu, pv) = (at(w / 2.0, -h / 2.0), at(-w / 2.0, h / 2.0));
+        self.area = Some(ImageArea::parallelogram(p0, (pu.0 - p0.0, pu.1 - p0.1), (pv.0 - p0.0, pv.1 - p0.1))?);
+        Some(self)
     }
 
     /// Checks, before any footprint is sought, that this camera can see
@@ -184,6 +199,10 @@ impl FrameCamera {
 }
 
 impl SensorModel for FrameCamera {
+    fn image_area(&self) -> Option<ImageArea> {
+        self.area
+    }
+
     #[inline]
     fn project(&self, x: f64, y: f64, z: f64) -> Option<(f64, f64)> {
         let (px, py) = self.collinearity(x, y, z)?;

@@ -66,6 +66,13 @@ pub trait SensorModel: Send + Sync {
     fn ground_step(&self) -> f64 {
         0.01
     }
+
+    /// The part of the scan that holds the image (a film camera's format),
+    /// where it is less than the whole scan: no output pixel takes a value
+    /// from outside it.
+    fn image_area(&self) -> Option<crate::geom::ImageArea> {
+        None
+    }
 }
 
 /// Refines `locate_approx` by Newton steps on `project`: ground (X, Y) at

@@ -26,6 +26,9 @@ pub struct PixelOptions {
     pub alpha: bool,
     /// Bands written: the scan's, and the alpha band.
     pub bands_out: u32,
+    /// The part of the scan that holds the image, where less than all of it
+    /// (a film's format): outside it, no value.
+    pub area: Option<crate::geom::ImageArea>,
 }
 
 /// The run's inputs, ready.

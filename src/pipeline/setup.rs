@@ -188,7 +188,8 @@ impl RunPlan {
             BigTiff::No => false,
             BigTiff::Auto => spec.needs_bigtiff(),
         };
-        let pixels = PixelOptions { kernel: opts.kernel, tile, fill: if opts.alpha { 0.0 } else { opts.nodata }, alpha: opts.alpha, bands_out };
+        let area = camera.model().image_area();
+        let pixels = PixelOptions { kernel: opts.kernel, tile, fill: if opts.alpha { 0.0 } else { opts.nodata }, alpha: opts.alpha, bands_out, area };
         Ok(RunPlan { camera, src, dem, grid, approx, band_order, gcm, piece: [tc0, tr0, tcw, trh], spec, pixels, budget })
     }
 

@@ -12,7 +12,7 @@
 
 mod bilinear_u8;
 
-use crate::geom::{floor_i64, floor_split, Span};
+use crate::geom::{floor_i64, floor_split, ImageArea, Span};
 use crate::io::source::{SampleType, Window};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -135,6 +135,9 @@ pub struct View<'a, T> {
     pub img_h: f64,
     /// The window lies wholly inside the scan.
     in_scan: bool,
+    /// Where less than the whole scan holds the image (a film's format):
+    /// positions outside it have no value.
+    area: Option<ImageArea>,
 }
 
 impl<'a, T: Sample> View<'a, T> {
@@ -157,7 +160,21 @@ impl<'a, T: Sample> View<'a, T> {
             img_w: img_w as f64,
             img_h: img_h as f64,
             in_scan: x0 as u64 + w as u64 <= img_w as u64 && y0 as u64 + h as u64 <= img_h as u64,
+            area: None,
         }
+    }
+
+    /// Only positions inside `area` (and the scan) take a value.
+    pub fn with_area(mut self, area: Option<ImageArea>) -> Self {
+        self.area = area;
+        self
+    }
+
+    /// Whether scan position (c, r) has a value: inside the scan and the
+    /// image area.
+    #[inline(always)]
+    fn has_value(&self, c: f64, r: f64) -> bool {
+        c >= 0.0 && r >= 0.0 && c < self.img_w && r < self.img_h && self.area.is_none_or(|a| a.contains(c, r))
     }
 
     /// Whether the bilinear neighbours of window pixel (i0, j0) (it, the
@@ -240,7 +257,7 @@ pub fn resample_row<T: Sample>(kernel: Kernel, view: &View<'_, T>, cols: &[f64],
     let b = view.bands;
     for (i, (&c, &r)) in cols.iter().zip(rows).enumerate() {
         let px = &mut out[i * b..(i + 1) * b];
-        if !(c >= 0.0 && r >= 0.0 && c < view.img_w && r < view.img_h) {
+        if !view.has_value(c, r) {
             px.fill(fill);
             valid[i] = false;
             continue;
@@ -336,6 +353,13 @@ fn bilinear_row<T: Sample, const B: usize>(view: &View<'_, T>, cols: &[f64], row
             // Window-relative floor: (x >> 10) − PAD, wrapping below zero.
             let fast = (x >> 10).wrapping_sub(PAD as u32) < wx_lim && (y >> 10).wrapping_sub(PAD as u32) < wy_lim;
             state[i] = u8::from(inside) * (1 + u8::from(!fast));
+        }
+        if let Some(area) = &view.area {
+            for (s, (&c, &r)) in state[..n].iter_mut().zip(cb.iter().zip(rb)) {
+                if !area.contains(c, r) {
+                    *s = 0;
+                }
+            }
         }
         let o = &mut out[b0 * BLOCK * B..(b0 * BLOCK + n) * B];
         let v = &mut valid[b0 * BLOCK..b0 * BLOCK + n];
@@ -438,9 +462,15 @@ fn span_is_inside<T: Sample, const B: usize>(view: &View<'_, T>, f: &Fixed, n: u
     let sag = |k: usize| f.ddq[k].unsigned_abs().saturating_mul(((n - 1) * (n - 1)) as u64).div_ceil(8).min(1 << 62) as i64;
     let index = |q: i64, o: i64| (q.wrapping_add(1 << 21) >> 32) - o;
     let (sc, sr) = (sag(0), sag(1));
-    let (ia, ib) = (index(f.q[0].min(last[0]).wrapping_sub(sc), view.x0), index(f.q[0].max(last[0]).wrapping_add(sc), view.x0));
-    let (ja, jb) = (index(f.q[1].min(last[1]).wrapping_sub(sr), view.y0), index(f.q[1].max(last[1]).wrapping_add(sr), view.y0));
-    ia <= ib && ja <= jb && (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl
+    let (qa, qb) = (
+        [f.q[0].min(last[0]).wrapping_sub(sc), f.q[1].min(last[1]).wrapping_sub(sr)],
+        [f.q[0].max(last[0]).wrapping_add(sc), f.q[1].max(last[1]).wrapping_add(sr)],
+    );
+    let (ia, ib, ja, jb) = (index(qa[0], view.x0), index(qb[0], view.x0), index(qa[1], view.y0), index(qb[1], view.y0));
+    let in_window = ia <= ib && ja <= jb && (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl;
+    // Inside the image area too, where there is one: the positions' box.
+    let position = |q: i64| q as f64 / 4_294_967_296.0 + 0.5;
+    in_window && view.area.is_none_or(|a| a.contains_rect(position(qa[0]), position(qa[1]), position(qb[0]), position(qb[1])))
 }
 
 /// Whether [`bilinear_u8::span_inside`] can serve this window at all:
@@ -516,6 +546,11 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
         let px: &mut [T; B] = px.try_into().expect("B samples");
         let (c, r) = (qc.wrapping_add(half), qr.wrapping_add(half));
         *v = c >= 0 && c < w_lim && r >= 0 && r < h_lim;
+        if let Some(area) = &view.area {
+            // The position, as the fixed point holds it.
+            const ONE: f64 = 4_294_967_296.0;
+            *v &= area.contains(c as f64 / ONE, r as f64 / ONE);
+        }
         // In 1/1024 pixel, rounded: the fixed-point weights' resolution.
         let (fx, fy) = (qc.wrapping_add(1 << 21) >> 22, qr.wrapping_add(1 << 21) >> 22);
         qc = qc.wrapping_add(dqc);

@@ -116,7 +116,7 @@ impl Default for SynthOptions {
 }
 
 /// What `synth` wrote.
-#[derive(Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize)]
 pub struct SynthReport {
     pub scan: PathBuf,
     pub camera: PathBuf,

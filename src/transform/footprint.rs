@@ -7,28 +7,67 @@ use super::inverse::RayCaster;
 use crate::camera::SensorModel;
 use crate::dem::Dem;
 use crate::error::{Error, Result};
-use crate::geom::OutputGrid;
+use crate::geom::{ImageArea, OutputGrid};
 
-/// Ground bounds `[minx, miny, maxx, maxy]` of a `w × h` scan on the DEM.
+/// Ground bounds `[minx, miny, maxx, maxy]` of a `w × h` scan on the DEM:
+/// of the part of it that holds the image, where the model says so (a
+/// film's format).
 pub fn footprint(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64) -> Result<[f64; 4]> {
     let mut caster = RayCaster::new(model, dem);
-    let n = 32;
-    let (w, h) = (w as f64, h as f64);
+    let outline = image_outline(model.image_area(), w as f64, h as f64);
     let mut b = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
     let mut hits = 0;
-    for k in 0..=n {
-        let t = k as f64 / n as f64;
-        for (c, r) in [(t * w, 0.0), (t * w, h), (0.0, t * h), (w, t * h)] {
-            if let Some(p) = caster.cast(c, r, None, z_guess, 1e-3) {
-                b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
-                hits += 1;
-            }
+    for &(c, r) in &outline {
+        if let Some(p) = caster.cast(c, r, None, z_guess, 1e-3) {
+            b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
+            hits += 1;
         }
     }
     if hits < 4 {
-        return Err(Error::Geometry(format!("only {hits} of {} points on the scan's edges meet the DEM: does the DEM cover the scan?", 4 * (n + 1))));
+        return Err(Error::Geometry(format!("only {hits} of {} points on the image's edges meet the DEM: does the DEM cover the scan?", outline.len())));
     }
     Ok(b)
+}
+
+/// Points along the edge of the scan's image: the scan's edges (33 points
+/// each) where no `area` limits it; else the edges of the scan and of the
+/// area, each kept where it lies inside the other, and the points where
+/// they cross.
+fn image_outline(area: Option<ImageArea>, w: f64, h: f64) -> Vec<(f64, f64)> {
+    let n = 32;
+    let scan = [(0.0, 0.0), (w, 0.0), (w, h), (0.0, h)];
+    let along = |poly: [(f64, f64); 4]| -> Vec<(f64, f64)> {
+        (0..4)
+            .flat_map(|e| {
+                let (p, q) = (poly[e], poly[(e + 1) % 4]);
+                (0..n).map(move |k| {
+                    let t = k as f64 / n as f64;
+                    (p.0 + t * (q.0 - p.0), p.1 + t * (q.1 - p.1))
+                })
+            })
+            .collect()
+    };
+    let Some(area) = area else { return along(scan) };
+    let in_scan = |&(c, r): &(f64, f64)| (0.0..=w).contains(&c) && (0.0..=h).contains(&r);
+    let mut points: Vec<(f64, f64)> = along(scan).into_iter().filter(|&(c, r)| area.contains(c, r)).collect();
+    points.extend(along(area.corners()).into_iter().filter(in_scan));
+    // Where the area's edges cross the scan's.
+    let corners = area.corners();
+    for e in 0..4 {
+        let (p, q) = (corners[e], corners[(e + 1) % 4]);
+        for (axis, at) in [(0, 0.0), (0, w), (1, 0.0), (1, h)] {
+            let (a, b) = if axis == 0 { (p.0, q.0) } else { (p.1, q.1) };
+            if (a - at) * (b - at) <= 0.0 && a != b {
+                let t = (at - a) / (b - a);
+                let x = (p.0 + t * (q.0 - p.0), p.1 + t * (q.1 - p.1));
+                let x = if axis == 0 { (at, x.1) } else { (x.0, at) };
+                if in_scan(&x) {
+                    points.push(x);
+                }
+            }
+        }
+    }
+    points
 }
 
 /// The scan's ground sample distance at its centre, rounded to 4

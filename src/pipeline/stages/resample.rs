@@ -117,7 +117,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
     let bo = opts.bands_out as usize;
     let (x0, x1) = (msg.chunk.x0, msg.chunk.x1);
     let w = (x1 - x0) as usize;
-    let view = view::<T>(msg, info);
+    let view = view::<T>(msg, info).with_area(opts.area);
     // Where the kernel stays inside the window (or the window reaches the
     // scan's edge, where clamping is the intended behaviour).
     let r = opts.kernel.radius() as f64 + 1.0;
