@@ -8,8 +8,8 @@ use clap::{Args, Parser, Subcommand};
 use gcm_ortho::gcm::GcmSpec;
 use gcm_ortho::io::tiff_out::Compression;
 use gcm_ortho::options::{
-    parse_bounds, parse_bytes, parse_count, parse_max_error, parse_miss, parse_offset, parse_size, parse_window, BandOrder, BigTiff, Choice, DemSource,
-    ModelSource, RectifyOptions,
+    parse_bounds, parse_bytes, parse_count, parse_max_error, parse_miss, parse_nodata, parse_offset, parse_size, parse_window, BandOrder, BigTiff, Choice,
+    DemSource, ModelSource, RectifyOptions,
 };
 use gcm_ortho::resample::Kernel;
 use gcm_ortho::synth::{CameraKind, Relief, SynthOptions};
@@ -326,9 +326,11 @@ pub struct RectifyArgs {
     /// BigTIFF output (auto: when the output may pass 4 GB)
     #[arg(long, default_value = "auto", value_parser = choice::<BigTiff>())]
     pub bigtiff: BigTiff,
-    /// Nodata value of the output.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, conflicts_with = "alpha")]
-    pub nodata: f64,
+    /// Pixels without a value: auto (NaN for floating-point samples, else
+    /// the internal mask), mask (a 1-bit internal mask, GDAL's), or a
+    /// nodata value (image pixels holding it become holes).
+    #[arg(long, default_value = "auto", allow_negative_numbers = true, conflicts_with = "alpha")]
+    pub nodata: String,
     /// Add an alpha band instead of a nodata value.
     #[arg(long)]
     pub alpha: bool,
@@ -399,7 +401,7 @@ impl RectifyArgs {
         o.band_order = self.band_order;
         o.compress = self.compress;
         o.bigtiff = self.bigtiff;
-        o.nodata = self.nodata;
+        o.nodata = parse_nodata("nodata", &self.nodata)?;
         o.alpha = self.alpha;
         o.threads = self.threads;
         o.memory = parse_bytes("memory", &self.memory)?;

@@ -699,6 +699,7 @@ mod tests {
             bigtiff: false,
             photometric: 1,
             alpha: false,
+            mask: false,
             geo: Some(GeoTags { x0: 1000.0, y0: 2000.0, gsd: 10.0, epsg: 32631, nodata: None }),
         };
         write_raster(&path, &spec, |y0, y1, buf| {

@@ -49,6 +49,33 @@ pub fn parse_choice<T: Choice>(setting: &'static str, name: &str) -> Result<T> {
     T::from_name(name.trim()).ok_or_else(|| Error::setting(setting, format!("'{name}' is not one of {}", T::NAMES.join(", "))))
 }
 
+/// How the output marks pixels without a value.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Nodata {
+    /// A value outside the data's range where the samples have one (NaN
+    /// for floating point); else the internal mask: a black pixel of the
+    /// image is never a hole.
+    Auto,
+    /// A 1-bit internal mask (GDAL's `Mask Flags: PER_DATASET`); no nodata value.
+    Mask,
+    /// This value, tagged as the nodata value (pixels of the image that
+    /// hold it read as holes).
+    Value(f64),
+}
+
+/// `auto`, `mask` or a number.
+pub fn parse_nodata(setting: &'static str, s: &str) -> Result<Nodata> {
+    match s.trim() {
+        "auto" => Ok(Nodata::Auto),
+        "mask" => Ok(Nodata::Mask),
+        t => match t.parse::<f64>() {
+            Ok(v) if v.is_finite() || v.is_nan() => Ok(Nodata::Value(v)),
+            _ => Err(Error::setting(setting, format!("'{s}' is neither auto, mask nor a number a raster can hold"))),
+        },
+    }
+}
+
 /// An error bound in scan pixels, or `none`.
 pub fn parse_max_error(setting: &'static str, s: &str) -> Result<Option<f64>> {
     match s.trim() {
@@ -271,8 +298,8 @@ pub struct RectifyOptions {
     pub band_order: BandOrder,
     pub compress: Compression,
     pub bigtiff: BigTiff,
-    /// Nodata value written where there is no image (ignored with `alpha`).
-    pub nodata: f64,
+    /// How pixels without a value are marked (ignored with `alpha`).
+    pub nodata: Nodata,
     pub alpha: bool,
     /// Worker threads (0 = all cores; 1 = every step one after the other).
     pub threads: usize,
@@ -336,8 +363,10 @@ impl RectifyOptions {
         if let Some(ram) = physical_memory().filter(|&ram| self.memory > ram) {
             return Err(Error::setting("memory", format!("{} MiB is more than this machine's {} MiB", self.memory >> 20, ram >> 20)));
         }
-        if !self.nodata.is_finite() && !self.nodata.is_nan() {
-            return Err(Error::setting("nodata", format!("{} is not a number a raster can hold", self.nodata)));
+        if let Nodata::Value(v) = self.nodata {
+            if !v.is_finite() && !v.is_nan() {
+                return Err(Error::setting("nodata", format!("{v} is not a number a raster can hold")));
+            }
         }
         if self.max_output_pixels == Some(0) {
             return Err(Error::setting("max_output_pixels", "must be at least 1"));
@@ -416,7 +445,7 @@ impl RectifyOptions {
             band_order: BandOrder::Auto,
             compress: Compression::Deflate,
             bigtiff: BigTiff::Auto,
-            nodata: 0.0,
+            nodata: Nodata::Auto,
             alpha: false,
             threads: 0,
             memory: 128 << 20,

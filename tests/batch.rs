@@ -278,3 +278,34 @@ fn the_error_bound_in_a_manifest() {
     assert_eq!(r.status.code(), Some(3), "{err}");
     assert!(err.contains("line") && err.contains("max_error: -3 must be a positive number"), "{err}");
 }
+
+/// The manifest takes `nodata` as the CLI does: the mask by default, a
+/// number as a tagged nodata value, `"mask"` by name; a bad word fails
+/// with its line.
+#[test]
+fn nodata_in_a_manifest() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    block(d, 3);
+    let m = d.join("manifest.toml");
+    let report = d.join("r.jsonl");
+    let job = |i: usize, extra: &str| format!("[[job]]\nimage = \"scans/s{i:02}.tif\"\ncamera = \"scene/camera.toml\"\n{extra}\n");
+    let jobs = [job(0, ""), job(1, "nodata = 0"), job(2, "nodata = \"mask\"")].concat();
+    std::fs::write(&m, format!("[defaults]\ndem = \"scene/dem.tif\"\n{jobs}")).unwrap();
+    let r = batch(d, &["--report", s(&report)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let outputs: Vec<PathBuf> = lines(&report).iter().map(|l| d.join(l["output"].as_str().unwrap())).collect();
+    let marks: Vec<(Option<f64>, bool)> = outputs
+        .iter()
+        .map(|o| {
+            let info = gcm_ortho::io::source::SourceImage::open(o, 1 << 20).unwrap().info;
+            (info.georef.unwrap().nodata, info.mask.is_some())
+        })
+        .collect();
+    assert_eq!(marks, [(None, true), (Some(0.0), false), (None, true)]);
+    std::fs::write(&m, format!("[defaults]\ndem = \"scene/dem.tif\"\nnodata = \"none\"\n{}", job(0, ""))).unwrap();
+    let r = batch(d, &["--force"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(3), "{err}");
+    assert!(err.contains("line") && err.contains("nodata") && err.contains("neither auto, mask nor a number"), "{err}");
+}

@@ -121,6 +121,7 @@ fn dem_voids_without_a_nodata_tag_are_holes_with_a_warning_not_heights() {
         bigtiff: false,
         photometric: 1,
         alpha: false,
+        mask: false,
         geo: Some(GeoTags { x0: dem.transform[0], y0: dem.transform[3], gsd: dem.transform[1], epsg: 32631, nodata: None }),
     };
     write_raster(&path, &spec, |_, _, buf| {
@@ -262,4 +263,14 @@ fn a_film_scans_margin_is_masked_to_its_format() {
     }
     assert!(kept > 300_000 && cut > 5_000, "{kept} kept, {cut} cut");
     assert_eq!(near_edge, [true; 4], "image reaches every edge of the format");
+    // Floating-point samples: by default the holes are NaN, a value no
+    // data holds, and tagged so.
+    let nan = dir.path().join("nan.tif");
+    let r = run(&["rectify", "--image", s(&dir.path().join("coords.tif")), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "-o", s(&nan)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let info = gcm_ortho::io::source::SourceImage::open(&nan, 1 << 20).unwrap().info;
+    assert!(info.georef.unwrap().nodata.is_some_and(f64::is_nan) && info.mask.is_none());
+    let (_, _, _, v) = read_f32(&nan);
+    let holes = v.chunks_exact(2).filter(|p| p[0].is_nan()).count();
+    assert!(holes > 5_000 && v.chunks_exact(2).all(|p| p[0].is_nan() == p[1].is_nan() && (p[0].is_nan() || p[0] >= 0.0)), "{holes} holes");
 }

@@ -311,3 +311,66 @@ fn gdal_reads_tiles_stored_column_by_column_where_they_belong() {
     assert_eq!(ours.1, gdals.1);
     assert!(ours.0 == gdals.0, "GDAL places the tiles elsewhere");
 }
+
+/// GDAL's view of an orthophoto through Python: its mask flags and nodata
+/// value, whether its mask and pixels equal those of the `--alpha` run
+/// `alpha` (alpha band and colour bands), and how many pixels with a value
+/// are black in every band.
+fn mask_as_gdal_sees_it(python: &str, out: &std::path::Path, alpha: &std::path::Path) -> serde_json::Value {
+    const SCRIPT: &str = r#"
+import json, sys
+import numpy as np
+from osgeo import gdal
+o, a = gdal.Open(sys.argv[1]), gdal.Open(sys.argv[2])
+b = o.GetRasterBand(1)
+mask = b.GetMaskBand().ReadAsArray()
+data, ref = o.ReadAsArray(), a.ReadAsArray()
+print(json.dumps({
+    "flags": b.GetMaskFlags(),
+    "nodata": b.GetNoDataValue(),
+    "mask_is_alpha": bool((mask == np.where(ref[-1] > 0, 255, 0)).all()),
+    "pixels_equal": bool((data == ref[:-1]).all()),
+    "black_with_value": int(((data == 0).all(axis=0) & (mask > 0)).sum()),
+    "without_value": int((mask == 0).sum()),
+}))
+"#;
+    let r = Command::new(python).args(["-c", SCRIPT, s(out), s(alpha)]).output().unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    serde_json::from_slice(&r.stdout).unwrap()
+}
+
+#[test]
+fn the_default_output_masks_where_there_is_no_image_and_keeps_black_pixels() {
+    let Some(python) = python_with("osgeo", "python3-gdal") else { return };
+    let dir = tempfile::tempdir().unwrap();
+    for (bits, compress, order) in [(8, "deflate", "rows"), (8, "none", "columns"), (16, "zstd", "rows")] {
+        let sc = scene(&dir.path().join(format!("scene{bits}{compress}")), 500, |o| {
+            o.bits = bits;
+            o.kappa_deg = 25.0;
+        });
+        // A black square in the middle of the image: real data, not a hole.
+        let paint = "from osgeo import gdal; import sys; d = gdal.Open(sys.argv[1], gdal.GA_Update)\n\
+                     for k in range(d.RasterCount): d.GetRasterBand(k + 1).WriteArray(__import__('numpy').zeros((60, 60)), 220, 220)";
+        assert!(Command::new(python).args(["-c", paint, s(&sc.scan)]).status().unwrap().success());
+        let rectify = |out: &std::path::Path, extra: &[&str]| {
+            let mut a = vec!["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet"];
+            a.extend(["--compress", compress, "--band-order", order, "-o", s(out)]);
+            a.extend_from_slice(extra);
+            let r = run(&a);
+            assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        };
+        let (out, alpha) = (dir.path().join(format!("m{bits}{compress}.tif")), dir.path().join(format!("a{bits}{compress}.tif")));
+        rectify(&out, &[]);
+        rectify(&alpha, &["--alpha"]);
+        let j = mask_as_gdal_sees_it(python, &out, &alpha);
+        if compress == "none" {
+            // The mask's tiles between them are padded: every image tile starts on a page.
+            let info = gcm_ortho::io::source::SourceImage::open(&out, 1 << 20).unwrap().info;
+            assert!(info.chunk_table().0.iter().all(|o| o % 4096 == 0) && info.mask.is_some());
+        }
+        // GMF_PER_DATASET (2): one mask for all bands, and no nodata value.
+        assert_eq!((j["flags"].as_u64(), j["nodata"].is_null()), (Some(2), true), "{bits}-bit {compress}: {j}");
+        assert_eq!((j["mask_is_alpha"].as_bool(), j["pixels_equal"].as_bool()), (Some(true), Some(true)), "{bits}-bit {compress}: {j}");
+        assert!(j["black_with_value"].as_u64().unwrap() > 2000 && j["without_value"].as_u64().unwrap() > 2000, "{bits}-bit {compress}: {j}");
+    }
+}

@@ -237,6 +237,7 @@ fn rgb_dem() -> Vec<u8> {
         bigtiff: false,
         photometric: 2,
         alpha: false,
+        mask: false,
         geo: Some(GeoTags { x0: 649000.0, y0: 4891000.0, gsd: 100.0, epsg: 32631, nodata: None }),
     };
     write_raster(&p, &spec, |_, _, buf| buf.fill(100)).unwrap();
@@ -259,6 +260,7 @@ fn small_dem(w: u32, h: u32, height: impl Fn(usize) -> f32 + Sync) -> Vec<u8> {
         bigtiff: false,
         photometric: 1,
         alpha: false,
+        mask: false,
         geo: Some(GeoTags { x0: 649000.0, y0: 4893000.0, gsd: 4000.0 / w as f64, epsg: 32631, nodata: None }),
     };
     write_raster(&p, &spec, |y0, _, buf| {

@@ -9,7 +9,7 @@ use crate::error::Error;
 use crate::gcm::GcmSpec;
 use crate::io::bounded_read::{read_text_bounded, LIST};
 use crate::io::overwrite::{check_outputs, Role};
-use crate::options::{parse_choice, parse_max_error, parse_miss, DemSource, ModelSource, RectifyOptions};
+use crate::options::{parse_choice, parse_max_error, parse_miss, parse_nodata, DemSource, ModelSource, Nodata, RectifyOptions};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use toml::Spanned;
@@ -19,6 +19,14 @@ use toml::Spanned;
 #[serde(untagged)]
 pub enum MaxError {
     Pixels(f64),
+    Word(String),
+}
+
+/// `nodata`: a number, or `"auto"` / `"mask"`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum NodataSetting {
+    Value(f64),
     Word(String),
 }
 
@@ -40,7 +48,7 @@ pub struct Options {
     pub tile: Option<u32>,
     pub compress: Option<String>,
     pub bigtiff: Option<String>,
-    pub nodata: Option<f64>,
+    pub nodata: Option<NodataSetting>,
     pub alpha: Option<bool>,
     pub output_dir: Option<String>,
 }
@@ -323,8 +331,10 @@ fn config(
         if let Some(b) = &o.bigtiff {
             c.bigtiff = parse_choice("bigtiff", b)?;
         }
-        if let Some(n) = o.nodata {
-            c.nodata = n;
+        match &o.nodata {
+            Some(NodataSetting::Value(v)) => c.nodata = Nodata::Value(*v),
+            Some(NodataSetting::Word(w)) => c.nodata = parse_nodata("nodata", w)?,
+            None => {}
         }
         c.alpha = o.alpha.unwrap_or(false);
         c.validate()

@@ -1,12 +1,12 @@
 //! Putting pieces made with `rectify --window` back together: the pieces
-//! share the whole run's tile grid, so their compressed tiles are copied
-//! into one tiled GeoTIFF as they are — no decoding, no seam, the same
-//! pixels as a single run.
+//! share the whole run's tile grid, so their compressed tiles (and their
+//! internal masks' tiles) are copied into one tiled GeoTIFF as they are —
+//! no decoding, no seam, the same pixels as a single run.
 
 use crate::error::{Error, Result};
 use crate::io::overwrite::{check_outputs, check_writable, Role};
 use crate::io::source::SourceImage;
-use crate::io::tiff_out::{tiff_write_error, verify, write_tiled, Chunking, Compression, GeoTags, OutputSpec, PendingFile, WriteError};
+use crate::io::tiff_out::{tiff_write_error, verify, write_placed, Chunking, Compression, GeoTags, OutputSpec, PendingFile, WriteError};
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 
@@ -41,6 +41,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path) -> Result<()> {
             && i.predictor == first.predictor
             && i.photometric == first.photometric
             && i.has_alpha == first.has_alpha
+            && i.mask.is_some() == first.mask.is_some()
             && (g.transform[1] - gsd).abs() < 1e-12 * gsd
             && g.epsg == geo0.epsg
             && g.nodata == geo0.nodata;
@@ -105,19 +106,28 @@ pub fn assemble(pieces: &[PathBuf], out: &Path) -> Result<()> {
         bigtiff: false,
         photometric: first.photometric,
         alpha: first.has_alpha,
+        mask: first.mask.is_some(),
         geo: Some(GeoTags { x0: x_min, y0: y_max, gsd, epsg: geo0.epsg.unwrap_or(0), nodata: geo0.nodata }),
     };
     spec.bigtiff = spec.needs_bigtiff();
     let files: Vec<std::fs::File> = pieces.iter().map(|p| std::fs::File::open(p).map_err(|e| Error::io(p, e))).collect::<Result<_>>()?;
     let pending = PendingFile::create(out)?;
     let mut next = 0usize;
-    let r = write_tiled(pending.file()?, &spec, || -> Result<Option<Vec<u8>>> {
-        let Some(Some((k, t))) = owner.get(next).copied() else { return Ok(None) };
+    let r = write_placed(pending.file()?, &spec, || -> Result<Option<(usize, Vec<u8>)>> {
+        // Each tile of the image, then its mask's (where the pieces have
+        // one), as a single run writes them.
+        let per_tile = if spec.mask { 2 } else { 1 };
+        let (tile, of_mask) = (next / per_tile, next % per_tile == 1);
+        let Some(Some((k, t))) = owner.get(tile).copied() else { return Ok(None) };
         next += 1;
-        let (offs, counts) = srcs[k].info.chunk_table();
+        let at = if of_mask { spec.mask_tile(tile) } else { tile };
+        let (offs, counts) = match (&srcs[k].info.mask, of_mask) {
+            (Some((o, c)), true) => (&o[..], &c[..]),
+            _ => srcs[k].info.chunk_table(),
+        };
         let mut buf = vec![0u8; counts[t] as usize];
         files[k].read_exact_at(&mut buf, offs[t]).map_err(|e| Error::io(&pieces[k], e))?;
-        Ok(Some(buf))
+        Ok(Some((at, buf)))
     });
     match r {
         Ok(()) => {}

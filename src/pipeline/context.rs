@@ -29,6 +29,8 @@ pub struct PixelOptions {
     /// The part of the scan that holds the image, where less than all of it
     /// (a film's format): outside it, no value.
     pub area: Option<crate::geom::ImageArea>,
+    /// Say which pixels have a value, for the output's internal mask.
+    pub mask: bool,
 }
 
 /// The run's inputs, ready.
@@ -42,6 +44,15 @@ pub struct Inputs<'a> {
     pub output: &'a Path,
     /// Write back the output as it is written (see the write stage).
     pub sync: bool,
+}
+
+impl Inputs<'_> {
+    /// Bytes of one tile of a resampled chunk: the output's, and a byte a
+    /// pixel where it says which have a value (for the mask).
+    pub fn chunk_tile_bytes(&self) -> usize {
+        let (w, h) = self.spec.chunk();
+        self.spec.tile_bytes() + if self.pixels.mask { w as usize * h as usize } else { 0 }
+    }
 }
 
 /// The piece of the grid being made, as the stages walk it: bands of tile

@@ -13,7 +13,7 @@ use crate::geom::OutputGrid;
 use crate::io::geotiff::is_geographic;
 use crate::io::source::{SampleType, SourceImage};
 use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec};
-use crate::options::{BandOrder, BigTiff, DemSource, RectifyOptions};
+use crate::options::{BandOrder, BigTiff, DemSource, Nodata, RectifyOptions};
 use crate::progress::Progress;
 use crate::transform::footprint::{auto_grid, mean_gsd};
 use crate::transform::{Approx, Trend};
@@ -159,9 +159,16 @@ impl RunPlan {
         let (tc1, tr1) = (tc0 + tcw, tr0 + trh);
         let piece_w = (tc1 * tile).min(grid.width) - tc0 * tile;
         let piece_h = (tr1 * tile).min(grid.height) - tr0 * tile;
-        if !opts.alpha {
-            check_nodata(opts.nodata, src.info.sample)?;
-        }
+        // A nodata value, or the mask: then the resampler says which pixels
+        // have a value, and the encoder makes the mask's tiles of it.
+        let (nodata, mask) = match (opts.alpha, resolve_nodata(opts.nodata, src.info.sample)) {
+            (true, _) => (None, false),
+            (false, Nodata::Value(v)) => {
+                check_nodata(v, src.info.sample)?;
+                (Some(v), false)
+            }
+            (false, _) => (None, true),
+        };
         let bands_in = src.info.bands;
         let bands_out = bands_in + u32::from(opts.alpha);
         let photometric = if src.info.photometric == 2 && bands_in >= 3 { 2 } else { 1 };
@@ -175,12 +182,13 @@ impl RunPlan {
             bigtiff: false,
             photometric,
             alpha: opts.alpha || src.info.has_alpha,
+            mask,
             geo: Some(GeoTags {
                 x0: grid.x0 + (tc0 * tile) as f64 * grid.gsd,
                 y0: grid.y0 - (tr0 * tile) as f64 * grid.gsd,
                 gsd: grid.gsd,
                 epsg: camera.crs.epsg,
-                nodata: (!opts.alpha).then_some(opts.nodata),
+                nodata,
             }),
         };
         spec.bigtiff = match opts.bigtiff {
@@ -189,7 +197,7 @@ impl RunPlan {
             BigTiff::Auto => spec.needs_bigtiff(),
         };
         let area = camera.model().image_area();
-        let pixels = PixelOptions { kernel: opts.kernel, tile, fill: if opts.alpha { 0.0 } else { opts.nodata }, alpha: opts.alpha, bands_out, area };
+        let pixels = PixelOptions { kernel: opts.kernel, tile, fill: nodata.unwrap_or(0.0), alpha: opts.alpha, bands_out, area, mask };
         Ok(RunPlan { camera, src, dem, grid, approx, band_order, gcm, piece: [tc0, tr0, tcw, trh], spec, pixels, budget })
     }
 
@@ -261,6 +269,16 @@ fn check_geoid_covers(r: &crate::camera::RpcCamera, w: u32, h: u32, z: f64) -> R
         ));
     }
     Ok(())
+}
+
+/// What `auto` means for these samples: NaN (outside any data) for
+/// floating point; for integers, whose every value may be data, the mask.
+fn resolve_nodata(nodata: Nodata, sample: SampleType) -> Nodata {
+    match (nodata, sample) {
+        (Nodata::Auto, SampleType::F32) => Nodata::Value(f64::NAN),
+        (Nodata::Auto, _) => Nodata::Mask,
+        (n, _) => n,
+    }
 }
 
 /// Refuses a nodata value the output's samples cannot hold (they take the

@@ -29,7 +29,7 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
     // Buffers going back up the pipeline to be used again.
     let (tx_free_win, rx_free_win) = bounded::<Window>(4);
     let (tx_free_raw, rx_free_raw) = bounded::<Raw>(4);
-    let (tx_enc, rx_enc) = bounded::<(usize, Tile)>(run.budget.chunk_tiles(run.inputs.spec.tile_bytes()).max(4) as usize);
+    let (tx_enc, rx_enc) = bounded::<(usize, Tile)>(run.budget.chunk_tiles(run.inputs.chunk_tile_bytes()).max(4) as usize);
 
     let results: Vec<Result<Duration>> = std::thread::scope(|s| {
         let h_dem = s.spawn(|| {
@@ -193,7 +193,7 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
 /// and the window buffer to use again.
 struct Resampled {
     seq: u64,
-    raw: std::result::Result<Raw, Miss>,
+    raw: std::result::Result<super::stages::resample::Pixels, Miss>,
     win: Window,
     band: u32,
     /// The chunk's first output column.

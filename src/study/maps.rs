@@ -21,6 +21,7 @@ pub fn write_error_map(path: &Path, map: &[f32], w: u32, h: u32, grid: &OutputGr
         bigtiff: false,
         photometric: 1,
         alpha: false,
+        mask: false,
         geo: Some(GeoTags { x0: grid.x0, y0: grid.y0, gsd: grid.gsd * step as f64, epsg, nodata: None }),
     };
     write_raster(path, &spec, |y0, y1, buf| {

@@ -371,6 +371,7 @@ fn write_dem(path: &std::path::Path, g: &GridDem) -> Result<()> {
         bigtiff: false,
         photometric: 1,
         alpha: false,
+        mask: false,
         geo: Some(GeoTags { x0: g.transform[0], y0: g.transform[3], gsd: g.transform[1], epsg: g.epsg.unwrap_or(EPSG), nodata: None }),
     };
     write_raster(path, &spec, |y0, y1, buf| {
@@ -572,6 +573,7 @@ fn scan_spec(o: &SynthOptions) -> OutputSpec {
         bigtiff: false,
         photometric: if o.bands >= 3 { 2 } else { 1 },
         alpha: false,
+        mask: false,
         geo: None,
     };
     OutputSpec { bigtiff: spec.needs_bigtiff(), ..spec }

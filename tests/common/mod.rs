@@ -74,6 +74,7 @@ pub fn coordinate_image(path: &Path, w: u32, h: u32) {
         bigtiff: false,
         photometric: 1,
         alpha: false,
+        mask: false,
         geo: None,
     };
     write_raster(path, &spec, |y0, y1, buf| {

@@ -30,6 +30,9 @@ pub struct SourceInfo {
     pub georef: Option<GeoRef>,
     pub(super) offsets: Vec<u64>,
     pub(super) byte_counts: Vec<u64>,
+    /// The chunk table (offsets, byte counts) of an internal mask (GDAL's:
+    /// the next directory, NewSubfileType 4, same size and chunks).
+    pub mask: Option<(Vec<u64>, Vec<u64>)>,
 }
 
 impl SourceInfo {
@@ -146,6 +149,7 @@ pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_le
         georef,
         offsets,
         byte_counts,
+        mask: None,
     };
     // Sizes that overflow or chunk tables that do not match are refused
     // before anything is allocated or mapped.
@@ -176,4 +180,37 @@ pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_le
         }
     }
     Ok(info)
+}
+
+/// The internal mask's chunk table, where the directory after the image's
+/// is one: a 1-bit transparency mask (NewSubfileType 4) of the image's size
+/// and chunks, every chunk inside the file.
+pub(super) fn read_mask_table(dec: &mut Decoder<BufReader<File>>, info: &SourceInfo, path: &Path, file_len: u64) -> Result<Option<(Vec<u64>, Vec<u64>)>> {
+    let tf = |e| Error::from_tiff(path, e);
+    if !dec.more_images() {
+        return Ok(None);
+    }
+    dec.next_image().map_err(tf)?;
+    let kind = dec.find_tag_unsigned::<u32>(Tag::NewSubfileType).map_err(tf)?.unwrap_or(0);
+    if kind & 4 == 0 || dec.dimensions().map_err(tf)? != (info.width, info.height) {
+        return Ok(None);
+    }
+    let (ot, ct, chunk) = if info.tiled {
+        (Tag::TileOffsets, Tag::TileByteCounts, (dec.get_tag_u32(Tag::TileWidth).map_err(tf)?, dec.get_tag_u32(Tag::TileLength).map_err(tf)?))
+    } else {
+        (
+            Tag::StripOffsets,
+            Tag::StripByteCounts,
+            (info.width, dec.find_tag_unsigned::<u32>(Tag::RowsPerStrip).map_err(tf)?.unwrap_or(info.height).clamp(1, info.height)),
+        )
+    };
+    let (offsets, counts) = (tag_u64s(dec, ot, path)?, tag_u64s(dec, ct, path)?);
+    let n = info.chunks_per_plane() as usize;
+    if chunk != info.chunk || offsets.len() != n || counts.len() != n {
+        return Err(Error::format(path, "its internal mask is not chunked as the image is"));
+    }
+    if offsets.iter().zip(&counts).any(|(&o, &c)| o.checked_add(c).is_none_or(|end| end > file_len)) {
+        return Err(Error::format(path, "a chunk of its internal mask runs past the end of the file: truncated?"));
+    }
+    Ok(Some((offsets, counts)))
 }

@@ -51,6 +51,14 @@ impl SourceImage {
             .map_err(|e| Error::from_tiff(path, e))?
             .with_limits(decoder_limits());
         let mut info = read_info(&mut dec, path, len)?;
+        {
+            // On a decoder (and file offset) of its own: `dec` stays on the
+            // image's directory.
+            let mut next = Decoder::new(BufReader::new(File::open(path).map_err(|e| Error::io(path, e))?))
+                .map_err(|e| Error::from_tiff(path, e))?
+                .with_limits(decoder_limits());
+            info.mask = header::read_mask_table(&mut next, &info, path, len)?;
+        }
         let backend = if info.compression == 1 {
             // SAFETY: the mapping is read-only; every chunk's extent was
             // checked against the file's length in `read_info`, so no slice
@@ -292,6 +300,7 @@ mod tests {
             bigtiff: false,
             photometric: if bands >= 3 { 2 } else { 1 },
             alpha: false,
+            mask: false,
             geo: None,
         };
         let sb = sample.bytes();
@@ -378,6 +387,7 @@ mod tests {
                 bigtiff: false,
                 photometric: 2,
                 alpha: false,
+                mask: false,
                 geo: None,
             };
             write_raster(&path, &spec, |y0, _, buf| {
@@ -419,6 +429,7 @@ mod tests {
             bigtiff: false,
             photometric: 2,
             alpha: false,
+            mask: false,
             geo: None,
         };
         write_raster(&plain, &spec, |_, _, buf| buf.fill(7)).unwrap();

@@ -1,5 +1,6 @@
 //! A tile's bytes as the file holds them: the horizontal predictor for
-//! integer samples, then deflate, LZW or zstd.
+//! integer samples, then deflate, LZW or zstd; and a mask tile's, its bits
+//! packed and deflated.
 
 use super::{Compression, OutputSpec, SampleType};
 use crate::error::{Error, Result};
@@ -53,4 +54,31 @@ pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>) -> Result<Vec<u8>> {
         }
         Compression::Zstd => zstd::bulk::compress(&tile, 9).map_err(io)?,
     })
+}
+
+/// A mask tile as the file holds it: one bit a pixel (1: has a value),
+/// the first pixel in the high bit, each of the chunk's rows padded to a
+/// whole byte, deflated. `valid` holds the chunk's pixels row by row, 1
+/// where a pixel has a value, else 0.
+pub fn encode_mask(spec: &OutputSpec, valid: &[u8]) -> Result<Vec<u8>> {
+    let (w, h) = (spec.chunk().0 as usize, spec.chunk().1 as usize);
+    assert_eq!(valid.len(), w * h, "a mask tile's pixels");
+    let row_bytes = w.div_ceil(8);
+    let mut bits = vec![0u8; row_bytes * h];
+    for (row, pixels) in bits.chunks_exact_mut(row_bytes).zip(valid.chunks_exact(w)) {
+        let eights = pixels.chunks_exact(8);
+        let rest = eights.remainder();
+        for (byte, eight) in row.iter_mut().zip(eights) {
+            // Eight 0/1 bytes, the first the lowest: the multiply gathers
+            // them into the top byte, the first pixel highest.
+            let v = u64::from_le_bytes(eight.try_into().expect("8 bytes")) & 0x0101_0101_0101_0101;
+            *byte = (v.wrapping_mul(0x8040_2010_0804_0201) >> 56) as u8;
+        }
+        for (x, &p) in rest.iter().enumerate() {
+            row[w / 8] |= (p & 1) << (7 - x);
+        }
+    }
+    let mut out = Vec::with_capacity(bits.len() / 8 + 64);
+    Deflate::with_level(DeflateLevel::Fast).write_to(&mut out, &bits).map_err(|e| Error::Usage(format!("mask compression failed: {e}")))?;
+    Ok(out)
 }

@@ -12,7 +12,7 @@ mod verify;
 mod writer;
 
 pub use crate::io::publish::{reserve, PendingFile};
-pub use encode::encode_tile;
+pub use encode::{encode_mask, encode_tile};
 pub use verify::verify;
 pub use writer::{page_padding, tiff_write_error, write_placed, write_raster, write_tiled, WriteError};
 
@@ -73,6 +73,11 @@ pub struct OutputSpec {
     pub photometric: u16,
     /// The last band is (unassociated) alpha.
     pub alpha: bool,
+    /// A 1-bit internal mask says which pixels have a value: GDAL's TIFF
+    /// internal mask, a second directory (NewSubfileType 4, transparency
+    /// mask) with the same tiles, deflated. Its tiles are numbered after
+    /// the image's ([`OutputSpec::mask_tile`]).
+    pub mask: bool,
     pub geo: Option<GeoTags>,
 }
 
@@ -89,6 +94,14 @@ impl OutputSpec {
     }
     pub fn tiles_down(&self) -> u32 {
         self.height.div_ceil(self.chunk().1)
+    }
+    /// Chunks of the image (of the mask as many again).
+    pub fn tile_count(&self) -> usize {
+        self.tiles_across() as usize * self.tiles_down() as usize
+    }
+    /// The number under which the writer takes the mask tile of image tile `k`.
+    pub fn mask_tile(&self, k: usize) -> usize {
+        self.tile_count() + k
     }
     /// Uncompressed bytes of a full chunk.
     pub fn tile_bytes(&self) -> usize {
@@ -130,6 +143,7 @@ mod tests {
             bigtiff: false,
             photometric: 2,
             alpha: false,
+            mask: false,
             geo: None,
         }
     }
@@ -193,6 +207,43 @@ mod tests {
         assert!(write(&[0, 3, 1, 4, 2, 2]).0.is_err(), "a tile twice");
         assert!(write(&[0, 3, 1, 4, 2]).0.is_err(), "a tile missing");
         assert!(write(&[0, 3, 1, 4, 2, 6]).0.is_err(), "a tile past the end");
+    }
+
+    #[test]
+    fn a_mask_is_the_next_directory_one_bit_a_pixel_high_bit_first() {
+        // 20 × 20 grey in 16 × 16 tiles (2 × 2), the mask's tiles after
+        // the image's: a pixel has a value where x + y is even and x < 18,
+        // and in the last row but one (runs of eight alike).
+        let spec = OutputSpec { width: 20, height: 20, compression: Compression::None, photometric: 1, mask: true, ..spec(1, SampleType::U8) };
+        let has = |x: usize, y: usize| ((x + y) % 2 == 0 && x < 18) || y == 18;
+        let mut order = Vec::new();
+        for k in 0..4 {
+            let (tx, ty) = (k % 2 * 16, k / 2 * 16);
+            let valid: Vec<u8> = (0..256).map(|p| u8::from(has(tx + p % 16, ty + p / 16))).collect();
+            order.push((k, vec![7u8; 256]));
+            order.push((spec.mask_tile(k), encode_mask(&spec, &valid).unwrap()));
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.tif");
+        let mut next = order.into_iter();
+        write_placed(std::fs::File::create(&path).unwrap(), &spec, || -> std::result::Result<_, ()> { Ok(next.next()) }).unwrap();
+        verify(&path, &spec).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let mut dec = tiff::decoder::Decoder::new(std::io::Cursor::new(&bytes)).unwrap();
+        dec.next_image().unwrap();
+        assert_eq!(dec.get_tag_u32(Tag::NewSubfileType).unwrap(), 4);
+        assert_eq!((dec.get_tag_u32(Tag::PhotometricInterpretation).unwrap(), dec.get_tag_u32(Tag::BitsPerSample).unwrap()), (4, 1));
+        let (offs, counts) = (dec.get_tag_u64_vec(Tag::TileOffsets).unwrap(), dec.get_tag_u64_vec(Tag::TileByteCounts).unwrap());
+        for k in 0..4 {
+            let bits = inflate(&bytes[offs[k] as usize..(offs[k] + counts[k]) as usize]);
+            assert_eq!(bits.len(), 2 * 16, "two bytes a row of 16");
+            let (tx, ty) = (k % 2 * 16, k / 2 * 16);
+            for p in 0..256 {
+                let (x, y) = (p % 16, p / 16);
+                let bit = bits[y * 2 + x / 8] & (0x80 >> (x % 8)) != 0;
+                assert_eq!(bit, has(tx + x, ty + y), "tile {k} pixel {x},{y}");
+            }
+        }
     }
 
     #[test]

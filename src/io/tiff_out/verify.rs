@@ -1,4 +1,4 @@
-//! The written file read back before it is published: its directory and
+//! The written file read back before it is published: its directories and
 //! tile tables must say what was meant to be written.
 
 use super::{Chunking, OutputSpec};
@@ -6,31 +6,55 @@ use crate::error::{Error, Result};
 use std::path::Path;
 use tiff::tags::Tag;
 
-/// Re-reads a written file's directory and checks its tile tables against
-/// the spec and the file length, so that a writer bug never publishes a
-/// broken file.
+/// Re-reads a written file's directory (and its mask's) and checks the
+/// tile tables against the spec and the file length, so that a writer bug
+/// never publishes a broken file.
 pub fn verify(path: &Path, spec: &OutputSpec) -> Result<()> {
     let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let len = f.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut dec =
         tiff::decoder::Decoder::new(std::io::BufReader::new(f)).map_err(|e| Error::from_tiff(path, e))?.with_limits(crate::io::format::decoder_limits());
     let bad = |m: String| Error::format(path, format!("written file failed verification: {m}"));
-    let (w, h) = dec.dimensions().map_err(|e| Error::from_tiff(path, e))?;
+    check_directory(&mut dec, spec, len, path).map_err(bad)?;
+    if spec.mask {
+        let tf = |e| Error::from_tiff(path, e);
+        if !dec.more_images() {
+            return Err(bad("no mask directory".into()));
+        }
+        dec.next_image().map_err(tf)?;
+        let kind = dec.find_tag_unsigned::<u32>(Tag::NewSubfileType).map_err(tf)?;
+        if kind != Some(4) {
+            return Err(bad(format!("the second directory is not a mask (NewSubfileType {kind:?})")));
+        }
+        check_directory(&mut dec, spec, len, path).map_err(|m| bad(format!("mask: {m}")))?;
+    }
+    Ok(())
+}
+
+/// The current directory's size and chunk table against `spec`.
+fn check_directory(
+    dec: &mut tiff::decoder::Decoder<std::io::BufReader<std::fs::File>>,
+    spec: &OutputSpec,
+    len: u64,
+    path: &Path,
+) -> std::result::Result<(), String> {
+    let tf = |e| Error::from_tiff(path, e).to_string();
+    let (w, h) = dec.dimensions().map_err(tf)?;
     if (w, h) != (spec.width, spec.height) {
-        return Err(bad(format!("size {w}×{h}")));
+        return Err(format!("size {w}×{h}"));
     }
     let (ot, ct) = match spec.chunking {
         Chunking::Tiles(_) => (Tag::TileOffsets, Tag::TileByteCounts),
         Chunking::Strips(_) => (Tag::StripOffsets, Tag::StripByteCounts),
     };
-    let offsets = dec.get_tag_u64_vec(ot).map_err(|e| Error::from_tiff(path, e))?;
-    let counts = dec.get_tag_u64_vec(ct).map_err(|e| Error::from_tiff(path, e))?;
-    let n = (spec.tiles_across() * spec.tiles_down()) as usize;
+    let offsets = dec.get_tag_u64_vec(ot).map_err(tf)?;
+    let counts = dec.get_tag_u64_vec(ct).map_err(tf)?;
+    let n = spec.tile_count();
     if offsets.len() != n || counts.len() != n {
-        return Err(bad(format!("{} tiles, expected {n}", offsets.len())));
+        return Err(format!("{} tiles, expected {n}", offsets.len()));
     }
     if let Some(k) = offsets.iter().zip(&counts).position(|(&o, &c)| c == 0 || o + c > len) {
-        return Err(bad(format!("tile {k} lies outside the file")));
+        return Err(format!("tile {k} lies outside the file"));
     }
     Ok(())
 }

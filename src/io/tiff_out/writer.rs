@@ -62,13 +62,15 @@ fn write_kind<K: TiffKind, E, B: AsRef<[u8]>>(
     spec: &OutputSpec,
     mut next_tile: impl FnMut() -> std::result::Result<Option<(usize, B)>, E>,
 ) -> std::result::Result<(), WriteError<E>> {
-    let n = (spec.tiles_across() * spec.tiles_down()) as usize;
+    // The image's tiles, then the mask's.
+    let n = spec.tile_count() * if spec.mask { 2 } else { 1 };
     // A byte count of 0 marks a tile not written yet (no tile is empty).
     let mut offsets = vec![0u64; n];
     let mut counts = vec![0u64; n];
     let mut written = 0usize;
     let mut dir = enc.image_directory()?;
-    if let Some(pad) = page_padding(spec) {
+    let paged = page_padding(spec);
+    if let Some(pad) = paged {
         // Unreferenced bytes (TIFF allows them) so that every tile of an
         // uncompressed output starts on a page of the file: the page cache
         // then takes whole pages, without zeroing and merging the pages
@@ -83,6 +85,11 @@ fn write_kind<K: TiffKind, E, B: AsRef<[u8]>>(
         }
         offsets[k] = dir.write_data(tile)?;
         counts[k] = tile.len() as u64;
+        if paged.is_some() && k >= spec.tile_count() {
+            // A mask's tile, padded so that the next image tile starts on a page.
+            let end = offsets[k] + counts[k];
+            dir.write_data(&vec![0u8; ((PAGE - end % PAGE) % PAGE) as usize][..])?;
+        }
         written += 1;
     }
     if written != n {
@@ -98,19 +105,8 @@ fn write_kind<K: TiffKind, E, B: AsRef<[u8]>>(
     dir.write_tag(Tag::PlanarConfiguration, 1u16)?;
     let offsets: Vec<K::OffsetType> = offsets.iter().map(|&o| K::convert_offset(o)).collect::<tiff::TiffResult<_>>()?;
     let counts: Vec<K::OffsetType> = counts.iter().map(|&o| K::convert_offset(o)).collect::<tiff::TiffResult<_>>()?;
-    match spec.chunking {
-        Chunking::Tiles(t) => {
-            dir.write_tag(Tag::TileWidth, t)?;
-            dir.write_tag(Tag::TileLength, t)?;
-            dir.write_tag(Tag::TileOffsets, K::convert_slice(&offsets))?;
-            dir.write_tag(Tag::TileByteCounts, K::convert_slice(&counts))?;
-        }
-        Chunking::Strips(_) => {
-            dir.write_tag(Tag::RowsPerStrip, spec.chunk().1)?;
-            dir.write_tag(Tag::StripOffsets, K::convert_slice(&offsets))?;
-            dir.write_tag(Tag::StripByteCounts, K::convert_slice(&counts))?;
-        }
-    }
+    let image = spec.tile_count();
+    write_chunk_tables::<K, _>(&mut dir, spec, &offsets[..image], &counts[..image])?;
     let format = if spec.sample == SampleType::F32 { 3u16 } else { 1u16 };
     dir.write_tag(Tag::SampleFormat, &vec![format; spec.bands as usize][..])?;
     let colour = if spec.photometric == 2 { 3 } else { 1 };
@@ -128,6 +124,44 @@ fn write_kind<K: TiffKind, E, B: AsRef<[u8]>>(
         write_georef(&mut dir, g.x0, g.y0, g.gsd, g.epsg, g.nodata)?;
     }
     dir.finish()?;
+    if spec.mask {
+        // GDAL's internal mask: the next directory, a 1-bit transparency
+        // mask of the same size and tiles.
+        let mut m = enc.image_directory()?;
+        m.write_tag(Tag::NewSubfileType, 4u32)?;
+        m.write_tag(Tag::ImageWidth, spec.width)?;
+        m.write_tag(Tag::ImageLength, spec.height)?;
+        m.write_tag(Tag::BitsPerSample, 1u16)?;
+        m.write_tag(Tag::Compression, Compression::Deflate.tag())?;
+        m.write_tag(Tag::PhotometricInterpretation, 4u16)?;
+        m.write_tag(Tag::SamplesPerPixel, 1u16)?;
+        m.write_tag(Tag::PlanarConfiguration, 1u16)?;
+        write_chunk_tables::<K, _>(&mut m, spec, &offsets[image..], &counts[image..])?;
+        m.finish()?;
+    }
+    Ok(())
+}
+
+/// The chunk size and table tags of a directory.
+fn write_chunk_tables<K: TiffKind, W: std::io::Write + std::io::Seek>(
+    dir: &mut tiff::encoder::DirectoryEncoder<'_, W, K>,
+    spec: &OutputSpec,
+    offsets: &[K::OffsetType],
+    counts: &[K::OffsetType],
+) -> tiff::TiffResult<()> {
+    match spec.chunking {
+        Chunking::Tiles(t) => {
+            dir.write_tag(Tag::TileWidth, t)?;
+            dir.write_tag(Tag::TileLength, t)?;
+            dir.write_tag(Tag::TileOffsets, K::convert_slice(offsets))?;
+            dir.write_tag(Tag::TileByteCounts, K::convert_slice(counts))?;
+        }
+        Chunking::Strips(_) => {
+            dir.write_tag(Tag::RowsPerStrip, spec.chunk().1)?;
+            dir.write_tag(Tag::StripOffsets, K::convert_slice(offsets))?;
+            dir.write_tag(Tag::StripByteCounts, K::convert_slice(counts))?;
+        }
+    }
     Ok(())
 }
 
@@ -137,7 +171,7 @@ pub(super) const PAGE: u64 = 4096;
 /// Bytes to write after the header so that the first tile (and so, each
 /// tile being a whole number of pages, every tile) starts on a page:
 /// `None` for compressed tiles, whose sizes vary, or tiles that are not
-/// whole pages.
+/// whole pages. (A mask's tiles between them are padded to whole pages.)
 pub fn page_padding(spec: &OutputSpec) -> Option<usize> {
     let header = if spec.bigtiff { 16 } else { 8 };
     (spec.compression == Compression::None && spec.tile_bytes() as u64 % PAGE == 0).then_some((PAGE - header) as usize)

@@ -4,7 +4,7 @@
 use super::resample::{Made, Raw};
 use super::timed;
 use crate::error::Result;
-use crate::io::tiff_out::{encode_tile, Compression};
+use crate::io::tiff_out::{encode_mask, encode_tile, Compression};
 use crate::pipeline::context::Run;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -40,23 +40,38 @@ impl Drop for Tile {
 
 /// A resampled chunk, passed on as its tiles with their places in the
 /// file: compressed in parallel; uncompressed, pieces of the chunk, which
-/// goes back through `free` when the last is written.
+/// goes back through `free` when the last is written. Under a mask, each
+/// image tile is followed by its mask's tile.
 pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy: &mut Duration) -> Vec<Result<(usize, Tile)>> {
-    let Made { band, first_col, raw } = made;
+    let Made { band, first_col, raw, valid } = made;
     let spec = run.inputs.spec;
     let tb = spec.tile_bytes();
     // The chunk holds whole tiles, one after the other (padded).
     let n = raw.bytes().len() / tb;
-    let tiles: Vec<Result<Tile>> = if spec.compression == Compression::None {
+    // A tile's mask (where there is one) and, compressed, the tile itself:
+    // one parallel pass.
+    let px = valid.as_ref().map_or(0, |v| v.len() / n.max(1));
+    let mask = |k: usize| valid.as_ref().map(|v| encode_mask(spec, &v[k * px..(k + 1) * px]).map(Tile::Owned));
+    let (tiles, masks): (Vec<Result<Tile>>, Vec<Option<Result<Tile>>>) = if spec.compression == Compression::None {
+        let masks = timed(busy, || run.pool.install(|| (0..n).into_par_iter().map(mask).collect()));
         let shared = Arc::new(raw);
-        (0..n).map(|k| Ok(Tile::Shared { chunk: Some(shared.clone()), range: k * tb..(k + 1) * tb, free: free.clone() })).collect()
+        ((0..n).map(|k| Ok(Tile::Shared { chunk: Some(shared.clone()), range: k * tb..(k + 1) * tb, free: free.clone() })).collect(), masks)
     } else {
-        let tiles = timed(busy, || {
+        let pairs = timed(busy, || {
             let bytes = raw.bytes();
-            run.pool.install(|| (0..n).into_par_iter().map(|k| encode_tile(spec, bytes[k * tb..(k + 1) * tb].to_vec()).map(Tile::Owned)).collect())
+            run.pool.install(|| (0..n).into_par_iter().map(|k| (encode_tile(spec, bytes[k * tb..(k + 1) * tb].to_vec()).map(Tile::Owned), mask(k))).collect())
         });
         let _ = free.try_send(raw);
-        tiles
+        pairs
     };
-    tiles.into_iter().enumerate().map(|(k, tile)| Ok((run.walk.tile_index(band, first_col + k as u32), tile.map_err(|e| run.stop.fail(e))?))).collect()
+    let mut masks = masks.into_iter().flatten();
+    let mut out = Vec::with_capacity(n * if spec.mask { 2 } else { 1 });
+    for (k, tile) in tiles.into_iter().enumerate() {
+        let at = run.walk.tile_index(band, first_col + k as u32);
+        out.push(tile.map(|t| (at, t)).map_err(|e| run.stop.fail(e)));
+        if let Some(mask) = masks.next() {
+            out.push(mask.map(|m| (spec.mask_tile(at), m)).map_err(|e| run.stop.fail(e)));
+        }
+    }
+    out
 }

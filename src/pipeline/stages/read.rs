@@ -47,7 +47,7 @@ pub fn plan(run: &Run, b: u32, band: &BandGcm, reader: &mut Reader) -> Vec<Chunk
     let (y0, y1) = walk.band_rows(b);
     let (sw, sh) = (src.info.width, src.info.height);
     let margin = run.inputs.pixels.kernel.radius() + 2;
-    let (budget_px, max_tiles) = (run.budget.window_pixels(src.info.pixel_bytes()), run.budget.chunk_tiles(run.inputs.spec.tile_bytes()));
+    let (budget_px, max_tiles) = (run.budget.window_pixels(src.info.pixel_bytes()), run.budget.chunk_tiles(run.inputs.chunk_tile_bytes()));
     let chunks = timed(&mut reader.busy, || plan_band(run.inputs.gcm, band, y0, y1, walk.tile, (sw, sh), margin, budget_px, max_tiles, walk.cols));
     let rows = band_scan_rows(&chunks);
     if let Some(rows) = rows.filter(|&(r0, r1)| !reader.copying && (r1 - r0) as u64 * sw as u64 * src.info.pixel_bytes() as u64 <= run.budget.mapped_rows()) {

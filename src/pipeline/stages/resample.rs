@@ -17,30 +17,36 @@ pub struct Made {
     pub band: u32,
     pub first_col: u32,
     pub raw: Raw,
+    /// Under a mask: 1 where a pixel has a value, laid out as `raw`'s pixels.
+    pub valid: Option<Vec<u8>>,
 }
+
+/// A chunk's pixels, and under a mask which of them have a value.
+pub type Pixels = (Raw, Option<Vec<u8>>);
 
 /// A ground point where the DEM had no height (under the `error` policy).
 pub type Miss = (f64, f64, Lookup);
 
-/// The chunk's pixels, tile by tile, in the buffer `spare` if given; or
-/// the ground point where the DEM had no height.
-pub fn resample(run: &Run, msg: &ReadMsg, spare: Option<Raw>) -> std::result::Result<Raw, Miss> {
+/// The chunk's pixels, tile by tile, in the buffer `spare` if given (and
+/// under a mask, which have a value); or the ground point where the DEM
+/// had no height.
+pub fn resample(run: &Run, msg: &ReadMsg, spare: Option<Raw>) -> std::result::Result<Pixels, Miss> {
     let (y0, y1) = run.walk.band_rows(msg.band);
     let (gcm, src, opts) = (run.inputs.gcm, run.inputs.src, run.inputs.pixels);
     match src.info.sample {
-        SampleType::U8 => resample_chunk::<u8>(gcm, src, msg, y0, y1, opts, spare).map(Raw::U8),
-        SampleType::U16 => resample_chunk::<u16>(gcm, src, msg, y0, y1, opts, spare).map(Raw::U16),
-        SampleType::F32 => resample_chunk::<f32>(gcm, src, msg, y0, y1, opts, spare).map(Raw::F32),
+        SampleType::U8 => resample_chunk::<u8>(gcm, src, msg, y0, y1, opts, spare).map(|(p, v)| (Raw::U8(p), v)),
+        SampleType::U16 => resample_chunk::<u16>(gcm, src, msg, y0, y1, opts, spare).map(|(p, v)| (Raw::U16(p), v)),
+        SampleType::F32 => resample_chunk::<f32>(gcm, src, msg, y0, y1, opts, spare).map(|(p, v)| (Raw::F32(p), v)),
     }
 }
 
 /// The resampled chunk of band `band` from output column `x0`, counted,
 /// on its way to the encoder; where the DEM had no height (under the
 /// `error` policy), the run's failure.
-pub fn made(run: &Run, band: u32, x0: u32, raw: std::result::Result<Raw, Miss>) -> Result<Made> {
-    let raw = raw.map_err(|m| run.stop.fail(super::gcm::dem_miss_error(run.inputs.dem, m)))?;
+pub fn made(run: &Run, band: u32, x0: u32, pixels: std::result::Result<Pixels, Miss>) -> Result<Made> {
+    let (raw, valid) = pixels.map_err(|m| run.stop.fail(super::gcm::dem_miss_error(run.inputs.dem, m)))?;
     run.counters.chunks_done.fetch_add(1, Ordering::Relaxed);
-    Ok(Made { band, first_col: x0 / run.walk.tile, raw })
+    Ok(Made { band, first_col: x0 / run.walk.tile, raw, valid })
 }
 
 /// The output pixels of one chunk, tile by tile, in the output sample type.
@@ -102,7 +108,10 @@ fn view<'v, T: Sample>(msg: &'v ReadMsg, info: &SourceInfo) -> View<'v, T> {
 fn column_group(tile: usize) -> usize {
     [128, 64, 32, 16].into_iter().find(|g| tile % g == 0).unwrap_or(1)
 }
-/// Resamples the rows of one chunk; returns a DEM miss under the `error` policy.
+/// Resamples the rows of one chunk (and under a mask, says which pixels
+/// have a value, 1 a byte, laid out as the pixels); returns a DEM miss
+/// under the `error` policy.
+#[allow(clippy::type_complexity)] // the pixels and their validity
 pub fn resample_chunk<T: Sample + Recycle>(
     gcm: &Gcm<'_>,
     src: &SourceImage,
@@ -111,7 +120,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
     y1: u32,
     opts: PixelOptions,
     spare: Option<Raw>,
-) -> std::result::Result<Vec<T>, Miss> {
+) -> std::result::Result<(Vec<T>, Option<Vec<u8>>), Miss> {
     let info = &src.info;
     let bands_in = info.bands as usize;
     let bo = opts.bands_out as usize;
@@ -160,6 +169,12 @@ pub fn resample_chunk<T: Sample + Recycle>(
     for (k, piece) in out.chunks_exact_mut(piece_len).enumerate() {
         pieces[k % groups].push(piece);
     }
+    // The mask's bytes, cut into the pixels' pieces (none without a mask).
+    let mut mask = if opts.mask { vec![0u8; n_tiles * t * t] } else { Vec::new() };
+    let mut mask_pieces: Vec<Vec<&mut [u8]>> = (0..groups).map(|_| Vec::new()).collect();
+    for (k, piece) in mask.chunks_exact_mut(piece_len / bo).enumerate() {
+        mask_pieces[k % groups].push(piece);
+    }
     let direct = bo == bands_in;
     // Row `r` of the chunk into `px` (and `valid`, where the alpha band
     // needs it); scan positions (`cols`, `rws`) only where a row is not all
@@ -199,8 +214,8 @@ pub fn resample_chunk<T: Sample + Recycle>(
                         gcm.fill_exact(&msg.gcm, y, first as u32, &mut cols[a..b], &mut rws[a..b], miss);
                         SpanOutcome::Checked { clamped: resample_row(opts.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill) }
                     };
-                    if outcome == SpanOutcome::Inside && !direct {
-                        // The alpha band below reads it.
+                    if outcome == SpanOutcome::Inside && (!direct || opts.mask) {
+                        // The alpha band or the mask below reads it.
                         valid.fill(true);
                     }
                     if outcome == (SpanOutcome::Checked { clamped: true }) {
@@ -231,12 +246,13 @@ pub fn resample_chunk<T: Sample + Recycle>(
         };
     let misses: Vec<Option<Miss>> = pieces
         .par_iter_mut()
+        .zip(mask_pieces.par_iter_mut())
         .with_min_len((8 / group).max(1))
         .enumerate()
         .map_init(
             // The rows of a task, one after the other.
             || (Vec::new(), Vec::new(), vec![T::default(); group * stride * bands_in], vec![false; group * w], Vec::new()),
-            |(cols, rws, block, valid_block, spans), (g, row_pieces)| {
+            |(cols, rws, block, valid_block, spans), (g, (row_pieces, mask_pieces))| {
                 let mut miss = None;
                 if transposed {
                     for j in 0..group {
@@ -251,6 +267,11 @@ pub fn resample_chunk<T: Sample + Recycle>(
                         }
                     }
                     // Piece x takes pixel x of each row made.
+                    for (x, piece) in mask_pieces.iter_mut().enumerate() {
+                        for (j, to) in piece.iter_mut().enumerate() {
+                            *to = u8::from(x < w && valid_block[j * w + x]);
+                        }
+                    }
                     let (seen, pad) = row_pieces.split_at_mut(w);
                     if direct {
                         super::transpose::gather(bytemuck::cast_slice(block), group, stride, bands_in * std::mem::size_of::<T>(), seen);
@@ -272,9 +293,16 @@ pub fn resample_chunk<T: Sample + Recycle>(
                     if r >= rows {
                         // Below the grid's edge.
                         row_pieces.iter_mut().for_each(|p| p.fill(T::default()));
+                        mask_pieces.iter_mut().for_each(|p| p.fill(0));
                         continue;
                     }
                     make_row(r, cols, rws, px, valid, spans, &mut miss);
+                    for (tx, piece) in mask_pieces.iter_mut().enumerate() {
+                        let xs = tx * t;
+                        let n = t.min(w - xs);
+                        piece[..n].copy_from_slice(bytemuck::cast_slice(&valid[xs..xs + n]));
+                        piece[n..].fill(0);
+                    }
                     for (tx, piece) in row_pieces.iter_mut().enumerate() {
                         let xs = tx * t;
                         let n = t.min(w - xs);
@@ -297,7 +325,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
         .collect();
     match misses.into_iter().flatten().next() {
         Some(m) => Err(m),
-        None => Ok(out),
+        None => Ok((out, opts.mask.then_some(mask))),
     }
 }
 /// Resamples one pixel from a window read just for it.

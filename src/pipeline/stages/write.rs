@@ -32,8 +32,11 @@ pub fn write(run: &Run, out_file: std::fs::File, flush_file: std::fs::File, mut 
                 return Err(Error::Cancelled);
             }
             let next = next()?;
-            if let Some((_, tile)) = &next {
-                run.progress.advance(1);
+            if let Some((k, tile)) = &next {
+                // (The mask's tiles come with the image's.)
+                if *k < run.inputs.spec.tile_count() {
+                    run.progress.advance(1);
+                }
                 unsynced += tile.as_ref().len();
                 if sync && unsynced >= FLUSH_EVERY {
                     // Never waits: a sync still running takes this one too.
