@@ -162,6 +162,15 @@ fn a_node_spacing_whose_nodes_alone_pass_the_budget_is_refused_with_what_it_take
     let out = dir.path().join("o.tif");
     let base = ["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "-o", s(&out), "--memory", "16M"];
     refused(dir.path(), &[&base[..], &["--sparsity", "1", "--corrections", "cell"]].concat(), &["--sparsity", "MB of GCM nodes", "or more"]);
+    // A spacing of 3: its node rows (about 7 MB) fit the whole budget but
+    // not what the plan can give them beside the rest (a quarter).
+    let r = run(&[&base[..], &["--sparsity", "3"]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    // With the memory it names, it runs.
+    let need = err.split("--memory ").nth(1).and_then(|t| t.split_whitespace().next()).expect("the memory it takes").to_string();
+    let r = run(&[&base[..10], &["--memory", &need, "--sparsity", "3"]].concat());
+    assert!(r.status.success(), "--memory {need}: {}", String::from_utf8_lossy(&r.stderr));
     // The same run at a spacing of 8 fits.
     let r = run(&[&base[..], &["--sparsity", "8"]].concat());
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));

@@ -14,6 +14,8 @@
 //! * the decoded chunks of a compressed scan, two shares (a twelfth);
 //! * the GCM's node rows of the bands in flight, up to three shares (an
 //!   eighth): the default node spacing grows where finer rows would not fit;
+//!   a spacing the user gives may take three more from the slack below
+//!   ([`MemoryBudget::node_limit`]), and is refused beyond;
 //! * what is left (~45 %) covers the GCM rows, the threads, the program and
 //!   the allocator's per-thread arenas (20–30 MB on 1 GiB scans), so that
 //!   the peak resident size stays under the budget.
@@ -57,10 +59,17 @@ impl MemoryBudget {
         3 * self.share()
     }
 
+    /// The most the node rows of a spacing the user chose may hold: their
+    /// share and three more of the slack (a quarter of the budget); past
+    /// it, the peak passes the budget.
+    pub fn node_limit(&self) -> u64 {
+        6 * self.share()
+    }
+
     /// Bytes of node rows of the four bands in flight at node spacing `k`,
     /// bands `tile` rows high, rows of up to `width` pixels, at
     /// `bytes_per_node` (heights, corrections and the image's movement with
-    /// height: about 40 measured, 100 at the most).
+    /// height, the refinement's curvatures: 50–60 measured, 100 at the most).
     pub fn node_rows(&self, k: u32, tile: u32, width: u32, bytes_per_node: u64) -> u64 {
         let rows = (tile / k.max(1) + 4) as u64;
         let across = (width / k.max(1) + 3) as u64;
@@ -106,5 +115,9 @@ mod tests {
         assert_eq!(b.chunk_tiles(256 * 256 * 3), 28);
         assert_eq!(b.chunk_tiles(8 << 20), 1);
         assert_eq!((b.in_place_rows(), b.mapped_rows()), (6 * 5_592_405, 8 * 5_592_405));
+        assert_eq!(b.node_limit(), 6 * 5_592_405);
+        // A 6743-px-wide output in 256-px bands at spacing 4: 4 bands of
+        // 68 rows of 1688 nodes.
+        assert_eq!(b.node_rows(4, 256, 6743, 60), 4 * 68 * 1688 * 60);
     }
 }

@@ -131,19 +131,19 @@ impl RunPlan {
                 gcm.k = 16;
             }
         }
-        // A spacing the user chose so fine that the node rows alone would
-        // pass the budget (`--sparsity 1` on a wide output): refused, with
-        // what it would take.
-        let nodes = budget.node_rows(gcm.k, opts.tile, grid.width.max(grid.height), 40);
-        if !opts.auto_sparsity && nodes > budget.total() {
+        // A spacing the user chose so fine that its node rows would pass
+        // what the plan can give them (`--sparsity 1` on a wide output):
+        // refused, with what it would take.
+        let nodes = budget.node_rows(gcm.k, opts.tile, grid.width.max(grid.height), 60);
+        if !opts.auto_sparsity && nodes > budget.node_limit() {
             return Err(Error::setting(
                 "sparsity",
                 format!(
-                    "{} keeps about {} MB of GCM nodes in flight at this output's {} px, more than the memory budget: give memory of {} MB or more, or a larger sparsity",
+                    "{} keeps about {} MB of GCM nodes in flight at this output's {} px, more than the memory budget allows them: give --memory {}M or more, or a larger sparsity",
                     gcm.k,
                     nodes >> 20,
                     grid.width.max(grid.height),
-                    (2 * nodes) >> 20
+                    (nodes * budget.total()).div_ceil(budget.node_limit().max(1)).div_ceil(1 << 20)
                 ),
             ));
         }
