@@ -2,8 +2,8 @@
 //! one clear line naming the file and the problem, with a non-zero exit.
 //!
 //! The corpus lives in `tests/malformed/<what>/<kind>.<ext>`: one folder per
-//! input (scan, camera, dem, rpc, rpc_camera, geoid), one file per kind of
-//! failure. It is made from the small scene in `fixtures/mini` and the real
+//! input (scan, camera, dem, rpc, rpc_camera, geoid) and one for scans whose
+//! compressed chunks are damaged (corrupt), one file per kind of failure. It is made from the small scene in `fixtures/mini` and the real
 //! files in `fixtures/rpc` and `fixtures/ventoux` by `regenerate_corpus`
 //! below (run it with `cargo test --test malformed -- --ignored` after
 //! changing it).
@@ -102,6 +102,46 @@ fn regenerate_corpus() {
     let mut b = scan.clone();
     patch(&mut b, 278, 1); // one row per strip, but only the original strip table
     w("scan", "strip_table_too_short.tif", &b);
+
+    // --- scans whose compressed chunks are damaged (the codecs' own checks) ---
+    let (pixels, info) = whole_image(&mini("scan.tif"));
+    let coded = |compression| {
+        use gcm_ortho::io::tiff_out::{write_raster, Chunking, OutputSpec};
+        let t = tempfile::tempdir().unwrap();
+        let path = t.path().join("c.tif");
+        let spec = OutputSpec {
+            width: info.width,
+            height: info.height,
+            bands: info.bands,
+            sample: info.sample,
+            chunking: Chunking::Strips(16),
+            compression,
+            bigtiff: false,
+            photometric: info.photometric,
+            alpha: false,
+            mask: false,
+            geo: None,
+        };
+        let row = info.width as usize * info.pixel_bytes();
+        write_raster(&path, &spec, |y0, y1, buf| buf.copy_from_slice(&pixels[y0 as usize * row..y1 as usize * row])).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let src = gcm_ortho::io::source::SourceImage::open(&path, 1 << 20).unwrap();
+        let (o, c) = src.info.chunk_table();
+        (bytes, o[2] as usize, c[2] as usize)
+    };
+    use gcm_ortho::io::tiff_out::Compression;
+    let (mut b, at, len) = coded(Compression::Deflate);
+    b[at + len - 1] ^= 1; // the last byte of strip 2's Adler-32
+    w("corrupt", "deflate_bad_checksum.tif", &b);
+    let (mut b, at, len) = coded(Compression::Deflate);
+    b[at + len / 2..at + len / 2 + 8].fill(0xff);
+    w("corrupt", "deflate_damaged_stream.tif", &b);
+    let (mut b, at, len) = coded(Compression::Zstd);
+    b[at + len / 2..at + len / 2 + 8].fill(0xff);
+    w("corrupt", "zstd_damaged_stream.tif", &b);
+    let (mut b, at, len) = coded(Compression::Lzw);
+    b[at + len / 2..at + len / 2 + 8].fill(0xff);
+    w("corrupt", "lzw_damaged_stream.tif", &b);
 
     // --- cameras ---
     let cam = std::fs::read_to_string(mini("camera.toml")).unwrap();
@@ -322,9 +362,9 @@ fn check(what: &str, file: &Path) {
         a.into_iter().map(String::from).collect()
     };
     let args: Vec<String> = match what {
-        "scan" | "camera" | "dem" => {
+        "scan" | "corrupt" | "camera" | "dem" => {
             let (scan, cam, dem) = match what {
-                "scan" => (file.to_path_buf(), mini("camera.toml"), mini("dem.tif")),
+                "scan" | "corrupt" => (file.to_path_buf(), mini("camera.toml"), mini("dem.tif")),
                 "camera" => (mini("scan.tif"), file.to_path_buf(), mini("dem.tif")),
                 _ => (mini("scan.tif"), mini("camera.toml"), file.to_path_buf()),
             };
@@ -351,7 +391,7 @@ fn check(what: &str, file: &Path) {
 #[test]
 fn every_malformed_input_fails_cleanly() {
     let mut n = 0;
-    for what in ["scan", "camera", "dem", "rpc", "rpc_camera", "geoid"] {
+    for what in ["scan", "corrupt", "camera", "dem", "rpc", "rpc_camera", "geoid"] {
         let dir = root().join("tests/malformed").join(what);
         let mut files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
         files.sort();

@@ -52,7 +52,13 @@ pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>) -> Result<Vec<u8>> {
             Lzw.write_to(&mut out, &tile).map_err(io)?;
             out
         }
-        Compression::Zstd => zstd::bulk::compress(&tile, 9).map_err(io)?,
+        Compression::Zstd => {
+            // With the frame's checksum, so that a reader can tell a damaged
+            // tile from a good one (zstd decodes much damage silently).
+            let mut c = zstd::bulk::Compressor::new(9).map_err(io)?;
+            c.set_parameter(zstd::zstd_safe::CParameter::ChecksumFlag(true)).map_err(io)?;
+            c.compress(&tile).map_err(io)?
+        }
     })
 }
 
