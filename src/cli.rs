@@ -6,6 +6,7 @@
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
 use gcm_ortho::gcm::GcmSpec;
+use gcm_ortho::geom::Snap;
 use gcm_ortho::io::tiff_out::Compression;
 use gcm_ortho::options::{
     parse_bounds, parse_bytes, parse_count, parse_max_error, parse_miss, parse_nodata, parse_offset, parse_size, parse_window, BandOrder, BigTiff, Choice,
@@ -289,6 +290,15 @@ pub struct RectifyArgs {
     /// minx,miny,maxx,maxy or auto (the scan's footprint on the DEM).
     #[arg(long, default_value = "auto", allow_hyphen_values = true)]
     pub bounds: String,
+    /// How bounds become the grid: tap (edges on multiples of the GSD,
+    /// outward), outward (the origin as given, whole pixels outward), none
+    /// (the origin as given, the nearest whole number of pixels).
+    #[arg(long, default_value = "tap", value_parser = choice::<Snap>())]
+    pub snap: Snap,
+    /// The grid of this raster (CRS, origin, pixel size and size), so the
+    /// orthophoto lands pixel for pixel on it; instead of --gsd and --bounds.
+    #[arg(long, conflicts_with_all = ["gsd", "bounds"])]
+    pub like: Option<PathBuf>,
     /// Only a piece of the output: col,row,width,height in output tiles.
     #[arg(long)]
     pub window: Option<String>,
@@ -388,6 +398,8 @@ impl RectifyArgs {
         o.dem_outside = parse_miss("dem_outside", &self.dem_outside)?;
         o.gsd = self.gsd;
         o.bounds = parse_bounds("bounds", &self.bounds)?;
+        o.snap = self.snap;
+        o.like = self.like.clone();
         o.window = self.window.as_deref().map(|w| parse_window("window", w)).transpose()?;
         let max_error = match &self.max_error {
             Some(e) => parse_max_error("max_error", e)?,

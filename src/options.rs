@@ -10,6 +10,7 @@ use crate::camera::CameraFile;
 use crate::dem::Miss;
 use crate::error::{Error, Result};
 use crate::gcm::{CorrectionMode, GcmSpec};
+use crate::geom::Snap;
 use crate::io::overwrite::{check_outputs, check_writable, Role};
 use crate::io::tiff_out::Compression;
 use crate::resample::Kernel;
@@ -43,6 +44,7 @@ choice!(CorrectionMode: "bilinear" => CorrectionMode::Bilinear, "cell" => Correc
 choice!(Trend: "plane" => Trend::Plane, "mean" => Trend::Mean);
 choice!(BandOrder: "auto" => BandOrder::Auto, "rows" => BandOrder::Rows, "columns" => BandOrder::Columns);
 choice!(BigTiff: "auto" => BigTiff::Auto, "yes" => BigTiff::Yes, "no" => BigTiff::No);
+choice!(Snap: "tap" => Snap::Tap, "outward" => Snap::Outward, "none" => Snap::None);
 
 /// `name` as one of `T`'s choices.
 pub fn parse_choice<T: Choice>(setting: &'static str, name: &str) -> Result<T> {
@@ -285,6 +287,11 @@ pub struct RectifyOptions {
     pub gsd: Option<f64>,
     /// `[minx, miny, maxx, maxy]`; `None`: the scan's footprint on the DEM.
     pub bounds: Option<[f64; 4]>,
+    /// How the bounds become a grid.
+    pub snap: Snap,
+    /// The grid (CRS, origin, pixel size, size) of this raster, instead of
+    /// `gsd` and `bounds`.
+    pub like: Option<PathBuf>,
     /// Only this piece of the output grid, in tiles: `[col, row, w, h]`.
     /// Pieces made separately assemble into the whole, pixel for pixel.
     pub window: Option<[u32; 4]>,
@@ -386,6 +393,9 @@ impl RectifyOptions {
                 return Err(Error::setting("bounds", format!("{b:?} is not minx,miny,maxx,maxy with min < max")));
             }
         }
+        if self.like.is_some() && (self.gsd.is_some() || self.bounds.is_some()) {
+            return Err(Error::setting("like", "gives the grid: drop the GSD and bounds"));
+        }
         if let Some([_, _, w, h]) = self.window {
             if w == 0 || h == 0 {
                 return Err(Error::setting("window", "width and height must be above zero"));
@@ -407,6 +417,9 @@ impl RectifyOptions {
         }
         if let DemSource::File(d) = &self.dem {
             v.push(("DEM", d.clone()));
+        }
+        if let Some(l) = &self.like {
+            v.push(("reference grid", l.clone()));
         }
         v
     }
@@ -436,6 +449,8 @@ impl RectifyOptions {
             output,
             gsd: None,
             bounds: None,
+            snap: Snap::Tap,
+            like: None,
             window: None,
             gcm: GcmSpec { k: 16, mode: CorrectionMode::Bilinear, max_error: Some(Self::DEFAULT_MAX_ERROR) },
             auto_sparsity: true,

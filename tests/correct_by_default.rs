@@ -47,7 +47,7 @@ fn rectify_coords(dir: &Path, sc: &gcm_ortho::synth::SynthReport, (w, h): (u32, 
 /// position by position; and the default run's report.
 fn default_against_exact(dir: &Path, sc: &gcm_ortho::synth::SynthReport, w: u32, h: u32) -> (MapDifference, serde_json::Value) {
     let (default, report) = rectify_coords(dir, sc, (w, h), "default.tif", &[]);
-    let (exact, _) = rectify_coords(dir, sc, (w, h), "exact.tif", &["--sparsity", "1", "--corrections", "cell"]);
+    let (exact, _) = rectify_coords(dir, sc, (w, h), "exact.tif", &["--sparsity", "1", "--corrections", "cell", "--memory", "1G"]);
     (coordinate_map_difference(&default, &exact, w, h), report)
 }
 
@@ -96,7 +96,7 @@ fn the_old_defaults_missed_on_these_scenes() {
     let (w, h) = (600, 400);
     let sc = drone_scene(dir.path(), (w, h), 12_000.0);
     let (k16, _) = rectify_coords(dir.path(), &sc, (w, h), "k16.tif", &["--sparsity", "16"]);
-    let (exact, _) = rectify_coords(dir.path(), &sc, (w, h), "exact.tif", &["--sparsity", "1", "--corrections", "cell"]);
+    let (exact, _) = rectify_coords(dir.path(), &sc, (w, h), "exact.tif", &["--sparsity", "1", "--corrections", "cell", "--memory", "1G"]);
     let m = coordinate_map_difference(&k16, &exact, w, h);
     assert!(m.max > 1.0, "max {} px", m.max);
 }

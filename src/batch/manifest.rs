@@ -40,6 +40,9 @@ pub struct Options {
     pub dem_outside: Option<String>,
     pub gsd: Option<f64>,
     pub bounds: Option<[f64; 4]>,
+    pub snap: Option<String>,
+    /// A raster whose grid the orthophoto takes (relative to the manifest).
+    pub like: Option<String>,
     pub sparsity: Option<u32>,
     pub max_error: Option<MaxError>,
     pub corrections: Option<String>,
@@ -64,6 +67,8 @@ impl Options {
             dem_outside,
             gsd,
             bounds,
+            snap,
+            like,
             sparsity,
             max_error,
             corrections,
@@ -305,6 +310,10 @@ fn config(
         }
         c.gsd = o.gsd;
         c.bounds = o.bounds;
+        if let Some(s) = &o.snap {
+            c.snap = parse_choice("snap", s)?;
+        }
+        c.like = o.like.as_deref().map(rel);
         let mode = match &o.corrections {
             Some(m) => parse_choice("corrections", m)?,
             None => c.gcm.mode,

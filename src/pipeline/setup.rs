@@ -13,7 +13,7 @@ use crate::geom::OutputGrid;
 use crate::io::geotiff::is_geographic;
 use crate::io::source::{SampleType, SourceImage};
 use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec};
-use crate::options::{BandOrder, BigTiff, DemSource, Nodata, RectifyOptions};
+use crate::options::{BandOrder, BigTiff, DemSource, ModelSource, Nodata, RectifyOptions};
 use crate::progress::Progress;
 use crate::transform::footprint::{auto_grid, mean_gsd};
 use crate::transform::{Approx, Trend};
@@ -44,7 +44,21 @@ pub struct RunPlan {
 impl RunPlan {
     pub fn new(opts: &RectifyOptions, progress: &dyn Progress) -> Result<RunPlan> {
         let budget = MemoryBudget::new(opts.memory);
-        let camera = opts.model.load(&opts.image, &opts.camera)?;
+        let like = opts.like.as_deref().map(reference_grid).transpose()?;
+        // An RPC's ground CRS is the reference grid's unless given.
+        let model = match (&opts.model, &like) {
+            (ModelSource::Rpc { offset, geoid, crs: None }, Some((_, epsg))) => ModelSource::Rpc { offset: *offset, geoid: geoid.clone(), crs: Some(*epsg) },
+            (m, _) => m.clone(),
+        };
+        let camera = model.load(&opts.image, &opts.camera)?;
+        if let (Some((_, epsg)), Some(path)) = (&like, &opts.like) {
+            if *epsg != camera.crs.epsg {
+                return Err(Error::setting(
+                    "like",
+                    format!("{} is in EPSG:{epsg}, the camera's ground CRS is {}: the orthophoto is made in the camera's", path.display(), camera.crs),
+                ));
+            }
+        }
         let src = SourceImage::open(&opts.image, budget.scan_cache() as usize)?;
         let mut dem = match &opts.dem {
             DemSource::File(p) => Dem::open_within(p, camera.crs.epsg, budget.dem())?,
@@ -78,14 +92,20 @@ impl RunPlan {
             Error::Geometry(m) => Error::format(&dem.path, m),
             e => e,
         };
-        let gsd = match opts.gsd {
-            Some(g) => g,
-            None => mean_gsd(model, &dem, sw, sh, z_guess).map_err(on_dem)?,
+        let grid = match like {
+            Some((grid, _)) => grid,
+            None => {
+                let gsd = match opts.gsd {
+                    Some(g) => g,
+                    None => mean_gsd(model, &dem, sw, sh, z_guess).map_err(on_dem)?,
+                };
+                match opts.bounds {
+                    Some(b) => OutputGrid::from_bounds(b, gsd, opts.snap).ok_or_else(|| Error::setting("bounds", format!("{b:?} at GSD {gsd} is empty")))?,
+                    None => auto_grid(model, &dem, sw, sh, z_guess, gsd).map_err(on_dem)?,
+                }
+            }
         };
-        let grid = match opts.bounds {
-            Some(b) => OutputGrid::snapped(b[0], b[1], b[2], b[3], gsd).ok_or_else(|| Error::setting("bounds", format!("{b:?} at GSD {gsd} is empty")))?,
-            None => auto_grid(model, &dem, sw, sh, z_guess, gsd).map_err(on_dem)?,
-        };
+        let gsd = grid.gsd;
         if grid.width > MAX_SIDE || grid.height > MAX_SIDE {
             return Err(Error::setting(
                 "gsd",
@@ -269,6 +289,21 @@ fn check_geoid_covers(r: &crate::camera::RpcCamera, w: u32, h: u32, z: f64) -> R
         ));
     }
     Ok(())
+}
+
+/// The grid of a reference raster (north-up, square pixels) and its CRS.
+fn reference_grid(path: &std::path::Path) -> Result<(OutputGrid, u32)> {
+    let info = SourceImage::open(path, 1 << 20)?.info;
+    let g = info.georef.ok_or_else(|| Error::format(path, "has no georeferencing to take the grid from"))?;
+    let t = g.transform;
+    let epsg = g.epsg.ok_or_else(|| Error::format(path, "names no EPSG CRS to take the grid from"))?;
+    if t[2] != 0.0 || t[4] != 0.0 {
+        return Err(Error::unsupported(path, "a turned grid (the orthophoto is north-up)"));
+    }
+    if !(t[1] > 0.0 && t[5] < 0.0) || (t[1] + t[5]).abs() > 1e-9 * t[1] {
+        return Err(Error::unsupported(path, format!("pixels of {} × {} (only square, north-up pixels)", t[1], -t[5])));
+    }
+    Ok((OutputGrid { x0: t[0], y0: t[3], gsd: t[1], width: info.width, height: info.height }, epsg))
 }
 
 /// What `auto` means for these samples: NaN (outside any data) for

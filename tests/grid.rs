@@ -1,0 +1,97 @@
+//! The output grid users ask for: bounds kept exactly where they are
+//! multiples of the GSD, or as given (`--snap`), and the grid of a
+//! reference raster (`--like`), pixel for pixel.
+
+mod common;
+use common::*;
+use std::path::Path;
+
+/// The orthophoto's geotransform and size, as our reader and GDAL's see it.
+fn grid_of(path: &Path) -> ([f64; 6], u32, u32) {
+    let info = gcm_ortho::io::source::SourceImage::open(path, 1 << 20).unwrap().info;
+    (info.georef.unwrap().transform, info.width, info.height)
+}
+
+/// A Float32 raster of `w`×`h` with geotransform `gt` in `epsg`.
+fn reference(path: &Path, gt: [f64; 6], w: u32, h: u32, epsg: u32) {
+    use gcm_ortho::io::tiff_out::*;
+    assert!(gt[5] == -gt[1], "this writer makes square pixels");
+    let spec = OutputSpec {
+        width: w,
+        height: h,
+        bands: 1,
+        sample: gcm_ortho::io::source::SampleType::F32,
+        chunking: Chunking::Strips(16),
+        compression: Compression::None,
+        bigtiff: false,
+        photometric: 1,
+        alpha: false,
+        mask: false,
+        geo: Some(GeoTags { x0: gt[0], y0: gt[3], gsd: gt[1], epsg, nodata: None }),
+    };
+    write_raster(path, &spec, |_, _, buf| buf.fill(0)).unwrap();
+}
+
+#[test]
+fn bounds_on_multiples_of_the_gsd_are_kept_and_others_as_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 400, |_| {});
+    let run_with = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut a = vec!["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "-o", s(&out)];
+        a.extend_from_slice(extra);
+        let r = run(&a);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        grid_of(&out)
+    };
+    // 4890039.8 / 0.2 is 24450198.999999996 in binary: one row too many before.
+    let b = "649546.4,4890039.8,649848.8,4890224.4";
+    let (gt, w, h) = run_with("tap.tif", &["--bounds", b, "--gsd", "0.2"]);
+    assert_eq!((w, h), (1512, 923));
+    assert!((gt[0] - 649546.4).abs() < 1e-6 && (gt[3] - 4890224.4).abs() < 1e-6, "{gt:?}");
+    // Not multiples of 3 m: aligned outward by default; kept with --snap none.
+    let b = "649546.4,4890039.8,649848.8,4890224.4";
+    let (gt, w, h) = run_with("tap3.tif", &["--bounds", b, "--gsd", "3"]);
+    assert_eq!((gt[0], gt[3], w, h), (649545.0, 4890225.0, 102, 62));
+    let (gt, w, h) = run_with("none3.tif", &["--bounds", b, "--gsd", "3", "--snap", "none"]);
+    assert_eq!((gt[0], gt[3], w, h), (649546.4, 4890224.4, 101, 62));
+    let (gt, w, h) = run_with("out3.tif", &["--bounds", b, "--gsd", "3", "--snap", "outward"]);
+    assert_eq!((gt[0], gt[3], w, h), (649546.4, 4890224.4, 101, 62));
+}
+
+#[test]
+fn like_takes_a_reference_rasters_grid_pixel_for_pixel() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene(&d.join("scene"), 400, |_| {});
+    // An origin on no multiple of the pixel size, an odd size.
+    let gt = [649321.37, 1.7, 0.0, 4891103.91, 0.0, -1.7];
+    let like = d.join("ref.tif");
+    reference(&like, gt, 517, 389, 32631);
+    let out = d.join("o.tif");
+    let base = ["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "-o", s(&out)];
+    let r = run(&[&base[..], &["--like", s(&like)]].concat());
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(grid_of(&out), (gt, 517, 389));
+    if have("gdalinfo") {
+        let j: serde_json::Value = serde_json::from_slice(&std::process::Command::new("gdalinfo").args(["-json", s(&out)]).output().unwrap().stdout).unwrap();
+        assert_eq!(j["geoTransform"], serde_json::json!(gt));
+        assert_eq!(j["size"], serde_json::json!([517, 389]));
+    }
+    // Another CRS than the camera's, or with --gsd: refused by name.
+    let other = d.join("other.tif");
+    reference(&other, gt, 10, 10, 32632);
+    let r = run(&[&base[..], &["--like", s(&other)]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("--like") && err.contains("other.tif") && err.contains("EPSG:32632"), "{err}");
+    let r = run(&[&base[..], &["--like", s(&like), "--gsd", "2"]].concat());
+    assert_eq!(r.status.code(), Some(2));
+    // The same in a batch manifest, relative to it.
+    let m = d.join("block.toml");
+    let job = "[[job]]\nimage = \"scene/scan.tif\"\ncamera = \"scene/camera.toml\"\ndem = \"scene/dem.tif\"\nlike = \"ref.tif\"\noutput = \"b.tif\"\n";
+    std::fs::write(&m, job).unwrap();
+    let r = run(&["batch", s(&m), "--quiet"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(grid_of(&d.join("b.tif")), (gt, 517, 389));
+}
