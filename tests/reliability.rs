@@ -293,3 +293,45 @@ fn a_command_that_does_not_poll_still_ends_at_sigterm() {
     let out = wait_deadline(child, 10);
     assert_eq!(out.status.code(), Some(143), "{}", String::from_utf8_lossy(&out.stderr));
 }
+
+#[test]
+fn a_global_geoid_grid_is_read_only_where_the_scene_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A global grid at 1′ (10801 × 21601 samples, 933 MB; a hole in the
+    // file: every undulation 0).
+    let gtx = d.join("global_1min.gtx");
+    let (rows, cols) = (10801i32, 21601i32);
+    let mut head = Vec::new();
+    for v in [-90.0f64, -180.0, 1.0 / 60.0, 1.0 / 60.0] {
+        head.extend_from_slice(&v.to_be_bytes());
+    }
+    head.extend_from_slice(&rows.to_be_bytes());
+    head.extend_from_slice(&cols.to_be_bytes());
+    std::fs::write(&gtx, &head).unwrap();
+    std::fs::OpenOptions::new().write(true).open(&gtx).unwrap().set_len(40 + 4 * rows as u64 * cols as u64).unwrap();
+    let v = |n: &str| Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/ventoux").join(n);
+    let (json, out) = (d.join("r.json"), d.join("o.tif"));
+    let r = run(&[
+        "rectify",
+        "--image",
+        s(&v("left_image.tif")),
+        "--rpc",
+        s(&v("left_image.geom")),
+        "--rpc-offset",
+        "5000,5000",
+        "--dem",
+        s(&v("srtm_N44E005_crop.tif")),
+        "--geoid",
+        s(&gtx),
+        "--quiet",
+        "--json",
+        s(&json),
+        "-o",
+        s(&out),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let peak = report["peak_rss_mib"].as_f64().unwrap();
+    assert!(peak < 128.0, "peak {peak} MiB with a 933 MB geoid grid");
+}

@@ -2,8 +2,8 @@
 //! header (latitude and longitude of the south-west sample, the two steps in
 //! degrees, rows, columns) and rows × columns big-endian f32, south row
 //! first. Ellipsoidal height h = H + N(φ, λ), N interpolated bilinearly
-//! (as PROJ's `vgridshift`). Grids are small (EGM96 at 15′: 4 MB) and read
-//! whole.
+//! (as PROJ's `vgridshift`). The file is memory-mapped: a scene reads the
+//! few pages under it, also of a global grid at 1′ (900 MB).
 
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
@@ -21,8 +21,26 @@ pub struct Geoid {
     cols: usize,
     /// Whether the columns go once around the globe (longitudes wrap).
     global: bool,
-    n: Vec<f32>,
+    n: Samples,
     pub path: PathBuf,
+}
+
+/// The grid's samples: decoded, or big-endian in the mapped file (after
+/// its 40-byte header).
+#[derive(Clone, Debug)]
+enum Samples {
+    Owned(Vec<f32>),
+    Mapped(std::sync::Arc<memmap2::Mmap>),
+}
+
+impl Samples {
+    #[inline]
+    fn at(&self, k: usize) -> f32 {
+        match self {
+            Samples::Owned(v) => v[k],
+            Samples::Mapped(m) => f32::from_be_bytes(m[40 + 4 * k..44 + 4 * k].try_into().expect("4 bytes")),
+        }
+    }
 }
 
 impl Geoid {
@@ -39,11 +57,30 @@ impl Geoid {
                 return Err(Error::format(path, format!("not a .gtx geoid grid: a header of {rows}×{cols} in a file of {len} bytes")));
             }
         }
-        let bytes = crate::io::bounded_read::read_bounded(path, "a geoid grid", len.max(40))?;
-        Geoid::parse(&bytes, path)
+        if head.len() < 40 {
+            return Err(Error::format(path, "not a .gtx geoid grid: shorter than its 40-byte header"));
+        }
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        // SAFETY: read-only map of a file whose length was checked against
+        // its header above (and is again in `parse_header`), so no sample
+        // read lies past the end. Another process truncating it meanwhile
+        // raises SIGBUS, which the binary's guard reports naming it.
+        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(path, e))?;
+        crate::io::mmap_guard::watch_also(path);
+        let mut g = Geoid::parse_header(&map, path)?;
+        g.n = Samples::Mapped(std::sync::Arc::new(map));
+        Ok(g)
     }
 
+    /// A grid from the bytes of a `.gtx` file.
     pub fn parse(bytes: &[u8], path: &Path) -> Result<Geoid> {
+        let mut g = Geoid::parse_header(bytes, path)?;
+        g.n = Samples::Owned(bytes[40..].chunks_exact(4).map(|b| f32::from_be_bytes([b[0], b[1], b[2], b[3]])).collect());
+        Ok(g)
+    }
+
+    /// The grid `bytes` (a whole file) describes, its samples not yet taken.
+    fn parse_header(bytes: &[u8], path: &Path) -> Result<Geoid> {
         if bytes.len() < 40 {
             return Err(Error::format(path, "not a .gtx geoid grid: shorter than its 40-byte header"));
         }
@@ -64,9 +101,8 @@ impl Geoid {
                 format!(".gtx grid of {rows}×{cols} needs {} bytes, the file has {}", want.map_or("too many".into(), |w| w.to_string()), bytes.len()),
             ));
         }
-        let n = bytes[40..].chunks_exact(4).map(|b| f32::from_be_bytes([b[0], b[1], b[2], b[3]])).collect();
         let global = (dlon * cols as f64 - 360.0).abs() < dlon * 1.01;
-        Ok(Geoid { lat0, lon0, dlat, dlon, rows, cols, global, n, path: path.to_path_buf() })
+        Ok(Geoid { lat0, lon0, dlat, dlon, rows, cols, global, n: Samples::Owned(Vec::new()), path: path.to_path_buf() })
     }
 
     /// N (metres) at (longitude °, latitude °), or `None` outside the grid
@@ -97,7 +133,7 @@ impl Geoid {
             return None;
         };
         let (fx, fy) = (x - i as f64, y - j as f64);
-        let at = |c: usize, r: usize| self.n[r * self.cols + c];
+        let at = |c: usize, r: usize| self.n.at(r * self.cols + c);
         let v = [at(i, j), at(i1, j), at(i, j + 1), at(i1, j + 1)];
         if v.iter().any(|&s| s == GTX_NODATA || !s.is_finite()) {
             return None;

@@ -52,12 +52,18 @@ impl PathBuf0 {
 }
 
 static MAPPED: PathBuf0 = PathBuf0::new();
+static ALSO: PathBuf0 = PathBuf0::new();
 static CLEANUP: [PathBuf0; SLOTS] = [const { PathBuf0::new() }; SLOTS];
 static INSTALL: Once = Once::new();
 
 /// Remembers the file being mapped, for the message.
 pub fn watch_mapped(path: &Path) {
     MAPPED.set(path.as_os_str().as_encoded_bytes());
+}
+
+/// Remembers a second mapped file (a geoid grid), named beside the first.
+pub fn watch_also(path: &Path) {
+    ALSO.set(path.as_os_str().as_encoded_bytes());
 }
 
 /// Installs the process-wide SIGBUS handler: a program's choice, not a
@@ -108,9 +114,16 @@ extern "C" fn on_sigbus(_: libc::c_int) {
     let n = MAPPED.copy(&mut buf);
     if n > 0 {
         write(&buf[..n]);
+    }
+    let m = ALSO.copy(&mut buf);
+    if m > 0 {
+        write(if n > 0 { b" or " } else { b"" });
+        write(&buf[..m]);
+    }
+    if n + m > 0 {
         write(b": ");
     }
-    write(b"the input file was truncated while being read (SIGBUS on its memory map)\n");
+    write(b"an input file was truncated while being read (SIGBUS on its memory map)\n");
     for slot in &CLEANUP {
         if slot.used.load(Ordering::Acquire) && slot.copy(&mut buf) > 0 {
             // SAFETY: unlink(2) is async-signal-safe; `buf` is NUL-terminated.
