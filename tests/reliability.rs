@@ -335,3 +335,127 @@ fn a_global_geoid_grid_is_read_only_where_the_scene_is() {
     let peak = report["peak_rss_mib"].as_f64().unwrap();
     assert!(peak < 128.0, "peak {peak} MiB with a 933 MB geoid grid");
 }
+
+/// A striped `w`×`h` 8-bit grey TIFF whose strips are a hole in the file
+/// (zeros), written without writing its pixels.
+fn sparse_tiff(path: &Path, w: u32, h: u32) {
+    let rps = 16u32;
+    let n = h.div_ceil(rps) as usize;
+    let (ifd, entries) = (16u64, 9u64);
+    let offs_at = ifd + 8 + entries * 20 + 8;
+    let counts_at = offs_at + 8 * n as u64;
+    let pixels_at = (counts_at + 8 * n as u64).div_ceil(4096) * 4096;
+    let row = w as u64;
+    let offsets: Vec<u64> = (0..n as u64).map(|i| pixels_at + i * rps as u64 * row).collect();
+    let counts: Vec<u64> = (0..n as u64).map(|i| (rps as u64).min(h as u64 - i * rps as u64) * row).collect();
+    let mut b = b"II".to_vec();
+    b.extend(43u16.to_le_bytes().iter().chain(&8u16.to_le_bytes()).chain(&0u16.to_le_bytes()).chain(&ifd.to_le_bytes()));
+    b.extend_from_slice(&entries.to_le_bytes());
+    let mut entry = |tag: u16, typ: u16, count: u64, value: u64| {
+        b.extend(tag.to_le_bytes().iter().chain(&typ.to_le_bytes()).chain(&count.to_le_bytes()).chain(&value.to_le_bytes()));
+    };
+    entry(256, 4, 1, w as u64);
+    entry(257, 4, 1, h as u64);
+    entry(258, 3, 1, 8);
+    entry(259, 3, 1, 1);
+    entry(262, 3, 1, 1);
+    entry(273, 16, n as u64, offs_at);
+    entry(277, 3, 1, 1);
+    entry(278, 4, 1, rps as u64);
+    entry(279, 16, n as u64, counts_at);
+    b.extend_from_slice(&0u64.to_le_bytes());
+    b.extend(offsets.iter().flat_map(|o| o.to_le_bytes()));
+    b.extend(counts.iter().flat_map(|c| c.to_le_bytes()));
+    std::fs::write(path, &b).unwrap();
+    std::fs::OpenOptions::new().write(true).open(path).unwrap().set_len(offsets[n - 1] + counts[n - 1]).unwrap();
+}
+
+#[test]
+fn every_reader_on_a_large_file_stays_within_the_memory_budget() {
+    use gcm_ortho::io::tiff_out::*;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini");
+    // The mini scene's film scanned 150 times finer (30000² px, 900 MB;
+    // its fiducials in pixels scaled alike), and a 256 MB DEM over it at
+    // 0.6 m: both far past the budget.
+    let scan = d.join("scan.tif");
+    sparse_tiff(&scan, 30_000, 30_000);
+    let mut cam = gcm_ortho::camera::file::CameraFile::read(&root.join("camera.toml")).unwrap();
+    let interior = cam.interior.as_mut().unwrap();
+    for p in interior.fiducials_px.as_mut().unwrap() {
+        *p = [p[0] * 150.0, p[1] * 150.0];
+    }
+    let camera = d.join("camera.toml");
+    std::fs::write(&camera, cam.to_toml()).unwrap();
+    let mini = gcm_ortho::dem::GridDem::read(&root.join("dem.tif")).unwrap();
+    let dem = d.join("dem.tif");
+    let spec = OutputSpec {
+        width: 8000,
+        height: 8000,
+        bands: 1,
+        sample: gcm_ortho::io::source::SampleType::F32,
+        chunking: Chunking::Strips(16),
+        compression: Compression::None,
+        bigtiff: false,
+        photometric: 1,
+        alpha: false,
+        mask: false,
+        geo: Some(GeoTags { x0: mini.transform[0], y0: mini.transform[3], gsd: 0.6, epsg: 32631, nodata: None }),
+    };
+    let z = mini.sample(47, 47);
+    write_raster(&dem, &spec, |_, _, buf| {
+        for v in buf.chunks_exact_mut(4) {
+            v.copy_from_slice(&z.to_ne_bytes());
+        }
+    })
+    .unwrap();
+    let (json, out) = (d.join("r.json"), d.join("o.tif"));
+    let r = run(&[
+        "rectify",
+        "--image",
+        s(&scan),
+        "--camera",
+        s(&camera),
+        "--dem",
+        s(&dem),
+        "--gsd",
+        "11.54",
+        "--memory",
+        "64M",
+        "--quiet",
+        "--json",
+        s(&json),
+        "-o",
+        s(&out),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let peak = report["peak_rss_mib"].as_f64().unwrap();
+    eprintln!("peak {peak} MiB, grid {}", report["grid"]);
+    assert!(peak < 64.0, "peak {peak} MiB under --memory 64M");
+}
+
+#[test]
+fn a_tile_whose_window_passes_the_budget_is_made_strip_by_strip_with_the_same_pixels() {
+    // An output pixel 40 scan pixels wide: one tile's window is the whole
+    // scan, far past what 16 MiB allows a window. (A scan turned against
+    // the output, whose one-row strips still cross most of it, is not
+    // bounded yet: that needs strips cut across too.)
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene(&d.join("scene"), 3000, |o| o.kappa_deg = 0.0);
+    let gsd = (40.0 * sc.gsd).to_string();
+    let make = |memory: &str| {
+        let (out, json) = (d.join(format!("o{memory}.tif")), d.join(format!("r{memory}.json")));
+        let a = ["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--gsd", &gsd, "--memory", memory, "--quiet"];
+        let r = run(&[&a[..], &["--json", s(&json), "-o", s(&out)]].concat());
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        (std::fs::read(&out).unwrap(), serde_json::from_slice::<serde_json::Value>(&std::fs::read(&json).unwrap()).unwrap())
+    };
+    let (small, report) = make("16M");
+    let (large, _) = make("1G");
+    assert!(small == large, "the strips make other pixels than the whole window");
+    // (The whole window alone, 27 MB, took the run to 39 MiB.)
+    assert!(report["peak_rss_mib"].as_f64().unwrap() < 24.0, "{}", report["peak_rss_mib"]);
+}

@@ -7,7 +7,7 @@ use super::stages::dem::{node_heights, DemMsg};
 use super::stages::encode::{tiles, Tile};
 use super::stages::gcm::band_gcm;
 use super::stages::read::{plan, read, release_outside, ReadMsg, Reader};
-use super::stages::resample::{made, resample, Made, Miss, Raw};
+use super::stages::resample::{made, resample, Made, Raw};
 use super::stages::write::write;
 use super::stages::{timed, Busy, SharedRows};
 use crate::error::{Error, Result};
@@ -193,7 +193,7 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
 /// and the window buffer to use again.
 struct Resampled {
     seq: u64,
-    raw: std::result::Result<super::stages::resample::Pixels, Miss>,
+    raw: std::result::Result<super::stages::resample::Pixels, super::stages::resample::Failed>,
     win: Window,
     band: u32,
     /// The chunk's first output column.

@@ -69,6 +69,11 @@ pub fn read<'a>(run: &Run<'a>, b: u32, band: Arc<BandGcm>, chunk: Chunk, reader:
     // far more pages than it uses: copy those. Once one chunk is copied,
     // the rest of the run is copied too: mapped rows on top of the copies'
     // buffers would go past the budget.
+    if !chunk.strips.is_empty() {
+        // Made strip by strip: the resampler reads each strip's window.
+        (win.x0, win.y0, win.w, win.h) = (c0, r0, 0, 0);
+        return Ok(ReadMsg { band: b, gcm: band, chunk, win, in_place: None });
+    }
     let span = (r1 - r0) as u64 * src.info.width as u64 * src.info.pixel_bytes() as u64;
     let in_place =
         if span <= run.budget.in_place_rows() && !reader.copying { src.mapped_rows(c0, r0, c1 - c0, r1 - r0).map_err(|e| run.stop.fail(e))? } else { None };
@@ -110,6 +115,18 @@ pub struct Chunk {
     pub x1: u32,
     /// Scan window `[c0, c1) × [r0, r1)`, clipped to the scan; empty when no
     /// pixel of the chunk sees the scan.
+    pub win: [u32; 4],
+    /// A single tile whose window would pass the budget (its pixels cover
+    /// many scan pixels each) is made strip by strip, each strip of rows
+    /// reading its own window: these, in order; none for other chunks.
+    pub strips: Vec<Strip>,
+}
+
+/// Rows `[rows.0, rows.1)` of a chunk's band (counted from its first) and
+/// the scan window they read.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Strip {
+    pub rows: (u32, u32),
     pub win: [u32; 4],
 }
 
@@ -203,14 +220,35 @@ pub fn plan_band(
         let merged = union(acc, bb);
         let fits = merged.map(|m| area(&clip(m)) <= budget_px).unwrap_or(true);
         if t > start && (!fits || t - start >= max_tiles) {
-            chunks.push(Chunk { x0: start * tile, x1: x0, win: acc.map(clip).unwrap_or([0; 4]) });
+            chunks.push(Chunk { x0: start * tile, x1: x0, win: acc.map(clip).unwrap_or([0; 4]), strips: Vec::new() });
             start = t;
             acc = bb;
         } else {
             acc = merged;
         }
     }
-    chunks.push(Chunk { x0: start * tile, x1: (t1 * tile).min(width), win: acc.map(clip).unwrap_or([0; 4]) });
+    chunks.push(Chunk { x0: start * tile, x1: (t1 * tile).min(width), win: acc.map(clip).unwrap_or([0; 4]), strips: Vec::new() });
+    // A single tile past the budget: strips of rows whose windows fit (down
+    // to one row a strip), fewer rows a strip where one does not.
+    for c in chunks.iter_mut().filter(|c| c.x1 - c.x0 <= tile && area(&c.win) > budget_px) {
+        let t = c.x0 / tile;
+        let band_rows = y1 - y0;
+        let mut per = ((band_rows as u64 * budget_px / area(&c.win).max(1)) as u32).clamp(1, band_rows);
+        c.strips = loop {
+            let strips: Vec<Strip> = (y0..y1)
+                .step_by(per as usize)
+                .map(|a| {
+                    let b = (a + per).min(y1);
+                    let win = tile_bboxes(gcm, band, a, b, tile, (t, t + 1))[0].map(clip).unwrap_or([0; 4]);
+                    Strip { rows: (a - y0, b - y0), win }
+                })
+                .collect();
+            if per == 1 || strips.iter().all(|s| area(&s.win) <= budget_px) {
+                break strips;
+            }
+            per = per.div_ceil(2);
+        };
+    }
     chunks
 }
 
@@ -242,7 +280,7 @@ mod tests {
 
     #[test]
     fn a_band_reads_ahead_the_way_the_bands_move() {
-        let chunk = |win: [u32; 4]| Chunk { x0: 0, x1: 256, win };
+        let chunk = |win: [u32; 4]| Chunk { x0: 0, x1: 256, win, strips: Vec::new() };
         // A chunk that sees no scan (empty window) does not count.
         let chunks = [chunk([0, 120, 50, 400]), chunk([40, 100, 90, 380]), chunk([0, 0, 0, 0]), chunk([5, 900, 5, 990])];
         assert_eq!(band_scan_rows(&chunks), Some((100, 400)));

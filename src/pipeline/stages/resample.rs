@@ -27,10 +27,18 @@ pub type Pixels = (Raw, Option<Vec<u8>>);
 /// A ground point where the DEM had no height (under the `error` policy).
 pub type Miss = (f64, f64, Lookup);
 
+/// Why a chunk could not be made: a DEM miss under the `error` policy, or
+/// a strip's window that could not be read.
+#[derive(Debug)]
+pub enum Failed {
+    Miss(Miss),
+    Read(crate::error::Error),
+}
+
 /// The chunk's pixels, tile by tile, in the buffer `spare` if given (and
 /// under a mask, which have a value); or the ground point where the DEM
 /// had no height.
-pub fn resample(run: &Run, msg: &ReadMsg, spare: Option<Raw>) -> std::result::Result<Pixels, Miss> {
+pub fn resample(run: &Run, msg: &ReadMsg, spare: Option<Raw>) -> std::result::Result<Pixels, Failed> {
     let (y0, y1) = run.walk.band_rows(msg.band);
     let (gcm, src, opts) = (run.inputs.gcm, run.inputs.src, run.inputs.pixels);
     match src.info.sample {
@@ -43,8 +51,13 @@ pub fn resample(run: &Run, msg: &ReadMsg, spare: Option<Raw>) -> std::result::Re
 /// The resampled chunk of band `band` from output column `x0`, counted,
 /// on its way to the encoder; where the DEM had no height (under the
 /// `error` policy), the run's failure.
-pub fn made(run: &Run, band: u32, x0: u32, pixels: std::result::Result<Pixels, Miss>) -> Result<Made> {
-    let (raw, valid) = pixels.map_err(|m| run.stop.fail(super::gcm::dem_miss_error(run.inputs.dem, m)))?;
+pub fn made(run: &Run, band: u32, x0: u32, pixels: std::result::Result<Pixels, Failed>) -> Result<Made> {
+    let (raw, valid) = pixels.map_err(|f| {
+        run.stop.fail(match f {
+            Failed::Miss(m) => super::gcm::dem_miss_error(run.inputs.dem, m),
+            Failed::Read(e) => e,
+        })
+    })?;
     run.counters.chunks_done.fetch_add(1, Ordering::Relaxed);
     Ok(Made { band, first_col: x0 / run.walk.tile, raw, valid })
 }
@@ -120,23 +133,12 @@ pub fn resample_chunk<T: Sample + Recycle>(
     y1: u32,
     opts: PixelOptions,
     spare: Option<Raw>,
-) -> std::result::Result<(Vec<T>, Option<Vec<u8>>), Miss> {
+) -> std::result::Result<(Vec<T>, Option<Vec<u8>>), Failed> {
     let info = &src.info;
     let bands_in = info.bands as usize;
     let bo = opts.bands_out as usize;
     let (x0, x1) = (msg.chunk.x0, msg.chunk.x1);
     let w = (x1 - x0) as usize;
-    let view = view::<T>(msg, info).with_area(opts.area);
-    // Where the kernel stays inside the window (or the window reaches the
-    // scan's edge, where clamping is the intended behaviour).
-    let r = opts.kernel.radius() as f64 + 1.0;
-    let [c0, r0, c1, r1] = msg.chunk.win;
-    let safe = [
-        if c0 == 0 { f64::NEG_INFINITY } else { c0 as f64 + r },
-        if r0 == 0 { f64::NEG_INFINITY } else { r0 as f64 + r },
-        if c1 == info.width { f64::INFINITY } else { c1 as f64 - r },
-        if r1 == info.height { f64::INFINITY } else { r1 as f64 - r },
-    ];
     let fill = T::from_f32(opts.fill as f32);
     let opaque = T::from_f32(match T::TYPE {
         SampleType::U8 => 255.0,
@@ -161,7 +163,11 @@ pub fn resample_chunk<T: Sample + Recycle>(
     // piece for each pixel of the rows made, which goes into it at the
     // row's place.
     let transposed = gcm.t.is_transposed();
-    let (group, piece_len) = if transposed { (column_group(t), column_group(t) * bo) } else { (1, t * bo) };
+    // A chunk made strip by strip (its window would pass the budget) takes
+    // its rows one a task, so that a strip's rows are its tasks'.
+    let by_strips = !msg.chunk.strips.is_empty();
+    let group = if transposed && !by_strips { column_group(t) } else { 1 };
+    let piece_len = if transposed { group * bo } else { t * bo };
     let groups = t / group;
     // A task's rows (of `w` pixels) lie `stride` pixels apart.
     let stride = if transposed { super::transpose::block_stride(w, bands_in * std::mem::size_of::<T>()) } else { w };
@@ -180,8 +186,38 @@ pub fn resample_chunk<T: Sample + Recycle>(
     // needs it); scan positions (`cols`, `rws`) only where a row is not all
     // stepped spans: made on first need, not zeroed for every split of the
     // chunk.
-    let make_row =
-        |r: usize, cols: &mut Vec<f64>, rws: &mut Vec<f64>, px: &mut [T], valid: &mut [bool], spans: &mut Vec<crate::geom::Span>, miss: &mut Option<Miss>| {
+    // The scan windows the rows are made from: the chunk's own, read by the
+    // read stage; or, for a chunk whose window would pass the budget (an
+    // output pixel far larger than a scan pixel), one a strip of its rows,
+    // read here in turn.
+    let strips: Vec<(std::ops::Range<usize>, [u32; 4])> =
+        if by_strips { msg.chunk.strips.iter().map(|s| (s.rows.0 as usize..s.rows.1 as usize, s.win)).collect() } else { vec![(0..rows, msg.chunk.win)] };
+    let mut own = Window::default();
+    let mut first_miss = None;
+    for (range, [c0, r0, c1, r1]) in strips {
+        let view = if by_strips {
+            src.read_window(c0, r0, c1 - c0, r1 - r0, &mut own).map_err(Failed::Read)?;
+            View::new(&own, info.bands, info.width, info.height)
+        } else {
+            view::<T>(msg, info)
+        }
+        .with_area(opts.area);
+        // Where the kernel stays inside the window (or the window reaches the
+        // scan's edge, where clamping is the intended behaviour).
+        let r = opts.kernel.radius() as f64 + 1.0;
+        let safe = [
+            if c0 == 0 { f64::NEG_INFINITY } else { c0 as f64 + r },
+            if r0 == 0 { f64::NEG_INFINITY } else { r0 as f64 + r },
+            if c1 == info.width { f64::INFINITY } else { c1 as f64 - r },
+            if r1 == info.height { f64::INFINITY } else { r1 as f64 - r },
+        ];
+        let make_row = |r: usize,
+                        cols: &mut Vec<f64>,
+                        rws: &mut Vec<f64>,
+                        px: &mut [T],
+                        valid: &mut [bool],
+                        spans: &mut Vec<crate::geom::Span>,
+                        miss: &mut Option<Miss>| {
             let positions = |cols: &mut Vec<f64>, rws: &mut Vec<f64>| {
                 cols.resize(w, 0.0);
                 rws.resize(w, 0.0);
@@ -244,87 +280,93 @@ pub fn resample_chunk<T: Sample + Recycle>(
                 }
             }
         };
-    let misses: Vec<Option<Miss>> = pieces
-        .par_iter_mut()
-        .zip(mask_pieces.par_iter_mut())
-        .with_min_len((8 / group).max(1))
-        .enumerate()
-        .map_init(
-            // The rows of a task, one after the other.
-            || (Vec::new(), Vec::new(), vec![T::default(); group * stride * bands_in], vec![false; group * w], Vec::new()),
-            |(cols, rws, block, valid_block, spans), (g, (row_pieces, mask_pieces))| {
-                let mut miss = None;
-                if transposed {
-                    for j in 0..group {
-                        let at = j * stride * bands_in;
-                        let (px, valid) = (&mut block[at..at + w * bands_in], &mut valid_block[j * w..(j + 1) * w]);
-                        if g * group + j < rows {
-                            make_row(g * group + j, cols, rws, px, valid, spans, &mut miss);
-                        } else {
-                            // Beyond the grid's edge: zero.
-                            px.fill(T::default());
-                            valid.fill(false);
-                        }
+        let misses: Vec<Option<Miss>> = pieces
+            .par_iter_mut()
+            .zip(mask_pieces.par_iter_mut())
+            .with_min_len((8 / group).max(1))
+            .enumerate()
+            .map_init(
+                // The rows of a task, one after the other.
+                || (Vec::new(), Vec::new(), vec![T::default(); group * stride * bands_in], vec![false; group * w], Vec::new()),
+                |(cols, rws, block, valid_block, spans), (g, (row_pieces, mask_pieces))| {
+                    let mut miss = None;
+                    // (Rows of other strips are theirs; one a task then.)
+                    if g * group < rows && !range.contains(&(g * group)) {
+                        return None;
                     }
-                    // Piece x takes pixel x of each row made.
-                    for (x, piece) in mask_pieces.iter_mut().enumerate() {
-                        for (j, to) in piece.iter_mut().enumerate() {
-                            *to = u8::from(x < w && valid_block[j * w + x]);
-                        }
-                    }
-                    let (seen, pad) = row_pieces.split_at_mut(w);
-                    if direct {
-                        super::transpose::gather(bytemuck::cast_slice(block), group, stride, bands_in * std::mem::size_of::<T>(), seen);
-                    } else {
-                        for (x, piece) in seen.iter_mut().enumerate() {
-                            for (j, to) in piece.chunks_exact_mut(bo).enumerate() {
-                                let at = (j * stride + x) * bands_in;
-                                to[..bands_in].copy_from_slice(&block[at..at + bands_in]);
-                                to[bands_in] = if valid_block[j * w + x] { opaque } else { T::default() };
+                    if transposed {
+                        for j in 0..group {
+                            let at = j * stride * bands_in;
+                            let (px, valid) = (&mut block[at..at + w * bands_in], &mut valid_block[j * w..(j + 1) * w]);
+                            if g * group + j < rows {
+                                make_row(g * group + j, cols, rws, px, valid, spans, &mut miss);
+                            } else {
+                                // Beyond the grid's edge: zero.
+                                px.fill(T::default());
+                                valid.fill(false);
                             }
                         }
-                    }
-                    pad.iter_mut().for_each(|p| p.fill(T::default()));
-                    return miss;
-                }
-                let (px, valid) = (block, valid_block);
-                for j in 0..group {
-                    let r = g * group + j;
-                    if r >= rows {
-                        // Below the grid's edge.
-                        row_pieces.iter_mut().for_each(|p| p.fill(T::default()));
-                        mask_pieces.iter_mut().for_each(|p| p.fill(0));
-                        continue;
-                    }
-                    make_row(r, cols, rws, px, valid, spans, &mut miss);
-                    for (tx, piece) in mask_pieces.iter_mut().enumerate() {
-                        let xs = tx * t;
-                        let n = t.min(w - xs);
-                        piece[..n].copy_from_slice(bytemuck::cast_slice(&valid[xs..xs + n]));
-                        piece[n..].fill(0);
-                    }
-                    for (tx, piece) in row_pieces.iter_mut().enumerate() {
-                        let xs = tx * t;
-                        let n = t.min(w - xs);
-                        let (seg_out, pad) = piece.split_at_mut(n * bo);
-                        pad.fill(T::default());
+                        // Piece x takes pixel x of each row made.
+                        for (x, piece) in mask_pieces.iter_mut().enumerate() {
+                            for (j, to) in piece.iter_mut().enumerate() {
+                                *to = u8::from(x < w && valid_block[j * w + x]);
+                            }
+                        }
+                        let (seen, pad) = row_pieces.split_at_mut(w);
                         if direct {
-                            seg_out.copy_from_slice(&px[xs * bands_in..(xs + n) * bands_in]);
+                            super::transpose::gather(bytemuck::cast_slice(block), group, stride, bands_in * std::mem::size_of::<T>(), seen);
                         } else {
-                            for i in 0..n {
-                                let s = (xs + i) * bands_in;
-                                seg_out[i * bo..i * bo + bands_in].copy_from_slice(&px[s..s + bands_in]);
-                                seg_out[i * bo + bands_in] = if valid[xs + i] { opaque } else { T::default() };
+                            for (x, piece) in seen.iter_mut().enumerate() {
+                                for (j, to) in piece.chunks_exact_mut(bo).enumerate() {
+                                    let at = (j * stride + x) * bands_in;
+                                    to[..bands_in].copy_from_slice(&block[at..at + bands_in]);
+                                    to[bands_in] = if valid_block[j * w + x] { opaque } else { T::default() };
+                                }
+                            }
+                        }
+                        pad.iter_mut().for_each(|p| p.fill(T::default()));
+                        return miss;
+                    }
+                    let (px, valid) = (block, valid_block);
+                    for j in 0..group {
+                        let r = g * group + j;
+                        if r >= rows {
+                            // Below the grid's edge.
+                            row_pieces.iter_mut().for_each(|p| p.fill(T::default()));
+                            mask_pieces.iter_mut().for_each(|p| p.fill(0));
+                            continue;
+                        }
+                        make_row(r, cols, rws, px, valid, spans, &mut miss);
+                        for (tx, piece) in mask_pieces.iter_mut().enumerate() {
+                            let xs = tx * t;
+                            let n = t.min(w - xs);
+                            piece[..n].copy_from_slice(bytemuck::cast_slice(&valid[xs..xs + n]));
+                            piece[n..].fill(0);
+                        }
+                        for (tx, piece) in row_pieces.iter_mut().enumerate() {
+                            let xs = tx * t;
+                            let n = t.min(w - xs);
+                            let (seg_out, pad) = piece.split_at_mut(n * bo);
+                            pad.fill(T::default());
+                            if direct {
+                                seg_out.copy_from_slice(&px[xs * bands_in..(xs + n) * bands_in]);
+                            } else {
+                                for i in 0..n {
+                                    let s = (xs + i) * bands_in;
+                                    seg_out[i * bo..i * bo + bands_in].copy_from_slice(&px[s..s + bands_in]);
+                                    seg_out[i * bo + bands_in] = if valid[xs + i] { opaque } else { T::default() };
+                                }
                             }
                         }
                     }
-                }
-                miss
-            },
-        )
-        .collect();
-    match misses.into_iter().flatten().next() {
-        Some(m) => Err(m),
+                    miss
+                },
+            )
+            .collect();
+        first_miss = first_miss.or(misses.into_iter().flatten().next());
+    }
+    match first_miss {
+        Some(m) => Err(Failed::Miss(m)),
         None => Ok((out, opts.mask.then_some(mask))),
     }
 }
