@@ -439,23 +439,25 @@ fn every_reader_on_a_large_file_stays_within_the_memory_budget() {
 #[test]
 fn a_tile_whose_window_passes_the_budget_is_made_strip_by_strip_with_the_same_pixels() {
     // An output pixel 40 scan pixels wide: one tile's window is the whole
-    // scan, far past what 16 MiB allows a window. (A scan turned against
-    // the output, whose one-row strips still cross most of it, is not
-    // bounded yet: that needs strips cut across too.)
+    // scan, far past what 16 MiB allows a window. The scan is turned 30°
+    // against the output, so that a row's window crosses much of it: the
+    // strips are cut across too.
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let sc = scene(&d.join("scene"), 3000, |o| o.kappa_deg = 0.0);
+    let sc = scene(&d.join("scene"), 3000, |_| {});
     let gsd = (40.0 * sc.gsd).to_string();
-    let make = |memory: &str| {
-        let (out, json) = (d.join(format!("o{memory}.tif")), d.join(format!("r{memory}.json")));
-        let a = ["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--gsd", &gsd, "--memory", memory, "--quiet"];
-        let r = run(&[&a[..], &["--json", s(&json), "-o", s(&out)]].concat());
-        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-        (std::fs::read(&out).unwrap(), serde_json::from_slice::<serde_json::Value>(&std::fs::read(&json).unwrap()).unwrap())
-    };
-    let (small, report) = make("16M");
-    let (large, _) = make("1G");
-    assert!(small == large, "the strips make other pixels than the whole window");
-    // (The whole window alone, 27 MB, took the run to 39 MiB.)
-    assert!(report["peak_rss_mib"].as_f64().unwrap() < 24.0, "{}", report["peak_rss_mib"]);
+    for order in ["rows", "columns"] {
+        let make = |memory: &str| {
+            let (out, json) = (d.join(format!("o{memory}{order}.tif")), d.join(format!("r{memory}{order}.json")));
+            let a = ["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--gsd", &gsd, "--memory", memory, "--quiet"];
+            let r = run(&[&a[..], &["--band-order", order, "--json", s(&json), "-o", s(&out)]].concat());
+            assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+            (std::fs::read(&out).unwrap(), serde_json::from_slice::<serde_json::Value>(&std::fs::read(&json).unwrap()).unwrap())
+        };
+        let (small, report) = make("16M");
+        let (large, _) = make("1G");
+        assert!(small == large, "{order}: the strips make other pixels than the whole window");
+        // (The whole window alone, 27 MB, took the run to 39 MiB.)
+        assert!(report["peak_rss_mib"].as_f64().unwrap() < 24.0, "{order}: {}", report["peak_rss_mib"]);
+    }
 }

@@ -117,16 +117,19 @@ pub struct Chunk {
     /// pixel of the chunk sees the scan.
     pub win: [u32; 4],
     /// A single tile whose window would pass the budget (its pixels cover
-    /// many scan pixels each) is made strip by strip, each strip of rows
-    /// reading its own window: these, in order; none for other chunks.
+    /// many scan pixels each) is made piece by piece, each piece (a strip
+    /// of its rows, cut across too where needed) reading its own window:
+    /// these, in order; none for other chunks.
     pub strips: Vec<Strip>,
 }
 
-/// Rows `[rows.0, rows.1)` of a chunk's band (counted from its first) and
-/// the scan window they read.
+/// Rows `[rows.0, rows.1)` of a chunk's band (counted from its first),
+/// its columns `[cols.0, cols.1)` (from the chunk's first), and the scan
+/// window they read.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Strip {
     pub rows: (u32, u32),
+    pub cols: (u32, u32),
     pub win: [u32; 4],
 }
 
@@ -228,25 +231,34 @@ pub fn plan_band(
         }
     }
     chunks.push(Chunk { x0: start * tile, x1: (t1 * tile).min(width), win: acc.map(clip).unwrap_or([0; 4]), strips: Vec::new() });
-    // A single tile past the budget: strips of rows whose windows fit (down
-    // to one row a strip), fewer rows a strip where one does not.
+    // A single tile past the budget: strips of rows whose windows fit,
+    // fewer rows a strip where one does not, down to one row; then strips
+    // cut across (a scan turned against the output, where a row's window
+    // crosses much of the scan), down to 16 columns.
     for c in chunks.iter_mut().filter(|c| c.x1 - c.x0 <= tile && area(&c.win) > budget_px) {
-        let t = c.x0 / tile;
-        let band_rows = y1 - y0;
+        let (chunk_w, band_rows) = (c.x1 - c.x0, y1 - y0);
         let mut per = ((band_rows as u64 * budget_px / area(&c.win).max(1)) as u32).clamp(1, band_rows);
+        let mut across = tile;
         c.strips = loop {
-            let strips: Vec<Strip> = (y0..y1)
-                .step_by(per as usize)
-                .map(|a| {
-                    let b = (a + per).min(y1);
-                    let win = tile_bboxes(gcm, band, a, b, tile, (t, t + 1))[0].map(clip).unwrap_or([0; 4]);
-                    Strip { rows: (a - y0, b - y0), win }
-                })
-                .collect();
-            if per == 1 || strips.iter().all(|s| area(&s.win) <= budget_px) {
+            let mut strips = Vec::new();
+            for a in (y0..y1).step_by(per as usize) {
+                let b = (a + per).min(y1);
+                let first = c.x0 / across;
+                let boxes = tile_bboxes(gcm, band, a, b, across, (first, first + chunk_w.div_ceil(across)));
+                for (k, bb) in boxes.into_iter().enumerate() {
+                    let xa = k as u32 * across;
+                    strips.push(Strip { rows: (a - y0, b - y0), cols: (xa, (xa + across).min(chunk_w)), win: bb.map(clip).unwrap_or([0; 4]) });
+                }
+            }
+            let narrowest = per == 1 && (across <= 16 || across % 2 == 1);
+            if narrowest || strips.iter().all(|s| area(&s.win) <= budget_px) {
                 break strips;
             }
-            per = per.div_ceil(2);
+            if per > 1 {
+                per = per.div_ceil(2);
+            } else {
+                across /= 2;
+            }
         };
     }
     chunks

@@ -190,11 +190,15 @@ pub fn resample_chunk<T: Sample + Recycle>(
     // read stage; or, for a chunk whose window would pass the budget (an
     // output pixel far larger than a scan pixel), one a strip of its rows,
     // read here in turn.
-    let strips: Vec<(std::ops::Range<usize>, [u32; 4])> =
-        if by_strips { msg.chunk.strips.iter().map(|s| (s.rows.0 as usize..s.rows.1 as usize, s.win)).collect() } else { vec![(0..rows, msg.chunk.win)] };
+    #[allow(clippy::type_complexity)] // rows, columns, window
+    let strips: Vec<(std::ops::Range<usize>, std::ops::Range<usize>, [u32; 4])> = if by_strips {
+        msg.chunk.strips.iter().map(|s| (s.rows.0 as usize..s.rows.1 as usize, s.cols.0 as usize..s.cols.1 as usize, s.win)).collect()
+    } else {
+        vec![(0..rows, 0..w, msg.chunk.win)]
+    };
     let mut own = Window::default();
     let mut first_miss = None;
-    for (range, [c0, r0, c1, r1]) in strips {
+    for (range, cx, [c0, r0, c1, r1]) in strips {
         let view = if by_strips {
             src.read_window(c0, r0, c1 - c0, r1 - r0, &mut own).map_err(Failed::Read)?;
             View::new(&own, info.bands, info.width, info.height)
@@ -211,13 +215,17 @@ pub fn resample_chunk<T: Sample + Recycle>(
             if c1 == info.width { f64::INFINITY } else { c1 as f64 - r },
             if r1 == info.height { f64::INFINITY } else { r1 as f64 - r },
         ];
+        // Row `r`'s pixels `cx` (chunk columns) into those of `px` and `valid`.
         let make_row = |r: usize,
+                        cx: std::ops::Range<usize>,
                         cols: &mut Vec<f64>,
                         rws: &mut Vec<f64>,
                         px: &mut [T],
                         valid: &mut [bool],
                         spans: &mut Vec<crate::geom::Span>,
                         miss: &mut Option<Miss>| {
+            let (px, valid) = (&mut px[cx.start * bands_in..cx.end * bands_in], &mut valid[cx.clone()]);
+            let (x0, w) = (x0 + cx.start as u32, cx.len());
             let positions = |cols: &mut Vec<f64>, rws: &mut Vec<f64>| {
                 cols.resize(w, 0.0);
                 rws.resize(w, 0.0);
@@ -299,24 +307,28 @@ pub fn resample_chunk<T: Sample + Recycle>(
                             let at = j * stride * bands_in;
                             let (px, valid) = (&mut block[at..at + w * bands_in], &mut valid_block[j * w..(j + 1) * w]);
                             if g * group + j < rows {
-                                make_row(g * group + j, cols, rws, px, valid, spans, &mut miss);
+                                make_row(g * group + j, cx.clone(), cols, rws, px, valid, spans, &mut miss);
                             } else {
                                 // Beyond the grid's edge: zero.
                                 px.fill(T::default());
                                 valid.fill(false);
                             }
                         }
-                        // Piece x takes pixel x of each row made.
-                        for (x, piece) in mask_pieces.iter_mut().enumerate() {
+                        // Piece x takes pixel x of each row made (those of
+                        // columns `cx`; the pieces past the grid's edge zero).
+                        for (x, piece) in mask_pieces.iter_mut().enumerate().filter(|(x, _)| cx.contains(x) || *x >= w) {
                             for (j, to) in piece.iter_mut().enumerate() {
                                 *to = u8::from(x < w && valid_block[j * w + x]);
                             }
                         }
                         let (seen, pad) = row_pieces.split_at_mut(w);
+                        let seen = &mut seen[cx.clone()];
                         if direct {
-                            super::transpose::gather(bytemuck::cast_slice(block), group, stride, bands_in * std::mem::size_of::<T>(), seen);
+                            let px_bytes = bands_in * std::mem::size_of::<T>();
+                            let from: &[u8] = bytemuck::cast_slice(block);
+                            super::transpose::gather(&from[cx.start * px_bytes..], group, stride, px_bytes, seen);
                         } else {
-                            for (x, piece) in seen.iter_mut().enumerate() {
+                            for (x, piece) in seen.iter_mut().enumerate().map(|(i, p)| (i + cx.start, p)) {
                                 for (j, to) in piece.chunks_exact_mut(bo).enumerate() {
                                     let at = (j * stride + x) * bands_in;
                                     to[..bands_in].copy_from_slice(&block[at..at + bands_in]);
@@ -336,22 +348,25 @@ pub fn resample_chunk<T: Sample + Recycle>(
                             mask_pieces.iter_mut().for_each(|p| p.fill(0));
                             continue;
                         }
-                        make_row(r, cols, rws, px, valid, spans, &mut miss);
+                        make_row(r, cx.clone(), cols, rws, px, valid, spans, &mut miss);
+                        // Each tile's stretch of the row: of it, the columns `cx`.
+                        let part = |tx: usize| {
+                            let (xs, n) = (tx * t, t.min(w - tx * t));
+                            (xs, n, cx.start.clamp(xs, xs + n) - xs..cx.end.clamp(xs, xs + n) - xs)
+                        };
                         for (tx, piece) in mask_pieces.iter_mut().enumerate() {
-                            let xs = tx * t;
-                            let n = t.min(w - xs);
-                            piece[..n].copy_from_slice(bytemuck::cast_slice(&valid[xs..xs + n]));
+                            let (xs, n, own) = part(tx);
+                            piece[own.clone()].copy_from_slice(bytemuck::cast_slice(&valid[xs + own.start..xs + own.end]));
                             piece[n..].fill(0);
                         }
                         for (tx, piece) in row_pieces.iter_mut().enumerate() {
-                            let xs = tx * t;
-                            let n = t.min(w - xs);
+                            let (xs, n, own) = part(tx);
                             let (seg_out, pad) = piece.split_at_mut(n * bo);
                             pad.fill(T::default());
                             if direct {
-                                seg_out.copy_from_slice(&px[xs * bands_in..(xs + n) * bands_in]);
+                                seg_out[own.start * bo..own.end * bo].copy_from_slice(&px[(xs + own.start) * bands_in..(xs + own.end) * bands_in]);
                             } else {
-                                for i in 0..n {
+                                for i in own {
                                     let s = (xs + i) * bands_in;
                                     seg_out[i * bo..i * bo + bands_in].copy_from_slice(&px[s..s + bands_in]);
                                     seg_out[i * bo + bands_in] = if valid[xs + i] { opaque } else { T::default() };
