@@ -76,7 +76,18 @@ fn assemble_accuracy_and_rpc_grid_never_write_over_an_input() {
     let r = run(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&piece)]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     refused(d, &["assemble", "-o", s(&piece), s(&piece)], &["piece", "refusing"]);
+    // Under other names: a symbolic link and a hard link.
+    std::os::unix::fs::symlink(&piece, d.join("piece_link.tif")).unwrap();
+    refused(d, &["assemble", "-o", s(&d.join("piece_link.tif")), s(&piece)], &["piece", "refusing"]);
+    std::fs::hard_link(&dem, d.join("dem_hard.tif")).unwrap();
     refused(d, &["accuracy", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--json", s(&dem)], &["table", "DEM"]);
+    refused(d, &["accuracy", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--json", s(&d.join("dem_hard.tif"))], &["table", "DEM"]);
+    // The reference grid of --like is an input too.
+    refused(
+        d,
+        &["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--like", s(&piece), "-o", s(&d.join("piece_link.tif"))],
+        &["reference grid"],
+    );
     // rpc-grid: the image itself, and a grid named .vrt whose VRT would be itself.
     let v = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/ventoux");
     let image = d.join("left.tif");
@@ -85,6 +96,8 @@ fn assemble_accuracy_and_rpc_grid_never_write_over_an_input() {
     let srtm = v.join("srtm_N44E005_crop.tif");
     let grid = ["rpc-grid", "--image", s(&image), "--rpc", s(&rpc), "--rpc-offset", "5000,5000", "--dem", s(&srtm)];
     refused(d, &[&grid[..], &["-o", s(&image)]].concat(), &["grid", "image"]);
+    std::os::unix::fs::symlink(&image, d.join("left_link.tif")).unwrap();
+    refused(d, &[&grid[..], &["-o", s(&d.join("left_link.tif"))]].concat(), &["grid", "image"]);
     refused(d, &[&grid[..], &["-o", s(&d.join("grid.vrt"))]].concat(), &["are one file"]);
 }
 
