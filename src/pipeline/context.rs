@@ -132,4 +132,8 @@ pub struct Run<'a> {
     /// The workers of resampling and encoding.
     pub pool: rayon::ThreadPool,
     pub progress: &'a dyn Progress,
+    /// Chunks' mask bytes, handed back by the encoder for the next chunk
+    /// (as the pixels' buffers are: fresh multi-MB buffers on every chunk
+    /// cost page faults and leave the allocator's arenas holding MBs).
+    pub spare_masks: (crossbeam_channel::Sender<Vec<u8>>, crossbeam_channel::Receiver<Vec<u8>>),
 }

@@ -79,6 +79,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         stop: Stop::new(cancel),
         pool,
         progress,
+        spare_masks: crossbeam_channel::bounded(4),
     };
     let result = if sequential { run_sequential(&run, out_file, flush_file) } else { run_threaded(&run, out_file, flush_file) };
     progress.finish();

@@ -69,6 +69,29 @@ pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>) -> Result<Vec<u8>> {
 pub fn encode_mask(spec: &OutputSpec, valid: &[u8]) -> Result<Vec<u8>> {
     let (w, h) = (spec.chunk().0 as usize, spec.chunk().1 as usize);
     assert_eq!(valid.len(), w * h, "a mask tile's pixels");
+    // Nearly every tile is all image or all outside: those are encoded once.
+    let first = valid.first().copied().unwrap_or(0);
+    // (Blocks of 64 folded without a branch: the compiler vectorises them.)
+    if valid.chunks(64).all(|b| b.iter().fold(0u8, |acc, &v| acc | (v ^ first)) == 0) {
+        static UNIFORM: std::sync::Mutex<Vec<(UniformKey, Vec<u8>)>> = std::sync::Mutex::new(Vec::new());
+        let key = (w, h, first);
+        if let Some((_, bytes)) = UNIFORM.lock().ok().and_then(|u| u.iter().find(|(k, _)| *k == key).cloned()) {
+            return Ok(bytes);
+        }
+        let bytes = pack_and_deflate(w, h, valid)?;
+        if let Ok(mut u) = UNIFORM.lock() {
+            u.push((key, bytes.clone()));
+        }
+        return Ok(bytes);
+    }
+    pack_and_deflate(w, h, valid)
+}
+
+/// A uniform mask tile: its width, height and the one value of its pixels.
+type UniformKey = (usize, usize, u8);
+
+/// [`encode_mask`]'s bits, packed and deflated.
+fn pack_and_deflate(w: usize, h: usize, valid: &[u8]) -> Result<Vec<u8>> {
     let row_bytes = w.div_ceil(8);
     let mut bits = vec![0u8; row_bytes * h];
     for (row, pixels) in bits.chunks_exact_mut(row_bytes).zip(valid.chunks_exact(w)) {

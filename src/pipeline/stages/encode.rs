@@ -64,6 +64,9 @@ pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy:
         let _ = free.try_send(raw);
         pairs
     };
+    if let Some(v) = valid {
+        let _ = run.spare_masks.0.try_send(v);
+    }
     let mut masks = masks.into_iter().flatten();
     let mut out = Vec::with_capacity(n * if spec.mask { 2 } else { 1 });
     for (k, tile) in tiles.into_iter().enumerate() {

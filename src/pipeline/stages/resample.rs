@@ -41,6 +41,7 @@ pub enum Failed {
 pub fn resample(run: &Run, msg: &ReadMsg, spare: Option<Raw>) -> std::result::Result<Pixels, Failed> {
     let (y0, y1) = run.walk.band_rows(msg.band);
     let (gcm, src, opts) = (run.inputs.gcm, run.inputs.src, run.inputs.pixels);
+    let spare = (spare, run.spare_masks.1.try_recv().ok());
     match src.info.sample {
         SampleType::U8 => resample_chunk::<u8>(gcm, src, msg, y0, y1, opts, spare).map(|(p, v)| (Raw::U8(p), v)),
         SampleType::U16 => resample_chunk::<u16>(gcm, src, msg, y0, y1, opts, spare).map(|(p, v)| (Raw::U16(p), v)),
@@ -132,7 +133,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
     y0: u32,
     y1: u32,
     opts: PixelOptions,
-    spare: Option<Raw>,
+    (spare, spare_mask): (Option<Raw>, Option<Vec<u8>>),
 ) -> std::result::Result<(Vec<T>, Option<Vec<u8>>), Failed> {
     let info = &src.info;
     let bands_in = info.bands as usize;
@@ -176,7 +177,9 @@ pub fn resample_chunk<T: Sample + Recycle>(
         pieces[k % groups].push(piece);
     }
     // The mask's bytes, cut into the pixels' pieces (none without a mask).
-    let mut mask = if opts.mask { vec![0u8; n_tiles * t * t] } else { Vec::new() };
+    // (Every byte is written below, as every sample is.)
+    let mut mask = if opts.mask { spare_mask.unwrap_or_default() } else { Vec::new() };
+    mask.resize(if opts.mask { n_tiles * t * t } else { 0 }, 0);
     let mut mask_pieces: Vec<Vec<&mut [u8]>> = (0..groups).map(|_| Vec::new()).collect();
     for (k, piece) in mask.chunks_exact_mut(piece_len / bo).enumerate() {
         mask_pieces[k % groups].push(piece);
