@@ -127,20 +127,19 @@ fn bilerp_pixel_scalar<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: 
     r
 }
 
-/// A stepped run of `out.len() / B` pixels whose four neighbours all lie
+/// A straight run of `out.len() / B` pixels whose four neighbours all lie
 /// inside `bytes` (rows `row` bytes apart): pixel `i` at fixed-point
-/// position `f.at(i)` (32 fractional bits, the kernel's origin: position
+/// position `q + i·dq` (32 fractional bits, the kernel's origin: position
 /// − ½), less the window's origin `origin` in whole pixels. The caller has
 /// checked that the span's bounds lie inside. Same arithmetic as
 /// [`bilerp_pixel`].
 #[inline(always)]
-pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), f: &super::Fixed, out: &mut [u8]) {
+pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), q: (i64, i64), dq: (i64, i64), out: &mut [u8]) {
     // Counted from the window's origin (whole pixels: the fractions, and so
     // the weights, stay as they are), plus half of 1/1024 pixel, so that
     // dropping the low 22 bits rounds to the weights' resolution.
     let start = |q: i64, o: i64| q.wrapping_sub(o << 32).wrapping_add(1 << 21);
-    let (mut qc, mut qr) = (start(f.q[0], origin.0), start(f.q[1], origin.1));
-    let ([mut dqc, mut dqr], [ddqc, ddqr]) = (f.dq, f.ddq);
+    let (mut qc, mut qr) = (start(q.0, origin.0), start(q.1, origin.1));
     let pixel = |qc: i64, qr: i64| {
         // Whole pixels above the 32 fractional bits; the weights (1/1024
         // pixel) are the fraction's top 10 bits.
@@ -156,6 +155,33 @@ pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64),
     let mut o = 0;
     while o < body {
         out[o..o + 4].copy_from_slice(&pixel(qc, qr).to_le_bytes());
+        qc = qc.wrapping_add(dq.0);
+        qr = qr.wrapping_add(dq.1);
+        o += B;
+    }
+    if let Some(last) = out.get_mut(o..o + B) {
+        last.copy_from_slice(&pixel(qc, qr).to_le_bytes()[..B]);
+    }
+}
+
+/// [`span_inside`] for a quadratic span: the step `dq` itself steps by
+/// `ddq` from one pixel to the next (a separate loop: the straight one,
+/// which nearly every span takes, keeps its registers).
+#[inline(never)]
+pub fn span_inside_quadratic<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), f: &super::Fixed, out: &mut [u8]) {
+    let start = |q: i64, o: i64| q.wrapping_sub(o << 32).wrapping_add(1 << 21);
+    let (mut qc, mut qr) = (start(f.q[0], origin.0), start(f.q[1], origin.1));
+    let ([mut dqc, mut dqr], [ddqc, ddqr]) = (f.dq, f.ddq);
+    let pixel = |qc: i64, qr: i64| {
+        let s = (qr >> 32) as usize * row + (qc >> 32) as usize * B;
+        let (wx, wy) = (qc as u32 >> 22, qr as u32 >> 22);
+        let both = &bytes[s..s + row + 8];
+        bilerp_pixel::<B>(&both[..8], &both[row..], wx, wy)
+    };
+    let body = out.len().saturating_sub(B);
+    let mut o = 0;
+    while o < body {
+        out[o..o + 4].copy_from_slice(&pixel(qc, qr).to_le_bytes());
         qc = qc.wrapping_add(dqc);
         qr = qr.wrapping_add(dqr);
         dqc = dqc.wrapping_add(ddqc);
@@ -164,6 +190,16 @@ pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64),
     }
     if let Some(last) = out.get_mut(o..o + B) {
         last.copy_from_slice(&pixel(qc, qr).to_le_bytes()[..B]);
+    }
+}
+
+/// [`span_inside`] or [`span_inside_quadratic`], as the span is.
+#[inline(always)]
+pub fn span_inside_any<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), f: &super::Fixed, out: &mut [u8]) {
+    if f.ddq == [0, 0] {
+        span_inside::<B>(bytes, row, origin, (f.q[0], f.q[1]), (f.dq[0], f.dq[1]), out)
+    } else {
+        span_inside_quadratic::<B>(bytes, row, origin, f, out)
     }
 }
 

@@ -461,7 +461,7 @@ fn span_is_inside<T: Sample, const B: usize>(view: &View<'_, T>, f: &Fixed, n: u
     let last = f.at(n as i64 - 1);
     let sag = |k: usize| f.ddq[k].unsigned_abs().saturating_mul(((n - 1) * (n - 1)) as u64).div_ceil(8).min(1 << 62) as i64;
     let index = |q: i64, o: i64| (q.wrapping_add(1 << 21) >> 32) - o;
-    let (sc, sr) = (sag(0), sag(1));
+    let (sc, sr) = if f.ddq == [0, 0] { (0, 0) } else { (sag(0), sag(1)) };
     let (qa, qb) = (
         [f.q[0].min(last[0]).wrapping_sub(sc), f.q[1].min(last[1]).wrapping_sub(sr)],
         [f.q[0].max(last[0]).wrapping_add(sc), f.q[1].max(last[1]).wrapping_add(sr)],
@@ -532,7 +532,7 @@ pub fn bilinear_span<T: Sample, const B: usize>(view: &View<'_, T>, span: &Span,
     // (The limits, with their division, only for a window the loop takes.)
     if byte_loop_applies::<T, B>(view) && span_is_inside::<T, B>(view, &f, n, inside_limits::<T, B>(view)) {
         let bytes: &[u8] = bytemuck::cast_slice(view.data);
-        bilinear_u8::span_inside::<B>(bytes, view.stride as usize * B, (view.x0, view.y0), &f, bytemuck::cast_slice_mut(out));
+        bilinear_u8::span_inside_any::<B>(bytes, view.stride as usize * B, (view.x0, view.y0), &f, bytemuck::cast_slice_mut(out));
         return SpanOutcome::Inside;
     }
     let Fixed { q: [mut qc, mut qr], dq: [mut dqc, mut dqr], ddq: [ddqc, ddqr] } = f;
@@ -589,6 +589,9 @@ impl Fixed {
     /// The position `m` pixels on.
     #[inline(always)]
     pub fn at(&self, m: i64) -> [i64; 2] {
+        if self.ddq == [0, 0] {
+            return [self.q[0].wrapping_add(m.wrapping_mul(self.dq[0])), self.q[1].wrapping_add(m.wrapping_mul(self.dq[1]))];
+        }
         let t = m.wrapping_mul(m.wrapping_sub(1)) / 2;
         let one = |k: usize| self.q[k].wrapping_add(m.wrapping_mul(self.dq[k])).wrapping_add(t.wrapping_mul(self.ddq[k]));
         [one(0), one(1)]
@@ -596,13 +599,19 @@ impl Fixed {
 }
 
 /// [`Fixed`] at output pixel `x` of a span.
-#[inline]
+#[inline(always)]
 fn span_fixed(span: &Span, x: usize) -> Fixed {
     const ONE: f64 = 4_294_967_296.0;
     // Exact for what a stepped span holds (|v| < 2¹⁸, see `Gcm::row_spans`).
     let fixed = |v: f64| floor_split(v * ONE + 0.5).0;
-    let from_anchor = Fixed { q: [fixed(span.c - 0.5), fixed(span.r - 0.5)], dq: [fixed(span.dc), fixed(span.dr)], ddq: [fixed(span.ddc), fixed(span.ddr)] };
     let skip = x as i64 - span.anchor as i64;
+    let (q, dq) = ([fixed(span.c - 0.5), fixed(span.r - 0.5)], [fixed(span.dc), fixed(span.dr)]);
+    if span.ddc == 0.0 && span.ddr == 0.0 {
+        // A straight span (nearly all): no second differences to work out.
+        let at = |k: usize| q[k].wrapping_add(skip.wrapping_mul(dq[k]));
+        return Fixed { q: [at(0), at(1)], dq, ddq: [0, 0] };
+    }
+    let from_anchor = Fixed { q, dq, ddq: [fixed(span.ddc), fixed(span.ddr)] };
     let dq = |k: usize| from_anchor.dq[k].wrapping_add(skip.wrapping_mul(from_anchor.ddq[k]));
     Fixed { q: from_anchor.at(skip), dq: [dq(0), dq(1)], ddq: from_anchor.ddq }
 }
@@ -694,7 +703,7 @@ fn bilinear_spans<T: Sample, const B: usize>(view: &View<'_, T>, spans: &[Span],
         for (&(f, inside), span) in prepared.iter().zip(block) {
             let (a, b) = (span.first - x0, span.end - x0);
             let here = if inside {
-                bilinear_u8::span_inside::<B>(bytes, row, (view.x0, view.y0), &f, bytemuck::cast_slice_mut(&mut out[a * B..b * B]));
+                bilinear_u8::span_inside_any::<B>(bytes, row, (view.x0, view.y0), &f, bytemuck::cast_slice_mut(&mut out[a * B..b * B]));
                 SpanOutcome::Inside
             } else {
                 bilinear_span::<T, B>(view, span, &mut out[a * B..b * B], &mut valid[a..b], fill)
