@@ -957,14 +957,18 @@ impl<'a> Gcm<'a> {
             let m = (n_gaps - g0).min(BLOCK);
             let nodes = g0..g0 + m + 1;
             let (xs, adc, adr, bdc, bdr) = (&xs[nodes.clone()], &adc[nodes.clone()], &adr[nodes.clone()], &bdc[nodes.clone()], &bdr[nodes]);
-            for ((((&u, (&adc, &adr)), (&bdc, &bdr)), (oc, or)), (a_c, a_r)) in
-                xs.iter().zip(adc.iter().zip(adr)).zip(bdc.iter().zip(bdr)).zip(pc.iter_mut().zip(pr.iter_mut())).zip(acs.iter_mut().zip(ars.iter_mut()))
+            for (((&u, (&adc, &adr)), (&bdc, &bdr)), (oc, or)) in
+                xs.iter().zip(adc.iter().zip(adr)).zip(bdc.iter().zip(bdr)).zip(pc.iter_mut().zip(pr.iter_mut()))
             {
                 let (ac, ar) = ra.at(u);
                 (*oc, *or) = (ac + adc + fy * (bdc - adc), ar + adr + fy * (bdr - adr));
-                (*a_c, *a_r) = (ac, ar);
             }
             if !straight && cuts == 1 {
+                // A alone at the nodes (again: the loop above stays as the
+                // straight rows, nearly all, want it).
+                for ((&u, a_c), a_r) in xs.iter().zip(acs.iter_mut()).zip(ars.iter_mut()) {
+                    (*a_c, *a_r) = ra.at(u);
+                }
                 // At each gap's middle: A there, and the mean of its nodes' corrections.
                 for (k, (oc, or)) in mc.iter_mut().zip(mr.iter_mut()).enumerate().take(m) {
                     let (ac, ar) = ra.at(0.5 * (xs[k] + xs[k + 1]));
