@@ -503,6 +503,14 @@ earth_curvature = true
             let e = with(bad).err().unwrap().to_string();
             assert!(e.contains("interior.format_mm") && e.contains(word), "{bad}: {e}");
         }
+        // A digital frame is all image: no format to give.
+        let digital = GOOD
+            .replace("fiducials_mm", "# fiducials_mm")
+            .replace("fiducials_px", "# fiducials_px")
+            .replace("principal_point_mm = [0.003, -0.011]", "pixel_size_mm = 0.02\nprincipal_point_px = [5000.0, 5000.0]");
+        assert!(build(&digital).unwrap().model().image_area().is_none());
+        let e = build(&digital.replace("[interior]\n", "[interior]\nformat_mm = [230, 230]\n")).err().unwrap().to_string();
+        assert!(e.contains("interior.format_mm") && e.contains("only for a film camera"), "{e}");
         // The standard formats the marks belong to.
         assert_eq!(standard_format_mm(&[[-117.5, 117.5]]), Some(230.0));
         assert_eq!(standard_format_mm(&[[106.0, -106.0], [0.0, 113.0]]), Some(230.0));
