@@ -103,7 +103,6 @@ fn the_old_defaults_missed_on_these_scenes() {
 
 #[test]
 fn dem_voids_without_a_nodata_tag_are_holes_with_a_warning_not_heights() {
-    use gcm_ortho::io::tiff_out::*;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini");
@@ -111,27 +110,15 @@ fn dem_voids_without_a_nodata_tag_are_holes_with_a_warning_not_heights() {
     // The mini DEM with three voids of -32768 and no nodata tag.
     let voids = [(30usize, 40usize), (50, 50), (61, 33)];
     let path = d.join("voids.tif");
-    let spec = OutputSpec {
-        width: dem.width as u32,
-        height: dem.height as u32,
-        bands: 1,
-        sample: gcm_ortho::io::source::SampleType::F32,
-        chunking: Chunking::Strips(dem.height as u32),
-        compression: Compression::None,
-        bigtiff: false,
-        photometric: 1,
-        alpha: false,
-        mask: false,
-        geo: Some(GeoTags { x0: dem.transform[0], y0: dem.transform[3], gsd: dem.transform[1], epsg: 32631, nodata: None }),
-    };
-    write_raster(&path, &spec, |_, _, buf| {
-        for (k, v) in buf.chunks_exact_mut(4).enumerate() {
-            let (i, j) = (k % dem.width, k / dem.width);
-            let z = if voids.contains(&(i, j)) { -32768.0 } else { dem.sample(i, j) };
-            v.copy_from_slice(&z.to_le_bytes());
+    let georef = (dem.transform[0], dem.transform[3], dem.transform[1], 32631);
+    f32_raster(&path, (dem.width as u32, dem.height as u32), georef, |i, j| {
+        let (i, j) = (i as usize, j as usize);
+        if voids.contains(&(i, j)) {
+            -32768.0
+        } else {
+            dem.sample(i, j)
         }
-    })
-    .unwrap();
+    });
     let out = d.join("o.tif");
     let r = run(&[
         "rectify",

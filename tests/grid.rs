@@ -14,22 +14,8 @@ fn grid_of(path: &Path) -> ([f64; 6], u32, u32) {
 
 /// A Float32 raster of `w`×`h` with geotransform `gt` in `epsg`.
 fn reference(path: &Path, gt: [f64; 6], w: u32, h: u32, epsg: u32) {
-    use gcm_ortho::io::tiff_out::*;
     assert!(gt[5] == -gt[1], "this writer makes square pixels");
-    let spec = OutputSpec {
-        width: w,
-        height: h,
-        bands: 1,
-        sample: gcm_ortho::io::source::SampleType::F32,
-        chunking: Chunking::Strips(16),
-        compression: Compression::None,
-        bigtiff: false,
-        photometric: 1,
-        alpha: false,
-        mask: false,
-        geo: Some(GeoTags { x0: gt[0], y0: gt[3], gsd: gt[1], epsg, nodata: None }),
-    };
-    write_raster(path, &spec, |_, _, buf| buf.fill(0)).unwrap();
+    f32_raster(path, (w, h), (gt[0], gt[3], gt[1], epsg), |_, _| 0.0);
 }
 
 #[test]

@@ -41,6 +41,14 @@ fn refused(dir: &Path, args: &[&str], words: &[&str]) {
     assert!(snapshot(dir) == before, "{args:?} changed the folder");
 }
 
+/// Runs `args` with `--json` into `dir`; the run must succeed. Its report.
+fn report_of(args: &[&str], dir: &Path) -> serde_json::Value {
+    let json = dir.join("report.json");
+    let r = run(&[args, &["--json", s(&json)]].concat());
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap()
+}
+
 #[test]
 fn rectify_never_writes_over_an_input_under_any_name() {
     let dir = tempfile::tempdir().unwrap();
@@ -239,13 +247,10 @@ fn an_rpc_tag_is_read_from_a_large_image_without_reading_the_image() {
     let big = d.join("big.tif");
     std::fs::copy(&small, &big).unwrap();
     std::fs::OpenOptions::new().write(true).open(&big).unwrap().set_len(20 << 30).unwrap();
-    let json = d.join("r.json");
     let out = d.join("o.tif");
     // Any image will do for the geometry: the point is the RPC file's size.
     let image = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/ventoux/left_image.tif");
-    let r = run(&["rectify", "--image", s(&image), "--rpc", s(&big), "--quiet", "--json", s(&json), "-o", s(&out)]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let report = report_of(&["rectify", "--image", s(&image), "--rpc", s(&big), "--quiet", "-o", s(&out)], d);
     let peak = report["peak_rss_mib"].as_f64().unwrap();
     assert!(peak < 256.0, "peak {peak} MiB");
     // A text RPC file that is in fact that image is refused from its size.
@@ -324,27 +329,10 @@ fn a_global_geoid_grid_is_read_only_where_the_scene_is() {
     std::fs::write(&gtx, &head).unwrap();
     std::fs::OpenOptions::new().write(true).open(&gtx).unwrap().set_len(40 + 4 * rows as u64 * cols as u64).unwrap();
     let v = |n: &str| Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/ventoux").join(n);
-    let (json, out) = (d.join("r.json"), d.join("o.tif"));
-    let r = run(&[
-        "rectify",
-        "--image",
-        s(&v("left_image.tif")),
-        "--rpc",
-        s(&v("left_image.geom")),
-        "--rpc-offset",
-        "5000,5000",
-        "--dem",
-        s(&v("srtm_N44E005_crop.tif")),
-        "--geoid",
-        s(&gtx),
-        "--quiet",
-        "--json",
-        s(&json),
-        "-o",
-        s(&out),
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let out = d.join("o.tif");
+    let (image, rpc, dem) = (v("left_image.tif"), v("left_image.geom"), v("srtm_N44E005_crop.tif"));
+    let args = ["rectify", "--image", s(&image), "--rpc", s(&rpc), "--rpc-offset", "5000,5000", "--dem", s(&dem), "--geoid", s(&gtx), "--quiet"];
+    let report = report_of(&[&args[..], &["-o", s(&out)]].concat(), d);
     let peak = report["peak_rss_mib"].as_f64().unwrap();
     assert!(peak < 128.0, "peak {peak} MiB with a 933 MB geoid grid");
 }
@@ -385,7 +373,6 @@ fn sparse_tiff(path: &Path, w: u32, h: u32) {
 
 #[test]
 fn every_reader_on_a_large_file_stays_within_the_memory_budget() {
-    use gcm_ortho::io::tiff_out::*;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini");
@@ -403,47 +390,11 @@ fn every_reader_on_a_large_file_stays_within_the_memory_budget() {
     std::fs::write(&camera, cam.to_toml()).unwrap();
     let mini = gcm_ortho::dem::GridDem::read(&root.join("dem.tif")).unwrap();
     let dem = d.join("dem.tif");
-    let spec = OutputSpec {
-        width: 8000,
-        height: 8000,
-        bands: 1,
-        sample: gcm_ortho::io::source::SampleType::F32,
-        chunking: Chunking::Strips(16),
-        compression: Compression::None,
-        bigtiff: false,
-        photometric: 1,
-        alpha: false,
-        mask: false,
-        geo: Some(GeoTags { x0: mini.transform[0], y0: mini.transform[3], gsd: 0.6, epsg: 32631, nodata: None }),
-    };
     let z = mini.sample(47, 47);
-    write_raster(&dem, &spec, |_, _, buf| {
-        for v in buf.chunks_exact_mut(4) {
-            v.copy_from_slice(&z.to_ne_bytes());
-        }
-    })
-    .unwrap();
-    let (json, out) = (d.join("r.json"), d.join("o.tif"));
-    let r = run(&[
-        "rectify",
-        "--image",
-        s(&scan),
-        "--camera",
-        s(&camera),
-        "--dem",
-        s(&dem),
-        "--gsd",
-        "11.54",
-        "--memory",
-        "64M",
-        "--quiet",
-        "--json",
-        s(&json),
-        "-o",
-        s(&out),
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    f32_raster(&dem, (8000, 8000), (mini.transform[0], mini.transform[3], 0.6, 32631), |_, _| z);
+    let out = d.join("o.tif");
+    let args = ["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--gsd", "11.54", "--memory", "64M", "--quiet"];
+    let report = report_of(&[&args[..], &["-o", s(&out)]].concat(), d);
     let peak = report["peak_rss_mib"].as_f64().unwrap();
     eprintln!("peak {peak} MiB, grid {}", report["grid"]);
     assert!(peak < 64.0, "peak {peak} MiB under --memory 64M");
@@ -461,11 +412,10 @@ fn a_tile_whose_window_passes_the_budget_is_made_strip_by_strip_with_the_same_pi
     let gsd = (40.0 * sc.gsd).to_string();
     for order in ["rows", "columns"] {
         let make = |memory: &str| {
-            let (out, json) = (d.join(format!("o{memory}{order}.tif")), d.join(format!("r{memory}{order}.json")));
+            let out = d.join(format!("o{memory}{order}.tif"));
             let a = ["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--gsd", &gsd, "--memory", memory, "--quiet"];
-            let r = run(&[&a[..], &["--band-order", order, "--json", s(&json), "-o", s(&out)]].concat());
-            assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-            (std::fs::read(&out).unwrap(), serde_json::from_slice::<serde_json::Value>(&std::fs::read(&json).unwrap()).unwrap())
+            let report = report_of(&[&a[..], &["--band-order", order, "-o", s(&out)]].concat(), d);
+            (std::fs::read(&out).unwrap(), report)
         };
         let (small, report) = make("16M");
         let (large, _) = make("1G");

@@ -135,20 +135,8 @@ fn bilerp_pixel_scalar<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: 
 /// [`bilerp_pixel`].
 #[inline(always)]
 pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), q: (i64, i64), dq: (i64, i64), out: &mut [u8]) {
-    // Counted from the window's origin (whole pixels: the fractions, and so
-    // the weights, stay as they are), plus half of 1/1024 pixel, so that
-    // dropping the low 22 bits rounds to the weights' resolution.
-    let start = |q: i64, o: i64| q.wrapping_sub(o << 32).wrapping_add(1 << 21);
-    let (mut qc, mut qr) = (start(q.0, origin.0), start(q.1, origin.1));
-    let pixel = |qc: i64, qr: i64| {
-        // Whole pixels above the 32 fractional bits; the weights (1/1024
-        // pixel) are the fraction's top 10 bits.
-        let s = (qr >> 32) as usize * row + (qc >> 32) as usize * B;
-        let (wx, wy) = (qc as u32 >> 22, qr as u32 >> 22);
-        // Both rows' 8 bytes under one bounds check.
-        let both = &bytes[s..s + row + 8];
-        bilerp_pixel::<B>(&both[..8], &both[row..], wx, wy)
-    };
+    let (mut qc, mut qr) = (window_fixed(q.0, origin.0), window_fixed(q.1, origin.1));
+    let pixel = |qc: i64, qr: i64| pixel_at::<B>(bytes, row, qc, qr);
     // Four bytes a pixel, also for three bands (the fourth is written over
     // by the next pixel), but for the last pixel.
     let body = out.len().saturating_sub(B);
@@ -169,15 +157,9 @@ pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64),
 /// which nearly every span takes, keeps its registers).
 #[inline(never)]
 pub fn span_inside_quadratic<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), f: &super::Fixed, out: &mut [u8]) {
-    let start = |q: i64, o: i64| q.wrapping_sub(o << 32).wrapping_add(1 << 21);
-    let (mut qc, mut qr) = (start(f.q[0], origin.0), start(f.q[1], origin.1));
+    let (mut qc, mut qr) = (window_fixed(f.q[0], origin.0), window_fixed(f.q[1], origin.1));
     let ([mut dqc, mut dqr], [ddqc, ddqr]) = (f.dq, f.ddq);
-    let pixel = |qc: i64, qr: i64| {
-        let s = (qr >> 32) as usize * row + (qc >> 32) as usize * B;
-        let (wx, wy) = (qc as u32 >> 22, qr as u32 >> 22);
-        let both = &bytes[s..s + row + 8];
-        bilerp_pixel::<B>(&both[..8], &both[row..], wx, wy)
-    };
+    let pixel = |qc: i64, qr: i64| pixel_at::<B>(bytes, row, qc, qr);
     let body = out.len().saturating_sub(B);
     let mut o = 0;
     while o < body {
@@ -191,6 +173,27 @@ pub fn span_inside_quadratic<const B: usize>(bytes: &[u8], row: usize, origin: (
     if let Some(last) = out.get_mut(o..o + B) {
         last.copy_from_slice(&pixel(qc, qr).to_le_bytes()[..B]);
     }
+}
+
+/// A fixed-point position `q` counted from the window's origin `o` (whole
+/// pixels: the fractions, and so the weights, stay as they are), plus half
+/// of 1/1024 pixel, so that dropping the low 22 bits rounds to the weights'
+/// resolution.
+#[inline(always)]
+fn window_fixed(q: i64, o: i64) -> i64 {
+    q.wrapping_sub(o << 32).wrapping_add(1 << 21)
+}
+
+/// The pixel at window-relative fixed-point position (qc, qr)
+/// ([`window_fixed`]): whole pixels above the 32 fractional bits, the
+/// weights (1/1024 pixel) the fraction's top 10 bits.
+#[inline(always)]
+fn pixel_at<const B: usize>(bytes: &[u8], row: usize, qc: i64, qr: i64) -> u32 {
+    let s = (qr >> 32) as usize * row + (qc >> 32) as usize * B;
+    let (wx, wy) = (qc as u32 >> 22, qr as u32 >> 22);
+    // Both rows' 8 bytes under one bounds check.
+    let both = &bytes[s..s + row + 8];
+    bilerp_pixel::<B>(&both[..8], &both[row..], wx, wy)
 }
 
 /// [`span_inside`] or [`span_inside_quadratic`], as the span is.

@@ -1008,6 +1008,22 @@ mod tests {
         }
     }
 
+    /// A span through [`resample_span`] and, at the positions it steps
+    /// through ([`span_position`]), through the row kernel: (pixels,
+    /// validity) of each, and the positions.
+    #[allow(clippy::type_complexity)] // two results and the positions
+    fn span_and_row_kernel(view: &View<'_, u8>, span: &Span) -> ((Vec<u8>, Vec<bool>), (Vec<u8>, Vec<bool>), (Vec<f64>, Vec<f64>)) {
+        let (n, b) = (span.end - span.first, view.bands);
+        let (mut a, mut va) = (vec![0u8; n * b], vec![false; n]);
+        if resample_span(view, span, &mut a, &mut va, 9) == SpanOutcome::Inside {
+            va.fill(true);
+        }
+        let (cols, rows): (Vec<f64>, Vec<f64>) = (span.first..span.end).map(|x| span_position(span, x)).unzip();
+        let (mut e, mut ve) = (vec![0u8; n * b], vec![false; n]);
+        resample_row(Kernel::Bilinear, view, &cols, &rows, &mut e, &mut ve, 9);
+        ((a, va), (e, ve), (cols, rows))
+    }
+
     /// Quadratic spans whose ends lie well inside the window but whose
     /// middles bulge past its edge (or the scan's): the span kernel must
     /// see the bulge and agree with the row kernel pixel for pixel.
@@ -1024,15 +1040,7 @@ mod tests {
                 // right past its right edge (column 49).
                 for (c, r, dc, dr, ddc, ddr) in [(14.0, 8.0, 1.0, -0.6, 0.0, 0.05), (40.0, 8.0, 0.6, 1.0, -0.05, 0.0), (20.0, 20.0, 0.5, 0.1, 0.0, 0.0)] {
                     let span = Span { stepped: true, first: 3, end: 28, anchor: 0, c, r, dc, dr, ddc, ddr };
-                    let n = span.end - span.first;
-                    let b = bands as usize;
-                    let (mut a, mut va) = (vec![0u8; n * b], vec![false; n]);
-                    if resample_span(&view, &span, &mut a, &mut va, 9) == SpanOutcome::Inside {
-                        va.fill(true);
-                    }
-                    let (cols, rows): (Vec<f64>, Vec<f64>) = (span.first..span.end).map(|x| span_position(&span, x)).unzip();
-                    let (mut e, mut ve) = (vec![0u8; n * b], vec![false; n]);
-                    resample_row(Kernel::Bilinear, &view, &cols, &rows, &mut e, &mut ve, 9);
+                    let ((a, va), (e, ve), (cols, rows)) = span_and_row_kernel(&view, &span);
                     assert_eq!((va, a), (ve, e), "{bands} bands, scan {sw}x{sh}, span at {c},{r}");
                     let bounds = span_bounds(&span);
                     assert!(cols.iter().zip(&rows).all(|(&c, &r)| c >= bounds[0] && r >= bounds[1] && c <= bounds[2] && r <= bounds[3]));
@@ -1061,15 +1069,7 @@ mod tests {
             for (c, r, dc, dr) in [(12.3, 7.9, 0.731, 0.213), (8.0, 6.0, 1.117, -0.05), (45.5, 30.2, 0.9, 0.4), (55.1, 38.7, 0.3, 0.2), (14.0, 33.9, 1.1, 0.0)]
             {
                 let span = Span { stepped: true, first: 100, end: 130, anchor: 97, c, r, dc, dr, ddc: 0.0, ddr: 0.0 };
-                let n = span.end - span.first;
-                let b = bands as usize;
-                let (mut a, mut va) = (vec![0u8; n * b], vec![false; n]);
-                if resample_span(&view, &span, &mut a, &mut va, 9) == SpanOutcome::Inside {
-                    va.fill(true);
-                }
-                let (cols, rows): (Vec<f64>, Vec<f64>) = (span.first..span.end).map(|x| span_position(&span, x)).unzip();
-                let (mut e, mut ve) = (vec![0u8; n * b], vec![false; n]);
-                resample_row(Kernel::Bilinear, &view, &cols, &rows, &mut e, &mut ve, 9);
+                let ((a, va), (e, ve), (cols, rows)) = span_and_row_kernel(&view, &span);
                 assert_eq!(va, ve, "validity, {bands} bands, span at {c},{r}");
                 assert_eq!(a, e, "values, {bands} bands, span at {c},{r}");
                 // Within 1/1024 pixel of the span's own straight line.

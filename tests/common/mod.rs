@@ -164,3 +164,31 @@ pub fn python_with(module: &str, package: &str) -> Option<&'static str> {
     assert!(found || std::env::var_os("CI").is_none(), "Python's {module} is missing, and CI must compare with it (install {package})");
     found.then_some(python)
 }
+
+/// A one-band Float32 GeoTIFF, `w`×`h`, striped and uncompressed, north-up
+/// with its north-west corner at (x0, y0) and square pixels of `gsd` in
+/// EPSG `epsg`, no nodata tag; pixel (col, row) holds `value(col, row)`.
+pub fn f32_raster(path: &Path, (w, h): (u32, u32), (x0, y0, gsd, epsg): (f64, f64, f64, u32), value: impl Fn(u32, u32) -> f32 + Sync) {
+    use gcm_ortho::io::source::SampleType;
+    use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
+    let spec = OutputSpec {
+        width: w,
+        height: h,
+        bands: 1,
+        sample: SampleType::F32,
+        chunking: Chunking::Strips(16),
+        compression: Compression::None,
+        bigtiff: false,
+        photometric: 1,
+        alpha: false,
+        mask: false,
+        geo: Some(GeoTags { x0, y0, gsd, epsg, nodata: None }),
+    };
+    write_raster(path, &spec, |r0, _, buf| {
+        for (k, v) in buf.chunks_exact_mut(4).enumerate() {
+            let (col, row) = (k as u32 % w, r0 + k as u32 / w);
+            v.copy_from_slice(&value(col, row).to_ne_bytes());
+        }
+    })
+    .expect("the raster is written");
+}
