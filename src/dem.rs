@@ -690,6 +690,8 @@ mod tests {
         let (w, h) = (100usize, 70usize);
         let z = |i: usize, j: usize| 200.0 + (i as f32 * 0.37).sin() * 20.0 + j as f32 * 0.5 + ((i * 7 + j * 3) % 5) as f32;
         let spec = OutputSpec {
+            overviews: 0,
+            cog: false,
             width: w as u32,
             height: h as u32,
             bands: 1,

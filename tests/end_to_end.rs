@@ -180,6 +180,8 @@ fn a_dem_too_large_for_memory_is_read_in_chunks_with_the_same_result() {
     let gt = small.transform;
     let big = dir.path().join("big_dem.tif");
     let spec = OutputSpec {
+        overviews: 0,
+        cog: false,
         width: w as u32,
         height: h as u32,
         bands: 1,

@@ -110,6 +110,8 @@ fn regenerate_corpus() {
         let t = tempfile::tempdir().unwrap();
         let path = t.path().join("c.tif");
         let spec = OutputSpec {
+            overviews: 0,
+            cog: false,
             width: info.width,
             height: info.height,
             bands: info.bands,
@@ -268,6 +270,8 @@ fn rgb_dem() -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("rgb.tif");
     let spec = OutputSpec {
+        overviews: 0,
+        cog: false,
         width: 8,
         height: 8,
         bands: 3,
@@ -291,6 +295,8 @@ fn small_dem(w: u32, h: u32, height: impl Fn(usize) -> f32 + Sync) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("dem.tif");
     let spec = OutputSpec {
+        overviews: 0,
+        cog: false,
         width: w,
         height: h,
         bands: 1,

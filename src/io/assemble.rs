@@ -97,6 +97,8 @@ pub fn assemble(pieces: &[PathBuf], out: &Path) -> Result<()> {
         c => return Err(Error::unsupported(&pieces[0], format!("compression {c} in pieces"))),
     };
     let mut spec = OutputSpec {
+        overviews: 0,
+        cog: false,
         width: w,
         height: h,
         bands: first.bands,
@@ -113,7 +115,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path) -> Result<()> {
     let files: Vec<std::fs::File> = pieces.iter().map(|p| std::fs::File::open(p).map_err(|e| Error::io(p, e))).collect::<Result<_>>()?;
     let pending = PendingFile::create(out)?;
     let mut next = 0usize;
-    let r = write_placed(pending.file()?, &spec, || -> Result<Option<(usize, Vec<u8>)>> {
+    let r = write_placed(pending.file()?, &spec, &crate::io::tiff_out::folder_of(out), || -> Result<Option<(usize, Vec<u8>)>> {
         // Each tile of the image, then its mask's (where the pieces have
         // one), as a single run writes them.
         let per_tile = if spec.mask { 2 } else { 1 };

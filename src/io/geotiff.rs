@@ -4,10 +4,9 @@
 //! GDAL_NODATA).
 
 use crate::error::{Error, Result};
-use std::io::{Read, Seek, Write};
+use std::io::{Read, Seek};
 use std::path::Path;
 use tiff::decoder::{ifd::Value, Decoder};
-use tiff::encoder::{DirectoryEncoder, TiffKind};
 use tiff::tags::Tag;
 
 const GT_MODEL_TYPE: u16 = 1024;
@@ -110,18 +109,11 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
     Ok(Some(GeoRef { transform: gt, epsg, nodata }))
 }
 
-/// Writes north-up georeferencing for a grid with origin (x0, y0) (north-west
-/// corner) and square pixels `gsd`, in the CRS `epsg` (PixelIsArea).
-pub fn write_georef<W: Write + Seek, K: TiffKind>(
-    dir: &mut DirectoryEncoder<'_, W, K>,
-    x0: f64,
-    y0: f64,
-    gsd: f64,
-    epsg: u32,
-    nodata: Option<f64>,
-) -> tiff::TiffResult<()> {
-    dir.write_tag(Tag::ModelPixelScaleTag, &[gsd, gsd, 0.0][..])?;
-    dir.write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, x0, y0, 0.0][..])?;
+/// The tags of north-up georeferencing for a grid with origin (x0, y0)
+/// (north-west corner) and square pixels `gsd`, in the CRS `epsg`
+/// (PixelIsArea): ModelPixelScale, ModelTiepoint, GeoKeyDirectory.
+pub fn georef_tags(x0: f64, y0: f64, gsd: f64, epsg: u32) -> [(u16, crate::io::tiff_out::TagValue); 3] {
+    use crate::io::tiff_out::TagValue;
     let geographic = is_geographic(epsg).unwrap_or(false);
     let (model, cs_key) = if geographic { (2u16, GEOGRAPHIC_TYPE) } else { (1u16, PROJECTED_CS_TYPE) };
     let keys: [u16; 16] = [
@@ -142,9 +134,9 @@ pub fn write_georef<W: Write + Seek, K: TiffKind>(
         1,
         epsg as u16,
     ];
-    dir.write_tag(Tag::GeoKeyDirectoryTag, &keys[..])?;
-    if let Some(nd) = nodata {
-        dir.write_tag(Tag::GdalNodata, format!("{nd}").as_str())?;
-    }
-    Ok(())
+    [
+        (Tag::ModelPixelScaleTag.to_u16(), TagValue::Double(vec![gsd, gsd, 0.0])),
+        (Tag::ModelTiepointTag.to_u16(), TagValue::Double(vec![0.0, 0.0, 0.0, x0, y0, 0.0])),
+        (Tag::GeoKeyDirectoryTag.to_u16(), TagValue::Short(keys.to_vec())),
+    ]
 }

@@ -83,12 +83,17 @@ pub fn remove_dead_temporaries(dir: &Path) {
     }
 }
 
+/// The folder a file is (to be) in.
+pub fn folder_of(target: &Path) -> PathBuf {
+    match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
 impl PendingFile {
     pub fn create(target: &Path) -> Result<PendingFile> {
-        let dir = match target.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
+        let dir = folder_of(target);
         remove_dead_temporaries(&dir);
         let name = target.file_name().and_then(|n| n.to_str()).unwrap_or("out");
         let prefix = temp_prefix(name, std::process::id(), &host());

@@ -193,6 +193,8 @@ impl RunPlan {
         let bands_out = bands_in + u32::from(opts.alpha);
         let photometric = if src.info.photometric == 2 && bands_in >= 3 { 2 } else { 1 };
         let mut spec = OutputSpec {
+            overviews: 0,
+            cog: false,
             width: piece_w,
             height: piece_h,
             bands: bands_out,

@@ -12,6 +12,8 @@ use std::path::Path;
 /// Float32 GeoTIFF of the sampled error (NaN where not evaluated).
 pub fn write_error_map(path: &Path, map: &[f32], w: u32, h: u32, grid: &OutputGrid, step: u32, epsg: u32) -> Result<()> {
     let spec = OutputSpec {
+        overviews: 0,
+        cog: false,
         width: w,
         height: h,
         bands: 1,

@@ -362,6 +362,8 @@ fn town(x: f64, y: f64, seed: u64) -> f64 {
 /// Writes a relief raster as a Float32 GeoTIFF (square postings).
 fn write_dem(path: &std::path::Path, g: &GridDem) -> Result<()> {
     let spec = OutputSpec {
+        overviews: 0,
+        cog: false,
         width: g.width as u32,
         height: g.height as u32,
         bands: 1,
@@ -564,6 +566,8 @@ where
 fn scan_spec(o: &SynthOptions) -> OutputSpec {
     let sample = if o.bits == 8 { SampleType::U8 } else { SampleType::U16 };
     let spec = OutputSpec {
+        overviews: 0,
+        cog: false,
         width: o.width,
         height: o.height,
         bands: o.bands,

@@ -65,6 +65,8 @@ pub fn coordinate_image(path: &Path, w: u32, h: u32) {
     use gcm_ortho::io::source::SampleType;
     use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, OutputSpec};
     let spec = OutputSpec {
+        overviews: 0,
+        cog: false,
         width: w,
         height: h,
         bands: 2,
@@ -172,6 +174,8 @@ pub fn f32_raster(path: &Path, (w, h): (u32, u32), (x0, y0, gsd, epsg): (f64, f6
     use gcm_ortho::io::source::SampleType;
     use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
     let spec = OutputSpec {
+        overviews: 0,
+        cog: false,
         width: w,
         height: h,
         bands: 1,

@@ -291,6 +291,8 @@ mod tests {
     /// A 40×30 file of `bands` bands, samples that vary in every direction.
     fn raster(path: &Path, bands: u32, sample: SampleType, chunking: Chunking, compression: Compression) {
         let spec = OutputSpec {
+            overviews: 0,
+            cog: false,
             width: 40,
             height: 30,
             bands,
@@ -378,6 +380,8 @@ mod tests {
             let path = dir.path().join("tall.tif");
             let (w, h) = (37u32, 400u32);
             let spec = OutputSpec {
+                overviews: 0,
+                cog: false,
                 width: w,
                 height: h,
                 bands: 3,
@@ -420,6 +424,8 @@ mod tests {
         let plain = dir.path().join("plain.tif");
         // Rows of 1500 bytes: pages hold 2.7 rows, strips 7.
         let spec = OutputSpec {
+            overviews: 0,
+            cog: false,
             width: 500,
             height: 30,
             bands: 3,

@@ -7,14 +7,16 @@
 //! renamed into place only after it has been re-read and checked
 //! (`verify.rs`).
 
+mod directory;
 mod encode;
 mod verify;
 mod writer;
 
-pub use crate::io::publish::{reserve, PendingFile};
+pub use crate::io::publish::{folder_of, reserve, PendingFile};
+pub use directory::Value as TagValue;
 pub use encode::{encode_mask, encode_tile};
 pub use verify::verify;
-pub use writer::{page_padding, tiff_write_error, write_placed, write_raster, write_tiled, WriteError};
+pub use writer::{page_padding, tiff_write_error, write_placed, write_raster, write_tiled, TileWriter, WriteError};
 
 use crate::io::format::SampleType;
 
@@ -79,6 +81,15 @@ pub struct OutputSpec {
     /// the image's ([`OutputSpec::mask_tile`]).
     pub mask: bool,
     pub geo: Option<GeoTags>,
+    /// Reduced-resolution levels after the full one (2×, 4×, …, each made
+    /// from the one before), in directories of their own (NewSubfileType 1)
+    /// with their own masks. Tiled output only.
+    pub overviews: u32,
+    /// The Cloud-Optimized layout: every directory before the tiles, the
+    /// smallest level's tiles first, each tile between its byte count and
+    /// its last four bytes, a mask's tile right after its image's (GDAL's
+    /// COG driver's layout, which its validator checks).
+    pub cog: bool,
 }
 
 impl OutputSpec {
@@ -101,7 +112,59 @@ impl OutputSpec {
     }
     /// The number under which the writer takes the mask tile of image tile `k`.
     pub fn mask_tile(&self, k: usize) -> usize {
-        self.tile_count() + k
+        self.chunk_index(0, k, true)
+    }
+    /// Width and height of level `l` (0: full resolution; each level half
+    /// the one before, rounded up).
+    pub fn level_size(&self, l: u32) -> (u32, u32) {
+        (self.width.div_ceil(1 << l), self.height.div_ceil(1 << l))
+    }
+    /// Tiles across and down of level `l`.
+    pub fn level_tiles(&self, l: u32) -> (u32, u32) {
+        let (w, h) = self.level_size(l);
+        let (cw, ch) = self.chunk();
+        (w.div_ceil(cw), h.div_ceil(ch))
+    }
+    /// Chunks of level `l`'s image.
+    pub fn level_tile_count(&self, l: u32) -> usize {
+        let (a, d) = self.level_tiles(l);
+        a as usize * d as usize
+    }
+    /// The number under which the writer takes chunk `k` (row-major) of
+    /// level `l`, of its image or of its mask: level by level, each level's
+    /// image chunks, then its mask's.
+    pub fn chunk_index(&self, l: u32, k: usize, mask: bool) -> usize {
+        let per = |l: u32| self.level_tile_count(l) * if self.mask { 2 } else { 1 };
+        (0..l).map(per).sum::<usize>() + if mask { self.level_tile_count(l) } else { 0 } + k
+    }
+    /// The level, the chunk's row-major number in it and whether it is a
+    /// mask's, of the chunk the writer takes under number `k`.
+    pub fn locate(&self, mut k: usize) -> (u32, usize, bool) {
+        for l in 0..=self.overviews {
+            let n = self.level_tile_count(l);
+            if k < n {
+                return (l, k, false);
+            }
+            if self.mask && k < 2 * n {
+                return (l, k - n, true);
+            }
+            k -= n * if self.mask { 2 } else { 1 };
+        }
+        (self.overviews + 1, k, false)
+    }
+    /// Every chunk the file holds: all levels, images and masks.
+    pub fn chunk_count(&self) -> usize {
+        self.chunk_index(self.overviews + 1, 0, false)
+    }
+    /// Levels to make for an output of `width`×`height` in `tile`-pixel
+    /// tiles: halved until one tile holds the level (GDAL's default for
+    /// COGs and `gdaladdo`).
+    pub fn auto_overviews(width: u32, height: u32, tile: u32) -> u32 {
+        let mut l = 0;
+        while width.div_ceil(1 << l) > tile || height.div_ceil(1 << l) > tile {
+            l += 1;
+        }
+        l
     }
     /// Uncompressed bytes of a full chunk.
     pub fn tile_bytes(&self) -> usize {
@@ -119,7 +182,11 @@ impl OutputSpec {
     /// Would a classic TIFF overflow its 32-bit offsets? (uncompressed size
     /// plus tables, with a margin; compressed output is assumed no larger).
     pub fn needs_bigtiff(&self) -> bool {
-        let data = self.tile_bytes() as u64 * self.tiles_across() as u64 * self.tiles_down() as u64;
+        let level0 = self.tile_bytes() as u64 * self.tiles_across() as u64 * self.tiles_down() as u64;
+        // Overviews add at most a third (a quarter, a sixteenth, …), and
+        // each level's edge tiles.
+        let levels = if self.overviews > 0 { level0 / 3 + self.tile_bytes() as u64 * 4 * self.overviews as u64 } else { 0 };
+        let data = level0 + levels;
         data + (data >> 6) + (1 << 20) > u32::MAX as u64
     }
 }
@@ -134,6 +201,8 @@ mod tests {
 
     fn spec(bands: u32, sample: SampleType) -> OutputSpec {
         OutputSpec {
+            overviews: 0,
+            cog: false,
             width: 40,
             height: 16,
             bands,
@@ -193,7 +262,7 @@ mod tests {
             let dir = tempfile::tempdir().unwrap();
             let path = dir.path().join("t.tif");
             let mut next = order.iter();
-            let r = write_placed(std::fs::File::create(&path).unwrap(), &spec, || -> std::result::Result<_, ()> { Ok(next.next().map(|&k| (k, tile(k)))) });
+            let r = write_placed(std::fs::File::create(&path).unwrap(), &spec, dir.path(), || -> std::result::Result<_, ()> { Ok(next.next().map(|&k| (k, tile(k)))) });
             (r.map_err(|_| ()), std::fs::read(&path).unwrap())
         };
         let (r, bytes) = write(&[0, 3, 1, 4, 2, 5]);
@@ -226,7 +295,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("m.tif");
         let mut next = order.into_iter();
-        write_placed(std::fs::File::create(&path).unwrap(), &spec, || -> std::result::Result<_, ()> { Ok(next.next()) }).unwrap();
+        write_placed(std::fs::File::create(&path).unwrap(), &spec, dir.path(), || -> std::result::Result<_, ()> { Ok(next.next()) }).unwrap();
         verify(&path, &spec).unwrap();
         let bytes = std::fs::read(&path).unwrap();
         let mut dec = tiff::decoder::Decoder::new(std::io::Cursor::new(&bytes)).unwrap();

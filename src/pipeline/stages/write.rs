@@ -27,7 +27,7 @@ pub fn write(run: &Run, out_file: std::fs::File, flush_file: std::fs::File, mut 
             });
         }
         let mut unsynced = 0usize;
-        let r = write_placed(out_file, run.inputs.spec, || -> Result<Option<(usize, Tile)>> {
+        let r = write_placed(out_file, run.inputs.spec, &crate::io::tiff_out::folder_of(run.inputs.output), || -> Result<Option<(usize, Tile)>> {
             if run.stop.cancelled() {
                 return Err(Error::Cancelled);
             }
