@@ -9,9 +9,10 @@ use gcm_ortho::gcm::GcmSpec;
 use gcm_ortho::geom::Snap;
 use gcm_ortho::io::tiff_out::Compression;
 use gcm_ortho::options::{
-    parse_bounds, parse_bytes, parse_count, parse_max_error, parse_miss, parse_nodata, parse_offset, parse_size, parse_window, BandOrder, BigTiff, Choice,
-    DemSource, ModelSource, RectifyOptions,
+    parse_bounds, parse_bytes, parse_count, parse_max_error, parse_miss, parse_nodata, parse_offset, parse_overviews, parse_size, parse_window, BandOrder,
+    BigTiff, Choice, DemSource, ModelSource, RectifyOptions,
 };
+use gcm_ortho::overview::OverviewResampling;
 use gcm_ortho::resample::Kernel;
 use gcm_ortho::synth::{CameraKind, Relief, SynthOptions};
 use gcm_ortho::transform::Trend;
@@ -336,6 +337,19 @@ pub struct RectifyArgs {
     /// BigTIFF output (auto: when the output may pass 4 GB)
     #[arg(long, default_value = "auto", value_parser = choice::<BigTiff>())]
     pub bigtiff: BigTiff,
+    /// Internal overviews: auto (2×, 4×, … until one tile holds the
+    /// level), none, or the factors 2,4,…,2ⁿ. Made while the tiles stream.
+    #[arg(long, default_value = "auto")]
+    pub overviews: String,
+    /// How an overview pixel is made of the four below it: average (of
+    /// those with a value), nearest (the top-left one) or mode (the most
+    /// frequent), the last two for classified data.
+    #[arg(long, default_value = "average", value_parser = choice::<OverviewResampling>())]
+    pub overview_resampling: OverviewResampling,
+    /// Cloud-Optimized GeoTIFF (GDAL's COG layout: directories first,
+    /// overviews before the full resolution).
+    #[arg(long)]
+    pub cog: bool,
     /// Pixels without a value: auto (NaN for floating-point samples, else
     /// the internal mask), mask (a 1-bit internal mask, GDAL's), or a
     /// nodata value (image pixels holding it become holes).
@@ -413,6 +427,9 @@ impl RectifyArgs {
         o.band_order = self.band_order;
         o.compress = self.compress;
         o.bigtiff = self.bigtiff;
+        o.overviews = parse_overviews("overviews", &self.overviews)?;
+        o.overview_resampling = self.overview_resampling;
+        o.cog = self.cog;
         o.nodata = parse_nodata("nodata", &self.nodata)?;
         o.alpha = self.alpha;
         o.threads = self.threads;

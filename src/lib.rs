@@ -17,6 +17,7 @@ pub mod geodesy;
 pub mod geom;
 pub mod io;
 pub mod options;
+pub mod overview;
 pub mod pipeline;
 pub mod progress;
 pub mod resample;

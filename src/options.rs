@@ -13,6 +13,7 @@ use crate::gcm::{CorrectionMode, GcmSpec};
 use crate::geom::Snap;
 use crate::io::overwrite::{check_outputs, check_writable, Role};
 use crate::io::tiff_out::Compression;
+use crate::overview::OverviewResampling;
 use crate::resample::Kernel;
 use crate::transform::Trend;
 use std::path::{Path, PathBuf};
@@ -45,6 +46,7 @@ choice!(Trend: "plane" => Trend::Plane, "mean" => Trend::Mean);
 choice!(BandOrder: "auto" => BandOrder::Auto, "rows" => BandOrder::Rows, "columns" => BandOrder::Columns);
 choice!(BigTiff: "auto" => BigTiff::Auto, "yes" => BigTiff::Yes, "no" => BigTiff::No);
 choice!(Snap: "tap" => Snap::Tap, "outward" => Snap::Outward, "none" => Snap::None);
+choice!(OverviewResampling: "average" => OverviewResampling::Average, "nearest" => OverviewResampling::Nearest, "mode" => OverviewResampling::Mode);
 
 /// `name` as one of `T`'s choices.
 pub fn parse_choice<T: Choice>(setting: &'static str, name: &str) -> Result<T> {
@@ -162,6 +164,51 @@ pub fn parse_window(setting: &'static str, s: &str) -> Result<[u32; 4]> {
         [c, r, w, h] if w > 0 && h > 0 => Ok([c, r, w, h]),
         _ => Err(bad()),
     }
+}
+
+/// Which overview levels a tiled output gets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Overviews {
+    /// 2×, 4×, … until one tile holds the level (GDAL's rule).
+    Auto,
+    None,
+    /// 2×, 4×, … 2ⁿ×: this many levels.
+    Levels(u32),
+}
+
+impl Overviews {
+    /// The levels an output of `width`×`height` in `tile`-pixel tiles gets.
+    pub fn levels(self, width: u32, height: u32, tile: u32) -> u32 {
+        match self {
+            Overviews::Auto => crate::io::tiff_out::OutputSpec::auto_overviews(width, height, tile),
+            Overviews::None => 0,
+            Overviews::Levels(n) => n,
+        }
+    }
+}
+
+/// `auto`, `none`, or the reduction factors `2,4,8,…`: each level is made
+/// from the one before, so the factors are the powers of two from 2 on.
+pub fn parse_overviews(setting: &'static str, s: &str) -> Result<Overviews> {
+    match s.trim() {
+        "auto" => return Ok(Overviews::Auto),
+        "none" | "0" => return Ok(Overviews::None),
+        _ => {}
+    }
+    let factors: Vec<u32> = s
+        .split(',')
+        .map(|p| p.trim().parse::<u32>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| Error::setting(setting, format!("'{s}' is not auto, none or a list of reduction factors like 2,4,8")))?;
+    let n = factors.len() as u32;
+    if n > 30 || factors.iter().enumerate().any(|(i, &f)| f != 2 << i) {
+        return Err(Error::setting(
+            setting,
+            format!("'{s}': the levels are made each from the one before, so the factors are 2,4,8,… in order, none left out"),
+        ));
+    }
+    Ok(Overviews::Levels(n))
 }
 
 /// `col,row` of a crop's offset in its scene.
@@ -305,6 +352,11 @@ pub struct RectifyOptions {
     pub band_order: BandOrder,
     pub compress: Compression,
     pub bigtiff: BigTiff,
+    /// Internal overviews, and how their pixels are made.
+    pub overviews: Overviews,
+    pub overview_resampling: OverviewResampling,
+    /// The Cloud-Optimized layout (GDAL's COG).
+    pub cog: bool,
     /// How pixels without a value are marked (ignored with `alpha`).
     pub nodata: Nodata,
     pub alpha: bool,
@@ -460,6 +512,9 @@ impl RectifyOptions {
             band_order: BandOrder::Auto,
             compress: Compression::Deflate,
             bigtiff: BigTiff::Auto,
+            overviews: Overviews::Auto,
+            overview_resampling: OverviewResampling::Average,
+            cog: false,
             nodata: Nodata::Auto,
             alpha: false,
             threads: 0,
@@ -484,12 +539,17 @@ mod tests {
         assert_eq!(parse_bounds("bounds", "auto").unwrap(), None);
         assert_eq!(parse_window("window", "0, 1, 2, 3").unwrap(), [0, 1, 2, 3]);
         assert_eq!(parse_choice::<Kernel>("resample", "cubic").unwrap(), Kernel::Cubic);
+        assert_eq!(parse_overviews("overviews", "2, 4,8").unwrap(), Overviews::Levels(3));
+        assert_eq!(parse_overviews("overviews", "none").unwrap(), Overviews::None);
+        assert_eq!(parse_overviews("overviews", "auto").unwrap().levels(40000, 300, 256), 8);
         for (e, key) in [
             (parse_bytes("memory", "1e20").unwrap_err(), "memory"),
             (parse_bytes("memory", "-5M").unwrap_err(), "memory"),
             (parse_bounds("bounds", "3,2,1,4").unwrap_err(), "bounds"),
             (parse_window("window", "0,0,0,1").unwrap_err(), "window"),
             (parse_choice::<Kernel>("resample", "bicubic").unwrap_err(), "resample"),
+            (parse_overviews("overviews", "2,8").unwrap_err(), "overviews"),
+            (parse_overviews("overviews", "4").unwrap_err(), "overviews"),
             (parse_miss("dem_hole", "zero").unwrap_err(), "dem_hole"),
         ] {
             assert!(matches!(&e, Error::Setting { setting, .. } if *setting == key), "{e}");
@@ -511,6 +571,7 @@ mod tests {
             let _ = parse_size("size", &text);
             let _ = parse_miss("dem_hole", &text);
             let _ = parse_choice::<Compression>("compress", &text);
+            let _ = parse_overviews("overviews", &text);
         }
     }
 }

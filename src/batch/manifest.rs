@@ -9,7 +9,7 @@ use crate::error::Error;
 use crate::gcm::GcmSpec;
 use crate::io::bounded_read::{read_text_bounded, LIST};
 use crate::io::overwrite::{check_outputs, Role};
-use crate::options::{parse_choice, parse_max_error, parse_miss, parse_nodata, DemSource, ModelSource, Nodata, RectifyOptions};
+use crate::options::{parse_choice, parse_max_error, parse_miss, parse_nodata, parse_overviews, DemSource, ModelSource, Nodata, RectifyOptions};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use toml::Spanned;
@@ -51,6 +51,10 @@ pub struct Options {
     pub tile: Option<u32>,
     pub compress: Option<String>,
     pub bigtiff: Option<String>,
+    /// `auto`, `none` or a list of factors.
+    pub overviews: Option<String>,
+    pub overview_resampling: Option<String>,
+    pub cog: Option<bool>,
     pub nodata: Option<NodataSetting>,
     pub alpha: Option<bool>,
     pub output_dir: Option<String>,
@@ -77,6 +81,9 @@ impl Options {
             tile,
             compress,
             bigtiff,
+            overviews,
+            overview_resampling,
+            cog,
             nodata,
             alpha,
             output_dir
@@ -340,6 +347,13 @@ fn config(
         if let Some(b) = &o.bigtiff {
             c.bigtiff = parse_choice("bigtiff", b)?;
         }
+        if let Some(v) = &o.overviews {
+            c.overviews = parse_overviews("overviews", v)?;
+        }
+        if let Some(r) = &o.overview_resampling {
+            c.overview_resampling = parse_choice("overview_resampling", r)?;
+        }
+        c.cog = o.cog.unwrap_or(false);
         match &o.nodata {
             Some(NodataSetting::Value(v)) => c.nodata = Nodata::Value(*v),
             Some(NodataSetting::Word(w)) => c.nodata = parse_nodata("nodata", w)?,

@@ -136,4 +136,7 @@ pub struct Run<'a> {
     /// (as the pixels' buffers are: fresh multi-MB buffers on every chunk
     /// cost page faults and leave the allocator's arenas holding MBs).
     pub spare_masks: (crossbeam_channel::Sender<Vec<u8>>, crossbeam_channel::Receiver<Vec<u8>>),
+    /// The overview levels being made, by the encoder alone (the lock is
+    /// never contended).
+    pub pyramid: Option<Mutex<crate::overview::Pyramid>>,
 }

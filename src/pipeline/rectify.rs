@@ -10,11 +10,23 @@ use crate::error::{Error, Result};
 use crate::gcm::Gcm;
 use crate::io::tiff_out::{page_padding, reserve, verify, Compression, PendingFile};
 use crate::options::RectifyOptions;
+use crate::overview::{Pyramid, ValidBy};
 use crate::progress::{Cancel, Progress, Task};
 use crate::study::accuracy;
 use crate::transform::Transform;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
+
+/// How the output's pixels say they have no value, for its overviews.
+fn valid_by(spec: &crate::io::tiff_out::OutputSpec, alpha_added: bool) -> ValidBy {
+    match spec.geo.and_then(|g| g.nodata) {
+        _ if spec.mask => ValidBy::Mask,
+        Some(v) if v.is_nan() => ValidBy::Nan,
+        Some(v) => ValidBy::Nodata(v),
+        None if alpha_added || spec.alpha => ValidBy::Alpha,
+        None => ValidBy::Nan,
+    }
+}
 
 /// Orthorectifies `opts.image` into `opts.output`, telling `progress` how
 /// far it has come. `cancel` may be set from another thread (a signal
@@ -64,11 +76,12 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     // A second handle to the output, to start its write-back while tiles
     // are still being made.
     let flush_file = out_file.try_clone().map_err(|e| Error::io(pending.path(), e))?;
-    if opts.compress == Compression::None {
-        // The padding before the tiles and the tiles' bytes, all of which the
-        // file will hold.
+    if opts.compress == Compression::None && !spec.cog {
+        // The padding before the tiles and the tiles' bytes (all levels'),
+        // all of which the file will hold.
         let pad = page_padding(spec).unwrap_or(0) as u64;
-        reserve(&out_file, pad + spec.tile_bytes() as u64 * units);
+        let tiles: u64 = (0..=spec.overviews).map(|l| spec.level_tile_count(l) as u64).sum();
+        reserve(&out_file, pad + spec.tile_bytes() as u64 * tiles);
     }
 
     let run = Run {
@@ -80,6 +93,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         pool,
         progress,
         spare_masks: crossbeam_channel::bounded(4),
+        pyramid: Pyramid::new(spec, opts.overview_resampling, valid_by(spec, plan.pixels.alpha), plan.pixels.fill).map(std::sync::Mutex::new),
     };
     let result = if sequential { run_sequential(&run, out_file, flush_file) } else { run_threaded(&run, out_file, flush_file) };
     progress.finish();
@@ -87,6 +101,9 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         return Err(Error::Cancelled);
     }
     let busy = result?;
+    if run.pyramid.as_ref().is_some_and(|p| !p.lock().is_ok_and(|p| p.is_complete())) {
+        return Err(Error::Geometry("an overview tile was left unfinished (please report it)".into()));
+    }
     times.dem = busy.dem.as_secs_f64();
     times.gcm = busy.gcm.as_secs_f64();
     times.read = busy.read.as_secs_f64();

@@ -14,6 +14,7 @@ use crate::io::geotiff::is_geographic;
 use crate::io::source::{SampleType, SourceImage};
 use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec};
 use crate::options::{BandOrder, BigTiff, DemSource, ModelSource, Nodata, RectifyOptions};
+use crate::overview::Pyramid;
 use crate::progress::Progress;
 use crate::transform::footprint::{auto_grid, mean_gsd};
 use crate::transform::{Approx, Trend};
@@ -213,6 +214,23 @@ impl RunPlan {
                 nodata,
             }),
         };
+        spec.overviews = opts.overviews.levels(piece_w, piece_h, tile);
+        spec.cog = opts.cog;
+        // The quarters of unfinished overview tiles: a band of them at each
+        // level, within four shares of the budget.
+        let band_tiles = if band_order == BandOrder::Columns { trh } else { tcw };
+        let held = Pyramid::held_bytes(&spec, band_tiles);
+        if held > 4 * budget.share() {
+            return Err(Error::setting(
+                "overviews",
+                format!(
+                    "made while the tiles stream, they hold about {} MB of a {}-tile-wide output at a time, more than the memory budget allows them: give --memory {}M or more, or --overviews none",
+                    held >> 20,
+                    band_tiles,
+                    (held * 6).div_ceil(1 << 20)
+                ),
+            ));
+        }
         spec.bigtiff = match opts.bigtiff {
             BigTiff::Yes => true,
             BigTiff::No => false,

@@ -262,7 +262,9 @@ mod tests {
             let dir = tempfile::tempdir().unwrap();
             let path = dir.path().join("t.tif");
             let mut next = order.iter();
-            let r = write_placed(std::fs::File::create(&path).unwrap(), &spec, dir.path(), || -> std::result::Result<_, ()> { Ok(next.next().map(|&k| (k, tile(k)))) });
+            let r = write_placed(std::fs::File::create(&path).unwrap(), &spec, dir.path(), || -> std::result::Result<_, ()> {
+                Ok(next.next().map(|&k| (k, tile(k))))
+            });
             (r.map_err(|_| ()), std::fs::read(&path).unwrap())
         };
         let (r, bytes) = write(&[0, 3, 1, 4, 2, 5]);

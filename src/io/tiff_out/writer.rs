@@ -365,11 +365,11 @@ pub(super) const PAGE: u64 = 4096;
 
 /// Bytes to write after the header so that the first tile (and so, each
 /// tile being a whole number of pages, every tile) starts on a page:
-/// `None` for compressed tiles, whose sizes vary, or tiles that are not
-/// whole pages. (A mask's tiles between them are padded to whole pages.)
+/// `None` for compressed tiles, whose sizes vary, tiles that are not
+/// whole pages, or the Cloud-Optimized layout (tiles between leaders). (A mask's tiles between them are padded to whole pages.)
 pub fn page_padding(spec: &OutputSpec) -> Option<usize> {
     let header = if spec.bigtiff { 16 } else { 8 };
-    (spec.compression == Compression::None && spec.tile_bytes() as u64 % PAGE == 0).then_some((PAGE - header) as usize)
+    (!spec.cog && spec.compression == Compression::None && spec.tile_bytes() as u64 % PAGE == 0).then_some((PAGE - header) as usize)
 }
 
 /// Writes a whole raster to `path` (atomically), one row of chunks at a

@@ -5,6 +5,7 @@ use super::resample::{Made, Raw};
 use super::timed;
 use crate::error::Result;
 use crate::io::tiff_out::{encode_mask, encode_tile, Compression};
+use crate::overview::{LevelTile, Pyramid, Quarter};
 use crate::pipeline::context::Run;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -41,40 +42,92 @@ impl Drop for Tile {
 /// A resampled chunk, passed on as its tiles with their places in the
 /// file: compressed in parallel; uncompressed, pieces of the chunk, which
 /// goes back through `free` when the last is written. Under a mask, each
-/// image tile is followed by its mask's tile.
+/// image tile is followed by its mask's tile. With overviews, each tile is
+/// also reduced in the same pass, and the overview tiles it finishes
+/// follow.
 pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy: &mut Duration) -> Vec<Result<(usize, Tile)>> {
     let Made { band, first_col, raw, valid } = made;
     let spec = run.inputs.spec;
     let tb = spec.tile_bytes();
     // The chunk holds whole tiles, one after the other (padded).
     let n = raw.bytes().len() / tb;
-    // A tile's mask (where there is one) and, compressed, the tile itself:
-    // one parallel pass.
+    let at = |k: usize| run.walk.tile_index(band, first_col + k as u32);
+    // A tile's mask (where there is one) and, compressed, the tile itself,
+    // and its quarter for the overview: one parallel pass.
     let px = valid.as_ref().map_or(0, |v| v.len() / n.max(1));
-    let mask = |k: usize| valid.as_ref().map(|v| encode_mask(spec, &v[k * px..(k + 1) * px]).map(Tile::Owned));
-    let (tiles, masks): (Vec<Result<Tile>>, Vec<Option<Result<Tile>>>) = if spec.compression == Compression::None {
-        let masks = timed(busy, || run.pool.install(|| (0..n).into_par_iter().map(mask).collect()));
+    let valid_of = |k: usize| valid.as_ref().map(|v| &v[k * px..(k + 1) * px]);
+    let mask = |k: usize| valid_of(k).map(|v| encode_mask(spec, v).map(Tile::Owned));
+    let pyramid = run.pyramid.as_ref().map(|p| p.lock().expect("the encoder's alone"));
+    let quarter = |k: usize, bytes: &[u8]| pyramid.as_ref().map(|p| p.reduce(0, at(k), &bytes[k * tb..(k + 1) * tb], valid_of(k)));
+    type Done = (Result<Tile>, Option<Result<Tile>>, Option<Quarter>);
+    let done: Vec<Done> = if spec.compression == Compression::None {
+        let side: Vec<(Option<Result<Tile>>, Option<Quarter>)> =
+            timed(busy, || run.pool.install(|| (0..n).into_par_iter().map(|k| (mask(k), quarter(k, raw.bytes()))).collect()));
         let shared = Arc::new(raw);
-        ((0..n).map(|k| Ok(Tile::Shared { chunk: Some(shared.clone()), range: k * tb..(k + 1) * tb, free: free.clone() })).collect(), masks)
+        side.into_iter()
+            .enumerate()
+            .map(|(k, (m, q))| (Ok(Tile::Shared { chunk: Some(shared.clone()), range: k * tb..(k + 1) * tb, free: free.clone() }), m, q))
+            .collect()
     } else {
-        let pairs = timed(busy, || {
+        let done = timed(busy, || {
             let bytes = raw.bytes();
-            run.pool.install(|| (0..n).into_par_iter().map(|k| (encode_tile(spec, bytes[k * tb..(k + 1) * tb].to_vec()).map(Tile::Owned), mask(k))).collect())
+            run.pool.install(|| {
+                (0..n).into_par_iter().map(|k| (encode_tile(spec, bytes[k * tb..(k + 1) * tb].to_vec()).map(Tile::Owned), mask(k), quarter(k, bytes))).collect()
+            })
         });
         let _ = free.try_send(raw);
-        pairs
+        done
     };
     if let Some(v) = valid {
         let _ = run.spare_masks.0.try_send(v);
     }
-    let mut masks = masks.into_iter().flatten();
     let mut out = Vec::with_capacity(n * if spec.mask { 2 } else { 1 });
-    for (k, tile) in tiles.into_iter().enumerate() {
-        let at = run.walk.tile_index(band, first_col + k as u32);
-        out.push(tile.map(|t| (at, t)).map_err(|e| run.stop.fail(e)));
-        if let Some(mask) = masks.next() {
-            out.push(mask.map(|m| (spec.mask_tile(at), m)).map_err(|e| run.stop.fail(e)));
+    let mut finished = Vec::new();
+    let mut pyramid = pyramid;
+    for (k, (tile, mask, q)) in done.into_iter().enumerate() {
+        out.push(tile.map(|t| (at(k), t)).map_err(|e| run.stop.fail(e)));
+        if let Some(mask) = mask {
+            out.push(mask.map(|m| (spec.mask_tile(at(k)), m)).map_err(|e| run.stop.fail(e)));
+        }
+        if let (Some(p), Some(q)) = (pyramid.as_mut(), q) {
+            finished.extend(p.place(0, at(k), q));
         }
     }
+    if let Some(p) = pyramid.as_mut() {
+        overview_tiles(run, p, finished, &mut out, busy);
+    }
     out
+}
+
+/// The overview tiles `finished` (and those they finish in turn, level
+/// after level): each compressed, its mask's tile made and, below the top
+/// level, reduced for the next, in parallel.
+fn overview_tiles(run: &Run, pyramid: &mut Pyramid, mut finished: Vec<LevelTile>, out: &mut Vec<Result<(usize, Tile)>>, busy: &mut Duration) {
+    let spec = run.inputs.spec;
+    let top = pyramid.top();
+    while !finished.is_empty() {
+        let p = &*pyramid;
+        let made: Vec<_> = timed(busy, || {
+            run.pool.install(|| {
+                finished
+                    .into_par_iter()
+                    .map(|t| {
+                        let q = (t.level < top).then(|| p.reduce(t.level, t.k, &t.pixels, Some(&t.valid)));
+                        let mask = spec.mask.then(|| encode_mask(spec, &t.valid));
+                        (t.level, t.k, encode_tile(spec, t.pixels), mask, q)
+                    })
+                    .collect()
+            })
+        });
+        finished = Vec::new();
+        for (l, k, tile, mask, q) in made {
+            out.push(tile.map(|t| (spec.chunk_index(l, k, false), Tile::Owned(t))).map_err(|e| run.stop.fail(e)));
+            if let Some(m) = mask {
+                out.push(m.map(|m| (spec.chunk_index(l, k, true), Tile::Owned(m))).map_err(|e| run.stop.fail(e)));
+            }
+            if let Some(q) = q {
+                finished.extend(pyramid.place(l, k, q));
+            }
+        }
+    }
 }

@@ -1,0 +1,247 @@
+//! Internal overviews, made while the tiles stream: every tile of a level,
+//! as it is made, is reduced to a quarter ([`reduce`]) and put into its
+//! place in the tile above it; a tile of the level above is finished when
+//! its (up to four) quarters are in, and goes on the same way. Only the
+//! quarters of unfinished tiles are held: in bands of tile rows, about half
+//! a band of tiles over all levels.
+
+mod reduce;
+
+pub use reduce::{reduce, OverviewResampling, Quarter, TileLayout, ValidBy};
+
+use crate::io::tiff_out::OutputSpec;
+use std::collections::HashMap;
+
+/// A finished tile of an overview level: its pixels (a whole tile, padded
+/// with the fill value) and their 0/1 validity.
+pub struct LevelTile {
+    pub level: u32,
+    /// Row-major in the level.
+    pub k: usize,
+    pub pixels: Vec<u8>,
+    pub valid: Vec<u8>,
+}
+
+/// The overview levels being made.
+pub struct Pyramid {
+    pub kernel: OverviewResampling,
+    pub lay: TileLayout,
+    pub by: ValidBy,
+    pub fill: f64,
+    /// Size and tiles across of each level, the full one first.
+    sizes: Vec<(u32, u32)>,
+    across: Vec<u32>,
+    down: Vec<u32>,
+    /// For each level above the full one, its unfinished tiles' quarters.
+    pending: Vec<HashMap<usize, [Option<Quarter>; 4]>>,
+}
+
+impl Pyramid {
+    /// The levels `spec` asks for (none: `None`), made with `kernel`; a
+    /// pixel without a value holds `fill` and is known `by`.
+    pub fn new(spec: &OutputSpec, kernel: OverviewResampling, by: ValidBy, fill: f64) -> Option<Pyramid> {
+        if spec.overviews == 0 {
+            return None;
+        }
+        let levels = 0..=spec.overviews;
+        Some(Pyramid {
+            kernel,
+            lay: TileLayout { tile: spec.chunk().0 as usize, bands: spec.bands as usize, sample: spec.sample },
+            by,
+            fill,
+            sizes: levels.clone().map(|l| spec.level_size(l)).collect(),
+            across: levels.clone().map(|l| spec.level_tiles(l).0).collect(),
+            down: levels.clone().map(|l| spec.level_tiles(l).1).collect(),
+            pending: levels.map(|_| HashMap::new()).collect(),
+        })
+    }
+
+    /// The last level.
+    pub fn top(&self) -> u32 {
+        self.sizes.len() as u32 - 1
+    }
+
+    /// Tile `k` of level `l` reduced for the level above (pure: run many at
+    /// once). `valid` under a mask.
+    pub fn reduce(&self, l: u32, k: usize, pixels: &[u8], valid: Option<&[u8]>) -> Quarter {
+        let t = self.lay.tile;
+        let (w, h) = self.sizes[l as usize];
+        let a = self.across[l as usize] as usize;
+        let (x0, y0) = (k % a * t, k / a * t);
+        let extent = ((w as usize - x0).min(t), (h as usize - y0).min(t));
+        reduce(self.kernel, self.lay, self.by, self.fill, pixels, valid, extent)
+    }
+
+    /// Puts tile `k` of level `l`, reduced, into its tile of level `l + 1`:
+    /// that tile, when this was its last quarter.
+    pub fn place(&mut self, l: u32, k: usize, q: Quarter) -> Option<LevelTile> {
+        let (a, d) = (self.across[l as usize] as usize, self.down[l as usize] as usize);
+        let (cx, cy) = (k % a, k / a);
+        let up = l as usize + 1;
+        let (pa, _) = (self.across[up] as usize, self.down[up]);
+        let parent = cy / 2 * pa + cx / 2;
+        // The tiles below it that exist: two or one across, two or one down.
+        let need = (a.min(cx / 2 * 2 + 2) - cx / 2 * 2) * (d.min(cy / 2 * 2 + 2) - cy / 2 * 2);
+        let slots = self.pending[up].entry(parent).or_default();
+        slots[(cy % 2) * 2 + cx % 2] = Some(q);
+        if slots.iter().flatten().count() < need {
+            return None;
+        }
+        let slots = self.pending[up].remove(&parent).expect("just filled");
+        Some(self.join(up as u32, parent, slots))
+    }
+
+    /// A tile of level `l` from its quarters (those missing, beyond the
+    /// level below's edge, left empty).
+    fn join(&self, l: u32, k: usize, slots: [Option<Quarter>; 4]) -> LevelTile {
+        let (t, b) = (self.lay.tile, self.lay.bands);
+        let px = b * self.lay.sample.bytes();
+        let half = t / 2;
+        let mut pixels = vec![0u8; t * t * px];
+        let fill = reduce(self.kernel, TileLayout { tile: 2, ..self.lay }, self.by, self.fill, &vec![0u8; 4 * px], Some(&[0; 4]), (0, 0)).pixels;
+        for p in pixels.chunks_exact_mut(px) {
+            p.copy_from_slice(&fill);
+        }
+        let mut valid = vec![0u8; t * t];
+        for (s, q) in slots.iter().enumerate() {
+            let Some(q) = q else { continue };
+            let (qx, qy) = (s % 2 * half, s / 2 * half);
+            for y in 0..half {
+                let row = (qy + y) * t + qx;
+                pixels[row * px..(row + half) * px].copy_from_slice(&q.pixels[y * half * px..(y + 1) * half * px]);
+                valid[row..row + half].copy_from_slice(&q.valid[y * half..(y + 1) * half]);
+            }
+        }
+        LevelTile { level: l, k, pixels, valid }
+    }
+
+    /// Have all tiles been finished? (Every tile below came.)
+    pub fn is_complete(&self) -> bool {
+        self.pending.iter().all(HashMap::is_empty)
+    }
+
+    /// The most the unfinished quarters can hold, bytes, when the tiles of
+    /// the full level come in bands of `band_tiles` (tiles across, or down
+    /// in bands of columns): at each level, a band of quarters waiting for
+    /// the band below them.
+    pub fn held_bytes(spec: &OutputSpec, band_tiles: u32) -> u64 {
+        let t = spec.chunk().0 as u64;
+        let quarter = (t / 2) * (t / 2) * (spec.bands as u64 * spec.sample.bytes() as u64 + 1);
+        (0..spec.overviews).map(|l| (band_tiles as u64).div_ceil(1 << l) * quarter).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::format::SampleType;
+    use crate::io::tiff_out::{Chunking, Compression};
+
+    fn spec(width: u32, height: u32) -> OutputSpec {
+        OutputSpec {
+            width,
+            height,
+            bands: 1,
+            sample: SampleType::U8,
+            chunking: Chunking::Tiles(4),
+            compression: Compression::Deflate,
+            bigtiff: false,
+            photometric: 1,
+            alpha: false,
+            mask: true,
+            geo: None,
+            overviews: OutputSpec::auto_overviews(width, height, 4),
+            cog: false,
+        }
+    }
+
+    #[test]
+    fn every_level_equals_the_average_of_the_level_below_in_any_tile_order() {
+        // 17×9 grey in 4-px tiles: levels 9×5, 5×3, 3×2 (three overviews).
+        // The full level's pixel (x, y) = 3x + 5y, without a value where
+        // x + y is a multiple of 7. Each level is checked against the
+        // average of the level below made here directly, and tiles given
+        // in row order and in column order make the same levels.
+        let s = spec(17, 9);
+        assert_eq!(s.overviews, 3);
+        let (w, h) = (17usize, 9usize);
+        let full: Vec<(u8, u8)> = (0..w * h).map(|i| ((3 * (i % w) + 5 * (i / w)) as u8, u8::from((i % w + i / w) % 7 != 0))).collect();
+        let run = |columns: bool| {
+            let mut p = Pyramid::new(&s, OverviewResampling::Average, ValidBy::Mask, 0.0).unwrap();
+            let mut levels: Vec<Vec<(u8, u8)>> = (1..=3).map(|l| vec![(0, 0); s.level_size(l).0 as usize * s.level_size(l).1 as usize]).collect();
+            let (a, d) = s.level_tiles(0);
+            let mut order: Vec<usize> = (0..(a * d) as usize).collect();
+            if columns {
+                order.sort_by_key(|&k| (k % a as usize, k / a as usize));
+            }
+            let mut queue: Vec<(u32, usize, Vec<u8>, Vec<u8>)> = order
+                .into_iter()
+                .map(|k| {
+                    let (x0, y0) = (k % a as usize * 4, k / a as usize * 4);
+                    let mut px = vec![0u8; 16];
+                    let mut ok = vec![0u8; 16];
+                    for j in 0..16 {
+                        let (x, y) = (x0 + j % 4, y0 + j / 4);
+                        if x < w && y < h {
+                            (px[j], ok[j]) = full[y * w + x];
+                        }
+                    }
+                    (0, k, px, ok)
+                })
+                .collect();
+            queue.reverse();
+            while let Some((l, k, px, ok)) = queue.pop() {
+                if l > 0 {
+                    let (lw, lh) = s.level_size(l);
+                    let la = s.level_tiles(l).0 as usize;
+                    for j in 0..16 {
+                        let (x, y) = (k % la * 4 + j % 4, k / la * 4 + j / 4);
+                        if x < lw as usize && y < lh as usize {
+                            levels[l as usize - 1][y * lw as usize + x] = (px[j], ok[j]);
+                        }
+                    }
+                }
+                if l < p.top() {
+                    let q = p.reduce(l, k, &px, Some(&ok));
+                    if let Some(t) = p.place(l, k, q) {
+                        queue.push((t.level, t.k, t.pixels, t.valid));
+                    }
+                }
+            }
+            assert!(p.is_complete());
+            levels
+        };
+        let rows = run(false);
+        assert_eq!(run(true), rows);
+        let mut below = full;
+        for l in 1..=3u32 {
+            let (bw, bh) = s.level_size(l - 1);
+            let (lw, lh) = s.level_size(l);
+            for y in 0..lh as usize {
+                for x in 0..lw as usize {
+                    let mut vals = Vec::new();
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let (bx, by) = (2 * x + dx, 2 * y + dy);
+                        if bx < bw as usize && by < bh as usize {
+                            let (v, ok) = below[by * bw as usize + bx];
+                            if ok == 1 {
+                                vals.push(v as u32);
+                            }
+                        }
+                    }
+                    let want = if vals.is_empty() { (0, 0) } else { (((vals.iter().sum::<u32>() * 2 + vals.len() as u32) / (2 * vals.len() as u32)) as u8, 1) };
+                    assert_eq!(rows[l as usize - 1][y * lw as usize + x], want, "level {l} pixel {x},{y}");
+                }
+            }
+            below = rows[l as usize - 1].clone();
+        }
+    }
+
+    #[test]
+    fn held_quarters_are_bounded_by_a_band() {
+        let s = OutputSpec { bands: 3, mask: false, ..spec(40000, 40000) };
+        let b = Pyramid::held_bytes(&s, 10000);
+        // 10000 tiles across, quarters of 2×2 pixels of 3 bytes and validity.
+        assert!(b <= (2 * 10000 + s.overviews as u64) * 16, "{b}");
+    }
+}

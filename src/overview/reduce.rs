@@ -1,0 +1,250 @@
+//! One level of an overview from the level below: each output pixel from
+//! the 2×2 pixels under it, skipping those without a value.
+
+use crate::io::format::SampleType;
+
+/// How an overview pixel is made of the four below it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OverviewResampling {
+    /// The mean of those that have a value (rounded to the nearest integer
+    /// for integer samples): imagery.
+    Average,
+    /// The top-left one, value or not: classified data, exact values.
+    Nearest,
+    /// The value most of them have (the first of them on a tie), among
+    /// those that have a value: classified data without bias to a corner.
+    Mode,
+}
+
+/// How a level's pixels say they have no value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ValidBy {
+    /// A mask of 0/1 bytes beside the pixels.
+    Mask,
+    /// Every band holds this value.
+    Nodata(f64),
+    /// A band is NaN.
+    Nan,
+    /// The last band (alpha) is 0.
+    Alpha,
+}
+
+/// The pixel layout of a level's tiles: `tile`×`tile` pixels of `bands`
+/// samples, row after row.
+#[derive(Clone, Copy, Debug)]
+pub struct TileLayout {
+    pub tile: usize,
+    pub bands: usize,
+    pub sample: SampleType,
+}
+
+/// A tile reduced to a quarter: (tile/2)² pixels and their 0/1 validity.
+#[derive(Clone, Debug, Default)]
+pub struct Quarter {
+    pub pixels: Vec<u8>,
+    pub valid: Vec<u8>,
+}
+
+/// Reduces one tile: `pixels` (native-endian samples), `valid` (0/1 a
+/// pixel, under [`ValidBy::Mask`]), of which the first `extent` columns
+/// and rows are image (the rest, padding, count as without a value).
+/// Pixels without a value in the result hold `fill` in every band.
+pub fn reduce(kernel: OverviewResampling, lay: TileLayout, by: ValidBy, fill: f64, pixels: &[u8], valid: Option<&[u8]>, extent: (usize, usize)) -> Quarter {
+    match lay.sample {
+        SampleType::U8 => reduce_as::<u8>(kernel, lay, by, fill, pixels, valid, extent),
+        SampleType::U16 => reduce_as::<u16>(kernel, lay, by, fill, pixels, valid, extent),
+        SampleType::F32 => reduce_as::<f32>(kernel, lay, by, fill, pixels, valid, extent),
+    }
+}
+
+/// A sample type the kernels work on, through f64.
+trait Sample: bytemuck::Pod + PartialEq {
+    fn value(self) -> f64;
+    /// The nearest value of the type (integers rounded half up, clamped).
+    fn put(v: f64) -> Self;
+}
+
+impl Sample for u8 {
+    fn value(self) -> f64 {
+        self as f64
+    }
+    fn put(v: f64) -> Self {
+        (v + 0.5).floor().clamp(0.0, 255.0) as u8
+    }
+}
+
+impl Sample for u16 {
+    fn value(self) -> f64 {
+        self as f64
+    }
+    fn put(v: f64) -> Self {
+        (v + 0.5).floor().clamp(0.0, 65535.0) as u16
+    }
+}
+
+impl Sample for f32 {
+    fn value(self) -> f64 {
+        self as f64
+    }
+    fn put(v: f64) -> Self {
+        v as f32
+    }
+}
+
+fn reduce_as<T: Sample>(
+    kernel: OverviewResampling,
+    lay: TileLayout,
+    by: ValidBy,
+    fill: f64,
+    pixels: &[u8],
+    valid: Option<&[u8]>,
+    extent: (usize, usize),
+) -> Quarter {
+    let (t, b) = (lay.tile, lay.bands);
+    let half = t / 2;
+    // Tiles are slices of larger buffers: read in place where aligned.
+    let owned;
+    let px: &[T] = match bytemuck::try_cast_slice(pixels) {
+        Ok(p) => p,
+        Err(_) => {
+            let mut v = vec![T::zeroed(); pixels.len() / std::mem::size_of::<T>()];
+            bytemuck::cast_slice_mut::<T, u8>(&mut v).copy_from_slice(pixels);
+            owned = v;
+            &owned
+        }
+    };
+    assert_eq!(px.len(), t * t * b, "a whole tile");
+    let has = |i: usize| -> bool {
+        let p = &px[i * b..(i + 1) * b];
+        match by {
+            ValidBy::Mask => valid.is_some_and(|v| v[i] != 0),
+            ValidBy::Nodata(v) => p.iter().any(|s| s.value() != v),
+            ValidBy::Nan => p.iter().all(|s| !s.value().is_nan()),
+            ValidBy::Alpha => p[b - 1].value() != 0.0,
+        }
+    };
+    let mut out = vec![T::put(fill); half * half * b];
+    let mut ok = vec![0u8; half * half];
+    let mut sum = vec![0f64; b];
+    for oy in 0..half {
+        for ox in 0..half {
+            let o = oy * half + ox;
+            // The four below, in raster order, image pixels only.
+            let mut under = [0usize; 4];
+            let mut n = 0;
+            for (dy, dx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                let (x, y) = (2 * ox + dx, 2 * oy + dy);
+                if x < extent.0 && y < extent.1 {
+                    under[n] = y * t + x;
+                    n += 1;
+                }
+            }
+            let under = &under[..n];
+            let chosen: Option<usize> = match kernel {
+                OverviewResampling::Nearest => {
+                    let top_left = 2 * oy * t + 2 * ox;
+                    (2 * ox < extent.0 && 2 * oy < extent.1 && has(top_left)).then_some(top_left)
+                }
+                OverviewResampling::Mode => {
+                    let with: Vec<usize> = under.iter().copied().filter(|&i| has(i)).collect();
+                    let same = |i: usize, j: usize| px[i * b..(i + 1) * b] == px[j * b..(j + 1) * b];
+                    // The most frequent; on a tie, the first in raster order.
+                    with.iter().copied().max_by_key(|&i| (with.iter().filter(|&&j| same(i, j)).count(), std::cmp::Reverse(i)))
+                }
+                OverviewResampling::Average => {
+                    sum.iter_mut().for_each(|s| *s = 0.0);
+                    let mut m = 0u32;
+                    for &i in under {
+                        if has(i) {
+                            for (s, v) in sum.iter_mut().zip(&px[i * b..(i + 1) * b]) {
+                                *s += v.value();
+                            }
+                            m += 1;
+                        }
+                    }
+                    if m > 0 {
+                        for (d, s) in out[o * b..(o + 1) * b].iter_mut().zip(&sum) {
+                            *d = T::put(s / m as f64);
+                        }
+                        ok[o] = 1;
+                    }
+                    None
+                }
+            };
+            if let Some(i) = chosen {
+                out[o * b..(o + 1) * b].copy_from_slice(&px[i * b..(i + 1) * b]);
+                ok[o] = 1;
+            }
+        }
+    }
+    Quarter { pixels: bytemuck::cast_slice(&out).to_vec(), valid: ok }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lay(bands: usize, sample: SampleType) -> TileLayout {
+        TileLayout { tile: 4, bands, sample }
+    }
+
+    #[test]
+    fn average_skips_pixels_without_a_value_and_rounds_half_up() {
+        // 4×4 grey: the top-left block 10, 11, 12, 14 (mean 11.75 → 12);
+        // top-right: only 7 and 8 have a value (7.5 → 8); bottom-left:
+        // none (fill 0, not valid); bottom-right: padding beyond a
+        // 3-column extent leaves 1 and 2 (1.5 → 2).
+        let px: Vec<u8> = vec![10, 11, 7, 9, 12, 14, 8, 9, 5, 5, 1, 50, 5, 5, 2, 60];
+        let valid: Vec<u8> = vec![1, 1, 1, 0, 1, 1, 1, 0, 0, 0, 1, 1, 0, 0, 1, 1];
+        let q = reduce(OverviewResampling::Average, lay(1, SampleType::U8), ValidBy::Mask, 0.0, &px, Some(&valid), (3, 4));
+        assert_eq!(q.pixels, [12, 8, 0, 2]);
+        assert_eq!(q.valid, [1, 1, 0, 1]);
+    }
+
+    #[test]
+    fn nearest_takes_the_top_left_and_mode_the_most_frequent() {
+        // RGB pixels compared whole.
+        let a = [1u8, 2, 3];
+        let c = [9u8, 9, 9];
+        let block = |p: [[u8; 3]; 4]| -> Vec<u8> {
+            // One block in the top-left 2×2 of a 4×4 tile, the rest c.
+            let mut v = Vec::new();
+            for y in 0..4 {
+                for x in 0..4 {
+                    v.extend_from_slice(&if x < 2 && y < 2 { p[y * 2 + x] } else { c });
+                }
+            }
+            v
+        };
+        let px = block([c, a, a, c]);
+        let q = reduce(OverviewResampling::Nearest, lay(3, SampleType::U8), ValidBy::Nodata(0.0), 0.0, &px, None, (4, 4));
+        assert_eq!(&q.pixels[..3], &c);
+        // c and a twice each: the first in raster order wins.
+        let q = reduce(OverviewResampling::Mode, lay(3, SampleType::U8), ValidBy::Nodata(0.0), 0.0, &px, None, (4, 4));
+        assert_eq!(&q.pixels[..3], &c);
+        let px = block([a, c, c, [0, 0, 0]]);
+        // c twice, a once, the nodata pixel skipped.
+        let q = reduce(OverviewResampling::Mode, lay(3, SampleType::U8), ValidBy::Nodata(0.0), 0.0, &px, None, (4, 4));
+        assert_eq!(&q.pixels[..3], &c);
+        // Nearest of a top-left without a value has none.
+        let px = block([[0, 0, 0], c, c, c]);
+        let q = reduce(OverviewResampling::Nearest, lay(3, SampleType::U8), ValidBy::Nodata(0.0), 0.0, &px, None, (4, 4));
+        assert_eq!((&q.pixels[..3], q.valid[0]), (&[0u8, 0, 0][..], 0));
+    }
+
+    #[test]
+    fn floats_skip_nan_and_alpha_zero_counts_as_empty() {
+        let v: Vec<f32> = vec![1.0, f32::NAN, 0.5, 0.5, 2.0, 4.0, 0.5, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let q = reduce(OverviewResampling::Average, lay(1, SampleType::F32), ValidBy::Nan, f64::NAN, bytemuck::cast_slice(&v), None, (4, 4));
+        let out: &[f32] = bytemuck::cast_slice(&q.pixels);
+        assert_eq!((out[0], out[1], q.valid[0]), (7.0 / 3.0, 0.5, 1));
+        // Grey + alpha, 16-bit: alpha 0 pixels are left out.
+        let v: Vec<u16> = [[100u16, 65535], [300, 65535], [5000, 0], [200, 65535]].into_iter().chain(std::iter::repeat_n([0, 0], 12)).flatten().collect();
+        // (Laid out as a 4×4 tile: the first row holds the four.)
+        let q = reduce(OverviewResampling::Average, lay(2, SampleType::U16), ValidBy::Alpha, 0.0, bytemuck::cast_slice(&v), None, (4, 4));
+        let out: &[u16] = bytemuck::cast_slice(&q.pixels);
+        assert_eq!(&out[..4], &[200, 65535, 200, 65535]);
+        assert_eq!(&q.valid, &[1, 1, 0, 0]);
+    }
+}
