@@ -134,6 +134,25 @@ pub struct AssembleArgs {
     /// The assembled orthophoto
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
+    /// The whole's internal overviews (made anew): auto, none, or 2,4,…,2ⁿ.
+    #[arg(long, default_value = "auto")]
+    pub overviews: String,
+    /// How an overview pixel is made of the four below it.
+    #[arg(long, default_value = "average", value_parser = choice::<OverviewResampling>())]
+    pub overview_resampling: OverviewResampling,
+    /// Cloud-Optimized GeoTIFF.
+    #[arg(long)]
+    pub cog: bool,
+}
+
+impl AssembleArgs {
+    pub fn options(&self) -> Result<gcm_ortho::assemble::AssembleOptions> {
+        Ok(gcm_ortho::assemble::AssembleOptions {
+            overviews: parse_overviews("overviews", &self.overviews)?,
+            overview_resampling: self.overview_resampling,
+            cog: self.cog,
+        })
+    }
 }
 
 #[derive(Args, Debug)]

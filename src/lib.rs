@@ -8,6 +8,7 @@
 //! signal handlers and prints errors. `docs/ARCHITECTURE.md` maps the
 //! modules.
 
+pub mod assemble;
 pub mod batch;
 pub mod camera;
 pub mod dem;

@@ -218,6 +218,9 @@ fn sigterm_mid_batch_keeps_finished_jobs_and_a_rerun_finishes() {
 
 #[test]
 fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
+    // Cloud-Optimized, so that the file's order is the layout's, not the
+    // order tiles were made in: the whole's overviews, made anew by
+    // assemble from the pieces' tiles, must equal the single run's.
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let sc = scene(&d.join("scene"), 700, |o| o.kappa_deg = 20.0);
@@ -225,7 +228,7 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     let whole = d.join("whole.tif");
     let mut a = vec!["rectify"];
     a.extend_from_slice(&base);
-    a.extend_from_slice(&["-o", s(&whole)]);
+    a.extend_from_slice(&["-o", s(&whole), "--cog"]);
     assert!(run(&a).status.success());
     let info = gcm_ortho::io::source::SourceImage::open(&whole, 1 << 20).unwrap().info;
     let (ta, td) = (info.width.div_ceil(128), info.height.div_ceil(128));
@@ -244,7 +247,7 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
         pieces.push(p);
     }
     let joined = d.join("joined.tif");
-    let mut a = vec!["assemble", "-o", s(&joined)];
+    let mut a = vec!["assemble", "--cog", "-o", s(&joined)];
     for p in &pieces {
         a.push(s(p));
     }

@@ -1,6 +1,5 @@
 //! Reading scans and rasters, writing the tiled GeoTIFF.
 
-pub mod assemble;
 pub mod bounded_read;
 pub mod chunk_cache;
 pub mod chunk_codec;

@@ -115,6 +115,32 @@ impl Pyramid {
         LevelTile { level: l, k, pixels, valid }
     }
 
+    /// The overview tiles `finished`, and those they finish in turn, level
+    /// after level: each reduced for the level above (below the top) and
+    /// then given to `make`, many at once on the current rayon pool; what
+    /// `make` returns goes to `take` with the tile's level and number.
+    pub fn cascade<R: Send>(&mut self, mut finished: Vec<LevelTile>, make: impl Fn(LevelTile) -> R + Sync, mut take: impl FnMut(u32, usize, R)) {
+        use rayon::prelude::*;
+        let top = self.top();
+        while !finished.is_empty() {
+            let p = &*self;
+            let made: Vec<(u32, usize, R, Option<Quarter>)> = finished
+                .into_par_iter()
+                .map(|t| {
+                    let q = (t.level < top).then(|| p.reduce(t.level, t.k, &t.pixels, Some(&t.valid)));
+                    (t.level, t.k, make(t), q)
+                })
+                .collect();
+            finished = Vec::new();
+            for (l, k, r, q) in made {
+                take(l, k, r);
+                if let Some(q) = q {
+                    finished.extend(self.place(l, k, q));
+                }
+            }
+        }
+    }
+
     /// Have all tiles been finished? (Every tile below came.)
     pub fn is_complete(&self) -> bool {
         self.pending.iter().all(HashMap::is_empty)

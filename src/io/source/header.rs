@@ -31,8 +31,10 @@ pub struct SourceInfo {
     pub(super) offsets: Vec<u64>,
     pub(super) byte_counts: Vec<u64>,
     /// The chunk table (offsets, byte counts) of an internal mask (GDAL's:
-    /// the next directory, NewSubfileType 4, same size and chunks).
+    /// a later directory, NewSubfileType 4, same size and chunks).
     pub mask: Option<(Vec<u64>, Vec<u64>)>,
+    /// The mask's compression (deflate as GDAL writes it, or none).
+    pub mask_compression: u16,
 }
 
 impl SourceInfo {
@@ -150,6 +152,7 @@ pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_le
         offsets,
         byte_counts,
         mask: None,
+        mask_compression: 1,
     };
     // Sizes that overflow or chunk tables that do not match are refused
     // before anything is allocated or mapped.
@@ -182,19 +185,23 @@ pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_le
     Ok(info)
 }
 
-/// The internal mask's chunk table, where the directory after the image's
-/// is one: a 1-bit transparency mask (NewSubfileType 4) of the image's size
-/// and chunks, every chunk inside the file.
-pub(super) fn read_mask_table(dec: &mut Decoder<BufReader<File>>, info: &SourceInfo, path: &Path, file_len: u64) -> Result<Option<(Vec<u64>, Vec<u64>)>> {
+/// The internal mask's chunk table and compression, where a later
+/// directory is one: a 1-bit transparency mask (NewSubfileType 4, not an
+/// overview's) of the image's size (GDAL puts it right after the image's,
+/// or after the overviews' in files it has added overviews to).
+pub(super) fn read_mask_table(dec: &mut Decoder<BufReader<File>>, info: &SourceInfo, path: &Path, file_len: u64) -> Result<Option<(Vec<u64>, Vec<u64>, u16)>> {
     let tf = |e| Error::from_tiff(path, e);
-    if !dec.more_images() {
-        return Ok(None);
+    loop {
+        if !dec.more_images() {
+            return Ok(None);
+        }
+        dec.next_image().map_err(tf)?;
+        let kind = dec.find_tag_unsigned::<u32>(Tag::NewSubfileType).map_err(tf)?.unwrap_or(0);
+        if kind & 5 == 4 && dec.dimensions().map_err(tf)? == (info.width, info.height) {
+            break;
+        }
     }
-    dec.next_image().map_err(tf)?;
-    let kind = dec.find_tag_unsigned::<u32>(Tag::NewSubfileType).map_err(tf)?.unwrap_or(0);
-    if kind & 4 == 0 || dec.dimensions().map_err(tf)? != (info.width, info.height) {
-        return Ok(None);
-    }
+    let compression = dec.find_tag_unsigned::<u16>(Tag::Compression).map_err(tf)?.unwrap_or(1);
     let (ot, ct, chunk) = if info.tiled {
         (Tag::TileOffsets, Tag::TileByteCounts, (dec.get_tag_u32(Tag::TileWidth).map_err(tf)?, dec.get_tag_u32(Tag::TileLength).map_err(tf)?))
     } else {
@@ -212,5 +219,5 @@ pub(super) fn read_mask_table(dec: &mut Decoder<BufReader<File>>, info: &SourceI
     if offsets.iter().zip(&counts).any(|(&o, &c)| o.checked_add(c).is_none_or(|end| end > file_len)) {
         return Err(Error::format(path, "a chunk of its internal mask runs past the end of the file: truncated?"));
     }
-    Ok(Some((offsets, counts)))
+    Ok(Some((offsets, counts, compression)))
 }

@@ -57,7 +57,10 @@ impl SourceImage {
             let mut next = Decoder::new(BufReader::new(File::open(path).map_err(|e| Error::io(path, e))?))
                 .map_err(|e| Error::from_tiff(path, e))?
                 .with_limits(decoder_limits());
-            info.mask = header::read_mask_table(&mut next, &info, path, len)?;
+            if let Some((o, c, compression)) = header::read_mask_table(&mut next, &info, path, len)? {
+                info.mask = Some((o, c));
+                info.mask_compression = compression;
+            }
         }
         let backend = if info.compression == 1 {
             // SAFETY: the mapping is read-only; every chunk's extent was

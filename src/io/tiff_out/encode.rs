@@ -111,3 +111,27 @@ fn pack_and_deflate(w: usize, h: usize, valid: &[u8]) -> Result<Vec<u8>> {
     Deflate::with_level(DeflateLevel::Fast).write_to(&mut out, &bits).map_err(|e| Error::Usage(format!("mask compression failed: {e}")))?;
     Ok(out)
 }
+
+/// A mask tile as [`encode_mask`] writes it (and GDAL: deflated, or
+/// uncompressed when `compression` is 1), back to 0/1 bytes for `w`×`h`
+/// pixels.
+pub fn decode_mask(bytes: &[u8], compression: u16, w: usize, h: usize) -> std::result::Result<Vec<u8>, String> {
+    use std::io::Read;
+    let row_bytes = w.div_ceil(8);
+    let bits = match compression {
+        1 => bytes.to_vec(),
+        8 | 32946 => {
+            let mut out = Vec::with_capacity(row_bytes * h);
+            flate2::read::ZlibDecoder::new(bytes)
+                .take((row_bytes * h) as u64)
+                .read_to_end(&mut out)
+                .map_err(|e| format!("a mask tile does not inflate: {e}"))?;
+            out
+        }
+        c => return Err(format!("mask compression {c} is not read")),
+    };
+    if bits.len() < row_bytes * h {
+        return Err(format!("a mask tile holds {} bytes, not {}", bits.len(), row_bytes * h));
+    }
+    Ok((0..w * h).map(|p| (p / w, p % w)).map(|(y, x)| (bits[y * row_bytes + x / 8] >> (7 - x % 8)) & 1).collect())
+}

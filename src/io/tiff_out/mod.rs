@@ -14,7 +14,7 @@ mod writer;
 
 pub use crate::io::publish::{folder_of, reserve, PendingFile};
 pub use directory::Value as TagValue;
-pub use encode::{encode_mask, encode_tile};
+pub use encode::{decode_mask, encode_mask, encode_tile};
 pub use verify::verify;
 pub use writer::{page_padding, tiff_write_error, write_placed, write_raster, write_tiled, TileWriter, WriteError};
 

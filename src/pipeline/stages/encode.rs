@@ -100,34 +100,24 @@ pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy:
 }
 
 /// The overview tiles `finished` (and those they finish in turn, level
-/// after level): each compressed, its mask's tile made and, below the top
-/// level, reduced for the next, in parallel.
-fn overview_tiles(run: &Run, pyramid: &mut Pyramid, mut finished: Vec<LevelTile>, out: &mut Vec<Result<(usize, Tile)>>, busy: &mut Duration) {
+/// after level): each compressed and its mask's tile made, in parallel.
+fn overview_tiles(run: &Run, pyramid: &mut Pyramid, finished: Vec<LevelTile>, out: &mut Vec<Result<(usize, Tile)>>, busy: &mut Duration) {
     let spec = run.inputs.spec;
-    let top = pyramid.top();
-    while !finished.is_empty() {
-        let p = &*pyramid;
-        let made: Vec<_> = timed(busy, || {
-            run.pool.install(|| {
-                finished
-                    .into_par_iter()
-                    .map(|t| {
-                        let q = (t.level < top).then(|| p.reduce(t.level, t.k, &t.pixels, Some(&t.valid)));
-                        let mask = spec.mask.then(|| encode_mask(spec, &t.valid));
-                        (t.level, t.k, encode_tile(spec, t.pixels), mask, q)
-                    })
-                    .collect()
-            })
-        });
-        finished = Vec::new();
-        for (l, k, tile, mask, q) in made {
-            out.push(tile.map(|t| (spec.chunk_index(l, k, false), Tile::Owned(t))).map_err(|e| run.stop.fail(e)));
-            if let Some(m) = mask {
-                out.push(m.map(|m| (spec.chunk_index(l, k, true), Tile::Owned(m))).map_err(|e| run.stop.fail(e)));
-            }
-            if let Some(q) = q {
-                finished.extend(pyramid.place(l, k, q));
-            }
-        }
-    }
+    timed(busy, || {
+        run.pool.install(|| {
+            pyramid.cascade(
+                finished,
+                |t| {
+                    let mask = spec.mask.then(|| encode_mask(spec, &t.valid));
+                    (encode_tile(spec, t.pixels), mask)
+                },
+                |l, k, (tile, mask)| {
+                    out.push(tile.map(|t| (spec.chunk_index(l, k, false), Tile::Owned(t))).map_err(|e| run.stop.fail(e)));
+                    if let Some(m) = mask {
+                        out.push(m.map(|m| (spec.chunk_index(l, k, true), Tile::Owned(m))).map_err(|e| run.stop.fail(e)));
+                    }
+                },
+            )
+        })
+    });
 }

@@ -1,18 +1,39 @@
 //! Putting pieces made with `rectify --window` back together: the pieces
 //! share the whole run's tile grid, so their compressed tiles (and their
 //! internal masks' tiles) are copied into one tiled GeoTIFF as they are —
-//! no decoding, no seam, the same pixels as a single run.
+//! no seam, the same pixels as a single run. The whole's overviews are
+//! made anew from the full-resolution tiles (decoded a row of tiles at a
+//! time), as a single run makes them; the pieces' own are not used.
 
 use crate::error::{Error, Result};
 use crate::io::overwrite::{check_outputs, check_writable, Role};
-use crate::io::source::SourceImage;
-use crate::io::tiff_out::{tiff_write_error, verify, write_placed, Chunking, Compression, GeoTags, OutputSpec, PendingFile, WriteError};
+use crate::io::source::{SourceImage, Window};
+use crate::io::tiff_out::{
+    decode_mask, encode_mask, encode_tile, folder_of, tiff_write_error, verify, Chunking, Compression, GeoTags, OutputSpec, PendingFile, TileWriter,
+};
+use crate::options::Overviews;
+use crate::overview::{OverviewResampling, Pyramid, Quarter, ValidBy};
+use rayon::prelude::*;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 
+/// How the whole is written.
+#[derive(Clone, Copy, Debug)]
+pub struct AssembleOptions {
+    pub overviews: Overviews,
+    pub overview_resampling: OverviewResampling,
+    pub cog: bool,
+}
+
+impl Default for AssembleOptions {
+    fn default() -> Self {
+        AssembleOptions { overviews: Overviews::Auto, overview_resampling: OverviewResampling::Average, cog: false }
+    }
+}
+
 /// Assembles `pieces` into `out`. Every tile of the union must come from
 /// exactly one piece.
-pub fn assemble(pieces: &[PathBuf], out: &Path) -> Result<()> {
+pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Result<()> {
     if pieces.is_empty() {
         return Err(Error::Usage("assemble needs at least one piece".into()));
     }
@@ -97,8 +118,6 @@ pub fn assemble(pieces: &[PathBuf], out: &Path) -> Result<()> {
         c => return Err(Error::unsupported(&pieces[0], format!("compression {c} in pieces"))),
     };
     let mut spec = OutputSpec {
-        overviews: 0,
-        cog: false,
         width: w,
         height: h,
         bands: first.bands,
@@ -110,32 +129,100 @@ pub fn assemble(pieces: &[PathBuf], out: &Path) -> Result<()> {
         alpha: first.has_alpha,
         mask: first.mask.is_some(),
         geo: Some(GeoTags { x0: x_min, y0: y_max, gsd, epsg: geo0.epsg.unwrap_or(0), nodata: geo0.nodata }),
+        overviews: 0,
+        cog: opts.cog,
     };
+    spec.overviews = opts.overviews.levels(w, h, tile);
     spec.bigtiff = spec.needs_bigtiff();
+    let by = match geo0.nodata {
+        _ if spec.mask => ValidBy::Mask,
+        Some(v) if v.is_nan() => ValidBy::Nan,
+        Some(v) => ValidBy::Nodata(v),
+        None if spec.alpha => ValidBy::Alpha,
+        None => ValidBy::Nan,
+    };
+    let mut pyramid = Pyramid::new(&spec, opts.overview_resampling, by, geo0.nodata.unwrap_or(0.0));
     let files: Vec<std::fs::File> = pieces.iter().map(|p| std::fs::File::open(p).map_err(|e| Error::io(p, e))).collect::<Result<_>>()?;
     let pending = PendingFile::create(out)?;
-    let mut next = 0usize;
-    let r = write_placed(pending.file()?, &spec, &crate::io::tiff_out::folder_of(out), || -> Result<Option<(usize, Vec<u8>)>> {
-        // Each tile of the image, then its mask's (where the pieces have
-        // one), as a single run writes them.
-        let per_tile = if spec.mask { 2 } else { 1 };
-        let (tile, of_mask) = (next / per_tile, next % per_tile == 1);
-        let Some(Some((k, t))) = owner.get(tile).copied() else { return Ok(None) };
-        next += 1;
-        let at = if of_mask { spec.mask_tile(tile) } else { tile };
-        let (offs, counts) = match (&srcs[k].info.mask, of_mask) {
-            (Some((o, c)), true) => (&o[..], &c[..]),
-            _ => srcs[k].info.chunk_table(),
-        };
-        let mut buf = vec![0u8; counts[t] as usize];
-        files[k].read_exact_at(&mut buf, offs[t]).map_err(|e| Error::io(&pieces[k], e))?;
-        Ok(Some((at, buf)))
-    });
-    match r {
-        Ok(()) => {}
-        Err(WriteError::Source(e)) => return Err(e),
-        Err(WriteError::Tiff(e)) => return Err(tiff_write_error(out, e)),
+    let mut writer = TileWriter::new(pending.file()?, &spec, &folder_of(out)).map_err(|e| Error::io(pending.path(), e))?;
+    let tw = |e| tiff_write_error(pending.path(), e);
+    let mask_compression = |k: usize| srcs[k].info.mask_compression;
+    // A row of tiles at a time: each tile's stored bytes (and its mask's)
+    // read, and under overviews its pixels decoded and reduced, in parallel.
+    for row in 0..td {
+        let tiles: Vec<Result<(Vec<u8>, Option<Vec<u8>>, Option<Quarter>)>> = (0..ta)
+            .into_par_iter()
+            .map(|col| {
+                let (k, t) = owner[(row * ta + col) as usize].expect("every tile owned");
+                let read = |o: u64, c: u64| -> Result<Vec<u8>> {
+                    let mut buf = vec![0u8; c as usize];
+                    files[k].read_exact_at(&mut buf, o).map_err(|e| Error::io(&pieces[k], e))?;
+                    Ok(buf)
+                };
+                let (offs, counts) = srcs[k].info.chunk_table();
+                let image = read(offs[t], counts[t])?;
+                let mask = match &srcs[k].info.mask {
+                    Some((o, c)) => Some(read(o[t], c[t])?),
+                    None => None,
+                };
+                let quarter = match &pyramid {
+                    None => None,
+                    Some(p) => {
+                        let valid = match &mask {
+                            Some(m) => Some(decode_mask(m, mask_compression(k), tile as usize, tile as usize).map_err(|e| Error::format(&pieces[k], e))?),
+                            None => None,
+                        };
+                        let pixels = tile_pixels(&srcs[k], &spec, t)?;
+                        Some(p.reduce(0, (row * ta + col) as usize, &pixels, valid.as_deref()))
+                    }
+                };
+                Ok((image, mask, quarter))
+            })
+            .collect();
+        let mut finished = Vec::new();
+        for (col, t) in tiles.into_iter().enumerate() {
+            let (image, mask, quarter) = t?;
+            let k = (row * ta) as usize + col;
+            writer.put(k, &image).map_err(tw)?;
+            if let Some(m) = mask {
+                writer.put(spec.mask_tile(k), &m).map_err(tw)?;
+            }
+            if let (Some(p), Some(q)) = (pyramid.as_mut(), quarter) {
+                finished.extend(p.place(0, k, q));
+            }
+        }
+        if let Some(p) = pyramid.as_mut() {
+            let mut made = Vec::new();
+            p.cascade(finished, |t| (encode_tile(&spec, t.pixels), spec.mask.then(|| encode_mask(&spec, &t.valid))), |l, k, r| made.push((l, k, r)));
+            for (l, k, (image, mask)) in made {
+                writer.put(spec.chunk_index(l, k, false), &image?).map_err(tw)?;
+                if let Some(m) = mask {
+                    writer.put(spec.chunk_index(l, k, true), &m?).map_err(tw)?;
+                }
+            }
+        }
     }
+    writer.finish(None).map_err(tw)?;
     verify(pending.path(), &spec)?;
     pending.publish()
+}
+
+/// Tile `t` of a piece, decoded: a whole tile of `spec`'s, the part beyond
+/// the piece's edge zero.
+fn tile_pixels(src: &SourceImage, spec: &OutputSpec, t: usize) -> Result<Vec<u8>> {
+    let tile = spec.chunk().0;
+    let across = src.info.width.div_ceil(tile) as usize;
+    let (x0, y0) = ((t % across) as u32 * tile, (t / across) as u32 * tile);
+    let (w, h) = ((src.info.width - x0).min(tile), (src.info.height - y0).min(tile));
+    let mut win = Window::default();
+    src.read_window(x0, y0, w, h, &mut win)?;
+    let px = spec.bands as usize * spec.sample.bytes();
+    if (w, h) == (tile, tile) {
+        return Ok(win.bytes().to_vec());
+    }
+    let mut pixels = vec![0u8; spec.tile_bytes()];
+    for (y, row) in win.bytes().chunks_exact(w as usize * px).enumerate() {
+        pixels[y * tile as usize * px..][..row.len()].copy_from_slice(row);
+    }
+    Ok(pixels)
 }
