@@ -1,0 +1,174 @@
+//! Overviews and the Cloud-Optimized layout as GDAL sees them: its COG
+//! validator on every layout the writer makes, the overview levels against
+//! the level below averaged here, and a COG reading back as the plain
+//! file. Under CI, GDAL's Python bindings must be there.
+
+mod common;
+use common::*;
+use std::path::Path;
+use std::process::Command;
+
+/// GDAL's validator (full check: leaders, trailers, the mask's places):
+/// its errors and warnings.
+const VALIDATE: &str = r#"
+import sys, json
+from osgeo import gdal
+from osgeo_utils.samples.validate_cloud_optimized_geotiff import validate
+gdal.UseExceptions()
+errors, warnings, _ = validate(sys.argv[1], full_check=True)
+print(json.dumps(errors + warnings))
+"#;
+
+/// Every level of two files (bands and masks) equal, pixel for pixel.
+const SAME_LEVELS: &str = r#"
+import sys
+import numpy as np
+from osgeo import gdal
+gdal.UseExceptions()
+a, b = gdal.Open(sys.argv[1]), gdal.Open(sys.argv[2])
+assert a.RasterCount == b.RasterCount, "bands"
+levels = 0
+for i in range(1, a.RasterCount + 1):
+    ba, bb = a.GetRasterBand(i), b.GetRasterBand(i)
+    assert ba.GetOverviewCount() == bb.GetOverviewCount(), "overview counts"
+    pairs = [(ba, bb)] + [(ba.GetOverview(k), bb.GetOverview(k)) for k in range(ba.GetOverviewCount())]
+    for x, y in pairs:
+        np.testing.assert_array_equal(x.ReadAsArray(), y.ReadAsArray())
+        np.testing.assert_array_equal(x.GetMaskBand().ReadAsArray(), y.GetMaskBand().ReadAsArray())
+    levels = len(pairs)
+print(levels)
+"#;
+
+/// Each overview level against the average of the level below, made here
+/// with numpy: the mean of the 2×2 pixels that have a value (the mask's),
+/// rounded half up; a pixel with a value where any below has one.
+const AVERAGE_OF_LEVEL_BELOW: &str = r#"
+import sys
+import numpy as np
+from osgeo import gdal
+gdal.UseExceptions()
+ds = gdal.Open(sys.argv[1])
+checked = 0
+for i in range(1, ds.RasterCount + 1):
+    band = ds.GetRasterBand(i)
+    levels = [band] + [band.GetOverview(k) for k in range(band.GetOverviewCount())]
+    for below, above in zip(levels, levels[1:]):
+        v = below.ReadAsArray().astype(np.float64)
+        m = below.GetMaskBand().ReadAsArray() > 0
+        h, w = above.YSize, above.XSize
+        vp = np.zeros((2 * h, 2 * w)); mp = np.zeros((2 * h, 2 * w), bool)
+        vp[:v.shape[0], :v.shape[1]] = v; mp[:m.shape[0], :m.shape[1]] = m
+        s = (vp * mp).reshape(h, 2, w, 2).sum(axis=(1, 3))
+        n = mp.reshape(h, 2, w, 2).sum(axis=(1, 3))
+        want_mask = n > 0
+        want = np.floor(s / np.maximum(n, 1) + 0.5)
+        got = above.ReadAsArray().astype(np.float64)
+        got_mask = above.GetMaskBand().ReadAsArray() > 0
+        assert (got_mask == want_mask).all(), "mask of level %dx%d" % (w, h)
+        bad = np.argwhere(want_mask & (got != want))
+        assert len(bad) == 0, "band %d level %dx%d: %d pixels differ, first %s: %s vs %s" % (i, w, h, len(bad), bad[0], got[tuple(bad[0])], want[tuple(bad[0])])
+        assert want_mask.any() and not want_mask.all(), "the scene must have both"
+        checked += 1
+print(checked)
+"#;
+
+fn python(script: &str, args: &[&str]) -> String {
+    let py = python_with("osgeo.gdal", "python3-gdal").expect("GDAL's Python bindings");
+    let out = Command::new(py).arg("-c").arg(script).args(args).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).trim().to_string()
+}
+
+fn rectify(sc: &gcm_ortho::synth::SynthReport, image: &Path, out: &Path, extra: &[&str]) {
+    let mut a = vec!["rectify", "--image", s(image), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(out), "--quiet", "--tile", "128"];
+    a.extend_from_slice(extra);
+    let r = run(&a);
+    assert!(r.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&r.stderr));
+}
+
+#[test]
+fn every_layout_the_writer_makes_is_a_valid_cog_and_reads_back_as_the_plain_file() {
+    if python_with("osgeo.gdal", "python3-gdal").is_none() {
+        eprintln!("skipped: GDAL's Python bindings are not installed (apt-get install python3-gdal)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let rgb = scene(&d.join("rgb"), 700, |o| o.kappa_deg = 20.0);
+    let wide = scene(&d.join("wide"), 500, |o| o.bits = 16);
+    // A Float32 scan the size of the 8-bit one: each pixel its own column.
+    let float_scan = d.join("float-scan.tif");
+    f32_raster(&float_scan, (700, 700), (0.0, 0.0, 1.0, 32631), |c, _| c as f32 + 0.5);
+    let cases: Vec<(&str, &gcm_ortho::synth::SynthReport, &Path, Vec<&str>)> = vec![
+        ("rgb-mask-deflate", &rgb, &rgb.scan, vec![]),
+        ("rgb-columns", &rgb, &rgb.scan, vec!["--band-order", "columns"]),
+        ("rgb-bigtiff", &rgb, &rgb.scan, vec!["--bigtiff", "yes"]),
+        ("rgb-uncompressed", &rgb, &rgb.scan, vec!["--compress", "none"]),
+        ("rgba", &rgb, &rgb.scan, vec!["--alpha"]),
+        ("rgb-nodata", &rgb, &rgb.scan, vec!["--nodata", "0", "--overview-resampling", "nearest"]),
+        ("u16-zstd", &wide, &wide.scan, vec!["--compress", "zstd"]),
+        ("u16-lzw-mode", &wide, &wide.scan, vec!["--compress", "lzw", "--overview-resampling", "mode"]),
+        ("float", &rgb, &float_scan, vec![]),
+    ];
+    for (name, sc, image, extra) in cases {
+        let plain = d.join(format!("{name}.tif"));
+        let cog = d.join(format!("{name}.cog.tif"));
+        rectify(sc, image, &plain, &extra);
+        let mut with_cog = extra.clone();
+        with_cog.push("--cog");
+        rectify(sc, image, &cog, &with_cog);
+        assert_eq!(python(VALIDATE, &[s(&cog)]), "[]", "{name}: GDAL's validator");
+        let levels: u32 = python(SAME_LEVELS, &[s(&plain), s(&cog)]).parse().unwrap();
+        assert!(levels >= 3, "{name}: {levels} levels");
+        // The plain file has the same levels, not the COG layout.
+        assert_ne!(python(VALIDATE, &[s(&plain)]), "[]", "{name}: the plain file is not laid out as a COG");
+    }
+    // Pieces of a run put together: a valid COG, the same levels as the
+    // single run's.
+    let info = gcm_ortho::io::source::SourceImage::open(&d.join("rgb-mask-deflate.tif"), 1 << 20).unwrap().info;
+    let (ta, td) = (info.width.div_ceil(128), info.height.div_ceil(128));
+    let (a, b) = (d.join("piece-a.tif"), d.join("piece-b.tif"));
+    rectify(&rgb, &rgb.scan, &a, &["--window", &format!("0,0,2,{td}")]);
+    rectify(&rgb, &rgb.scan, &b, &["--window", &format!("2,0,{},{td}", ta - 2)]);
+    let joined = d.join("joined.tif");
+    let r = run(&["assemble", "--cog", "-o", s(&joined), s(&a), s(&b)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(python(VALIDATE, &[s(&joined)]), "[]", "assembled pieces: GDAL's validator");
+    python(SAME_LEVELS, &[s(&joined), s(&d.join("rgb-mask-deflate.tif"))]);
+}
+
+#[test]
+fn overviews_are_the_average_of_the_level_below_under_the_mask_and_gdal_lists_them() {
+    if python_with("osgeo.gdal", "python3-gdal").is_none() || !have("gdalinfo") {
+        eprintln!("skipped: GDAL is not installed (apt-get install gdal-bin python3-gdal)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Turned, so that every level has pixels with and without a value.
+    let sc = scene(&d.join("s"), 900, |o| o.kappa_deg = 35.0);
+    let out = d.join("o.tif");
+    rectify(&sc, &sc.scan, &out, &[]);
+    // Three bands × every level above the full one.
+    let checked: u32 = python(AVERAGE_OF_LEVEL_BELOW, &[s(&out)]).parse().unwrap();
+    let j: serde_json::Value = serde_json::from_slice(&Command::new("gdalinfo").args(["-json", s(&out)]).output().unwrap().stdout).unwrap();
+    let (w, h) = (j["size"][0].as_u64().unwrap(), j["size"][1].as_u64().unwrap());
+    let band = &j["bands"][0];
+    let sizes: Vec<(u64, u64)> = band["overviews"].as_array().unwrap().iter().map(|o| (o["size"][0].as_u64().unwrap(), o["size"][1].as_u64().unwrap())).collect();
+    // Halved (rounded up) until one 128-px tile holds the level.
+    let mut want = Vec::new();
+    let (mut lw, mut lh) = (w, h);
+    while lw > 128 || lh > 128 {
+        (lw, lh) = (lw.div_ceil(2), lh.div_ceil(2));
+        want.push((lw, lh));
+    }
+    assert_eq!(sizes, want);
+    assert_eq!(checked as usize, 3 * want.len());
+    assert_eq!(band["mask"]["flags"], serde_json::json!(["PER_DATASET"]));
+    assert_eq!(band["mask"]["overviews"].as_array().unwrap().len(), want.len());
+    // None asked: none made.
+    let none = d.join("none.tif");
+    rectify(&sc, &sc.scan, &none, &["--overviews", "none"]);
+    let j: serde_json::Value = serde_json::from_slice(&Command::new("gdalinfo").args(["-json", s(&none)]).output().unwrap().stdout).unwrap();
+    assert!(j["bands"][0]["overviews"].as_array().is_none_or(|o| o.is_empty()));
+}
