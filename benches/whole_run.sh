@@ -49,7 +49,7 @@ measure() { # label, command...
   echo "$label $(echo "$t" | awk -F': ' '/Elapsed/ {split($2,a,":"); s=a[1]*60+a[2]; if (length(a)==3) s=a[1]*3600+a[2]*60+a[3]; printf "wall_s=%.2f ", s} /Maximum resident/ {printf "peak_MiB=%.0f", $2/1024}')"
 }
 rect=("$bin" rectify --image "$scene/scan.tif" --camera "$scene/camera.toml" --dem "$scene/dem.tif"
-  --sparsity 16 --corrections bilinear --resample bilinear --compress none --memory 128M --quiet -o "$work/ortho.tif")
+  --sparsity 16 --corrections bilinear --resample bilinear --compress none --overviews none --memory 128M --quiet -o "$work/ortho.tif")
 for i in $(seq "$runs"); do
   measure "round=$i cat         " sh -c "cat '$scene/scan.tif' > '$work/copy.tif'"
   measure "round=$i cat+sync    " sh -c "cat '$scene/scan.tif' > '$work/copy.tif' && sync '$work/copy.tif'"

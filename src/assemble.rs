@@ -150,7 +150,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
     // A row of tiles at a time: each tile's stored bytes (and its mask's)
     // read, and under overviews its pixels decoded and reduced, in parallel.
     for row in 0..td {
-        let tiles: Vec<Result<(Vec<u8>, Option<Vec<u8>>, Option<Quarter>)>> = (0..ta)
+        let tiles: Vec<Result<StoredTile>> = (0..ta)
             .into_par_iter()
             .map(|col| {
                 let (k, t) = owner[(row * ta + col) as usize].expect("every tile owned");
@@ -206,6 +206,9 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
     verify(pending.path(), &spec)?;
     pending.publish()
 }
+
+/// A tile's stored bytes, its mask's, and its quarter for the overview.
+type StoredTile = (Vec<u8>, Option<Vec<u8>>, Option<Quarter>);
 
 /// Tile `t` of a piece, decoded: a whole tile of `spec`'s, the part beyond
 /// the piece's edge zero.

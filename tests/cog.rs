@@ -154,7 +154,8 @@ fn overviews_are_the_average_of_the_level_below_under_the_mask_and_gdal_lists_th
     let j: serde_json::Value = serde_json::from_slice(&Command::new("gdalinfo").args(["-json", s(&out)]).output().unwrap().stdout).unwrap();
     let (w, h) = (j["size"][0].as_u64().unwrap(), j["size"][1].as_u64().unwrap());
     let band = &j["bands"][0];
-    let sizes: Vec<(u64, u64)> = band["overviews"].as_array().unwrap().iter().map(|o| (o["size"][0].as_u64().unwrap(), o["size"][1].as_u64().unwrap())).collect();
+    let sizes: Vec<(u64, u64)> =
+        band["overviews"].as_array().unwrap().iter().map(|o| (o["size"][0].as_u64().unwrap(), o["size"][1].as_u64().unwrap())).collect();
     // Halved (rounded up) until one 128-px tile holds the level.
     let mut want = Vec::new();
     let (mut lw, mut lh) = (w, h);

@@ -185,11 +185,14 @@ pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_le
     Ok(info)
 }
 
+/// An internal mask's chunk offsets, byte counts and compression.
+pub(super) type MaskTable = (Vec<u64>, Vec<u64>, u16);
+
 /// The internal mask's chunk table and compression, where a later
 /// directory is one: a 1-bit transparency mask (NewSubfileType 4, not an
 /// overview's) of the image's size (GDAL puts it right after the image's,
 /// or after the overviews' in files it has added overviews to).
-pub(super) fn read_mask_table(dec: &mut Decoder<BufReader<File>>, info: &SourceInfo, path: &Path, file_len: u64) -> Result<Option<(Vec<u64>, Vec<u64>, u16)>> {
+pub(super) fn read_mask_table(dec: &mut Decoder<BufReader<File>>, info: &SourceInfo, path: &Path, file_len: u64) -> Result<Option<MaskTable>> {
     let tf = |e| Error::from_tiff(path, e);
     loop {
         if !dec.more_images() {

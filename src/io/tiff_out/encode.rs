@@ -43,12 +43,16 @@ pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>) -> Result<Vec<u8>> {
     Ok(match spec.compression {
         Compression::None => tile,
         Compression::Deflate => {
-            let mut out = Vec::with_capacity(tile.len() / 2);
+            // Room for tiles that hardly compress (overviews of detailed
+            // scenes), without growing the buffer.
+            let mut out = Vec::with_capacity(tile.len() + 1024);
             Deflate::with_level(DeflateLevel::Fast).write_to(&mut out, &tile).map_err(io)?;
             out
         }
         Compression::Lzw => {
-            let mut out = Vec::with_capacity(tile.len() / 2);
+            // Room for tiles that hardly compress (overviews of detailed
+            // scenes), without growing the buffer.
+            let mut out = Vec::with_capacity(tile.len() + 1024);
             Lzw.write_to(&mut out, &tile).map_err(io)?;
             out
         }

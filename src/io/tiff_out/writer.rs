@@ -107,7 +107,7 @@ impl TileWriter {
             let spools = (0..=spec.overviews)
                 .map(|_| {
                     let file = tempfile::tempfile_in(spool_dir)?;
-                    Ok(Spool { file: std::io::BufWriter::with_capacity(1 << 20, file), len: 0, next: 0, in_order: true })
+                    Ok(Spool { file: std::io::BufWriter::with_capacity(256 << 10, file), len: 0, next: 0, in_order: true })
                 })
                 .collect::<std::io::Result<_>>()?;
             Body::Cog(spools)
