@@ -173,3 +173,37 @@ fn overviews_are_the_average_of_the_level_below_under_the_mask_and_gdal_lists_th
     let j: serde_json::Value = serde_json::from_slice(&Command::new("gdalinfo").args(["-json", s(&none)]).output().unwrap().stdout).unwrap();
     assert!(j["bands"][0]["overviews"].as_array().is_none_or(|o| o.is_empty()));
 }
+
+#[test]
+fn batch_writes_cogs_and_their_overviews_as_the_manifest_says() {
+    if python_with("osgeo.gdal", "python3-gdal").is_none() {
+        eprintln!("skipped: GDAL's Python bindings are not installed (apt-get install python3-gdal)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene(&d.join("scene"), 600, |_| {});
+    let manifest = d.join("block.toml");
+    std::fs::write(
+        &manifest,
+        format!(
+            "[defaults]\ndem = \"{}\"\noutput_dir = \"ortho\"\ntile = 128\ncog = true\noverviews = \"2,4\"\noverview_resampling = \"mode\"\n\n[[job]]\nimage = \"{}\"\ncamera = \"{}\"\n",
+            s(&sc.dem),
+            s(&sc.scan),
+            s(&sc.camera)
+        ),
+    )
+    .unwrap();
+    let r = run(&["batch", s(&manifest), "--quiet"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let out = d.join("ortho/scan.tif");
+    assert_eq!(python(VALIDATE, &[s(&out)]), "[]");
+    // The full level and the two asked for.
+    let levels: u32 = python(SAME_LEVELS, &[s(&out), s(&out)]).parse().unwrap();
+    assert_eq!(levels, 3);
+    // A list that cannot be made level from level is refused by name.
+    std::fs::write(&manifest, std::fs::read_to_string(&manifest).unwrap().replace("\"2,4\"", "\"2,8\"")).unwrap();
+    let r = run(&["batch", s(&manifest), "--quiet", "--force"]);
+    assert!(!r.status.success());
+    assert!(String::from_utf8_lossy(&r.stderr).contains("overviews"), "{}", String::from_utf8_lossy(&r.stderr));
+}
