@@ -131,21 +131,32 @@ pub struct AssembleArgs {
     /// The pieces (GeoTIFFs written by `rectify --window`).
     #[arg(required = true)]
     pub pieces: Vec<PathBuf>,
-    /// The assembled orthophoto
+    /// The assembled orthophoto (its overviews made anew)
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
-    /// The whole's internal overviews (made anew): auto, none, or 2,4,…,2ⁿ.
+    #[command(flatten)]
+    pub layout: LayoutArgs,
+}
+
+/// The output's overviews and layout (rectify and assemble).
+#[derive(Args, Debug)]
+pub struct LayoutArgs {
+    /// Internal overviews: auto (2×, 4×, … until one tile holds the
+    /// level), none, or the factors 2,4,…,2ⁿ. Made while the tiles stream.
     #[arg(long, default_value = "auto")]
     pub overviews: String,
-    /// How an overview pixel is made of the four below it.
+    /// How an overview pixel is made of the four below it: average (of
+    /// those with a value), nearest (the top-left one) or mode (the most
+    /// frequent), the last two for classified data.
     #[arg(long, default_value = "average", value_parser = choice::<OverviewResampling>())]
     pub overview_resampling: OverviewResampling,
-    /// Cloud-Optimized GeoTIFF.
+    /// Cloud-Optimized GeoTIFF (GDAL's COG layout: directories first,
+    /// overviews before the full resolution).
     #[arg(long)]
     pub cog: bool,
 }
 
-impl AssembleArgs {
+impl LayoutArgs {
     pub fn options(&self) -> Result<gcm_ortho::assemble::AssembleOptions> {
         Ok(gcm_ortho::assemble::AssembleOptions {
             overviews: parse_overviews("overviews", &self.overviews)?,
@@ -356,19 +367,8 @@ pub struct RectifyArgs {
     /// BigTIFF output (auto: when the output may pass 4 GB)
     #[arg(long, default_value = "auto", value_parser = choice::<BigTiff>())]
     pub bigtiff: BigTiff,
-    /// Internal overviews: auto (2×, 4×, … until one tile holds the
-    /// level), none, or the factors 2,4,…,2ⁿ. Made while the tiles stream.
-    #[arg(long, default_value = "auto")]
-    pub overviews: String,
-    /// How an overview pixel is made of the four below it: average (of
-    /// those with a value), nearest (the top-left one) or mode (the most
-    /// frequent), the last two for classified data.
-    #[arg(long, default_value = "average", value_parser = choice::<OverviewResampling>())]
-    pub overview_resampling: OverviewResampling,
-    /// Cloud-Optimized GeoTIFF (GDAL's COG layout: directories first,
-    /// overviews before the full resolution).
-    #[arg(long)]
-    pub cog: bool,
+    #[command(flatten)]
+    pub layout: LayoutArgs,
     /// Pixels without a value: auto (NaN for floating-point samples, else
     /// the internal mask), mask (a 1-bit internal mask, GDAL's), or a
     /// nodata value (image pixels holding it become holes).
@@ -446,9 +446,10 @@ impl RectifyArgs {
         o.band_order = self.band_order;
         o.compress = self.compress;
         o.bigtiff = self.bigtiff;
-        o.overviews = parse_overviews("overviews", &self.overviews)?;
-        o.overview_resampling = self.overview_resampling;
-        o.cog = self.cog;
+        let layout = self.layout.options()?;
+        o.overviews = layout.overviews;
+        o.overview_resampling = layout.overview_resampling;
+        o.cog = layout.cog;
         o.nodata = parse_nodata("nodata", &self.nodata)?;
         o.alpha = self.alpha;
         o.threads = self.threads;

@@ -69,7 +69,7 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Batch(a) => run_batch(&a, signals),
         Command::RpcGrid(a) => run_rpc_grid(&a).map(|()| 0),
         Command::Assemble(a) => {
-            gcm_ortho::assemble::assemble(&a.pieces, &a.output, &a.options()?)?;
+            gcm_ortho::assemble::assemble(&a.pieces, &a.output, &a.layout.options()?)?;
             Ok(0)
         }
     }

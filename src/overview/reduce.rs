@@ -70,41 +70,31 @@ trait Sample: bytemuck::Pod + PartialEq {
     fn narrow(v: u32) -> Self;
 }
 
-impl Sample for u8 {
-    fn value(self) -> f64 {
-        self as f64
-    }
-    fn put(v: f64) -> Self {
-        (v + 0.5).floor().clamp(0.0, 255.0) as u8
-    }
-    fn mean4(a: Self, b: Self, c: Self, d: Self) -> Self {
-        ((a as u32 + b as u32 + c as u32 + d as u32 + 2) >> 2) as u8
-    }
-    fn widen(self) -> Option<u32> {
-        Some(self as u32)
-    }
-    fn narrow(v: u32) -> Self {
-        v as u8
-    }
+/// An integer sample: summed as u32, rounded half up, clamped.
+macro_rules! integer_sample {
+    ($t:ty) => {
+        impl Sample for $t {
+            fn value(self) -> f64 {
+                self as f64
+            }
+            fn put(v: f64) -> Self {
+                (v + 0.5).floor().clamp(0.0, <$t>::MAX as f64) as $t
+            }
+            fn mean4(a: Self, b: Self, c: Self, d: Self) -> Self {
+                ((a as u32 + b as u32 + c as u32 + d as u32 + 2) >> 2) as $t
+            }
+            fn widen(self) -> Option<u32> {
+                Some(self as u32)
+            }
+            fn narrow(v: u32) -> Self {
+                v as $t
+            }
+        }
+    };
 }
 
-impl Sample for u16 {
-    fn value(self) -> f64 {
-        self as f64
-    }
-    fn put(v: f64) -> Self {
-        (v + 0.5).floor().clamp(0.0, 65535.0) as u16
-    }
-    fn mean4(a: Self, b: Self, c: Self, d: Self) -> Self {
-        ((a as u32 + b as u32 + c as u32 + d as u32 + 2) >> 2) as u16
-    }
-    fn widen(self) -> Option<u32> {
-        Some(self as u32)
-    }
-    fn narrow(v: u32) -> Self {
-        v as u16
-    }
-}
+integer_sample!(u8);
+integer_sample!(u16);
 
 impl Sample for f32 {
     fn value(self) -> f64 {
