@@ -1,9 +1,10 @@
 //! Putting pieces made with `rectify --window` back together: the pieces
 //! share the whole run's tile grid, so their compressed tiles (and their
 //! internal masks' tiles) are copied into one tiled GeoTIFF as they are —
-//! no seam, the same pixels as a single run. The whole's overviews are
-//! made anew from the full-resolution tiles (decoded a row of tiles at a
-//! time), as a single run makes them; the pieces' own are not used.
+//! no seam, the same pixels as a single run. The whole's overviews and band
+//! statistics are made anew from the full-resolution tiles (decoded a row
+//! of tiles at a time), as a single run makes them; the pieces' own are
+//! not used.
 
 use crate::error::{Error, Result};
 use crate::io::overwrite::{check_outputs, check_writable, Role};
@@ -12,7 +13,7 @@ use crate::io::tiff_out::{
     decode_mask, encode_mask, encode_tile, folder_of, tiff_write_error, verify, Chunking, Compression, GeoTags, OutputSpec, PendingFile, TileWriter,
 };
 use crate::options::Overviews;
-use crate::overview::{OverviewResampling, Pyramid, Quarter, ValidBy};
+use crate::overview::{OverviewResampling, Pyramid, Quarter, Statistics, TileLayout, ValidBy};
 use rayon::prelude::*;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
@@ -147,6 +148,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
     let mut writer = TileWriter::new(pending.file()?, &spec, &folder_of(out)).map_err(|e| Error::io(pending.path(), e))?;
     let tw = |e| tiff_write_error(pending.path(), e);
     let mask_compression = |k: usize| srcs[k].info.mask_compression;
+    let mut statistics = Statistics::default();
     // A row of tiles at a time: each tile's stored bytes (and its mask's)
     // read, and under overviews its pixels decoded and reduced, in parallel.
     for row in 0..td {
@@ -165,23 +167,23 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
                     Some((o, c)) => Some(read(o[t], c[t])?),
                     None => None,
                 };
-                let quarter = match &pyramid {
+                // Decoded for the statistics and the overviews.
+                let valid = match &mask {
+                    Some(m) => Some(decode_mask(m, mask_compression(k), tile as usize, tile as usize).map_err(|e| Error::format(&pieces[k], e))?),
                     None => None,
-                    Some(p) => {
-                        let valid = match &mask {
-                            Some(m) => Some(decode_mask(m, mask_compression(k), tile as usize, tile as usize).map_err(|e| Error::format(&pieces[k], e))?),
-                            None => None,
-                        };
-                        let pixels = tile_pixels(&srcs[k], &spec, t)?;
-                        Some(p.reduce(0, (row * ta + col) as usize, &pixels, valid.as_deref()))
-                    }
                 };
-                Ok((image, mask, quarter))
+                let pixels = tile_pixels(&srcs[k], &spec, t)?;
+                let extent = ((w - col * tile).min(tile) as usize, (h - row * tile).min(tile) as usize);
+                let lay = TileLayout { tile: tile as usize, bands: spec.bands as usize, sample: spec.sample };
+                let stats = Statistics::of_tile(lay, by, &pixels, valid.as_deref(), extent);
+                let quarter = pyramid.as_ref().map(|p| p.reduce(0, (row * ta + col) as usize, &pixels, valid.as_deref()));
+                Ok((image, mask, quarter, stats))
             })
             .collect();
         let mut finished = Vec::new();
         for (col, t) in tiles.into_iter().enumerate() {
-            let (image, mask, quarter) = t?;
+            let (image, mask, quarter, stats) = t?;
+            statistics.add(&stats);
             let k = (row * ta) as usize + col;
             writer.put(k, &image).map_err(tw)?;
             if let Some(m) = mask {
@@ -202,13 +204,14 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
             }
         }
     }
-    writer.finish(None).map_err(tw)?;
+    writer.finish(statistics.gdal_metadata()).map_err(tw)?;
     verify(pending.path(), &spec)?;
     pending.publish()
 }
 
-/// A tile's stored bytes, its mask's, and its quarter for the overview.
-type StoredTile = (Vec<u8>, Option<Vec<u8>>, Option<Quarter>);
+/// A tile's stored bytes, its mask's, its quarter for the overview and its
+/// statistics.
+type StoredTile = (Vec<u8>, Option<Vec<u8>>, Option<Quarter>, Statistics);
 
 /// Tile `t` of a piece, decoded: a whole tile of `spec`'s, the part beyond
 /// the piece's edge zero.

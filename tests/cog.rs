@@ -72,6 +72,27 @@ for i in range(1, ds.RasterCount + 1):
 print(checked)
 "#;
 
+/// Each band's STATISTICS_* metadata against numpy over the pixels the
+/// mask says have a value.
+const STATISTICS: &str = r#"
+import sys
+import numpy as np
+from osgeo import gdal
+gdal.UseExceptions()
+ds = gdal.Open(sys.argv[1])
+for i in range(1, ds.RasterCount + 1):
+    band = ds.GetRasterBand(i)
+    md = band.GetMetadata()
+    v = band.ReadAsArray().astype(np.float64)
+    m = band.GetMaskBand().ReadAsArray() > 0
+    want = {"MINIMUM": v[m].min(), "MAXIMUM": v[m].max(), "MEAN": v[m].mean(), "STDDEV": v[m].std(), "VALID_PERCENT": 100.0 * m.mean()}
+    for k, w in want.items():
+        got = float(md["STATISTICS_" + k])
+        assert abs(got - w) <= 1e-9 * max(1.0, abs(w)), "band %d %s: %r vs numpy %r" % (i, k, got, w)
+    assert band.ComputeRasterMinMax(True) == (want["MINIMUM"], want["MAXIMUM"])
+print(ds.RasterCount)
+"#;
+
 fn python(script: &str, args: &[&str]) -> String {
     let py = python_with("osgeo.gdal", "python3-gdal").expect("GDAL's Python bindings");
     let out = Command::new(py).arg("-c").arg(script).args(args).output().unwrap();
@@ -138,7 +159,7 @@ fn every_layout_the_writer_makes_is_a_valid_cog_and_reads_back_as_the_plain_file
 }
 
 #[test]
-fn overviews_are_the_average_of_the_level_below_under_the_mask_and_gdal_lists_them() {
+fn overviews_are_the_average_of_the_level_below_under_the_mask_and_gdal_lists_them_with_the_statistics() {
     if python_with("osgeo.gdal", "python3-gdal").is_none() || !have("gdalinfo") {
         eprintln!("skipped: GDAL is not installed (apt-get install gdal-bin python3-gdal)");
         return;
@@ -151,6 +172,9 @@ fn overviews_are_the_average_of_the_level_below_under_the_mask_and_gdal_lists_th
     rectify(&sc, &sc.scan, &out, &[]);
     // Three bands × every level above the full one.
     let checked: u32 = python(AVERAGE_OF_LEVEL_BELOW, &[s(&out)]).parse().unwrap();
+    // The statistics in the file are the image's (GDAL shows them as the
+    // band's minimum, maximum, mean and standard deviation).
+    assert_eq!(python(STATISTICS, &[s(&out)]), "3");
     let j: serde_json::Value = serde_json::from_slice(&Command::new("gdalinfo").args(["-json", s(&out)]).output().unwrap().stdout).unwrap();
     let (w, h) = (j["size"][0].as_u64().unwrap(), j["size"][1].as_u64().unwrap());
     let band = &j["bands"][0];

@@ -1,4 +1,7 @@
-//! Internal overviews, made while the tiles stream: every tile of a level,
+//! What a viewer reads to show an image fast, made while the tiles stream:
+//! band statistics ([`Statistics`]) and internal overviews.
+//!
+//! Overviews: every tile of a level,
 //! as it is made, is reduced to a quarter ([`reduce`]) and put into its
 //! place in the tile above it; a tile of the level above is finished when
 //! its (up to four) quarters are in, and goes on the same way. Only the
@@ -6,8 +9,10 @@
 //! a band of tiles over all levels.
 
 mod reduce;
+mod statistics;
 
 pub use reduce::{reduce, OverviewResampling, Quarter, TileLayout, ValidBy};
+pub use statistics::{BandStats, Statistics};
 
 use crate::io::tiff_out::OutputSpec;
 use std::collections::HashMap;

@@ -139,4 +139,9 @@ pub struct Run<'a> {
     /// The overview levels being made, by the encoder alone (the lock is
     /// never contended).
     pub pyramid: Option<Mutex<crate::overview::Pyramid>>,
+    /// How the output's pixels say they have none, for the statistics and
+    /// the overviews.
+    pub valid_by: crate::overview::ValidBy,
+    /// The full level's band statistics, tile by tile (the encoder's).
+    pub statistics: Mutex<crate::overview::Statistics>,
 }

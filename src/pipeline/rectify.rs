@@ -94,6 +94,8 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         progress,
         spare_masks: crossbeam_channel::bounded(4),
         pyramid: Pyramid::new(spec, opts.overview_resampling, valid_by(spec, plan.pixels.alpha), plan.pixels.fill).map(std::sync::Mutex::new),
+        valid_by: valid_by(spec, plan.pixels.alpha),
+        statistics: Default::default(),
     };
     let result = if sequential { run_sequential(&run, out_file, flush_file) } else { run_threaded(&run, out_file, flush_file) };
     progress.finish();

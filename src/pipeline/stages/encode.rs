@@ -5,7 +5,7 @@ use super::resample::{Made, Raw};
 use super::timed;
 use crate::error::Result;
 use crate::io::tiff_out::{encode_mask, encode_tile, Compression};
-use crate::overview::{LevelTile, Pyramid, Quarter};
+use crate::overview::{LevelTile, Pyramid, Quarter, Statistics, TileLayout};
 use crate::pipeline::context::Run;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -58,11 +58,20 @@ pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy:
     let valid_of = |k: usize| valid.as_ref().map(|v| &v[k * px..(k + 1) * px]);
     let mask = |k: usize| valid_of(k).map(|v| encode_mask(spec, v).map(Tile::Owned));
     let pyramid = run.pyramid.as_ref().map(|p| p.lock().expect("the encoder's alone"));
-    let quarter = |k: usize, bytes: &[u8]| pyramid.as_ref().map(|p| p.reduce(0, at(k), &bytes[k * tb..(k + 1) * tb], valid_of(k)));
-    type Done = (Result<Tile>, Option<Result<Tile>>, Option<Quarter>);
+    let lay = TileLayout { tile: spec.chunk().0 as usize, bands: spec.bands as usize, sample: spec.sample };
+    // The tile's quarter for the overview, and its statistics.
+    let summary = |k: usize, bytes: &[u8]| {
+        let tile = &bytes[k * tb..(k + 1) * tb];
+        let (across, t) = (spec.tiles_across() as usize, lay.tile);
+        let (x0, y0) = (at(k) % across * t, at(k) / across * t);
+        let extent = ((spec.width as usize - x0).min(t), (spec.height as usize - y0).min(t));
+        let stats = Statistics::of_tile(lay, run.valid_by, tile, valid_of(k), extent);
+        (pyramid.as_ref().map(|p| p.reduce(0, at(k), tile, valid_of(k))), stats)
+    };
+    type Done = (Result<Tile>, Option<Result<Tile>>, (Option<Quarter>, Statistics));
     let done: Vec<Done> = if spec.compression == Compression::None {
-        let side: Vec<(Option<Result<Tile>>, Option<Quarter>)> =
-            timed(busy, || run.pool.install(|| (0..n).into_par_iter().map(|k| (mask(k), quarter(k, raw.bytes()))).collect()));
+        let side: Vec<(Option<Result<Tile>>, (Option<Quarter>, Statistics))> =
+            timed(busy, || run.pool.install(|| (0..n).into_par_iter().map(|k| (mask(k), summary(k, raw.bytes()))).collect()));
         let shared = Arc::new(raw);
         side.into_iter()
             .enumerate()
@@ -72,7 +81,7 @@ pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy:
         let done = timed(busy, || {
             let bytes = raw.bytes();
             run.pool.install(|| {
-                (0..n).into_par_iter().map(|k| (encode_tile(spec, bytes[k * tb..(k + 1) * tb].to_vec()).map(Tile::Owned), mask(k), quarter(k, bytes))).collect()
+                (0..n).into_par_iter().map(|k| (encode_tile(spec, bytes[k * tb..(k + 1) * tb].to_vec()).map(Tile::Owned), mask(k), summary(k, bytes))).collect()
             })
         });
         let _ = free.try_send(raw);
@@ -84,7 +93,9 @@ pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy:
     let mut out = Vec::with_capacity(n * if spec.mask { 2 } else { 1 });
     let mut finished = Vec::new();
     let mut pyramid = pyramid;
-    for (k, (tile, mask, q)) in done.into_iter().enumerate() {
+    let mut statistics = run.statistics.lock().expect("the encoder's alone");
+    for (k, (tile, mask, (q, stats))) in done.into_iter().enumerate() {
+        statistics.add(&stats);
         out.push(tile.map(|t| (at(k), t)).map_err(|e| run.stop.fail(e)));
         if let Some(mask) = mask {
             out.push(mask.map(|m| (spec.mask_tile(at(k)), m)).map_err(|e| run.stop.fail(e)));

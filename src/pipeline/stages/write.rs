@@ -4,7 +4,7 @@
 
 use super::encode::Tile;
 use crate::error::{Error, Result};
-use crate::io::tiff_out::{tiff_write_error, write_placed, WriteError};
+use crate::io::tiff_out::{folder_of, tiff_write_error, TileWriter};
 use crate::pipeline::context::Run;
 
 /// Bytes of output between two background syncs.
@@ -27,16 +27,20 @@ pub fn write(run: &Run, out_file: std::fs::File, flush_file: std::fs::File, mut 
             });
         }
         let mut unsynced = 0usize;
-        let r = write_placed(out_file, run.inputs.spec, &crate::io::tiff_out::folder_of(run.inputs.output), || -> Result<Option<(usize, Tile)>> {
-            if run.stop.cancelled() {
-                return Err(Error::Cancelled);
-            }
-            let next = next()?;
-            if let Some((k, tile)) = &next {
+        let spec = run.inputs.spec;
+        let tw = |e| run.stop.fail(tiff_write_error(run.inputs.output, e));
+        let mut writer = TileWriter::new(out_file, spec, &folder_of(run.inputs.output)).map_err(|e| tw(e.into()))?;
+        let written = (|| -> Result<()> {
+            loop {
+                if run.stop.cancelled() {
+                    return Err(Error::Cancelled);
+                }
+                let Some((k, tile)) = next()? else { break };
                 // (The mask's tiles come with the image's.)
-                if *k < run.inputs.spec.tile_count() {
+                if k < spec.tile_count() {
                     run.progress.advance(1);
                 }
+                writer.put(k, tile.as_ref()).map_err(tw)?;
                 unsynced += tile.as_ref().len();
                 if sync && unsynced >= FLUSH_EVERY {
                     // Never waits: a sync still running takes this one too.
@@ -44,13 +48,12 @@ pub fn write(run: &Run, out_file: std::fs::File, flush_file: std::fs::File, mut 
                     unsynced = 0;
                 }
             }
-            Ok(next)
-        });
+            // The statistics are complete: the encoder has sent its last tile.
+            let metadata = run.statistics.lock().ok().and_then(|s| s.gdal_metadata());
+            writer.finish(metadata).map_err(tw)?;
+            Ok(())
+        })();
         drop(tx_flush);
-        match r {
-            Ok(()) => Ok(()),
-            Err(WriteError::Source(e)) => Err(run.stop.fail(e)),
-            Err(WriteError::Tiff(e)) => Err(run.stop.fail(tiff_write_error(run.inputs.output, e))),
-        }
+        written.map_err(|e| run.stop.fail(e))
     })
 }
