@@ -68,9 +68,11 @@ pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy:
         let stats = Statistics::of_tile(lay, run.valid_by, tile, valid_of(k), extent);
         (pyramid.as_ref().map(|p| p.reduce(0, at(k), tile, valid_of(k))), stats)
     };
-    type Done = (Result<Tile>, Option<Result<Tile>>, (Option<Quarter>, Statistics));
+    // A tile's quarter for the overview and its statistics.
+    type Summary = (Option<Quarter>, Statistics);
+    type Done = (Result<Tile>, Option<Result<Tile>>, Summary);
     let done: Vec<Done> = if spec.compression == Compression::None {
-        let side: Vec<(Option<Result<Tile>>, (Option<Quarter>, Statistics))> =
+        let side: Vec<(Option<Result<Tile>>, Summary)> =
             timed(busy, || run.pool.install(|| (0..n).into_par_iter().map(|k| (mask(k), summary(k, raw.bytes()))).collect()));
         let shared = Arc::new(raw);
         side.into_iter()
