@@ -190,6 +190,8 @@ impl Lanes {
 
     /// A row of 8-bit samples: 32-bit lanes within the row (a row of
     /// samples cannot overflow them), added to the totals at its end.
+    // Indexed lanes: five arrays stepped together, as the vectoriser likes.
+    #[allow(clippy::needless_range_loop)]
     fn add_row_u8(&mut self, row: &[u8]) {
         let (mut s, mut q, mut lo, mut hi) = ([0u32; LANES], [0u32; LANES], [u32::MAX; LANES], [0u32; LANES]);
         let blocks = row.chunks_exact(LANES);
