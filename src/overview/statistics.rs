@@ -160,6 +160,7 @@ impl Default for Lanes {
 
 impl Lanes {
     /// The `n` samples of a row (whole pixels), in order.
+    #[allow(clippy::needless_range_loop)] // five arrays stepped together
     fn add_row(&mut self, samples: impl Iterator<Item = u64>, n: usize) {
         let mut block = [0u64; LANES];
         let mut samples = samples;
@@ -190,8 +191,7 @@ impl Lanes {
 
     /// A row of 8-bit samples: 32-bit lanes within the row (a row of
     /// samples cannot overflow them), added to the totals at its end.
-    // Indexed lanes: five arrays stepped together, as the vectoriser likes.
-    #[allow(clippy::needless_range_loop)]
+    #[allow(clippy::needless_range_loop)] // five arrays stepped together
     fn add_row_u8(&mut self, row: &[u8]) {
         let (mut s, mut q, mut lo, mut hi) = ([0u32; LANES], [0u32; LANES], [u32::MAX; LANES], [0u32; LANES]);
         let blocks = row.chunks_exact(LANES);
