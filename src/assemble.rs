@@ -135,13 +135,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
     };
     spec.overviews = opts.overviews.levels(w, h, tile);
     spec.bigtiff = spec.needs_bigtiff();
-    let by = match geo0.nodata {
-        _ if spec.mask => ValidBy::Mask,
-        Some(v) if v.is_nan() => ValidBy::Nan,
-        Some(v) => ValidBy::Nodata(v),
-        None if spec.alpha => ValidBy::Alpha,
-        None => ValidBy::Nan,
-    };
+    let by = ValidBy::of(&spec);
     let mut pyramid = Pyramid::new(&spec, opts.overview_resampling, by, geo0.nodata.unwrap_or(0.0));
     let files: Vec<std::fs::File> = pieces.iter().map(|p| std::fs::File::open(p).map_err(|e| Error::io(p, e))).collect::<Result<_>>()?;
     let pending = PendingFile::create(out)?;
@@ -173,9 +167,8 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
                     None => None,
                 };
                 let pixels = tile_pixels(&srcs[k], &spec, t)?;
-                let extent = ((w - col * tile).min(tile) as usize, (h - row * tile).min(tile) as usize);
                 let lay = TileLayout { tile: tile as usize, bands: spec.bands as usize, sample: spec.sample };
-                let stats = Statistics::of_tile(lay, by, &pixels, valid.as_deref(), extent);
+                let stats = Statistics::of_tile(lay, by, &pixels, valid.as_deref(), spec.tile_extent(0, (row * ta + col) as usize));
                 let quarter = pyramid.as_ref().map(|p| p.reduce(0, (row * ta + col) as usize, &pixels, valid.as_deref()));
                 Ok((image, mask, quarter, stats))
             })

@@ -11,7 +11,7 @@
 mod reduce;
 mod statistics;
 
-pub use reduce::{reduce, OverviewResampling, Quarter, TileLayout, ValidBy};
+pub use reduce::{fill_pixel, reduce, OverviewResampling, Quarter, TileLayout, ValidBy};
 pub use statistics::{BandStats, Statistics};
 
 use crate::io::tiff_out::OutputSpec;
@@ -33,10 +33,7 @@ pub struct Pyramid {
     pub lay: TileLayout,
     pub by: ValidBy,
     pub fill: f64,
-    /// Size and tiles across of each level, the full one first.
-    sizes: Vec<(u32, u32)>,
-    across: Vec<u32>,
-    down: Vec<u32>,
+    spec: OutputSpec,
     /// For each level above the full one, its unfinished tiles' quarters.
     pending: Vec<HashMap<usize, [Option<Quarter>; 4]>>,
 }
@@ -48,42 +45,35 @@ impl Pyramid {
         if spec.overviews == 0 {
             return None;
         }
-        let levels = 0..=spec.overviews;
         Some(Pyramid {
             kernel,
             lay: TileLayout { tile: spec.chunk().0 as usize, bands: spec.bands as usize, sample: spec.sample },
             by,
             fill,
-            sizes: levels.clone().map(|l| spec.level_size(l)).collect(),
-            across: levels.clone().map(|l| spec.level_tiles(l).0).collect(),
-            down: levels.clone().map(|l| spec.level_tiles(l).1).collect(),
-            pending: levels.map(|_| HashMap::new()).collect(),
+            spec: spec.clone(),
+            pending: (0..=spec.overviews).map(|_| HashMap::new()).collect(),
         })
     }
 
     /// The last level.
     pub fn top(&self) -> u32 {
-        self.sizes.len() as u32 - 1
+        self.spec.overviews
     }
 
     /// Tile `k` of level `l` reduced for the level above (pure: run many at
     /// once). `valid` under a mask.
     pub fn reduce(&self, l: u32, k: usize, pixels: &[u8], valid: Option<&[u8]>) -> Quarter {
-        let t = self.lay.tile;
-        let (w, h) = self.sizes[l as usize];
-        let a = self.across[l as usize] as usize;
-        let (x0, y0) = (k % a * t, k / a * t);
-        let extent = ((w as usize - x0).min(t), (h as usize - y0).min(t));
-        reduce(self.kernel, self.lay, self.by, self.fill, pixels, valid, extent)
+        reduce(self.kernel, self.lay, self.by, self.fill, pixels, valid, self.spec.tile_extent(l, k))
     }
 
     /// Puts tile `k` of level `l`, reduced, into its tile of level `l + 1`:
     /// that tile, when this was its last quarter.
     pub fn place(&mut self, l: u32, k: usize, q: Quarter) -> Option<LevelTile> {
-        let (a, d) = (self.across[l as usize] as usize, self.down[l as usize] as usize);
+        let (a, d) = self.spec.level_tiles(l);
+        let (a, d) = (a as usize, d as usize);
         let (cx, cy) = (k % a, k / a);
         let up = l as usize + 1;
-        let (pa, _) = (self.across[up] as usize, self.down[up]);
+        let pa = self.spec.level_tiles(l + 1).0 as usize;
         let parent = cy / 2 * pa + cx / 2;
         // The tiles below it that exist: two or one across, two or one down.
         let need = (a.min(cx / 2 * 2 + 2) - cx / 2 * 2) * (d.min(cy / 2 * 2 + 2) - cy / 2 * 2);
@@ -103,7 +93,7 @@ impl Pyramid {
         let px = b * self.lay.sample.bytes();
         let half = t / 2;
         let mut pixels = vec![0u8; t * t * px];
-        let fill = reduce(self.kernel, TileLayout { tile: 2, ..self.lay }, self.by, self.fill, &vec![0u8; 4 * px], Some(&[0; 4]), (0, 0)).pixels;
+        let fill = fill_pixel(self.lay, self.fill);
         for p in pixels.chunks_exact_mut(px) {
             p.copy_from_slice(&fill);
         }

@@ -30,6 +30,41 @@ pub enum ValidBy {
     Alpha,
 }
 
+impl ValidBy {
+    /// How the pixels of a file written to `spec` say they have no value:
+    /// its internal mask, else its nodata value (NaN for floats), else its
+    /// alpha band.
+    pub fn of(spec: &crate::io::tiff_out::OutputSpec) -> ValidBy {
+        match spec.geo.and_then(|g| g.nodata) {
+            _ if spec.mask => ValidBy::Mask,
+            Some(v) if v.is_nan() => ValidBy::Nan,
+            Some(v) => ValidBy::Nodata(v),
+            None if spec.alpha => ValidBy::Alpha,
+            None => ValidBy::Nan,
+        }
+    }
+
+    /// Does a pixel of these samples have a value? (`mask`: its mask byte,
+    /// under [`ValidBy::Mask`].)
+    pub fn has_value(self, mut samples: impl ExactSizeIterator<Item = f64>, mask: Option<u8>) -> bool {
+        match self {
+            ValidBy::Mask => mask.is_some_and(|m| m != 0),
+            ValidBy::Nodata(v) => samples.any(|s| s != v),
+            ValidBy::Nan => samples.all(|s| !s.is_nan()),
+            ValidBy::Alpha => samples.last().is_some_and(|a| a != 0.0),
+        }
+    }
+}
+
+/// A pixel of `lay`'s that holds `fill` in every band, as the file holds it.
+pub fn fill_pixel(lay: TileLayout, fill: f64) -> Vec<u8> {
+    match lay.sample {
+        SampleType::U8 => vec![u8::put(fill); lay.bands],
+        SampleType::U16 => bytemuck::cast_slice(&vec![u16::put(fill); lay.bands]).to_vec(),
+        SampleType::F32 => bytemuck::cast_slice(&vec![f32::put(fill); lay.bands]).to_vec(),
+    }
+}
+
 /// The pixel layout of a level's tiles: `tile`×`tile` pixels of `bands`
 /// samples, row after row.
 #[derive(Clone, Copy, Debug)]
@@ -142,17 +177,7 @@ fn reduce_as<T: Sample>(
     let valid_below: &[u8] = match (by, valid) {
         (ValidBy::Mask, Some(v)) => v,
         _ => {
-            derived = px
-                .chunks_exact(b)
-                .map(|p| {
-                    u8::from(match by {
-                        ValidBy::Mask => false,
-                        ValidBy::Nodata(v) => p.iter().any(|s| s.value() != v),
-                        ValidBy::Nan => p.iter().all(|s| !s.value().is_nan()),
-                        ValidBy::Alpha => p[b - 1].value() != 0.0,
-                    })
-                })
-                .collect();
+            derived = px.chunks_exact(b).map(|p| u8::from(by.has_value(p.iter().map(|s| s.value()), None))).collect();
             &derived
         }
     };

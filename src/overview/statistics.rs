@@ -71,13 +71,7 @@ impl Statistics {
                         SampleType::F32 => f32::from_ne_bytes(p[4 * k..4 * k + 4].try_into().expect("4 bytes")) as f64,
                     };
                 }
-                let has = match by {
-                    ValidBy::Mask => valid.is_some_and(|v| v[i] != 0),
-                    ValidBy::Nodata(v) => sample.iter().any(|&s| s != v),
-                    ValidBy::Nan => sample.iter().all(|s| !s.is_nan()),
-                    ValidBy::Alpha => sample[b - 1] != 0.0,
-                };
-                if !has {
+                if !by.has_value(sample.iter().copied(), valid.map(|v| v[i])) {
                     continue;
                 }
                 for (st, &s) in bands.iter_mut().zip(&sample) {

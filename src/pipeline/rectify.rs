@@ -17,17 +17,6 @@ use crate::transform::Transform;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-/// How the output's pixels say they have no value, for its overviews.
-fn valid_by(spec: &crate::io::tiff_out::OutputSpec, alpha_added: bool) -> ValidBy {
-    match spec.geo.and_then(|g| g.nodata) {
-        _ if spec.mask => ValidBy::Mask,
-        Some(v) if v.is_nan() => ValidBy::Nan,
-        Some(v) => ValidBy::Nodata(v),
-        None if alpha_added || spec.alpha => ValidBy::Alpha,
-        None => ValidBy::Nan,
-    }
-}
-
 /// Orthorectifies `opts.image` into `opts.output`, telling `progress` how
 /// far it has come. `cancel` may be set from another thread (a signal
 /// handler) to stop the run; the output is then not created.
@@ -93,8 +82,8 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         pool,
         progress,
         spare_masks: crossbeam_channel::bounded(4),
-        pyramid: Pyramid::new(spec, opts.overview_resampling, valid_by(spec, plan.pixels.alpha), plan.pixels.fill).map(std::sync::Mutex::new),
-        valid_by: valid_by(spec, plan.pixels.alpha),
+        pyramid: Pyramid::new(spec, opts.overview_resampling, ValidBy::of(spec), plan.pixels.fill).map(std::sync::Mutex::new),
+        valid_by: ValidBy::of(spec),
         statistics: Default::default(),
     };
     let result = if sequential { run_sequential(&run, out_file, flush_file) } else { run_threaded(&run, out_file, flush_file) };

@@ -125,6 +125,15 @@ impl OutputSpec {
         let (cw, ch) = self.chunk();
         (w.div_ceil(cw), h.div_ceil(ch))
     }
+    /// Columns and rows of tile `k` (row-major) of level `l` that are
+    /// image, not padding.
+    pub fn tile_extent(&self, l: u32, k: usize) -> (usize, usize) {
+        let (w, h) = self.level_size(l);
+        let (cw, ch) = self.chunk();
+        let across = self.level_tiles(l).0 as usize;
+        let (x0, y0) = (k % across * cw as usize, k / across * ch as usize);
+        ((w as usize - x0).min(cw as usize), (h as usize - y0).min(ch as usize))
+    }
     /// Chunks of level `l`'s image.
     pub fn level_tile_count(&self, l: u32) -> usize {
         let (a, d) = self.level_tiles(l);

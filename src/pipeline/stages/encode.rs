@@ -62,10 +62,7 @@ pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy:
     // The tile's quarter for the overview, and its statistics.
     let summary = |k: usize, bytes: &[u8]| {
         let tile = &bytes[k * tb..(k + 1) * tb];
-        let (across, t) = (spec.tiles_across() as usize, lay.tile);
-        let (x0, y0) = (at(k) % across * t, at(k) / across * t);
-        let extent = ((spec.width as usize - x0).min(t), (spec.height as usize - y0).min(t));
-        let stats = Statistics::of_tile(lay, run.valid_by, tile, valid_of(k), extent);
+        let stats = Statistics::of_tile(lay, run.valid_by, tile, valid_of(k), spec.tile_extent(0, at(k)));
         (pyramid.as_ref().map(|p| p.reduce(0, at(k), tile, valid_of(k))), stats)
     };
     // A tile's quarter for the overview and its statistics.
