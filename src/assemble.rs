@@ -12,7 +12,7 @@ use crate::io::source::{SourceImage, Window};
 use crate::io::tiff_out::{
     decode_mask, encode_mask, encode_tile, folder_of, tiff_write_error, verify, Chunking, Compression, GeoTags, OutputSpec, PendingFile, TileWriter,
 };
-use crate::options::Overviews;
+use crate::options::{check_level, Overviews};
 use crate::overview::{OverviewResampling, Pyramid, Quarter, Statistics, TileLayout, ValidBy};
 use rayon::prelude::*;
 use std::os::unix::fs::FileExt;
@@ -24,11 +24,14 @@ pub struct AssembleOptions {
     pub overviews: Overviews,
     pub overview_resampling: OverviewResampling,
     pub cog: bool,
+    /// The codec level of the overview tiles (the pieces' own tiles are
+    /// copied as they are).
+    pub level: Option<u8>,
 }
 
 impl Default for AssembleOptions {
     fn default() -> Self {
-        AssembleOptions { overviews: Overviews::Auto, overview_resampling: OverviewResampling::Average, cog: false }
+        AssembleOptions { overviews: Overviews::Auto, overview_resampling: OverviewResampling::Average, cog: false, level: None }
     }
 }
 
@@ -118,6 +121,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
         50000 => Compression::Zstd,
         c => return Err(Error::unsupported(&pieces[0], format!("compression {c} in pieces"))),
     };
+    check_level(compression, opts.level)?;
     let mut spec = OutputSpec {
         width: w,
         height: h,
@@ -125,6 +129,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
         sample: first.sample,
         chunking: Chunking::Tiles(tile),
         compression,
+        level: opts.level,
         bigtiff: false,
         photometric: first.photometric,
         alpha: first.has_alpha,

@@ -154,6 +154,10 @@ pub struct LayoutArgs {
     /// overviews before the full resolution).
     #[arg(long)]
     pub cog: bool,
+    /// The compression level: deflate 1–12, zstd 1–22 (default 1, the
+    /// fastest; higher packs tighter, slower)
+    #[arg(long)]
+    pub level: Option<u8>,
 }
 
 impl LayoutArgs {
@@ -162,6 +166,7 @@ impl LayoutArgs {
             overviews: parse_overviews("overviews", &self.overviews)?,
             overview_resampling: self.overview_resampling,
             cog: self.cog,
+            level: self.level,
         })
     }
 }
@@ -450,6 +455,7 @@ impl RectifyArgs {
         o.overviews = layout.overviews;
         o.overview_resampling = layout.overview_resampling;
         o.cog = layout.cog;
+        o.level = layout.level;
         o.nodata = parse_nodata("nodata", &self.nodata)?;
         o.alpha = self.alpha;
         o.threads = self.threads;

@@ -252,8 +252,8 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     let (w, h) = match &a.size {
         Some(sz) => parse_size("size", sz)?,
         None => {
-            let src = SourceImage::open(&image, 1 << 20)?;
-            (src.info.width, src.info.height)
+            let info = SourceImage::info_of(&image)?;
+            (info.width, info.height)
         }
     };
     let dem = Dem::open(&dem_path, cam.crs.epsg)?;
@@ -376,8 +376,8 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     // The grid is in longitude/latitude: the model and the DEM in EPSG:4326.
     let model = RpcCamera::new(r.rpc.clone(), GroundCrs::from_epsg(4326).map_err(|m| anyhow!(m))?, r.geoid.clone());
     let dem = Dem::open(&a.dem, 4326)?;
-    let src = SourceImage::open(&a.sensor.image, 1 << 20)?;
-    let (w, h) = (src.info.width, src.info.height);
+    let info = SourceImage::info_of(&a.sensor.image)?;
+    let (w, h) = (info.width, info.height);
     let z0 = dem.mean_height().unwrap_or_else(|| model.height_hint());
     let on_dem = |e: gcm_ortho::error::Error| match e {
         gcm_ortho::error::Error::Geometry(m) => gcm_ortho::error::Error::format(&a.dem, m),
@@ -385,13 +385,13 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     };
     let grid = rpcgrid::build(&model, &dem, w, h, a.step, z0).map_err(on_dem)?;
     grid.write(&a.output)?;
-    let data_type = match src.info.sample {
+    let data_type = match info.sample {
         gcm_ortho::io::source::SampleType::U8 => "Byte",
         gcm_ortho::io::source::SampleType::U16 => "UInt16",
         gcm_ortho::io::source::SampleType::F32 => "Float32",
     };
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    let vrt = rpcgrid::geolocation_vrt(&abs(&a.sensor.image), &abs(&a.output), w, h, src.info.bands, data_type, a.step);
+    let vrt = rpcgrid::geolocation_vrt(&abs(&a.sensor.image), &abs(&a.output), w, h, info.bands, data_type, a.step);
     write_file(&vrt_path, vrt.as_bytes())?;
     println!(
         "rpc-grid: {}x{} nodes every {} px for {w}x{h} px; {} nodes failed the {} px back-check, {} corrected",

@@ -698,6 +698,7 @@ mod tests {
             sample: crate::io::source::SampleType::F32,
             chunking: Chunking::Tiles(16),
             compression: Compression::Deflate,
+            level: None,
             bigtiff: false,
             photometric: 1,
             alpha: false,

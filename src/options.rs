@@ -166,6 +166,17 @@ pub fn parse_window(setting: &'static str, s: &str) -> Result<[u32; 4]> {
     }
 }
 
+/// Is `level` one `compression` takes?
+pub fn check_level(compression: Compression, level: Option<u8>) -> Result<()> {
+    let Some(l) = level else { return Ok(()) };
+    let name = format!("{compression:?}").to_lowercase();
+    match compression.levels() {
+        None => Err(Error::setting("level", format!("{l}: {name} compression has no levels"))),
+        Some((r, _)) if !r.contains(&l) => Err(Error::setting("level", format!("{l}: {name} takes {} to {}", r.start(), r.end()))),
+        Some(_) => Ok(()),
+    }
+}
+
 /// Which overview levels a tiled output gets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -351,6 +362,8 @@ pub struct RectifyOptions {
     pub tile: u32,
     pub band_order: BandOrder,
     pub compress: Compression,
+    /// The codec's level (`None`: its default).
+    pub level: Option<u8>,
     pub bigtiff: BigTiff,
     /// Internal overviews, and how their pixels are made.
     pub overviews: Overviews,
@@ -448,6 +461,7 @@ impl RectifyOptions {
         if self.like.is_some() && (self.gsd.is_some() || self.bounds.is_some()) {
             return Err(Error::setting("like", "gives the grid: drop the GSD and bounds"));
         }
+        check_level(self.compress, self.level)?;
         if let Some([_, _, w, h]) = self.window {
             if w == 0 || h == 0 {
                 return Err(Error::setting("window", "width and height must be above zero"));
@@ -511,6 +525,7 @@ impl RectifyOptions {
             tile: 256,
             band_order: BandOrder::Auto,
             compress: Compression::Deflate,
+            level: None,
             bigtiff: BigTiff::Auto,
             overviews: Overviews::Auto,
             overview_resampling: OverviewResampling::Average,
@@ -558,6 +573,27 @@ mod tests {
         o.validate().unwrap();
         o.tile = 100;
         assert!(o.validate().unwrap_err().to_string().starts_with("tile: 100"));
+    }
+
+    #[test]
+    fn a_level_is_one_the_codec_takes() {
+        for (compression, level, ok) in [
+            (Compression::Deflate, 1, true),
+            (Compression::Deflate, 12, true),
+            (Compression::Deflate, 0, false),
+            (Compression::Deflate, 13, false),
+            (Compression::Zstd, 22, true),
+            (Compression::Zstd, 23, false),
+            (Compression::Lzw, 1, false),
+            (Compression::None, 1, false),
+        ] {
+            let r = check_level(compression, Some(level));
+            assert_eq!(r.is_ok(), ok, "{compression:?} {level}");
+            if let Err(e) = r {
+                assert!(e.to_string().starts_with(&format!("level: {level}: {}", format!("{compression:?}").to_lowercase())), "{e}");
+            }
+        }
+        assert!(check_level(Compression::Lzw, None).is_ok());
     }
 
     proptest! {

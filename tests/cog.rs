@@ -128,6 +128,8 @@ fn every_layout_the_writer_makes_is_a_valid_cog_and_reads_back_as_the_plain_file
         ("rgba", &rgb, &rgb.scan, vec!["--alpha"]),
         ("rgb-nodata", &rgb, &rgb.scan, vec!["--nodata", "0", "--overview-resampling", "nearest"]),
         ("u16-zstd", &wide, &wide.scan, vec!["--compress", "zstd"]),
+        ("rgb-level-12", &rgb, &rgb.scan, vec!["--level", "12"]),
+        ("u16-zstd-19", &wide, &wide.scan, vec!["--compress", "zstd", "--level", "19"]),
         ("u16-lzw-mode", &wide, &wide.scan, vec!["--compress", "lzw", "--overview-resampling", "mode"]),
         ("float", &rgb, &float_scan, vec![]),
     ];
@@ -143,6 +145,10 @@ fn every_layout_the_writer_makes_is_a_valid_cog_and_reads_back_as_the_plain_file
         assert!(levels >= 3, "{name}: {levels} levels");
         // The plain file has the same levels, not the COG layout.
         assert_ne!(python(VALIDATE, &[s(&plain)]), "[]", "{name}: the plain file is not laid out as a COG");
+    }
+    // Every level of a lossless codec holds the same pixels, as GDAL reads them.
+    for (a, b) in [("rgb-uncompressed", "rgb-level-12"), ("rgb-uncompressed", "rgb-mask-deflate"), ("u16-zstd", "u16-zstd-19")] {
+        python(SAME_LEVELS, &[s(&d.join(format!("{a}.tif"))), s(&d.join(format!("{b}.tif")))]);
     }
     // Pieces of a run put together: a valid COG, the same levels as the
     // single run's.

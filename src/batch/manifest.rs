@@ -50,6 +50,7 @@ pub struct Options {
     pub resample: Option<String>,
     pub tile: Option<u32>,
     pub compress: Option<String>,
+    pub level: Option<u8>,
     pub bigtiff: Option<String>,
     /// `auto`, `none` or a list of factors.
     pub overviews: Option<String>,
@@ -80,6 +81,7 @@ impl Options {
             resample,
             tile,
             compress,
+            level,
             bigtiff,
             overviews,
             overview_resampling,
@@ -343,6 +345,9 @@ fn config(
         }
         if let Some(z) = &o.compress {
             c.compress = parse_choice("compress", z)?;
+        }
+        if o.level.is_some() {
+            c.level = o.level;
         }
         if let Some(b) = &o.bigtiff {
             c.bigtiff = parse_choice("bigtiff", b)?;

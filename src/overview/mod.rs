@@ -166,6 +166,7 @@ mod tests {
             sample: SampleType::U8,
             chunking: Chunking::Tiles(4),
             compression: Compression::Deflate,
+            level: None,
             bigtiff: false,
             photometric: 1,
             alpha: false,

@@ -44,7 +44,7 @@ pub struct RunPlan {
 
 impl RunPlan {
     pub fn new(opts: &RectifyOptions, progress: &dyn Progress) -> Result<RunPlan> {
-        let budget = MemoryBudget::new(opts.memory);
+        let mut budget = MemoryBudget::new(opts.memory);
         let like = opts.like.as_deref().map(reference_grid).transpose()?;
         // An RPC's ground CRS is the reference grid's unless given.
         let model = match (&opts.model, &like) {
@@ -60,7 +60,29 @@ impl RunPlan {
                 ));
             }
         }
-        let src = SourceImage::open(&opts.image, budget.scan_cache() as usize)?;
+        let src = SourceImage::open_within(&opts.image, budget.scan_cache() as usize, budget.total())?;
+        // What decoding the scan's chunks holds (JPEG 2000) comes off the
+        // top; the shares are of what is left.
+        let threads = match opts.threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n,
+        };
+        let decoding = src.decoding_bytes(threads);
+        if decoding > 0 {
+            if 2 * decoding > budget.total() {
+                return Err(Error::setting(
+                    "memory",
+                    format!(
+                        "{}: decoding its chunks holds about {} MiB on {} threads, more than half the memory budget: give {}M or more, or fewer threads",
+                        opts.image.display(),
+                        decoding.div_ceil(1 << 20),
+                        threads,
+                        (4 * decoding).div_ceil(1 << 20)
+                    ),
+                ));
+            }
+            budget = MemoryBudget::new(budget.total() - decoding);
+        }
         let mut dem = match &opts.dem {
             DemSource::File(p) => Dem::open_within(p, camera.crs.epsg, budget.dem())?,
             DemSource::Height(h) => Dem::flat(*h),
@@ -164,7 +186,7 @@ impl RunPlan {
                     gcm.k,
                     nodes >> 20,
                     grid.width.max(grid.height),
-                    (nodes * budget.total()).div_ceil(budget.node_limit().max(1)).div_ceil(1 << 20)
+                    ((nodes * budget.total()).div_ceil(budget.node_limit().max(1)) + decoding).div_ceil(1 << 20)
                 ),
             ));
         }
@@ -202,6 +224,7 @@ impl RunPlan {
             sample: src.info.sample,
             chunking: Chunking::Tiles(tile),
             compression: opts.compress,
+            level: opts.level,
             bigtiff: false,
             photometric,
             alpha: opts.alpha || src.info.has_alpha,
@@ -227,7 +250,7 @@ impl RunPlan {
                     "made while the tiles stream, they hold about {} MB of a {}-tile-wide output at a time, more than the memory budget allows them: give --memory {}M or more, or --overviews none",
                     held >> 20,
                     band_tiles,
-                    (held * 6).div_ceil(1 << 20)
+                    (held * 6 + decoding).div_ceil(1 << 20)
                 ),
             ));
         }
@@ -313,7 +336,7 @@ fn check_geoid_covers(r: &crate::camera::RpcCamera, w: u32, h: u32, z: f64) -> R
 
 /// The grid of a reference raster (north-up, square pixels) and its CRS.
 fn reference_grid(path: &std::path::Path) -> Result<(OutputGrid, u32)> {
-    let info = SourceImage::open(path, 1 << 20)?.info;
+    let info = SourceImage::info_of(path)?;
     let g = info.georef.ok_or_else(|| Error::format(path, "has no georeferencing to take the grid from"))?;
     let t = g.transform;
     let epsg = g.epsg.ok_or_else(|| Error::format(path, "names no EPSG CRS to take the grid from"))?;

@@ -20,6 +20,7 @@ pub fn write_error_map(path: &Path, map: &[f32], w: u32, h: u32, grid: &OutputGr
         sample: SampleType::F32,
         chunking: Chunking::Tiles(256),
         compression: Compression::Deflate,
+        level: None,
         bigtiff: false,
         photometric: 1,
         alpha: false,

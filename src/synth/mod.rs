@@ -370,6 +370,7 @@ fn write_dem(path: &std::path::Path, g: &GridDem) -> Result<()> {
         sample: SampleType::F32,
         chunking: Chunking::Strips(16),
         compression: Compression::None,
+        level: None,
         bigtiff: false,
         photometric: 1,
         alpha: false,
@@ -574,6 +575,7 @@ fn scan_spec(o: &SynthOptions) -> OutputSpec {
         sample,
         chunking: if o.tiled { Chunking::Tiles(256) } else { Chunking::Strips(16) },
         compression: o.compress,
+        level: None,
         bigtiff: false,
         photometric: if o.bands >= 3 { 2 } else { 1 },
         alpha: false,
@@ -592,6 +594,7 @@ fn render_truth(o: &SynthOptions, sc: &Scene<'_>, scan: &OutputSpec, grid: &crat
         height: grid.height,
         chunking: Chunking::Tiles(256),
         compression: Compression::Deflate,
+        level: None,
         geo: Some(GeoTags { x0: grid.x0, y0: grid.y0, gsd: grid.gsd, epsg: EPSG, nodata: Some(0.0) }),
         bigtiff: false,
         ..scan.clone()

@@ -1,6 +1,7 @@
 //! The compressed backend: a chunk (strip or tile) decoded on demand —
 //! deflate, LZW, PackBits and zstd by `chunk_codec`, JPEG by the `tiff`
-//! crate — and kept in the cache for the next window.
+//! crate, a JPEG 2000 area by OpenJPEG — and kept in the cache for the
+//! next window.
 
 use super::{decoder_limits, Backend, SampleType, SourceImage};
 use crate::error::{Error, Result};
@@ -17,6 +18,9 @@ pub(super) enum Coder {
     /// JPEG: `tiff` crate decoders, one per concurrent reader; `ycbcr`
     /// when its samples are Y, Cb, Cr to be turned into RGB.
     Tiff { decoders: Mutex<Vec<Decoder<BufReader<File>>>>, ycbcr: bool },
+    /// JPEG 2000: each chunk an area decoded by OpenJPEG, once (`spill`
+    /// keeps it); `origin` is the image's on the codestream's reference grid.
+    Jpeg2000 { origin: (u32, u32), spill: super::jpeg2000::Spill },
 }
 
 impl SourceImage {
@@ -35,6 +39,7 @@ impl SourceImage {
                 }
                 bytes
             }
+            Coder::Jpeg2000 { origin, spill } => spill.chunk(&self.path, k, || super::jpeg2000::decode_chunk(&self.path, &self.info, *origin, k))?,
         };
         let v = Arc::new(bytes);
         cache.lock().expect("cache lock").put(k as usize, v.clone());
