@@ -10,6 +10,8 @@ use crate::io::chunked_raster::ChunkedRaster;
 use crate::io::geotiff::{read_georef, GeoRef};
 use std::path::{Path, PathBuf};
 
+mod mosaic;
+
 /// What a raw lookup found.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Lookup {
@@ -35,6 +37,8 @@ pub enum Miss {
 enum Samples {
     Memory(Vec<f32>),
     Chunked(ChunkedSamples),
+    /// Tiles of a VRT or a folder, each read as a DEM of its own.
+    Mosaic(mosaic::Mosaic),
 }
 
 /// Out-of-core samples: the file's strips or tiles, decoded on demand.
@@ -117,6 +121,7 @@ impl GridDem {
         match &self.data {
             Samples::Memory(v) => v[j * self.width + i],
             Samples::Chunked(c) => c.get(i, j),
+            Samples::Mosaic(m) => m.get(i, j),
         }
     }
 
@@ -126,6 +131,7 @@ impl GridDem {
         match &self.data {
             Samples::Memory(v) => [v[j0 * self.width + i0], v[j0 * self.width + i1], v[j1 * self.width + i0], v[j1 * self.width + i1]],
             Samples::Chunked(c) => c.corners(i0, j0, i1, j1),
+            Samples::Mosaic(m) => [m.get(i0, j0), m.get(i1, j0), m.get(i0, j1), m.get(i1, j1)],
         }
     }
 
@@ -225,8 +231,8 @@ impl GridDem {
                 let (top, bottom) = (&v[k..k + 2], &v[k + self.width..k + self.width + 2]);
                 (top[0], top[1], bottom[0], bottom[1])
             }
-            Samples::Chunked(c) => {
-                let [z00, z10, z01, z11] = c.corners(i0, j0, i0 + 1, j0 + 1);
+            Samples::Chunked(_) | Samples::Mosaic(_) => {
+                let [z00, z10, z01, z11] = self.corners(i0, j0, i0 + 1, j0 + 1);
                 (z00, z10, z01, z11)
             }
         };
@@ -298,8 +304,8 @@ impl GridDem {
         [gt[0].min(x1), gt[3].min(y1), gt[0].max(x1), gt[3].max(y1)]
     }
 
-    /// Reads a single-band GeoTIFF (Int16, UInt16, Int32, Float32, Float64, ...)
-    /// or an SRTM `.hgt` tile.
+    /// Reads a single-band GeoTIFF (Int16, UInt16, Int32, Float32, Float64, ...),
+    /// an SRTM `.hgt` tile, or tiles of these: a GDAL VRT mosaic or a folder.
     pub fn read(path: &Path) -> Result<GridDem> {
         GridDem::read_within(path, IN_MEMORY_LIMIT)
     }
@@ -307,6 +313,24 @@ impl GridDem {
     /// As `read`, holding at most about `max_bytes` of heights in memory:
     /// a larger grid is read a chunk at a time into a cache of that size.
     pub fn read_within(path: &Path, max_bytes: u64) -> Result<GridDem> {
+        if mosaic::is_mosaic(path) {
+            let (m, g) = mosaic::open(path, max_bytes)?;
+            mosaic::check(path, &g)?;
+            let t = g.transform;
+            let dem = GridDem {
+                width: g.width,
+                height: g.height,
+                data: Samples::Mosaic(m),
+                transform: t,
+                nodata: None,
+                epsg: g.epsg,
+                inv_step: (1.0 / t[1], 1.0 / t[5]),
+            };
+            if dem.samples((dem.width * dem.height / 20_000).max(1)).iter().all(|v| v.is_nan()) {
+                return Err(Error::format(path, "no tile of the DEM mosaic has a height"));
+            }
+            return Ok(dem);
+        }
         if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("hgt")) {
             return read_hgt(path);
         }

@@ -237,3 +237,52 @@ fn files_that_are_not_images_we_read_are_refused_saying_what_they_are() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn a_dem_in_tiles_as_a_vrt_or_a_folder_gives_the_merged_dems_orthophoto() {
+    if !have("gdal_translate") || !have("gdalbuildvrt") {
+        eprintln!("skipped: GDAL is not installed");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = drone(&d.join("scene"), 3, 8);
+    let (_, info) = whole_image(&sc.dem);
+    let (w, h) = (info.width, info.height);
+    let (hw, hh) = (w / 2, h / 2);
+    // Four tiles that share their edge posts, as SRTM tiles do.
+    let tiles = d.join("tiles");
+    std::fs::create_dir(&tiles).unwrap();
+    for (name, x, y, tw, th) in [("a", 0, 0, hw + 1, hh + 1), ("b", hw, 0, w - hw, hh + 1), ("c", 0, hh, hw + 1, h - hh), ("d", hw, hh, w - hw, h - hh)] {
+        let (x, y, tw, th) = (x.to_string(), y.to_string(), tw.to_string(), th.to_string());
+        gdal_translate(&["-srcwin", &x, &y, &tw, &th, s(&sc.dem), s(&tiles.join(format!("{name}.tif")))]);
+    }
+    let vrt = d.join("dem.vrt");
+    let mut args = vec!["-q".to_string(), s(&vrt).to_string()];
+    args.extend(["a", "b", "c", "d"].map(|n| s(&tiles.join(format!("{n}.tif"))).to_string()));
+    assert!(Command::new("gdalbuildvrt").args(&args).status().unwrap().success());
+    let want = rectified(&sc, &sc.scan, &d.join("merged.tif"));
+    for (what, dem) in [("VRT", &vrt), ("folder", &tiles)] {
+        let out = d.join(format!("{what}.tif"));
+        let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(dem), "-o", s(&out), "--quiet"]);
+        assert!(r.status.success(), "{what}: {}", String::from_utf8_lossy(&r.stderr));
+        assert!(whole_image(&out).0 == want, "{what}: the orthophoto differs from the merged DEM's");
+    }
+    // What a VRT may hold beyond placed sources is refused by name.
+    let text = std::fs::read_to_string(&vrt).unwrap();
+    let at = text.find("<DstRect").unwrap();
+    let end = at + text[at..].find("/>").unwrap() + 2;
+    for (name, changed, said) in [
+        ("resampled", format!("{}<DstRect xOff=\"0\" yOff=\"0\" xSize=\"7\" ySize=\"7\" />{}", &text[..at], &text[end..]), "resampled"),
+        ("kernel", text.replace("ComplexSource>", "KernelFilteredSource>").replace("SimpleSource>", "KernelFilteredSource>"), "<KernelFilteredSource>"),
+        ("derived", text.replace("<VRTRasterBand ", "<VRTRasterBand subClass=\"VRTDerivedRasterBand\" "), "VRTDerivedRasterBand"),
+    ] {
+        let bad = d.join(format!("{name}.vrt"));
+        std::fs::write(&bad, changed).unwrap();
+        let out = d.join("bad.tif");
+        let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&bad), "-o", s(&out), "--quiet"]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success() && err.contains(s(&bad)) && err.contains(said), "{name}: {err}");
+        assert!(!out.exists());
+    }
+}

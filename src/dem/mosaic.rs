@@ -1,0 +1,257 @@
+//! A DEM handed over in tiles: a GDAL VRT mosaic (`gdalbuildvrt`'s simple
+//! and complex sources) or a folder of GeoTIFF / `.hgt` tiles on one grid.
+//! Each tile stays its own grid, read as any DEM is (whole when small, a
+//! chunk at a time when large, within its share of the budget); a sample
+//! of the mosaic is looked up in the tile that holds it, never copied into
+//! one grid.
+
+use super::{check_north_up, GridDem};
+use crate::error::{Error, Result};
+use std::path::{Path, PathBuf};
+
+/// Side of the squares of the mosaic's grid that list the tiles over them.
+const BIN: usize = 256;
+
+/// One tile: where it lies in the mosaic's grid, where that part starts
+/// in its own, and its own samples.
+struct Tile {
+    /// Columns `x0..x0+w`, rows `y0..y0+h` of the mosaic.
+    dst: [usize; 4],
+    /// The tile's own sample at the mosaic's (x0, y0).
+    src: (usize, usize),
+    grid: GridDem,
+    /// A value the VRT says is nodata in this source (beside the tile's own).
+    nodata: Option<f64>,
+}
+
+/// The tiles, and for each square of [`BIN`] samples the tiles over it,
+/// the last given first (a later source is drawn over an earlier one).
+pub(super) struct Mosaic {
+    tiles: Vec<Tile>,
+    bins: Vec<Vec<u32>>,
+    bins_across: usize,
+}
+
+/// The grid a mosaic makes: size, geotransform, CRS.
+pub(super) struct MosaicGrid {
+    pub width: usize,
+    pub height: usize,
+    pub transform: [f64; 6],
+    pub epsg: Option<u32>,
+}
+
+impl Mosaic {
+    /// Sample (i, j) of the mosaic: the last tile over it that has a value
+    /// there; NaN where none has.
+    pub fn get(&self, i: usize, j: usize) -> f32 {
+        for &t in &self.bins[(j / BIN) * self.bins_across + i / BIN] {
+            let t = &self.tiles[t as usize];
+            let [x0, y0, w, h] = t.dst;
+            if i >= x0 && j >= y0 && i < x0 + w && j < y0 + h {
+                let v = t.grid.sample(t.src.0 + i - x0, t.src.1 + j - y0);
+                if !t.grid.is_nodata(v) && t.nodata.is_none_or(|nd| v as f64 != nd) {
+                    return v;
+                }
+            }
+        }
+        f32::NAN
+    }
+
+    fn new(width: usize, height: usize, tiles: Vec<Tile>) -> Mosaic {
+        let bins_across = width.div_ceil(BIN);
+        let mut bins = vec![Vec::new(); bins_across * height.div_ceil(BIN)];
+        for (k, t) in tiles.iter().enumerate().rev() {
+            let [x0, y0, w, h] = t.dst;
+            for by in y0 / BIN..(y0 + h).div_ceil(BIN).min(height.div_ceil(BIN)) {
+                for bx in x0 / BIN..(x0 + w).div_ceil(BIN).min(bins_across) {
+                    bins[by * bins_across + bx].push(k as u32);
+                }
+            }
+        }
+        Mosaic { tiles, bins, bins_across }
+    }
+}
+
+/// Is `path` a mosaic: a folder, or a file that begins as a VRT does?
+pub(super) fn is_mosaic(path: &Path) -> bool {
+    if path.is_dir() {
+        return true;
+    }
+    let mut head = [0u8; 64];
+    let n = std::fs::File::open(path).and_then(|mut f| std::io::Read::read(&mut f, &mut head)).unwrap_or(0);
+    String::from_utf8_lossy(&head[..n]).trim_start().starts_with("<VRTDataset")
+}
+
+/// Opens the mosaic at `path` (a VRT file or a folder of tiles), its tiles
+/// holding at most about `max_bytes` of heights in memory together.
+pub(super) fn open(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
+    if path.is_dir() {
+        open_folder(path, max_bytes)
+    } else {
+        open_vrt(path, max_bytes)
+    }
+}
+
+/// A folder's `.tif`, `.tiff` and `.hgt` files, on one grid: the same CRS
+/// and pixel size, each placed a whole number of samples from the others.
+fn open_folder(dir: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().and_then(|e| e.to_str()).is_some_and(|e| ["tif", "tiff", "hgt"].contains(&e.to_ascii_lowercase().as_str())))
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(Error::format(dir, "is a folder without DEM tiles (.tif, .tiff or .hgt)"));
+    }
+    let share = max_bytes / files.len() as u64;
+    let grids: Vec<GridDem> = files.iter().map(|f| GridDem::read_within(f, share)).collect::<Result<_>>()?;
+    let (step_x, step_y, first_epsg) = (grids[0].transform[1], grids[0].transform[5], grids[0].epsg);
+    let x_min = grids.iter().map(|g| g.transform[0]).fold(f64::INFINITY, f64::min);
+    let y_max = grids.iter().map(|g| g.transform[3]).fold(f64::NEG_INFINITY, f64::max);
+    let mut tiles = Vec::new();
+    let (mut width, mut height) = (0, 0);
+    for (g, f) in grids.into_iter().zip(&files) {
+        if g.epsg != first_epsg {
+            return Err(Error::format(f, format!("is in {:?}, the folder's first tile in {:?}: the tiles of a DEM share one CRS", g.epsg, first_epsg)));
+        }
+        if !same(g.transform[1], step_x) || !same(g.transform[5], step_y) {
+            return Err(Error::format(
+                f,
+                format!("has samples of {} × {}, the first tile {} × {}: the tiles of a DEM share one grid", g.transform[1], -g.transform[5], step_x, -step_y),
+            ));
+        }
+        let (cx, cy) = ((g.transform[0] - x_min) / step_x, (g.transform[3] - y_max) / step_y);
+        let (x0, y0) = (cx.round(), cy.round());
+        if (cx - x0).abs() > 1e-3 || (cy - y0).abs() > 1e-3 {
+            return Err(Error::format(
+                f,
+                format!("lies {cx:.4}, {cy:.4} samples from the folder's corner, not a whole number: the tiles of a DEM share one grid"),
+            ));
+        }
+        let (x0, y0) = (x0 as usize, y0 as usize);
+        width = width.max(x0 + g.width);
+        height = height.max(y0 + g.height);
+        tiles.push(Tile { dst: [x0, y0, g.width, g.height], src: (0, 0), grid: g, nodata: None });
+    }
+    let grid = MosaicGrid { width, height, transform: [x_min, step_x, 0.0, y_max, 0.0, step_y], epsg: first_epsg };
+    Ok((Mosaic::new(width, height, tiles), grid))
+}
+
+fn same(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-9 * a.abs().max(b.abs())
+}
+
+/// A GDAL VRT: its first band's simple and complex sources, each a tile
+/// placed by its source and destination windows (of one size: no
+/// resampling). What else a VRT may hold is refused by name.
+fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
+    let text = crate::io::bounded_read::read_text_bounded(path, "VRT", 64 << 20)?;
+    let doc = roxmltree::Document::parse(&text).map_err(|e| Error::format(path, format!("VRT: {e}")))?;
+    let root = doc.root_element();
+    let bad = |m: String| Error::format(path, format!("VRT: {m}"));
+    let unsupported = |m: String| Error::unsupported(path, format!("VRT: {m}"));
+    let size =
+        |name: &str| -> Result<usize> { root.attribute(name).and_then(|v| v.trim().parse().ok()).ok_or_else(|| bad(format!("no {name} on VRTDataset"))) };
+    let (width, height) = (size("rasterXSize")?, size("rasterYSize")?);
+    let gt: Vec<f64> = child(root, "GeoTransform")
+        .and_then(|n| n.text())
+        .map(|t| t.split(',').filter_map(|v| v.trim().parse().ok()).collect())
+        .ok_or_else(|| bad("no GeoTransform".into()))?;
+    let transform: [f64; 6] = gt.try_into().map_err(|_| bad("a GeoTransform of other than six numbers".into()))?;
+    let bands: Vec<_> = root.children().filter(|n| n.has_tag_name("VRTRasterBand")).collect();
+    let band = bands.first().ok_or_else(|| bad("no VRTRasterBand".into()))?;
+    if let Some(sub) = band.attribute("subClass") {
+        return Err(unsupported(format!("a {sub} band (simple and complex sources are read)")));
+    }
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mut sources = Vec::new();
+    for n in band.children().filter(|n| n.is_element()) {
+        match n.tag_name().name() {
+            "SimpleSource" | "ComplexSource" => sources.push(n),
+            "NoDataValue" | "ColorInterp" | "Description" | "Metadata" | "Offset" | "Scale" | "UnitType" | "Histograms" => {}
+            other => return Err(unsupported(format!("<{other}> in a band (simple and complex sources are read)"))),
+        }
+    }
+    if sources.is_empty() {
+        return Err(bad("a band without sources".into()));
+    }
+    let share = max_bytes / sources.len() as u64;
+    let mut tiles = Vec::new();
+    let mut epsg = None;
+    for s in sources {
+        let file = child(s, "SourceFilename").ok_or_else(|| bad("a source without SourceFilename".into()))?;
+        let name = file.text().unwrap_or("").trim();
+        let relative = file.attribute("relativeToVRT").is_some_and(|v| v.trim() == "1");
+        let tile_path = if relative { dir.join(name) } else { PathBuf::from(name) };
+        let mut nodata = None;
+        for e in s.children().filter(|n| n.is_element()) {
+            match e.tag_name().name() {
+                "SourceFilename" | "SourceProperties" | "SrcRect" | "DstRect" | "UseMaskBand" | "OpenOptions" => {}
+                "SourceBand" if e.text().is_some_and(|t| t.trim() == "1") => {}
+                "NODATA" => nodata = e.text().and_then(|t| t.trim().parse::<f64>().ok()),
+                "ScaleOffset" if e.text().is_some_and(|t| t.trim().parse::<f64>() == Ok(0.0)) => {}
+                "ScaleRatio" if e.text().is_some_and(|t| t.trim().parse::<f64>() == Ok(1.0)) => {}
+                other => {
+                    return Err(unsupported(format!(
+                        "<{other}>{} in the source {name} (band 1, no scaling, no lookup table is read)",
+                        e.text().map(|t| t.trim()).unwrap_or("")
+                    )))
+                }
+            }
+        }
+        let grid = GridDem::read_within(&tile_path, share)?;
+        let rect = |tag: &str, default: [f64; 4]| -> Result<[f64; 4]> {
+            let Some(r) = child(s, tag) else { return Ok(default) };
+            let a = |k: &str| r.attribute(k).and_then(|v| v.trim().parse::<f64>().ok()).ok_or_else(|| bad(format!("{tag} of {name} without {k}")));
+            Ok([a("xOff")?, a("yOff")?, a("xSize")?, a("ySize")?])
+        };
+        let full = [0.0, 0.0, grid.width as f64, grid.height as f64];
+        let (src, dst) = (rect("SrcRect", full)?, rect("DstRect", full)?);
+        if !same(src[2], dst[2]) || !same(src[3], dst[3]) {
+            return Err(unsupported(format!(
+                "the source {name} is resampled ({}×{} to {}×{}): its windows must be of one size",
+                src[2], src[3], dst[2], dst[3]
+            )));
+        }
+        let whole = |v: f64| (v - v.round()).abs() < 1e-6;
+        if !src.iter().chain(&dst).all(|&v| whole(v)) {
+            return Err(unsupported(format!("the source {name} is placed at a fraction of a sample")));
+        }
+        // Clip to both grids.
+        let [mut sx, mut sy, mut w, mut h] = src.map(|v| v.round() as i64);
+        let [mut dx, mut dy, _, _] = dst.map(|v| v.round() as i64);
+        for (s_, d_, len) in [(&mut sx, &mut dx, &mut w), (&mut sy, &mut dy, &mut h)] {
+            let cut = (-*s_).max(-*d_).max(0);
+            *s_ += cut;
+            *d_ += cut;
+            *len -= cut;
+        }
+        w = w.min(grid.width as i64 - sx).min(width as i64 - dx);
+        h = h.min(grid.height as i64 - sy).min(height as i64 - dy);
+        if w <= 0 || h <= 0 {
+            continue;
+        }
+        if epsg.is_some() && grid.epsg.is_some() && grid.epsg != epsg {
+            return Err(Error::format(&tile_path, format!("is in EPSG:{:?}, another source of {} in EPSG:{:?}", grid.epsg, path.display(), epsg)));
+        }
+        epsg = epsg.or(grid.epsg);
+        tiles.push(Tile { dst: [dx as usize, dy as usize, w as usize, h as usize], src: (sx as usize, sy as usize), grid, nodata });
+    }
+    let grid = MosaicGrid { width, height, transform, epsg };
+    Ok((Mosaic::new(width, height, tiles), grid))
+}
+
+fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
+    n.children().find(|c| c.has_tag_name(name))
+}
+
+/// The mosaic's grid, checked as a DEM's is.
+pub(super) fn check(path: &Path, g: &MosaicGrid) -> Result<()> {
+    let geo = crate::io::geotiff::GeoRef { transform: g.transform, epsg: g.epsg, nodata: None };
+    check_north_up(&geo, path)?;
+    if g.width < 2 || g.height < 2 {
+        return Err(Error::format(path, format!("a DEM mosaic of {}×{} posts", g.width, g.height)));
+    }
+    Ok(())
+}
