@@ -77,9 +77,8 @@ pub(super) fn is_mosaic(path: &Path) -> bool {
     if path.is_dir() {
         return true;
     }
-    let mut head = [0u8; 64];
-    let n = std::fs::File::open(path).and_then(|mut f| std::io::Read::read(&mut f, &mut head)).unwrap_or(0);
-    String::from_utf8_lossy(&head[..n]).trim_start().starts_with("<VRTDataset")
+    let head = crate::io::bounded_read::read_head(path, 64).unwrap_or_default();
+    String::from_utf8_lossy(&head).trim_start().starts_with("<VRTDataset")
 }
 
 /// Opens the mosaic at `path` (a VRT file or a folder of tiles), its tiles

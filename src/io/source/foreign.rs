@@ -11,7 +11,7 @@ use super::header::SourceInfo;
 use super::SampleType;
 use crate::error::{Error, Result};
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Read, Write};
+use std::io::{BufReader, BufWriter, Write};
 use std::path::Path;
 
 /// What a file holds, from its first bytes.
@@ -28,10 +28,8 @@ impl ImageFormat {
     /// The format of `path`, or why it is not one this build reads (what
     /// was found instead, where the first bytes tell).
     pub fn of(path: &Path) -> Result<ImageFormat> {
-        let mut head = [0u8; 16];
-        let mut f = File::open(path).map_err(|e| Error::io(path, e))?;
-        let n = read_up_to(&mut f, &mut head).map_err(|e| Error::io(path, e))?;
-        let head = &head[..n];
+        let head = &crate::io::bounded_read::read_head(path, 16)?;
+        let n = head.len();
         let starts = |s: &[u8]| head.starts_with(s);
         if starts(b"II*\0") || starts(b"MM\0*") || starts(b"II+\0") || starts(b"MM\0+") {
             return Ok(ImageFormat::Tiff);
@@ -62,17 +60,6 @@ impl ImageFormat {
         };
         Err(Error::unsupported(path, format!("is not an image this build reads ({found}): TIFF or BigTIFF, JPEG, PNG and JPEG 2000 are")))
     }
-}
-
-fn read_up_to(f: &mut File, buf: &mut [u8]) -> std::io::Result<usize> {
-    let mut n = 0;
-    while n < buf.len() {
-        match f.read(&mut buf[n..])? {
-            0 => break,
-            k => n += k,
-        }
-    }
-    Ok(n)
 }
 
 /// The header of a decoded image, describing its plain rows as a
@@ -114,6 +101,22 @@ fn check_size(path: &Path, width: u32, height: u32, bands: u32) -> Result<()> {
     Ok(())
 }
 
+/// An image decoded whole (`what`) needs `need` bytes, more than the
+/// `memory` budget: refused naming the file and the budget that would do.
+fn past_budget(path: &Path, what: &str, need: u64, memory: u64) -> Error {
+    let mib = |b: u64| b.div_ceil(1 << 20);
+    Error::setting(
+        "memory",
+        format!(
+            "{}: {what} is decoded whole, and this one needs {} MiB, more than the budget's {} MiB: give {}M or more, or convert it to a tiled TIFF",
+            path.display(),
+            mib(need),
+            mib(memory),
+            mib(need) + 16
+        ),
+    )
+}
+
 /// A file for the decoded rows: unnamed, so nothing is left behind.
 fn scratch(path: &Path) -> Result<File> {
     tempfile::tempfile().map_err(|e| Error::format(path, format!("no temporary file for its decoded pixels: {e}")))
@@ -148,17 +151,7 @@ pub(super) fn decode_jpeg(path: &Path, memory: Option<u64>) -> Result<Decoded> {
     let pixels = w as u64 * h as u64 * bands as u64;
     let need = pixels + data.len() as u64;
     if need > memory {
-        let mib = |b: u64| b.div_ceil(1 << 20);
-        return Err(Error::setting(
-            "memory",
-            format!(
-                "{}: a JPEG is decoded whole, and this one ({w}×{h}×{bands}) needs {} MiB, more than the budget's {} MiB: give {}M or more, or convert it to a tiled TIFF",
-                path.display(),
-                mib(need),
-                mib(memory),
-                mib(need) + 16
-            ),
-        ));
+        return Err(past_budget(path, &format!("a JPEG ({w}×{h}×{bands})"), need, memory));
     }
     let mut px = vec![0u8; pixels as usize];
     dec.decode_into(&mut px).map_err(bad)?;
@@ -242,16 +235,7 @@ pub(super) fn decode_png(path: &Path, memory: Option<u64>) -> Result<Decoded> {
     if interlaced {
         let need = reader.output_buffer_size() as u64;
         if need > memory {
-            return Err(Error::setting(
-                "memory",
-                format!(
-                    "{}: an interlaced PNG is decoded whole, and this one needs {} MiB, more than the budget's {} MiB: give {}M or more",
-                    path.display(),
-                    need.div_ceil(1 << 20),
-                    memory.div_ceil(1 << 20),
-                    need.div_ceil(1 << 20) + 16
-                ),
-            ));
+            return Err(past_budget(path, "an interlaced PNG", need, memory));
         }
         let mut buf = vec![0u8; need as usize];
         reader.next_frame(&mut buf).map_err(bad)?;
@@ -260,9 +244,10 @@ pub(super) fn decode_png(path: &Path, memory: Option<u64>) -> Result<Decoded> {
             out.write_all(row).map_err(write_err)?;
         }
     } else {
-        let mut rows = 0u32;
-        while let Some(row) = reader.next_row().map_err(bad)? {
-            let mut row = row.data().to_vec();
+        let (mut rows, mut row) = (0u32, Vec::with_capacity(row_bytes));
+        while let Some(next) = reader.next_row().map_err(bad)? {
+            row.clear();
+            row.extend_from_slice(next.data());
             if row.len() != row_bytes {
                 return Err(Error::format(path, format!("PNG: row {rows} has {} bytes, {row_bytes} expected", row.len())));
             }

@@ -118,9 +118,9 @@ fn pack_and_deflate(w: usize, h: usize, valid: &[u8]) -> Result<Vec<u8>> {
 const MASK_LEVEL: u8 = 6;
 
 /// `bytes` as a zlib stream (deflate with the Adler-32 check, as TIFF's
-/// compression 8 holds it), by libdeflate at `level` (1–12): at each level
-/// it packed the film scene's tiles about as tight as zlib does, faster
-/// from level 2 up, and at level 1 0.71× the size of zlib's fastest.
+/// compression 8 holds it), by libdeflate at `level` (1–12): at level 1
+/// far tighter than zlib's fastest, above it as tight as zlib and faster
+/// (docs/BENCHMARKS.md).
 pub fn zlib(bytes: &[u8], level: u8) -> Vec<u8> {
     thread_local! {
         /// A compressor per thread and level: making one allocates its

@@ -31,11 +31,8 @@ pub enum Compression {
 
 impl Compression {
     /// The levels a codec takes and the one it gets by default; `None` for
-    /// a codec without levels. The defaults are the fastest levels: on the
-    /// 1 GiB film scene deflate 1 (libdeflate) made a file 0.71× the size
-    /// of zlib's fastest in 1.06× its time, zstd 1 one 0.68× in 0.93×;
-    /// higher levels cost far more time than they save space
-    /// (docs/BENCHMARKS.md).
+    /// a codec without levels. The defaults are the fastest levels: higher
+    /// ones cost far more time than they save space (docs/BENCHMARKS.md).
     pub fn levels(self) -> Option<(std::ops::RangeInclusive<u8>, u8)> {
         match self {
             Compression::Deflate => Some((1..=12, 1)),
