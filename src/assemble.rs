@@ -68,7 +68,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
             && i.has_alpha == first.has_alpha
             && i.mask.is_some() == first.mask.is_some()
             && (g.transform[1] - gsd).abs() < 1e-12 * gsd
-            && g.epsg == geo0.epsg
+            && g.keys == geo0.keys
             && g.nodata == geo0.nodata;
         if !same {
             return Err(Error::format(p, format!("is not a piece of the same orthophoto as {}", pieces[0].display())));
@@ -134,7 +134,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
         photometric: first.photometric,
         alpha: first.has_alpha,
         mask: first.mask.is_some(),
-        geo: Some(GeoTags { x0: x_min, y0: y_max, gsd, epsg: geo0.epsg.unwrap_or(0), nodata: geo0.nodata }),
+        geo: Some(GeoTags { x0: x_min, y0: y_max, gsd, keys: geo0.keys.clone(), nodata: geo0.nodata }),
         overviews: 0,
         cog: opts.cog,
     };

@@ -85,16 +85,16 @@ pub struct SensorArgs {
 
 impl SensorArgs {
     /// The camera file or RPC file named, and how it becomes the sensor
-    /// model (`crs`: the ground CRS, None for the scene's UTM zone). No
+    /// model. No
     /// file is read here: the library does that when it sets up the run.
-    pub fn model(&self, crs: Option<u32>) -> Result<(PathBuf, ModelSource)> {
+    pub fn model(&self) -> Result<(PathBuf, ModelSource)> {
         match (&self.camera, &self.rpc) {
             (Some(_), None) if self.rpc_offset.is_some() => Err(gcm_ortho::Error::setting("rpc_offset", "goes with --rpc, not a camera file")),
             (Some(_), None) if self.geoid.is_some() => Err(gcm_ortho::Error::setting("geoid", "goes with --rpc, not a camera file")),
             (Some(c), None) => Ok((c.clone(), ModelSource::CameraFile)),
             (None, Some(r)) => {
                 let offset = self.rpc_offset.as_deref().map(|o| parse_offset("rpc_offset", o)).transpose()?;
-                Ok((r.clone(), ModelSource::Rpc { offset, geoid: self.geoid.clone(), crs }))
+                Ok((r.clone(), ModelSource::Rpc { offset, geoid: self.geoid.clone() }))
             }
             _ => Err(gcm_ortho::Error::setting("camera", "give a camera file or an RPC file")),
         }
@@ -303,9 +303,10 @@ pub struct DemoArgs {
 pub struct RectifyArgs {
     #[command(flatten)]
     pub sensor: SensorArgs,
-    /// With --rpc: the orthophoto's CRS, EPSG:<code> (default: the WGS84
-    /// UTM zone of the scene's centre).
-    #[arg(long, requires = "rpc")]
+    /// The orthophoto's CRS: EPSG:<code>, a PROJ string, WKT or a .prj
+    /// file (default: the camera file's; an RPC's: the WGS84 UTM zone of
+    /// the scene's centre).
+    #[arg(long)]
     pub crs: Option<String>,
     /// DEM (GeoTIFF or SRTM .hgt), in the orthophoto's CRS or any other
     /// (it is then reprojected on the fly).
@@ -419,17 +420,12 @@ impl RectifyArgs {
             (None, None) if self.sensor.rpc.is_some() => DemSource::ModelHeight,
             _ => return Err(gcm_ortho::Error::setting("dem", "give a DEM file or a constant height")),
         };
-        let crs = match &self.crs {
-            // A frame camera's CRS is its camera file's: refused, not ignored.
-            Some(_) if self.sensor.rpc.is_none() => {
-                return Err(gcm_ortho::Error::setting("crs", "goes with --rpc; a frame camera's CRS is its camera file's crs"));
-            }
-            None => None,
-            Some(c) => {
-                Some(gcm_ortho::camera::Crs::parse(c).ok_or_else(|| gcm_ortho::Error::setting("crs", format!("'{c}' is not of the form EPSG:<code>")))?.epsg)
-            }
-        };
-        let (camera, model) = self.sensor.model(crs)?;
+        let crs = self
+            .crs
+            .as_deref()
+            .map(|c| gcm_ortho::geodesy::Crs::parse(c, std::path::Path::new("")).map_err(|m| gcm_ortho::Error::setting("crs", m)))
+            .transpose()?;
+        let (camera, model) = self.sensor.model()?;
         let mut o = RectifyOptions::new(self.sensor.image.clone(), camera, dem, self.output.clone());
         o.model = model;
         o.dem_hole = parse_miss("dem_hole", &self.dem_hole)?;
@@ -438,6 +434,7 @@ impl RectifyArgs {
         o.bounds = parse_bounds("bounds", &self.bounds)?;
         o.snap = self.snap;
         o.like = self.like.clone();
+        o.crs = crs;
         o.window = self.window.as_deref().map(|w| parse_window("window", w)).transpose()?;
         let max_error = match &self.max_error {
             Some(e) => parse_max_error("max_error", e)?,

@@ -191,7 +191,7 @@ fn print_report(r: &Report) {
         r.grid.height,
         r.grid.gsd,
         // Ground units: degrees in a geographic CRS.
-        if r.crs.strip_prefix("EPSG:").and_then(|c| c.parse().ok()).and_then(gcm_ortho::io::geotiff::is_geographic).unwrap_or(false) { "°" } else { "m" },
+        if r.geographic { "°" } else { "m" },
         r.crs,
         r.wall_seconds,
         r.input_mb_per_s,
@@ -256,7 +256,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
             (info.width, info.height)
         }
     };
-    let dem = Dem::open(&dem_path, cam.crs.epsg)?;
+    let dem = Dem::open(&dem_path, &cam.crs)?;
     let z0 = dem.mean_height().unwrap_or_else(|| cam.height_hint());
     let gsd = mean_gsd(cam.model(), &dem, w, h, z0)?;
     let grid = auto_grid(cam.model(), &dem, w, h, z0, gsd)?;
@@ -336,7 +336,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         evaluate(&gcm, a.step, Some(&mut map));
         let (mw, mh) = (grid.width.div_ceil(a.step), grid.height.div_ceil(a.step));
         if let Some(p) = &a.error_map {
-            gcm_ortho::study::maps::write_error_map(p, &map, mw, mh, &grid, a.step, cam.crs.epsg)?;
+            gcm_ortho::study::maps::write_error_map(p, &map, mw, mh, &grid, a.step, &cam.crs)?;
         }
         if let Some(p) = &a.png {
             gcm_ortho::study::maps::write_error_png(p, &map, mw, mh)?;
@@ -357,7 +357,7 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     use gcm_ortho::camera::RpcCamera;
     use gcm_ortho::geodesy::GroundCrs;
     use gcm_ortho::rpcgrid;
-    let (origin, model) = a.sensor.model(None)?;
+    let (origin, model) = a.sensor.model()?;
     let vrt_path = a.output.with_extension("vrt");
     {
         let mut ins = vec![Role::new("image", &a.sensor.image), Role::new("sensor model", &origin), Role::new("DEM", &a.dem)];
@@ -375,7 +375,7 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     };
     // The grid is in longitude/latitude: the model and the DEM in EPSG:4326.
     let model = RpcCamera::new(r.rpc.clone(), GroundCrs::from_epsg(4326).map_err(|m| anyhow!(m))?, r.geoid.clone());
-    let dem = Dem::open(&a.dem, 4326)?;
+    let dem = Dem::open(&a.dem, &gcm_ortho::geodesy::Crs::wgs84())?;
     let info = SourceImage::info_of(&a.sensor.image)?;
     let (w, h) = (info.width, info.height);
     let z0 = dem.mean_height().unwrap_or_else(|| model.height_hint());

@@ -3,7 +3,7 @@
 //! outside the grid. The rest of the program sees only `Dem::height`.
 
 use crate::error::{Error, Result};
-use crate::geodesy::Reprojection;
+use crate::geodesy::{Crs, Reprojection};
 use crate::geom::{floor_split, Plane};
 use crate::io::chunk_cache::ChunkCache;
 use crate::io::chunked_raster::ChunkedRaster;
@@ -99,15 +99,16 @@ pub struct GridDem {
     /// GDAL geotransform (north-up: gt2 = gt4 = 0).
     pub transform: [f64; 6],
     pub nodata: Option<f64>,
-    pub epsg: Option<u32>,
+    /// The CRS its keys name; `None`: taken to be the ground CRS.
+    pub crs: Option<Crs>,
     /// 1/gt1 and 1/gt5: lookups multiply instead of dividing.
     inv_step: (f64, f64),
 }
 
 impl GridDem {
-    pub fn new(width: usize, height: usize, data: Vec<f32>, transform: [f64; 6], nodata: Option<f64>, epsg: Option<u32>) -> GridDem {
+    pub fn new(width: usize, height: usize, data: Vec<f32>, transform: [f64; 6], nodata: Option<f64>, crs: Option<Crs>) -> GridDem {
         assert_eq!(data.len(), width * height);
-        GridDem { width, height, data: Samples::Memory(data), transform, nodata, epsg, inv_step: (1.0 / transform[1], 1.0 / transform[5]) }
+        GridDem { width, height, data: Samples::Memory(data), transform, nodata, crs, inv_step: (1.0 / transform[1], 1.0 / transform[5]) }
     }
 
     /// Is the grid read a chunk at a time?
@@ -323,7 +324,7 @@ impl GridDem {
                 data: Samples::Mosaic(m),
                 transform: t,
                 nodata: None,
-                epsg: g.epsg,
+                crs: g.crs,
                 inv_step: (1.0 / t[1], 1.0 / t[5]),
             };
             if dem.samples((dem.width * dem.height / 20_000).max(1)).iter().all(|v| v.is_nan()) {
@@ -341,6 +342,7 @@ impl GridDem {
         let (w, h) = (raster.width as u32, raster.height as u32);
         let geo = read_georef(&mut dec, path)?.ok_or_else(|| Error::format(path, "the DEM has no georeferencing (no ModelPixelScale/ModelTiepoint)"))?;
         check_north_up(&geo, path)?;
+        let crs = crate::geodesy::geokeys::crs_of(&geo.keys).map_err(|m| Error::format(path, format!("its GeoTIFF keys: {m}")))?;
         if w < 2 || h < 2 {
             return Err(Error::format(path, format!("a DEM of {w}×{h} posts: heights are interpolated between posts, so at least 2×2 are needed")));
         }
@@ -366,7 +368,7 @@ impl GridDem {
                 data: Samples::Chunked(chunked),
                 transform: gt,
                 nodata: geo.nodata,
-                epsg: geo.epsg,
+                crs,
                 inv_step: (1.0 / gt[1], 1.0 / gt[5]),
             };
             // A readable first chunk, or a clear error now rather than NaNs later.
@@ -376,7 +378,7 @@ impl GridDem {
             return Ok(g);
         }
         let data = raster.read_all()?;
-        let g = GridDem::new(w as usize, h as usize, data, geo.transform, geo.nodata, geo.epsg);
+        let g = GridDem::new(w as usize, h as usize, data, geo.transform, geo.nodata, crs);
         if g.samples(1).iter().all(|&v| g.is_nodata(v)) {
             return Err(Error::format(path, "every sample of the DEM is nodata"));
         }
@@ -422,7 +424,7 @@ fn read_hgt(path: &Path) -> Result<GridDem> {
     let (lat, lon) = parse().ok_or_else(|| Error::format(path, "an .hgt file must be named like N44E005.hgt"))?;
     let d = 1.0 / (n - 1) as f64;
     let data = bytes.chunks_exact(2).map(|b| i16::from_be_bytes([b[0], b[1]]) as f32).collect();
-    Ok(GridDem::new(n, n, data, [lon - 0.5 * d, d, 0.0, lat + 1.0 + 0.5 * d, 0.0, -d], Some(-32768.0), Some(4326)))
+    Ok(GridDem::new(n, n, data, [lon - 0.5 * d, d, 0.0, lat + 1.0 + 0.5 * d, 0.0, -d], Some(-32768.0), Some(Crs::wgs84())))
 }
 
 /// A DEM without a nodata tag whose heights include a value that only a
@@ -481,25 +483,31 @@ impl Dem {
         Dem { model: HeightModel::Grid(g), on_hole: Miss::Error, on_outside: Miss::Error, path: path.to_path_buf(), to_dem: None, warnings: Vec::new() }
     }
 
-    /// Reads a DEM for an orthophoto in EPSG:`ground`. A DEM in another CRS
+    /// Reads a DEM for an orthophoto in the CRS `ground`. A DEM in another CRS
     /// (SRTM in EPSG:4326 under a UTM orthophoto) is looked up through a
     /// reprojection; one without a CRS is taken to be in the ground CRS.
-    pub fn open(path: &Path, ground: u32) -> Result<Dem> {
+    pub fn open(path: &Path, ground: &Crs) -> Result<Dem> {
         Dem::open_within(path, ground, IN_MEMORY_LIMIT)
     }
 
     /// As `open`, holding at most about `max_bytes` of heights in memory.
-    pub fn open_within(path: &Path, ground: u32, max_bytes: u64) -> Result<Dem> {
+    pub fn open_within(path: &Path, ground: &Crs, max_bytes: u64) -> Result<Dem> {
         let mut g = GridDem::read_within(path, max_bytes)?;
-        let warning = tag_untagged_voids(&mut g, path);
-        let to_dem = match g.epsg {
+        let mut warnings: Vec<String> = tag_untagged_voids(&mut g, path).into_iter().collect();
+        let to_dem = match &g.crs {
             Some(e) if e != ground => {
                 let r = Reprojection::new(ground, e).map_err(|m| Error::format(path, format!("cannot reproject the DEM: {m}")))?;
-                if crate::io::geotiff::is_geographic(e).unwrap_or(e == 4326) {
+                if e.is_geographic() {
                     let b = g.bounds();
                     if b[0] < -540.0 || b[2] > 540.0 || b[1] < -90.5 || b[3] > 90.5 {
-                        return Err(Error::format(path, format!("the DEM says EPSG:{e} (degrees), but its bounds {b:?} are not longitudes and latitudes")));
+                        return Err(Error::format(path, format!("the DEM says {e} (degrees), but its bounds {b:?} are not longitudes and latitudes")));
                     }
+                }
+                if let Some(d) = e.unknown_datum().or(ground.unknown_datum()) {
+                    warnings.push(format!(
+                        "{}: the datum '{d}' has no shift to WGS84 this build knows; it is taken as WGS84 between the DEM's CRS ({e}) and the ground CRS ({ground}), which may place heights up to hundreds of metres off",
+                        path.display()
+                    ));
                 }
                 Some(r)
             }
@@ -507,7 +515,7 @@ impl Dem {
         };
         let mut dem = Dem::grid(g, path);
         dem.to_dem = to_dem;
-        dem.warnings.extend(warning);
+        dem.warnings.extend(warnings);
         Ok(dem)
     }
 
@@ -556,9 +564,9 @@ impl Dem {
     }
 
     /// Where the DEM is in WGS84 longitude/latitude (EPSG:4326) under
-    /// another ground CRS: that CRS's EPSG code. Its lookups then convert
-    /// ground points with the CRS's `to_lonlat`, as an RPC camera does.
-    pub fn lonlat_from(&self) -> Option<u32> {
+    /// another ground CRS: that CRS. Its lookups then convert ground points
+    /// with the CRS's `to_lonlat`, as an RPC camera does.
+    pub fn lonlat_from(&self) -> Option<&Crs> {
         match (&self.model, &self.to_dem) {
             (HeightModel::Grid(_), Some(r)) => r.to_wgs84_from(),
             _ => None,
@@ -727,7 +735,13 @@ mod tests {
             photometric: 1,
             alpha: false,
             mask: false,
-            geo: Some(GeoTags { x0: 1000.0, y0: 2000.0, gsd: 10.0, epsg: 32631, nodata: None }),
+            geo: Some(GeoTags {
+                x0: 1000.0,
+                y0: 2000.0,
+                gsd: 10.0,
+                keys: crate::geodesy::geokeys::keys_of(&Crs::from_epsg(32631).unwrap()).unwrap(),
+                nodata: None,
+            }),
         };
         write_raster(&path, &spec, |y0, y1, buf| {
             let out: &mut [f32] = bytemuck::cast_slice_mut(buf);

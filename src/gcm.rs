@@ -256,7 +256,7 @@ impl<'a> Gcm<'a> {
         let dem_sampling = match &t.dem.model {
             crate::dem::HeightModel::Grid(g) if kinks.is_none() => {
                 // The posting in metres: degrees count their shortest, at 60° of latitude.
-                let deg = g.epsg.and_then(crate::io::geotiff::is_geographic).unwrap_or(false);
+                let deg = g.crs.as_ref().is_some_and(|c| c.is_geographic());
                 let m = if deg { 111_320.0 * 0.5 } else { 1.0 };
                 let posting = g.transform[1].abs().hypot(g.transform[2].abs()).min(g.transform[5].abs().hypot(g.transform[4].abs())) * m;
                 Some((posting / t.grid.gsd / 2.0).max(1.0))

@@ -262,8 +262,6 @@ pub enum ModelSource {
         offset: Option<[f64; 2]>,
         /// The DEM's heights are above this geoid (PROJ .gtx).
         geoid: Option<PathBuf>,
-        /// The ground CRS (EPSG code); None: the scene's UTM zone.
-        crs: Option<u32>,
     },
     /// Built already (a block's interior file with one row of exterior
     /// orientations); `camera` names where it came from.
@@ -276,12 +274,12 @@ impl ModelSource {
         match self {
             ModelSource::CameraFile => Camera::read(origin),
             ModelSource::Inline(f) => f.clone().build(origin),
-            ModelSource::Rpc { offset, geoid, crs } => {
+            ModelSource::Rpc { offset, geoid } => {
                 let offset = offset.or_else(|| {
                     let xml = crate::io::bounded_read::read_text_bounded(origin, "an RPC file", crate::io::bounded_read::SMALL).ok()?;
                     crate::camera::rpc::Rpc::tile_offset(&xml, image.file_name()?.to_str()?)
                 });
-                Camera::rpc_file(origin, *crs, offset, geoid.as_deref()).build(origin)
+                Camera::rpc_file(origin, offset, geoid.as_deref()).build(origin)
             }
         }
     }
@@ -350,6 +348,9 @@ pub struct RectifyOptions {
     /// The grid (CRS, origin, pixel size, size) of this raster, instead of
     /// `gsd` and `bounds`.
     pub like: Option<PathBuf>,
+    /// The orthophoto's CRS; `None`: the reference grid's (`like`), else
+    /// the camera's (an RPC's: its scene's UTM zone).
+    pub crs: Option<crate::geodesy::Crs>,
     /// Only this piece of the output grid, in tiles: `[col, row, w, h]`.
     /// Pieces made separately assemble into the whole, pixel for pixel.
     pub window: Option<[u32; 4]>,
@@ -517,6 +518,7 @@ impl RectifyOptions {
             bounds: None,
             snap: Snap::Tap,
             like: None,
+            crs: None,
             window: None,
             gcm: GcmSpec { k: 16, mode: CorrectionMode::Bilinear, max_error: Some(Self::DEFAULT_MAX_ERROR) },
             auto_sparsity: true,

@@ -167,31 +167,6 @@ fn an_unbounded_run_far_off_the_exact_model_says_so_even_when_quiet() {
 }
 
 #[test]
-fn a_crs_given_for_a_frame_camera_is_refused_not_ignored() {
-    // The orthophoto's CRS is the camera file's; --crs would be ignored.
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini");
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("o.tif");
-    let r = run(&[
-        "rectify",
-        "--image",
-        s(&root.join("scan.tif")),
-        "--camera",
-        s(&root.join("camera.toml")),
-        "--dem",
-        s(&root.join("dem.tif")),
-        "--crs",
-        "EPSG:4326",
-        "-o",
-        s(&out),
-    ]);
-    let err = String::from_utf8_lossy(&r.stderr);
-    assert_eq!(r.status.code(), Some(2), "{err}");
-    assert!(err.contains("--crs") && err.contains("--rpc"), "{err}");
-    assert!(!out.exists());
-}
-
-#[test]
 fn a_film_scans_margin_is_masked_to_its_format() {
     use gcm_ortho::camera::file::Camera;
     let dir = tempfile::tempdir().unwrap();

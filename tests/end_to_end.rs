@@ -19,7 +19,7 @@ fn rectifies_onto_its_truth(size: u32, tweak: impl FnOnce(&mut gcm_ortho::synth:
     let t = SourceImage::open(sc.truth.as_ref().unwrap(), 1 << 20).unwrap();
     assert_eq!((o.info.width, o.info.height), (t.info.width, t.info.height));
     let (og, tg) = (o.info.georef.clone().unwrap(), t.info.georef.clone().unwrap());
-    assert_eq!((og.transform, og.epsg), (tg.transform, tg.epsg));
+    assert_eq!((og.transform, &og.keys), (tg.transform, &tg.keys));
     // No nodata value: an internal mask says where the image is.
     assert!(og.nodata.is_none() && o.info.mask.is_some(), "{og:?}");
     let c = compare(&read_grey(&out, 0.0).unwrap(), &read_grey(sc.truth.as_ref().unwrap(), 0.0).unwrap(), 48);
@@ -193,7 +193,7 @@ fn a_dem_too_large_for_memory_is_read_in_chunks_with_the_same_result() {
         photometric: 1,
         alpha: false,
         mask: false,
-        geo: Some(GeoTags { x0: gt[0], y0: gt[3], gsd: gt[1] / f as f64, epsg: 32631, nodata: None }),
+        geo: Some(GeoTags { x0: gt[0], y0: gt[3], gsd: gt[1] / f as f64, keys: gcm_ortho::geodesy::geokeys::keys_of_epsg(32631).unwrap(), nodata: None }),
     };
     write_raster(&big, &spec, |y0, y1, buf| {
         let out: &mut [f32] = bytemuck::cast_slice_mut(buf);

@@ -284,7 +284,7 @@ fn rgb_dem() -> Vec<u8> {
         photometric: 2,
         alpha: false,
         mask: false,
-        geo: Some(GeoTags { x0: 649000.0, y0: 4891000.0, gsd: 100.0, epsg: 32631, nodata: None }),
+        geo: Some(GeoTags { x0: 649000.0, y0: 4891000.0, gsd: 100.0, keys: gcm_ortho::geodesy::geokeys::keys_of_epsg(32631).unwrap(), nodata: None }),
     };
     write_raster(&p, &spec, |_, _, buf| buf.fill(100)).unwrap();
     std::fs::read(&p).unwrap()
@@ -310,7 +310,13 @@ fn small_dem(w: u32, h: u32, height: impl Fn(usize) -> f32 + Sync) -> Vec<u8> {
         photometric: 1,
         alpha: false,
         mask: false,
-        geo: Some(GeoTags { x0: 649000.0, y0: 4893000.0, gsd: 4000.0 / w as f64, epsg: 32631, nodata: None }),
+        geo: Some(GeoTags {
+            x0: 649000.0,
+            y0: 4893000.0,
+            gsd: 4000.0 / w as f64,
+            keys: gcm_ortho::geodesy::geokeys::keys_of_epsg(32631).unwrap(),
+            nodata: None,
+        }),
     };
     write_raster(&p, &spec, |y0, _, buf| {
         for (i, v) in buf.chunks_exact_mut(4).enumerate() {

@@ -517,7 +517,7 @@ fn rpc_grid_corrects_dead_zone_nodes() {
         o.bands = 1;
         o.no_scan = true;
     });
-    let dem = gcm_ortho::dem::Dem::open(&rep.dem, 4326).unwrap();
+    let dem = gcm_ortho::dem::Dem::open(&rep.dem, &gcm_ortho::geodesy::Crs::wgs84()).unwrap();
     let cam = gcm_ortho::camera::file::Camera::read(&rep.camera).unwrap();
     let gcm_ortho::camera::file::Sensor::Rpc(r) = &cam.sensor else { panic!("an RPC camera") };
     let model = gcm_ortho::camera::RpcCamera::new(r.rpc.clone(), gcm_ortho::geodesy::GroundCrs::from_epsg(4326).unwrap(), None);
@@ -552,8 +552,8 @@ fn digitalglobe_tile_offsets_are_read() {
 fn nodes_projected_from_the_dems_longitude_latitude_equal_the_cameras_own() {
     use gcm_ortho::gcm::{CorrectionMode, Gcm, GcmSpec, NodeHeights};
     let rpc = Rpc::read(&ventoux("left_image.geom")).unwrap().cropped(5000.0, 5000.0);
-    let dem = gcm_ortho::dem::Dem::open(&ventoux("srtm_N44E005_crop.tif"), 32631).unwrap();
-    assert_eq!(dem.lonlat_from(), Some(32631));
+    let dem = gcm_ortho::dem::Dem::open(&ventoux("srtm_N44E005_crop.tif"), &gcm_ortho::geodesy::Crs::from_epsg(32631).unwrap()).unwrap();
+    assert_eq!(dem.lonlat_from().and_then(|c| c.epsg()), Some(32631));
     let (x0, y0, gsd, w, h) = VENTOUX_GRID;
     let grid = gcm_ortho::geom::OutputGrid { x0, y0, gsd, width: w, height: h };
     for geoid in [None, Some(gcm_ortho::geodesy::Geoid::read(&ventoux("egm96_15_ventoux.gtx")).unwrap())] {

@@ -7,35 +7,16 @@ use super::atmosphere::Refraction;
 use super::distortion::{Brown, Distortion};
 use super::frame::FrameCamera;
 use super::interior::InteriorOrientation;
+use super::reprojected::Reprojected;
 use super::rotation::AngleConvention;
 use super::rpc::Rpc;
 use super::satellite::RpcCamera;
 use super::SensorModel;
 use crate::error::{Error, Result};
-use crate::geodesy::{utm_zone_epsg, Geoid, GroundCrs};
+use crate::geodesy::{utm_zone, Crs, Geoid, GroundCrs};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-
-/// A coordinate reference system named by its EPSG code.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub struct Crs {
-    pub epsg: u32,
-}
-
-impl Crs {
-    pub fn parse(s: &str) -> Option<Crs> {
-        let code = s.trim().strip_prefix("EPSG:").or_else(|| s.trim().strip_prefix("epsg:"))?;
-        let epsg: u32 = code.parse().ok()?;
-        (epsg > 0).then_some(Crs { epsg })
-    }
-}
-
-impl std::fmt::Display for Crs {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "EPSG:{}", self.epsg)
-    }
-}
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -172,10 +153,14 @@ pub struct CameraFile {
 pub enum Sensor {
     Frame(FrameCamera),
     Rpc(RpcCamera),
+    /// A frame camera whose orthophoto is made in another CRS.
+    ReprojectedFrame(Reprojected<FrameCamera>),
 }
 
-/// A parsed and validated camera: its CRS and its sensor model.
+/// A parsed and validated camera: its ground CRS and its sensor model.
 pub struct Camera {
+    /// The CRS of the model's ground (X, Y): the camera file's, or the
+    /// orthophoto's after [`Camera::in_crs`].
     pub crs: Crs,
     pub sensor: Sensor,
     pub file: CameraFile,
@@ -212,7 +197,7 @@ impl CameraFile {
             "rpc" => return self.build_rpc(path),
             other => return Err(err("camera.model", format!("unknown model '{other}' (expected \"frame\" or \"rpc\")"))),
         }
-        let crs = Crs::parse(&self.crs).ok_or_else(|| err("crs", format!("'{}' is not of the form EPSG:<code>", self.crs)))?;
+        let crs = Crs::parse(&self.crs, path.parent().unwrap_or(Path::new(""))).map_err(|m| err("crs", m))?;
         for (section, present) in [("rpc", self.rpc.is_some())] {
             if present {
                 return Err(err(section, "only for camera.model = \"rpc\"".into()));
@@ -301,11 +286,11 @@ impl CameraFile {
             None => None,
         };
         let crs = if self.crs.trim().eq_ignore_ascii_case("auto") {
-            Crs { epsg: utm_zone_epsg(rpc.long_off, rpc.lat_off) }
+            utm_zone(rpc.long_off, rpc.lat_off)
         } else {
-            Crs::parse(&self.crs).ok_or_else(|| err("crs", format!("'{}' is neither \"auto\" nor of the form EPSG:<code>", self.crs)))?
+            Crs::parse(&self.crs, path.parent().unwrap_or(Path::new(""))).map_err(|m| err("crs", format!("{m}, or \"auto\" (the scene's UTM zone)")))?
         };
-        let ground = GroundCrs::from_epsg(crs.epsg).map_err(|m| err("crs", m))?;
+        let ground = GroundCrs::new(&crs).map_err(|m| err("crs", m))?;
         let model = RpcCamera::new(rpc, ground, geoid);
         Ok(Camera { crs, sensor: Sensor::Rpc(model), file: self })
     }
@@ -317,10 +302,10 @@ impl Camera {
     }
 
     /// The camera file for an RPC file given on the command line.
-    pub fn rpc_file(rpc: &Path, crs: Option<u32>, offset: Option<[f64; 2]>, geoid: Option<&Path>) -> CameraFile {
+    pub fn rpc_file(rpc: &Path, offset: Option<[f64; 2]>, geoid: Option<&Path>) -> CameraFile {
         let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()).to_string_lossy().into_owned();
         CameraFile {
-            crs: crs.map_or("auto".into(), |e| format!("EPSG:{e}")),
+            crs: "auto".into(),
             camera: CameraSection { model: "rpc".into(), focal_length_mm: None },
             interior: None,
             distortion: None,
@@ -334,13 +319,38 @@ impl Camera {
         match &self.sensor {
             Sensor::Frame(f) => f,
             Sensor::Rpc(r) => r,
+            Sensor::ReprojectedFrame(r) => r,
         }
+    }
+
+    /// This camera making its orthophoto in the CRS `ground`: an RPC's
+    /// ground conversion is that CRS's; a frame camera's ground points are
+    /// converted to its own CRS first.
+    pub fn in_crs(self, ground: &Crs) -> std::result::Result<Camera, String> {
+        if *ground == self.crs {
+            return Ok(self);
+        }
+        let sensor = match self.sensor {
+            Sensor::Rpc(r) => Sensor::Rpc(RpcCamera::new(r.rpc, GroundCrs::new(ground)?, r.geoid)),
+            Sensor::Frame(f) => {
+                let near = (f.centre.x, f.centre.y);
+                Sensor::ReprojectedFrame(Reprojected::new(f, &self.crs, ground, near)?)
+            }
+            Sensor::ReprojectedFrame(r) => {
+                let own = r.own_crs().clone();
+                let f = r.inner;
+                let near = (f.centre.x, f.centre.y);
+                Sensor::ReprojectedFrame(Reprojected::new(f, &own, ground, near)?)
+            }
+        };
+        Ok(Camera { crs: ground.clone(), sensor, file: self.file })
     }
 
     /// The frame camera, or an error naming the file for a model that is not one.
     pub fn frame(&self, path: &Path) -> Result<&FrameCamera> {
         match &self.sensor {
             Sensor::Frame(f) => Ok(f),
+            Sensor::ReprojectedFrame(r) => Ok(&r.inner),
             Sensor::Rpc(_) => Err(Error::unsupported(path, "this needs a frame camera, not an RPC model")),
         }
     }
@@ -350,6 +360,7 @@ impl Camera {
     pub fn height_hint(&self) -> f64 {
         match &self.sensor {
             Sensor::Frame(f) => f.centre.z - 1000.0,
+            Sensor::ReprojectedFrame(r) => r.inner.centre.z - 1000.0,
             Sensor::Rpc(r) => r.height_hint(),
         }
     }
@@ -476,7 +487,7 @@ earth_curvature = true
     #[test]
     fn the_issue_example_parses() {
         let cam = build(GOOD).unwrap();
-        assert_eq!(cam.crs.epsg, 32631);
+        assert_eq!(cam.crs.epsg(), Some(32631));
         let frame = cam.frame(Path::new("cam.toml")).unwrap();
         assert_eq!(frame.focal_mm, 152.82);
         assert_eq!(frame.interior.residuals.len(), 4);

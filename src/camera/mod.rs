@@ -7,11 +7,12 @@ pub mod file;
 pub mod frame;
 pub mod interior;
 pub mod lanes;
+pub mod reprojected;
 pub mod rotation;
 pub mod rpc;
 pub mod satellite;
 
-pub use file::{CameraFile, Crs};
+pub use file::CameraFile;
 pub use frame::FrameCamera;
 pub use satellite::RpcCamera;
 
@@ -38,7 +39,7 @@ pub trait SensorModel: Send + Sync {
     /// converts from. A caller holding that conversion's result for its
     /// points (a DEM in EPSG:4326 looked them up) hands it to
     /// [`SensorModel::project_many_lonlat`] instead of converting again.
-    fn lonlat_from(&self) -> Option<u32> {
+    fn lonlat_from(&self) -> Option<&crate::geodesy::Crs> {
         None
     }
 
@@ -73,6 +74,25 @@ pub trait SensorModel: Send + Sync {
     fn image_area(&self) -> Option<crate::geom::ImageArea> {
         None
     }
+}
+
+/// The homography that best fits `model` on `plane` over a 9 × 9 lattice
+/// of the output grid (normalised DLT): `A` for models that are not
+/// central projections of the ground CRS (an RPC, a camera in another CRS).
+pub fn fitted_plane_homography(model: &dyn SensorModel, grid: &OutputGrid, plane: &Plane) -> Option<Matrix3<f64>> {
+    let n = 9;
+    let mut pairs = Vec::with_capacity(n * n);
+    for j in 0..n {
+        for i in 0..n {
+            let u = grid.width as f64 * i as f64 / (n - 1) as f64;
+            let v = grid.height as f64 * j as f64 / (n - 1) as f64;
+            let (x, y) = grid.ground(u, v);
+            if let Some(p) = model.project(x, y, plane.height(x, y)) {
+                pairs.push(((u, v), p));
+            }
+        }
+    }
+    satellite::fit_homography(&pairs)
 }
 
 /// Refines `locate_approx` by Newton steps on `project`: ground (X, Y) at

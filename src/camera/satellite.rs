@@ -53,8 +53,8 @@ impl SensorModel for RpcCamera {
         self.rpc.project(lon, lat, h)
     }
 
-    fn lonlat_from(&self) -> Option<u32> {
-        Some(self.crs.epsg)
+    fn lonlat_from(&self) -> Option<&crate::geodesy::Crs> {
+        Some(&self.crs.crs)
     }
 
     fn project_many_lonlat(&self, lon: &[f64], lat: &[f64], z: &[f64], col: &mut [f64], row: &mut [f64]) {
@@ -75,19 +75,7 @@ impl SensorModel for RpcCamera {
     }
 
     fn plane_homography(&self, grid: &OutputGrid, plane: &Plane) -> Option<Matrix3<f64>> {
-        let n = 9;
-        let mut pairs = Vec::with_capacity(n * n);
-        for j in 0..n {
-            for i in 0..n {
-                let u = grid.width as f64 * i as f64 / (n - 1) as f64;
-                let v = grid.height as f64 * j as f64 / (n - 1) as f64;
-                let (x, y) = grid.ground(u, v);
-                if let Some(p) = self.project(x, y, plane.height(x, y)) {
-                    pairs.push(((u, v), p));
-                }
-            }
-        }
-        fit_homography(&pairs)
+        super::fitted_plane_homography(self, grid, plane)
     }
 
     fn ground_step(&self) -> f64 {

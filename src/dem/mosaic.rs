@@ -37,7 +37,7 @@ pub(super) struct MosaicGrid {
     pub width: usize,
     pub height: usize,
     pub transform: [f64; 6],
-    pub epsg: Option<u32>,
+    pub crs: Option<crate::geodesy::Crs>,
 }
 
 impl Mosaic {
@@ -105,14 +105,17 @@ fn open_folder(dir: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
     }
     let share = max_bytes / files.len() as u64;
     let grids: Vec<GridDem> = files.iter().map(|f| GridDem::read_within(f, share)).collect::<Result<_>>()?;
-    let (step_x, step_y, first_epsg) = (grids[0].transform[1], grids[0].transform[5], grids[0].epsg);
+    let (step_x, step_y, first_epsg) = (grids[0].transform[1], grids[0].transform[5], grids[0].crs.clone());
     let x_min = grids.iter().map(|g| g.transform[0]).fold(f64::INFINITY, f64::min);
     let y_max = grids.iter().map(|g| g.transform[3]).fold(f64::NEG_INFINITY, f64::max);
     let mut tiles = Vec::new();
     let (mut width, mut height) = (0, 0);
     for (g, f) in grids.into_iter().zip(&files) {
-        if g.epsg != first_epsg {
-            return Err(Error::format(f, format!("is in {:?}, the folder's first tile in {:?}: the tiles of a DEM share one CRS", g.epsg, first_epsg)));
+        if g.crs != first_epsg {
+            return Err(Error::format(
+                f,
+                format!("is in {}, the folder's first tile in {}: the tiles of a DEM share one CRS", crs_name(&g.crs), crs_name(&first_epsg)),
+            ));
         }
         if !same(g.transform[1], step_x) || !same(g.transform[5], step_y) {
             return Err(Error::format(
@@ -133,7 +136,7 @@ fn open_folder(dir: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
         height = height.max(y0 + g.height);
         tiles.push(Tile { dst: [x0, y0, g.width, g.height], src: (0, 0), grid: g, nodata: None });
     }
-    let grid = MosaicGrid { width, height, transform: [x_min, step_x, 0.0, y_max, 0.0, step_y], epsg: first_epsg };
+    let grid = MosaicGrid { width, height, transform: [x_min, step_x, 0.0, y_max, 0.0, step_y], crs: first_epsg };
     Ok((Mosaic::new(width, height, tiles), grid))
 }
 
@@ -177,7 +180,7 @@ fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
     }
     let share = max_bytes / sources.len() as u64;
     let mut tiles = Vec::new();
-    let mut epsg = None;
+    let mut crs: Option<crate::geodesy::Crs> = None;
     for s in sources {
         let file = child(s, "SourceFilename").ok_or_else(|| bad("a source without SourceFilename".into()))?;
         let name = file.text().unwrap_or("").trim();
@@ -231,13 +234,13 @@ fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
         if w <= 0 || h <= 0 {
             continue;
         }
-        if epsg.is_some() && grid.epsg.is_some() && grid.epsg != epsg {
-            return Err(Error::format(&tile_path, format!("is in EPSG:{:?}, another source of {} in EPSG:{:?}", grid.epsg, path.display(), epsg)));
+        if crs.is_some() && grid.crs.is_some() && grid.crs != crs {
+            return Err(Error::format(&tile_path, format!("is in {}, another source of {} in {}", crs_name(&grid.crs), path.display(), crs_name(&crs))));
         }
-        epsg = epsg.or(grid.epsg);
+        crs = crs.or(grid.crs.clone());
         tiles.push(Tile { dst: [dx as usize, dy as usize, w as usize, h as usize], src: (sx as usize, sy as usize), grid, nodata });
     }
-    let grid = MosaicGrid { width, height, transform, epsg };
+    let grid = MosaicGrid { width, height, transform, crs };
     Ok((Mosaic::new(width, height, tiles), grid))
 }
 
@@ -247,10 +250,15 @@ fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::No
 
 /// The mosaic's grid, checked as a DEM's is.
 pub(super) fn check(path: &Path, g: &MosaicGrid) -> Result<()> {
-    let geo = crate::io::geotiff::GeoRef { transform: g.transform, epsg: g.epsg, nodata: None };
+    let geo = crate::io::geotiff::GeoRef { transform: g.transform, keys: Default::default(), nodata: None };
     check_north_up(&geo, path)?;
     if g.width < 2 || g.height < 2 {
         return Err(Error::format(path, format!("a DEM mosaic of {}×{} posts", g.width, g.height)));
     }
     Ok(())
+}
+
+/// A tile's CRS for messages.
+fn crs_name(c: &Option<crate::geodesy::Crs>) -> String {
+    c.as_ref().map_or_else(|| "no CRS".to_string(), |c| c.to_string())
 }

@@ -1,11 +1,19 @@
-//! Coordinate reference systems and vertical datums: the ground CRS of an
-//! orthophoto ↔ WGS84 longitude/latitude (through the `proj4rs` crate and
-//! the EPSG definitions of `crs-definitions`), and geoid grids that turn
-//! heights above the geoid (SRTM, most DEMs) into the ellipsoidal heights
-//! an RPC model expects.
+//! Coordinate reference systems and vertical datums: CRSs as users write
+//! them (codes, PROJ strings, WKT, `.prj` files) and as GeoTIFF keys hold
+//! them; the ground CRS of an orthophoto ↔ WGS84 longitude/latitude
+//! (through the `proj4rs` crate and the EPSG definitions of
+//! `crs-definitions`); and geoid grids that turn heights above the geoid
+//! (SRTM, most DEMs) into the ellipsoidal heights an RPC model expects.
 
+mod crs;
+mod datum;
 mod geoid;
+pub mod geokeys;
 mod projection;
+mod vertical;
+mod wkt;
 
+pub use crs::{Crs, ACCEPTED};
 pub use geoid::Geoid;
-pub use projection::{utm_zone_epsg, GroundCrs, Reprojection};
+pub use projection::{utm_zone, utm_zone_epsg, GroundCrs, Reprojection};
+pub use vertical::Vertical;

@@ -1,13 +1,14 @@
-//! A ground CRS named by EPSG code, and conversions through WGS84
-//! longitude/latitude. Geographic CRSs use (longitude, latitude) in degrees
-//! as (X, Y), the order GDAL's geotransforms use.
+//! Conversions between a ground CRS and WGS84 longitude/latitude, and
+//! between two ground CRSs through it. Geographic CRSs use (longitude,
+//! latitude) in degrees as (X, Y), the order GDAL's geotransforms use.
 
+use super::crs::Crs;
 use proj4rs::Proj;
 
 /// A CRS able to convert its (X, Y) to and from WGS84 longitude/latitude.
 pub struct GroundCrs {
-    pub epsg: u32,
-    /// `None` for WGS84 itself (EPSG:4326): no conversion at all.
+    pub crs: Crs,
+    /// `None` for WGS84 longitude/latitude itself: no conversion at all.
     proj: Option<Proj>,
     wgs84: Proj,
     pub geographic: bool,
@@ -18,15 +19,15 @@ fn wgs84() -> Proj {
 }
 
 impl GroundCrs {
+    pub fn new(crs: &Crs) -> Result<GroundCrs, String> {
+        let plain_wgs84 = crs.epsg() == Some(4326) || crate::geodesy::crs::same_tokens(crs.proj4(), "+proj=longlat +datum=WGS84 +no_defs");
+        let proj = if plain_wgs84 { None } else { Some(crs.proj()?) };
+        Ok(GroundCrs { crs: crs.clone(), proj, wgs84: wgs84(), geographic: crs.is_geographic() })
+    }
+
     /// The CRS of an EPSG code, or why it cannot be used.
     pub fn from_epsg(epsg: u32) -> Result<GroundCrs, String> {
-        if epsg == 4326 {
-            return Ok(GroundCrs { epsg, proj: None, wgs84: wgs84(), geographic: true });
-        }
-        let def = u16::try_from(epsg).ok().and_then(crs_definitions::from_code).ok_or_else(|| format!("EPSG:{epsg} is not a CRS this build knows"))?;
-        let proj = Proj::from_proj_string(def.proj4).map_err(|e| format!("EPSG:{epsg} ({}): {e}", def.proj4))?;
-        let geographic = def.proj4.contains("+proj=longlat");
-        Ok(GroundCrs { epsg, proj: Some(proj), wgs84: wgs84(), geographic })
+        GroundCrs::new(&Crs::from_epsg(epsg)?)
     }
 
     /// Ground (X, Y) → WGS84 (longitude °, latitude °).
@@ -71,8 +72,13 @@ pub fn utm_zone_epsg(lon: f64, lat: f64) -> u32 {
     }
 }
 
+/// The WGS84 UTM zone holding (lon, lat).
+pub fn utm_zone(lon: f64, lat: f64) -> Crs {
+    Crs::from_epsg(utm_zone_epsg(lon, lat)).expect("every UTM zone is known")
+}
+
 /// Points of one CRS into another, through WGS84 (identity when both are
-/// the same code).
+/// the same CRS).
 pub struct Reprojection {
     from: GroundCrs,
     to: GroundCrs,
@@ -80,15 +86,15 @@ pub struct Reprojection {
 }
 
 impl Reprojection {
-    pub fn new(from: u32, to: u32) -> Result<Reprojection, String> {
-        Ok(Reprojection { from: GroundCrs::from_epsg(from)?, to: GroundCrs::from_epsg(to)?, identity: from == to })
+    pub fn new(from: &Crs, to: &Crs) -> Result<Reprojection, String> {
+        Ok(Reprojection { from: GroundCrs::new(from)?, to: GroundCrs::new(to)?, identity: from == to })
     }
 
     #[inline]
-    /// The EPSG code converted from, where the target is WGS84 itself
-    /// (EPSG:4326): `apply` then gives that CRS's `to_lonlat` as it is.
-    pub fn to_wgs84_from(&self) -> Option<u32> {
-        (!self.identity && self.to.proj.is_none()).then_some(self.from.epsg)
+    /// The CRS converted from, where the target is WGS84 itself: `apply`
+    /// then gives that CRS's `to_lonlat` as it is.
+    pub fn to_wgs84_from(&self) -> Option<&Crs> {
+        (!self.identity && self.to.proj.is_none()).then_some(&self.from.crs)
     }
 
     pub fn apply(&self, x: f64, y: f64) -> Option<(f64, f64)> {

@@ -1,7 +1,8 @@
-//! GeoTIFF georeferencing: reading the geotransform, CRS and nodata of an
-//! input raster, and writing them for the orthophoto so that GDAL and QGIS
-//! read it as it is (ModelPixelScale, ModelTiepoint, GeoKeyDirectory,
-//! GDAL_NODATA).
+//! GeoTIFF georeferencing: reading the geotransform, GeoTIFF keys and
+//! nodata of an input raster, and writing them for the orthophoto so that
+//! GDAL and QGIS read it as it is (ModelPixelScale, ModelTiepoint,
+//! GeoKeyDirectory with its double and ASCII parameters, GDAL_NODATA). What
+//! the keys mean as a CRS is `geodesy::geokeys`.
 
 use crate::error::{Error, Result};
 use std::io::{Read, Seek};
@@ -9,11 +10,68 @@ use std::path::Path;
 use tiff::decoder::{ifd::Value, Decoder};
 use tiff::tags::Tag;
 
-const GT_MODEL_TYPE: u16 = 1024;
 const GT_RASTER_TYPE: u16 = 1025;
-const GEOGRAPHIC_TYPE: u16 = 2048;
-const PROJECTED_CS_TYPE: u16 = 3072;
 const RASTER_PIXEL_IS_POINT: u16 = 2;
+const RASTER_PIXEL_IS_AREA: u16 = 1;
+const GEO_DOUBLE_PARAMS: u16 = 34736;
+const GEO_ASCII_PARAMS: u16 = 34737;
+
+/// A GeoTIFF key's value: a SHORT in the directory, or doubles or text in
+/// the parameter tags.
+#[derive(Clone, Debug, PartialEq)]
+pub enum GeoKeyValue {
+    Short(u16),
+    Doubles(Vec<f64>),
+    Ascii(String),
+}
+
+/// The keys of a GeoKeyDirectory, in the order read (or to write).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GeoKeys(pub Vec<(u16, GeoKeyValue)>);
+
+impl GeoKeys {
+    pub fn get(&self, id: u16) -> Option<&GeoKeyValue> {
+        self.0.iter().find(|(k, _)| *k == id).map(|(_, v)| v)
+    }
+
+    pub fn short(&self, id: u16) -> Option<u16> {
+        match self.get(id)? {
+            GeoKeyValue::Short(v) => Some(*v),
+            _ => None,
+        }
+    }
+
+    pub fn double(&self, id: u16) -> Option<f64> {
+        match self.get(id)? {
+            GeoKeyValue::Doubles(v) => v.first().copied(),
+            GeoKeyValue::Short(v) => Some(f64::from(*v)),
+            GeoKeyValue::Ascii(_) => None,
+        }
+    }
+
+    pub fn doubles(&self, id: u16) -> Option<&[f64]> {
+        match self.get(id)? {
+            GeoKeyValue::Doubles(v) => Some(v),
+            _ => None,
+        }
+    }
+
+    pub fn ascii(&self, id: u16) -> Option<&str> {
+        match self.get(id)? {
+            GeoKeyValue::Ascii(v) => Some(v),
+            _ => None,
+        }
+    }
+
+    pub fn set(&mut self, id: u16, value: GeoKeyValue) {
+        self.0.retain(|(k, _)| *k != id);
+        self.0.push((id, value));
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
 
 /// Georeferencing of a raster, in GDAL's terms.
 #[derive(Clone, Debug, PartialEq)]
@@ -21,15 +79,9 @@ pub struct GeoRef {
     /// GDAL geotransform: X = gt0 + col·gt1 + row·gt2, Y = gt3 + col·gt4 + row·gt5,
     /// (col, row) continuous with the top-left *corner* of the raster at (0, 0).
     pub transform: [f64; 6],
-    pub epsg: Option<u32>,
+    /// The GeoTIFF keys (the CRS), empty when the file has none.
+    pub keys: GeoKeys,
     pub nodata: Option<f64>,
-}
-
-/// Is this EPSG code a geographic (longitude/latitude) CRS? Answered from
-/// the EPSG definitions of the `crs-definitions` crate.
-pub fn is_geographic(epsg: u32) -> Option<bool> {
-    let def = crs_definitions::from_code(u16::try_from(epsg).ok()?)?;
-    Some(def.proj4.contains("+proj=longlat"))
 }
 
 /// Any numeric tag value (or list of them) as f64s.
@@ -62,7 +114,12 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
     let scale = dec.find_tag(Tag::ModelPixelScaleTag).map_err(tf)?.and_then(as_f64_list);
     let tie = dec.find_tag(Tag::ModelTiepointTag).map_err(tf)?.and_then(as_f64_list);
     let matrix = dec.find_tag(Tag::ModelTransformationTag).map_err(tf)?.and_then(as_f64_list);
-    let keys = dec.find_tag(Tag::GeoKeyDirectoryTag).map_err(tf)?.and_then(as_f64_list).unwrap_or_default();
+    let directory = dec.find_tag(Tag::GeoKeyDirectoryTag).map_err(tf)?.and_then(as_f64_list).unwrap_or_default();
+    let doubles = dec.find_tag(Tag::GeoDoubleParamsTag).map_err(tf)?.and_then(as_f64_list).unwrap_or_default();
+    let ascii = match dec.find_tag(Tag::GeoAsciiParamsTag).map_err(tf)? {
+        Some(Value::Ascii(s)) => s,
+        _ => String::new(),
+    };
     let nodata = match dec.find_tag(Tag::GdalNodata).map_err(tf)? {
         Some(Value::Ascii(s)) => {
             let s = s.trim_matches(char::from(0)).trim();
@@ -70,23 +127,8 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
         }
         _ => None,
     };
-    let mut epsg = None;
-    let mut pixel_is_point = false;
-    if keys.len() >= 4 {
-        let n = keys[3] as usize;
-        for k in 0..n {
-            let Some(e) = keys.get(4 + 4 * k..8 + 4 * k) else { break };
-            let (id, loc, value) = (e[0] as u16, e[1] as u16, e[3]);
-            if loc != 0 {
-                continue;
-            }
-            match id {
-                GT_RASTER_TYPE => pixel_is_point = value as u16 == RASTER_PIXEL_IS_POINT,
-                PROJECTED_CS_TYPE | GEOGRAPHIC_TYPE if (1.0..32767.0).contains(&value) => epsg = epsg.or(Some(value as u32)),
-                _ => {}
-            }
-        }
-    }
+    let keys = geo_keys(&directory, &doubles, &ascii);
+    let pixel_is_point = keys.short(GT_RASTER_TYPE) == Some(RASTER_PIXEL_IS_POINT);
     let mut gt = if let Some(m) = matrix.filter(|m| m.len() >= 16) {
         [m[3], m[0], m[1], m[7], m[4], m[5]]
     } else if let (Some(s), Some(t)) = (scale, tie) {
@@ -106,37 +148,67 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
     if gt.iter().any(|v| !v.is_finite()) {
         return Err(Error::format(path, "geotransform has non-finite values"));
     }
-    Ok(Some(GeoRef { transform: gt, epsg, nodata }))
+    Ok(Some(GeoRef { transform: gt, keys, nodata }))
+}
+
+/// The keys of a GeoKeyDirectory (header of four SHORTs, then four a
+/// key: id, where its value is, count, value or offset), their values taken
+/// from the double and ASCII parameter tags. Keys whose value is out of
+/// range are left out.
+fn geo_keys(directory: &[f64], doubles: &[f64], ascii: &str) -> GeoKeys {
+    let mut keys = GeoKeys::default();
+    let n = directory.get(3).map_or(0, |&n| n as usize);
+    for k in 0..n {
+        let Some(e) = directory.get(4 + 4 * k..8 + 4 * k) else { break };
+        let (id, loc, count, value) = (e[0] as u16, e[1] as u16, e[2] as usize, e[3] as usize);
+        let v = match loc {
+            0 => Some(GeoKeyValue::Short(value as u16)),
+            GEO_DOUBLE_PARAMS => doubles.get(value..value + count).map(|d| GeoKeyValue::Doubles(d.to_vec())),
+            GEO_ASCII_PARAMS => ascii.get(value..value + count).map(|t| GeoKeyValue::Ascii(t.trim_end_matches(['|', '\0']).to_string())),
+            _ => None,
+        };
+        if let Some(v) = v {
+            keys.0.push((id, v));
+        }
+    }
+    keys
 }
 
 /// The tags of north-up georeferencing for a grid with origin (x0, y0)
-/// (north-west corner) and square pixels `gsd`, in the CRS `epsg`
-/// (PixelIsArea): ModelPixelScale, ModelTiepoint, GeoKeyDirectory.
-pub fn georef_tags(x0: f64, y0: f64, gsd: f64, epsg: u32) -> [(u16, crate::io::tiff_out::TagValue); 3] {
+/// (north-west corner) and square pixels `gsd`, with the CRS's GeoTIFF
+/// `keys` (PixelIsArea is added): ModelPixelScale, ModelTiepoint,
+/// GeoKeyDirectory and, where keys need them, GeoDoubleParams and
+/// GeoAsciiParams.
+pub fn georef_tags(x0: f64, y0: f64, gsd: f64, keys: &GeoKeys) -> Vec<(u16, crate::io::tiff_out::TagValue)> {
     use crate::io::tiff_out::TagValue;
-    let geographic = is_geographic(epsg).unwrap_or(false);
-    let (model, cs_key) = if geographic { (2u16, GEOGRAPHIC_TYPE) } else { (1u16, PROJECTED_CS_TYPE) };
-    let keys: [u16; 16] = [
-        1,
-        1,
-        0,
-        3, //
-        GT_MODEL_TYPE,
-        0,
-        1,
-        model, //
-        GT_RASTER_TYPE,
-        0,
-        1,
-        1, // PixelIsArea
-        cs_key,
-        0,
-        1,
-        epsg as u16,
-    ];
-    [
+    let mut all = keys.clone();
+    all.set(GT_RASTER_TYPE, GeoKeyValue::Short(RASTER_PIXEL_IS_AREA));
+    all.0.sort_by_key(|(k, _)| *k);
+    let (mut directory, mut doubles, mut ascii) = (vec![1u16, 1, 0, all.0.len() as u16], Vec::<f64>::new(), String::new());
+    for (id, v) in &all.0 {
+        match v {
+            GeoKeyValue::Short(s) => directory.extend([*id, 0, 1, *s]),
+            GeoKeyValue::Doubles(d) => {
+                directory.extend([*id, GEO_DOUBLE_PARAMS, d.len() as u16, doubles.len() as u16]);
+                doubles.extend(d);
+            }
+            GeoKeyValue::Ascii(t) => {
+                let t = format!("{}|", t.replace('|', "/"));
+                directory.extend([*id, GEO_ASCII_PARAMS, t.len() as u16, ascii.len() as u16]);
+                ascii.push_str(&t);
+            }
+        }
+    }
+    let mut tags = vec![
         (Tag::ModelPixelScaleTag.to_u16(), TagValue::Double(vec![gsd, gsd, 0.0])),
         (Tag::ModelTiepointTag.to_u16(), TagValue::Double(vec![0.0, 0.0, 0.0, x0, y0, 0.0])),
-        (Tag::GeoKeyDirectoryTag.to_u16(), TagValue::Short(keys.to_vec())),
-    ]
+        (Tag::GeoKeyDirectoryTag.to_u16(), TagValue::Short(directory)),
+    ];
+    if !doubles.is_empty() {
+        tags.push((GEO_DOUBLE_PARAMS, TagValue::Double(doubles)));
+    }
+    if !ascii.is_empty() {
+        tags.push((GEO_ASCII_PARAMS, TagValue::Ascii(ascii)));
+    }
+    tags
 }

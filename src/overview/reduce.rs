@@ -35,7 +35,7 @@ impl ValidBy {
     /// its internal mask, else its nodata value (NaN for floats), else its
     /// alpha band.
     pub fn of(spec: &crate::io::tiff_out::OutputSpec) -> ValidBy {
-        match spec.geo.and_then(|g| g.nodata) {
+        match spec.geo.as_ref().and_then(|g| g.nodata) {
             _ if spec.mask => ValidBy::Mask,
             Some(v) if v.is_nan() => ValidBy::Nan,
             Some(v) => ValidBy::Nodata(v),

@@ -131,6 +131,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         config: RectifyOptions { gcm: plan.gcm, auto_sparsity: false, band_order: plan.band_order, ..opts.clone() },
         grid: plan.grid,
         crs: plan.camera.crs.to_string(),
+        geographic: plan.camera.crs.is_geographic(),
         scan: ScanInfo {
             width: src.info.width,
             height: src.info.height,

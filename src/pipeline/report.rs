@@ -21,6 +21,8 @@ pub struct Report {
     pub config: crate::options::RectifyOptions,
     pub grid: OutputGrid,
     pub crs: String,
+    /// Ground units are degrees.
+    pub geographic: bool,
     pub scan: ScanInfo,
     pub bands: u32,
     pub chunks: u64,

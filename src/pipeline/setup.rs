@@ -8,12 +8,11 @@ use crate::camera::file::{Camera, Sensor};
 use crate::dem::{Dem, HeightModel};
 use crate::error::{Error, Result};
 use crate::gcm::GcmSpec;
-use crate::geodesy::GroundCrs;
+use crate::geodesy::{Crs, GroundCrs};
 use crate::geom::OutputGrid;
-use crate::io::geotiff::is_geographic;
 use crate::io::source::{SampleType, SourceImage};
 use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec};
-use crate::options::{BandOrder, BigTiff, DemSource, ModelSource, Nodata, RectifyOptions};
+use crate::options::{BandOrder, BigTiff, DemSource, Nodata, RectifyOptions};
 use crate::overview::Pyramid;
 use crate::progress::Progress;
 use crate::transform::footprint::{auto_grid, mean_gsd};
@@ -46,20 +45,28 @@ impl RunPlan {
     pub fn new(opts: &RectifyOptions, progress: &dyn Progress) -> Result<RunPlan> {
         let mut budget = MemoryBudget::new(opts.memory);
         let like = opts.like.as_deref().map(reference_grid).transpose()?;
-        // An RPC's ground CRS is the reference grid's unless given.
-        let model = match (&opts.model, &like) {
-            (ModelSource::Rpc { offset, geoid, crs: None }, Some((_, epsg))) => ModelSource::Rpc { offset: *offset, geoid: geoid.clone(), crs: Some(*epsg) },
-            (m, _) => m.clone(),
+        let camera = opts.model.load(&opts.image, &opts.camera)?;
+        // The orthophoto's CRS: as given, else the reference grid's, else
+        // the camera's.
+        let ground = match (&opts.crs, &like) {
+            (Some(c), Some((_, l))) if c != l => {
+                let path = opts.like.as_deref().unwrap_or(std::path::Path::new("")).display();
+                return Err(Error::setting("crs", format!("{c}, but the reference grid {path} is in {l}: give one of the two")));
+            }
+            (Some(c), _) => c.clone(),
+            (None, Some((_, l))) => l.clone(),
+            (None, None) => camera.crs.clone(),
         };
-        let camera = model.load(&opts.image, &opts.camera)?;
-        if let (Some((_, epsg)), Some(path)) = (&like, &opts.like) {
-            if *epsg != camera.crs.epsg {
-                return Err(Error::setting(
-                    "like",
-                    format!("{} is in EPSG:{epsg}, the camera's ground CRS is {}: the orthophoto is made in the camera's", path.display(), camera.crs),
+        if ground != camera.crs {
+            if let Some(d) = ground.unknown_datum().or(camera.crs.unknown_datum()) {
+                progress.warn(&format!(
+                    "{}: the datum '{d}' has no shift to WGS84 this build knows; it is taken as WGS84 between the camera's CRS ({}) and the orthophoto's ({ground}), which may place the orthophoto up to hundreds of metres off",
+                    opts.camera.display(),
+                    camera.crs
                 ));
             }
         }
+        let camera = camera.in_crs(&ground).map_err(|m| Error::setting("crs", m))?;
         let src = SourceImage::open_within(&opts.image, budget.scan_cache() as usize, budget.total())?;
         // What decoding the scan's chunks holds (JPEG 2000) comes off the
         // top; the shares are of what is left.
@@ -84,11 +91,11 @@ impl RunPlan {
             budget = MemoryBudget::new(budget.total() - decoding);
         }
         let mut dem = match &opts.dem {
-            DemSource::File(p) => Dem::open_within(p, camera.crs.epsg, budget.dem())?,
+            DemSource::File(p) => Dem::open_within(p, &camera.crs, budget.dem())?,
             DemSource::Height(h) => Dem::flat(*h),
             DemSource::ModelHeight => match &camera.sensor {
                 Sensor::Rpc(r) => Dem::flat(r.height_hint()),
-                Sensor::Frame(_) => return Err(Error::setting("dem", "a frame camera needs a DEM file or a constant height")),
+                Sensor::Frame(_) | Sensor::ReprojectedFrame(_) => return Err(Error::setting("dem", "a frame camera needs a DEM file or a constant height")),
             },
         };
         for w in &dem.warnings {
@@ -102,10 +109,15 @@ impl RunPlan {
         if let Sensor::Rpc(r) = &camera.sensor {
             check_geoid_covers(r, sw, sh, z_guess)?;
         }
-        if let Sensor::Frame(f) = &camera.sensor {
+        let frame = match &camera.sensor {
+            Sensor::Frame(f) => Some((f, Some((f.centre.x, f.centre.y)))),
+            Sensor::ReprojectedFrame(r) => Some((&r.inner, r.to_ground(r.inner.centre.x, r.inner.centre.y))),
+            Sensor::Rpc(_) => None,
+        };
+        if let Some((f, centre)) = frame {
             // The ground under the camera where the DEM has it, else its mean.
-            let below = match dem.height(f.centre.x, f.centre.y) {
-                crate::dem::Height::Value(z) => z,
+            let below = match centre.map(|(x, y)| dem.height(x, y)) {
+                Some(crate::dem::Height::Value(z)) => z,
                 _ => z_guess,
             };
             f.check_sees_ground(sw, sh, below, &opts.camera)?;
@@ -166,7 +178,7 @@ impl RunPlan {
         };
         let mut gcm = opts.gcm;
         if opts.auto_sparsity {
-            gcm.k = auto_sparsity(&dem, &grid, camera.crs.epsg);
+            gcm.k = auto_sparsity(&dem, &grid, &camera.crs);
             // Fine node spacing on a wide output: the node rows of the bands
             // in flight would outgrow their share of the budget; the error
             // bound's refinement then does the DEM lines' work instead.
@@ -233,7 +245,7 @@ impl RunPlan {
                 x0: grid.x0 + (tc0 * tile) as f64 * grid.gsd,
                 y0: grid.y0 - (tr0 * tile) as f64 * grid.gsd,
                 gsd: grid.gsd,
-                epsg: camera.crs.epsg,
+                keys: crate::geodesy::geokeys::keys_of(&camera.crs).map_err(|m| Error::setting("crs", m))?,
                 nodata,
             }),
         };
@@ -335,18 +347,20 @@ fn check_geoid_covers(r: &crate::camera::RpcCamera, w: u32, h: u32, z: f64) -> R
 }
 
 /// The grid of a reference raster (north-up, square pixels) and its CRS.
-fn reference_grid(path: &std::path::Path) -> Result<(OutputGrid, u32)> {
+fn reference_grid(path: &std::path::Path) -> Result<(OutputGrid, Crs)> {
     let info = SourceImage::info_of(path)?;
     let g = info.georef.ok_or_else(|| Error::format(path, "has no georeferencing to take the grid from"))?;
     let t = g.transform;
-    let epsg = g.epsg.ok_or_else(|| Error::format(path, "names no EPSG CRS to take the grid from"))?;
+    let crs = crate::geodesy::geokeys::crs_of(&g.keys)
+        .map_err(|m| Error::format(path, format!("its GeoTIFF keys: {m}")))?
+        .ok_or_else(|| Error::format(path, "names no CRS to take the grid from"))?;
     if t[2] != 0.0 || t[4] != 0.0 {
         return Err(Error::unsupported(path, "a turned grid (the orthophoto is north-up)"));
     }
     if !(t[1] > 0.0 && t[5] < 0.0) || (t[1] + t[5]).abs() > 1e-9 * t[1] {
         return Err(Error::unsupported(path, format!("pixels of {} × {} (only square, north-up pixels)", t[1], -t[5])));
     }
-    Ok((OutputGrid { x0: t[0], y0: t[3], gsd: t[1], width: info.width, height: info.height }, epsg))
+    Ok((OutputGrid { x0: t[0], y0: t[3], gsd: t[1], width: info.width, height: info.height }, crs))
 }
 
 /// What `auto` means for these samples: NaN (outside any data) for
@@ -404,10 +418,10 @@ fn fewer_scan_rows(approx: &Approx, grid: &OutputGrid, tile: u32) -> BandOrder {
 /// corrections are smooth between nodes (Chibunichev and Sonyushkin likewise
 /// ask for grid nodes no sparser than the DEM). A DEM posted finer still (a
 /// drone's DSM) is left to the refinement under the error bound.
-fn auto_sparsity(dem: &Dem, grid: &OutputGrid, ground_epsg: u32) -> u32 {
+fn auto_sparsity(dem: &Dem, grid: &OutputGrid, ground: &Crs) -> u32 {
     let HeightModel::Grid(g) = &dem.model else { return 16 };
-    let metres = |epsg: Option<u32>, v: f64, lat_scale: f64| {
-        if epsg.and_then(is_geographic).unwrap_or(false) {
+    let metres = |crs: Option<&Crs>, v: f64, lat_scale: f64| {
+        if crs.is_some_and(|c| c.is_geographic()) {
             v * 111_320.0 * lat_scale
         } else {
             v
@@ -415,14 +429,14 @@ fn auto_sparsity(dem: &Dem, grid: &OutputGrid, ground_epsg: u32) -> u32 {
     };
     let lat_mid = {
         let (x, y) = grid.ground(grid.width as f64 / 2.0, grid.height as f64 / 2.0);
-        match GroundCrs::from_epsg(ground_epsg).ok().and_then(|c| c.to_lonlat(x, y)) {
+        match GroundCrs::new(ground).ok().and_then(|c| c.to_lonlat(x, y)) {
             Some((_, lat)) => lat,
             None => 0.0,
         }
     };
     let cos = lat_mid.to_radians().cos();
-    let post = metres(g.epsg, g.transform[1].abs(), cos).min(metres(g.epsg, g.transform[5].abs(), 1.0));
-    let gsd = metres(Some(ground_epsg), grid.gsd, 1.0);
+    let post = metres(g.crs.as_ref(), g.transform[1].abs(), cos).min(metres(g.crs.as_ref(), g.transform[5].abs(), 1.0));
+    let gsd = metres(Some(ground), grid.gsd, 1.0);
     if !(post > 0.0 && gsd > 0.0) {
         return 16;
     }

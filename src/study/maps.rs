@@ -10,7 +10,7 @@ use crate::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSp
 use std::path::Path;
 
 /// Float32 GeoTIFF of the sampled error (NaN where not evaluated).
-pub fn write_error_map(path: &Path, map: &[f32], w: u32, h: u32, grid: &OutputGrid, step: u32, epsg: u32) -> Result<()> {
+pub fn write_error_map(path: &Path, map: &[f32], w: u32, h: u32, grid: &OutputGrid, step: u32, crs: &crate::geodesy::Crs) -> Result<()> {
     let spec = OutputSpec {
         overviews: 0,
         cog: false,
@@ -25,7 +25,13 @@ pub fn write_error_map(path: &Path, map: &[f32], w: u32, h: u32, grid: &OutputGr
         photometric: 1,
         alpha: false,
         mask: false,
-        geo: Some(GeoTags { x0: grid.x0, y0: grid.y0, gsd: grid.gsd * step as f64, epsg, nodata: None }),
+        geo: Some(GeoTags {
+            x0: grid.x0,
+            y0: grid.y0,
+            gsd: grid.gsd * step as f64,
+            keys: crate::geodesy::geokeys::keys_of(crs).map_err(Error::Geometry)?,
+            nodata: None,
+        }),
     };
     write_raster(path, &spec, |y0, y1, buf| {
         let src = &map[(y0 * w) as usize..(y1 * w) as usize];

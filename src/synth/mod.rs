@@ -324,7 +324,7 @@ fn relief_grid(
             (ground + above) as f32
         })
         .collect();
-    GridDem::new(nx, ny, data, gt, None, Some(epsg))
+    GridDem::new(nx, ny, data, gt, None, Some(crate::geodesy::Crs::from_epsg(epsg).expect("synthetic scenes use known codes")))
 }
 
 /// Height above the ground of the town at (x, y), metres: lots of 32 m
@@ -375,7 +375,14 @@ fn write_dem(path: &std::path::Path, g: &GridDem) -> Result<()> {
         photometric: 1,
         alpha: false,
         mask: false,
-        geo: Some(GeoTags { x0: g.transform[0], y0: g.transform[3], gsd: g.transform[1], epsg: g.epsg.unwrap_or(EPSG), nodata: None }),
+        geo: Some(GeoTags {
+            x0: g.transform[0],
+            y0: g.transform[3],
+            gsd: g.transform[1],
+            keys: crate::geodesy::geokeys::keys_of(&g.crs.clone().unwrap_or_else(|| crate::geodesy::Crs::from_epsg(EPSG).expect("known")))
+                .map_err(Error::Geometry)?,
+            nodata: None,
+        }),
     };
     write_raster(path, &spec, |y0, y1, buf| {
         let w = g.width;
@@ -595,7 +602,13 @@ fn render_truth(o: &SynthOptions, sc: &Scene<'_>, scan: &OutputSpec, grid: &crat
         chunking: Chunking::Tiles(256),
         compression: Compression::Deflate,
         level: None,
-        geo: Some(GeoTags { x0: grid.x0, y0: grid.y0, gsd: grid.gsd, epsg: EPSG, nodata: Some(0.0) }),
+        geo: Some(GeoTags {
+            x0: grid.x0,
+            y0: grid.y0,
+            gsd: grid.gsd,
+            keys: crate::geodesy::geokeys::keys_of(&crate::geodesy::Crs::from_epsg(EPSG).expect("known")).map_err(Error::Geometry)?,
+            nodata: Some(0.0),
+        }),
         bigtiff: false,
         ..scan.clone()
     };

@@ -188,7 +188,7 @@ pub fn f32_raster(path: &Path, (w, h): (u32, u32), (x0, y0, gsd, epsg): (f64, f6
         photometric: 1,
         alpha: false,
         mask: false,
-        geo: Some(GeoTags { x0, y0, gsd, epsg, nodata: None }),
+        geo: Some(GeoTags { x0, y0, gsd, keys: gcm_ortho::geodesy::geokeys::keys_of_epsg(epsg).unwrap(), nodata: None }),
     };
     write_raster(path, &spec, |r0, _, buf| {
         for (k, v) in buf.chunks_exact_mut(4).enumerate() {

@@ -57,13 +57,14 @@ impl Compression {
 }
 
 /// North-up georeferencing of a written raster.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct GeoTags {
     /// Ground X of the west edge, Y of the north edge, pixel size.
     pub x0: f64,
     pub y0: f64,
     pub gsd: f64,
-    pub epsg: u32,
+    /// The CRS as GeoTIFF keys.
+    pub keys: crate::io::geotiff::GeoKeys,
     pub nodata: Option<f64>,
 }
 

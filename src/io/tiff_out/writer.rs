@@ -305,9 +305,9 @@ fn directories(spec: &OutputSpec, offsets: &[u64], places: &[(u64, u64)], gdal_m
         if spec.predictor() != 1 {
             d.set(317, Value::Short(vec![spec.predictor()]));
         }
-        if let Some(g) = spec.geo {
+        if let Some(g) = &spec.geo {
             if l == 0 {
-                for (tag, value) in georef_tags(g.x0, g.y0, g.gsd, g.epsg) {
+                for (tag, value) in georef_tags(g.x0, g.y0, g.gsd, &g.keys) {
                     d.set(tag, value);
                 }
                 if let Some(m) = &gdal_metadata {

@@ -1,0 +1,106 @@
+//! The vertical part of a compound CRS: which heights a DEM holds. Heights
+//! above a geoid (EGM96, EGM2008, national height systems) differ from the
+//! ellipsoidal heights an RPC model expects by the geoid's undulation; the
+//! grids PROJ uses for the common ones are named here, so that a DEM that
+//! says it holds EGM96 heights gets its geoid without `--geoid`.
+
+use std::path::PathBuf;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Vertical {
+    pub epsg: Option<u32>,
+    pub name: String,
+    /// Geoid grid files, in PROJ's names, any one of which gives this
+    /// height's undulation.
+    pub grids: Vec<String>,
+}
+
+/// Vertical CRSs by EPSG code: name, PROJ's geoid grids for them.
+const KNOWN: &[(u32, &str, &[&str])] = &[
+    (5773, "EGM96 height", &["egm96_15.gtx", "us_nga_egm96_15.tif"]),
+    (3855, "EGM2008 height", &["egm08_25.gtx", "us_nga_egm08_25.tif"]),
+    (5798, "EGM84 height", &["egm84-15.gtx", "us_nga_egm84_15.tif"]),
+    (5703, "NAVD88 height", &["us_noaa_g2018u0.tif"]),
+    (5701, "ODN height", &["uk_os_OSGM15_GB.tif"]),
+    (5714, "MSL height", &[]),
+    (5705, "Baltic 1977 height", &[]),
+    (7837, "DHHN2016 height", &["de_bkg_gcg2016.tif"]),
+    (5720, "NGF-IGN69 height", &["fr_ign_RAF18.tif"]),
+    (9287, "NZVD2016 height", &["nz_linz_nzgeoid2016.tif"]),
+    (5711, "AHD height", &["au_ga_AUSGeoid2020_20180201.tif"]),
+];
+
+impl Vertical {
+    /// The vertical CRS of an EPSG code. Codes not in the table are kept
+    /// (with no grid named) unless they are a horizontal CRS.
+    pub fn from_epsg(code: u32) -> Result<Vertical, String> {
+        if let Some((c, name, grids)) = KNOWN.iter().find(|(c, ..)| *c == code) {
+            return Ok(Vertical { epsg: Some(*c), name: name.to_string(), grids: grids.iter().map(|g| g.to_string()).collect() });
+        }
+        if u16::try_from(code).ok().and_then(crs_definitions::from_code).is_some() {
+            return Err(format!("EPSG:{code} is a horizontal CRS, not the vertical part of a compound one"));
+        }
+        Ok(Vertical { epsg: Some(code), name: format!("EPSG:{code}"), grids: Vec::new() })
+    }
+
+    /// Whether this code is a vertical CRS this build names.
+    pub fn is_known(code: u32) -> bool {
+        KNOWN.iter().any(|(c, ..)| *c == code)
+    }
+
+    /// The `+geoidgrids=` of a PROJ string.
+    pub fn from_proj4(s: &str) -> Option<Vertical> {
+        let grids = s.split_whitespace().find_map(|t| t.strip_prefix("+geoidgrids="))?;
+        let grids: Vec<String> = grids.split(',').map(|g| g.trim_start_matches('@').to_string()).filter(|g| !g.is_empty()).collect();
+        Some(Vertical { epsg: None, name: format!("heights above the geoid of {}", grids.join(" or ")), grids })
+    }
+
+    /// A WKT `VERT_CS` / `VERTCRS`: its code, or its name and any grid
+    /// GDAL names in `EXTENSION["PROJ4_GRIDS", …]` or WKT2's `GEOIDMODEL`.
+    pub fn from_wkt(node: &super::wkt::Node) -> Result<Vertical, String> {
+        if let Some(code) = node.epsg() {
+            return Vertical::from_epsg(code);
+        }
+        let name = node.name().unwrap_or("unnamed vertical CRS").to_string();
+        let mut grids = Vec::new();
+        if let Some(ext) = node.find(&["EXTENSION"]) {
+            if ext.name() == Some("PROJ4_GRIDS") {
+                if let Some(super::wkt::Item::Text(g)) = ext.items.get(1) {
+                    grids.extend(g.split(',').map(|s| s.trim_start_matches('@').to_string()));
+                }
+            }
+        }
+        if let Some(model) = node.find(&["GEOIDMODEL"]) {
+            if let Some(code) = model.epsg() {
+                if let Some((_, _, g)) = KNOWN.iter().find(|(c, ..)| *c == code) {
+                    grids.extend(g.iter().map(|s| s.to_string()));
+                }
+            }
+        }
+        Ok(Vertical { epsg: None, name, grids })
+    }
+
+    /// The first of this height's geoid grids found where PROJ keeps its
+    /// grids (`PROJ_DATA`, `PROJ_LIB`, the user's and the system's proj
+    /// folders), in a format this build reads (`.gtx`).
+    pub fn find_grid(&self) -> Option<PathBuf> {
+        let home = std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local/share/proj"));
+        let dirs: Vec<PathBuf> = ["PROJ_DATA", "PROJ_LIB"]
+            .iter()
+            .filter_map(std::env::var_os)
+            .flat_map(|v| std::env::split_paths(&v).collect::<Vec<_>>())
+            .chain(home)
+            .chain(["/usr/local/share/proj", "/usr/share/proj"].map(PathBuf::from))
+            .collect();
+        self.grids.iter().filter(|g| g.ends_with(".gtx")).flat_map(|g| dirs.iter().map(move |d| d.join(g))).find(|p| p.is_file())
+    }
+}
+
+impl std::fmt::Display for Vertical {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.epsg {
+            Some(c) if self.name != format!("EPSG:{c}") => write!(f, "EPSG:{c} ({})", self.name),
+            _ => f.write_str(&self.name),
+        }
+    }
+}
