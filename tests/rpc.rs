@@ -687,3 +687,45 @@ fn a_geoid_grid_short_of_the_scene_is_refused_with_both_extents() {
     assert!(err.contains("west.gtx") && err.contains("latitudes 44.100..44.170") && err.contains("the image spans"), "{err}");
     assert!(!out.exists());
 }
+
+/// A DEM whose GeoTIFF keys say its heights are EGM96 heights (EPSG:4326 +
+/// 5773, as GDAL writes a compound CRS) gets the EGM96 geoid from where
+/// PROJ keeps its grids, with no --geoid: the orthophoto of --geoid with
+/// that grid, byte for byte. Without the grid there, refused naming it.
+#[test]
+fn a_dem_in_egm96_heights_gets_its_geoid_from_projs_grids() {
+    if !have("gdal_translate") {
+        eprintln!("skipped: GDAL is not installed");
+        return;
+    }
+    let (dir, with_geoid, _) = ventoux_maps(true, &[], false);
+    let d = dir.path();
+    let dem = d.join("dem-egm96.tif");
+    let out = Command::new("gdal_translate").args(["-q", "-a_srs", "EPSG:4326+5773", s(&ventoux("srtm_N44E005_crop.tif")), s(&dem)]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (proj, empty) = (d.join("proj"), d.join("empty"));
+    std::fs::create_dir_all(&proj).unwrap();
+    std::fs::create_dir_all(&empty).unwrap();
+    std::fs::copy(ventoux("egm96_15_ventoux.gtx"), proj.join("egm96_15.gtx")).unwrap();
+    let (x0, y0, gsd, w, h) = VENTOUX_GRID;
+    let bounds = format!("{x0},{},{},{y0}", y0 - h as f64 * gsd, x0 + w as f64 * gsd);
+    let rectify = |proj_data: &Path, out: &Path| {
+        Command::new(bin())
+            .args(["rectify", "--image", s(&d.join("coords.tif")), "--rpc", s(&d.join("coords_RPC.TXT")), "--dem", s(&dem), "--crs", "EPSG:32631"])
+            .args(["--bounds", &bounds, "--gsd", "0.5", "--nodata", "-1", "--compress", "none", "--quiet", "-o", s(out)])
+            .env("PROJ_DATA", proj_data)
+            .env("HOME", d)
+            .output()
+            .unwrap()
+    };
+    let found = d.join("found.tif");
+    let r = rectify(&proj, &found);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(whole_image(&found).0 == whole_image(&with_geoid).0, "the geoid found is not applied as --geoid applies it");
+    let missing = d.join("missing.tif");
+    let r = rectify(&empty, &missing);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("EGM96") && err.contains("egm96_15.gtx") && err.contains("--geoid"), "{err}");
+    assert!(!missing.exists());
+}

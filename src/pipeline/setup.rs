@@ -103,6 +103,12 @@ impl RunPlan {
         }
         dem.on_hole = opts.dem_hole;
         dem.on_outside = opts.dem_outside;
+        let mut camera = camera;
+        if let Sensor::Rpc(r) = &mut camera.sensor {
+            if r.geoid.is_none() {
+                r.geoid = geoid_of_heights(&dem, opts.crs.as_ref(), progress)?;
+            }
+        }
         let model = camera.model();
         let (sw, sh) = (src.info.width, src.info.height);
         let z_guess = dem.mean_height().unwrap_or_else(|| camera.height_hint());
@@ -317,6 +323,39 @@ fn check_denominators(r: &crate::camera::RpcCamera, grid: &OutputGrid, dem: &Dem
         }
     }
     Ok(())
+}
+
+/// The geoid an RPC camera needs when the DEM's CRS (else the given
+/// `--crs`) says its heights are above one: the grid PROJ uses for that
+/// height, found where PROJ keeps its grids. Named but not found is an
+/// error (the heights would be off by the undulation, tens of metres); a
+/// geoid height without a known grid, a warning.
+fn geoid_of_heights(dem: &Dem, crs: Option<&Crs>, progress: &dyn Progress) -> Result<Option<crate::geodesy::Geoid>> {
+    let from_dem = match &dem.model {
+        HeightModel::Grid(g) => g.crs.as_ref().and_then(|c| c.vertical()),
+        HeightModel::Flat(_) => None,
+    };
+    let (vertical, whose) = match (from_dem, crs.and_then(|c| c.vertical())) {
+        (Some(v), _) => (v, format!("the DEM {}", dem.path.display())),
+        (None, Some(v)) => (v, "--crs".to_string()),
+        (None, None) => return Ok(None),
+    };
+    if vertical.grids.is_empty() {
+        progress.warn(&format!(
+            "{whose} says its heights are {vertical}, a height system without a geoid grid this build knows; the RPC's ellipsoidal heights are taken as they are unless --geoid gives the grid"
+        ));
+        return Ok(None);
+    }
+    match vertical.find_grid() {
+        Some(path) => crate::geodesy::Geoid::read(&path).map(Some),
+        None => Err(Error::setting(
+            "geoid",
+            format!(
+                "{whose} says its heights are {vertical}: give that geoid's grid with --geoid (PROJ names it {}; none was found in PROJ_DATA, PROJ_LIB or the proj folders)",
+                vertical.grids.join(" or ")
+            ),
+        )),
+    }
 }
 
 /// Refuses a geoid grid that leaves part of the image's ground uncovered
