@@ -342,7 +342,10 @@ impl GridDem {
         let (w, h) = (raster.width as u32, raster.height as u32);
         let geo = read_georef(&mut dec, path)?.ok_or_else(|| Error::format(path, "the DEM has no georeferencing (no ModelPixelScale/ModelTiepoint)"))?;
         check_north_up(&geo, path)?;
-        let crs = crate::geodesy::geokeys::crs_of(&geo.keys).map_err(|m| Error::format(path, format!("its GeoTIFF keys: {m}")))?;
+        let crs = match crate::geodesy::geokeys::crs_of(&geo.keys).map_err(|m| Error::format(path, format!("its GeoTIFF keys: {m}")))? {
+            Some(c) => Some(c),
+            None => prj_beside(path)?,
+        };
         if w < 2 || h < 2 {
             return Err(Error::format(path, format!("a DEM of {w}×{h} posts: heights are interpolated between posts, so at least 2×2 are needed")));
         }
@@ -384,6 +387,15 @@ impl GridDem {
         }
         Ok(g)
     }
+}
+
+/// The CRS of a `.prj` file beside a raster whose keys name none.
+fn prj_beside(path: &Path) -> Result<Option<Crs>> {
+    let prj = path.with_extension("prj");
+    if !prj.is_file() {
+        return Ok(None);
+    }
+    Crs::parse(&prj.to_string_lossy(), Path::new("")).map(Some).map_err(|m| Error::format(&prj, m))
 }
 
 fn check_north_up(geo: &GeoRef, path: &Path) -> Result<()> {
@@ -494,8 +506,11 @@ impl Dem {
     pub fn open_within(path: &Path, ground: &Crs, max_bytes: u64) -> Result<Dem> {
         let mut g = GridDem::read_within(path, max_bytes)?;
         let mut warnings: Vec<String> = tag_untagged_voids(&mut g, path).into_iter().collect();
+        let [bx0, by0, bx1, by1] = g.bounds();
+        let centre = (0.5 * (bx0 + bx1), 0.5 * (by0 + by1));
         let to_dem = match &g.crs {
-            Some(e) if e != ground => {
+            // Not the ground CRS, nor that CRS spelled another way.
+            Some(e) if !e.agrees_at(ground, centre.0, centre.1) => {
                 let r = Reprojection::new(ground, e).map_err(|m| Error::format(path, format!("cannot reproject the DEM: {m}")))?;
                 if e.is_geographic() {
                     let b = g.bounds();

@@ -168,6 +168,29 @@ fn block_of_exterior_orientations() {
     let b = gcm_ortho::study::compare::read_grey(&d.join("ortho/s00.tif"), 0.0).unwrap();
     let diff = a.v.iter().zip(&b.v).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
     assert!(diff <= 1.0, "{diff}");
+
+    // The CRS from a .prj beside the CSV (ESRI WKT of UTM 31N), the
+    // interior file without crs: the same orthophotos.
+    let utm_esri = r#"PROJCS["WGS_1984_UTM_Zone_31N",GEOGCS["GCS_WGS_1984",DATUM["D_WGS_1984",SPHEROID["WGS_1984",6378137.0,298.257223563]],PRIMEM["Greenwich",0.0],UNIT["Degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],PARAMETER["False_Easting",500000.0],PARAMETER["False_Northing",0.0],PARAMETER["Central_Meridian",3.0],PARAMETER["Scale_Factor",0.9996],PARAMETER["Latitude_Of_Origin",0.0],UNIT["Meter",1.0]]"#;
+    std::fs::write(d.join("eo.prj"), utm_esri).unwrap();
+    let mut no_crs = interior.clone();
+    no_crs.crs = String::new();
+    std::fs::write(d.join("rc30.toml"), no_crs.to_toml().replace("crs = \"\"\n", "")).unwrap();
+    let manifest = std::fs::read_to_string(d.join("manifest.toml")).unwrap().replace("output_dir = \"ortho\"", "output_dir = \"ortho-prj\"");
+    std::fs::write(d.join("manifest.toml"), &manifest).unwrap();
+    let o = batch(d, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let c = gcm_ortho::study::compare::read_grey(&d.join("ortho-prj/s00.tif"), 0.0).unwrap();
+    let diff = b.v.iter().zip(&c.v).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+    assert!(diff <= 1.0, "the .prj's orthophoto differs by {diff}");
+    // A .prj that disagrees with the interior file's crs is refused.
+    let mut other = interior.clone();
+    other.crs = "EPSG:32632".into();
+    std::fs::write(d.join("rc30.toml"), other.to_toml()).unwrap();
+    std::fs::write(d.join("manifest.toml"), manifest.replace("ortho-prj", "ortho-bad")).unwrap();
+    let o = batch(d, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("eo.prj") && err.contains("EPSG:32632"), "{err}");
 }
 
 #[test]

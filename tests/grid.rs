@@ -64,13 +64,25 @@ fn like_takes_a_reference_rasters_grid_pixel_for_pixel() {
         assert_eq!(j["geoTransform"], serde_json::json!(gt));
         assert_eq!(j["size"], serde_json::json!([517, 389]));
     }
-    // Another CRS than the camera's, or with --gsd: refused by name.
+    // A grid in another CRS than the camera's (the same place in UTM 32N):
+    // the orthophoto is made in that CRS; against another --crs, refused
+    // by name; with --gsd, refused.
+    let (u31, u32) = (gcm_ortho::geodesy::GroundCrs::from_epsg(32631).unwrap(), gcm_ortho::geodesy::GroundCrs::from_epsg(32632).unwrap());
+    let (lon, lat) = u31.to_lonlat(gt[0], gt[3]).unwrap();
+    let (x, y) = u32.from_lonlat(lon, lat).unwrap();
+    let gt32 = [x.round(), 1.7, 0.0, y.round(), 0.0, -1.7];
     let other = d.join("other.tif");
-    reference(&other, gt, 10, 10, 32632);
-    let r = run(&[&base[..], &["--like", s(&other)]].concat());
+    reference(&other, gt32, 517, 389, 32632);
+    let out32 = d.join("o32.tif");
+    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "-o", s(&out32), "--like", s(&other)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(grid_of(&out32), (gt32, 517, 389));
+    let keys = whole_image(&out32).1.georef.unwrap().keys;
+    assert_eq!(gcm_ortho::geodesy::geokeys::crs_of(&keys).unwrap().and_then(|c| c.epsg()), Some(32632));
+    let r = run(&[&base[..], &["--like", s(&other), "--crs", "EPSG:32631"]].concat());
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(2), "{err}");
-    assert!(err.contains("--like") && err.contains("other.tif") && err.contains("EPSG:32632"), "{err}");
+    assert!(err.contains("--crs") && err.contains("other.tif") && err.contains("EPSG:32632"), "{err}");
     let r = run(&[&base[..], &["--like", s(&like), "--gsd", "2"]].concat());
     assert_eq!(r.status.code(), Some(2));
     // The same in a batch manifest, relative to it.

@@ -375,12 +375,40 @@ fn config(
     Ok(c)
 }
 
+/// The X, Y of the first row of a list of exterior orientations.
+fn first_position(text: &str) -> Option<(f64, f64)> {
+    let f: Vec<&str> = text.lines().nth(1)?.split(',').map(str::trim).collect();
+    Some((f.get(1)?.parse().ok()?, f.get(2)?.parse().ok()?))
+}
+
 /// Cameras of a block: the interior file (crs, [camera], [interior],
 /// [distortion], [corrections]) with each CSV row's exterior orientation
-/// (`name,X,Y,Z,omega,phi,kappa`, degrees, ω-φ-κ, header row first).
+/// (`name,X,Y,Z,omega,phi,kappa`, degrees, ω-φ-κ, header row first). A
+/// `.prj` beside the CSV is its CRS; the interior file's `crs` may then be
+/// left out, and must otherwise agree.
 fn block_cameras(interior: &Path, csv: &Path) -> Result<Vec<(String, CameraFile, usize)>, Vec<String>> {
-    let base = CameraFile::read(interior).map_err(|e| vec![e.to_string()])?;
+    let mut base = CameraFile::read(interior).map_err(|e| vec![e.to_string()])?;
     let text = read_text_bounded(csv, "a list of exterior orientations", LIST).map_err(|e| vec![e.to_string()])?;
+    // A .prj beside the CSV is the CRS of its positions.
+    let prj = csv.with_extension("prj");
+    if prj.is_file() {
+        let here = Path::new("");
+        let theirs = crate::geodesy::Crs::parse(&std::path::absolute(&prj).unwrap_or(prj.clone()).to_string_lossy(), here).map_err(|m| vec![m])?;
+        if base.crs.trim().is_empty() {
+            base.crs = std::path::absolute(&prj).unwrap_or(prj.clone()).to_string_lossy().into_owned();
+        } else {
+            let ours =
+                crate::geodesy::Crs::parse(&base.crs, interior.parent().unwrap_or(here)).map_err(|m| vec![format!("{}: crs: {m}", interior.display())])?;
+            let at = first_position(&text);
+            if !at.is_some_and(|(x, y)| ours.agrees_at(&theirs, x, y)) {
+                return Err(vec![format!(
+                    "{}: crs is {ours}, but {} beside the exterior orientations says {theirs}: give one",
+                    interior.display(),
+                    prj.display()
+                )]);
+            }
+        }
+    }
     let mut out = Vec::new();
     let mut errors = Vec::new();
     let mut lines = text.lines().enumerate();

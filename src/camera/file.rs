@@ -134,6 +134,9 @@ pub struct RpcSection {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraFile {
+    /// Any CRS `geodesy::Crs::parse` reads; may be left out of a block's
+    /// interior file when a `.prj` lies beside its CSV.
+    #[serde(default)]
     pub crs: String,
     pub camera: CameraSection,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -332,6 +335,8 @@ impl Camera {
         }
         let sensor = match self.sensor {
             Sensor::Rpc(r) => Sensor::Rpc(RpcCamera::new(r.rpc, GroundCrs::new(ground)?, r.geoid)),
+            // The same CRS spelled another way (a .prj of EPSG:32631).
+            Sensor::Frame(f) if self.crs.agrees_at(ground, f.centre.x, f.centre.y) => Sensor::Frame(f),
             Sensor::Frame(f) => {
                 let near = (f.centre.x, f.centre.y);
                 Sensor::ReprojectedFrame(Reprojected::new(f, &self.crs, ground, near)?)

@@ -73,11 +73,7 @@ impl Crs {
         if def.wkt.starts_with("VERT") {
             return Err(format!("EPSG:{code} is a vertical CRS: give a horizontal one (EPSG:<code>+{code} for both)"));
         }
-        let mut crs = Crs::from_proj4(def.proj4)?;
-        let d = Arc::get_mut(&mut crs.def).expect("just made");
-        d.epsg = Some(code);
-        d.label = format!("EPSG:{code}");
-        Ok(crs)
+        Crs::from_definition(def.proj4, Some(code))
     }
 
     /// Reads a CRS from text in any of the [`ACCEPTED`] forms. A relative
@@ -120,12 +116,17 @@ impl Crs {
     /// it spells out, where this build has one spelled the same.
     pub fn from_proj4(s: &str) -> Result<Crs, String> {
         let s = s.trim();
+        Crs::from_definition(s, datum::identify(s))
+    }
+
+    /// A PROJ definition with its EPSG code, if known. (Looking the code
+    /// up reads every EPSG definition: done only for users' PROJ strings.)
+    fn from_definition(s: &str, epsg: Option<u32>) -> Result<Crs, String> {
         let proj = Proj::from_proj_string(s).map_err(|e| format!("'{s}': {e}"))?;
         let vertical = Vertical::from_proj4(s);
         let datum_given = ["+towgs84=", "+datum=", "+nadgrids="].iter().any(|k| s.contains(k));
         let (a, b) = proj.ellipse_parameters();
         let unknown_datum = (!datum_given && !datum::is_wgs84_compatible(a, b)).then(|| format!("ellipsoid a = {a} m"));
-        let epsg = datum::identify(s);
         Ok(Crs {
             def: Arc::new(Definition {
                 label: epsg.map_or_else(|| s.to_string(), |c| format!("EPSG:{c}")),
@@ -227,6 +228,18 @@ impl Crs {
     /// hundreds of metres.
     pub fn unknown_datum(&self) -> Option<&str> {
         self.def.unknown_datum.as_deref()
+    }
+
+    /// Whether `other` gives the point (x, y) of this CRS the same place
+    /// (within a millimetre): the same CRS spelled another way, there.
+    pub fn agrees_at(&self, other: &Crs, x: f64, y: f64) -> bool {
+        if self == other {
+            return true;
+        }
+        let (Ok(a), Ok(b)) = (super::GroundCrs::new(self), super::GroundCrs::new(other)) else { return false };
+        let back = a.to_lonlat(x, y).and_then(|(lon, lat)| b.from_lonlat(lon, lat));
+        let tolerance = if self.is_geographic() { 1e-8 } else { 1e-3 };
+        back.is_some_and(|(u, v)| (u - x).abs() < tolerance && (v - y).abs() < tolerance)
     }
 
     /// The `proj4rs` projection of this CRS.
