@@ -276,6 +276,14 @@ fn a_dem_in_tiles_as_a_vrt_or_a_folder_gives_the_merged_dems_orthophoto() {
         ("resampled", format!("{}<DstRect xOff=\"0\" yOff=\"0\" xSize=\"7\" ySize=\"7\" />{}", &text[..at], &text[end..]), "resampled"),
         ("kernel", text.replace("ComplexSource>", "KernelFilteredSource>").replace("SimpleSource>", "KernelFilteredSource>"), "<KernelFilteredSource>"),
         ("derived", text.replace("<VRTRasterBand ", "<VRTRasterBand subClass=\"VRTDerivedRasterBand\" "), "VRTDerivedRasterBand"),
+        (
+            "other-srs",
+            {
+                let (a, b) = (text.find("<SRS").unwrap(), text.find("</SRS>").unwrap() + 6);
+                format!("{}<SRS>EPSG:32632</SRS>{}", &text[..a], &text[b..])
+            },
+            "EPSG:32632",
+        ),
     ] {
         let bad = d.join(format!("{name}.vrt"));
         std::fs::write(&bad, changed).unwrap();

@@ -240,6 +240,18 @@ fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
         crs = crs.or(grid.crs.clone());
         tiles.push(Tile { dst: [dx as usize, dy as usize, w as usize, h as usize], src: (sx as usize, sy as usize), grid, nodata });
     }
+    // The VRT's own SRS (the WKT gdalbuildvrt writes) is the mosaic's
+    // CRS; its tiles', where they name one, must be the same.
+    if let Some(srs) = child(root, "SRS").and_then(|n| n.text()).map(str::trim).filter(|t| !t.is_empty()) {
+        let own = crate::geodesy::Crs::parse(srs, dir).map_err(|m| bad(format!("its SRS: {m}")))?;
+        let (cx, cy) = (transform[0] + transform[1] * width as f64 / 2.0, transform[3] + transform[5] * height as f64 / 2.0);
+        if let Some(t) = &crs {
+            if !own.agrees_at(t, cx, cy) {
+                return Err(bad(format!("its SRS is {own}, its tiles are in {t}")));
+            }
+        }
+        crs = Some(own);
+    }
     let grid = MosaicGrid { width, height, transform, crs };
     Ok((Mosaic::new(width, height, tiles), grid))
 }
