@@ -104,10 +104,16 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
     }
     let o = BatchOptions { manifest: a.manifest.clone(), jobs: at_once, memory, force: a.force, report: a.report.clone(), shard, threads: a.threads };
     if a.dry_run {
-        for (i, j) in jobs.iter().enumerate().filter(|(i, _)| i % shard.1 == shard.0) {
+        let mine: Vec<_> = jobs.iter().enumerate().filter(|(i, _)| i % shard.1 == shard.0).collect();
+        for (i, j) in &mine {
             println!("{i:>5}  {}  {} -> {}", j.name, j.config.image.display(), j.config.output.display());
         }
-        return Ok(0);
+        // A job that would fail is said now, and the check fails (exit 3).
+        let failing: Vec<_> = mine.iter().filter(|(_, j)| j.problem.is_some()).collect();
+        for (_, j) in &failing {
+            eprintln!("gcm-ortho: job {} will fail: {}", j.name, j.problem.as_deref().unwrap_or_default());
+        }
+        return Ok(if failing.is_empty() { 0 } else { 3 });
     }
     for j in jobs.iter().filter(|j| j.problem.is_some()) {
         eprintln!("gcm-ortho: job {} will fail: {}", j.name, j.problem.as_deref().unwrap_or_default());

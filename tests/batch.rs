@@ -191,6 +191,22 @@ fn block_of_exterior_orientations() {
     let o = batch(d, &[]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("eo.prj") && err.contains("EPSG:32632"), "{err}");
+
+    // Names with the image's extension (as exports write them) name the
+    // same images; --dry-run says which jobs would fail, and fails.
+    std::fs::remove_file(d.join("eo.prj")).unwrap();
+    std::fs::write(d.join("rc30.toml"), interior.to_toml()).unwrap();
+    std::fs::write(d.join("eo.csv"), std::fs::read_to_string(d.join("eo.csv")).unwrap().replace("s00,", "s00.tif,").replace("s01,", "s01.TIF,")).unwrap();
+    std::fs::write(d.join("manifest.toml"), manifest.replace("ortho-prj", "ortho-ext")).unwrap();
+    let o = batch(d, &["--dry-run"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && out.contains("scans/s00.tif ->") && !out.contains(".tif.tif"), "{out}{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(d.join("eo.csv")).unwrap();
+    std::fs::write(d.join("eo.csv"), format!("{csv}{}", csv.lines().nth(1).unwrap().replace("s00.tif", "s99"))).unwrap();
+    let o = batch(d, &["--dry-run"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(err.contains("s99") && err.contains("does not exist"), "{err}");
 }
 
 #[test]

@@ -191,7 +191,7 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         match block_cameras(&rel(&b.interior), &rel(&b.exterior_csv)) {
             Ok(cams) => {
                 for (name, cam, csv_line) in cams {
-                    let image = rel(&b.images.replace("{name}", &name));
+                    let image = rel(&image_of(&b.images, &name));
                     let origin = PathBuf::from(format!("{}:{csv_line}", rel(&b.exterior_csv).display()));
                     entries.push(Entry { image, camera: origin, inline: Some(cam), output: None, options: m.defaults.clone(), line });
                 }
@@ -373,6 +373,19 @@ fn config(
         e => e.to_string(),
     })?;
     Ok(c)
+}
+
+/// A block image's path: the template with `{name}` replaced by the CSV's
+/// name, less the name's own image extension where the template gives one
+/// (`0182.tif` in `scans/{name}.tif` is `scans/0182.tif`).
+fn image_of(template: &str, name: &str) -> String {
+    const IMAGE: [&str; 7] = ["tif", "tiff", "jpg", "jpeg", "png", "jp2", "j2k"];
+    let ext = Path::new(name).extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let stem = match ext {
+        Some(e) if IMAGE.contains(&e.as_str()) && template.contains("{name}.") => &name[..name.len() - e.len() - 1],
+        _ => name,
+    };
+    template.replace("{name}", stem)
 }
 
 /// The X, Y of the first row of a list of exterior orientations.
