@@ -195,25 +195,7 @@ fn user_defined_geotiff_keys_read_back_in_gdal_and_gdals_here() {
 }
 
 fn raster_with_keys(path: &Path, keys: gcm_ortho::io::geotiff::GeoKeys) {
-    use gcm_ortho::io::source::SampleType;
-    use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
-    let spec = OutputSpec {
-        overviews: 0,
-        cog: false,
-        width: 4,
-        height: 4,
-        bands: 1,
-        sample: SampleType::U8,
-        chunking: Chunking::Strips(4),
-        compression: Compression::None,
-        level: None,
-        bigtiff: false,
-        photometric: 1,
-        alpha: false,
-        mask: false,
-        geo: Some(GeoTags { x0: 1000.0, y0: 2000.0, gsd: 10.0, keys, nodata: None }),
-    };
-    write_raster(path, &spec, |_, _, buf| buf.fill(7)).unwrap();
+    f32_raster_with_keys(path, (4, 4), (1000.0, 2000.0, 10.0), keys, |_, _| 7.0);
 }
 
 /// For every pixel of orthophoto `b` (a coordinate image's, in any CRS),
@@ -271,22 +253,11 @@ fn a_frame_camera_orthorectifies_into_a_national_transverse_mercator() {
     coordinate_image(&coords, w, w);
     let rectify = |name: &str, extra: &[&str]| {
         let out = dir.path().join(name);
-        let mut a = vec![
-            "rectify",
-            "--image",
-            s(&coords),
-            "--camera",
-            s(&sc.camera),
-            "--dem",
-            s(&sc.dem),
-            "--nodata",
-            "-1",
-            "--compress",
-            "none",
-            "--quiet",
-            "-o",
-            s(&out),
-        ];
+        let mut a = vec!["rectify", "--image", s(&coords), "--camera", s(&sc.camera), "--nodata", "-1", "--compress", "none", "--quiet", "-o", s(&out)];
+        // The scene's DEM unless another is given.
+        if !extra.contains(&"--dem") {
+            a.extend(["--dem", s(&sc.dem)]);
+        }
         a.extend_from_slice(extra);
         let r = run(&a);
         assert!(r.status.success(), "{name}: {}", String::from_utf8_lossy(&r.stderr));
@@ -324,24 +295,7 @@ fn a_frame_camera_orthorectifies_into_a_national_transverse_mercator() {
         let out = Command::new("gdalwarp").args(["-q", "-t_srs", tm, "-r", "cubic", s(&sc.dem), s(&dem_tm)]).output().unwrap();
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         let plain = rectify("utm-default.tif", &[]);
-        let a = dir.path().join("utm-dem-tm.tif");
-        let r = run(&[
-            "rectify",
-            "--image",
-            s(&coords),
-            "--camera",
-            s(&sc.camera),
-            "--dem",
-            s(&dem_tm),
-            "--nodata",
-            "-1",
-            "--compress",
-            "none",
-            "--quiet",
-            "-o",
-            s(&a),
-        ]);
-        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let a = rectify("utm-dem-tm.tif", &["--dem", s(&dem_tm)]);
         let d = coordinate_map_difference(&plain, &a, w, w);
         eprintln!("DEM in the national grid: max {} mean {} over {} px", d.max, d.mean, d.pixels);
         assert!(d.pixels > 500_000 && d.max < 0.1 && d.mean < 0.01, "max {} mean {}", d.max, d.mean);
@@ -388,35 +342,8 @@ fn a_dem_without_keys_takes_the_prj_beside_it() {
     let d = dir.path();
     let g = gcm_ortho::dem::GridDem::read_within(&root.join("dem.tif"), 1 << 30).unwrap();
     let bare = d.join("bare.tif");
-    {
-        use gcm_ortho::io::source::SampleType;
-        use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
-        let (w, h) = (g.width as u32, g.height as u32);
-        let t = g.transform;
-        let spec = OutputSpec {
-            overviews: 0,
-            cog: false,
-            width: w,
-            height: h,
-            bands: 1,
-            sample: SampleType::F32,
-            chunking: Chunking::Strips(16),
-            compression: Compression::None,
-            level: None,
-            bigtiff: false,
-            photometric: 1,
-            alpha: false,
-            mask: false,
-            geo: Some(GeoTags { x0: t[0], y0: t[3], gsd: t[1], keys: Default::default(), nodata: None }),
-        };
-        write_raster(&bare, &spec, |r0, _, buf| {
-            for (k, v) in buf.chunks_exact_mut(4).enumerate() {
-                let (c, r) = (k % g.width, r0 as usize + k / g.width);
-                v.copy_from_slice(&g.sample(c, r).to_ne_bytes());
-            }
-        })
-        .unwrap();
-    }
+    let t = g.transform;
+    f32_raster_with_keys(&bare, (g.width as u32, g.height as u32), (t[0], t[3], t[1]), Default::default(), |c, r| g.sample(c as usize, r as usize));
     let rectify = |dem: &Path, out: &Path| {
         run(&["rectify", "--image", s(&root.join("scan.tif")), "--camera", s(&root.join("camera.toml")), "--dem", s(dem), "--quiet", "-o", s(out)])
     };

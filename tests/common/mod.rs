@@ -172,6 +172,17 @@ pub fn python_with(module: &str, package: &str) -> Option<&'static str> {
 /// with its north-west corner at (x0, y0) and square pixels of `gsd` in
 /// EPSG `epsg`, no nodata tag; pixel (col, row) holds `value(col, row)`.
 pub fn f32_raster(path: &Path, (w, h): (u32, u32), (x0, y0, gsd, epsg): (f64, f64, f64, u32), value: impl Fn(u32, u32) -> f32 + Sync) {
+    f32_raster_with_keys(path, (w, h), (x0, y0, gsd), gcm_ortho::geodesy::geokeys::keys_of_epsg(epsg).unwrap(), value)
+}
+
+/// As [`f32_raster`], its CRS given as GeoTIFF keys (none: empty keys).
+pub fn f32_raster_with_keys(
+    path: &Path,
+    (w, h): (u32, u32),
+    (x0, y0, gsd): (f64, f64, f64),
+    keys: gcm_ortho::io::geotiff::GeoKeys,
+    value: impl Fn(u32, u32) -> f32 + Sync,
+) {
     use gcm_ortho::io::source::SampleType;
     use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
     let spec = OutputSpec {
@@ -188,7 +199,7 @@ pub fn f32_raster(path: &Path, (w, h): (u32, u32), (x0, y0, gsd, epsg): (f64, f6
         photometric: 1,
         alpha: false,
         mask: false,
-        geo: Some(GeoTags { x0, y0, gsd, keys: gcm_ortho::geodesy::geokeys::keys_of_epsg(epsg).unwrap(), nodata: None }),
+        geo: Some(GeoTags { x0, y0, gsd, keys, nodata: None }),
     };
     write_raster(path, &spec, |r0, _, buf| {
         for (k, v) in buf.chunks_exact_mut(4).enumerate() {
