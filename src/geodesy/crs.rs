@@ -18,8 +18,8 @@ pub struct Crs {
 
 #[derive(Debug)]
 struct Definition {
-    /// How to name it to a user: `EPSG:32631`, or the PROJ string, or the
-    /// WKT's name.
+    /// How to name the horizontal part to a user: `EPSG:32631`, or the
+    /// PROJ string, or the WKT's name.
     label: String,
     epsg: Option<u32>,
     proj4: String,
@@ -45,13 +45,17 @@ impl PartialEq for Crs {
 
 impl serde::Serialize for Crs {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&self.def.label)
+        s.collect_str(self)
     }
 }
 
 impl std::fmt::Display for Crs {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.def.label)
+        match (self.def.epsg, &self.def.vertical) {
+            (Some(h), Some(Vertical { epsg: Some(v), .. })) => write!(f, "EPSG:{h}+{v}"),
+            (_, Some(v)) => write!(f, "{} + {v}", self.def.label),
+            (_, None) => f.write_str(&self.def.label),
+        }
     }
 }
 
@@ -102,9 +106,7 @@ impl Crs {
             let mut crs = Crs::from_epsg(h)?;
             if let Some(v) = v {
                 let vertical = Vertical::from_epsg(v)?;
-                let d = Arc::get_mut(&mut crs.def).expect("just made");
-                d.label = format!("EPSG:{h}+{v}");
-                d.vertical = Some(vertical);
+                Arc::get_mut(&mut crs.def).expect("just made").vertical = Some(vertical);
             }
             return Ok(crs);
         }
@@ -174,36 +176,21 @@ impl Crs {
                 crs
             }
         };
-        if let Some(v) = vertical {
-            let d = Arc::get_mut(&mut crs.def).expect("just made");
-            d.label = format!("{} + {}", d.label, v);
-            d.vertical = Some(v);
-        }
+        Arc::get_mut(&mut crs.def).expect("just made").vertical = vertical;
         Ok(crs)
     }
 
     /// This CRS with another vertical part.
     pub fn with_vertical(&self, vertical: Option<Vertical>) -> Crs {
-        let mut d = Definition {
+        let d = Definition {
             label: self.def.label.clone(),
             epsg: self.def.epsg,
             proj4: self.def.proj4.clone(),
             geographic: self.def.geographic,
-            vertical: vertical.clone(),
+            vertical,
             unknown_datum: self.def.unknown_datum.clone(),
         };
-        if let Some(v) = &vertical {
-            d.label = format!("{} + {v}", self.horizontal_label());
-        }
         Crs { def: Arc::new(d) }
-    }
-
-    fn horizontal_label(&self) -> String {
-        match (self.def.epsg, &self.def.vertical) {
-            (Some(c), _) => format!("EPSG:{c}"),
-            (None, Some(_)) => self.def.label.split(" + ").next().unwrap_or(&self.def.label).to_string(),
-            (None, None) => self.def.label.clone(),
-        }
     }
 
     pub fn epsg(&self) -> Option<u32> {

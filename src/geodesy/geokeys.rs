@@ -350,6 +350,14 @@ fn user_defined_projection(keys: &mut GeoKeys, t: &Tokens, crs: &Crs) -> Result<
         d(keys, FALSE_EASTING, x0);
         d(keys, FALSE_NORTHING, y0);
     };
+    // Methods GeoTIFF parametrises by their centre.
+    let centred = |keys: &mut GeoKeys, ct| {
+        keys.set(COORD_TRANS, GeoKeyValue::Short(ct));
+        d(keys, CENTER_LAT, lat0);
+        d(keys, CENTER_LONG, lon0);
+        d(keys, FALSE_EASTING, x0);
+        d(keys, FALSE_NORTHING, y0);
+    };
     match proj {
         "utm" => {
             let zone: u16 = t.get("zone").and_then(|z| z.parse().ok()).filter(|z| (1..=60).contains(z)).ok_or_else(|| format!("{crs}: +proj=utm without a zone 1–60"))?;
@@ -402,13 +410,8 @@ fn user_defined_projection(keys: &mut GeoKeys, t: &Tokens, crs: &Crs) -> Result<
             d(keys, STD_PARALLEL_1, t.num_or("lat_1", 0.0)?);
             d(keys, STD_PARALLEL_2, t.num_or("lat_2", 0.0)?);
         }
-        "laea" | "aeqd" => {
-            keys.set(COORD_TRANS, GeoKeyValue::Short(if proj == "laea" { CT_LAEA } else { CT_AZIMUTHAL_EQUIDISTANT }));
-            d(keys, CENTER_LAT, lat0);
-            d(keys, CENTER_LONG, lon0);
-            d(keys, FALSE_EASTING, x0);
-            d(keys, FALSE_NORTHING, y0);
-        }
+        "laea" => centred(keys, CT_LAEA),
+        "aeqd" => centred(keys, CT_AZIMUTHAL_EQUIDISTANT),
         "stere" if lat0.abs() == 90.0 => {
             keys.set(COORD_TRANS, GeoKeyValue::Short(CT_POLAR_STEREOGRAPHIC));
             match t.num("lat_ts")? {
@@ -423,12 +426,8 @@ fn user_defined_projection(keys: &mut GeoKeys, t: &Tokens, crs: &Crs) -> Result<
             d(keys, FALSE_NORTHING, y0);
         }
         "stere" => {
-            keys.set(COORD_TRANS, GeoKeyValue::Short(CT_STEREOGRAPHIC));
-            d(keys, CENTER_LAT, lat0);
-            d(keys, CENTER_LONG, lon0);
+            centred(keys, CT_STEREOGRAPHIC);
             d(keys, SCALE_AT_NAT_ORIGIN, k);
-            d(keys, FALSE_EASTING, x0);
-            d(keys, FALSE_NORTHING, y0);
         }
         "eqc" => {
             natural(keys, CT_EQUIRECTANGULAR);
