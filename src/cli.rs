@@ -8,6 +8,7 @@ use clap::{Args, Parser, Subcommand};
 use gcm_ortho::gcm::GcmSpec;
 use gcm_ortho::geom::Snap;
 use gcm_ortho::io::tiff_out::Compression;
+use gcm_ortho::mosaic::balance::Balance;
 use gcm_ortho::options::{
     parse_bounds, parse_bytes, parse_count, parse_max_error, parse_miss, parse_nodata, parse_offset, parse_overviews, parse_size, parse_window, BandOrder,
     BigTiff, Choice, DemSource, ModelSource, RectifyOptions,
@@ -51,6 +52,9 @@ pub enum Command {
     Batch(BatchArgs),
     /// Put pieces made with `rectify --window` together into one GeoTIFF.
     Assemble(AssembleArgs),
+    /// One seamless orthomosaic of a batch manifest's images, straight from
+    /// the scans: seamlines, radiometric balancing, blending.
+    Mosaic(MosaicArgs),
     /// The image → ground regular grid of an RPC image (Chibunichev and
     /// Sonyushkin), as GDAL geolocation arrays, with its accuracy table.
     RpcGrid(RpcGridArgs),
@@ -206,6 +210,51 @@ pub struct BatchArgs {
 }
 
 #[derive(Args, Debug)]
+pub struct MosaicArgs {
+    /// The batch manifest of the block (jobs or a block, one DEM or per-job
+    /// DEMs); its [defaults] give the output's tile, compression and
+    /// overviews.
+    pub manifest: PathBuf,
+    /// The orthomosaic (GeoTIFF)
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
+    /// Ground sample distance of the mosaic (default: the images' median)
+    #[arg(long)]
+    pub gsd: Option<f64>,
+    /// The mosaic's extent: minx,miny,maxx,maxy (default: all footprints)
+    #[arg(long, allow_hyphen_values = true)]
+    pub bounds: Option<String>,
+    /// The mosaic's CRS, in any form (default: the first camera's)
+    #[arg(long)]
+    pub crs: Option<String>,
+    /// Radiometric balancing from the overlaps: none, gain, or gain-offset
+    #[arg(long, default_value = "gain-offset", value_parser = choice::<Balance>())]
+    pub balance: Balance,
+    /// Width of the blend across a seam, pixels (0: a sharp cut; never
+    /// across a height edge of the DSM)
+    #[arg(long, default_value_t = 8.0)]
+    pub blend: f64,
+    /// Write the seamlines here as GeoJSON (one polygon per image)
+    #[arg(long)]
+    pub seamlines_out: Option<PathBuf>,
+    /// Cloud-Optimized GeoTIFF (else as the manifest's `cog`)
+    #[arg(long)]
+    pub cog: bool,
+    /// Memory budget
+    #[arg(long, default_value = "256M")]
+    pub memory: String,
+    /// Worker threads (0: all cores)
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Write the report (JSON) here
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// No progress bar (warnings still show)
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug)]
 pub struct SynthArgs {
     /// Output folder.
     #[arg(long)]
@@ -259,6 +308,12 @@ pub struct SynthArgs {
     /// truth): for `accuracy --size` studies of very large scans.
     #[arg(long)]
     pub no_scan: bool,
+    /// A block of overlapping frames of one ground instead of one scan:
+    /// COLSxROWS (60 % forward, 30 % side overlap; digital or drone
+    /// cameras), each frame exposed differently, with a manifest for
+    /// `mosaic` and the ground's true colours.
+    #[arg(long)]
+    pub block: Option<String>,
 }
 
 impl SynthArgs {

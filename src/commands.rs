@@ -1,7 +1,7 @@
 //! What each subcommand does with its validated options: call the library,
 //! print a summary.
 
-use crate::cli::{AccuracyArgs, BatchArgs, Cli, Command, DemoArgs, RectifyArgs, SynthArgs};
+use crate::cli::{AccuracyArgs, BatchArgs, Cli, Command, DemoArgs, MosaicArgs, RectifyArgs, SynthArgs};
 use crate::progress_bar::Bar;
 use anyhow::{anyhow, Context, Result};
 use gcm_ortho::camera::file::Camera;
@@ -68,11 +68,60 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Demo(a) => run_demo(&a, signals).map(|()| 0),
         Command::Batch(a) => run_batch(&a, signals),
         Command::RpcGrid(a) => run_rpc_grid(&a).map(|()| 0),
+        Command::Mosaic(a) => run_mosaic(&a, signals).map(|()| 0),
         Command::Assemble(a) => {
             gcm_ortho::assemble::assemble(&a.pieces, &a.output, &a.layout.options()?)?;
             Ok(0)
         }
     }
+}
+
+fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
+    use gcm_ortho::mosaic::{mosaic, MosaicOptions};
+    let memory = parse_bytes("memory", &a.memory)?;
+    let bounds = match &a.bounds {
+        Some(b) => gcm_ortho::options::parse_bounds("bounds", b)?,
+        None => None,
+    };
+    let crs = a.crs.as_deref().map(|c| gcm_ortho::geodesy::Crs::parse(c, Path::new("."))).transpose().map_err(|m| gcm_ortho::Error::setting("crs", m))?;
+    if let Some(j) = &a.json {
+        check_writable(Role::new("report", j))?;
+        check_outputs(&[Role::new("manifest", &a.manifest)], &[Role::new("report", j), Role::new("output", &a.output)])?;
+    }
+    let o = MosaicOptions {
+        manifest: a.manifest.clone(),
+        output: a.output.clone(),
+        gsd: a.gsd,
+        bounds,
+        crs,
+        balance: a.balance,
+        blend: a.blend,
+        seamlines_out: a.seamlines_out.clone(),
+        memory,
+        threads: a.threads,
+        cog: a.cog.then_some(true),
+        sync: true,
+    };
+    let report = mosaic(&o, &Bar::new(a.quiet), &signals.cancel)?;
+    if let Some(j) = &a.json {
+        write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
+    }
+    if !a.quiet {
+        eprintln!(
+            "{}: {}×{} px at {} from {} images; {:.0} % covered; seams {:.0} m; plan {:.1} s, seams {:.1} s, render {:.1} s",
+            report.output.display(),
+            report.width,
+            report.height,
+            report.gsd,
+            report.images.len(),
+            report.coverage * 100.0,
+            report.seam_length,
+            report.seconds.plan,
+            report.seconds.seams,
+            report.seconds.render
+        );
+    }
+    Ok(())
 }
 
 fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
@@ -168,6 +217,24 @@ fn usage(msg: String) -> anyhow::Error {
 fn run_synth(a: &SynthArgs) -> Result<()> {
     let o = a.options()?;
     let t = std::time::Instant::now();
+    if let Some(b) = &a.block {
+        let (cols, rows) = parse_size("block", b)?;
+        let r = gcm_ortho::synth::block::synth_block(&o, cols, rows, &Bar::new(a.quiet))?;
+        if !a.quiet {
+            println!(
+                "synth: a block of {} frames of {}x{}, mosaic grid {}x{} at {} m, {:.1} s",
+                r.frames,
+                o.width,
+                o.height,
+                r.grid.width,
+                r.grid.height,
+                r.grid.gsd,
+                t.elapsed().as_secs_f64()
+            );
+            println!("  {}\n  {}\n  {}", r.manifest.display(), r.dem.display(), r.truth.display());
+        }
+        return Ok(());
+    }
     let r = synth(&o, &Bar::new(a.quiet))?;
     if !a.quiet {
         println!(

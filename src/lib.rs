@@ -17,6 +17,7 @@ pub mod gcm;
 pub mod geodesy;
 pub mod geom;
 pub mod io;
+pub mod mosaic;
 pub mod options;
 pub mod overview;
 pub mod pipeline;

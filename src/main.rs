@@ -12,7 +12,7 @@ use std::process::ExitCode;
 /// which some jobs failed, 130 SIGINT, 143 SIGTERM.
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
-    let polls = matches!(cli.command, cli::Command::Rectify(_) | cli::Command::Batch(_) | cli::Command::Demo(_));
+    let polls = matches!(cli.command, cli::Command::Rectify(_) | cli::Command::Batch(_) | cli::Command::Demo(_) | cli::Command::Mosaic(_));
     let signals = match commands::Signals::install(polls) {
         Ok(s) => s,
         Err(e) => {

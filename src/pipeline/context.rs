@@ -122,6 +122,23 @@ impl<'a> Stop<'a> {
     }
 }
 
+/// What the encoder and the writer need of a run: its output's side alone
+/// (a mosaic's output has no one scan behind it).
+pub struct Output<'a> {
+    pub spec: &'a OutputSpec,
+    /// The output's final name (for messages).
+    pub path: &'a Path,
+    pub sync: bool,
+    pub walk: Walk,
+    pub pool: &'a rayon::ThreadPool,
+    pub stop: &'a Stop<'a>,
+    pub progress: &'a dyn Progress,
+    pub spare_masks: &'a crossbeam_channel::Sender<Vec<u8>>,
+    pub pyramid: Option<&'a Mutex<crate::overview::Pyramid>>,
+    pub valid_by: crate::overview::ValidBy,
+    pub statistics: &'a Mutex<crate::overview::Statistics>,
+}
+
 /// Everything one run's stages share.
 pub struct Run<'a> {
     pub inputs: Inputs<'a>,
@@ -144,4 +161,23 @@ pub struct Run<'a> {
     pub valid_by: crate::overview::ValidBy,
     /// The full level's band statistics, tile by tile (the encoder's).
     pub statistics: Mutex<crate::overview::Statistics>,
+}
+
+impl Run<'_> {
+    /// The run's output side, for the encoder and the writer.
+    pub fn output(&self) -> Output<'_> {
+        Output {
+            spec: self.inputs.spec,
+            path: self.inputs.output,
+            sync: self.inputs.sync,
+            walk: self.walk,
+            pool: &self.pool,
+            stop: &self.stop,
+            progress: self.progress,
+            spare_masks: &self.spare_masks.0,
+            pyramid: self.pyramid.as_ref(),
+            valid_by: self.valid_by,
+            statistics: &self.statistics,
+        }
+    }
 }

@@ -18,6 +18,8 @@
 //! The first error anywhere cancels every stage; the output is a temporary
 //! file that is removed unless the whole run succeeds.
 
+pub mod band_render;
+pub mod band_writer;
 mod budget;
 mod context;
 mod rectify;
@@ -29,5 +31,6 @@ mod threaded;
 
 pub use budget::MemoryBudget;
 pub use rectify::rectify;
-pub use report::{Report, StageTimes};
+pub use report::{peak_rss_mib, Report, StageTimes};
 pub use setup::RunPlan;
+pub use stages::resample::{Made, Raw};

@@ -37,7 +37,7 @@ pub fn run_sequential(run: &Run, out_file: std::fs::File, flush_file: std::fs::F
     let mut win = Window::default();
     // The scan rows the chunk before read in place.
     let mut mapped: Option<(u32, u32)> = None;
-    let written = write(run, out_file, flush_file, || loop {
+    let written = write(&run.output(), out_file, flush_file, || loop {
         if let Some(tile) = ready.pop_front() {
             return Ok(Some(tile));
         }
@@ -64,7 +64,7 @@ pub fn run_sequential(run: &Run, out_file: std::fs::File, flush_file: std::fs::F
         let raw = timed(&mut busy.resample, || run.pool.install(|| resample(run, &msg, freed.try_recv().ok())));
         let made = made(run, b, msg.chunk.x0, raw)?;
         win = msg.win;
-        for tile in tiles(run, made, &free, &mut busy.encode) {
+        for tile in tiles(&run.output(), made, &free, &mut busy.encode) {
             ready.push_back(tile?);
         }
     });

@@ -150,7 +150,7 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
                 if run.stop.now() {
                     return Err(Error::Cancelled);
                 }
-                for tile in tiles(run, made, &tx_free_raw, &mut busy) {
+                for tile in tiles(&run.output(), made, &tx_free_raw, &mut busy) {
                     if tx_enc.send(tile?).is_err() {
                         return Err(Error::Cancelled);
                     }
@@ -161,7 +161,7 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
         });
         let h_write = s.spawn(|| {
             let rx_enc = rx_enc;
-            write(run, out_file, flush_file, || Ok(rx_enc.recv().ok())).map(|()| Duration::ZERO)
+            write(&run.output(), out_file, flush_file, || Ok(rx_enc.recv().ok())).map(|()| Duration::ZERO)
         });
         [h_dem, h_gcm, h_read, h_resample, h_encode, h_write]
             .into_iter()

@@ -5,6 +5,7 @@
 //! the two check each other from opposite directions. Deterministic for a
 //! seed; written a band of rows at a time, in parallel, in bounded memory.
 
+pub mod block;
 pub mod noise;
 mod render;
 mod satellite;
@@ -494,7 +495,7 @@ pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
     let tex = Texture::new(o.seed, gsd, cam.centre.x, cam.centre.y, 2.0 * half);
     let inside = |c: f64, r: f64| in_image(o, cam, c, r);
     let colour = |x: f64, y: f64| tex.rgb(x, y);
-    let scene = Scene { model: cam, dem: &dem, colour: &colour, inside: &inside, margin: &|c, r| film_margin(o, cam, c, r), mid_z };
+    let scene = Scene { model: cam, dem: &dem, colour: &colour, inside: &inside, margin: &|c, r| film_margin(o, cam, c, r), shade: &|_, _, c| c, mid_z };
     let scan_spec = scan_spec(o);
     if !o.no_scan {
         render_scan(o, &scene, &scan_spec, &scan_path, progress)?;
@@ -556,6 +557,9 @@ struct Scene<
     colour: &'a C,
     inside: &'a I,
     margin: &'a (dyn Fn(f64, f64) -> [f32; 3] + Sync),
+    /// The camera's own exposure of a colour seen at scan pixel (c, r):
+    /// a block's frames differ in gain, offset and vignetting.
+    shade: &'a (dyn Fn(f64, f64, [f32; 3]) -> [f32; 3] + Sync),
     mid_z: f64,
 }
 
@@ -566,7 +570,7 @@ where
     I: Fn(f64, f64) -> bool + Sync,
 {
     fn as_dyn(&self) -> Scene<'_> {
-        Scene { model: self.model, dem: self.dem, colour: self.colour, inside: self.inside, margin: self.margin, mid_z: self.mid_z }
+        Scene { model: self.model, dem: self.dem, colour: self.colour, inside: self.inside, margin: self.margin, shade: self.shade, mid_z: self.mid_z }
     }
 }
 

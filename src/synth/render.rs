@@ -143,7 +143,7 @@ where
                 }
                 *chain = Some((p[0], p[1]));
                 st.last[j] = (p[0], p[1]);
-                (sc.colour)(p[0], p[1])
+                (sc.shade)(c, r, (sc.colour)(p[0], p[1]))
             }
             Some(None) => {
                 st.last[j] = UNKNOWN;

@@ -155,7 +155,7 @@ pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progre
     };
     let spec = scan_spec(o);
     if !o.no_scan {
-        let scene = Scene { model: &geo, dem: &dem_geo, colour: &colour_geo, inside: &inside, margin: &|_, _| [0.0; 3], mid_z };
+        let scene = Scene { model: &geo, dem: &dem_geo, colour: &colour_geo, inside: &inside, margin: &|_, _| [0.0; 3], shade: &|_, _, c| c, mid_z };
         render_scan(o, &scene, &spec, &scan_path, progress)?;
     }
 
@@ -168,6 +168,6 @@ pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progre
         Some((lon, lat)) => colour_geo(lon, lat),
         None => [0.0; 3],
     };
-    let scene = Scene { model: &model, dem: &dem, colour: &colour, inside: &inside, margin: &|_, _| [0.0; 3], mid_z };
+    let scene = Scene { model: &model, dem: &dem, colour: &colour, inside: &inside, margin: &|_, _| [0.0; 3], shade: &|_, _, c| c, mid_z };
     finish(o, &scene.as_dyn(), &spec, &grid, Measures { gsd, flying_height: ALTITUDE, relief_range: [zlo, zhi], max_slope_deg: slope })
 }

@@ -6,7 +6,7 @@ use super::timed;
 use crate::error::Result;
 use crate::io::tiff_out::{encode_mask, encode_tile, Compression};
 use crate::overview::{LevelTile, Pyramid, Quarter, Statistics, TileLayout};
-use crate::pipeline::context::Run;
+use crate::pipeline::context::Output;
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Duration;
@@ -45,9 +45,9 @@ impl Drop for Tile {
 /// image tile is followed by its mask's tile. With overviews, each tile is
 /// also reduced in the same pass, and the overview tiles it finishes
 /// follow.
-pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy: &mut Duration) -> Vec<Result<(usize, Tile)>> {
+pub fn tiles(run: &Output, made: Made, free: &crossbeam_channel::Sender<Raw>, busy: &mut Duration) -> Vec<Result<(usize, Tile)>> {
     let Made { band, first_col, raw, valid } = made;
-    let spec = run.inputs.spec;
+    let spec = run.spec;
     let tb = spec.tile_bytes();
     // The chunk holds whole tiles, one after the other (padded).
     let n = raw.bytes().len() / tb;
@@ -57,7 +57,7 @@ pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy:
     let px = valid.as_ref().map_or(0, |v| v.len() / n.max(1));
     let valid_of = |k: usize| valid.as_ref().map(|v| &v[k * px..(k + 1) * px]);
     let mask = |k: usize| valid_of(k).map(|v| encode_mask(spec, v).map(Tile::Owned));
-    let pyramid = run.pyramid.as_ref().map(|p| p.lock().expect("the encoder's alone"));
+    let pyramid = run.pyramid.map(|p| p.lock().expect("the encoder's alone"));
     let lay = TileLayout { tile: spec.chunk().0 as usize, bands: spec.bands as usize, sample: spec.sample };
     // The tile's quarter for the overview, and its statistics.
     let summary = |k: usize, bytes: &[u8]| {
@@ -87,7 +87,7 @@ pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy:
         done
     };
     if let Some(v) = valid {
-        let _ = run.spare_masks.0.try_send(v);
+        let _ = run.spare_masks.try_send(v);
     }
     let mut out = Vec::with_capacity(n * if spec.mask { 2 } else { 1 });
     let mut finished = Vec::new();
@@ -111,8 +111,8 @@ pub fn tiles(run: &Run, made: Made, free: &crossbeam_channel::Sender<Raw>, busy:
 
 /// The overview tiles `finished` (and those they finish in turn, level
 /// after level): each compressed and its mask's tile made, in parallel.
-fn overview_tiles(run: &Run, pyramid: &mut Pyramid, finished: Vec<LevelTile>, out: &mut Vec<Result<(usize, Tile)>>, busy: &mut Duration) {
-    let spec = run.inputs.spec;
+fn overview_tiles(run: &Output, pyramid: &mut Pyramid, finished: Vec<LevelTile>, out: &mut Vec<Result<(usize, Tile)>>, busy: &mut Duration) {
+    let spec = run.spec;
     timed(busy, || {
         run.pool.install(|| {
             pyramid.cascade(

@@ -5,7 +5,7 @@
 use super::encode::Tile;
 use crate::error::{Error, Result};
 use crate::io::tiff_out::{folder_of, tiff_write_error, TileWriter};
-use crate::pipeline::context::Run;
+use crate::pipeline::context::Output;
 
 /// Bytes of output between two background syncs.
 const FLUSH_EVERY: usize = 64 << 20;
@@ -14,8 +14,8 @@ const FLUSH_EVERY: usize = 64 << 20;
 /// a thread of its own starts the write-back of what is written (under
 /// `sync`) through `flush_file`, a second handle to the output: the sync
 /// before the rename then has little left to wait for.
-pub fn write(run: &Run, out_file: std::fs::File, flush_file: std::fs::File, mut next: impl FnMut() -> Result<Option<(usize, Tile)>>) -> Result<()> {
-    let sync = run.inputs.sync;
+pub fn write(run: &Output, out_file: std::fs::File, flush_file: std::fs::File, mut next: impl FnMut() -> Result<Option<(usize, Tile)>>) -> Result<()> {
+    let sync = run.sync;
     let (tx_flush, rx_flush) = crossbeam_channel::bounded::<()>(1);
     std::thread::scope(|s| {
         if sync {
@@ -27,9 +27,9 @@ pub fn write(run: &Run, out_file: std::fs::File, flush_file: std::fs::File, mut 
             });
         }
         let mut unsynced = 0usize;
-        let spec = run.inputs.spec;
-        let tw = |e| run.stop.fail(tiff_write_error(run.inputs.output, e));
-        let mut writer = TileWriter::new(out_file, spec, &folder_of(run.inputs.output)).map_err(|e| tw(e.into()))?;
+        let spec = run.spec;
+        let tw = |e| run.stop.fail(tiff_write_error(run.path, e));
+        let mut writer = TileWriter::new(out_file, spec, &folder_of(run.path)).map_err(|e| tw(e.into()))?;
         let written = (|| -> Result<()> {
             loop {
                 if run.stop.cancelled() {

@@ -1,0 +1,261 @@
+//! `mosaic`: one seamless orthomosaic of a whole block, straight from the
+//! scans (Lobanov's "photoplan", made by rectifying all overlapping scans
+//! directly): the plan on coarse cells (`plan.rs`), radiometric balancing
+//! (`balance.rs`), seamlines on least-cost paths (`seams.rs`), the blend
+//! across them (`weights.rs`), and the render, streamed band by band from
+//! the scans through `rectify`'s own stages (`render.rs`). The seamlines
+//! can be written as GeoJSON polygons (`seamlines.rs`).
+
+pub mod balance;
+pub mod plan;
+pub mod render;
+pub mod seamlines;
+pub mod seams;
+pub mod weights;
+
+use crate::error::{Error, Result};
+use crate::geodesy::Crs;
+use crate::io::overwrite::{check_outputs, Role};
+use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec, PendingFile};
+use crate::options::{BigTiff, RectifyOptions};
+use crate::pipeline::band_writer::{write_bands, BandWriting};
+use crate::progress::{Cancel, Progress, Task};
+use balance::{Balance, Correction};
+use plan::{Plan, PlanSettings, NONE};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Clone, Debug)]
+pub struct MosaicOptions {
+    pub manifest: PathBuf,
+    pub output: PathBuf,
+    pub gsd: Option<f64>,
+    pub bounds: Option<[f64; 4]>,
+    pub crs: Option<Crs>,
+    pub balance: Balance,
+    /// Width of the ramp across a seam, output pixels (0: a sharp cut).
+    pub blend: f64,
+    pub seamlines_out: Option<PathBuf>,
+    /// Memory budget, bytes.
+    pub memory: u64,
+    pub threads: usize,
+    /// Write the Cloud-Optimized layout (else as the manifest says).
+    pub cog: Option<bool>,
+    pub sync: bool,
+}
+
+/// One image's part in the mosaic.
+#[derive(Clone, Debug, Serialize)]
+pub struct ImageReport {
+    pub name: String,
+    pub image: PathBuf,
+    /// Share of the mosaic's covered area taken from it.
+    pub share: f64,
+    pub correction: Correction,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct PhaseSeconds {
+    pub plan: f64,
+    pub balance: f64,
+    pub seams: f64,
+    pub render: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct MosaicReport {
+    pub output: PathBuf,
+    pub width: u32,
+    pub height: u32,
+    pub gsd: f64,
+    pub crs: String,
+    /// The plan's cell side, output pixels.
+    pub cell_px: u32,
+    /// Share of the mosaic's area some image sees.
+    pub coverage: f64,
+    pub balance: Balance,
+    pub blend_px: f64,
+    pub seams: seams::SeamStats,
+    /// Total length of the seamlines, ground units.
+    pub seam_length: f64,
+    pub images: Vec<ImageReport>,
+    pub seconds: PhaseSeconds,
+    pub wall_seconds: f64,
+    pub peak_rss_mib: Option<f64>,
+    pub output_bytes: u64,
+}
+
+/// Makes the mosaic of the manifest's images (see the module doc).
+pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Result<MosaicReport> {
+    let wall = Instant::now();
+    if !(o.blend >= 0.0 && o.blend.is_finite()) {
+        return Err(Error::setting("blend", format!("{} is not a width in pixels (0 or more)", o.blend)));
+    }
+    let jobs = crate::batch::manifest::load(&o.manifest).map_err(|e| Error::format(&o.manifest, e.to_string()))?;
+    if let Some(bad) = jobs.iter().find_map(|j| j.problem.clone()) {
+        return Err(Error::format(&o.manifest, bad));
+    }
+    // Nothing the mosaic writes may be anything it reads.
+    let (inputs, _) = crate::batch::manifest::files(&jobs);
+    let mut ins: Vec<Role> = vec![Role::new("manifest", &o.manifest)];
+    ins.extend(inputs.iter().map(|(w, p)| Role::new(w, p)));
+    let mut outs = vec![Role::new("output", &o.output)];
+    if let Some(s) = &o.seamlines_out {
+        outs.push(Role::new("seamlines", s));
+    }
+    check_outputs(&ins, &outs)?;
+    let pending = PendingFile::create(&o.output)?;
+    let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;
+
+    let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs: o.crs.clone(), memory: o.memory };
+    let mut plan = Plan::make(jobs.into_iter().map(|j| (j.name, j.config)).collect(), &settings, progress)?;
+    let t_plan = wall.elapsed().as_secs_f64();
+    if cancel.is_cancelled() {
+        return Err(Error::Cancelled);
+    }
+    let t = Instant::now();
+    let corrections = balance::solve(&plan, o.balance);
+    let t_balance = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let edges = seams::height_edges(&plan);
+    // The corridor: a sixth of the images' median footprint side.
+    let corridor = {
+        let mut sides: Vec<usize> = plan.images.iter().map(|i| (i.cells[2] - i.cells[0]).min(i.cells[3] - i.cells[1])).collect();
+        sides.sort_unstable();
+        (sides[sides.len() / 2] / 6).clamp(4, 256)
+    };
+    let seam_stats = seams::refine(&mut plan, &corrections, corridor, &edges);
+    let t_seams = t.elapsed().as_secs_f64();
+    if let Some(path) = &o.seamlines_out {
+        seamlines::write(&plan, path)?;
+    }
+    let weights = weights::Weights::new(&plan, o.blend, &edges);
+
+    // The output: the first job's format settings, the plan's grid.
+    let tile = first.tile;
+    let im0 = &plan.images[0];
+    let grid = plan.grid;
+    let mut spec = OutputSpec {
+        overviews: 0,
+        cog: false,
+        width: grid.width,
+        height: grid.height,
+        bands: im0.bands,
+        sample: im0.sample,
+        chunking: Chunking::Tiles(tile),
+        compression: first.compress,
+        level: first.level,
+        bigtiff: false,
+        photometric: if im0.photometric == 2 && im0.bands >= 3 { 2 } else { 1 },
+        alpha: false,
+        mask: true,
+        geo: Some(GeoTags {
+            x0: grid.x0,
+            y0: grid.y0,
+            gsd: grid.gsd,
+            keys: crate::geodesy::geokeys::keys_of(&plan.crs).map_err(|m| Error::setting("crs", m))?,
+            nodata: None,
+        }),
+    };
+    spec.overviews = first.overviews.levels(grid.width, grid.height, tile);
+    spec.cog = o.cog.unwrap_or(first.cog);
+    spec.bigtiff = match first.bigtiff {
+        BigTiff::Yes => true,
+        BigTiff::No => false,
+        BigTiff::Auto => spec.needs_bigtiff(),
+    };
+
+    // Each image's memory: the budget over the most images at work at once
+    // (a band's and the next's), after the plan's arrays and a band of the
+    // mosaic in flight.
+    let threads = match o.threads {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        n => n,
+    };
+    let opts_of = |i: usize| RectifyOptions { threads, sync: false, ..plan.images[i].opts.clone() };
+    let mut works = render::work(&plan, &weights, tile, opts_of);
+    let ty = grid.height.div_ceil(tile);
+    let tx = grid.width.div_ceil(tile);
+    let at_once = (0..ty).map(|b| works.iter().filter(|w| w.bands.keys().any(|&k| k == b || k == b + 1)).count()).max().unwrap_or(1).max(1) as u64;
+    let band_bytes = 3 * tx as u64 * spec.tile_bytes() as u64;
+    let plan_bytes = plan.images.iter().map(|i| i.values.len() as u64 * 4).sum::<u64>() + plan.label.len() as u64 * 16;
+    let share = o.memory.saturating_sub(band_bytes + plan_bytes) / at_once;
+    const MIN_SHARE: u64 = 24 << 20;
+    if share < MIN_SHARE {
+        return Err(Error::setting(
+            "memory",
+            format!(
+                "{at_once} images are at work at once on this block, each needing {} MiB or more: give --memory {}M or more",
+                MIN_SHARE >> 20,
+                (band_bytes + plan_bytes + at_once * MIN_SHARE).div_ceil(1 << 20)
+            ),
+        ));
+    }
+    for w in &mut works {
+        w.opts.memory = share;
+    }
+
+    let t = Instant::now();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| Error::setting("threads", e.to_string()))?;
+    let compose = render::Compose { plan: &plan, weights: &weights, corrections: &corrections, tile, bands: im0.bands as usize, fill: 0.0 };
+    progress.start(&Task { name: "mosaic", units: tx as u64 * ty as u64, lines: grid.height as u64, line_name: "rows", input_bytes: 0 });
+    let writing =
+        BandWriting { spec: &spec, path: &o.output, threads, overview_resampling: first.overview_resampling, fill: 0.0, sync: o.sync, progress, cancel };
+    let sample = im0.sample;
+    let written = std::thread::scope(|s| {
+        let mut feeds = render::Feeds::new(s, works.len());
+        write_bands(&writing, pending, |b| {
+            let got = feeds.band(&works, b, cancel)?;
+            let got: Vec<_> = got.iter().map(|(k, band)| (&works[*k], band)).collect();
+            Ok(compose.make_band(b, tx, &got, &pool, sample))
+        })
+    });
+    progress.finish();
+    if cancel.is_cancelled() {
+        return Err(Error::Cancelled);
+    }
+    written?;
+    let t_render = t.elapsed().as_secs_f64();
+
+    // The report.
+    let covered = plan.label.iter().filter(|&&l| l != NONE).count();
+    let images = plan
+        .images
+        .iter()
+        .enumerate()
+        .map(|(k, im)| ImageReport {
+            name: im.name.clone(),
+            image: im.opts.image.clone(),
+            share: plan.label.iter().filter(|&&l| l == k as u16).count() as f64 / covered.max(1) as f64,
+            correction: corrections[k].clone(),
+        })
+        .collect();
+    let seam_cells = (0..plan.cw * plan.ch)
+        .map(|k| {
+            let (x, y) = (k % plan.cw, k / plan.cw);
+            let l = plan.label[k];
+            let right = x + 1 < plan.cw && l != NONE && plan.label[k + 1] != NONE && plan.label[k + 1] != l;
+            let down = y + 1 < plan.ch && l != NONE && plan.label[k + plan.cw] != NONE && plan.label[k + plan.cw] != l;
+            usize::from(right) + usize::from(down)
+        })
+        .sum::<usize>();
+    Ok(MosaicReport {
+        output: o.output.clone(),
+        width: grid.width,
+        height: grid.height,
+        gsd: grid.gsd,
+        crs: plan.crs.to_string(),
+        cell_px: plan.cell,
+        coverage: covered as f64 / (plan.cw * plan.ch) as f64,
+        balance: o.balance,
+        blend_px: o.blend,
+        seams: seam_stats,
+        seam_length: seam_cells as f64 * plan.cell_metres(),
+        images,
+        seconds: PhaseSeconds { plan: t_plan, balance: t_balance, seams: t_seams, render: t_render },
+        wall_seconds: wall.elapsed().as_secs_f64(),
+        peak_rss_mib: crate::pipeline::peak_rss_mib(),
+        output_bytes: std::fs::metadata(&o.output).map(|m| m.len()).unwrap_or(0),
+    })
+}

@@ -1,0 +1,320 @@
+//! The mosaic's plan, cheap and for all images at once: each image's
+//! footprint and GSD, the mosaic grid, and on a coarse lattice of *cells*
+//! (a few pixels each, at most [`MAX_CELLS`]) the heights, each image's
+//! low-resolution orthophoto, and the first partition: each cell to the
+//! image that sees it nearest its centre (least relief displacement and
+//! lens falloff), computed on the DEM, not from the image centres alone.
+
+use crate::camera::file::Camera;
+use crate::dem::{Dem, Height};
+use crate::error::{Error, Result};
+use crate::geodesy::Crs;
+use crate::geom::{OutputGrid, Snap};
+use crate::io::source::{SampleType, SourceImage, Window};
+use crate::options::{DemSource, RectifyOptions};
+use crate::progress::{Progress, Task};
+use crate::transform::footprint::{footprint, mean_gsd};
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+/// No image sees the cell.
+pub const NONE: u16 = u16::MAX;
+/// The plan's cells are at most this many: its arrays stay a few tens of
+/// MB whatever the mosaic's size.
+pub const MAX_CELLS: u64 = 2_000_000;
+
+/// One image as the plan sees it.
+pub struct PlanImage {
+    pub name: String,
+    pub opts: RectifyOptions,
+    pub camera: Camera,
+    /// Index of its DEM in [`Plan::dems`].
+    pub dem: usize,
+    pub width: u32,
+    pub height: u32,
+    pub bands: u32,
+    pub sample: SampleType,
+    pub photometric: u16,
+    /// Ground size of its pixels at the centre (mean of the two axes).
+    pub gsd: f64,
+    /// The box of cells that may see it: `[x0, y0, x1, y1)`.
+    pub cells: [usize; 4],
+    /// Its low-resolution orthophoto on the cells of the box, band after
+    /// band inside each cell; NaN where it does not see the cell.
+    pub values: Vec<f32>,
+}
+
+impl PlanImage {
+    /// Index into `values` of cell (x, y), or `None` outside the box.
+    pub fn at(&self, x: usize, y: usize) -> Option<usize> {
+        let [x0, y0, x1, y1] = self.cells;
+        (x >= x0 && x < x1 && y >= y0 && y < y1).then(|| ((y - y0) * (x1 - x0) + (x - x0)) * self.bands as usize)
+    }
+
+    /// Its low-resolution pixel at cell (x, y), where it sees it.
+    pub fn value(&self, x: usize, y: usize) -> Option<&[f32]> {
+        let k = self.at(x, y)?;
+        let v = &self.values[k..k + self.bands as usize];
+        (!v[0].is_nan()).then_some(v)
+    }
+
+    pub fn sees(&self, x: usize, y: usize) -> bool {
+        self.value(x, y).is_some()
+    }
+}
+
+/// The mosaic's grid and its cells.
+pub struct Plan {
+    pub grid: OutputGrid,
+    pub crs: Crs,
+    /// A cell's side, output pixels.
+    pub cell: u32,
+    /// Cells across and down.
+    pub cw: usize,
+    pub ch: usize,
+    /// The DEM's height at each cell's centre (NaN: none).
+    pub heights: Vec<f32>,
+    /// The image each cell is taken from ([`NONE`]: none sees it).
+    pub label: Vec<u16>,
+    pub images: Vec<PlanImage>,
+    pub dems: Vec<Dem>,
+}
+
+/// What the plan is made from.
+pub struct PlanSettings {
+    pub gsd: Option<f64>,
+    pub bounds: Option<[f64; 4]>,
+    pub crs: Option<Crs>,
+    /// Memory for the DEMs and one scan's thumbnail, bytes.
+    pub memory: u64,
+}
+
+impl Plan {
+    /// Ground (X, Y) of cell (x, y)'s centre.
+    pub fn cell_centre(&self, x: usize, y: usize) -> (f64, f64) {
+        let s = self.cell as f64;
+        self.grid.ground((x as f64 + 0.5) * s, (y as f64 + 0.5) * s)
+    }
+
+    pub fn label_at(&self, x: usize, y: usize) -> u16 {
+        self.label[y * self.cw + x]
+    }
+
+    /// Ground size of a cell's side.
+    pub fn cell_metres(&self) -> f64 {
+        self.cell as f64 * self.grid.gsd
+    }
+
+    pub fn make(jobs: Vec<(String, RectifyOptions)>, s: &PlanSettings, progress: &dyn Progress) -> Result<Plan> {
+        if jobs.len() >= NONE as usize {
+            return Err(Error::setting("manifest", format!("{} images, more than the {} a mosaic takes", jobs.len(), NONE - 1)));
+        }
+        let mut dems: Vec<Dem> = Vec::new();
+        let mut dem_of: HashMap<PathBuf, usize> = HashMap::new();
+        let mut images = Vec::new();
+        let mut crs = s.crs.clone();
+        for (name, opts) in jobs {
+            let camera = opts.model.load(&opts.image, &opts.camera)?;
+            let ground = crs.get_or_insert_with(|| camera.crs.clone()).clone();
+            let camera = camera.in_crs(&ground).map_err(|m| Error::setting("crs", format!("{name}: {m}")))?;
+            let dem = match &opts.dem {
+                DemSource::File(p) => match dem_of.get(p) {
+                    Some(&k) => k,
+                    None => {
+                        let mut d = Dem::open_within(p, &ground, s.memory / 4)?;
+                        for w in &d.warnings {
+                            progress.warn(w);
+                        }
+                        d.on_hole = opts.dem_hole;
+                        d.on_outside = opts.dem_outside;
+                        dems.push(d);
+                        dem_of.insert(p.clone(), dems.len() - 1);
+                        dems.len() - 1
+                    }
+                },
+                DemSource::Height(h) => {
+                    dems.push(Dem::flat(*h));
+                    dems.len() - 1
+                }
+                DemSource::ModelHeight => {
+                    dems.push(Dem::flat(camera.height_hint()));
+                    dems.len() - 1
+                }
+            };
+            let info = SourceImage::info_of(&opts.image)?;
+            let d = &dems[dem];
+            let z = d.mean_height().unwrap_or_else(|| camera.height_hint());
+            let on_dem = |e: Error| match e {
+                Error::Geometry(m) => Error::format(&opts.image, m),
+                e => e,
+            };
+            let gsd = mean_gsd(camera.model(), d, info.width, info.height, z).map_err(on_dem)?;
+            let fp = footprint(camera.model(), d, info.width, info.height, z).map_err(on_dem)?;
+            images.push((
+                PlanImage {
+                    name,
+                    opts,
+                    camera,
+                    dem,
+                    width: info.width,
+                    height: info.height,
+                    bands: info.bands,
+                    sample: info.sample,
+                    photometric: info.photometric,
+                    gsd,
+                    cells: [0; 4],
+                    values: Vec::new(),
+                },
+                fp,
+            ));
+        }
+        let crs = crs.ok_or_else(|| Error::setting("manifest", "no image".to_string()))?;
+        if let Some(first) = images.first().map(|(i, _)| (i.bands, i.sample, i.name.clone())) {
+            for (im, _) in &images {
+                if (im.bands, im.sample) != (first.0, first.1) {
+                    return Err(Error::format(
+                        &im.opts.image,
+                        format!(
+                            "{} band(s) of {:?}, but {} has {} of {:?}: a mosaic's images share bands and sample type",
+                            im.bands, im.sample, first.2, first.0, first.1
+                        ),
+                    ));
+                }
+            }
+        }
+        let gsd = s.gsd.unwrap_or_else(|| {
+            let mut g: Vec<f64> = images.iter().map(|(i, _)| i.gsd).collect();
+            g.sort_by(f64::total_cmp);
+            g[g.len() / 2]
+        });
+        let bounds = s.bounds.unwrap_or_else(|| {
+            images.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, (_, f)| {
+                [b[0].min(f[0]), b[1].min(f[1]), b[2].max(f[2]), b[3].max(f[3])]
+            })
+        });
+        let grid = OutputGrid::from_bounds(bounds, gsd, Snap::Tap).ok_or_else(|| Error::setting("bounds", format!("{bounds:?} at GSD {gsd} is empty")))?;
+        // Cells of 4 pixels or more, at most MAX_CELLS of them.
+        let px = grid.width as u64 * grid.height as u64;
+        let mut cell = 4u32;
+        while px / (cell as u64 * cell as u64) > MAX_CELLS {
+            cell *= 2;
+        }
+        let (cw, ch) = (grid.width.div_ceil(cell) as usize, grid.height.div_ceil(cell) as usize);
+        let mut plan = Plan { grid, crs, cell, cw, ch, heights: vec![f32::NAN; cw * ch], label: vec![NONE; cw * ch], images: Vec::new(), dems };
+        // Heights of the first image's DEM: the seams' height edges.
+        if let Some((im, _)) = images.first() {
+            let dem = &plan.dems[im.dem];
+            let heights: Vec<f32> = (0..cw * ch)
+                .into_par_iter()
+                .map(|k| {
+                    let (x, y) = plan.cell_centre(k % cw, k / cw);
+                    match dem.height(x, y) {
+                        Height::Value(z) => z as f32,
+                        _ => f32::NAN,
+                    }
+                })
+                .collect();
+            plan.heights = heights;
+        }
+        progress.start(&Task { name: "plan", units: images.len() as u64, lines: images.len() as u64, line_name: "images", input_bytes: 0 });
+        let mut best = vec![f32::INFINITY; cw * ch];
+        for (k, (mut im, fp)) in images.into_iter().enumerate() {
+            let (u0, v0) = plan.grid.pixel(fp[0], fp[3]);
+            let (u1, v1) = plan.grid.pixel(fp[2], fp[1]);
+            let c = plan.cell as f64;
+            let clampc = |v: f64, n: usize| (v / c).floor().clamp(0.0, n as f64) as usize;
+            im.cells = [clampc(u0, cw), clampc(v0, ch), (clampc(u1, cw) + 1).min(cw), (clampc(v1, ch) + 1).min(ch)];
+            sample_image(&plan, &mut im, s.memory)?;
+            let [x0, y0, x1, _] = im.cells;
+            let side = (im.width as f64 / 2.0).hypot(im.height as f64 / 2.0);
+            // How far from its centre the image sees each cell (a fraction
+            // of its half-diagonal): the partition's measure.
+            let model = im.camera.model();
+            let dem = &plan.dems[im.dem];
+            for (j, row) in im.values.chunks(((x1 - x0) * im.bands as usize).max(1)).enumerate() {
+                for i in 0..x1 - x0 {
+                    if row[i * im.bands as usize].is_nan() {
+                        continue;
+                    }
+                    let (x, y) = (x0 + i, y0 + j);
+                    let (gx, gy) = plan.cell_centre(x, y);
+                    let Height::Value(z) = dem.height(gx, gy) else { continue };
+                    let Some((col, r)) = model.project(gx, gy, z) else { continue };
+                    let d = ((col - im.width as f64 / 2.0).hypot(r - im.height as f64 / 2.0) / side) as f32;
+                    let at = y * cw + x;
+                    if d < best[at] {
+                        (best[at], plan.label[at]) = (d, k as u16);
+                    }
+                }
+            }
+            plan.images.push(im);
+            progress.advance(1);
+        }
+        progress.finish();
+        Ok(plan)
+    }
+}
+
+/// The image's low-resolution orthophoto on the cells of its box: its scan
+/// reduced to about a cell a pixel (one row of each block of rows read,
+/// averaged across), then sampled bilinearly where each cell's centre is
+/// seen.
+fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64) -> Result<()> {
+    let src = SourceImage::open_within(&im.opts.image, (memory / 8) as usize, memory)?;
+    let (w, h, nb) = (im.width as usize, im.height as usize, im.bands as usize);
+    let f = ((plan.cell_metres() / im.gsd).floor() as usize).clamp(1, w.min(h));
+    let (tw, th) = (w.div_ceil(f), h.div_ceil(f));
+    let mut thumb = vec![0f32; tw * th * nb];
+    let mut win = Window::default();
+    for tr in 0..th {
+        let row = (tr * f + f / 2).min(h - 1);
+        src.read_window(0, row as u32, w as u32, 1, &mut win)?;
+        let line = as_f32(win.bytes(), im.sample);
+        for tc in 0..tw {
+            let (a, b) = (tc * f, ((tc + 1) * f).min(w));
+            for band in 0..nb {
+                let sum: f32 = (a..b).map(|c| line[c * nb + band]).sum();
+                thumb[(tr * tw + tc) * nb + band] = sum / (b - a) as f32;
+            }
+        }
+    }
+    let [x0, y0, x1, y1] = im.cells;
+    let model = im.camera.model();
+    let area = model.image_area();
+    let dem = &plan.dems[im.dem];
+    let bw = x1 - x0;
+    let mut values = vec![f32::NAN; bw * (y1 - y0) * nb];
+    values.par_chunks_mut((bw * nb).max(1)).enumerate().for_each(|(j, out)| {
+        for i in 0..bw {
+            let (gx, gy) = plan.cell_centre(x0 + i, y0 + j);
+            let Height::Value(z) = dem.height(gx, gy) else { continue };
+            let Some((c, r)) = model.project(gx, gy, z) else { continue };
+            if !(c >= 0.0 && r >= 0.0 && c < w as f64 && r < h as f64) || area.is_some_and(|a| !a.contains(c, r)) {
+                continue;
+            }
+            // Bilinear between thumbnail pixel centres.
+            let (u, v) = ((c / f as f64 - 0.5).clamp(0.0, (tw - 1) as f64), (r / f as f64 - 0.5).clamp(0.0, (th - 1) as f64));
+            let (iu, iv) = ((u as usize).min(tw.saturating_sub(2)), (v as usize).min(th.saturating_sub(2)));
+            let (fu, fv) = ((u - iu as f64) as f32, (v - iv as f64) as f32);
+            let (iu1, iv1) = ((iu + 1).min(tw - 1), (iv + 1).min(th - 1));
+            for band in 0..nb {
+                let p = |a: usize, b: usize| thumb[(b * tw + a) * nb + band];
+                let top = p(iu, iv) * (1.0 - fu) + p(iu1, iv) * fu;
+                let bot = p(iu, iv1) * (1.0 - fu) + p(iu1, iv1) * fu;
+                out[i * nb + band] = top * (1.0 - fv) + bot * fv;
+            }
+        }
+    });
+    im.values = values;
+    Ok(())
+}
+
+/// Samples of a row of the scan as f32.
+fn as_f32(bytes: &[u8], sample: SampleType) -> Vec<f32> {
+    match sample {
+        SampleType::U8 => bytes.iter().map(|&v| v as f32).collect(),
+        SampleType::U16 => bytes.chunks_exact(2).map(|b| u16::from_ne_bytes([b[0], b[1]]) as f32).collect(),
+        SampleType::F32 => bytes.chunks_exact(4).map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect(),
+    }
+}

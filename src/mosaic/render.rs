@@ -1,0 +1,319 @@
+//! The mosaic made band by band straight from the scans: each image runs
+//! `rectify`'s stages on a thread of its own over just the tiles the seams
+//! give it (and a blend's width beyond), one band ahead at most; each band
+//! of the mosaic is composed from the images' bands, pixel by pixel
+//! weighted as the cells say (balanced), and goes on to `rectify`'s
+//! encoder and writer. An image's thread starts a band before its first
+//! and ends with its last, so its scan is open only while bands need it.
+
+use super::balance::Correction;
+use super::plan::{Plan, NONE};
+use super::weights::Weights;
+use crate::error::{Error, Result};
+use crate::geom::Snap;
+use crate::options::RectifyOptions;
+use crate::pipeline::band_render::{render_bands, BandPixels, BandRequest};
+use crate::pipeline::{Made, Raw};
+use crate::progress::Cancel;
+use crossbeam_channel::{bounded, Receiver};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+
+/// The part of the mosaic an image is made over.
+pub struct ImageWork {
+    pub image: usize,
+    /// Its grid's first tile in the mosaic (column, row).
+    pub origin: (u32, u32),
+    /// Mosaic tile columns `[c0, c1)` needed in each mosaic band.
+    pub bands: BTreeMap<u32, (u32, u32)>,
+    pub opts: RectifyOptions,
+}
+
+impl ImageWork {
+    fn requests(&self) -> Vec<BandRequest> {
+        self.bands.iter().map(|(&b, &(c0, c1))| (b - self.origin.1, (c0 - self.origin.0, c1 - self.origin.0))).collect()
+    }
+}
+
+/// Which images each tile of the mosaic needs: those with a weight in the
+/// cells it touches (and one around, for the ramp), and where a cell's own
+/// image ends inside the tile (its footprint's edge), every image that sees
+/// the cell, so that no pixel any image has is left empty.
+pub fn work(plan: &Plan, weights: &Weights, tile: u32, opts_of: impl Fn(usize) -> RectifyOptions) -> Vec<ImageWork> {
+    let (tx, ty) = (plan.grid.width.div_ceil(tile), plan.grid.height.div_ceil(tile));
+    let c = plan.cell as usize;
+    let (cw, ch) = (plan.cw, plan.ch);
+    let mut needs: Vec<BTreeMap<u32, (u32, u32)>> = vec![BTreeMap::new(); plan.images.len()];
+    for ty_ in 0..ty {
+        for tx_ in 0..tx {
+            let x0 = ((tx_ * tile) as usize / c).saturating_sub(1);
+            let y0 = ((ty_ * tile) as usize / c).saturating_sub(1);
+            let x1 = ((((tx_ + 1) * tile) as usize).div_ceil(c) + 1).min(cw);
+            let y1 = ((((ty_ + 1) * tile) as usize).div_ceil(c) + 1).min(ch);
+            let mut set = std::collections::BTreeSet::new();
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    for i in weights.images(x, y) {
+                        if i != NONE {
+                            set.insert(i);
+                        }
+                    }
+                    let l = plan.label_at(x, y);
+                    let edge = l != NONE
+                        && [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)]
+                            .into_iter()
+                            .any(|(a, b)| a < cw && b < ch && !plan.images[l as usize].sees(a, b));
+                    if edge {
+                        set.extend((0..plan.images.len()).filter(|&i| plan.images[i].sees(x, y)).map(|i| i as u16));
+                    }
+                }
+            }
+            for i in set {
+                let e = needs[i as usize].entry(ty_).or_insert((tx_, tx_ + 1));
+                e.0 = e.0.min(tx_);
+                e.1 = e.1.max(tx_ + 1);
+            }
+        }
+    }
+    let g = plan.grid;
+    needs
+        .into_iter()
+        .enumerate()
+        .filter(|(_, b)| !b.is_empty())
+        .map(|(i, bands)| {
+            let c0 = bands.values().map(|r| r.0).min().unwrap_or(0);
+            let c1 = bands.values().map(|r| r.1).max().unwrap_or(0);
+            let (r0, r1) = (*bands.keys().next().unwrap_or(&0), bands.keys().last().map_or(0, |r| r + 1));
+            // The image's grid: those tiles of the mosaic's, clipped to it.
+            let (x0, y0) = g.ground((c0 * tile) as f64, (r0 * tile) as f64);
+            let (w, h) = (((c1 * tile).min(g.width) - c0 * tile) as f64, ((r1 * tile).min(g.height) - r0 * tile) as f64);
+            let bounds = [x0, y0 - h * g.gsd, x0 + w * g.gsd, y0];
+            let opts = RectifyOptions {
+                gsd: Some(g.gsd),
+                bounds: Some(bounds),
+                snap: Snap::None,
+                like: None,
+                crs: Some(plan.crs.clone()),
+                tile,
+                max_output_pixels: Some(u64::MAX),
+                ..opts_of(i)
+            };
+            ImageWork { image: i, origin: (c0, r0), bands, opts }
+        })
+        .collect()
+}
+
+/// A sample of the output's type, composed in f64.
+trait Px: Copy + Send + Sync + bytemuck::Pod {
+    fn get(self) -> f64;
+    fn put(v: f64) -> Self;
+}
+impl Px for u8 {
+    fn get(self) -> f64 {
+        self as f64
+    }
+    fn put(v: f64) -> u8 {
+        v.round().clamp(0.0, 255.0) as u8
+    }
+}
+impl Px for u16 {
+    fn get(self) -> f64 {
+        self as f64
+    }
+    fn put(v: f64) -> u16 {
+        v.round().clamp(0.0, 65535.0) as u16
+    }
+}
+impl Px for f32 {
+    fn get(self) -> f64 {
+        self as f64
+    }
+    fn put(v: f64) -> f32 {
+        v as f32
+    }
+}
+
+/// One image's tile of a band, as the compositor reads it.
+struct Piece<'a> {
+    image: u16,
+    bytes: &'a [u8],
+    valid: &'a [u8],
+}
+
+/// How the compositor weighs and corrects.
+pub struct Compose<'a> {
+    pub plan: &'a Plan,
+    pub weights: &'a Weights,
+    pub corrections: &'a [Correction],
+    pub tile: u32,
+    pub bands: usize,
+    pub fill: f64,
+}
+
+impl Compose<'_> {
+    /// Mosaic tile (tc, b) from the pieces of the images that have it.
+    fn tile<T: Px>(&self, tc: u32, b: u32, pieces: &[Piece], out: &mut [T], valid: &mut [u8]) {
+        let (t, nb, c) = (self.tile as usize, self.bands, self.plan.cell as f64);
+        let (cw, ch) = (self.plan.cw as i64, self.plan.ch as i64);
+        let (gx0, gy0) = ((tc * self.tile) as usize, (b * self.tile) as usize);
+        let (w, h) = (self.plan.grid.width as usize, self.plan.grid.height as usize);
+        let samples: Vec<&[T]> = pieces.iter().map(|p| bytemuck::cast_slice::<u8, T>(p.bytes)).collect();
+        let mut acc = vec![0f64; nb];
+        let mut spare = vec![0f64; nb];
+        for py in 0..t {
+            for px in 0..t {
+                let k = py * t + px;
+                let (gx, gy) = (gx0 + px, gy0 + py);
+                let pixel = &mut out[k * nb..(k + 1) * nb];
+                if gx >= w || gy >= h {
+                    pixel.iter_mut().for_each(|v| *v = T::put(self.fill));
+                    valid[k] = 0;
+                    continue;
+                }
+                let (mut wsum, mut spare_n) = (0f64, 0f64);
+                acc.iter_mut().for_each(|a| *a = 0.0);
+                spare.iter_mut().for_each(|a| *a = 0.0);
+                for (p, s) in pieces.iter().zip(&samples) {
+                    if p.valid[k] == 0 {
+                        continue;
+                    }
+                    let wt = if self.weights.blends() {
+                        // Bilinear between the cells' centres.
+                        let (u, v) = ((gx as f64 + 0.5) / c - 0.5, (gy as f64 + 0.5) / c - 0.5);
+                        let (iu, iv) = (u.floor(), v.floor());
+                        let (fu, fv) = (u - iu, v - iv);
+                        let at = |a: i64, b: i64| self.weights.weight(a.clamp(0, cw - 1) as usize, b.clamp(0, ch - 1) as usize, p.image) as f64;
+                        let (iu, iv) = (iu as i64, iv as i64);
+                        (at(iu, iv) * (1.0 - fu) + at(iu + 1, iv) * fu) * (1.0 - fv) + (at(iu, iv + 1) * (1.0 - fu) + at(iu + 1, iv + 1) * fu) * fv
+                    } else {
+                        self.weights.weight(gx / self.plan.cell as usize, gy / self.plan.cell as usize, p.image) as f64
+                    };
+                    let corr = &self.corrections[p.image as usize];
+                    let px_in = &s[k * nb..(k + 1) * nb];
+                    if wt > 0.0 {
+                        wsum += wt;
+                        for (band, a) in acc.iter_mut().enumerate() {
+                            *a += wt * (corr.gain[band] * px_in[band].get() + corr.offset[band]);
+                        }
+                    } else {
+                        spare_n += 1.0;
+                        for (band, a) in spare.iter_mut().enumerate() {
+                            *a += corr.gain[band] * px_in[band].get() + corr.offset[band];
+                        }
+                    }
+                }
+                let (sum, n) = if wsum > 0.0 { (&acc, wsum) } else { (&spare, spare_n) };
+                if n > 0.0 {
+                    for (v, a) in pixel.iter_mut().zip(sum.iter()) {
+                        *v = T::put(a / n);
+                    }
+                    valid[k] = 1;
+                } else {
+                    pixel.iter_mut().for_each(|v| *v = T::put(self.fill));
+                    valid[k] = 0;
+                }
+            }
+        }
+    }
+
+    /// Band `b` of the mosaic (`tx` tiles) from the images' bands.
+    fn band<T: Px>(&self, b: u32, tx: u32, got: &[(&ImageWork, &BandPixels)], pool: &rayon::ThreadPool) -> (Vec<T>, Vec<u8>) {
+        let tpx = (self.tile * self.tile) as usize;
+        let mut out = vec![T::put(self.fill); tx as usize * tpx * self.bands];
+        let mut valid = vec![0u8; tx as usize * tpx];
+        pool.install(|| {
+            out.par_chunks_mut(tpx * self.bands).zip(valid.par_chunks_mut(tpx)).enumerate().for_each(|(tc, (o, v))| {
+                let tc = tc as u32;
+                let pieces: Vec<Piece> = got.iter().filter_map(|(w, band)| piece(w, band, tc, tpx * self.bands * std::mem::size_of::<T>(), tpx)).collect();
+                self.tile::<T>(tc, b, &pieces, o, v);
+            })
+        });
+        (out, valid)
+    }
+
+    /// Band `b` in the output's sample type.
+    pub fn make_band(
+        &self,
+        b: u32,
+        tx: u32,
+        got: &[(&ImageWork, &BandPixels)],
+        pool: &rayon::ThreadPool,
+        sample: crate::io::source::SampleType,
+    ) -> (Raw, Option<Vec<u8>>) {
+        use crate::io::source::SampleType;
+        match sample {
+            SampleType::U8 => {
+                let (o, v) = self.band::<u8>(b, tx, got, pool);
+                (Raw::U8(o), Some(v))
+            }
+            SampleType::U16 => {
+                let (o, v) = self.band::<u16>(b, tx, got, pool);
+                (Raw::U16(o), Some(v))
+            }
+            SampleType::F32 => {
+                let (o, v) = self.band::<f32>(b, tx, got, pool);
+                (Raw::F32(o), Some(v))
+            }
+        }
+    }
+}
+
+/// The tile of mosaic column `tc` in an image's band, where it made it.
+fn piece<'a>(w: &ImageWork, band: &'a BandPixels, tc: u32, tile_bytes: usize, tile_px: usize) -> Option<Piece<'a>> {
+    let own = tc.checked_sub(w.origin.0)?;
+    band.chunks.iter().find_map(|m: &Made| {
+        let k = own.checked_sub(m.first_col)? as usize;
+        let bytes = m.raw.bytes().get(k * tile_bytes..(k + 1) * tile_bytes)?;
+        let valid = m.valid.as_ref()?.get(k * tile_px..(k + 1) * tile_px)?;
+        Some(Piece { image: w.image as u16, bytes, valid })
+    })
+}
+
+/// The images' threads: started a band before their first, each sending
+/// its bands in order.
+pub struct Feeds<'scope, 'env> {
+    receivers: Vec<Option<Receiver<Result<BandPixels>>>>,
+    started: Vec<bool>,
+    scope: &'scope std::thread::Scope<'scope, 'env>,
+}
+
+impl<'scope, 'env> Feeds<'scope, 'env> {
+    pub fn new(scope: &'scope std::thread::Scope<'scope, 'env>, n: usize) -> Feeds<'scope, 'env> {
+        Feeds { receivers: (0..n).map(|_| None).collect(), started: vec![false; n], scope }
+    }
+
+    /// The bands of band `b` from the images that have it (starting those
+    /// whose first band is `b` or the next).
+    pub fn band(&mut self, works: &'env [ImageWork], b: u32, cancel: &'env Cancel) -> Result<Vec<(usize, BandPixels)>> {
+        for (k, w) in works.iter().enumerate() {
+            let first = *w.bands.keys().next().unwrap_or(&u32::MAX);
+            if !self.started[k] && first <= b + 1 {
+                self.started[k] = true;
+                let (tx, rx) = bounded(1);
+                self.receivers[k] = Some(rx);
+                self.scope.spawn(move || {
+                    let requests = w.requests();
+                    let r = render_bands(&w.opts, &requests, cancel, |band| tx.send(band).is_ok());
+                    if let Err(e) = r {
+                        let _ = tx.send(Err(e));
+                    }
+                });
+            }
+        }
+        let mut got = Vec::new();
+        for (k, w) in works.iter().enumerate() {
+            if !w.bands.contains_key(&b) {
+                continue;
+            }
+            let rx =
+                self.receivers[k].as_ref().ok_or_else(|| Error::Geometry("an image's band was asked before its thread started (please report it)".into()))?;
+            let band = rx.recv().map_err(|_| Error::Cancelled)??;
+            got.push((k, band));
+            if w.bands.keys().last() == Some(&b) {
+                // Its last band: the thread ends, the scan is closed.
+                self.receivers[k] = None;
+            }
+        }
+        Ok(got)
+    }
+}

@@ -1,0 +1,114 @@
+//! One image's orthophoto a band at a time into memory, for a mosaic: the
+//! stages of `rectify` up to the resampler (DEM, GCM, read, resample) on
+//! the image's own grid, for the bands and tile columns asked for, in
+//! order. Nothing is written: each band's chunks go to the caller, which
+//! composes them with other images' before its own encoder and writer.
+//!
+//! The run's set-up holds the scan, the DEM and the GCM, which borrow from
+//! one another; a caller that needs several images at once runs each on a
+//! thread of its own (see `mosaic::render`).
+
+use super::budget::MemoryBudget;
+use super::context::{Counters, Inputs, Run, Stop, Walk};
+use super::setup::RunPlan;
+use super::stages::dem::node_heights;
+use super::stages::gcm::band_gcm;
+use super::stages::read::{plan, read, release_outside, Reader};
+use super::stages::resample::{made, resample, Made};
+use super::stages::SharedRows;
+use crate::error::{Error, Result};
+use crate::gcm::Gcm;
+use crate::io::source::Window;
+use crate::options::{BandOrder, Nodata, RectifyOptions};
+use crate::overview::ValidBy;
+use crate::progress::{Cancel, NoProgress};
+use crate::transform::Transform;
+use std::sync::Arc;
+
+/// A band of the image's grid as made: its chunks, each a run of whole
+/// tiles from tile column `first_col`, with which pixels have a value.
+pub struct BandPixels {
+    pub band: u32,
+    pub chunks: Vec<Made>,
+}
+
+/// What the caller asks of one band: the band (a row of the image grid's
+/// tiles) and its tile columns `cols.0..cols.1`.
+pub type BandRequest = (u32, (u32, u32));
+
+/// The options an image is made with inside a mosaic: rows of tiles (the
+/// mosaic's bands), every pixel's validity (a mask), nothing of the output
+/// file's own.
+pub fn in_memory(opts: &RectifyOptions) -> RectifyOptions {
+    RectifyOptions { band_order: BandOrder::Rows, nodata: Nodata::Mask, alpha: false, window: None, cog: false, ..opts.clone() }
+}
+
+/// Makes the bands `requests` names (in increasing order) of the image of
+/// `opts` (see [`in_memory`]), handing each to `sink`; stops early when
+/// `sink` says so (its reader went away) or `cancel` is set.
+pub fn render_bands(opts: &RectifyOptions, requests: &[BandRequest], cancel: &Cancel, mut sink: impl FnMut(Result<BandPixels>) -> bool) -> Result<()> {
+    let opts = in_memory(opts);
+    let setup = match RunPlan::new(&opts, &NoProgress) {
+        Ok(p) => p,
+        Err(e) => {
+            sink(Err(e));
+            return Ok(());
+        }
+    };
+    let t = Transform::new(setup.camera.model(), &setup.dem, setup.grid);
+    let gcm = Gcm::new(&t, setup.approx, setup.gcm);
+    let (tx, ty) = (setup.grid.width.div_ceil(opts.tile), setup.grid.height.div_ceil(opts.tile));
+    let walk = Walk { grid: t.grid, tile: opts.tile, bands: (0, ty), cols: (0, tx), columns: false, piece: (0, 0, tx) };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(opts.threads)
+        .build()
+        .map_err(|e| Error::setting("threads", format!("cannot start {} threads: {e}", opts.threads)))?;
+    let mut run = Run {
+        inputs: Inputs { gcm: &gcm, src: &setup.src, dem: &setup.dem, spec: &setup.spec, pixels: setup.pixels, output: &opts.output, sync: false },
+        walk,
+        budget: MemoryBudget::new(setup.budget.total()),
+        counters: Counters::default(),
+        stop: Stop::new(cancel),
+        pool,
+        progress: &NoProgress,
+        spare_masks: crossbeam_channel::bounded(4),
+        pyramid: None,
+        valid_by: ValidBy::of(&setup.spec),
+        statistics: Default::default(),
+    };
+    let (mut heights, mut node_rows) = (SharedRows::default(), SharedRows::default());
+    let mut reader = Reader::default();
+    let mut win = Window::default();
+    let mut mapped: Option<(u32, u32)> = None;
+    for &(b, cols) in requests {
+        if cancel.is_cancelled() {
+            return Err(Error::Cancelled);
+        }
+        run.walk.cols = (cols.0.min(tx), cols.1.min(tx));
+        let band = (|| -> Result<BandPixels> {
+            let msg = node_heights(&run, b, &mut heights);
+            let gcm = Arc::new(band_gcm(&run, msg, &mut node_rows)?);
+            let mut chunks = Vec::new();
+            for chunk in plan(&run, b, &gcm, &mut reader) {
+                let msg = read(&run, b, gcm.clone(), chunk, &mut reader, std::mem::take(&mut win))?;
+                let rows_now = msg.in_place.map(|_| (msg.win.y0, msg.win.y0 + msg.win.h));
+                if let Some(rows) = mapped.take() {
+                    release_outside(run.inputs.src, rows, rows_now);
+                }
+                mapped = rows_now;
+                let raw = run.pool.install(|| resample(&run, &msg, None));
+                chunks.push(made(&run, b, msg.chunk.x0, raw)?);
+                win = msg.win;
+            }
+            Ok(BandPixels { band: b, chunks })
+        })();
+        let failed = band.is_err();
+        if !sink(band) || failed {
+            break;
+        }
+    }
+    if let Some(rows) = mapped {
+        release_outside(run.inputs.src, rows, None);
+    }
+    Ok(())
+}

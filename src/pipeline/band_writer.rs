@@ -1,0 +1,92 @@
+//! An output made a band (a row of tiles) at a time by the caller, through
+//! `rectify`'s own encoder and writer: tiles and mask tiles compressed in
+//! parallel, overviews and statistics made as they stream, the
+//! Cloud-Optimized layout; a temporary file beside the output, verified,
+//! then renamed. For outputs with no one scan behind them (a mosaic).
+
+use super::context::{Output, Stop, Walk};
+use super::stages::encode::tiles;
+use super::stages::resample::{Made, Raw};
+use super::stages::write::write;
+use crate::error::{Error, Result};
+use crate::geom::OutputGrid;
+use crate::io::tiff_out::{verify, OutputSpec, PendingFile};
+use crate::overview::{OverviewResampling, Pyramid, ValidBy};
+use crate::progress::{Cancel, Progress};
+use std::collections::VecDeque;
+use std::path::Path;
+use std::sync::Mutex;
+use std::time::Duration;
+
+/// How the output is written.
+pub struct BandWriting<'a> {
+    pub spec: &'a OutputSpec,
+    pub path: &'a Path,
+    pub threads: usize,
+    pub overview_resampling: OverviewResampling,
+    /// Written where no pixel has a value.
+    pub fill: f64,
+    pub sync: bool,
+    pub progress: &'a dyn Progress,
+    pub cancel: &'a Cancel,
+}
+
+/// Writes `w.path` from the bands `make_band` makes, in order: each band's
+/// tiles one after the other from tile column 0, padded to whole tiles,
+/// and (under a mask) a byte a pixel saying which have a value. Returns the
+/// encoder's busy time.
+pub fn write_bands(w: &BandWriting, pending: PendingFile, mut make_band: impl FnMut(u32) -> Result<(Raw, Option<Vec<u8>>)>) -> Result<Duration> {
+    let spec = w.spec;
+    let tile = spec.chunk().0;
+    let (tx, ty) = (spec.tiles_across(), spec.tiles_down());
+    let geo = spec.geo.as_ref().ok_or_else(|| Error::Geometry("a band-written output needs its grid".into()))?;
+    let grid = OutputGrid { x0: geo.x0, y0: geo.y0, gsd: geo.gsd, width: spec.width, height: spec.height };
+    let walk = Walk { grid, tile, bands: (0, ty), cols: (0, tx), columns: false, piece: (0, 0, tx) };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(w.threads)
+        .build()
+        .map_err(|e| Error::setting("threads", format!("cannot start {} threads: {e}", w.threads)))?;
+    let stop = Stop::new(w.cancel);
+    let valid_by = ValidBy::of(spec);
+    let pyramid = Pyramid::new(spec, w.overview_resampling, valid_by, w.fill).map(Mutex::new);
+    let statistics = Mutex::default();
+    let spare_masks = crossbeam_channel::bounded(1);
+    let out = Output {
+        spec,
+        path: w.path,
+        sync: w.sync,
+        walk,
+        pool: &pool,
+        stop: &stop,
+        progress: w.progress,
+        spare_masks: &spare_masks.0,
+        pyramid: pyramid.as_ref(),
+        valid_by,
+        statistics: &statistics,
+    };
+    let out_file = pending.file()?;
+    let flush_file = out_file.try_clone().map_err(|e| Error::io(pending.path(), e))?;
+    let (free, _freed) = crossbeam_channel::bounded::<Raw>(1);
+    let mut busy = Duration::ZERO;
+    let mut ready = VecDeque::new();
+    let mut bands = 0..ty;
+    write(&out, out_file, flush_file, || loop {
+        if let Some(t) = ready.pop_front() {
+            return Ok(Some(t));
+        }
+        if stop.now() {
+            return Err(Error::Cancelled);
+        }
+        let Some(b) = bands.next() else { return Ok(None) };
+        let (raw, valid) = make_band(b).map_err(|e| stop.fail(e))?;
+        for t in tiles(&out, Made { band: b, first_col: 0, raw, valid }, &free, &mut busy) {
+            ready.push_back(t?);
+        }
+    })?;
+    if pyramid.as_ref().is_some_and(|p| !p.lock().is_ok_and(|p| p.is_complete())) {
+        return Err(Error::Geometry("an overview tile was left unfinished (please report it)".into()));
+    }
+    verify(pending.path(), spec)?;
+    pending.publish_synced(w.sync)?;
+    Ok(busy)
+}
