@@ -230,9 +230,14 @@ pub struct MosaicArgs {
     /// Radiometric balancing from the overlaps: none, gain, or gain-offset
     #[arg(long, default_value = "gain-offset", value_parser = choice::<Balance>())]
     pub balance: Balance,
+    /// Seamlines: least-cost (moved onto the cheapest path through the
+    /// overlap, around buildings) or voronoi (the first partition, each
+    /// ground point from the image that sees it nearest its centre)
+    #[arg(long, default_value = "least-cost", value_parser = ["least-cost", "voronoi"])]
+    pub seams: String,
     /// Width of the blend across a seam, pixels (0: a sharp cut; never
     /// across a height edge of the DSM)
-    #[arg(long, default_value_t = 8.0)]
+    #[arg(long, default_value_t = 8.0, allow_hyphen_values = true)]
     pub blend: f64,
     /// Write the seamlines here as GeoJSON (one polygon per image)
     #[arg(long)]

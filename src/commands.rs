@@ -95,6 +95,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         bounds,
         crs,
         balance: a.balance,
+        least_cost: a.seams == "least-cost",
         blend: a.blend,
         seamlines_out: a.seamlines_out.clone(),
         memory,

@@ -34,6 +34,8 @@ pub struct MosaicOptions {
     pub bounds: Option<[f64; 4]>,
     pub crs: Option<Crs>,
     pub balance: Balance,
+    /// Move the first partition's seams onto least-cost paths.
+    pub least_cost: bool,
     /// Width of the ramp across a seam, output pixels (0: a sharp cut).
     pub blend: f64,
     pub seamlines_out: Option<PathBuf>,
@@ -53,6 +55,8 @@ pub struct ImageReport {
     /// Share of the mosaic's covered area taken from it.
     pub share: f64,
     pub correction: Correction,
+    /// The grid it was rectified on (tiles of the mosaic's), where any.
+    pub grid: Option<crate::geom::OutputGrid>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -125,7 +129,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         sides.sort_unstable();
         (sides[sides.len() / 2] / 6).clamp(4, 256)
     };
-    let seam_stats = seams::refine(&mut plan, &corrections, corridor, &edges);
+    let seam_stats = if o.least_cost { seams::refine(&mut plan, &corrections, corridor, &edges) } else { seams::SeamStats::default() };
     let t_seams = t.elapsed().as_secs_f64();
     if let Some(path) = &o.seamlines_out {
         seamlines::write(&plan, path)?;
@@ -229,6 +233,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             image: im.opts.image.clone(),
             share: plan.label.iter().filter(|&&l| l == k as u16).count() as f64 / covered.max(1) as f64,
             correction: corrections[k].clone(),
+            grid: works.iter().find(|w| w.image == k).map(|w| w.grid),
         })
         .collect();
     let seam_cells = (0..plan.cw * plan.ch)

@@ -27,6 +27,7 @@ pub struct ImageWork {
     /// Mosaic tile columns `[c0, c1)` needed in each mosaic band.
     pub bands: BTreeMap<u32, (u32, u32)>,
     pub opts: RectifyOptions,
+    pub grid: crate::geom::OutputGrid,
 }
 
 impl ImageWork {
@@ -98,7 +99,8 @@ pub fn work(plan: &Plan, weights: &Weights, tile: u32, opts_of: impl Fn(usize) -
                 max_output_pixels: Some(u64::MAX),
                 ..opts_of(i)
             };
-            ImageWork { image: i, origin: (c0, r0), bands, opts }
+            let grid = crate::geom::OutputGrid { x0, y0, gsd: g.gsd, width: w as u32, height: h as u32 };
+            ImageWork { image: i, origin: (c0, r0), bands, opts, grid }
         })
         .collect()
 }
@@ -195,10 +197,12 @@ impl Compose<'_> {
                         for (band, a) in acc.iter_mut().enumerate() {
                             *a += wt * (corr.gain[band] * px_in[band].get() + corr.offset[band]);
                         }
-                    } else {
-                        spare_n += 1.0;
+                    } else if spare_n == 0.0 {
+                        // No weight here (a footprint's edge inside the
+                        // cell): the first image that has the pixel.
+                        spare_n = 1.0;
                         for (band, a) in spare.iter_mut().enumerate() {
-                            *a += corr.gain[band] * px_in[band].get() + corr.offset[band];
+                            *a = corr.gain[band] * px_in[band].get() + corr.offset[band];
                         }
                     }
                 }

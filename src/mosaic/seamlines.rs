@@ -1,6 +1,7 @@
 //! The seamlines as GeoJSON: one feature per image, its part of the mosaic
 //! as a MultiPolygon traced along the plan's cell edges (outer rings
-//! counter-clockwise, holes clockwise), attribute `image`. GDAL and QGIS
+//! counter-clockwise, holes clockwise), attributes `image` (its job's
+//! name) and `index` (1-based, in manifest order). GDAL and QGIS
 //! read it; the old-style `crs` member names the CRS where it has an EPSG
 //! code.
 
@@ -34,7 +35,7 @@ pub fn write(plan: &Plan, path: &std::path::Path) -> Result<()> {
             .collect();
         features.push(serde_json::json!({
             "type": "Feature",
-            "properties": { "image": im.name, "file": im.opts.image.display().to_string() },
+            "properties": { "image": im.name, "index": k + 1, "file": im.opts.image.display().to_string() },
             "geometry": { "type": "MultiPolygon", "coordinates": coords },
         }));
     }

@@ -1,0 +1,137 @@
+//! `mosaic`: a synthetic block of six frames over a town (buildings in the
+//! DSM), each frame exposed differently (`synth --block`). GDAL measures
+//! the outputs (`tests/mosaic/measure.py`): every pixel on an image's side
+//! of the seams is that image's own orthophoto bit for bit (no blend, no
+//! balance); nothing any image has is lost; balancing brings the mosaic to
+//! the ground's true levels and closes the jumps across seams; least-cost
+//! seams cross far fewer height edges than the first partition's.
+
+mod common;
+use common::{bin, python_with, run, s};
+use std::path::Path;
+
+fn block(dir: &Path) {
+    let out = run(&[
+        "synth",
+        "--out",
+        s(dir),
+        "--camera",
+        "digital",
+        "--relief",
+        "urban",
+        "--size",
+        "1500x1000",
+        "--dem-posting",
+        "1",
+        "--scale",
+        "8000",
+        "--block",
+        "3x2",
+        "--quiet",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+fn mosaic(dir: &Path, args: &[&str]) {
+    let mut all = vec!["mosaic", "manifest.toml", "--quiet"];
+    all.extend_from_slice(args);
+    let out = std::process::Command::new(bin()).current_dir(dir).args(&all).output().expect("runs");
+    assert!(out.status.success(), "mosaic {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+}
+
+#[test]
+fn a_block_mosaics_seamlessly_from_its_scans() {
+    let Some(python) = python_with("osgeo.gdal", "python3-gdal") else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    mosaic(d, &["-o", "a.tif", "--balance", "none", "--blend", "0", "--seamlines-out", "a.geojson", "--json", "a.json"]);
+    mosaic(d, &["-o", "b.tif", "--json", "b.json"]);
+    mosaic(d, &["-o", "c.tif", "--balance", "none", "--blend", "0", "--seams", "voronoi", "--seamlines-out", "c.geojson"]);
+    // Each image alone on the grid the mosaic made it on.
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("a.json")).unwrap()).unwrap();
+    for (k, im) in report["images"].as_array().unwrap().iter().enumerate() {
+        let g = &im["grid"];
+        let (x0, y0, gsd) = (g["x0"].as_f64().unwrap(), g["y0"].as_f64().unwrap(), g["gsd"].as_f64().unwrap());
+        let (w, h) = (g["width"].as_f64().unwrap(), g["height"].as_f64().unwrap());
+        let image = im["image"].as_str().unwrap();
+        let bounds = format!("{x0},{},{},{y0}", y0 - h * gsd, x0 + w * gsd);
+        let out = std::process::Command::new(bin())
+            .current_dir(d)
+            .args(["rectify", "--image", image, "--camera", &image.replace(".tif", ".toml"), "--dem", "dem.tif", "--bounds", &bounds])
+            .args(["--gsd", &gsd.to_string(), "--snap", "none", "-o", &format!("o{}.tif", k + 1), "--quiet"])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    }
+    let out = std::process::Command::new(python).arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/mosaic/measure.py")).arg(d).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let m: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    println!("{m}");
+    let f = |k: &str| m[k].as_f64().unwrap_or_else(|| panic!("{k} in {m}"));
+    // Geometry: each side of the seams is its image's orthophoto, bit for bit.
+    assert!(f("own_side_pixels") > 0.99 * f("valid"), "{m}");
+    assert_eq!(f("own_side_equal"), f("own_side_pixels"), "{m}");
+    // Every pixel from an image that has it; nothing an image has is lost.
+    assert_eq!(f("valid_from_an_image"), f("valid"), "{m}");
+    assert_eq!(f("lost"), 0.0, "{m}");
+    assert_eq!(m["truth_grid_same"], true);
+    // Balanced: the ground's true levels (the frames' gains were 0.8 to
+    // 1.2 with offsets and vignetting), and no step at the seams beyond
+    // the texture's own from pixel to pixel.
+    assert!(f("b_truth_mad") < 6.0 && f("b_truth_mad") < 0.6 * f("a_truth_mad"), "{m}");
+    assert!(f("b_seam_jump") < 0.5 * f("a_seam_jump") && f("b_seam_jump") < 2.0 * f("b_texture_step"), "{m}");
+    // Least-cost seams keep off the buildings' edges.
+    assert!(f("a_seam_on_height_edges") < 0.5 * f("c_seam_on_height_edges"), "{m}");
+    assert!(f("a_seam_on_height_edges") < 0.5 * f("edge_share"), "{m}");
+}
+
+#[test]
+fn the_seamlines_are_polygons_gdal_reads_one_per_image() {
+    let Some(python) = python_with("osgeo.ogr", "python3-gdal") else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    mosaic(d, &["-o", "m.tif", "--seamlines-out", "seams.geojson", "--json", "m.json"]);
+    let script = "import sys, json\nfrom osgeo import ogr\nds = ogr.Open(sys.argv[1]); l = ds.GetLayer(0)\nout = []\nfor f in l:\n    g = f.GetGeometryRef()\n    out.append([f.GetField('image'), g.IsValid(), g.GetArea()])\nprint(json.dumps({'features': out, 'epsg': l.GetSpatialRef().GetAuthorityCode(None)}))\n";
+    let out = std::process::Command::new(python).args(["-c", script]).arg(d.join("seams.geojson")).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("m.json")).unwrap()).unwrap();
+    assert_eq!(v["epsg"], "32631");
+    let feats = v["features"].as_array().unwrap();
+    assert_eq!(feats.len(), 6, "{v}");
+    // Valid polygons whose areas are the images' shares of the covered cells.
+    let total: f64 = feats.iter().map(|f| f[2].as_f64().unwrap()).sum();
+    for (f, im) in feats.iter().zip(report["images"].as_array().unwrap()) {
+        assert_eq!(f[1], true, "{f}");
+        let share = f[2].as_f64().unwrap() / total;
+        assert!((share - im["share"].as_f64().unwrap()).abs() < 0.01, "{f} {im}");
+    }
+}
+
+#[test]
+fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    let before = std::fs::read(d.join("scans/002.tif")).unwrap();
+    for target in ["scans/002.tif", "dem.tif", "manifest.toml"] {
+        let out = std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", target, "--quiet"]).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{target}: {}", String::from_utf8_lossy(&out.stderr));
+    }
+    assert_eq!(std::fs::read(d.join("scans/002.tif")).unwrap(), before);
+    // A missing scan: one line naming it, nothing at the output path.
+    std::fs::rename(d.join("scans/003.tif"), d.join("scans/gone.tif")).unwrap();
+    let out = std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "out.tif", "--quiet"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_ne!(out.status.code(), Some(0));
+    assert!(err.contains("003.tif") && err.trim().lines().count() == 1, "{err}");
+    assert!(!d.join("out.tif").exists());
+    assert!(common::files_containing(d, "out.tif").is_empty(), "a temporary was left");
+    // A blend that is not a width.
+    std::fs::rename(d.join("scans/gone.tif"), d.join("scans/003.tif")).unwrap();
+    let out = std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "out.tif", "--blend", "-3", "--quiet"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--blend"));
+}
