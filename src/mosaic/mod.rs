@@ -1,6 +1,6 @@
 //! `mosaic`: one seamless orthomosaic of a whole block, straight from the
-//! scans (Lobanov's "photoplan", made by rectifying all overlapping scans
-//! directly): the plan on coarse cells (`plan.rs`), radiometric balancing
+//! scans (the digital photoplan of the photogrammetry textbook's §9.10.5,
+//! made by rectifying all overlapping scans directly): the plan on coarse cells (`plan.rs`), radiometric balancing
 //! (`balance.rs`), seamlines on least-cost paths (`seams.rs`), the blend
 //! across them (`weights.rs`), and the render, streamed band by band from
 //! the scans through `rectify`'s own stages (`render.rs`). The seamlines

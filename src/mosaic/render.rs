@@ -156,41 +156,86 @@ impl Compose<'_> {
     /// Mosaic tile (tc, b) from the pieces of the images that have it.
     fn tile<T: Px>(&self, tc: u32, b: u32, pieces: &[Piece], out: &mut [T], valid: &mut [u8]) {
         let (t, nb, c) = (self.tile as usize, self.bands, self.plan.cell as f64);
-        let (cw, ch) = (self.plan.cw as i64, self.plan.ch as i64);
         let (gx0, gy0) = ((tc * self.tile) as usize, (b * self.tile) as usize);
         let (w, h) = (self.plan.grid.width as usize, self.plan.grid.height as usize);
+        // The cells the tile's pixels weigh by (bilinearly between their
+        // centres, or the nearest one), and each piece's weight in them.
+        let first = |g: usize| ((g as f64 + 0.5) / c - 0.5).floor() as i64;
+        let (cx0, cy0) = (first(gx0), first(gy0));
+        let (nx, ny) = ((first(gx0 + t - 1) - cx0 + 2) as usize, (first(gy0 + t - 1) - cy0 + 2) as usize);
+        let (cw, ch) = (self.plan.cw as i64, self.plan.ch as i64);
+        let grids: Vec<Vec<f32>> = pieces
+            .iter()
+            .map(|p| {
+                (0..nx * ny)
+                    .map(|k| {
+                        let (x, y) = ((cx0 + (k % nx) as i64).clamp(0, cw - 1), (cy0 + (k / nx) as i64).clamp(0, ch - 1));
+                        self.weights.weight(x as usize, y as usize, p.image)
+                    })
+                    .collect()
+            })
+            .collect();
+        // Each column's (cell, fraction) and each row's.
+        let along = |g0: usize, c0: i64| -> Vec<(usize, f64, usize)> {
+            (0..t)
+                .map(|k| {
+                    let u = ((g0 + k) as f64 + 0.5) / c - 0.5;
+                    let near = ((g0 + k) as f64 / c).floor() as i64 - c0;
+                    ((u.floor() as i64 - c0) as usize, u - u.floor(), near.max(0) as usize)
+                })
+                .collect()
+        };
+        let (cols, rows) = (along(gx0, cx0), along(gy0, cy0));
+        let blends = self.weights.blends();
         let samples: Vec<&[T]> = pieces.iter().map(|p| bytemuck::cast_slice::<u8, T>(p.bytes)).collect();
+        let corrections: Vec<&Correction> = pieces.iter().map(|p| &self.corrections[p.image as usize]).collect();
+        // One image with all the weight over the whole tile: its pixels as
+        // they are (corrected), others only where it has none.
+        let sole =
+            (0..pieces.len()).find(|&i| grids[i].iter().all(|&v| v == 1.0) && grids.iter().enumerate().all(|(j, g)| j == i || g.iter().all(|&v| v == 0.0)));
         let mut acc = vec![0f64; nb];
         let mut spare = vec![0f64; nb];
         for py in 0..t {
+            let (iv, fv, nv) = rows[py];
+            if let Some(i) = sole {
+                for px in 0..t {
+                    let k = py * t + px;
+                    let pixel = &mut out[k * nb..(k + 1) * nb];
+                    let from = if gx0 + px >= w || gy0 + py >= h { None } else { std::iter::once(i).chain(0..pieces.len()).find(|&j| pieces[j].valid[k] != 0) };
+                    match from {
+                        Some(j) if corrections[j].is_identity() => pixel.copy_from_slice(&samples[j][k * nb..(k + 1) * nb]),
+                        Some(j) => {
+                            for (band, v) in pixel.iter_mut().enumerate() {
+                                *v = T::put(corrections[j].gain[band] * samples[j][k * nb + band].get() + corrections[j].offset[band]);
+                            }
+                        }
+                        None => pixel.iter_mut().for_each(|v| *v = T::put(self.fill)),
+                    }
+                    valid[k] = u8::from(from.is_some());
+                }
+                continue;
+            }
             for px in 0..t {
                 let k = py * t + px;
-                let (gx, gy) = (gx0 + px, gy0 + py);
                 let pixel = &mut out[k * nb..(k + 1) * nb];
-                if gx >= w || gy >= h {
+                if gx0 + px >= w || gy0 + py >= h {
                     pixel.iter_mut().for_each(|v| *v = T::put(self.fill));
                     valid[k] = 0;
                     continue;
                 }
+                let (iu, fu, nu) = cols[px];
                 let (mut wsum, mut spare_n) = (0f64, 0f64);
                 acc.iter_mut().for_each(|a| *a = 0.0);
-                spare.iter_mut().for_each(|a| *a = 0.0);
-                for (p, s) in pieces.iter().zip(&samples) {
+                for (((p, s), g), corr) in pieces.iter().zip(&samples).zip(&grids).zip(&corrections) {
                     if p.valid[k] == 0 {
                         continue;
                     }
-                    let wt = if self.weights.blends() {
-                        // Bilinear between the cells' centres.
-                        let (u, v) = ((gx as f64 + 0.5) / c - 0.5, (gy as f64 + 0.5) / c - 0.5);
-                        let (iu, iv) = (u.floor(), v.floor());
-                        let (fu, fv) = (u - iu, v - iv);
-                        let at = |a: i64, b: i64| self.weights.weight(a.clamp(0, cw - 1) as usize, b.clamp(0, ch - 1) as usize, p.image) as f64;
-                        let (iu, iv) = (iu as i64, iv as i64);
+                    let wt = if blends {
+                        let at = |x: usize, y: usize| g[y * nx + x] as f64;
                         (at(iu, iv) * (1.0 - fu) + at(iu + 1, iv) * fu) * (1.0 - fv) + (at(iu, iv + 1) * (1.0 - fu) + at(iu + 1, iv + 1) * fu) * fv
                     } else {
-                        self.weights.weight(gx / self.plan.cell as usize, gy / self.plan.cell as usize, p.image) as f64
+                        g[nv * nx + nu] as f64
                     };
-                    let corr = &self.corrections[p.image as usize];
                     let px_in = &s[k * nb..(k + 1) * nb];
                     if wt > 0.0 {
                         wsum += wt;

@@ -9,7 +9,8 @@
 use super::balance::Correction;
 use super::plan::{Plan, NONE};
 use pathfinding::prelude::dijkstra;
-use std::collections::{HashSet, VecDeque};
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
+use std::collections::VecDeque;
 
 /// Cost of a cell where the two images differ by their mean difference.
 const DIFFERENCE: f64 = 2.0;
@@ -110,7 +111,7 @@ fn stretches(plan: &Plan, i: u16, j: u16) -> Vec<Vec<usize>> {
         neighbours4(x, y, cw, ch).any(|(a, b)| plan.label_at(a, b) == other)
     };
     let cells: HashSet<usize> = (0..cw * ch).filter(|&k| on(k % cw, k / cw)).collect();
-    let mut seen = HashSet::new();
+    let mut seen = HashSet::default();
     let mut out = Vec::new();
     let mut sorted: Vec<usize> = cells.iter().copied().collect();
     sorted.sort_unstable();
@@ -136,8 +137,8 @@ fn stretches(plan: &Plan, i: u16, j: u16) -> Vec<Vec<usize>> {
 
 /// Breadth-first distances (8-connected steps) from `from` over the cells
 /// `inside` admits, up to `limit`.
-fn reach(cw: usize, ch: usize, from: &[usize], limit: usize, inside: impl Fn(usize) -> bool) -> std::collections::HashMap<usize, usize> {
-    let mut dist: std::collections::HashMap<usize, usize> = from.iter().map(|&k| (k, 0)).collect();
+fn reach(cw: usize, ch: usize, from: &[usize], limit: usize, inside: impl Fn(usize) -> bool) -> HashMap<usize, usize> {
+    let mut dist: HashMap<usize, usize> = from.iter().map(|&k| (k, 0)).collect();
     let mut queue: VecDeque<usize> = from.iter().copied().collect();
     while let Some(k) = queue.pop_front() {
         let d = dist[&k];
@@ -173,7 +174,7 @@ fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: 
     // farthest from that.
     let end_set: HashSet<usize> = ends.iter().copied().collect();
     let along = |from: usize| reach(cw, ch, &[from], usize::MAX, |k| end_set.contains(&k));
-    let far = |d: &std::collections::HashMap<usize, usize>| d.iter().max_by_key(|(k, d)| (**d, std::cmp::Reverse(**k))).map(|(k, _)| *k);
+    let far = |d: &HashMap<usize, usize>| d.iter().max_by_key(|(k, d)| (**d, std::cmp::Reverse(**k))).map(|(k, _)| *k);
     let e0 = far(&along(ends[0]))?;
     let e1 = far(&along(e0))?;
     if e0 == e1 {
@@ -218,7 +219,7 @@ fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: 
     let on_path: HashSet<usize> = path.iter().copied().collect();
     // The zone's cells off the path, in 4-connected parts; each part goes
     // to the image its outside neighbours all belong to.
-    let mut part_of: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
+    let mut part_of: HashMap<usize, usize> = HashMap::default();
     let mut parts: Vec<(Vec<usize>, bool, bool)> = Vec::new();
     let mut keys: Vec<usize> = zone.keys().copied().filter(|k| !on_path.contains(k)).collect();
     keys.sort_unstable();
