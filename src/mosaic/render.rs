@@ -195,8 +195,7 @@ impl Compose<'_> {
             (0..pieces.len()).find(|&i| grids[i].iter().all(|&v| v == 1.0) && grids.iter().enumerate().all(|(j, g)| j == i || g.iter().all(|&v| v == 0.0)));
         let mut acc = vec![0f64; nb];
         let mut spare = vec![0f64; nb];
-        for py in 0..t {
-            let (iv, fv, nv) = rows[py];
+        for (py, &(iv, fv, nv)) in rows.iter().enumerate() {
             if let Some(i) = sole {
                 for px in 0..t {
                     let k = py * t + px;
@@ -215,7 +214,7 @@ impl Compose<'_> {
                 }
                 continue;
             }
-            for px in 0..t {
+            for (px, &(iu, fu, nu)) in cols.iter().enumerate() {
                 let k = py * t + px;
                 let pixel = &mut out[k * nb..(k + 1) * nb];
                 if gx0 + px >= w || gy0 + py >= h {
@@ -223,7 +222,6 @@ impl Compose<'_> {
                     valid[k] = 0;
                     continue;
                 }
-                let (iu, fu, nu) = cols[px];
                 let (mut wsum, mut spare_n) = (0f64, 0f64);
                 acc.iter_mut().for_each(|a| *a = 0.0);
                 for (((p, s), g), corr) in pieces.iter().zip(&samples).zip(&grids).zip(&corrections) {
