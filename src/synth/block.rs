@@ -7,11 +7,11 @@
 //! true colours on the mosaic's grid (`truth.tif`) and each frame's
 //! exposure (`exposures.csv`).
 
-use super::{camera_file, noise, relief, render_scan, scan_spec, write_dem, write_pixel, CameraKind, Scene, SynthOptions, BASE_HEIGHT, EPSG};
+use super::{camera_file, noise, relief, render_scan, scan_spec, truth_spec, write_dem, write_pixel, CameraKind, Scene, SynthOptions, BASE_HEIGHT};
 use crate::dem::{Dem, Height};
 use crate::error::{Error, Result};
 use crate::geom::OutputGrid;
-use crate::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
+use crate::io::tiff_out::write_raster;
 use crate::progress::Progress;
 use crate::transform::footprint::{footprint, mean_gsd};
 use rayon::prelude::*;
@@ -120,22 +120,7 @@ pub fn synth_block(o: &SynthOptions, cols: u32, rows: u32, progress: &dyn Progre
 fn write_truth(o: &SynthOptions, dem: &Dem, colour: &(dyn Fn(f64, f64) -> [f32; 3] + Sync), grid: &OutputGrid, path: &std::path::Path) -> Result<()> {
     let scan = scan_spec(o);
     let pb = o.bands as usize * scan.sample.bytes();
-    let spec = OutputSpec {
-        width: grid.width,
-        height: grid.height,
-        chunking: Chunking::Tiles(256),
-        compression: Compression::Deflate,
-        level: None,
-        geo: Some(GeoTags {
-            x0: grid.x0,
-            y0: grid.y0,
-            gsd: grid.gsd,
-            keys: crate::geodesy::geokeys::keys_of(&crate::geodesy::Crs::from_epsg(EPSG).expect("known")).map_err(Error::Geometry)?,
-            nodata: Some(0.0),
-        }),
-        bigtiff: false,
-        ..scan
-    };
+    let spec = truth_spec(&scan, grid)?;
     write_raster(path, &spec, |y0, _y1, buf| {
         buf.par_chunks_mut(grid.width as usize * pb).enumerate().for_each(|(k, row)| {
             let v = (y0 as usize + k) as f64 + 0.5;

@@ -596,11 +596,10 @@ fn scan_spec(o: &SynthOptions) -> OutputSpec {
     OutputSpec { bigtiff: spec.needs_bigtiff(), ..spec }
 }
 
-/// The true orthophoto on `grid` (in the scene's UTM zone):
-/// the ground's colour wherever the scan sees the ground, 0 elsewhere.
-fn render_truth(o: &SynthOptions, sc: &Scene<'_>, scan: &OutputSpec, grid: &crate::geom::OutputGrid, path: &std::path::Path) -> Result<()> {
-    let pb = o.bands as usize * scan.sample.bytes();
-    let spec = OutputSpec {
+/// The layout of a true orthophoto on `grid` (in the scene's UTM zone):
+/// the scan's samples, deflated tiles, 0 for no data.
+fn truth_spec(scan: &OutputSpec, grid: &crate::geom::OutputGrid) -> Result<OutputSpec> {
+    Ok(OutputSpec {
         width: grid.width,
         height: grid.height,
         chunking: Chunking::Tiles(256),
@@ -615,7 +614,14 @@ fn render_truth(o: &SynthOptions, sc: &Scene<'_>, scan: &OutputSpec, grid: &crat
         }),
         bigtiff: false,
         ..scan.clone()
-    };
+    })
+}
+
+/// The true orthophoto on `grid` (in the scene's UTM zone):
+/// the ground's colour wherever the scan sees the ground, 0 elsewhere.
+fn render_truth(o: &SynthOptions, sc: &Scene<'_>, scan: &OutputSpec, grid: &crate::geom::OutputGrid, path: &std::path::Path) -> Result<()> {
+    let pb = o.bands as usize * scan.sample.bytes();
+    let spec = truth_spec(scan, grid)?;
     write_raster(path, &spec, |y0, _y1, buf| {
         let row_bytes = grid.width as usize * pb;
         buf.par_chunks_mut(row_bytes).enumerate().for_each(|(k, row)| {
