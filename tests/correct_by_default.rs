@@ -236,3 +236,57 @@ fn a_film_scans_margin_is_masked_to_its_format() {
     let holes = v.chunks_exact(2).filter(|p| p[0].is_nan()).count();
     assert!(holes > 5_000 && v.chunks_exact(2).all(|p| p[0].is_nan() == p[1].is_nan() && (p[0].is_nan() || p[0] >= 0.0)), "{holes} holes");
 }
+
+/// An oblique drone frame whose centre looks at a building's wall in the
+/// DSM (no single ground point there): the default GSD is taken on the
+/// plane at the height the ray met, not refused ("the scan's centre does
+/// not meet the DEM" before), and the error bound holds.
+#[test]
+fn an_oblique_frame_looking_at_a_wall_gets_its_default_gsd() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let out = common::run(&[
+        "synth",
+        "--out",
+        common::s(d),
+        "--camera",
+        "drone",
+        "--relief",
+        "urban",
+        "--size",
+        "2000x1500",
+        "--dem-posting",
+        "0.8",
+        "--scale",
+        "19000",
+        "--off-nadir",
+        "25",
+        "--kappa",
+        "17",
+        "--block",
+        "1x2",
+        "--quiet",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json = d.join("r.json");
+    let out = common::run(&[
+        "rectify",
+        "--image",
+        common::s(&d.join("scans/002.tif")),
+        "--camera",
+        common::s(&d.join("scans/002.toml")),
+        "--dem",
+        common::s(&d.join("dem.tif")),
+        "-o",
+        common::s(&d.join("o.tif")),
+        "--json",
+        common::s(&json),
+        "--quiet",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    let gsd = r["grid"]["gsd"].as_f64().unwrap();
+    // 13.2 mm / 2000 px at 8.8 mm from ~167 m, looking 25° down-forward.
+    assert!((0.12..0.16).contains(&gsd), "{gsd}");
+    assert_eq!(r["error_within"], true);
+}

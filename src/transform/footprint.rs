@@ -73,12 +73,22 @@ fn image_outline(area: Option<ImageArea>, w: f64, h: f64) -> Vec<(f64, f64)> {
 /// The scan's ground sample distance at its centre, rounded to 4
 /// significant digits.
 pub fn mean_gsd(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64) -> Result<f64> {
-    let mut caster = RayCaster::new(model, dem);
     let (c, r) = (w as f64 / 2.0, h as f64 / 2.0);
     let d = 8.0;
-    let p = |cs: &mut RayCaster<'_, _>, c: f64, r: f64| cs.cast(c, r, None, z_guess, 1e-4);
-    let (Some(o), Some(a), Some(b)) = (p(&mut caster, c, r), p(&mut caster, c + d, r), p(&mut caster, c, r + d)) else {
-        return Err(Error::Geometry("the scan's centre does not meet the DEM".into()));
+    let three = |dem: &Dem| {
+        let mut cs = RayCaster::new(model, dem);
+        let mut p = |c: f64, r: f64| cs.cast(c, r, None, z_guess, 1e-4);
+        (p(c, r), p(c + d, r), p(c, r + d))
+    };
+    let (o, a, b) = match three(dem) {
+        (Some(o), Some(a), Some(b)) => (o, a, b),
+        // A ray that finds no single ground point (a DSM's wall or roof
+        // edge under the centre of an oblique frame): the plane at the
+        // height the centre's ray met, or the mean height.
+        (o, _, _) => match three(&Dem::flat(o.map_or(z_guess, |o| o[2]))) {
+            (Some(o), Some(a), Some(b)) => (o, a, b),
+            _ => return Err(Error::Geometry("the scan's centre does not meet the DEM".into())),
+        },
     };
     let area = ((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])).abs() / (d * d);
     let gsd = area.sqrt();
