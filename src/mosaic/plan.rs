@@ -193,7 +193,20 @@ impl Plan {
                 [b[0].min(f[0]), b[1].min(f[1]), b[2].max(f[2]), b[3].max(f[3])]
             })
         });
+        if !(gsd > 0.0 && gsd.is_finite()) {
+            return Err(Error::setting("gsd", format!("{gsd} is not a pixel size")));
+        }
         let grid = OutputGrid::from_bounds(bounds, gsd, Snap::Tap).ok_or_else(|| Error::setting("bounds", format!("{bounds:?} at GSD {gsd} is empty")))?;
+        // A GSD or bounds typo makes a mosaic of days: refused before any
+        // work, as rectify refuses one (16 times the scans' pixels at most).
+        let scans: u64 = images.iter().map(|(i, _)| i.width as u64 * i.height as u64).sum();
+        let pixels = grid.width as u64 * grid.height as u64;
+        if pixels > (16 * scans).max(1 << 28) {
+            return Err(Error::setting(
+                "gsd",
+                format!("a mosaic of {}×{} pixels at GSD {gsd} is more than 16 times its scans' pixels; check the GSD and bounds", grid.width, grid.height),
+            ));
+        }
         // Cells of 4 pixels or more, at most MAX_CELLS of them.
         let px = grid.width as u64 * grid.height as u64;
         let mut cell = 4u32;
@@ -225,24 +238,13 @@ impl Plan {
             let c = plan.cell as f64;
             let clampc = |v: f64, n: usize| (v / c).floor().clamp(0.0, n as f64) as usize;
             im.cells = [clampc(u0, cw), clampc(v0, ch), (clampc(u1, cw) + 1).min(cw), (clampc(v1, ch) + 1).min(ch)];
-            sample_image(&plan, &mut im, s.memory)?;
-            let [x0, y0, x1, _] = im.cells;
-            let side = (im.width as f64 / 2.0).hypot(im.height as f64 / 2.0);
             // How far from its centre the image sees each cell (a fraction
             // of its half-diagonal): the partition's measure.
-            let model = im.camera.model();
-            let dem = &plan.dems[im.dem];
-            for (j, row) in im.values.chunks(((x1 - x0) * im.bands as usize).max(1)).enumerate() {
-                for i in 0..x1 - x0 {
-                    if row[i * im.bands as usize].is_nan() {
-                        continue;
-                    }
-                    let (x, y) = (x0 + i, y0 + j);
-                    let (gx, gy) = plan.cell_centre(x, y);
-                    let Height::Value(z) = dem.height(gx, gy) else { continue };
-                    let Some((col, r)) = model.project(gx, gy, z) else { continue };
-                    let d = ((col - im.width as f64 / 2.0).hypot(r - im.height as f64 / 2.0) / side) as f32;
-                    let at = y * cw + x;
+            let from_centre = sample_image(&plan, &mut im, s.memory)?;
+            let [x0, y0, x1, _] = im.cells;
+            for (j, row) in from_centre.chunks((x1 - x0).max(1)).enumerate() {
+                for (i, &d) in row.iter().enumerate() {
+                    let at = (y0 + j) * cw + x0 + i;
                     if d < best[at] {
                         (best[at], plan.label[at]) = (d, k as u16);
                     }
@@ -259,8 +261,9 @@ impl Plan {
 /// The image's low-resolution orthophoto on the cells of its box: its scan
 /// reduced to about a cell a pixel (one row of each block of rows read,
 /// averaged across), then sampled bilinearly where each cell's centre is
-/// seen.
-fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64) -> Result<()> {
+/// seen; returns how far from the scan's centre each cell is seen, over
+/// its half-diagonal (NaN: not seen).
+fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64) -> Result<Vec<f32>> {
     let src = SourceImage::open_within(&im.opts.image, (memory / 8) as usize, memory)?;
     let (w, h, nb) = (im.width as usize, im.height as usize, im.bands as usize);
     let f = ((plan.cell_metres() / im.gsd).floor() as usize).clamp(1, w.min(h));
@@ -284,8 +287,10 @@ fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64) -> Result<()> {
     let area = model.image_area();
     let dem = &plan.dems[im.dem];
     let bw = x1 - x0;
+    let side = (w as f64 / 2.0).hypot(h as f64 / 2.0);
     let mut values = vec![f32::NAN; bw * (y1 - y0) * nb];
-    values.par_chunks_mut((bw * nb).max(1)).enumerate().for_each(|(j, out)| {
+    let mut from_centre = vec![f32::NAN; bw * (y1 - y0)];
+    values.par_chunks_mut((bw * nb).max(1)).zip(from_centre.par_chunks_mut(bw.max(1))).enumerate().for_each(|(j, (out, dist))| {
         for i in 0..bw {
             let (gx, gy) = plan.cell_centre(x0 + i, y0 + j);
             let Height::Value(z) = dem.height(gx, gy) else { continue };
@@ -293,6 +298,7 @@ fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64) -> Result<()> {
             if !(c >= 0.0 && r >= 0.0 && c < w as f64 && r < h as f64) || area.is_some_and(|a| !a.contains(c, r)) {
                 continue;
             }
+            dist[i] = ((c - w as f64 / 2.0).hypot(r - h as f64 / 2.0) / side) as f32;
             // Bilinear between thumbnail pixel centres.
             let (u, v) = ((c / f as f64 - 0.5).clamp(0.0, (tw - 1) as f64), (r / f as f64 - 0.5).clamp(0.0, (th - 1) as f64));
             let (iu, iv) = ((u as usize).min(tw.saturating_sub(2)), (v as usize).min(th.saturating_sub(2)));
@@ -307,7 +313,7 @@ fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64) -> Result<()> {
         }
     });
     im.values = values;
-    Ok(())
+    Ok(from_centre)
 }
 
 /// Samples of a row of the scan as f32.
