@@ -4,7 +4,7 @@
 //! the geometry silently. See README "The camera file".
 
 use super::atmosphere::Refraction;
-use super::distortion::{Brown, Distortion};
+use super::distortion::{Brown, Distortion, Fisheye, OpenCv};
 use super::frame::FrameCamera;
 use super::interior::InteriorOrientation;
 use super::reprojected::Reprojected;
@@ -37,8 +37,9 @@ pub struct InteriorSection {
     pub principal_point_mm: Option<[f64; 2]>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fiducial_distances_mm: Option<[f64; 2]>,
+    /// Square pixels, or `[x, y]` (OpenCV's fx ≠ fy).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub pixel_size_mm: Option<f64>,
+    pub pixel_size_mm: Option<PixelSize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub principal_point_px: Option<[f64; 2]>,
     /// The most a fiducial mark may sit off the fitted interior orientation,
@@ -51,6 +52,25 @@ pub struct InteriorSection {
     /// `"scan"`: the whole scan is image.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub format_mm: Option<FormatSetting>,
+}
+
+/// `interior.pixel_size_mm`: one size, or across and down.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum PixelSize {
+    Square(f64),
+    Sides([f64; 2]),
+}
+
+impl PixelSize {
+    /// (across, down), mm.
+    #[must_use]
+    pub fn sides(self) -> [f64; 2] {
+        match self {
+            PixelSize::Square(s) => [s, s],
+            PixelSize::Sides(s) => s,
+        }
+    }
 }
 
 /// `interior.format_mm`: a size, or `"scan"` (no mask).
@@ -81,6 +101,38 @@ pub struct DistortionSection {
     pub radial_mm: Option<[f64; 3]>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub brown: Option<Brown>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub opencv: Option<OpenCv>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fisheye: Option<Fisheye>,
+}
+
+impl DistortionSection {
+    /// The lens model, checked: at most one form, finite coefficients.
+    fn model(&self) -> std::result::Result<Distortion, (String, String)> {
+        let given = [self.radial_mm.is_some(), self.brown.is_some(), self.opencv.is_some(), self.fisheye.is_some()];
+        if given.iter().filter(|&&g| g).count() > 1 {
+            return Err(("distortion".into(), "give one of radial_mm, brown, opencv or fisheye".into()));
+        }
+        let check = |name: &str, v: &[f64]| all_finite(v).map_err(|m| (format!("distortion.{name}"), m));
+        if let Some(r) = self.radial_mm {
+            check("radial_mm", &r)?;
+            return Ok(Distortion::Radial(r));
+        }
+        if let Some(b) = self.brown {
+            check("brown", &[b.k1, b.k2, b.k3, b.p1, b.p2])?;
+            return Ok(Distortion::Brown(b));
+        }
+        if let Some(o) = self.opencv {
+            check("opencv", &o.opencv_order())?;
+            return Ok(Distortion::OpenCv(o));
+        }
+        if let Some(k) = self.fisheye {
+            check("fisheye", &[k.k1, k.k2, k.k3, k.k4])?;
+            return Ok(Distortion::Fisheye(k));
+        }
+        Ok(Distortion::None)
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -214,16 +266,7 @@ impl CameraFile {
 
         let distortion = match &self.distortion {
             None => Distortion::None,
-            Some(DistortionSection { radial_mm: Some(_), brown: Some(_) }) => return Err(err("distortion", "give radial_mm or brown, not both".into())),
-            Some(DistortionSection { radial_mm: Some(r), brown: None }) => {
-                all_finite(r).map_err(|m| err("distortion.radial_mm", m))?;
-                Distortion::Radial(*r)
-            }
-            Some(DistortionSection { radial_mm: None, brown: Some(b) }) => {
-                all_finite(&[b.k1, b.k2, b.k3, b.p1, b.p2]).map_err(|m| err("distortion.brown", m))?;
-                Distortion::Brown(*b)
-            }
-            Some(DistortionSection { radial_mm: None, brown: None }) => Distortion::None,
+            Some(d) => d.model().map_err(|(field, m)| err(&field, m))?,
         };
 
         let ext = self.exterior.clone().ok_or_else(|| err("exterior", "missing section".into()))?;
@@ -454,11 +497,12 @@ fn build_interior(s: &InteriorSection) -> std::result::Result<InteriorOrientatio
         all_finite(&flat(px)).map_err(|m| e("fiducials_px", m))?;
         return InteriorOrientation::from_fiducial_distances(d, px, pp).map_err(|x| e("fiducials_px", x.to_string()));
     }
-    let ps = s.pixel_size_mm.unwrap_or(0.0);
-    finite_positive(ps).map_err(|m| e("pixel_size_mm", m))?;
+    let ps = s.pixel_size_mm.map_or([0.0, 0.0], PixelSize::sides);
+    all_finite(&ps).map_err(|m| e("pixel_size_mm", m))?;
+    finite_positive(ps[0].min(ps[1])).map_err(|m| e("pixel_size_mm", m))?;
     let ppx = s.principal_point_px.ok_or_else(|| e("principal_point_px", "missing".into()))?;
     all_finite(&ppx).map_err(|m| e("principal_point_px", m))?;
-    InteriorOrientation::digital(ps, ppx).map_err(|x| e("pixel_size_mm", x.to_string()))
+    InteriorOrientation::digital_sides(ps, ppx).map_err(|x| e("pixel_size_mm", x.to_string()))
 }
 
 #[cfg(test)]

@@ -257,14 +257,27 @@ impl SensorModel for FrameCamera {
                     (col[k], row[k]) = Distortion::brown(&b, col[k], row[k], f);
                 }
             }
+            Distortion::OpenCv(o) => {
+                for k in 0..n {
+                    (col[k], row[k]) = Distortion::opencv(&o, col[k], row[k], f);
+                }
+            }
+            Distortion::Fisheye(o) => {
+                for k in 0..n {
+                    (col[k], row[k]) = Distortion::fisheye(&o, col[k], row[k], f);
+                }
+            }
         }
         for k in 0..n {
             (col[k], row[k]) = self.interior.mm_to_px(col[k], row[k]);
         }
     }
 
+    /// Through the lens model's inverse (a fisheye moves the corners by
+    /// hundreds of pixels), refraction left out.
     fn locate_approx(&self, col: f64, row: f64, z: f64) -> Option<(f64, f64)> {
         let (x, y) = self.interior.px_to_mm(col, row);
+        let (x, y) = self.distortion.remove(x, y, self.focal_mm).unwrap_or((x, y));
         let d = self.r * Vector3::new(x, y, -self.focal_mm);
         if d.z.abs() < 1e-12 {
             return None;

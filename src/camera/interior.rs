@@ -140,11 +140,16 @@ impl InteriorOrientation {
 
     /// Form (c): a digital frame camera.
     pub fn digital(pixel_size_mm: f64, principal_point_px: [f64; 2]) -> Result<Self, InteriorError> {
-        if !(pixel_size_mm > 0.0) {
+        Self::digital_sides([pixel_size_mm, pixel_size_mm], principal_point_px)
+    }
+
+    /// Form (c) with pixels of other sizes across and down (OpenCV's
+    /// fx ≠ fy: `fx = f / across`, `fy = f / down`).
+    pub fn digital_sides([across, down]: [f64; 2], principal_point_px: [f64; 2]) -> Result<Self, InteriorError> {
+        if !(across > 0.0 && down > 0.0) {
             return Err(InteriorError::Degenerate("pixel size must be positive"));
         }
-        let to_px =
-            Affine2 { m: Matrix2::new(1.0 / pixel_size_mm, 0.0, 0.0, -1.0 / pixel_size_mm), t: Vector2::new(principal_point_px[0], principal_point_px[1]) };
+        let to_px = Affine2 { m: Matrix2::new(1.0 / across, 0.0, 0.0, -1.0 / down), t: Vector2::new(principal_point_px[0], principal_point_px[1]) };
         Self::from_affine(to_px, Vec::new())
     }
 

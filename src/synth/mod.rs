@@ -13,7 +13,7 @@ pub mod texture;
 
 use crate::camera::atmosphere::Refraction;
 use crate::camera::distortion::Brown;
-use crate::camera::file::{CameraFile, CameraSection, CorrectionsSection, DistortionSection, ExteriorSection, InteriorSection};
+use crate::camera::file::{CameraFile, CameraSection, CorrectionsSection, DistortionSection, ExteriorSection, InteriorSection, PixelSize};
 use crate::camera::rotation::AngleConvention;
 use crate::camera::SensorModel;
 use crate::dem::{Dem, GridDem, Height};
@@ -211,7 +211,7 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
                 crs: format!("EPSG:{EPSG}"),
                 camera: CameraSection { model: "frame".into(), focal_length_mm: Some(FILM_FOCAL) },
                 interior: Some(InteriorSection { fiducials_mm: Some(marks), fiducials_px: Some(px_marks), principal_point_mm: Some(pp), ..Default::default() }),
-                distortion: Some(DistortionSection { radial_mm: Some([0.0, 1.5e-7, -2.0e-9]), brown: None }),
+                distortion: Some(DistortionSection { radial_mm: Some([0.0, 1.5e-7, -2.0e-9]), ..Default::default() }),
                 exterior: Some(ExteriorSection {
                     position: [centre_x, centre_y, ground_h + flying],
                     angles_deg: [tilt2, omega, o.kappa_deg],
@@ -228,12 +228,12 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
                 crs: format!("EPSG:{EPSG}"),
                 camera: CameraSection { model: "frame".into(), focal_length_mm: Some(DRONE_FOCAL) },
                 interior: Some(InteriorSection {
-                    pixel_size_mm: Some(px),
+                    pixel_size_mm: Some(PixelSize::Square(px)),
                     principal_point_px: Some([o.width as f64 / 2.0 - 11.3, o.height as f64 / 2.0 + 6.1]),
                     ..Default::default()
                 }),
                 // Strong barrel distortion, monotonic over the whole image.
-                distortion: Some(DistortionSection { radial_mm: None, brown: Some(Brown { k1: -0.11, k2: 0.035, k3: 0.0, p1: 4.0e-4, p2: -2.5e-4 }) }),
+                distortion: Some(DistortionSection { brown: Some(Brown { k1: -0.11, k2: 0.035, k3: 0.0, p1: 4.0e-4, p2: -2.5e-4 }), ..Default::default() }),
                 exterior: Some(ExteriorSection {
                     position: [centre_x, centre_y, ground_h + flying],
                     // Tilted forward by the off-nadir angle, then swung.
@@ -251,11 +251,11 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
                 crs: format!("EPSG:{EPSG}"),
                 camera: CameraSection { model: "frame".into(), focal_length_mm: Some(DIGITAL_FOCAL) },
                 interior: Some(InteriorSection {
-                    pixel_size_mm: Some(px),
+                    pixel_size_mm: Some(PixelSize::Square(px)),
                     principal_point_px: Some([o.width as f64 / 2.0 + 3.7, o.height as f64 / 2.0 - 2.9]),
                     ..Default::default()
                 }),
-                distortion: Some(DistortionSection { radial_mm: None, brown: Some(Brown { k1: -0.02, k2: 0.004, k3: 0.0, p1: 1.0e-5, p2: -2.0e-5 }) }),
+                distortion: Some(DistortionSection { brown: Some(Brown { k1: -0.02, k2: 0.004, k3: 0.0, p1: 1.0e-5, p2: -2.0e-5 }), ..Default::default() }),
                 exterior: Some(ExteriorSection {
                     position: [centre_x, centre_y, ground_h + flying],
                     angles_deg: [omega, tilt2, o.kappa_deg],
