@@ -67,10 +67,16 @@ pub struct SensorArgs {
     /// The scan or image (TIFF or BigTIFF).
     #[arg(long)]
     pub image: PathBuf,
-    /// The camera file (TOML): a frame camera, or model = "rpc" (which
-    /// rpc-grid needs).
+    /// The camera file: ours (TOML; a frame camera, or model = "rpc", which
+    /// rpc-grid needs), Orthority's interior parameters (YAML), or an
+    /// OpenSfM / OpenDroneMap reconstruction.json (lens and poses).
     #[arg(long, required_unless_present = "rpc", conflicts_with = "rpc")]
     pub camera: Option<PathBuf>,
+    /// The exterior orientations of many images (Orthority's CSV or
+    /// GeoJSON, our block CSV, an OpenSfM reconstruction.json): the image's
+    /// own is found by its file name; --camera gives the lens.
+    #[arg(long, requires = "camera")]
+    pub exterior: Option<PathBuf>,
     /// An RPC model instead of a camera file, in any supported format
     /// (GeoTIFF RPC tag, NITF, _RPC.TXT, RPB, OSSIM .geom, DIMAP or
     /// WorldView XML); the image itself when it carries one.
@@ -95,7 +101,7 @@ impl SensorArgs {
         match (&self.camera, &self.rpc) {
             (Some(_), None) if self.rpc_offset.is_some() => Err(gcm_ortho::Error::setting("rpc_offset", "goes with --rpc, not a camera file")),
             (Some(_), None) if self.geoid.is_some() => Err(gcm_ortho::Error::setting("geoid", "goes with --rpc, not a camera file")),
-            (Some(c), None) => Ok((c.clone(), ModelSource::CameraFile)),
+            (Some(c), None) => Ok((c.clone(), self.exterior.clone().map_or(ModelSource::CameraFile, ModelSource::WithPoses))),
             (None, Some(r)) => {
                 let offset = self.rpc_offset.as_deref().map(|o| parse_offset("rpc_offset", o)).transpose()?;
                 Ok((r.clone(), ModelSource::Rpc { offset, geoid: self.geoid.clone() }))

@@ -266,13 +266,20 @@ pub enum ModelSource {
     /// Built already (a block's interior file with one row of exterior
     /// orientations); `camera` names where it came from.
     Inline(CameraFile),
+    /// The camera file (any format `camera::import` reads) with the
+    /// exterior orientations of many images in this file: the image's own
+    /// is found by its name.
+    WithPoses(PathBuf),
 }
 
 impl ModelSource {
     /// The sensor model of `image` described at `origin`.
-    pub fn load(&self, image: &Path, origin: &Path) -> Result<Camera> {
+    /// `crs`: the orthophoto's CRS where given, taken as the positions'
+    /// where the camera's files give none.
+    pub fn load(&self, image: &Path, origin: &Path, crs: Option<&crate::geodesy::Crs>) -> Result<Camera> {
         match self {
-            ModelSource::CameraFile => Camera::read(origin),
+            ModelSource::CameraFile => Camera::read_for(image, origin, None, crs),
+            ModelSource::WithPoses(poses) => Camera::read_for(image, origin, Some(poses), crs),
             ModelSource::Inline(f) => f.clone().build(origin),
             ModelSource::Rpc { offset, geoid } => {
                 let offset = offset.or_else(|| {
@@ -481,6 +488,9 @@ impl RectifyOptions {
         v.push((what, self.camera.clone()));
         if let ModelSource::Rpc { geoid: Some(g), .. } = &self.model {
             v.push(("geoid grid", g.clone()));
+        }
+        if let ModelSource::WithPoses(p) = &self.model {
+            v.push(("exterior orientations", p.clone()));
         }
         if let DemSource::File(d) = &self.dem {
             v.push(("DEM", d.clone()));

@@ -42,6 +42,10 @@ pub struct InteriorSection {
     pub pixel_size_mm: Option<PixelSize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub principal_point_px: Option<[f64; 2]>,
+    /// The size of the images this camera is for, pixels (width, height):
+    /// another image is refused (a calibration from other tools holds it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub image_size_px: Option<[u32; 2]>,
     /// The most a fiducial mark may sit off the fitted interior orientation,
     /// scan pixels (default 2): past it a mark was placed wrong.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -219,6 +223,8 @@ pub struct Camera {
     pub crs: Crs,
     pub sensor: Sensor,
     pub file: CameraFile,
+    /// Doubtful things the camera's files hold, for the run to print.
+    pub warnings: Vec<String>,
 }
 
 /// One-line position "line L" of a byte offset in a text.
@@ -252,6 +258,9 @@ impl CameraFile {
             "rpc" => return self.build_rpc(path),
             other => return Err(err("camera.model", format!("unknown model '{other}' (expected \"frame\" or \"rpc\")"))),
         }
+        if self.crs.trim().is_empty() {
+            return Err(err("crs", "the CRS of the positions is not given: give crs here, a .prj beside the exterior orientations, or --crs".into()));
+        }
         let crs = Crs::parse(&self.crs, path.parent().unwrap_or(Path::new(""))).map_err(|m| err("crs", m))?;
         for (section, present) in [("rpc", self.rpc.is_some())] {
             if present {
@@ -279,7 +288,7 @@ impl CameraFile {
             let pp = interior.principal_point_mm.unwrap_or([0.0, 0.0]);
             frame = frame.with_format(size, pp).ok_or_else(|| err("interior.format_mm", "the format maps to no area of the scan".into()))?;
         }
-        Ok(Camera { crs, sensor: Sensor::Frame(frame), file: self })
+        Ok(Camera { crs, sensor: Sensor::Frame(frame), file: self, warnings: Vec::new() })
     }
 
     /// `model = "rpc"`: the RPC from `[rpc]`, the ground CRS from `crs`
@@ -338,13 +347,30 @@ impl CameraFile {
         };
         let ground = GroundCrs::new(&crs).map_err(|m| err("crs", m))?;
         let model = RpcCamera::new(rpc, ground, geoid);
-        Ok(Camera { crs, sensor: Sensor::Rpc(model), file: self })
+        Ok(Camera { crs, sensor: Sensor::Rpc(model), file: self, warnings: Vec::new() })
     }
 }
 
 impl Camera {
     pub fn read(path: &Path) -> Result<Camera> {
         CameraFile::read(path)?.build(path)
+    }
+
+    /// The camera of `image` from a camera file in any format
+    /// [`super::import`] reads, with the exterior orientations of many
+    /// images in `poses` where given. Doubtful things the files hold are in
+    /// [`Camera::warnings`].
+    /// `crs`: the positions' CRS where the files give none.
+    pub fn read_for(image: &Path, camera: &Path, poses: Option<&Path>, crs: Option<&Crs>) -> Result<Camera> {
+        let set = super::import::read(camera, poses)?;
+        let mut file = set.camera_for(image)?;
+        if let (true, Some(c)) = (file.crs.trim().is_empty(), crs) {
+            file.crs = c.epsg().map_or_else(|| c.proj4().to_string(), |e| format!("EPSG:{e}"));
+        }
+        let origin = poses.unwrap_or(camera);
+        let mut cam = file.build(origin)?;
+        cam.warnings = set.warnings;
+        Ok(cam)
     }
 
     /// The camera file for an RPC file given on the command line.
@@ -391,7 +417,7 @@ impl Camera {
                 Sensor::ReprojectedFrame(Reprojected::new(f, &own, ground, near)?)
             }
         };
-        Ok(Camera { crs: ground.clone(), sensor, file: self.file })
+        Ok(Camera { crs: ground.clone(), sensor, file: self.file, warnings: self.warnings })
     }
 
     /// The frame camera, or an error naming the file for a model that is not one.

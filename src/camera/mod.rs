@@ -5,6 +5,7 @@ pub mod atmosphere;
 pub mod distortion;
 pub mod file;
 pub mod frame;
+pub mod import;
 pub mod interior;
 pub mod lanes;
 pub mod reprojected;

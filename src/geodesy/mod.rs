@@ -7,6 +7,7 @@
 
 mod crs;
 mod datum;
+pub mod ecef;
 mod geoid;
 pub mod geokeys;
 mod projection;

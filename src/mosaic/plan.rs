@@ -115,7 +115,10 @@ impl Plan {
         let mut images = Vec::new();
         let mut crs = s.crs.clone();
         for (name, opts) in jobs {
-            let camera = opts.model.load(&opts.image, &opts.camera)?;
+            let camera = opts.model.load(&opts.image, &opts.camera, s.crs.as_ref())?;
+            for w in &camera.warnings {
+                progress.warn(w);
+            }
             let ground = crs.get_or_insert_with(|| camera.crs.clone()).clone();
             let camera = camera.in_crs(&ground).map_err(|m| Error::setting("crs", format!("{name}: {m}")))?;
             let dem = match &opts.dem {

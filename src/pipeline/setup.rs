@@ -45,7 +45,10 @@ impl RunPlan {
     pub fn new(opts: &RectifyOptions, progress: &dyn Progress) -> Result<RunPlan> {
         let mut budget = MemoryBudget::new(opts.memory);
         let like = opts.like.as_deref().map(reference_grid).transpose()?;
-        let camera = opts.model.load(&opts.image, &opts.camera)?;
+        let camera = opts.model.load(&opts.image, &opts.camera, opts.crs.as_ref())?;
+        for w in &camera.warnings {
+            progress.warn(w);
+        }
         // The orthophoto's CRS: as given, else the reference grid's, else
         // the camera's.
         let ground = match (&opts.crs, &like) {
@@ -120,6 +123,15 @@ impl RunPlan {
             Sensor::ReprojectedFrame(r) => Some((&r.inner, r.to_ground(r.inner.centre.x, r.inner.centre.y))),
             Sensor::Rpc(_) => None,
         };
+        if let Some([w, h]) = camera.file.interior.as_ref().and_then(|i| i.image_size_px) {
+            if [w, h] != [sw, sh] {
+                return Err(Error::config(
+                    &opts.camera,
+                    "interior.image_size_px",
+                    format!("the camera is for {w}×{h} images, but {} is {sw}×{sh}", opts.image.display()),
+                ));
+            }
+        }
         if let Some((f, centre)) = frame {
             // The ground under the camera where the DEM has it, else its mean.
             let below = match centre.map(|(x, y)| dem.height(x, y)) {

@@ -1,0 +1,288 @@
+//! Camera and pose files of other tools, read into our camera file: the
+//! format is found by content, never by the name alone.
+//!
+//! * Orthority: interior parameters (YAML: camera id → `type`, `im_size`,
+//!   `focal_len`, …), exterior parameters (CSV with x/y/z or
+//!   latitude/longitude/altitude and omega/phi/kappa or roll/pitch/yaw; its
+//!   GeoJSON) — [`orthority`];
+//! * OpenSfM / OpenDroneMap: `reconstruction.json` (cameras and shots) and
+//!   `cameras.json` — [`opensfm`];
+//! * our own camera file (TOML) as the interior, with a list of poses.
+//!
+//! Each reader yields lenses (by camera id) and poses (by image name). An
+//! image takes the pose whose name is its file name, with or without the
+//! extension; its lens is the pose's camera, or the only one there is.
+
+pub mod opensfm;
+pub mod orthority;
+
+use super::distortion::{Brown, Fisheye, OpenCv};
+use super::file::{CameraFile, CameraSection, DistortionSection, ExteriorSection, InteriorSection, PixelSize};
+use super::rotation::AngleConvention;
+use crate::error::{Error, Result};
+use crate::io::bounded_read::{read_text_bounded, SMALL};
+use nalgebra::Matrix3;
+use std::path::{Path, PathBuf};
+
+/// A lens in pixels, as calibration tools give it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Lens {
+    /// The image it was calibrated on, pixels (width, height).
+    pub size: [u32; 2],
+    /// Focal length in pixels across and down (OpenCV's fx, fy).
+    pub focal_px: [f64; 2],
+    /// The principal point, pixels from the top-left corner (centres at +½).
+    pub principal_point_px: [f64; 2],
+    /// The focal length in mm, where the source gives a sensor size.
+    pub focal_mm: Option<f64>,
+    pub distortion: DistortionSection,
+}
+
+impl Lens {
+    /// A lens with OpenCV's parameters: principal point in OpenCV's
+    /// pixels (centres at integers), the coefficients of `kind`.
+    #[must_use]
+    pub fn from_opencv(size: [u32; 2], focal_px: [f64; 2], opencv_pp: [f64; 2], distortion: DistortionSection) -> Lens {
+        Lens { size, focal_px, principal_point_px: [opencv_pp[0] + 0.5, opencv_pp[1] + 0.5], focal_mm: None, distortion }
+    }
+
+    /// Our camera and interior sections. Without a sensor size the focal
+    /// length is written in pixels, on pixels 1 "mm" across: the geometry
+    /// depends only on their ratio.
+    fn sections(&self) -> (CameraSection, InteriorSection) {
+        let f = self.focal_mm.unwrap_or(self.focal_px[0]);
+        let sides = [f / self.focal_px[0], f / self.focal_px[1]];
+        let pixel = if sides[0] == sides[1] { PixelSize::Square(sides[0]) } else { PixelSize::Sides(sides) };
+        let camera = CameraSection { model: "frame".into(), focal_length_mm: Some(f) };
+        let interior = InteriorSection {
+            pixel_size_mm: Some(pixel),
+            principal_point_px: Some(self.principal_point_px),
+            image_size_px: Some(self.size),
+            ..Default::default()
+        };
+        (camera, interior)
+    }
+}
+
+/// Brown's coefficients as a distortion section (none when all are zero).
+#[must_use]
+pub fn brown_section(b: Brown) -> DistortionSection {
+    if b == (Brown { k1: 0.0, k2: 0.0, k3: 0.0, p1: 0.0, p2: 0.0 }) {
+        return DistortionSection::default();
+    }
+    DistortionSection { brown: Some(b), ..Default::default() }
+}
+
+/// OpenCV's full model as a distortion section, Brown's where it is one.
+#[must_use]
+pub fn opencv_section(o: OpenCv) -> DistortionSection {
+    if [o.k4, o.k5, o.k6, o.s1, o.s2, o.s3, o.s4] == [0.0; 7] {
+        return brown_section(Brown { k1: o.k1, k2: o.k2, k3: o.k3, p1: o.p1, p2: o.p2 });
+    }
+    DistortionSection { opencv: Some(o), ..Default::default() }
+}
+
+/// The fisheye model as a distortion section.
+#[must_use]
+pub fn fisheye_section(k: Fisheye) -> DistortionSection {
+    DistortionSection { fisheye: Some(k), ..Default::default() }
+}
+
+/// Where an image was and how it looked.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pose {
+    /// The image's name as the file gives it (a directory part dropped).
+    pub name: String,
+    /// The lens's id, where the file names one.
+    pub camera: Option<String>,
+    /// The projection centre in the set's CRS.
+    pub position: [f64; 3],
+    /// Photo (x right, y up, looking down −z) → ground (X east, Y north, Z up).
+    pub r: Matrix3<f64>,
+    /// Where it was read: "file:line" or "file: shot NAME".
+    pub origin: String,
+}
+
+/// What a set of files says: lenses, poses, and the CRS of the poses.
+#[derive(Clone, Debug, Default)]
+pub struct Imported {
+    pub lenses: Vec<(String, Lens)>,
+    pub poses: Vec<Pose>,
+    /// The poses' CRS as the files give it (any form `Crs::parse` reads).
+    pub crs: Option<String>,
+    /// Our own camera file when it is the interior: its sections are kept.
+    pub base: Option<CameraFile>,
+    /// Doubtful things the files hold (printed as warnings).
+    pub warnings: Vec<String>,
+    /// The files read, for messages and for the no-overwrite check.
+    pub files: Vec<PathBuf>,
+}
+
+/// What a file holds, by its content.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// Our camera file (TOML).
+    Ours,
+    OrthorityInterior,
+    OrthorityCsv,
+    OrthorityGeoJson,
+    OpenSfmReconstruction,
+    OpenSfmCameras,
+}
+
+impl Kind {
+    /// What the format is called in messages.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Ours => "gcm-ortho camera file",
+            Kind::OrthorityInterior => "Orthority interior parameters",
+            Kind::OrthorityCsv => "exterior orientations (CSV)",
+            Kind::OrthorityGeoJson => "Orthority exterior parameters (GeoJSON)",
+            Kind::OpenSfmReconstruction => "OpenSfM reconstruction",
+            Kind::OpenSfmCameras => "OpenSfM cameras",
+        }
+    }
+}
+
+/// The kind of a camera or pose file, from its text.
+pub fn detect(path: &Path, text: &str) -> Result<Kind> {
+    let t = text.trim_start_matches('\u{feff}').trim_start();
+    if t.starts_with('{') || t.starts_with("[\n") || t.starts_with("[ ") || t.starts_with("[{") || t.starts_with("[\r") {
+        if let Ok(v) = serde_json::from_str::<serde_json::Value>(t) {
+            return detect_json(path, &v);
+        }
+    }
+    if toml::from_str::<toml::Table>(t).is_ok_and(|table| table.contains_key("camera") || table.contains_key("crs")) {
+        return Ok(Kind::Ours);
+    }
+    if orthority::looks_like_interior(t) {
+        return Ok(Kind::OrthorityInterior);
+    }
+    if orthority::looks_like_csv(t) {
+        return Ok(Kind::OrthorityCsv);
+    }
+    // Most likely our own file with a mistake: its parser says where.
+    Ok(Kind::Ours)
+}
+
+fn detect_json(path: &Path, v: &serde_json::Value) -> Result<Kind> {
+    use serde_json::Value;
+    match v {
+        Value::Object(o) if o.get("type").and_then(Value::as_str) == Some("FeatureCollection") => Ok(Kind::OrthorityGeoJson),
+        Value::Object(o) if o.values().all(|c| c.get("projection_type").is_some()) && !o.is_empty() => Ok(Kind::OpenSfmCameras),
+        Value::Array(a) if a.first().is_some_and(|r| r.get("shots").is_some() || r.get("cameras").is_some()) => Ok(Kind::OpenSfmReconstruction),
+        _ => Err(Error::unsupported(path, "JSON that is neither an OpenSfM reconstruction.json / cameras.json nor an Orthority GeoJSON (FeatureCollection)")),
+    }
+}
+
+/// Reads a camera file (`--camera`) and, where given, a pose file
+/// (`--exterior`) into one set.
+pub fn read(camera: &Path, exterior: Option<&Path>) -> Result<Imported> {
+    let mut set = read_one(camera)?;
+    if let Some(e) = exterior {
+        let poses = read_one(e)?;
+        if poses.poses.is_empty() {
+            return Err(Error::format(e, "holds no exterior orientations"));
+        }
+        if !set.poses.is_empty() {
+            return Err(Error::unsupported(e, format!("{} holds poses already: give one of the two", camera.display())));
+        }
+        set.poses = poses.poses;
+        set.lenses.extend(poses.lenses);
+        set.warnings.extend(poses.warnings);
+        set.files.extend(poses.files);
+        if let Some(c) = poses.crs {
+            set.crs = Some(c);
+        }
+    }
+    Ok(set)
+}
+
+fn read_one(path: &Path) -> Result<Imported> {
+    let text = read_text_bounded(path, "a camera or pose file", SMALL * 64)?;
+    let mut set = match detect(path, &text)? {
+        Kind::Ours => {
+            let file = CameraFile::parse(&text, path)?;
+            Imported { base: Some(file), ..Default::default() }
+        }
+        Kind::OrthorityInterior => orthority::read_interior(path, &text)?,
+        Kind::OrthorityCsv => orthority::read_csv(path, &text)?,
+        Kind::OrthorityGeoJson => orthority::read_geojson(path, &text)?,
+        Kind::OpenSfmReconstruction | Kind::OpenSfmCameras => opensfm::read(path, &text)?,
+    };
+    set.files.push(path.to_path_buf());
+    Ok(set)
+}
+
+impl Imported {
+    /// The camera file of the pose that names `image`: by file name, else
+    /// by the names without their extensions. None or two: refused by name.
+    pub fn camera_for(&self, image: &Path) -> Result<CameraFile> {
+        let source = self.files.last().cloned().unwrap_or_default();
+        if self.poses.is_empty() {
+            return match &self.base {
+                Some(b) => Ok(b.clone()),
+                None => Err(Error::unsupported(&source, "gives no exterior orientation: add --exterior with the poses")),
+            };
+        }
+        let file = image.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        let stem = image.file_stem().and_then(|n| n.to_str()).unwrap_or("");
+        let stem_of = |n: &str| Path::new(n).file_stem().and_then(|s| s.to_str()).unwrap_or(n).to_string();
+        let mut found: Vec<&Pose> = self.poses.iter().filter(|p| p.name == file).collect();
+        if found.is_empty() {
+            found = self.poses.iter().filter(|p| p.name == stem || stem_of(&p.name) == stem).collect();
+        }
+        match found.as_slice() {
+            [one] => self.camera_file(one, &source),
+            [] => {
+                Err(Error::format(&source, format!("no exterior orientation for the image {file} ({} poses, none named {file} or {stem})", self.poses.len())))
+            }
+            many => Err(Error::format(
+                &source,
+                format!(
+                    "{} exterior orientations match the image {file}: {}",
+                    many.len(),
+                    many.iter().map(|p| p.origin.as_str()).collect::<Vec<_>>().join(", ")
+                ),
+            )),
+        }
+    }
+
+    /// Every pose's camera file, in the files' order.
+    pub fn all(&self) -> Result<Vec<(String, CameraFile, String)>> {
+        let source = self.files.last().cloned().unwrap_or_default();
+        self.poses.iter().map(|p| Ok((p.name.clone(), self.camera_file(p, &source)?, p.origin.clone()))).collect()
+    }
+
+    /// Pose `p` with its lens, as our camera file.
+    pub fn camera_file(&self, p: &Pose, source: &Path) -> Result<CameraFile> {
+        let angles = AngleConvention::OmegaPhiKappa.angles(&p.r).map(f64::to_degrees);
+        let exterior = Some(ExteriorSection { position: p.position, angles_deg: angles, convention: AngleConvention::OmegaPhiKappa });
+        let crs = self.crs.clone().or_else(|| self.base.as_ref().map(|b| b.crs.clone())).unwrap_or_default();
+        if let Some(base) = &self.base {
+            if self.lenses.is_empty() {
+                return Ok(CameraFile { crs, exterior, ..base.clone() });
+            }
+        }
+        let lens = self.lens_of(p, source)?;
+        let (camera, interior) = lens.sections();
+        let distortion = (lens.distortion != DistortionSection::default()).then(|| lens.distortion.clone());
+        let corrections = self.base.as_ref().map(|b| b.corrections.clone()).unwrap_or_default();
+        Ok(CameraFile { crs, camera, interior: Some(interior), distortion, exterior, corrections, rpc: None })
+    }
+
+    fn lens_of(&self, p: &Pose, source: &Path) -> Result<&Lens> {
+        match &p.camera {
+            Some(id) => self.lenses.iter().find(|(k, _)| k == id).map(|(_, l)| l).ok_or_else(|| {
+                let known: Vec<&str> = self.lenses.iter().map(|(k, _)| k.as_str()).collect();
+                Error::format(source, format!("{}: camera '{id}' is not among the interior parameters ({})", p.origin, known.join(", ")))
+            }),
+            None => match self.lenses.as_slice() {
+                [(_, one)] => Ok(one),
+                [] => Err(Error::format(source, format!("{}: no interior parameters: give them with --camera", p.origin))),
+                _ => Err(Error::format(source, format!("{}: names no camera, and there are {} interior parameter sets", p.origin, self.lenses.len()))),
+            },
+        }
+    }
+}

@@ -1,0 +1,330 @@
+//! Orthority's parameter files, read as Orthority 0.7 reads them:
+//!
+//! * interior (YAML): camera id → `type` (pinhole, brown, fisheye, opencv),
+//!   `im_size`, `focal_len` (a number or [fx, fy]; with `sensor_size` in
+//!   its units, else normalised by the image **width**, as Orthority's code
+//!   does), `cx`, `cy` (normalised by the larger side, from the image
+//!   centre), and the model's coefficients; any other key is refused;
+//! * exterior CSV: a header of `filename`, `x y z` or `latitude longitude
+//!   altitude`, `omega phi kappa` or `roll pitch yaw` (degrees), optional
+//!   `camera` (names in any case, other columns ignored; `name` also for
+//!   `filename`), or no header and the order `filename x y z omega phi
+//!   kappa`; the delimiter `,` `;` tab `:` or spaces; a `.prj` beside it
+//!   is the CRS;
+//! * exterior GeoJSON: `world_crs` and features with `filename`, `camera`,
+//!   `xyz` and `opk` (radians).
+//!
+//! Omega, phi, kappa rotate the photo (x right, y up, z back) into the
+//! world as `Rx(ω)·Ry(φ)·Rz(κ)`: our `omega-phi-kappa`. Roll, pitch, yaw
+//! are a body's (x forward, y right, z down; pitch 0 looks straight down)
+//! against grid north at the camera, which includes the meridian
+//! convergence of the world CRS.
+
+use super::{brown_section, fisheye_section, opencv_section, Imported, Lens, Pose};
+use crate::camera::distortion::{Brown, Fisheye, OpenCv};
+use crate::camera::rotation::AngleConvention;
+use crate::error::{Error, Result};
+use crate::geodesy::{utm_zone, Crs, GroundCrs};
+use nalgebra::{Matrix3, Vector3};
+use serde_yaml_ng::Value;
+use std::path::Path;
+
+/// Does this YAML hold Orthority cameras (a mapping of mappings with
+/// `type` and `im_size`, or one such mapping)?
+pub fn looks_like_interior(text: &str) -> bool {
+    let Ok(Value::Mapping(root)) = serde_yaml_ng::from_str::<Value>(text) else { return false };
+    let is_camera = |v: &Value| v.get("type").is_some() && v.get("im_size").is_some();
+    is_camera(&Value::Mapping(root.clone())) || (!root.is_empty() && root.values().all(is_camera))
+}
+
+/// Does this text look like a list of exterior orientations?
+pub fn looks_like_csv(text: &str) -> bool {
+    let Some(first) = text.lines().find(|l| !l.trim().is_empty()) else { return false };
+    DELIMITERS.iter().any(|&d| fields(first, d).len() >= 7)
+}
+
+const DELIMITERS: [u8; 5] = [b',', b';', b'\t', b':', b' '];
+
+/// The fields of one CSV line with delimiter `d` (quotes kept together;
+/// spaces after a delimiter, and empty fields between spaces, dropped).
+fn fields(line: &str, d: u8) -> Vec<String> {
+    let mut r = csv::ReaderBuilder::new().delimiter(d).has_headers(false).flexible(true).trim(csv::Trim::All).from_reader(line.as_bytes());
+    let Some(Ok(rec)) = r.records().next() else { return Vec::new() };
+    rec.iter().filter(|f| d != b' ' || !f.is_empty()).map(str::to_string).collect()
+}
+
+/// Orthority's interior parameter file.
+pub fn read_interior(path: &Path, text: &str) -> Result<Imported> {
+    let root: Value = serde_yaml_ng::from_str(text).map_err(|e| Error::format(path, format!("YAML: {e}")))?;
+    let Value::Mapping(map) = root else { return Err(Error::format(path, "expected camera ids, each with its parameters")) };
+    let mut set = Imported::default();
+    // The legacy form: one camera's keys at the top (its id under `name`).
+    let flat = map.values().next().is_some_and(|v| !v.is_mapping());
+    let cameras: Vec<(String, Value)> = if flat {
+        let id = map.get("name").and_then(Value::as_str).unwrap_or("unknown").to_string();
+        vec![(id, Value::Mapping(map.clone()))]
+    } else {
+        map.iter().map(|(k, v)| (key_text(k), v.clone())).collect()
+    };
+    for (id, params) in cameras {
+        let (lens, warning) = lens(path, &id, &params)?;
+        set.warnings.extend(warning);
+        set.lenses.push((id, lens));
+    }
+    Ok(set)
+}
+
+fn key_text(k: &Value) -> String {
+    match k {
+        Value::String(s) => s.clone(),
+        other => serde_yaml_ng::to_string(other).unwrap_or_default().trim().to_string(),
+    }
+}
+
+/// One Orthority camera: the lens, and a warning where Orthority's reading
+/// of it is doubtful.
+fn lens(path: &Path, id: &str, p: &Value) -> Result<(Lens, Option<String>)> {
+    let field = |k: &str| format!("{id}.{k}");
+    let Value::Mapping(m) = p else { return Err(Error::config(path, id, "expected the camera's parameters")) };
+    let kind = m.get("type").and_then(Value::as_str).ok_or_else(|| Error::config(path, field("type"), "missing"))?.to_ascii_lowercase();
+    let allowed: &[&str] = match kind.as_str() {
+        "pinhole" => &[],
+        "brown" => &["k1", "k2", "p1", "p2", "k3"],
+        "fisheye" => &["k1", "k2", "k3", "k4"],
+        "opencv" => &["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4", "tx", "ty"],
+        other => return Err(Error::config(path, field("type"), format!("'{other}' is not a frame camera type (pinhole, brown, fisheye, opencv)"))),
+    };
+    for k in m.keys() {
+        let k = key_text(k);
+        if !["type", "im_size", "focal_len", "sensor_size", "cx", "cy", "name"].contains(&k.as_str()) && !allowed.contains(&k.as_str()) {
+            return Err(Error::config(path, field(&k), format!("unknown for a {kind} camera")));
+        }
+    }
+    let num = |k: &str| -> Result<f64> {
+        match m.get(k) {
+            None => Ok(0.0),
+            Some(v) => v.as_f64().filter(|x| x.is_finite()).ok_or_else(|| Error::config(path, field(k), "not a finite number")),
+        }
+    };
+    let pair = |k: &str| -> Result<Option<[f64; 2]>> {
+        match m.get(k) {
+            None => Ok(None),
+            Some(Value::Sequence(s)) if s.len() == 2 => {
+                let v: Option<Vec<f64>> = s.iter().map(|x| x.as_f64().filter(|x| x.is_finite() && *x > 0.0)).collect();
+                v.map(|v| Some([v[0], v[1]])).ok_or_else(|| Error::config(path, field(k), "expected two positive numbers"))
+            }
+            Some(v) => v
+                .as_f64()
+                .filter(|x| x.is_finite() && *x > 0.0)
+                .map(|x| Some([x, x]))
+                .ok_or_else(|| Error::config(path, field(k), "expected a positive number")),
+        }
+    };
+    let size = match m.get("im_size") {
+        Some(Value::Sequence(s)) if s.len() == 2 && s.iter().all(|v| v.as_u64().is_some_and(|n| n > 0 && n < 1 << 31)) => {
+            [s[0].as_u64().unwrap_or(0) as u32, s[1].as_u64().unwrap_or(0) as u32]
+        }
+        _ => return Err(Error::config(path, field("im_size"), "expected [width, height] in pixels")),
+    };
+    let focal = pair("focal_len")?.ok_or_else(|| Error::config(path, field("focal_len"), "missing"))?;
+    let sensor = match m.get("sensor_size") {
+        None => None,
+        Some(Value::Sequence(_)) => pair("sensor_size")?,
+        Some(_) => return Err(Error::config(path, field("sensor_size"), "expected [width, height]")),
+    };
+    let (w, h) = (size[0] as f64, size[1] as f64);
+    let mut warning = None;
+    let (focal_px, focal_mm) = match sensor {
+        Some(s) => ([focal[0] * w / s[0], focal[1] * h / s[1]], Some(focal[0])),
+        None => {
+            if h > w {
+                warning = Some(format!(
+                    "{}: camera '{id}': focal_len without sensor_size on a portrait image is read as Orthority's code reads it, as a fraction of the width (its documentation says of the larger side)",
+                    path.display()
+                ));
+            }
+            ([focal[0] * w, focal[1] * w], None)
+        }
+    };
+    let long = w.max(h);
+    let opencv_pp = [(w - 1.0) / 2.0 + long * num("cx")?, (h - 1.0) / 2.0 + long * num("cy")?];
+    let distortion = match kind.as_str() {
+        "brown" => brown_section(Brown { k1: num("k1")?, k2: num("k2")?, k3: num("k3")?, p1: num("p1")?, p2: num("p2")? }),
+        "fisheye" => fisheye_section(Fisheye { k1: num("k1")?, k2: num("k2")?, k3: num("k3")?, k4: num("k4")? }),
+        "opencv" => {
+            for t in ["tx", "ty"] {
+                if num(t)? != 0.0 {
+                    return Err(Error::config(path, field(t), "OpenCV's tilted-sensor terms are not supported"));
+                }
+            }
+            opencv_section(OpenCv {
+                k1: num("k1")?,
+                k2: num("k2")?,
+                k3: num("k3")?,
+                k4: num("k4")?,
+                k5: num("k5")?,
+                k6: num("k6")?,
+                p1: num("p1")?,
+                p2: num("p2")?,
+                s1: num("s1")?,
+                s2: num("s2")?,
+                s3: num("s3")?,
+                s4: num("s4")?,
+            })
+        }
+        _ => Default::default(),
+    };
+    let mut lens = Lens::from_opencv(size, focal_px, opencv_pp, distortion);
+    lens.focal_mm = focal_mm;
+    Ok((lens, warning))
+}
+
+/// The rotation of Orthority's omega, phi, kappa (radians): photo → world.
+#[must_use]
+pub fn opk_rotation(opk: [f64; 3]) -> Matrix3<f64> {
+    AngleConvention::OmegaPhiKappa.matrix(opk)
+}
+
+/// Roll, pitch, yaw (radians) of a camera at `lonlat` (degrees) → its
+/// rotation photo → world in `crs`: the body's axes (x forward, y right,
+/// z down) against north, east, down, with north taken along the CRS's grid
+/// north at that point (Orthority's `_rpy_to_opk`).
+pub fn rpy_rotation(rpy: [f64; 3], lonlat: (f64, f64), crs: &GroundCrs) -> Option<Matrix3<f64>> {
+    let [roll, pitch, yaw] = rpy;
+    let c_nb = rz(yaw) * ry(pitch) * rx(roll);
+    // About a metre: far above the projection's rounding, the meridian's
+    // curvature cancels in the central difference.
+    let d = 1e-5;
+    let (x1, y1) = crs.from_lonlat(lonlat.0, lonlat.1 + d)?;
+    let (x2, y2) = crs.from_lonlat(lonlat.0, lonlat.1 - d)?;
+    let north = Vector3::new(x1 - x2, y1 - y2, 0.0).try_normalize(0.0)?;
+    let down = Vector3::new(0.0, 0.0, -1.0);
+    let east = down.cross(&north);
+    let c_en = Matrix3::from_columns(&[north, east, down]);
+    let c_bb = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0);
+    Some(c_en * c_nb * c_bb)
+}
+
+fn rx(t: f64) -> Matrix3<f64> {
+    AngleConvention::OmegaPhiKappa.matrix([t, 0.0, 0.0])
+}
+fn ry(t: f64) -> Matrix3<f64> {
+    AngleConvention::OmegaPhiKappa.matrix([0.0, t, 0.0])
+}
+fn rz(t: f64) -> Matrix3<f64> {
+    AngleConvention::OmegaPhiKappa.matrix([0.0, 0.0, t])
+}
+
+/// The image name of a file name as a pose file writes it: its directory
+/// part dropped (either separator).
+fn image_name(s: &str) -> String {
+    s.rsplit(['/', '\\']).next().unwrap_or(s).to_string()
+}
+
+/// Orthority's exterior CSV (also the block CSV `name,X,Y,Z,omega,phi,kappa`).
+pub fn read_csv(path: &Path, text: &str) -> Result<Imported> {
+    let lines: Vec<(usize, &str)> = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#')).collect();
+    let Some(&(_, first)) = lines.first() else { return Err(Error::format(path, "holds no exterior orientations")) };
+    // The delimiter that gives the first line seven or more fields, and every line as many.
+    let delimiter = DELIMITERS
+        .into_iter()
+        .find(|&d| {
+            let n = fields(first, d).len();
+            n >= 7 && lines.iter().take(20).all(|(_, l)| fields(l, d).len() == n)
+        })
+        .ok_or_else(|| Error::format(path, "line 1: expected a header (filename, x, y, z, omega, phi, kappa, …) or seven fields, all lines alike"))?;
+    let head: Vec<String> = fields(first, delimiter).iter().map(|f| f.to_ascii_lowercase()).collect();
+    let has_header = head.iter().any(|f| f == "filename" || f == "name");
+    let names: Vec<String> = if has_header { head } else { ["filename", "x", "y", "z", "omega", "phi", "kappa"].iter().map(|s| s.to_string()).collect() };
+    let col = |k: &str| names.iter().position(|n| n == k || (k == "filename" && n == "name"));
+    let need = |ks: [&str; 3]| -> Option<[usize; 3]> { Some([col(ks[0])?, col(ks[1])?, col(ks[2])?]) };
+    let (xyz, lla) = (need(["x", "y", "z"]), need(["latitude", "longitude", "altitude"]));
+    let (opk, rpy) = (need(["omega", "phi", "kappa"]), need(["roll", "pitch", "yaw"]));
+    let file_col = col("filename").ok_or_else(|| Error::format(path, "line 1: no filename column"))?;
+    let position = xyz.or(lla).ok_or_else(|| Error::format(path, "line 1: needs x, y, z or latitude, longitude, altitude columns"))?;
+    let angles = opk.or(rpy).ok_or_else(|| Error::format(path, "line 1: needs omega, phi, kappa or roll, pitch, yaw columns"))?;
+    let camera_col = col("camera");
+
+    let mut rows = Vec::new();
+    for &(n, line) in lines.iter().skip(usize::from(has_header)) {
+        let f = fields(line, delimiter);
+        let at = |k: usize| -> Result<f64> {
+            f.get(k)
+                .and_then(|v| v.parse::<f64>().ok())
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| Error::format(path, format!("line {}: {} is not a number", n + 1, names.get(k).map_or("a field", |s| s.as_str()))))
+        };
+        let p = [at(position[0])?, at(position[1])?, at(position[2])?];
+        let a = [at(angles[0])?.to_radians(), at(angles[1])?.to_radians(), at(angles[2])?.to_radians()];
+        let camera = camera_col.and_then(|c| f.get(c)).filter(|c| !c.is_empty()).cloned();
+        rows.push((n + 1, image_name(&f[file_col]), camera, p, a));
+    }
+
+    // The CRS: a .prj beside the file; latitude/longitude with roll/pitch/yaw
+    // without one: the UTM zone of their mean.
+    let prj = path.with_extension("prj");
+    let mut crs_text = prj.is_file().then(|| std::path::absolute(&prj).unwrap_or(prj.clone()).to_string_lossy().into_owned());
+    let is_lla = xyz.is_none();
+    if crs_text.is_none() && is_lla {
+        if opk.is_some() {
+            return Err(Error::format(path, format!("latitude/longitude with omega/phi/kappa need the CRS the angles are in: put it in {}", prj.display())));
+        }
+        let k = rows.len() as f64;
+        let (lat, lon) = rows.iter().fold((0.0, 0.0), |(a, b), r| (a + r.3[0] / k, b + r.3[1] / k));
+        crs_text = utm_zone(lon, lat).epsg().map(|c| format!("EPSG:{c}"));
+    }
+    let ground = match &crs_text {
+        Some(t) => Some(Crs::parse(t, Path::new("")).and_then(|c| GroundCrs::new(&c)).map_err(|m| Error::format(&prj, m))?),
+        None if opk.is_none() => {
+            return Err(Error::format(path, format!("roll/pitch/yaw need the CRS of the positions: put it in {}", prj.display())));
+        }
+        None => None,
+    };
+    let mut set = Imported { crs: crs_text, ..Default::default() };
+    for (line, name, camera, p, a) in rows {
+        let origin = format!("{}:{line}", path.display());
+        let bad = |what: &str| Error::format(path, format!("line {line}: {what}"));
+        let (position, lonlat) = match (&ground, is_lla) {
+            (Some(g), true) => {
+                let (x, y) = g.from_lonlat(p[1], p[0]).ok_or_else(|| bad("the position is outside the CRS"))?;
+                ([x, y, p[2]], Some((p[1], p[0])))
+            }
+            (Some(g), false) => (p, g.to_lonlat(p[0], p[1])),
+            (None, _) => (p, None),
+        };
+        let r = match (opk.is_some(), &ground) {
+            (true, _) => opk_rotation(a),
+            (false, Some(g)) => rpy_rotation(a, lonlat.ok_or_else(|| bad("the position is outside the CRS"))?, g).ok_or_else(|| bad("no grid north there"))?,
+            (false, None) => unreachable!("refused above"),
+        };
+        set.poses.push(Pose { name, camera, position, r, origin });
+    }
+    Ok(set)
+}
+
+/// Orthority's exterior GeoJSON.
+pub fn read_geojson(path: &Path, text: &str) -> Result<Imported> {
+    let v: serde_json::Value = serde_json::from_str(text).map_err(|e| Error::format(path, format!("JSON: {e}")))?;
+    let crs = v.get("world_crs").and_then(|c| c.as_str()).ok_or_else(|| Error::config(path, "world_crs", "missing"))?;
+    let features = v.get("features").and_then(|f| f.as_array()).ok_or_else(|| Error::config(path, "features", "missing"))?;
+    let mut set = Imported { crs: Some(crs.to_string()), ..Default::default() };
+    for (k, f) in features.iter().enumerate() {
+        let field = |name: &str| format!("features[{k}].properties.{name}");
+        let props = f.get("properties").ok_or_else(|| Error::config(path, format!("features[{k}].properties"), "missing"))?;
+        let three = |name: &str| -> Result<[f64; 3]> {
+            let a = props.get(name).and_then(|a| a.as_array()).filter(|a| a.len() == 3);
+            let v: Option<Vec<f64>> = a.and_then(|a| a.iter().map(|x| x.as_f64().filter(|x| x.is_finite())).collect());
+            v.map(|v| [v[0], v[1], v[2]]).ok_or_else(|| Error::config(path, field(name), "expected three numbers"))
+        };
+        let name = props.get("filename").and_then(|n| n.as_str()).ok_or_else(|| Error::config(path, field("filename"), "missing"))?;
+        let camera = props.get("camera").and_then(|c| c.as_str()).map(str::to_string);
+        set.poses.push(Pose {
+            name: image_name(name),
+            camera,
+            position: three("xyz")?,
+            r: opk_rotation(three("opk")?),
+            origin: format!("{}: feature {k}", path.display()),
+        });
+    }
+    Ok(set)
+}

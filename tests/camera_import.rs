@@ -1,0 +1,214 @@
+//! Camera and pose files of other tools, read into our cameras: every
+//! number checked against the tool's own reading of the same file (values
+//! computed with Orthority 0.7.0, whose pixel centres are at integers —
+//! ours at +½), and the file-name matching, delimiters and refusals users
+//! meet.
+
+use gcm_ortho::camera::file::Camera;
+use gcm_ortho::camera::import;
+use gcm_ortho::camera::rotation::AngleConvention;
+use std::path::{Path, PathBuf};
+
+fn fixture(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(rel)
+}
+
+/// World points (EPSG:32633) and where Orthority's camera of each kind
+/// images them (Orthority's pixels), the pose at (500100, 4100200, 700)
+/// with ω, φ, κ = 2.5°, −1.5°, 30°.
+const WORLD: [[f64; 3]; 4] = [[500150.0, 4100260.0, 120.0], [500020.0, 4100150.0, 80.0], [500100.0, 4100200.0, 100.0], [500300.0, 4100500.0, 150.0]];
+const BROWN: [[f64; 2]; 4] =
+    [[356.472180131158, 240.794927637208], [209.103056864945, 268.448273361109], [289.397865204992, 265.489676514034], [578.118930817846, 125.129622292244]];
+const OPENCV: [[f64; 2]; 4] =
+    [[356.472900690984, 240.796502589524], [209.167150397126, 268.446174919734], [289.399865599715, 265.489611487563], [577.375687255787, 125.64151590563]];
+const FISHEYE: [[f64; 2]; 4] =
+    [[345.473575129344, 232.581518590754], [256.72797783225, 249.09813168557], [305.263611011869, 247.409291099661], [475.659770750591, 162.962594273833]];
+const PINHOLE_MM: [[f64; 2]; 4] =
+    [[92.012332580039, 98.25926306718], [24.982255876275, 110.82622957381], [61.816249261672, 109.485019713817], [198.610695262985, 41.175239392837]];
+
+fn camera(image: &str, cameras: &str, poses: &str) -> Camera {
+    Camera::read_for(Path::new(image), &fixture(cameras), Some(&fixture(poses)), None).unwrap_or_else(|e| panic!("{image}: {e}"))
+}
+
+fn assert_projects(cam: &Camera, expected: &[[f64; 2]; 4], what: &str) {
+    for (p, e) in WORLD.iter().zip(expected) {
+        let (c, r) = cam.model().project(p[0], p[1], p[2]).expect("imaged");
+        let (dc, dr) = (c - (e[0] + 0.5), r - (e[1] + 0.5));
+        assert!(dc.abs() < 1e-6 && dr.abs() < 1e-6, "{what}: {p:?} → ({c}, {r}), Orthority ({}, {}) + ½", e[0], e[1]);
+    }
+}
+
+#[test]
+fn orthority_interior_and_csv_project_as_orthority_does() {
+    let csv = "orthority/ext_param.csv";
+    let yaml = "orthority/int_param.yaml";
+    assert_projects(&camera("img_a.tif", yaml, csv), &BROWN, "brown");
+    assert_projects(&camera("img_opencv.tif", yaml, csv), &OPENCV, "opencv");
+    assert_projects(&camera("img_fisheye.tif", yaml, csv), &FISHEYE, "fisheye");
+    assert_projects(&camera("img_pinhole.tif", yaml, csv), &PINHOLE_MM, "pinhole with sensor_size");
+}
+
+#[test]
+fn orthority_geojson_as_it_writes_it() {
+    // Written by Orthority's own exporter: ω, φ, κ in radians, world_crs.
+    let cam = camera("img_a.tif", "orthority/int_param.yaml", "orthority/ext_param.geojson");
+    assert_projects(&cam, &BROWN, "GeoJSON");
+    assert_eq!(cam.crs.epsg(), Some(32633));
+}
+
+#[test]
+fn the_portrait_reading_of_focal_len_is_warned_about() {
+    let set = import::read(&fixture("orthority/int_param.yaml"), None).unwrap();
+    assert_eq!(set.lenses.len(), 5);
+    assert!(set.warnings.iter().any(|w| w.contains("portrait cam") && w.contains("width")), "{:?}", set.warnings);
+    // pinhole with sensor_size: fx = 120·150/75, fy = 121·200/100; the
+    // principal point (w−1)/2 + max(w,h)·cx, + ½ for our pixel centres.
+    let (_, lens) = set.lenses.iter().find(|(id, _)| id == "pinhole mm cam").unwrap();
+    assert_eq!(lens.focal_px, [240.0, 242.0]);
+    assert!((lens.principal_point_px[0] - 73.0).abs() < 1e-12 && (lens.principal_point_px[1] - 104.0).abs() < 1e-12, "{:?}", lens.principal_point_px);
+    assert_eq!(lens.focal_mm, Some(120.0));
+}
+
+#[test]
+fn latitude_longitude_with_roll_pitch_yaw_as_orthority_converts_them() {
+    let csv = "orthority/ext_lla_rpy.csv";
+    let set = import::read(&fixture("orthority/int_param.yaml"), Some(&fixture(csv))).unwrap();
+    // No .prj: the UTM zone of the positions' mean (longitude 16.3°).
+    assert_eq!(set.crs.as_deref(), Some("EPSG:32633"));
+    let pose = |n: &str| set.poses.iter().find(|p| p.name == n).unwrap();
+    // Level, heading north: κ is the meridian convergence at 45°N 17°E
+    // (Orthority's figure is a finite difference itself, good to ~3e-7°:
+    // the series for the convergence gives 1.4145037°).
+    let k0 = AngleConvention::OmegaPhiKappa.angles(&pose("img_r0.tif").r).map(f64::to_degrees);
+    assert!(k0[0].abs() < 1e-9 && k0[1].abs() < 1e-9 && (k0[2] - 1.4145039543935882).abs() < 1e-6, "{k0:?}");
+    let r1 = pose("img_r1.tif");
+    let opk = AngleConvention::OmegaPhiKappa.angles(&r1.r).map(f64::to_degrees);
+    let expected = [-1.6776010028735668, 3.1913805433155784, -28.591136513721036];
+    for k in 0..3 {
+        assert!((opk[k] - expected[k]).abs() < 1e-6, "{opk:?} vs {expected:?}");
+    }
+    let xyz = [657630.6407299513, 4984896.171271757, 500.0];
+    for k in 0..3 {
+        assert!((r1.position[k] - xyz[k]).abs() < 1e-4, "{:?} vs {xyz:?}", r1.position);
+    }
+}
+
+#[test]
+fn an_image_finds_its_pose_by_name_with_or_without_extension() {
+    let set = import::read(&fixture("orthority/int_param.yaml"), Some(&fixture("orthority/ext_param.csv"))).unwrap();
+    let at = |image: &str| set.camera_for(Path::new(image)).map(|c| c.exterior.unwrap().position);
+    assert_eq!(at("/data/img_a.tif").unwrap(), [500100.0, 4100200.0, 700.0]);
+    assert_eq!(at("img_a.jpg").unwrap(), [500100.0, 4100200.0, 700.0], "by the stem");
+    assert_eq!(at("img_nadir.tif").unwrap(), [500000.0, 4100000.0, 600.0], "a pose named without extension");
+    assert_eq!(at("img_c.jpg").unwrap(), [500000.0, 4100000.0, 600.0], "a directory in the pose's name");
+    let missing = at("img_zz.tif").unwrap_err().to_string();
+    assert!(missing.contains("img_zz.tif") && missing.contains("ext_param.csv"), "{missing}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let twice = dir.path().join("twice.csv");
+    std::fs::write(&twice, "name,x,y,z,omega,phi,kappa\nimg1.tif,1,2,3,0,0,0\nimg1.jpg,1,2,3,0,0,0\n").unwrap();
+    std::fs::write(dir.path().join("twice.prj"), "EPSG:32633").unwrap();
+    let one = dir.path().join("one.yaml");
+    std::fs::write(&one, "cam:\n  type: pinhole\n  im_size: [640, 480]\n  focal_len: 0.8\n").unwrap();
+    let set = import::read(&one, Some(&twice)).unwrap();
+    assert!(set.camera_for(Path::new("img1.tif")).is_ok(), "the exact file name wins");
+    let e = set.camera_for(Path::new("img1.png")).unwrap_err().to_string();
+    assert!(e.contains("2 exterior orientations match") && e.contains("twice.csv:2") && e.contains("twice.csv:3"), "{e}");
+}
+
+#[test]
+fn csv_dialects_users_write() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        ("comma.csv", "Filename, X, Y, Z, Omega, Phi, Kappa\nimg1.tif, 1.0, 2.0, 3.0, 0.1, 0.2, 0.3\n"),
+        ("semi.csv", "filename;x;y;z;omega;phi;kappa;camera\nimg1;1.0;2.0;3.0;0.1;0.2;0.3;brown cam\n"),
+        ("tab.txt", "filename\tx\ty\tz\tomega\tphi\tkappa\nimg1\t1.0\t2.0\t3.0\t0.1\t0.2\t0.3\n"),
+        ("spaces.txt", "img1.tif 1.0 2.0  3.0 0.1 0.2 0.3\nimg2.tif 1.5 2.5 3.5 0.1 0.2 0.3\n"),
+        ("block.csv", "name,X,Y,Z,omega,phi,kappa\nimg1,1.0,2.0,3.0,0.1,0.2,0.3\n"),
+    ];
+    for (name, text) in cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        std::fs::write(path.with_extension("prj"), "EPSG:32633").unwrap();
+        let set = import::read(&fixture("orthority/int_param.yaml"), Some(&path)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let p = &set.poses[0];
+        assert_eq!((p.name.trim_end_matches(".tif"), p.position), ("img1", [1.0, 2.0, 3.0]), "{name}");
+        let opk = AngleConvention::OmegaPhiKappa.angles(&p.r).map(f64::to_degrees);
+        assert!((opk[0] - 0.1).abs() < 1e-12 && (opk[1] - 0.2).abs() < 1e-12 && (opk[2] - 0.3).abs() < 1e-12, "{name}: {opk:?}");
+    }
+}
+
+#[test]
+fn bad_files_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let unknown = write("int.yaml", "cam:\n  type: brown\n  im_size: [640, 480]\n  focal_len: 0.8\n  k9: 0.1\n");
+    let e = import::read(&unknown, None).unwrap_err().to_string();
+    assert!(e.contains("int.yaml") && e.contains("cam.k9") && e.contains("unknown"), "{e}");
+
+    let tilt = write("tilt.yaml", "cam:\n  type: opencv\n  im_size: [640, 480]\n  focal_len: 0.8\n  tx: 0.01\n");
+    let e = import::read(&tilt, None).unwrap_err().to_string();
+    assert!(e.contains("cam.tx") && e.contains("tilted"), "{e}");
+
+    let not_number = write("bad.csv", "filename,x,y,z,omega,phi,kappa\nimg1,1,2,x,0,0,0\n");
+    let e = import::read(&fixture("orthority/int_param.yaml"), Some(&not_number)).unwrap_err().to_string();
+    assert!(e.contains("bad.csv") && e.contains("line 2") && e.contains("z is not a number"), "{e}");
+
+    // Omega/phi/kappa need the CRS they are in; without a .prj it is refused
+    // when the camera is built, naming the ways to give it.
+    let one = write("one.yaml", "cam:\n  type: pinhole\n  im_size: [640, 480]\n  focal_len: 0.8\n");
+    let no_prj = write("noprj.csv", "filename,x,y,z,omega,phi,kappa\nimg1,500000,4100000,600,0,0,0\n");
+    let Err(e) = Camera::read_for(Path::new("img1.tif"), &one, Some(&no_prj), None) else { panic!("built without a CRS") };
+    let e = e.to_string();
+    assert!(e.contains("crs") && e.contains(".prj") && e.contains("--crs"), "{e}");
+
+    let json = write("other.json", "{\"a\": 1}");
+    let e = import::read(&json, None).unwrap_err().to_string();
+    assert!(e.contains("other.json") && e.contains("OpenSfM"), "{e}");
+}
+
+#[test]
+fn opensfm_shots_in_the_topocentric_frame_are_placed_rigorously() {
+    // Outside an OpenDroneMap project: east-north-up metres at reference_lla,
+    // through geocentric coordinates into its UTM zone (the centre computed
+    // independently with PROJ: ENU → ECEF → EPSG:32633).
+    let set = import::read(&fixture("opensfm/reconstruction.json"), None).unwrap();
+    assert_eq!(set.crs.as_deref(), Some("EPSG:32633"));
+    let p = &set.poses[0];
+    assert_eq!(p.name, "img_o.jpg");
+    let expected = [657651.0898140, 4984921.154559, 250.8556134468];
+    for k in 0..3 {
+        assert!((p.position[k] - expected[k]).abs() < 2e-3, "{:?} vs {expected:?}", p.position);
+    }
+    // OpenSfM's normalised camera: focal · max(w, h), the principal point
+    // from the centre by max(w, h), "v2 " dropped from the id.
+    let (id, lens) = &set.lenses[0];
+    assert_eq!(id, "dji fc6310r 640 480 brown 0.6666");
+    assert!((lens.focal_px[0] - 544.0).abs() < 1e-9 && (lens.focal_px[1] - 550.4).abs() < 1e-9, "{:?}", lens.focal_px);
+    assert!((lens.principal_point_px[0] - 326.4).abs() < 1e-9 && (lens.principal_point_px[1] - 227.2).abs() < 1e-9, "{:?}", lens.principal_point_px);
+}
+
+#[test]
+fn opendronemap_reconstructions_are_utm_less_an_offset() {
+    // Beside reconstruction.topocentric.json the file is ODM's georeferenced
+    // one: read as Orthority's `oty odm` reads it.
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(fixture("opensfm/reconstruction.json")).unwrap();
+    std::fs::write(dir.path().join("reconstruction.json"), &text).unwrap();
+    std::fs::write(dir.path().join("reconstruction.topocentric.json"), &text).unwrap();
+    let set = import::read(&dir.path().join("reconstruction.json"), None).unwrap();
+    let p = &set.poses[0];
+    let expected = [657651.7031179434, 4984920.645428927, 250.85553169477427];
+    for k in 0..3 {
+        assert!((p.position[k] - expected[k]).abs() < 1e-4, "{:?} vs {expected:?}", p.position);
+    }
+    let opk = AngleConvention::OmegaPhiKappa.angles(&p.r);
+    let expected = [0.04091436096298284, 0.013557313833687693, 0.031977880328755405];
+    for k in 0..3 {
+        assert!((opk[k] - expected[k]).abs() < 1e-9, "{opk:?} vs {expected:?}");
+    }
+}
