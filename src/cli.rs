@@ -58,6 +58,10 @@ pub enum Command {
     /// The image → ground regular grid of an RPC image (Chibunichev and
     /// Sonyushkin), as GDAL geolocation arrays, with its accuracy table.
     RpcGrid(RpcGridArgs),
+    /// Show the cameras a set of camera and pose files gives each image,
+    /// and write them as gcm-ortho camera files or in Orthority's or
+    /// OpenSfM's form.
+    Cameras(CamerasArgs),
 }
 
 /// The image and its sensor model: a camera file, or an RPC file with
@@ -134,6 +138,63 @@ pub struct RpcGridArgs {
     /// of the image with GEOLOCATION metadata is written beside it.
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct CamerasArgs {
+    /// The camera file, in any form rectify reads (ours, Orthority's
+    /// interior parameters, an OpenSfM / OpenDroneMap reconstruction.json).
+    #[arg(long)]
+    pub camera: PathBuf,
+    /// The exterior orientations of many images (Orthority's CSV or
+    /// GeoJSON, our block CSV, a reconstruction.json).
+    #[arg(long)]
+    pub exterior: Option<PathBuf>,
+    /// Only these images' cameras, their sizes read from the files
+    /// (default: every pose the files hold).
+    pub images: Vec<PathBuf>,
+    /// The positions' CRS where the files give none.
+    #[arg(long)]
+    pub crs: Option<String>,
+    /// Write the cameras into this folder.
+    #[arg(long)]
+    pub out_dir: Option<PathBuf>,
+    /// The form to write: toml (one gcm-ortho camera file per image),
+    /// orthority (int_param.yaml, ext_param.csv and .prj), opensfm
+    /// (reconstruction.json).
+    #[arg(long, value_enum, default_value_t = CameraTarget::Toml, requires = "out_dir")]
+    pub to: CameraTarget,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum CameraTarget {
+    Toml,
+    Orthority,
+    Opensfm,
+}
+
+impl CamerasArgs {
+    pub fn options(&self) -> Result<gcm_ortho::camera::formats::convert::ConvertOptions> {
+        use gcm_ortho::camera::formats::convert::{ConvertOptions, Target};
+        let crs = self
+            .crs
+            .as_deref()
+            .map(|c| gcm_ortho::geodesy::Crs::parse(c, std::path::Path::new("")).map_err(|m| gcm_ortho::Error::setting("crs", m)))
+            .transpose()?;
+        let target = match self.to {
+            CameraTarget::Toml => Target::Toml,
+            CameraTarget::Orthority => Target::Orthority,
+            CameraTarget::Opensfm => Target::OpenSfm,
+        };
+        Ok(ConvertOptions {
+            camera: self.camera.clone(),
+            exterior: self.exterior.clone(),
+            images: self.images.clone(),
+            crs,
+            out_dir: self.out_dir.clone(),
+            target,
+        })
+    }
 }
 
 #[derive(Args, Debug)]

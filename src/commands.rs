@@ -69,11 +69,24 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Batch(a) => run_batch(&a, signals),
         Command::RpcGrid(a) => run_rpc_grid(&a).map(|()| 0),
         Command::Mosaic(a) => run_mosaic(&a, signals).map(|()| 0),
+        Command::Cameras(a) => run_cameras(&a).map(|()| 0),
         Command::Assemble(a) => {
             gcm_ortho::assemble::assemble(&a.pieces, &a.output, &a.layout.options()?)?;
             Ok(0)
         }
     }
+}
+
+fn run_cameras(a: &crate::cli::CamerasArgs) -> Result<()> {
+    let done = gcm_ortho::camera::formats::convert::convert(&a.options()?)?;
+    for w in &done.warnings {
+        eprintln!("gcm-ortho: warning: {w}");
+    }
+    print!("{}", gcm_ortho::camera::formats::convert::table(&done.entries));
+    for p in &done.written {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
 }
 
 fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {

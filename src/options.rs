@@ -266,7 +266,7 @@ pub enum ModelSource {
     /// Built already (a block's interior file with one row of exterior
     /// orientations); `camera` names where it came from.
     Inline(CameraFile),
-    /// The camera file (any format `camera::import` reads) with the
+    /// The camera file (any format `camera::formats` reads) with the
     /// exterior orientations of many images in this file: the image's own
     /// is found by its name.
     WithPoses(PathBuf),

@@ -5,7 +5,7 @@
 //! meet.
 
 use gcm_ortho::camera::file::Camera;
-use gcm_ortho::camera::import;
+use gcm_ortho::camera::formats;
 use gcm_ortho::camera::rotation::AngleConvention;
 use std::path::{Path, PathBuf};
 
@@ -58,7 +58,7 @@ fn orthority_geojson_as_it_writes_it() {
 
 #[test]
 fn the_portrait_reading_of_focal_len_is_warned_about() {
-    let set = import::read(&fixture("orthority/int_param.yaml"), None).unwrap();
+    let set = formats::read(&fixture("orthority/int_param.yaml"), None).unwrap();
     assert_eq!(set.lenses.len(), 5);
     assert!(set.warnings.iter().any(|w| w.contains("portrait cam") && w.contains("width")), "{:?}", set.warnings);
     // pinhole with sensor_size: fx = 120·150/75, fy = 121·200/100; the
@@ -72,7 +72,7 @@ fn the_portrait_reading_of_focal_len_is_warned_about() {
 #[test]
 fn latitude_longitude_with_roll_pitch_yaw_as_orthority_converts_them() {
     let csv = "orthority/ext_lla_rpy.csv";
-    let set = import::read(&fixture("orthority/int_param.yaml"), Some(&fixture(csv))).unwrap();
+    let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&fixture(csv))).unwrap();
     // No .prj: the UTM zone of the positions' mean (longitude 16.3°).
     assert_eq!(set.crs.as_deref(), Some("EPSG:32633"));
     let pose = |n: &str| set.poses.iter().find(|p| p.name == n).unwrap();
@@ -95,7 +95,7 @@ fn latitude_longitude_with_roll_pitch_yaw_as_orthority_converts_them() {
 
 #[test]
 fn an_image_finds_its_pose_by_name_with_or_without_extension() {
-    let set = import::read(&fixture("orthority/int_param.yaml"), Some(&fixture("orthority/ext_param.csv"))).unwrap();
+    let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&fixture("orthority/ext_param.csv"))).unwrap();
     let at = |image: &str| set.camera_for(Path::new(image)).map(|c| c.exterior.unwrap().position);
     assert_eq!(at("/data/img_a.tif").unwrap(), [500100.0, 4100200.0, 700.0]);
     assert_eq!(at("img_a.jpg").unwrap(), [500100.0, 4100200.0, 700.0], "by the stem");
@@ -110,7 +110,7 @@ fn an_image_finds_its_pose_by_name_with_or_without_extension() {
     std::fs::write(dir.path().join("twice.prj"), "EPSG:32633").unwrap();
     let one = dir.path().join("one.yaml");
     std::fs::write(&one, "cam:\n  type: pinhole\n  im_size: [640, 480]\n  focal_len: 0.8\n").unwrap();
-    let set = import::read(&one, Some(&twice)).unwrap();
+    let set = formats::read(&one, Some(&twice)).unwrap();
     assert!(set.camera_for(Path::new("img1.tif")).is_ok(), "the exact file name wins");
     let e = set.camera_for(Path::new("img1.png")).unwrap_err().to_string();
     assert!(e.contains("2 exterior orientations match") && e.contains("twice.csv:2") && e.contains("twice.csv:3"), "{e}");
@@ -130,7 +130,7 @@ fn csv_dialects_users_write() {
         let path = dir.path().join(name);
         std::fs::write(&path, text).unwrap();
         std::fs::write(path.with_extension("prj"), "EPSG:32633").unwrap();
-        let set = import::read(&fixture("orthority/int_param.yaml"), Some(&path)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&path)).unwrap_or_else(|e| panic!("{name}: {e}"));
         let p = &set.poses[0];
         assert_eq!((p.name.trim_end_matches(".tif"), p.position), ("img1", [1.0, 2.0, 3.0]), "{name}");
         let opk = AngleConvention::OmegaPhiKappa.angles(&p.r).map(f64::to_degrees);
@@ -147,15 +147,15 @@ fn bad_files_are_refused_by_name() {
         p
     };
     let unknown = write("int.yaml", "cam:\n  type: brown\n  im_size: [640, 480]\n  focal_len: 0.8\n  k9: 0.1\n");
-    let e = import::read(&unknown, None).unwrap_err().to_string();
+    let e = formats::read(&unknown, None).unwrap_err().to_string();
     assert!(e.contains("int.yaml") && e.contains("cam.k9") && e.contains("unknown"), "{e}");
 
     let tilt = write("tilt.yaml", "cam:\n  type: opencv\n  im_size: [640, 480]\n  focal_len: 0.8\n  tx: 0.01\n");
-    let e = import::read(&tilt, None).unwrap_err().to_string();
+    let e = formats::read(&tilt, None).unwrap_err().to_string();
     assert!(e.contains("cam.tx") && e.contains("tilted"), "{e}");
 
     let not_number = write("bad.csv", "filename,x,y,z,omega,phi,kappa\nimg1,1,2,x,0,0,0\n");
-    let e = import::read(&fixture("orthority/int_param.yaml"), Some(&not_number)).unwrap_err().to_string();
+    let e = formats::read(&fixture("orthority/int_param.yaml"), Some(&not_number)).unwrap_err().to_string();
     assert!(e.contains("bad.csv") && e.contains("line 2") && e.contains("z is not a number"), "{e}");
 
     // Omega/phi/kappa need the CRS they are in; without a .prj it is refused
@@ -167,7 +167,7 @@ fn bad_files_are_refused_by_name() {
     assert!(e.contains("crs") && e.contains(".prj") && e.contains("--crs"), "{e}");
 
     let json = write("other.json", "{\"a\": 1}");
-    let e = import::read(&json, None).unwrap_err().to_string();
+    let e = formats::read(&json, None).unwrap_err().to_string();
     assert!(e.contains("other.json") && e.contains("OpenSfM"), "{e}");
 }
 
@@ -176,7 +176,7 @@ fn opensfm_shots_in_the_topocentric_frame_are_placed_rigorously() {
     // Outside an OpenDroneMap project: east-north-up metres at reference_lla,
     // through geocentric coordinates into its UTM zone (the centre computed
     // independently with PROJ: ENU → ECEF → EPSG:32633).
-    let set = import::read(&fixture("opensfm/reconstruction.json"), None).unwrap();
+    let set = formats::read(&fixture("opensfm/reconstruction.json"), None).unwrap();
     assert_eq!(set.crs.as_deref(), Some("EPSG:32633"));
     let p = &set.poses[0];
     assert_eq!(p.name, "img_o.jpg");
@@ -200,7 +200,7 @@ fn opendronemap_reconstructions_are_utm_less_an_offset() {
     let text = std::fs::read_to_string(fixture("opensfm/reconstruction.json")).unwrap();
     std::fs::write(dir.path().join("reconstruction.json"), &text).unwrap();
     std::fs::write(dir.path().join("reconstruction.topocentric.json"), &text).unwrap();
-    let set = import::read(&dir.path().join("reconstruction.json"), None).unwrap();
+    let set = formats::read(&dir.path().join("reconstruction.json"), None).unwrap();
     let p = &set.poses[0];
     let expected = [657651.7031179434, 4984920.645428927, 250.85553169477427];
     for k in 0..3 {

@@ -362,7 +362,7 @@ impl Camera {
     /// [`Camera::warnings`].
     /// `crs`: the positions' CRS where the files give none.
     pub fn read_for(image: &Path, camera: &Path, poses: Option<&Path>, crs: Option<&Crs>) -> Result<Camera> {
-        let set = super::import::read(camera, poses)?;
+        let set = super::formats::read(camera, poses)?;
         let mut file = set.camera_for(image)?;
         if let (true, Some(c)) = (file.crs.trim().is_empty(), crs) {
             file.crs = c.epsg().map_or_else(|| c.proj4().to_string(), |e| format!("EPSG:{e}"));

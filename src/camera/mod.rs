@@ -4,8 +4,8 @@
 pub mod atmosphere;
 pub mod distortion;
 pub mod file;
+pub mod formats;
 pub mod frame;
-pub mod import;
 pub mod interior;
 pub mod lanes;
 pub mod reprojected;

@@ -21,7 +21,7 @@ use crate::camera::distortion::{Brown, Fisheye};
 use crate::error::{Error, Result};
 use crate::geodesy::ecef::{enu_axes, from_ecef, to_ecef};
 use crate::geodesy::{utm_zone, GroundCrs};
-use nalgebra::{Matrix3, Rotation3, Vector3};
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use serde_json::Value;
 use std::path::Path;
 
@@ -60,7 +60,7 @@ pub fn read(path: &Path, text: &str) -> Result<Imported> {
                     }
                     _ => set.crs = Some(text),
                 }
-                let frame = Frame { lon, lat, alt, ground, geocoded };
+                let frame = Frame { lon, lat, alt, ground: &ground, geocoded };
                 for (name, shot) in shots {
                     let field = |f: &str| at(&format!("shots.{name}.{f}"));
                     let three = |f: &str| -> Result<Vector3<f64>> {
@@ -107,37 +107,93 @@ fn written_by_odm(path: &Path) -> bool {
 }
 
 /// How a reconstruction's coordinates become the world's.
-struct Frame {
+struct Frame<'a> {
     lon: f64,
     lat: f64,
     alt: f64,
-    ground: GroundCrs,
+    ground: &'a GroundCrs,
     geocoded: bool,
 }
 
-impl Frame {
+impl Frame<'_> {
+    /// The world position (X, Y, h) of a point at `p` in the reconstruction.
+    fn at(&self, p: Vector3<f64>) -> Option<Vector3<f64>> {
+        let (lon, lat, h) = from_ecef(to_ecef(self.lon, self.lat, self.alt) + enu_axes(self.lon, self.lat) * p);
+        let (x, y) = self.ground.from_lonlat(lon, lat)?;
+        Some(Vector3::new(x, y, h))
+    }
+
+    /// The reconstruction's axes at `c`, seen in the world: the grid's
+    /// convergence and the tangent plane's tilt, scale removed.
+    fn turn(&self, c: Vector3<f64>) -> Option<Matrix3<f64>> {
+        let here = self.at(c)?;
+        let step = 1.0;
+        let cols = [self.at(c + Vector3::x() * step)? - here, self.at(c + Vector3::y() * step)? - here, self.at(c + Vector3::z() * step)? - here];
+        let svd = (Matrix3::from_columns(&cols) / step).svd(true, true);
+        Some(svd.u? * svd.v_t?)
+    }
+
     /// A camera's centre and rotation (photo → reconstruction axes) in the
     /// world: position, rotation photo → world.
     fn world(&self, c: Vector3<f64>, r: Matrix3<f64>) -> Option<([f64; 3], Matrix3<f64>)> {
-        let (x0, y0) = self.ground.from_lonlat(self.lon, self.lat)?;
         if self.geocoded {
+            let (x0, y0) = self.ground.from_lonlat(self.lon, self.lat)?;
             return Some(([x0 + c.x, y0 + c.y, self.alt + c.z], r));
         }
-        let at = |p: Vector3<f64>| -> Option<Vector3<f64>> {
-            let (lon, lat, h) = from_ecef(to_ecef(self.lon, self.lat, self.alt) + enu_axes(self.lon, self.lat) * p);
-            let (x, y) = self.ground.from_lonlat(lon, lat)?;
-            Some(Vector3::new(x, y, h))
-        };
-        let here = at(c)?;
-        // The reconstruction's axes at the camera, seen in the world: the
-        // grid's convergence and the tangent plane's tilt, scale removed.
-        let step = 1.0;
-        let cols = [at(c + Vector3::x() * step)? - here, at(c + Vector3::y() * step)? - here, at(c + Vector3::z() * step)? - here];
-        let m = Matrix3::from_columns(&cols) / step;
-        let svd = m.svd(true, true);
-        let turn = svd.u? * svd.v_t?;
-        Some(([here.x, here.y, here.z], turn * r))
+        let here = self.at(c)?;
+        Some(([here.x, here.y, here.z], self.turn(c)? * r))
     }
+
+    /// The inverse of [`Frame::world`] (topocentric frames only).
+    fn local(&self, position: [f64; 3], r: Matrix3<f64>) -> Option<(Vector3<f64>, Matrix3<f64>)> {
+        let (lon, lat) = self.ground.to_lonlat(position[0], position[1])?;
+        let offset = to_ecef(lon, lat, position[2]) - to_ecef(self.lon, self.lat, self.alt);
+        let c = enu_axes(self.lon, self.lat).transpose() * offset;
+        Some((c, self.turn(c)?.transpose() * r))
+    }
+}
+
+/// Lenses and poses (in `crs`) as an OpenSfM `reconstruction.json`: the
+/// shots in east-north-up metres at the cameras' mean position, as OpenSfM
+/// itself writes them; `cameras[k]` is the id of pose k's lens.
+pub fn write(lenses: &[(String, Lens)], poses: &[Pose], cameras: &[String], crs: &GroundCrs, path: &Path) -> Result<String> {
+    use serde_json::{json, Map};
+    let mut cams = Map::new();
+    for (id, l) in lenses {
+        let [w, h] = l.size;
+        let long = f64::from(w.max(h));
+        let pp = l.opencv_pp();
+        let c = [(pp[0] - (f64::from(w) - 1.0) / 2.0) / long, (pp[1] - (f64::from(h) - 1.0) / 2.0) / long];
+        let (fx, fy) = (l.focal_px[0] / long, l.focal_px[1] / long);
+        let d = &l.distortion;
+        let cam = if let Some(k) = d.fisheye {
+            json!({"projection_type": "fisheye_opencv", "width": w, "height": h, "focal_x": fx, "focal_y": fy, "c_x": c[0], "c_y": c[1],
+                   "k1": k.k1, "k2": k.k2, "k3": k.k3, "k4": k.k4})
+        } else if d.opencv.is_some() || d.radial_mm.is_some() {
+            return Err(Error::unsupported(path, format!("camera '{id}': OpenSfM has Brown's and the fisheye lens models only")));
+        } else {
+            let b = d.brown.unwrap_or(Brown { k1: 0.0, k2: 0.0, k3: 0.0, p1: 0.0, p2: 0.0 });
+            json!({"projection_type": "brown", "width": w, "height": h, "focal_x": fx, "focal_y": fy, "c_x": c[0], "c_y": c[1],
+                   "k1": b.k1, "k2": b.k2, "k3": b.k3, "p1": b.p1, "p2": b.p2})
+        };
+        cams.insert(id.clone(), cam);
+    }
+    let k = poses.len().max(1) as f64;
+    let mean = poses.iter().fold([0.0; 3], |a, p| [a[0] + p.position[0] / k, a[1] + p.position[1] / k, a[2] + p.position[2] / k]);
+    let (lon, lat) = crs.to_lonlat(mean[0], mean[1]).ok_or_else(|| Error::format(path, "the cameras are outside their CRS"))?;
+    let frame = Frame { lon, lat, alt: 0.0, ground: crs, geocoded: false };
+    let mut shots = Map::new();
+    for (p, id) in poses.iter().zip(cameras) {
+        let (c, r_local) = frame.local(p.position, p.r).ok_or_else(|| Error::format(path, format!("{}: outside the CRS", p.origin)))?;
+        // OpenCV's camera axes are ours with y and z turned.
+        let w2c = Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0)) * r_local.transpose();
+        let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(w2c));
+        let rotation = q.scaled_axis();
+        let t = -(w2c * c);
+        shots.insert(p.name.clone(), json!({"rotation": [rotation.x, rotation.y, rotation.z], "translation": [t.x, t.y, t.z], "camera": id}));
+    }
+    let rec = json!([{"cameras": cams, "shots": shots, "points": {}, "reference_lla": {"latitude": lat, "longitude": lon, "altitude": 0.0}}]);
+    Ok(serde_json::to_string_pretty(&rec).unwrap_or_default())
 }
 
 /// One OpenSfM camera.

@@ -25,6 +25,7 @@ use crate::camera::distortion::{Brown, Fisheye, OpenCv};
 use crate::camera::rotation::AngleConvention;
 use crate::error::{Error, Result};
 use crate::geodesy::{utm_zone, Crs, GroundCrs};
+use crate::io::bounded_read::{read_text_bounded, SMALL};
 use nalgebra::{Matrix3, Vector3};
 use serde_yaml_ng::Value;
 use std::path::Path;
@@ -263,7 +264,10 @@ pub fn read_csv(path: &Path, text: &str) -> Result<Imported> {
     // The CRS: a .prj beside the file; latitude/longitude with roll/pitch/yaw
     // without one: the UTM zone of their mean.
     let prj = path.with_extension("prj");
-    let mut crs_text = prj.is_file().then(|| std::path::absolute(&prj).unwrap_or(prj.clone()).to_string_lossy().into_owned());
+    let mut crs_text = match prj.is_file() {
+        true => Some(read_text_bounded(&prj, "a .prj", SMALL)?.trim().to_string()),
+        false => None,
+    };
     let is_lla = xyz.is_none();
     if crs_text.is_none() && is_lla {
         if opk.is_some() {
@@ -327,4 +331,55 @@ pub fn read_geojson(path: &Path, text: &str) -> Result<Imported> {
         });
     }
     Ok(set)
+}
+
+/// Lenses as Orthority's interior parameter file. The sensor size is
+/// always given (in pixels where the focal length is), so that Orthority's
+/// code and its documentation read the focal length alike.
+pub fn write_interior(lenses: &[(String, Lens)], path: &Path) -> Result<String> {
+    let mut out = String::from("# Interior parameters for Orthority (written by gcm-ortho)\n");
+    for (id, l) in lenses {
+        let d = &l.distortion;
+        let (kind, terms): (&str, Vec<(&str, f64)>) = if let Some(b) = d.brown {
+            ("brown", vec![("k1", b.k1), ("k2", b.k2), ("p1", b.p1), ("p2", b.p2), ("k3", b.k3)])
+        } else if let Some(o) = d.opencv {
+            let names = ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4"];
+            ("opencv", names.into_iter().zip(o.opencv_order()).collect())
+        } else if let Some(k) = d.fisheye {
+            ("fisheye", vec![("k1", k.k1), ("k2", k.k2), ("k3", k.k3), ("k4", k.k4)])
+        } else if d.radial_mm.is_some() {
+            return Err(Error::config(path, "distortion.radial_mm", "the radial polynomial in mm has no form in Orthority's files"));
+        } else {
+            ("pinhole", Vec::new())
+        };
+        let [w, h] = l.size;
+        let (focal, sensor) = match l.focal_mm {
+            Some(f) => ([f, f], [f / l.focal_px[0] * f64::from(w), f / l.focal_px[1] * f64::from(h)]),
+            None => (l.focal_px, [f64::from(w), f64::from(h)]),
+        };
+        let long = f64::from(w.max(h));
+        let pp = l.opencv_pp();
+        let c = [(pp[0] - (f64::from(w) - 1.0) / 2.0) / long, (pp[1] - (f64::from(h) - 1.0) / 2.0) / long];
+        out += &format!("{id:?}:\n  type: {kind}\n  im_size: [{w}, {h}]\n");
+        out += &if focal[0] == focal[1] { format!("  focal_len: {:?}\n", focal[0]) } else { format!("  focal_len: [{:?}, {:?}]\n", focal[0], focal[1]) };
+        out += &format!("  sensor_size: [{:?}, {:?}]\n  cx: {:?}\n  cy: {:?}\n", sensor[0], sensor[1], c[0], c[1]);
+        for (name, v) in terms {
+            out += &format!("  {name}: {v:?}\n");
+        }
+    }
+    Ok(out)
+}
+
+/// Poses as Orthority's exterior CSV (ω, φ, κ in degrees); `cameras[k]`
+/// is the id of pose k's lens. The CRS goes in a `.prj` beside it.
+#[must_use]
+pub fn write_csv(poses: &[Pose], cameras: &[String]) -> String {
+    let mut w = csv::WriterBuilder::new().from_writer(Vec::new());
+    let _ = w.write_record(["filename", "x", "y", "z", "omega", "phi", "kappa", "camera"]);
+    for (p, id) in poses.iter().zip(cameras) {
+        let a = AngleConvention::OmegaPhiKappa.angles(&p.r).map(f64::to_degrees);
+        let n = |v: f64| format!("{v:?}");
+        let _ = w.write_record([p.name.clone(), n(p.position[0]), n(p.position[1]), n(p.position[2]), n(a[0]), n(a[1]), n(a[2]), id.clone()]);
+    }
+    String::from_utf8(w.into_inner().unwrap_or_default()).unwrap_or_default()
 }

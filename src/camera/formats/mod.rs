@@ -12,7 +12,11 @@
 //! Each reader yields lenses (by camera id) and poses (by image name). An
 //! image takes the pose whose name is its file name, with or without the
 //! extension; its lens is the pose's camera, or the only one there is.
+//! The same two types are written back out in Orthority's and OpenSfM's
+//! forms ([`orthority::write_interior`], [`orthority::write_csv`],
+//! [`opensfm::write`]), so a block travels between the tools.
 
+pub mod convert;
 pub mod opensfm;
 pub mod orthority;
 
@@ -44,6 +48,40 @@ impl Lens {
     #[must_use]
     pub fn from_opencv(size: [u32; 2], focal_px: [f64; 2], opencv_pp: [f64; 2], distortion: DistortionSection) -> Lens {
         Lens { size, focal_px, principal_point_px: [opencv_pp[0] + 0.5, opencv_pp[1] + 0.5], focal_mm: None, distortion }
+    }
+
+    /// The lens of our camera file `file` (read from `path`) on images of
+    /// `size` pixels: a digital camera's (pixel size, principal point in
+    /// pixels). A film camera's fiducial interior orientation and our
+    /// radial polynomial in mm have no form in other tools' files.
+    pub fn of(file: &CameraFile, path: &Path, size: [u32; 2]) -> Result<Lens> {
+        let no_form = |field: &str, what: &str| Error::config(path, field, format!("{what} has no form in Orthority's or OpenSfM's camera files"));
+        if file.camera.model != "frame" {
+            return Err(no_form("camera.model", "an RPC model"));
+        }
+        let interior = file.interior.clone().unwrap_or_default();
+        if interior.fiducials_mm.is_some() || interior.fiducial_distances_mm.is_some() {
+            return Err(no_form("interior", "a film camera's interior orientation from fiducial marks"));
+        }
+        if interior.principal_point_mm.is_some_and(|p| p != [0.0, 0.0]) {
+            return Err(no_form("interior.principal_point_mm", "a principal point in mm on a digital camera"));
+        }
+        let f = file.camera.focal_length_mm.ok_or_else(|| Error::config(path, "camera.focal_length_mm", "missing"))?;
+        let [px, py] = interior.pixel_size_mm.map(PixelSize::sides).ok_or_else(|| Error::config(path, "interior.pixel_size_mm", "missing"))?;
+        let pp = interior.principal_point_px.ok_or_else(|| Error::config(path, "interior.principal_point_px", "missing"))?;
+        let distortion = file.distortion.clone().unwrap_or_default();
+        if distortion.radial_mm.is_some() {
+            return Err(no_form("distortion.radial_mm", "the radial polynomial in mm"));
+        }
+        // Pixels 1 "mm" across are the form for a focal length in pixels.
+        let focal_mm = (px != 1.0 || py != 1.0).then_some(f);
+        Ok(Lens { size, focal_px: [f / px, f / py], principal_point_px: pp, focal_mm, distortion })
+    }
+
+    /// The principal point in OpenCV's pixels (centres at integers).
+    #[must_use]
+    pub fn opencv_pp(&self) -> [f64; 2] {
+        [self.principal_point_px[0] - 0.5, self.principal_point_px[1] - 0.5]
     }
 
     /// Our camera and interior sections. Without a sensor size the focal
@@ -101,6 +139,35 @@ pub struct Pose {
     pub r: Matrix3<f64>,
     /// Where it was read: "file:line" or "file: shot NAME".
     pub origin: String,
+}
+
+impl Pose {
+    /// The pose of our camera file `file` (read from `path`), for the image `name`.
+    pub fn of(name: &str, file: &CameraFile, path: &Path) -> Result<Pose> {
+        let e = file.exterior.as_ref().ok_or_else(|| Error::config(path, "exterior", "missing"))?;
+        let r = e.convention.matrix(e.angles_deg.map(f64::to_radians));
+        Ok(Pose { name: name.to_string(), camera: None, position: e.position, r, origin: path.display().to_string() })
+    }
+}
+
+/// Distinct lenses of `lenses` by value, each with an id, and for every
+/// input the id of its lens: "camera 1", "camera 2"… (never a bare
+/// "camera": Orthority takes a file with that one key for its legacy form).
+#[must_use]
+pub fn distinct_lenses(lenses: &[Lens]) -> (Vec<(String, Lens)>, Vec<String>) {
+    let mut unique: Vec<Lens> = Vec::new();
+    let index: Vec<usize> = lenses
+        .iter()
+        .map(|l| {
+            unique.iter().position(|u| u == l).unwrap_or_else(|| {
+                unique.push(l.clone());
+                unique.len() - 1
+            })
+        })
+        .collect();
+    let id = |k: usize| format!("camera {}", k + 1);
+    let ids = index.iter().map(|&k| id(k)).collect();
+    (unique.into_iter().enumerate().map(|(k, l)| (id(k), l)).collect(), ids)
 }
 
 /// What a set of files says: lenses, poses, and the CRS of the poses.
