@@ -33,7 +33,8 @@ fn convert(camera: &Path, image: &Path, out: &Path, target: &str) -> Vec<String>
     let r = run(&["cameras", "--camera", s(camera), s(image), "--out-dir", s(out), "--to", target]);
     assert!(r.status.success(), "{target}: {}", String::from_utf8_lossy(&r.stderr));
     let table = String::from_utf8_lossy(&r.stdout);
-    assert!(table.contains("scan.tif") && table.contains(&format!("{W}x{H}")) && table.contains("brown"), "{table}");
+    let name = image.file_name().unwrap().to_string_lossy();
+    assert!(table.contains(&*name) && table.contains(&format!("{W}x{H}")) && table.contains("brown"), "{table}");
     let p = |n: &str| out.join(n).to_string_lossy().into_owned();
     match target {
         "toml" => vec!["--camera".into(), p("scan.toml")],
@@ -128,4 +129,33 @@ fn what_other_forms_cannot_hold_is_refused_by_name() {
     let e = String::from_utf8_lossy(&r.stderr);
     assert!(!r.status.success() && e.contains("refusing to write over an input"), "{e}");
     assert_eq!(std::fs::read(&own).unwrap(), before);
+}
+
+#[test]
+fn a_block_given_by_orthority_files_runs_in_batch() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = drone(d);
+    std::fs::create_dir_all(d.join("scans")).unwrap();
+    std::fs::copy(&sc.scan, d.join("scans/DJI_0001.tif")).unwrap();
+    let oty = d.join("oty");
+    convert(&sc.camera, &d.join("scans/DJI_0001.tif"), &oty, "orthority");
+    // Names as exports write them: with the extension, a folder in front.
+    let csv = std::fs::read_to_string(oty.join("ext_param.csv")).unwrap().replace("DJI_0001.tif,", "images/DJI_0001.tif,");
+    std::fs::write(oty.join("ext_param.csv"), csv).unwrap();
+    std::fs::write(
+        d.join("manifest.toml"),
+        "[defaults]\ndem = \"scene/dem.tif\"\noutput_dir = \"ortho\"\n\n[block]\ninterior = \"oty/int_param.yaml\"\nexterior = \"oty/ext_param.csv\"\nimages = \"scans/{name}.tif\"\n",
+    )
+    .unwrap();
+    let o = run(&["batch", s(&d.join("manifest.toml")), "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let single = d.join("single.tif");
+    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&single), "--quiet"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let a = gcm_ortho::study::compare::read_grey(&single, 0.0).unwrap();
+    let b = gcm_ortho::study::compare::read_grey(&d.join("ortho/DJI_0001.tif"), 0.0).unwrap();
+    assert_eq!(a.v.len(), b.v.len(), "one grid");
+    let diff = a.v.iter().zip(&b.v).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+    assert!(diff <= 1.0, "the block's orthophoto differs by {diff}");
 }

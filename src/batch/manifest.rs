@@ -3,8 +3,7 @@
 //! relative to the manifest. Everything is validated before any work
 //! starts, and every problem is listed with its line.
 
-use crate::camera::file::{CameraFile, ExteriorSection};
-use crate::camera::rotation::AngleConvention;
+use crate::camera::file::CameraFile;
 use crate::error::Error;
 use crate::gcm::GcmSpec;
 use crate::io::bounded_read::{read_text_bounded, LIST};
@@ -106,8 +105,12 @@ struct JobEntry {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Block {
+    /// The lens: our camera file, Orthority's interior parameters, or an
+    /// OpenSfM reconstruction (which holds the poses as well).
     interior: String,
-    exterior_csv: String,
+    /// The poses, in any form `camera::formats` reads.
+    #[serde(alias = "exterior_csv")]
+    exterior: Option<String>,
     images: String,
 }
 
@@ -188,15 +191,15 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
     if let Some(b) = &m.block {
         let line = line_of(&text, b.span().start);
         let b = b.get_ref();
-        match block_cameras(&rel(&b.interior), &rel(&b.exterior_csv)) {
+        let exterior = b.exterior.as_deref().map(&rel);
+        match crate::camera::formats::read(&rel(&b.interior), exterior.as_deref()).and_then(|set| set.all()) {
             Ok(cams) => {
-                for (name, cam, csv_line) in cams {
+                for (name, cam, origin) in cams {
                     let image = rel(&image_of(&b.images, &name));
-                    let origin = PathBuf::from(format!("{}:{csv_line}", rel(&b.exterior_csv).display()));
-                    entries.push(Entry { image, camera: origin, inline: Some(cam), output: None, options: m.defaults.clone(), line });
+                    entries.push(Entry { image, camera: PathBuf::from(origin), inline: Some(cam), output: None, options: m.defaults.clone(), line });
                 }
             }
-            Err(e) => errors.extend(e),
+            Err(e) => errors.push(e.to_string()),
         }
     }
     if entries.is_empty() && errors.is_empty() {
@@ -236,7 +239,9 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         if let Some(b) = &m.block {
             let b = b.get_ref();
             inputs.push(("interior file".into(), rel(&b.interior)));
-            inputs.push(("exterior orientations".into(), rel(&b.exterior_csv)));
+            if let Some(e) = &b.exterior {
+                inputs.push(("exterior orientations".into(), rel(e)));
+            }
         }
         let (job_inputs, outputs) = files(&jobs);
         inputs.extend(job_inputs);
@@ -386,68 +391,4 @@ fn image_of(template: &str, name: &str) -> String {
         _ => name,
     };
     template.replace("{name}", stem)
-}
-
-/// The X, Y of the first row of a list of exterior orientations.
-fn first_position(text: &str) -> Option<(f64, f64)> {
-    let f: Vec<&str> = text.lines().nth(1)?.split(',').map(str::trim).collect();
-    Some((f.get(1)?.parse().ok()?, f.get(2)?.parse().ok()?))
-}
-
-/// Cameras of a block: the interior file (crs, [camera], [interior],
-/// [distortion], [corrections]) with each CSV row's exterior orientation
-/// (`name,X,Y,Z,omega,phi,kappa`, degrees, ω-φ-κ, header row first). A
-/// `.prj` beside the CSV is its CRS; the interior file's `crs` may then be
-/// left out, and must otherwise agree.
-fn block_cameras(interior: &Path, csv: &Path) -> Result<Vec<(String, CameraFile, usize)>, Vec<String>> {
-    let mut base = CameraFile::read(interior).map_err(|e| vec![e.to_string()])?;
-    let text = read_text_bounded(csv, "a list of exterior orientations", LIST).map_err(|e| vec![e.to_string()])?;
-    // A .prj beside the CSV is the CRS of its positions.
-    let prj = csv.with_extension("prj");
-    if prj.is_file() {
-        let here = Path::new("");
-        let theirs = crate::geodesy::Crs::parse(&std::path::absolute(&prj).unwrap_or(prj.clone()).to_string_lossy(), here).map_err(|m| vec![m])?;
-        if base.crs.trim().is_empty() {
-            base.crs = std::path::absolute(&prj).unwrap_or(prj.clone()).to_string_lossy().into_owned();
-        } else {
-            let ours =
-                crate::geodesy::Crs::parse(&base.crs, interior.parent().unwrap_or(here)).map_err(|m| vec![format!("{}: crs: {m}", interior.display())])?;
-            let at = first_position(&text);
-            if !at.is_some_and(|(x, y)| ours.agrees_at(&theirs, x, y)) {
-                return Err(vec![format!(
-                    "{}: crs is {ours}, but {} beside the exterior orientations says {theirs}: give one",
-                    interior.display(),
-                    prj.display()
-                )]);
-            }
-        }
-    }
-    let mut out = Vec::new();
-    let mut errors = Vec::new();
-    let mut lines = text.lines().enumerate();
-    match lines.next() {
-        Some((_, h)) if h.to_ascii_lowercase().replace(' ', "").starts_with("name,x,y,z,omega,phi,kappa") => {}
-        _ => return Err(vec![format!("{}: line 1: expected the header name,X,Y,Z,omega,phi,kappa", csv.display())]),
-    }
-    for (n, line) in lines {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        let nums: Option<Vec<f64>> = f.get(1..7).and_then(|v| v.iter().map(|x| x.parse::<f64>().ok().filter(|v| v.is_finite())).collect());
-        match (f.len(), nums) {
-            (7, Some(v)) => {
-                let mut cam = base.clone();
-                cam.exterior =
-                    Some(ExteriorSection { position: [v[0], v[1], v[2]], angles_deg: [v[3], v[4], v[5]], convention: AngleConvention::OmegaPhiKappa });
-                out.push((f[0].to_string(), cam, n + 1));
-            }
-            _ => errors.push(format!("{}: line {}: expected name and six numbers", csv.display(), n + 1)),
-        }
-    }
-    if errors.is_empty() {
-        Ok(out)
-    } else {
-        Err(errors)
-    }
 }

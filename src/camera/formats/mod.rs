@@ -24,6 +24,7 @@ use super::distortion::{Brown, Fisheye, OpenCv};
 use super::file::{CameraFile, CameraSection, DistortionSection, ExteriorSection, InteriorSection, PixelSize};
 use super::rotation::AngleConvention;
 use crate::error::{Error, Result};
+use crate::geodesy::Crs;
 use crate::io::bounded_read::{read_text_bounded, SMALL};
 use nalgebra::Matrix3;
 use std::path::{Path, PathBuf};
@@ -177,6 +178,8 @@ pub struct Imported {
     pub poses: Vec<Pose>,
     /// The poses' CRS as the files give it (any form `Crs::parse` reads).
     pub crs: Option<String>,
+    /// The file that gave `crs` where it is not the poses' own (a `.prj`).
+    pub crs_from: Option<PathBuf>,
     /// Our own camera file when it is the interior: its sections are kept.
     pub base: Option<CameraFile>,
     /// Doubtful things the files hold (printed as warnings).
@@ -261,6 +264,7 @@ pub fn read(camera: &Path, exterior: Option<&Path>) -> Result<Imported> {
         set.files.extend(poses.files);
         if let Some(c) = poses.crs {
             set.crs = Some(c);
+            set.crs_from = poses.crs_from;
         }
     }
     Ok(set)
@@ -326,7 +330,11 @@ impl Imported {
     pub fn camera_file(&self, p: &Pose, source: &Path) -> Result<CameraFile> {
         let angles = AngleConvention::OmegaPhiKappa.angles(&p.r).map(f64::to_degrees);
         let exterior = Some(ExteriorSection { position: p.position, angles_deg: angles, convention: AngleConvention::OmegaPhiKappa });
-        let crs = self.crs.clone().or_else(|| self.base.as_ref().map(|b| b.crs.clone())).unwrap_or_default();
+        let own = self.base.as_ref().map(|b| b.crs.clone()).filter(|c| !c.trim().is_empty());
+        if let (Some(ours), Some(theirs)) = (&own, &self.crs) {
+            self.check_same_crs(ours, theirs, p, source)?;
+        }
+        let crs = self.crs.clone().or(own).unwrap_or_default();
         if let Some(base) = &self.base {
             if self.lenses.is_empty() {
                 return Ok(CameraFile { crs, exterior, ..base.clone() });
@@ -337,6 +345,22 @@ impl Imported {
         let distortion = (lens.distortion != DistortionSection::default()).then(|| lens.distortion.clone());
         let corrections = self.base.as_ref().map(|b| b.corrections.clone()).unwrap_or_default();
         Ok(CameraFile { crs, camera, interior: Some(interior), distortion, exterior, corrections, rpc: None })
+    }
+
+    /// The camera file's `crs` and the poses' CRS must be one CRS.
+    fn check_same_crs(&self, ours: &str, theirs: &str, p: &Pose, source: &Path) -> Result<()> {
+        let camera = self.files.first().cloned().unwrap_or_default();
+        let parse = |t: &str| Crs::parse(t, camera.parent().unwrap_or(Path::new("")));
+        let ours_crs = parse(ours).map_err(|m| Error::config(&camera, "crs", m))?;
+        let theirs_crs = parse(theirs).map_err(|m| Error::format(source, m))?;
+        if ours_crs.agrees_at(&theirs_crs, p.position[0], p.position[1]) {
+            return Ok(());
+        }
+        Err(Error::config(
+            &camera,
+            "crs",
+            format!("is {ours_crs}, but {} says the exterior orientations are in {theirs_crs}: give one", self.crs_from.as_deref().unwrap_or(source).display()),
+        ))
     }
 
     fn lens_of(&self, p: &Pose, source: &Path) -> Result<&Lens> {

@@ -284,7 +284,8 @@ pub fn read_csv(path: &Path, text: &str) -> Result<Imported> {
         }
         None => None,
     };
-    let mut set = Imported { crs: crs_text, ..Default::default() };
+    let crs_from = prj.is_file().then(|| prj.clone());
+    let mut set = Imported { crs: crs_text, crs_from, ..Default::default() };
     for (line, name, camera, p, a) in rows {
         let origin = format!("{}:{line}", path.display());
         let bad = |what: &str| Error::format(path, format!("line {line}: {what}"));
