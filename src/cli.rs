@@ -72,8 +72,9 @@ pub struct SensorArgs {
     #[arg(long)]
     pub image: PathBuf,
     /// The camera file: ours (TOML; a frame camera, or model = "rpc", which
-    /// rpc-grid needs), Orthority's interior parameters (YAML), or an
-    /// OpenSfM / OpenDroneMap reconstruction.json (lens and poses).
+    /// rpc-grid needs), Orthority's interior parameters (YAML), an OpenSfM /
+    /// OpenDroneMap reconstruction.json (lens and poses), or "exif": the
+    /// image's own EXIF/XMP tags (DJI, senseFly, Pix4D).
     #[arg(long, required_unless_present = "rpc", conflicts_with = "rpc")]
     pub camera: Option<PathBuf>,
     /// The exterior orientations of many images (Orthority's CSV or
@@ -143,7 +144,8 @@ pub struct RpcGridArgs {
 #[derive(Args, Debug)]
 pub struct CamerasArgs {
     /// The camera file, in any form rectify reads (ours, Orthority's
-    /// interior parameters, an OpenSfM / OpenDroneMap reconstruction.json).
+    /// interior parameters, an OpenSfM / OpenDroneMap reconstruction.json),
+    /// or "exif": each image's own tags.
     #[arg(long)]
     pub camera: PathBuf,
     /// The exterior orientations of many images (Orthority's CSV or

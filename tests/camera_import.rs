@@ -212,3 +212,75 @@ fn opendronemap_reconstructions_are_utm_less_an_offset() {
         assert!((opk[k] - expected[k]).abs() < 1e-9, "{opk:?} vs {expected:?}");
     }
 }
+
+/// Where Orthority 0.7.0 (`oty exif`'s reading of the same file) images
+/// three world points through `fixtures/exif/dji_oblique.jpg`'s camera.
+const DJI_WORLD: [[f64; 3]; 3] =
+    [[657832.8578308772, 4985113.565288285, 230.0], [657862.8578308772, 4985133.565288285, 240.0], [657852.8578308772, 4985163.565288285, 235.0]];
+const DJI_PIXELS: [[f64; 2]; 3] = [[58.00579068376169, 31.5610853493057], [69.21946866721512, 10.353449058661191], [54.2453789966269, 3.6970060835692067]];
+
+#[test]
+fn a_dji_image_is_its_own_camera_as_orthority_reads_it() {
+    // Gimbal pitch −60°, yaw 30.5°, roll 0; DewarpData (Brown); XMP position.
+    let image = fixture("exif/dji_oblique.jpg");
+    let cam = Camera::read_for(&image, Path::new("exif"), None, None).unwrap();
+    assert_eq!(cam.crs.epsg(), Some(32633), "the UTM zone of the position");
+    for (p, e) in DJI_WORLD.iter().zip(DJI_PIXELS) {
+        let (c, r) = cam.model().project(p[0], p[1], p[2]).unwrap();
+        assert!((c - e[0] - 0.5).abs() < 1e-6 && (r - e[1] - 0.5).abs() < 1e-6, "{p:?} → ({c}, {r}), Orthority {e:?} + ½");
+    }
+    assert!(cam.warnings.is_empty(), "{:?}", cam.warnings);
+}
+
+#[test]
+fn a_nadir_dji_frame_tagged_roll_180_looks_down() {
+    // Pitch −90°, roll +180°, yaw −149.5°: the frame turned in its own
+    // plane, the same view as roll 0 and yaw 30.5° (Orthority #36: read as
+    // a roll about a level axis it looks up). Only the 35 mm equivalent.
+    let image = fixture("exif/dji_nadir_roll180.jpg");
+    let set = formats::read_for(&image, Path::new("exif"), None, None).unwrap();
+    let pose = &set.poses[0];
+    let ground = gcm_ortho::geodesy::GroundCrs::new(&gcm_ortho::geodesy::Crs::from_epsg(32633).unwrap()).unwrap();
+    let (lat, lon) = (45.0012, 17.0021);
+    let level = formats::exif::gimbal_rotation([30.5f64.to_radians(), -90f64.to_radians(), 0.0], (lon, lat), &ground).unwrap();
+    assert!((pose.r - level).abs().max() < 1e-5, "{} vs {level}", pose.r);
+    assert!(pose.r[(2, 2)] > 0.999, "photo z (back from the view) is up: the camera looks down");
+    // EXIF GPS (DMS rationals) when the XMP has no position.
+    assert!((pose.position[2] - 350.5).abs() < 1e-9);
+    let (x, y) = ground.from_lonlat(lon, lat).unwrap();
+    assert!((pose.position[0] - x).abs() < 0.01 && (pose.position[1] - y).abs() < 0.01, "{:?}", pose.position);
+    // The 35 mm equivalent is by the diagonal: 24 mm · 150 px / 43.27 mm.
+    let f = set.lenses[0].1.focal_px[0];
+    assert!((f - 24.0 * 150.0 / 36f64.hypot(24.0)).abs() < 1e-9, "{f}");
+    assert!(set.warnings.iter().any(|w| w.contains("35 mm equivalent") && w.contains("calibrate")), "{:?}", set.warnings);
+}
+
+#[test]
+fn an_image_without_camera_tags_is_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let tif = dir.path().join("plain.tif");
+    gcm_ortho::io::tiff_out::write_raster(
+        &tif,
+        &gcm_ortho::io::tiff_out::OutputSpec {
+            overviews: 0,
+            cog: false,
+            width: 8,
+            height: 8,
+            bands: 1,
+            sample: gcm_ortho::io::source::SampleType::U8,
+            chunking: gcm_ortho::io::tiff_out::Chunking::Strips(8),
+            compression: gcm_ortho::io::tiff_out::Compression::None,
+            level: None,
+            bigtiff: false,
+            photometric: 1,
+            alpha: false,
+            mask: false,
+            geo: None,
+        },
+        |_, _, buf| buf.fill(7),
+    )
+    .unwrap();
+    let Err(e) = Camera::read_for(&tif, Path::new("exif"), None, None) else { panic!("a camera from no tags") };
+    let e = e.to_string();
+    assert!(e.contains("plain.tif") && e.contains("focal length") && e.contains("camera file"), "{e}");
+}

@@ -218,7 +218,7 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         }
         let cam = match &inline {
             Some(cf) => cf.clone().build(&camera).map(|_| ()),
-            None => crate::camera::file::Camera::read(&camera).map(|_| ()),
+            None => crate::camera::file::Camera::read_for(&image, &camera, None, None).map(|_| ()),
         };
         if let Err(e) = cam {
             problems.push(e.to_string());

@@ -362,12 +362,12 @@ impl Camera {
     /// [`Camera::warnings`].
     /// `crs`: the positions' CRS where the files give none.
     pub fn read_for(image: &Path, camera: &Path, poses: Option<&Path>, crs: Option<&Crs>) -> Result<Camera> {
-        let set = super::formats::read(camera, poses)?;
+        let set = super::formats::read_for(image, camera, poses, crs)?;
         let mut file = set.camera_for(image)?;
         if let (true, Some(c)) = (file.crs.trim().is_empty(), crs) {
             file.crs = c.epsg().map_or_else(|| c.proj4().to_string(), |e| format!("EPSG:{e}"));
         }
-        let origin = poses.unwrap_or(camera);
+        let origin = if super::formats::is_exif(camera) { image } else { poses.unwrap_or(camera) };
         let mut cam = file.build(origin)?;
         cam.warnings = set.warnings;
         Ok(cam)

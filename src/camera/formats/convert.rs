@@ -60,13 +60,25 @@ pub struct Converted {
 
 /// Reads the cameras and, with `out_dir`, writes them.
 pub fn convert(o: &ConvertOptions) -> Result<Converted> {
-    let set = super::read(&o.camera, o.exterior.as_deref())?;
+    let exif = super::is_exif(&o.camera);
+    if exif && o.images.is_empty() {
+        return Err(Error::Usage("--camera exif: name the images".into()));
+    }
+    let mut set = if exif { Default::default() } else { super::read(&o.camera, o.exterior.as_deref())? };
     let mut entries = Vec::new();
     if !o.images.is_empty() {
         for image in &o.images {
             let info = SourceImage::info_of(image)?;
             let name = image.file_name().map_or_else(|| image.display().to_string(), |n| n.to_string_lossy().into_owned());
-            entries.push(Entry { name, file: set.camera_for(image)?, size: Some([info.width, info.height]), origin: image.display().to_string() });
+            let own;
+            let from = if exif {
+                own = super::read_for(image, &o.camera, None, o.crs.as_ref())?;
+                set.warnings.extend(own.warnings.iter().cloned());
+                &own
+            } else {
+                &set
+            };
+            entries.push(Entry { name, file: from.camera_for(image)?, size: Some([info.width, info.height]), origin: image.display().to_string() });
         }
     } else if !set.poses.is_empty() {
         for (name, file, origin) in set.all()? {
@@ -102,7 +114,7 @@ pub fn convert(o: &ConvertOptions) -> Result<Converted> {
             _ => {}
         }
         // Built once, so that what is written is a camera rectify takes.
-        e.file.clone().build(&o.camera)?;
+        e.file.clone().build(Path::new(&e.origin))?;
     }
     let mut written = Vec::new();
     if let Some(dir) = &o.out_dir {
@@ -128,7 +140,7 @@ fn write(entries: &[Entry], dir: &Path, o: &ConvertOptions) -> Result<Vec<PathBu
                     ));
                 }
                 let mut text = String::new();
-                if e.file.interior.as_ref().and_then(|i| i.pixel_size_mm) == Some(PixelSize::Square(1.0)) {
+                if e.file.interior.as_ref().and_then(|i| i.pixel_size_mm).is_some_and(|p| p.sides()[0] == 1.0) {
                     text += "# The source gives no sensor size: the focal length is in pixels, on pixels 1 \"mm\" across.\n";
                 }
                 out.push((path, text + &e.file.to_toml()));

@@ -17,6 +17,7 @@
 //! [`opensfm::write`]), so a block travels between the tools.
 
 pub mod convert;
+pub mod exif;
 pub mod opensfm;
 pub mod orthority;
 
@@ -244,6 +245,24 @@ fn detect_json(path: &Path, v: &serde_json::Value) -> Result<Kind> {
         Value::Array(a) if a.first().is_some_and(|r| r.get("shots").is_some() || r.get("cameras").is_some()) => Ok(Kind::OpenSfmReconstruction),
         _ => Err(Error::unsupported(path, "JSON that is neither an OpenSfM reconstruction.json / cameras.json nor an Orthority GeoJSON (FeatureCollection)")),
     }
+}
+
+/// `--camera exif`: the camera from the image's own tags.
+#[must_use]
+pub fn is_exif(camera: &Path) -> bool {
+    camera == Path::new("exif")
+}
+
+/// The set for `image`: from its own tags where `camera` is `exif`
+/// (positions in `crs`, default their UTM zone), else [`read`].
+pub fn read_for(image: &Path, camera: &Path, exterior: Option<&Path>, crs: Option<&Crs>) -> Result<Imported> {
+    if !is_exif(camera) {
+        return read(camera, exterior);
+    }
+    if let Some(e) = exterior {
+        return Err(Error::unsupported(e, "--camera exif takes the position from the image: give a camera file with --exterior"));
+    }
+    exif::read(image, crs)
 }
 
 /// Reads a camera file (`--camera`) and, where given, a pose file

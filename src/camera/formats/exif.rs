@@ -1,0 +1,285 @@
+//! A drone image's own tags as its camera (`--camera exif`): EXIF (focal
+//! length with the focal-plane resolution, or the 35 mm equivalent; GPS)
+//! and the XMP that DJI, senseFly and Pix4D cameras write (position, the
+//! camera's yaw, pitch and roll, DJI's `DewarpData` calibration).
+//!
+//! DJI's gimbal angles are the camera's yaw, pitch and roll as aircraft
+//! angles (z down; x the optical axis, level at pitch 0, straight down at
+//! −90; roll about the optical axis). Read so, a nadir frame tagged
+//! `GimbalRollDegree = ±180` (some DJI payloads turn the camera that way
+//! instead of the yaw) is the frame turned 180° in its own plane, as it
+//! is — not a camera looking up. With roll 0, which is nearly every image,
+//! this is Orthority's reading exactly.
+
+use super::{brown_section, Imported, Lens, Pose};
+use crate::camera::distortion::Brown;
+use crate::camera::rotation::AngleConvention;
+use crate::error::{Error, Result};
+use crate::geodesy::{utm_zone, Crs, GroundCrs};
+use crate::io::source::SourceImage;
+use exif::{In, Tag, Value};
+use nalgebra::{Matrix3, Vector3};
+use std::collections::HashMap;
+use std::io::{BufReader, Read};
+use std::path::Path;
+
+const DJI: &str = "http://www.dji.com/drone-dji/1.0/";
+const SENSEFLY: &str = "http://ns.sensefly.com/Camera/1.0/";
+const PIX4D: &str = "http://pix4d.com/camera/1.0/";
+
+/// What an image's tags say about its camera.
+#[derive(Clone, Debug, Default)]
+pub struct Tags {
+    pub make: Option<String>,
+    pub model: Option<String>,
+    /// The size the tags were written for (`PixelXDimension`, `PixelYDimension`).
+    pub tag_size: Option<[u32; 2]>,
+    pub focal_mm: Option<f64>,
+    pub focal_35mm: Option<f64>,
+    /// The sensor's size in mm from the focal-plane resolution.
+    pub sensor_mm: Option<[f64; 2]>,
+    pub orientation: Option<u32>,
+    /// Latitude, longitude (degrees), altitude (m).
+    pub gps: Option<[f64; 3]>,
+    /// XMP properties by namespace and name.
+    pub xmp: HashMap<(String, String), String>,
+}
+
+impl Tags {
+    /// The tags of the image at `path` (JPEG or TIFF).
+    pub fn read(path: &Path) -> Result<Tags> {
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let mut tags = Tags::default();
+        if let Ok(exif) = exif::Reader::new().read_from_container(&mut BufReader::new(file)) {
+            tags.exif(&exif);
+            // A TIFF's XMP packet is its tag 700.
+            if let Some(f) = exif.get_field(Tag(exif::Context::Tiff, 700), In::PRIMARY) {
+                if let Value::Byte(b) | Value::Undefined(b, _) = &f.value {
+                    tags.xmp_packet(&String::from_utf8_lossy(b));
+                }
+            }
+        }
+        if let Some(packet) = jpeg_xmp(path)? {
+            tags.xmp_packet(&packet);
+        }
+        Ok(tags)
+    }
+
+    fn exif(&mut self, e: &exif::Exif) {
+        let text = |t: Tag| e.get_field(t, In::PRIMARY).map(|f| f.display_value().to_string().trim_matches('"').trim().to_string());
+        let num = |t: Tag| -> Option<f64> {
+            match &e.get_field(t, In::PRIMARY)?.value {
+                Value::Rational(r) => r.first().filter(|r| r.denom != 0).map(|r| r.to_f64()),
+                Value::SRational(r) => r.first().filter(|r| r.denom != 0).map(|r| r.to_f64()),
+                v => v.get_uint(0).map(f64::from),
+            }
+        };
+        self.make = text(Tag::Make);
+        self.model = text(Tag::Model);
+        self.focal_mm = num(Tag::FocalLength).filter(|f| *f > 0.0);
+        self.focal_35mm = num(Tag::FocalLengthIn35mmFilm).filter(|f| *f > 0.0);
+        self.orientation = e.get_field(Tag::Orientation, In::PRIMARY).and_then(|f| f.value.get_uint(0));
+        let (w, h) = (num(Tag::PixelXDimension), num(Tag::PixelYDimension));
+        if let (Some(w), Some(h)) = (w, h) {
+            self.tag_size = Some([w as u32, h as u32]);
+        }
+        // mm per focal-plane resolution unit: inch, cm, mm, µm.
+        let unit = num(Tag::FocalPlaneResolutionUnit).and_then(|u| match u as u32 {
+            2 => Some(25.4),
+            3 => Some(10.0),
+            4 => Some(1.0),
+            5 => Some(0.001),
+            _ => None,
+        });
+        if let (Some(mm), Some(xr), Some(yr), Some([w, h])) = (unit, num(Tag::FocalPlaneXResolution), num(Tag::FocalPlaneYResolution), self.tag_size) {
+            if xr > 0.0 && yr > 0.0 {
+                self.sensor_mm = Some([mm * f64::from(w) / xr, mm * f64::from(h) / yr]);
+            }
+        }
+        let dms = |t: Tag| -> Option<f64> {
+            match &e.get_field(t, In::PRIMARY)?.value {
+                Value::Rational(r) if r.len() == 3 && r.iter().all(|x| x.denom != 0) => Some(r[0].to_f64() + r[1].to_f64() / 60.0 + r[2].to_f64() / 3600.0),
+                _ => None,
+            }
+        };
+        let sign = |t: Tag, negative: &str| if text(t).is_some_and(|s| s.starts_with(negative)) { -1.0 } else { 1.0 };
+        if let (Some(lat), Some(lon)) = (dms(Tag::GPSLatitude), dms(Tag::GPSLongitude)) {
+            let below = e.get_field(Tag::GPSAltitudeRef, In::PRIMARY).and_then(|f| f.value.get_uint(0)) == Some(1);
+            let alt = num(Tag::GPSAltitude).unwrap_or(0.0) * if below { -1.0 } else { 1.0 };
+            self.gps = Some([lat * sign(Tag::GPSLatitudeRef, "S"), lon * sign(Tag::GPSLongitudeRef, "W"), alt]);
+        }
+    }
+
+    /// Every property of an XMP packet: attributes and simple elements.
+    fn xmp_packet(&mut self, packet: &str) {
+        let Ok(doc) = roxmltree::Document::parse(packet.trim_matches(char::from(0))) else { return };
+        for node in doc.descendants().filter(|n| n.is_element()) {
+            for a in node.attributes() {
+                if let Some(ns) = a.namespace() {
+                    self.xmp.insert((ns.to_string(), a.name().to_string()), a.value().trim().to_string());
+                }
+            }
+            if let (Some(ns), Some(text)) = (node.tag_name().namespace(), node.text()) {
+                if node.children().all(|c| c.is_text()) && !text.trim().is_empty() {
+                    self.xmp.insert((ns.to_string(), node.tag_name().name().to_string()), text.trim().to_string());
+                }
+            }
+        }
+    }
+
+    fn xmp_num(&self, ns: &str, name: &str) -> Option<f64> {
+        self.xmp.get(&(ns.to_string(), name.to_string())).and_then(|v| v.parse::<f64>().ok()).filter(|v| v.is_finite())
+    }
+
+    /// The camera's id: make and model, as Orthority names it.
+    #[must_use]
+    pub fn camera_id(&self) -> String {
+        let id = [&self.make, &self.model].iter().filter_map(|s| s.as_deref()).collect::<Vec<_>>().join(" ").to_lowercase();
+        if id.is_empty() {
+            "unknown".into()
+        } else {
+            id
+        }
+    }
+}
+
+/// The XMP packet of a JPEG (its APP1 segment), read segment by segment up
+/// to the image data; `None` for other files.
+fn jpeg_xmp(path: &Path) -> Result<Option<String>> {
+    const XMP: &[u8] = b"http://ns.adobe.com/xap/1.0/\0";
+    let mut f = BufReader::new(std::fs::File::open(path).map_err(|e| Error::io(path, e))?);
+    let mut two = [0u8; 2];
+    if f.read_exact(&mut two).is_err() || two != [0xFF, 0xD8] {
+        return Ok(None);
+    }
+    loop {
+        let mut marker = [0u8; 2];
+        if f.read_exact(&mut marker).is_err() || marker[0] != 0xFF || marker[1] == 0xDA || marker[1] == 0xD9 {
+            return Ok(None);
+        }
+        let mut len = [0u8; 2];
+        f.read_exact(&mut len).map_err(|e| Error::io(path, e))?;
+        let n = usize::from(u16::from_be_bytes(len)).saturating_sub(2);
+        let mut body = vec![0u8; n];
+        f.read_exact(&mut body).map_err(|e| Error::io(path, e))?;
+        if marker[1] == 0xE1 && body.starts_with(XMP) {
+            return Ok(Some(String::from_utf8_lossy(&body[XMP.len()..]).into_owned()));
+        }
+    }
+}
+
+/// The camera of `image` from its own tags, its position in `crs` (default:
+/// its UTM zone).
+pub fn read(image: &Path, crs: Option<&Crs>) -> Result<Imported> {
+    let tags = Tags::read(image)?;
+    let info = SourceImage::info_of(image)?;
+    let size = [info.width, info.height];
+    let mut set = Imported::default();
+    if let Some(o) = tags.orientation.filter(|&o| o > 1) {
+        return Err(Error::unsupported(
+            image,
+            format!("EXIF orientation {o}: the pixels are stored turned or mirrored from the view the camera tags describe"),
+        ));
+    }
+    let id = tags.camera_id();
+    let (lens, warning) = lens(image, &tags, size)?;
+    set.warnings.extend(warning);
+    set.lenses.push((id.clone(), lens));
+
+    // Position: DJI's XMP (more digits), else EXIF GPS.
+    let lat = tags.xmp_num(DJI, "GpsLatitude");
+    let lon = tags.xmp_num(DJI, "GpsLongitude").or_else(|| tags.xmp_num(DJI, "GpsLongtitude"));
+    let alt = tags.xmp_num(DJI, "AbsoluteAltitude");
+    let [lat, lon, alt] = match (lat, lon, alt, tags.gps) {
+        (Some(a), Some(b), Some(c), _) => [a, b, c],
+        (_, _, _, Some(g)) => g,
+        _ => return Err(Error::format(image, "no GPS position in its EXIF or XMP tags: give a camera file")),
+    };
+    let crs = crs.cloned().unwrap_or_else(|| utm_zone(lon, lat));
+    let ground = GroundCrs::new(&crs).map_err(|m| Error::format(image, m))?;
+    let (x, y) = ground.from_lonlat(lon, lat).ok_or_else(|| Error::format(image, format!("its position ({lat}, {lon}) is outside {crs}")))?;
+    let r = attitude(image, &tags, (lon, lat), &ground)?;
+    let name = image.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    set.poses.push(Pose { name, camera: Some(id), position: [x, y, alt], r, origin: format!("{}: EXIF/XMP", image.display()) });
+    set.crs = Some(crs.epsg().map_or_else(|| crs.proj4().to_string(), |e| format!("EPSG:{e}")));
+    set.files.push(image.to_path_buf());
+    Ok(set)
+}
+
+/// The lens: DJI's DewarpData where the image was not undistorted already,
+/// else a pinhole from the focal length and sensor size, else from the
+/// 35 mm equivalent (approximate: warned).
+fn lens(image: &Path, tags: &Tags, size: [u32; 2]) -> Result<(Lens, Option<String>)> {
+    let [w, h] = size.map(f64::from);
+    let centre = [(w - 1.0) / 2.0, (h - 1.0) / 2.0];
+    if let (Some(text), Some(tag)) = (tags.xmp.get(&(DJI.to_string(), "DewarpData".to_string())), tags.tag_size) {
+        let v: Vec<f64> = text.rsplit(';').next().unwrap_or("").split(',').filter_map(|x| x.trim().parse().ok()).collect();
+        if v.len() == 9 && v.iter().any(|x| *x != 0.0) {
+            // Calibrated on the tagged size: focal lengths in its pixels,
+            // the principal point as offsets from its centre.
+            let (sx, sy) = (w / f64::from(tag[0]), h / f64::from(tag[1]));
+            let scale = w.max(h) / f64::from(tag[0].max(tag[1]));
+            let pp = [centre[0] + v[2] * scale, centre[1] + v[3] * scale];
+            let undistorted = tags.xmp_num(DJI, "DewarpFlag") == Some(1.0);
+            let distortion = if undistorted { Default::default() } else { brown_section(Brown { k1: v[4], k2: v[5], p1: v[6], p2: v[7], k3: v[8] }) };
+            return Ok((Lens::from_opencv(size, [v[0] * sx, v[1] * sy], pp, distortion), None));
+        }
+    }
+    if let (Some(f), Some(s)) = (tags.focal_mm, tags.sensor_mm) {
+        let mut lens = Lens::from_opencv(size, [f * w / s[0], f * h / s[1]], centre, Default::default());
+        lens.focal_mm = Some(f);
+        return Ok((lens, None));
+    }
+    if let Some(f35) = tags.focal_35mm {
+        // The 35 mm equivalent is by the diagonal (36 × 24 mm).
+        let f = f35 * w.hypot(h) / 36f64.hypot(24.0);
+        let warning = format!(
+            "{}: the focal length is only the 35 mm equivalent ({f35} mm, {f:.1} px) and the lens's distortion is unknown: calibrate the camera for accurate geometry",
+            image.display()
+        );
+        return Ok((Lens::from_opencv(size, [f, f], centre, Default::default()), Some(warning)));
+    }
+    Err(Error::format(image, "no focal length with a sensor size (focal-plane resolution), no 35 mm equivalent and no DJI DewarpData: give a camera file"))
+}
+
+/// The camera's rotation (photo → `ground`) from the vendor's attitude tags.
+fn attitude(image: &Path, tags: &Tags, lonlat: (f64, f64), ground: &GroundCrs) -> Result<Matrix3<f64>> {
+    let deg = |ns: &str, n: &str| tags.xmp_num(ns, n).map(f64::to_radians);
+    if let Some(pitch) = deg(DJI, "GimbalPitchDegree") {
+        // The gimbal's yaw is the camera's heading; the aircraft's is not
+        // where the gimbal turns on its own.
+        let yaw = deg(DJI, "GimbalYawDegree").or_else(|| deg(DJI, "FlightYawDegree"));
+        let yaw = yaw.ok_or_else(|| Error::format(image, "DJI tags with a gimbal pitch but no gimbal or flight yaw"))?;
+        let roll = deg(DJI, "GimbalRollDegree").unwrap_or(0.0);
+        return gimbal_rotation([yaw, pitch, roll], lonlat, ground).ok_or_else(|| Error::format(image, "no grid north at its position"));
+    }
+    for ns in [SENSEFLY, PIX4D] {
+        if let (Some(r), Some(p), Some(y)) = (deg(ns, "Roll"), deg(ns, "Pitch"), deg(ns, "Yaw")) {
+            return super::orthority::rpy_rotation([r, p, y], lonlat, ground).ok_or_else(|| Error::format(image, "no grid north at its position"));
+        }
+    }
+    Err(Error::format(image, "no camera attitude in its XMP (DJI gimbal yaw/pitch/roll, senseFly or Pix4D roll/pitch/yaw): give a camera file"))
+}
+
+/// Aircraft angles yaw, pitch, roll (radians) of a camera body whose x is
+/// the optical axis, y the image's right, z its down, against north, east,
+/// down with north along the grid north of `ground` at `lonlat` → the
+/// rotation photo (x right, y up, z back) → ground.
+#[must_use]
+pub fn gimbal_rotation([yaw, pitch, roll]: [f64; 3], lonlat: (f64, f64), ground: &GroundCrs) -> Option<Matrix3<f64>> {
+    let turn = |axis: usize, t: f64| {
+        let mut a = [0.0; 3];
+        a[axis] = t;
+        AngleConvention::OmegaPhiKappa.matrix(a)
+    };
+    let body_to_ned = turn(2, yaw) * turn(1, pitch) * turn(0, roll);
+    // Photo x = body y, photo y = −body z, photo z = −body x.
+    let photo_to_body = Matrix3::new(0.0, 0.0, -1.0, 1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
+    let d = 1e-5;
+    let (x1, y1) = ground.from_lonlat(lonlat.0, lonlat.1 + d)?;
+    let (x2, y2) = ground.from_lonlat(lonlat.0, lonlat.1 - d)?;
+    let north = Vector3::new(x1 - x2, y1 - y2, 0.0).try_normalize(0.0)?;
+    let down = Vector3::new(0.0, 0.0, -1.0);
+    let ned_to_ground = Matrix3::from_columns(&[north, down.cross(&north), down]);
+    Some(ned_to_ground * body_to_ned * photo_to_body)
+}
