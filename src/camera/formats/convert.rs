@@ -4,7 +4,7 @@
 //! fixed before a night's run, and a block can go back to those tools.
 
 use super::{distinct_lenses, opensfm, orthority, Lens, Pose};
-use crate::camera::file::{CameraFile, PixelSize};
+use crate::camera::file::CameraFile;
 use crate::camera::rotation::AngleConvention;
 use crate::error::{Error, Result};
 use crate::geodesy::{Crs, GroundCrs};
