@@ -73,8 +73,8 @@ pub struct SensorArgs {
     pub image: PathBuf,
     /// The camera file: ours (TOML; a frame camera, or model = "rpc", which
     /// rpc-grid needs), Orthority's interior parameters (YAML), an OpenSfM /
-    /// OpenDroneMap reconstruction.json (lens and poses), or "exif": the
-    /// image's own EXIF/XMP tags (DJI, senseFly, Pix4D).
+    /// OpenDroneMap reconstruction.json or a Metashape camera export (XML)
+    /// (lenses and poses), or "exif": the image's own EXIF/XMP tags.
     #[arg(long, required_unless_present = "rpc", conflicts_with = "rpc")]
     pub camera: Option<PathBuf>,
     /// The exterior orientations of many images (Orthority's CSV or
@@ -144,8 +144,8 @@ pub struct RpcGridArgs {
 #[derive(Args, Debug)]
 pub struct CamerasArgs {
     /// The camera file, in any form rectify reads (ours, Orthority's
-    /// interior parameters, an OpenSfM / OpenDroneMap reconstruction.json),
-    /// or "exif": each image's own tags.
+    /// interior parameters, an OpenSfM / OpenDroneMap reconstruction.json,
+    /// a Metashape camera export), or "exif": each image's own tags.
     #[arg(long)]
     pub camera: PathBuf,
     /// The exterior orientations of many images (Orthority's CSV or

@@ -159,3 +159,156 @@ fn a_block_given_by_orthority_files_runs_in_batch() {
     let diff = a.v.iter().zip(&b.v).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
     assert!(diff <= 1.0, "the block's orthophoto differs by {diff}");
 }
+
+/// The drone scene's camera as a Metashape export would hold it: the
+/// calibration in Metashape's terms, the camera in a chunk frame that a
+/// similarity (`scale`, rotation, shift) carries to geocentric coordinates.
+fn metashape_xml(truth: &gcm_ortho::camera::CameraFile, size: (u32, u32), reference: &str, label: &str) -> String {
+    use gcm_ortho::camera::rotation::AngleConvention;
+    use gcm_ortho::geodesy::ecef::{enu_axes, to_ecef};
+    use gcm_ortho::geodesy::{Crs, GroundCrs};
+    use nalgebra::{Matrix3, Vector3};
+    let interior = truth.interior.clone().unwrap();
+    let ps = interior.pixel_size_mm.unwrap().sides()[0];
+    let f = truth.camera.focal_length_mm.unwrap() / ps;
+    let pp = interior.principal_point_px.unwrap();
+    let b = truth.distortion.clone().unwrap().brown.unwrap();
+    let ext = truth.exterior.clone().unwrap();
+    let ground = GroundCrs::new(&Crs::parse(&truth.crs, Path::new("")).unwrap()).unwrap();
+    let (lon, lat) = ground.to_lonlat(ext.position[0], ext.position[1]).unwrap();
+    let c = to_ecef(lon, lat, ext.position[2]);
+    // Grid → geocentric directions: east-north-up turned by the grid's
+    // convergence θ (true north is θ east of grid north).
+    let (n1, n2) = (ground.from_lonlat(lon, lat + 1e-5).unwrap(), ground.from_lonlat(lon, lat - 1e-5).unwrap());
+    let theta = (n1.0 - n2.0).atan2(n1.1 - n2.1);
+    let q = Matrix3::new(theta.cos(), -theta.sin(), 0.0, theta.sin(), theta.cos(), 0.0, 0.0, 0.0, 1.0);
+    let r_photo = ext.convention.matrix(ext.angles_deg.map(f64::to_radians));
+    let r_cv_ecef = enu_axes(lon, lat) * q * r_photo * Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0));
+    // The chunk's frame: scale 12.3, turned, 2 km off the camera.
+    let (s0, r0, t0) = (12.3, AngleConvention::OmegaPhiKappa.matrix([0.3, -0.5, 1.1]), c + Vector3::new(1500.0, -900.0, 1200.0));
+    let cam_r = r0.transpose() * r_cv_ecef;
+    let cam_t = r0.transpose() * (c - t0) / s0;
+    let row = |m: &Matrix3<f64>, t: &Vector3<f64>| {
+        (0..3).map(|i| format!("{:?} {:?} {:?} {:?}", m[(i, 0)], m[(i, 1)], m[(i, 2)], t[i])).collect::<Vec<_>>().join(" ") + " 0 0 0 1"
+    };
+    let r9 = (0..3).flat_map(|i| (0..3).map(move |j| (i, j))).map(|(i, j)| format!("{:?}", r0[(i, j)])).collect::<Vec<_>>().join(" ");
+    format!(
+        r#"<?xml version="1.0" encoding="UTF-8"?>
+<document version="2.0.0">
+  <chunk label="Chunk 1" enabled="true">
+    <sensors next_id="1">
+      <sensor id="0" label="drone" type="frame">
+        <resolution width="{w}" height="{h}"/>
+        <calibration type="frame" class="initial">
+          <resolution width="{w}" height="{h}"/>
+          <f>1000</f>
+        </calibration>
+        <calibration type="frame" class="adjusted">
+          <resolution width="{w}" height="{h}"/>
+          <f>{f:?}</f>
+          <cx>{cx:?}</cx>
+          <cy>{cy:?}</cy>
+          <k1>{k1:?}</k1>
+          <k2>{k2:?}</k2>
+          <k3>{k3:?}</k3>
+          <p1>{p1:?}</p1>
+          <p2>{p2:?}</p2>
+        </calibration>
+      </sensor>
+    </sensors>
+    <components next_id="1" active_id="0">
+      <component id="0" label="Component 1">
+        <transform>
+          <rotation locked="true">{r9}</rotation>
+          <translation locked="true">{tx:?} {ty:?} {tz:?}</translation>
+          <scale locked="true">{s0:?}</scale>
+        </transform>
+      </component>
+    </components>
+    <cameras next_id="2" next_group_id="1">
+      <group id="0" label="Group 1" type="folder">
+        <camera id="0" sensor_id="0" component_id="0" label="{label}">
+          <transform>{cam}</transform>
+        </camera>
+        <camera id="1" sensor_id="0" component_id="0" label="not_aligned.JPG"/>
+      </group>
+    </cameras>
+    <reference>{reference}</reference>
+  </chunk>
+</document>
+"#,
+        w = size.0,
+        h = size.1,
+        cx = pp[0] - size.0 as f64 / 2.0,
+        cy = pp[1] - size.1 as f64 / 2.0,
+        k1 = b.k1,
+        k2 = b.k2,
+        k3 = b.k3,
+        // Metashape's P1 is OpenCV's p2.
+        p1 = b.p2,
+        p2 = b.p1,
+        tx = t0.x,
+        ty = t0.y,
+        tz = t0.z,
+        cam = row(&cam_r, &cam_t),
+    )
+}
+
+const UTM31_WKT: &str = r#"PROJCS["WGS 84 / UTM zone 31N",GEOGCS["WGS 84",DATUM["World Geodetic System 1984",SPHEROID["WGS 84",6378137,298.257223563]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],PARAMETER["latitude_of_origin",0],PARAMETER["central_meridian",3],PARAMETER["scale_factor",0.9996],PARAMETER["false_easting",500000],PARAMETER["false_northing",0],UNIT["metre",1],AUTHORITY["EPSG","32631"]]"#;
+const WGS84_WKT: &str = r#"GEOGCS["WGS 84",DATUM["World Geodetic System 1984",SPHEROID["WGS 84",6378137,298.257223563]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433],AUTHORITY["EPSG","4326"]]"#;
+
+#[test]
+fn a_metashape_export_reads_as_the_camera_it_describes() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = drone(dir.path());
+    let truth_file = gcm_ortho::camera::CameraFile::read(&sc.camera).unwrap();
+    let truth = Camera::read(&sc.camera).unwrap();
+    for (reference, label) in [(UTM31_WKT, "scan"), (WGS84_WKT, "C:\\flights\\day1\\scan.tif")] {
+        let xml = dir.path().join("cameras.xml");
+        std::fs::write(&xml, metashape_xml(&truth_file, (W, H), reference, label)).unwrap();
+        let set = gcm_ortho::camera::formats::read(&xml, None).unwrap();
+        assert!(set.warnings.iter().any(|w| w.contains("1 of 2 cameras are not aligned")), "{:?}", set.warnings);
+        let cam = Camera::read_for(&sc.scan, &xml, None, None).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(cam.crs.epsg(), Some(32631), "a geographic chunk goes to its UTM zone");
+        let mut worst = 0f64;
+        for j in 0..=8 {
+            for i in 0..=12 {
+                let (c, r) = (i as f64 * W as f64 / 12.0, j as f64 * H as f64 / 8.0);
+                let z = 150.0 + 10.0 * ((i + j) % 4) as f64;
+                let (x, y) = gcm_ortho::camera::locate(truth.model(), c, r, z, 1e-9).unwrap();
+                let (c2, r2) = cam.model().project(x, y, z).unwrap();
+                worst = worst.max((c2 - c).hypot(r2 - r));
+            }
+        }
+        assert!(worst < 1e-4, "{label}: {worst} px from the camera the export describes");
+    }
+}
+
+/// The export with its component's shift taken out: a frame that is not
+/// geocentric (a local one under a geographic label).
+fn without_translation(xml: &str) -> String {
+    let start = xml.find("<translation locked=\"true\">").unwrap() + "<translation locked=\"true\">".len();
+    let end = start + xml[start..].find("</translation>").unwrap();
+    format!("{}0 0 0{}", &xml[..start], &xml[end..])
+}
+
+#[test]
+fn metashape_exports_we_cannot_use_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = drone(dir.path());
+    let truth_file = gcm_ortho::camera::CameraFile::read(&sc.camera).unwrap();
+    let good = metashape_xml(&truth_file, (W, H), UTM31_WKT, "scan");
+    let cases = [
+        ("fisheye", good.replace(r#"label="drone" type="frame""#, r#"label="drone" type="fisheye""#), "'fisheye' (only frame sensors)"),
+        ("fx", good.replace("<f>1000</f>", "<fx>1000</fx>"), "PhotoScan's older form"),
+        ("chunks", good.replace("</chunk>", "</chunk><chunk label=\"2\"></chunk>"), "2 chunks"),
+        ("local", good.replace(UTM31_WKT, r#"LOCAL_CS["Local Coordinates (m)",LOCAL_DATUM["Local Datum",0],UNIT["metre",1]]"#), "local coordinate system"),
+        ("origin", without_translation(&good), "not near the earth's surface"),
+    ];
+    for (name, text, want) in cases {
+        let xml = dir.path().join(format!("{name}.xml"));
+        std::fs::write(&xml, text).unwrap();
+        let e = gcm_ortho::camera::formats::read(&xml, None).map(|_| ()).err().unwrap_or_else(|| panic!("{name}: read")).to_string();
+        assert!(e.contains(&format!("{name}.xml")) && e.contains(want), "{name}: {e}");
+    }
+}

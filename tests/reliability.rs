@@ -257,7 +257,7 @@ fn an_rpc_tag_is_read_from_a_large_image_without_reading_the_image() {
     let r = run(&["rectify", "--image", s(&image), "--camera", s(&big), "--height", "100", "--quiet", "-o", s(&out)]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(1), "{err}");
-    assert!(err.contains("too large for a camera file"), "{err}");
+    assert!(err.contains("too large for a camera or pose file"), "{err}");
 }
 
 #[test]

@@ -83,6 +83,31 @@ pub struct Fisheye {
     pub k4: f64,
 }
 
+/// Agisoft Metashape's frame model on OpenCV's normalised coordinates
+/// (x right, y down): radial to r⁸, and tangential terms in Metashape's own
+/// order — its P1 goes with r² + 2x² in x (OpenCV's p2), P2 with r² + 2y²
+/// in y — scaled by (1 + P3 r² + P4 r⁴).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Metashape {
+    #[serde(default)]
+    pub k1: f64,
+    #[serde(default)]
+    pub k2: f64,
+    #[serde(default)]
+    pub k3: f64,
+    #[serde(default)]
+    pub k4: f64,
+    #[serde(default)]
+    pub p1: f64,
+    #[serde(default)]
+    pub p2: f64,
+    #[serde(default)]
+    pub p3: f64,
+    #[serde(default)]
+    pub p4: f64,
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Distortion {
     None,
@@ -91,6 +116,7 @@ pub enum Distortion {
     Brown(Brown),
     OpenCv(OpenCv),
     Fisheye(Fisheye),
+    Metashape(Metashape),
 }
 
 impl Distortion {
@@ -104,6 +130,7 @@ impl Distortion {
             Distortion::Brown(b) => Distortion::brown(&b, x, y, f),
             Distortion::OpenCv(o) => Distortion::opencv(&o, x, y, f),
             Distortion::Fisheye(k) => Distortion::fisheye(&k, x, y, f),
+            Distortion::Metashape(m) => Distortion::metashape(&m, x, y, f),
         }
     }
 
@@ -152,6 +179,7 @@ impl Distortion {
                 Distortion::Brown(b) => Distortion::brown(&Brown { p1: 0.0, p2: 0.0, ..b }, r, 0.0, f).0,
                 Distortion::OpenCv(o) => Distortion::opencv(&OpenCv { p1: 0.0, p2: 0.0, s1: 0.0, s2: 0.0, s3: 0.0, s4: 0.0, ..o }, r, 0.0, f).0,
                 Distortion::Fisheye(k) => Distortion::fisheye(&k, r, 0.0, f).0,
+                Distortion::Metashape(m) => Distortion::metashape(&Metashape { p1: 0.0, p2: 0.0, ..m }, r, 0.0, f).0,
             }
         };
         if let Distortion::Fisheye(k) = *self {
@@ -218,6 +246,19 @@ impl Distortion {
         (xd * f, -yd * f)
     }
 
+    /// Metashape's model at photo point (x, y) (mm, y up), as [`Distortion::brown`].
+    #[inline(always)]
+    #[must_use]
+    pub fn metashape(m: &Metashape, x: f64, y: f64, f: f64) -> (f64, f64) {
+        let (xn, yn) = (x / f, -y / f);
+        let r2 = xn * xn + yn * yn;
+        let radial = 1.0 + r2 * (m.k1 + r2 * (m.k2 + r2 * (m.k3 + r2 * m.k4)));
+        let scale = 1.0 + r2 * (m.p3 + r2 * m.p4);
+        let xd = xn * radial + (m.p1 * (r2 + 2.0 * xn * xn) + 2.0 * m.p2 * xn * yn) * scale;
+        let yd = yn * radial + (m.p2 * (r2 + 2.0 * yn * yn) + 2.0 * m.p1 * xn * yn) * scale;
+        (xd * f, -yd * f)
+    }
+
     /// The fisheye model at photo point (x, y) (mm, y up): the ideal point
     /// is `f·tan θ` from the principal point, the distorted one `f·θ_d`.
     #[inline(always)]
@@ -273,6 +314,7 @@ mod tests {
             Distortion::Brown(Brown { k1: -0.11, k2: 0.035, k3: -0.004, p1: 4e-4, p2: -2.5e-4 }),
             Distortion::OpenCv(OpenCv { k1: -0.11, k2: 0.035, k4: 0.02, k6: 0.01, p1: 4e-4, s1: 1.5e-3, s4: 1e-3, ..Default::default() }),
             Distortion::Fisheye(Fisheye { k1: 0.052, k2: -0.013, k3: 0.0021, k4: -3e-4 }),
+            Distortion::Metashape(Metashape { k1: -0.09, k2: -0.076, k3: 0.116, k4: -0.076, p1: -3e-4, p2: 1.2e-4, p3: 0.1, p4: -0.05 }),
         ];
         for d in models {
             for (x, y) in [(0.0, 0.0), (3.1, -2.2), (-4.5, 3.4), (0.7, 5.0)] {
@@ -281,6 +323,26 @@ mod tests {
                 assert!((bx - x).abs() < 1e-7 && (by - y).abs() < 1e-7, "{d:?}: ({x}, {y}) came back as ({bx}, {by})");
             }
         }
+    }
+
+    #[test]
+    fn metashape_matches_hand_values() {
+        // f = 100, point (10, −20) mm, y up: x' = 0.1, y' = 0.2 (down),
+        // r² = 0.05. Radial: 1 + 0.1·0.05 + 0.01·0.0025 + 0 + 0.001·0.05⁴ =
+        // 1.005025 + 6.25e-9. Tangential, Metashape's order: x gets
+        // P1(r² + 2x'²) + 2 P2 x'y' = 0.002·0.07 + 2·0.001·0.02 = 1.8e-4,
+        // y gets P2(r² + 2y'²) + 2 P1 x'y' = 0.001·0.13 + 2·0.002·0.02 = 2.1e-4,
+        // both times 1 + P3 r² + P4 r⁴ = 1 + 0.5·0.05 + 0.2·0.0025 = 1.0255.
+        let m = Metashape { k1: 0.1, k2: 0.01, k3: 0.0, k4: 0.001, p1: 0.002, p2: 0.001, p3: 0.5, p4: 0.2 };
+        let (x, y) = Distortion::Metashape(m).apply(10.0, -20.0, 100.0);
+        let radial = 1.005025 + 6.25e-9;
+        assert!((x - (0.1 * radial + 1.8e-4 * 1.0255) * 100.0).abs() < 1e-12, "{x}");
+        assert!((y + (0.2 * radial + 2.1e-4 * 1.0255) * 100.0).abs() < 1e-12, "{y}");
+        // With k4 = p3 = p4 = 0 it is Brown's model with p1 and p2 swapped.
+        let b = Brown { k1: 0.1, k2: 0.01, k3: 0.003, p1: 0.001, p2: 0.002 };
+        let as_metashape = Metashape { k1: 0.1, k2: 0.01, k3: 0.003, p1: 0.002, p2: 0.001, ..Default::default() };
+        let (a, c) = (Distortion::Brown(b).apply(3.0, 4.0, 8.8), Distortion::Metashape(as_metashape).apply(3.0, 4.0, 8.8));
+        assert!((a.0 - c.0).abs() < 1e-14 && (a.1 - c.1).abs() < 1e-14);
     }
 
     #[test]

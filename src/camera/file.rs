@@ -4,7 +4,7 @@
 //! the geometry silently. See README "The camera file".
 
 use super::atmosphere::Refraction;
-use super::distortion::{Brown, Distortion, Fisheye, OpenCv};
+use super::distortion::{Brown, Distortion, Fisheye, Metashape, OpenCv};
 use super::frame::FrameCamera;
 use super::interior::InteriorOrientation;
 use super::reprojected::Reprojected;
@@ -46,6 +46,11 @@ pub struct InteriorSection {
     /// another image is refused (a calibration from other tools holds it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub image_size_px: Option<[u32; 2]>,
+    /// A digital frame's affinity and skew (Metashape's B1, B2, pixels):
+    /// column = cx + x'(f + B1) + y'·B2, row = cy + y'·f on the normalised
+    /// image plane (x', y' right, down), f the focal length in pixels.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub affinity_skew_px: Option<[f64; 2]>,
     /// The most a fiducial mark may sit off the fitted interior orientation,
     /// scan pixels (default 2): past it a mark was placed wrong.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -109,14 +114,16 @@ pub struct DistortionSection {
     pub opencv: Option<OpenCv>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fisheye: Option<Fisheye>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub metashape: Option<Metashape>,
 }
 
 impl DistortionSection {
     /// The lens model, checked: at most one form, finite coefficients.
     fn model(&self) -> std::result::Result<Distortion, (String, String)> {
-        let given = [self.radial_mm.is_some(), self.brown.is_some(), self.opencv.is_some(), self.fisheye.is_some()];
+        let given = [self.radial_mm.is_some(), self.brown.is_some(), self.opencv.is_some(), self.fisheye.is_some(), self.metashape.is_some()];
         if given.iter().filter(|&&g| g).count() > 1 {
-            return Err(("distortion".into(), "give one of radial_mm, brown, opencv or fisheye".into()));
+            return Err(("distortion".into(), "give one of radial_mm, brown, opencv, fisheye or metashape".into()));
         }
         let check = |name: &str, v: &[f64]| all_finite(v).map_err(|m| (format!("distortion.{name}"), m));
         if let Some(r) = self.radial_mm {
@@ -134,6 +141,10 @@ impl DistortionSection {
         if let Some(k) = self.fisheye {
             check("fisheye", &[k.k1, k.k2, k.k3, k.k4])?;
             return Ok(Distortion::Fisheye(k));
+        }
+        if let Some(m) = self.metashape {
+            check("metashape", &[m.k1, m.k2, m.k3, m.k4, m.p1, m.p2, m.p3, m.p4])?;
+            return Ok(Distortion::Metashape(m));
         }
         Ok(Distortion::None)
     }
@@ -271,7 +282,7 @@ impl CameraFile {
         finite_positive(f).map_err(|m| err("camera.focal_length_mm", m))?;
 
         let interior = self.interior.clone().ok_or_else(|| err("interior", "missing section".into()))?;
-        let io = build_interior(&interior).map_err(|(field, m)| err(&field, m))?;
+        let io = build_interior(&interior, f).map_err(|(field, m)| err(&field, m))?;
 
         let distortion = match &self.distortion {
             None => Distortion::None,
@@ -499,7 +510,7 @@ fn film_format(s: &InteriorSection) -> std::result::Result<Option<[f64; 2]>, Str
     }
 }
 
-fn build_interior(s: &InteriorSection) -> std::result::Result<InteriorOrientation, (String, String)> {
+fn build_interior(s: &InteriorSection, focal_mm: f64) -> std::result::Result<InteriorOrientation, (String, String)> {
     let e = |f: &str, m: String| (format!("interior.{f}"), m);
     let forms = [s.fiducials_mm.is_some(), s.fiducial_distances_mm.is_some(), s.pixel_size_mm.is_some()];
     if forms.iter().filter(|&&b| b).count() != 1 {
@@ -528,7 +539,13 @@ fn build_interior(s: &InteriorSection) -> std::result::Result<InteriorOrientatio
     finite_positive(ps[0].min(ps[1])).map_err(|m| e("pixel_size_mm", m))?;
     let ppx = s.principal_point_px.ok_or_else(|| e("principal_point_px", "missing".into()))?;
     all_finite(&ppx).map_err(|m| e("principal_point_px", m))?;
-    InteriorOrientation::digital_sides(ps, ppx).map_err(|x| e("pixel_size_mm", x.to_string()))
+    match s.affinity_skew_px {
+        None => InteriorOrientation::digital_sides(ps, ppx).map_err(|x| e("pixel_size_mm", x.to_string())),
+        Some(b) => {
+            all_finite(&b).map_err(|m| e("affinity_skew_px", m))?;
+            InteriorOrientation::digital_affine(ps, ppx, b, focal_mm).map_err(|x| e("affinity_skew_px", x.to_string()))
+        }
+    }
 }
 
 #[cfg(test)]

@@ -267,6 +267,11 @@ impl SensorModel for FrameCamera {
                     (col[k], row[k]) = Distortion::fisheye(&o, col[k], row[k], f);
                 }
             }
+            Distortion::Metashape(m) => {
+                for k in 0..n {
+                    (col[k], row[k]) = Distortion::metashape(&m, col[k], row[k], f);
+                }
+            }
         }
         for k in 0..n {
             (col[k], row[k]) = self.interior.mm_to_px(col[k], row[k]);

@@ -153,6 +153,22 @@ impl InteriorOrientation {
         Self::from_affine(to_px, Vec::new())
     }
 
+    /// Form (c) with Metashape's affinity and skew `[b1, b2]` (pixels) for
+    /// a focal length of `focal_mm`: column = cx + x'(f + b1) + y'·b2,
+    /// row = cy + y'·f, with x', y' (right, down) on the normalised plane
+    /// and f in pixels down.
+    pub fn digital_affine([across, down]: [f64; 2], principal_point_px: [f64; 2], [b1, b2]: [f64; 2], focal_mm: f64) -> Result<Self, InteriorError> {
+        if !(across > 0.0 && down > 0.0 && focal_mm > 0.0) {
+            return Err(InteriorError::Degenerate("pixel size and focal length must be positive"));
+        }
+        // x' = x/f_mm, y' = −y/f_mm (y up in mm).
+        let m = Matrix2::new(1.0 / across + b1 / focal_mm, -b2 / focal_mm, 0.0, -1.0 / down);
+        if m.determinant().abs() < 1e-12 {
+            return Err(InteriorError::Degenerate("the affinity leaves no area"));
+        }
+        Self::from_affine(Affine2 { m, t: Vector2::new(principal_point_px[0], principal_point_px[1]) }, Vec::new())
+    }
+
     /// Photo mm (relative to the principal point) → scan pixel.
     #[inline]
     pub fn mm_to_px(&self, x: f64, y: f64) -> (f64, f64) {
@@ -179,6 +195,17 @@ impl InteriorOrientation {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn metashape_affinity_and_skew() {
+        // f = 3000 px on 0.004 mm pixels (12 mm); x' = 0.1, y' = 0.2 (down):
+        // u = cx + x'(f + b1) + y'·b2, v = cy + y'·f.
+        let (f_mm, ps, b1, b2) = (12.0, 0.004, 0.5, -0.3);
+        let io = InteriorOrientation::digital_affine([ps, ps], [2640.0, 1978.0], [b1, b2], f_mm).unwrap();
+        let (u, v) = io.mm_to_px(0.1 * f_mm, -0.2 * f_mm);
+        assert!((u - (2640.0 + 0.1 * (3000.0 + b1) + 0.2 * b2)).abs() < 1e-9, "{u}");
+        assert!((v - (1978.0 + 0.2 * 3000.0)).abs() < 1e-9, "{v}");
+    }
 
     /// A constructed flatbed scan: 0.3° rotation, 0.021/0.0212 mm pixels
     /// (x and y scales differ), photo centre at pixel (5000.5, 5010.25).

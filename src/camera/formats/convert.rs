@@ -228,6 +228,8 @@ pub fn table(entries: &[Entry]) -> String {
             "fisheye"
         } else if d.radial_mm.is_some() {
             "radial"
+        } else if d.metashape.is_some() {
+            "metashape"
         } else {
             "pinhole"
         };

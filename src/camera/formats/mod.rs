@@ -18,6 +18,7 @@
 
 pub mod convert;
 pub mod exif;
+pub mod metashape;
 pub mod opensfm;
 pub mod orthority;
 
@@ -42,6 +43,8 @@ pub struct Lens {
     /// The focal length in mm, where the source gives a sensor size.
     pub focal_mm: Option<f64>,
     pub distortion: DistortionSection,
+    /// Metashape's affinity and skew (B1, B2), pixels.
+    pub affinity_skew_px: Option<[f64; 2]>,
 }
 
 impl Lens {
@@ -49,7 +52,7 @@ impl Lens {
     /// pixels (centres at integers), the coefficients of `kind`.
     #[must_use]
     pub fn from_opencv(size: [u32; 2], focal_px: [f64; 2], opencv_pp: [f64; 2], distortion: DistortionSection) -> Lens {
-        Lens { size, focal_px, principal_point_px: [opencv_pp[0] + 0.5, opencv_pp[1] + 0.5], focal_mm: None, distortion }
+        Lens { size, focal_px, principal_point_px: [opencv_pp[0] + 0.5, opencv_pp[1] + 0.5], focal_mm: None, distortion, affinity_skew_px: None }
     }
 
     /// The lens of our camera file `file` (read from `path`) on images of
@@ -65,6 +68,9 @@ impl Lens {
         if interior.fiducials_mm.is_some() || interior.fiducial_distances_mm.is_some() {
             return Err(no_form("interior", "a film camera's interior orientation from fiducial marks"));
         }
+        if interior.affinity_skew_px.is_some_and(|b| b != [0.0, 0.0]) {
+            return Err(no_form("interior.affinity_skew_px", "Metashape's affinity and skew"));
+        }
         if interior.principal_point_mm.is_some_and(|p| p != [0.0, 0.0]) {
             return Err(no_form("interior.principal_point_mm", "a principal point in mm on a digital camera"));
         }
@@ -77,7 +83,7 @@ impl Lens {
         }
         // Pixels 1 "mm" across are the form for a focal length in pixels.
         let focal_mm = (px != 1.0 || py != 1.0).then_some(f);
-        Ok(Lens { size, focal_px: [f / px, f / py], principal_point_px: pp, focal_mm, distortion })
+        Ok(Lens { size, focal_px: [f / px, f / py], principal_point_px: pp, focal_mm, distortion, affinity_skew_px: None })
     }
 
     /// The principal point in OpenCV's pixels (centres at integers).
@@ -98,6 +104,7 @@ impl Lens {
             pixel_size_mm: Some(pixel),
             principal_point_px: Some(self.principal_point_px),
             image_size_px: Some(self.size),
+            affinity_skew_px: self.affinity_skew_px,
             ..Default::default()
         };
         (camera, interior)
@@ -199,6 +206,7 @@ pub enum Kind {
     OrthorityGeoJson,
     OpenSfmReconstruction,
     OpenSfmCameras,
+    MetashapeXml,
 }
 
 impl Kind {
@@ -212,6 +220,7 @@ impl Kind {
             Kind::OrthorityGeoJson => "Orthority exterior parameters (GeoJSON)",
             Kind::OpenSfmReconstruction => "OpenSfM reconstruction",
             Kind::OpenSfmCameras => "OpenSfM cameras",
+            Kind::MetashapeXml => "Metashape cameras (XML)",
         }
     }
 }
@@ -223,6 +232,9 @@ pub fn detect(path: &Path, text: &str) -> Result<Kind> {
         if let Ok(v) = serde_json::from_str::<serde_json::Value>(t) {
             return detect_json(path, &v);
         }
+    }
+    if metashape::looks_like(t) {
+        return Ok(Kind::MetashapeXml);
     }
     if toml::from_str::<toml::Table>(t).is_ok_and(|table| table.contains_key("camera") || table.contains_key("crs")) {
         return Ok(Kind::Ours);
@@ -300,6 +312,7 @@ fn read_one(path: &Path) -> Result<Imported> {
         Kind::OrthorityCsv => orthority::read_csv(path, &text)?,
         Kind::OrthorityGeoJson => orthority::read_geojson(path, &text)?,
         Kind::OpenSfmReconstruction | Kind::OpenSfmCameras => opensfm::read(path, &text)?,
+        Kind::MetashapeXml => metashape::read(path, &text)?,
     };
     set.files.push(path.to_path_buf());
     Ok(set)

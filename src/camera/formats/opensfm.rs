@@ -169,7 +169,7 @@ pub fn write(lenses: &[(String, Lens)], poses: &[Pose], cameras: &[String], crs:
         let cam = if let Some(k) = d.fisheye {
             json!({"projection_type": "fisheye_opencv", "width": w, "height": h, "focal_x": fx, "focal_y": fy, "c_x": c[0], "c_y": c[1],
                    "k1": k.k1, "k2": k.k2, "k3": k.k3, "k4": k.k4})
-        } else if d.opencv.is_some() || d.radial_mm.is_some() {
+        } else if d.opencv.is_some() || d.radial_mm.is_some() || d.metashape.is_some() {
             return Err(Error::unsupported(path, format!("camera '{id}': OpenSfM has Brown's and the fisheye lens models only")));
         } else {
             let b = d.brown.unwrap_or(Brown { k1: 0.0, k2: 0.0, k3: 0.0, p1: 0.0, p2: 0.0 });

@@ -348,8 +348,9 @@ pub fn write_interior(lenses: &[(String, Lens)], path: &Path) -> Result<String> 
             ("opencv", names.into_iter().zip(o.opencv_order()).collect())
         } else if let Some(k) = d.fisheye {
             ("fisheye", vec![("k1", k.k1), ("k2", k.k2), ("k3", k.k3), ("k4", k.k4)])
-        } else if d.radial_mm.is_some() {
-            return Err(Error::config(path, "distortion.radial_mm", "the radial polynomial in mm has no form in Orthority's files"));
+        } else if d.radial_mm.is_some() || d.metashape.is_some() {
+            let field = if d.radial_mm.is_some() { "distortion.radial_mm" } else { "distortion.metashape" };
+            return Err(Error::config(path, field, "this lens model has no form in Orthority's files"));
         } else {
             ("pinhole", Vec::new())
         };
