@@ -169,6 +169,13 @@ pub struct CamerasArgs {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum GcpRefine {
+    Auto,
+    Shift,
+    Affine,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum CameraTarget {
     Toml,
     Orthority,
@@ -437,6 +444,19 @@ pub struct RectifyArgs {
     /// the scene's centre).
     #[arg(long)]
     pub crs: Option<String>,
+    /// Ground control points refining the model: Orthority's GCP GeoJSON,
+    /// or a CSV id,col,row,x,y,z with a .prj beside it. An RPC's bias is
+    /// corrected in image space; a frame camera's pose by resection.
+    #[arg(long)]
+    pub gcps: Option<PathBuf>,
+    /// An RPC's bias model: auto (affine with 3 or more GCPs, else a
+    /// shift), shift, affine.
+    #[arg(long, value_enum, default_value_t = GcpRefine::Auto, requires = "gcps")]
+    pub gcp_refine: GcpRefine,
+    /// The most any GCP may sit off the refined model, image pixels: past
+    /// it the fit is refused.
+    #[arg(long, default_value_t = 2.0, requires = "gcps")]
+    pub gcp_max_residual: f64,
     /// DEM (GeoTIFF or SRTM .hgt), in the orthophoto's CRS or any other
     /// (it is then reprojected on the fly).
     #[arg(long, conflicts_with = "height")]
@@ -557,6 +577,18 @@ impl RectifyArgs {
         let (camera, model) = self.sensor.model()?;
         let mut o = RectifyOptions::new(self.sensor.image.clone(), camera, dem, self.output.clone());
         o.model = model;
+        if let Some(file) = &self.gcps {
+            use gcm_ortho::camera::gcp::BiasModel;
+            if !(self.gcp_max_residual.is_finite() && self.gcp_max_residual > 0.0) {
+                return Err(gcm_ortho::Error::setting("gcp_max_residual", "must be a positive number of pixels"));
+            }
+            let model = match self.gcp_refine {
+                GcpRefine::Auto => BiasModel::Auto,
+                GcpRefine::Shift => BiasModel::Shift,
+                GcpRefine::Affine => BiasModel::Affine,
+            };
+            o.gcps = Some(gcm_ortho::options::GcpOptions { file: file.clone(), model, max_residual: self.gcp_max_residual });
+        }
         o.dem_hole = parse_miss("dem_hole", &self.dem_hole)?;
         o.dem_outside = parse_miss("dem_outside", &self.dem_outside)?;
         o.gsd = self.gsd;

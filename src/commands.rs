@@ -292,6 +292,12 @@ fn print_report(r: &Report) {
     let e = &r.accuracy_estimate;
     let bound = r.error_bound.map(|b| format!(", bound {b} px {}", if r.error_within { "held" } else { "MISSED" })).unwrap_or_default();
     println!("  GCM vs exact model (sampled): RMS {:.4} px, max {:.4} px over {} pixels{bound}", e.rms, e.max, e.count);
+    if let Some(g) = &r.gcps {
+        println!("  GCPs ({}): RMS {:.3} px before, {:.3} px after; {}", g.method, g.rms_before, g.rms_after, g.correction);
+        for p in &g.points {
+            println!("    {:<12} before ({:+.3}, {:+.3})  after ({:+.3}, {:+.3}) px", p.id, p.before[0], p.before[1], p.after[0], p.after[1]);
+        }
+    }
 }
 
 fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {

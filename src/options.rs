@@ -333,6 +333,15 @@ pub enum BandOrder {
     Columns,
 }
 
+/// `--gcps`: ground control points that refine the sensor model.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GcpOptions {
+    pub file: PathBuf,
+    pub model: crate::camera::gcp::BiasModel,
+    /// The most any point may sit off the refined model, image pixels.
+    pub max_residual: f64,
+}
+
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct RectifyOptions {
     pub image: PathBuf,
@@ -342,6 +351,8 @@ pub struct RectifyOptions {
     /// How `camera` becomes the sensor model.
     #[serde(skip)]
     pub model: ModelSource,
+    /// Ground control points refining the model.
+    pub gcps: Option<GcpOptions>,
     pub dem: DemSource,
     pub dem_hole: Miss,
     pub dem_outside: Miss,
@@ -492,6 +503,9 @@ impl RectifyOptions {
         if let ModelSource::WithPoses(p) = &self.model {
             v.push(("exterior orientations", p.clone()));
         }
+        if let Some(g) = &self.gcps {
+            v.push(("GCP file", g.file.clone()));
+        }
         if let DemSource::File(d) = &self.dem {
             v.push(("DEM", d.clone()));
         }
@@ -520,6 +534,7 @@ impl RectifyOptions {
             image,
             camera,
             model: ModelSource::CameraFile,
+            gcps: None,
             dem,
             dem_hole: Miss::Error,
             dem_outside: Miss::Nodata,

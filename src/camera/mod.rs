@@ -6,6 +6,7 @@ pub mod distortion;
 pub mod file;
 pub mod formats;
 pub mod frame;
+pub mod gcp;
 pub mod interior;
 pub mod lanes;
 pub mod reprojected;

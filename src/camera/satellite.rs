@@ -8,8 +8,8 @@
 use super::rpc::Rpc;
 use super::SensorModel;
 use crate::geodesy::{Geoid, GroundCrs};
-use crate::geom::OutputGrid;
 use crate::geom::Plane;
+use crate::geom::{Affine2, OutputGrid};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 pub struct RpcCamera {
@@ -19,6 +19,10 @@ pub struct RpcCamera {
     pub geoid: Option<Geoid>,
     /// Ground units per scan pixel near the scene centre.
     ground_per_px: f64,
+    /// The image-space bias correction ground control points found
+    /// (Grodecki & Dial): the RPC's pixel → the image's. Identity without.
+    bias: Affine2,
+    unbias: Affine2,
 }
 
 impl RpcCamera {
@@ -26,7 +30,28 @@ impl RpcCamera {
         let (per_deg_lat, _) = rpc.pixels_per_degree();
         let metres_per_px = 111_320.0 / per_deg_lat.max(1e-9);
         let ground_per_px = metres_per_px * crs.units_per_metre(rpc.lat_off);
-        RpcCamera { rpc, crs, geoid, ground_per_px }
+        RpcCamera { rpc, crs, geoid, ground_per_px, bias: Affine2::identity(), unbias: Affine2::identity() }
+    }
+
+    /// Corrects the model's image coordinates by `bias` (RPC pixel → image
+    /// pixel); false, and nothing changed, when `bias` cannot be inverted.
+    pub fn set_bias(&mut self, bias: Affine2) -> bool {
+        let Some(unbias) = bias.inverse() else { return false };
+        (self.bias, self.unbias) = (bias, unbias);
+        true
+    }
+
+    /// The image-space correction in use.
+    pub fn bias(&self) -> &Affine2 {
+        &self.bias
+    }
+
+    /// A height in the DEM's datum of an ellipsoidal height at (lon, lat).
+    pub fn dem_height(&self, lon: f64, lat: f64, h: f64) -> Option<f64> {
+        match &self.geoid {
+            None => Some(h),
+            Some(g) => Some(h - g.undulation(lon, lat)?),
+        }
     }
 
     /// Ellipsoidal height of a height `z` in the DEM's vertical datum.
@@ -50,7 +75,8 @@ impl SensorModel for RpcCamera {
     fn project(&self, x: f64, y: f64, z: f64) -> Option<(f64, f64)> {
         let (lon, lat) = self.crs.to_lonlat(x, y)?;
         let h = self.ellipsoidal(lon, lat, z)?;
-        self.rpc.project(lon, lat, h)
+        let (c, r) = self.rpc.project(lon, lat, h)?;
+        Some(self.bias.apply(c, r))
     }
 
     fn lonlat_from(&self) -> Option<&crate::geodesy::Crs> {
@@ -63,13 +89,14 @@ impl SensorModel for RpcCamera {
             "project_many_lonlat: arrays of one length"
         );
         for k in 0..lon.len() {
-            let p = self.ellipsoidal(lon[k], lat[k], z[k]).and_then(|h| self.rpc.project(lon[k], lat[k], h));
+            let p = self.ellipsoidal(lon[k], lat[k], z[k]).and_then(|h| self.rpc.project(lon[k], lat[k], h)).map(|(c, r)| self.bias.apply(c, r));
             (col[k], row[k]) = p.unwrap_or((f64::NAN, f64::NAN));
         }
     }
 
     fn locate_approx(&self, col: f64, row: f64, z: f64) -> Option<(f64, f64)> {
         let n = self.geoid.as_ref().and_then(|g| g.undulation(self.rpc.long_off, self.rpc.lat_off)).unwrap_or(0.0);
+        let (col, row) = self.unbias.apply(col, row);
         let (lon, lat) = self.rpc.locate(col, row, z + n, 0.01)?;
         self.crs.from_lonlat(lon, lat)
     }

@@ -156,5 +156,6 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         error_within,
         output_bytes,
         warnings,
+        gcps: plan.gcp_fit.clone(),
     })
 }

@@ -46,6 +46,8 @@ pub struct Report {
     /// Doubtful inputs met and errors beyond what was asked: the binary
     /// prints them even when quiet.
     pub warnings: Vec<String>,
+    /// What the ground control points did to the model, where given.
+    pub gcps: Option<crate::camera::gcp::GcpFit>,
 }
 
 /// Past this (scan px), a run without a bound is warned about.

@@ -39,16 +39,26 @@ pub struct RunPlan {
     pub spec: OutputSpec,
     pub pixels: PixelOptions,
     pub budget: MemoryBudget,
+    /// What the ground control points did to the model.
+    pub gcp_fit: Option<crate::camera::gcp::GcpFit>,
 }
 
 impl RunPlan {
     pub fn new(opts: &RectifyOptions, progress: &dyn Progress) -> Result<RunPlan> {
         let mut budget = MemoryBudget::new(opts.memory);
         let like = opts.like.as_deref().map(reference_grid).transpose()?;
-        let camera = opts.model.load(&opts.image, &opts.camera, opts.crs.as_ref())?;
+        let mut camera = opts.model.load(&opts.image, &opts.camera, opts.crs.as_ref())?;
         for w in &camera.warnings {
             progress.warn(w);
         }
+        // GCPs refine the model in its own CRS, before anything else uses it.
+        let gcp_fit = match &opts.gcps {
+            Some(g) => {
+                let points = crate::camera::gcp::read(&g.file, &opts.image)?;
+                Some(crate::camera::gcp::refine(&mut camera, &points, g.model, g.max_residual, &g.file)?)
+            }
+            None => None,
+        };
         // The orthophoto's CRS: as given, else the reference grid's, else
         // the camera's.
         let ground = match (&opts.crs, &like) {
@@ -291,7 +301,7 @@ impl RunPlan {
         };
         let area = camera.model().image_area();
         let pixels = PixelOptions { kernel: opts.kernel, tile, fill: nodata.unwrap_or(0.0), alpha: opts.alpha, bands_out, area, mask };
-        Ok(RunPlan { camera, src, dem, grid, approx, band_order, gcm, piece: [tc0, tr0, tcw, trh], spec, pixels, budget })
+        Ok(RunPlan { camera, src, dem, grid, approx, band_order, gcm, piece: [tc0, tr0, tcw, trh], spec, pixels, budget, gcp_fit })
     }
 
     /// Bands of tile columns: the stages walk the transposed grid.

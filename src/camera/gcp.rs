@@ -1,0 +1,306 @@
+//! Ground control points, and the sensor model they refine (`--gcps`):
+//!
+//! * an RPC's bias in image space (Grodecki & Dial, "Block adjustment of
+//!   high-resolution satellite images described by rational polynomials",
+//!   2003): a shift, or an affine map with three or more points;
+//! * a frame camera's exterior orientation by space resection (least
+//!   squares on the collinearity of every point, the interior fixed), with
+//!   three or more points.
+//!
+//! Files: Orthority's GCP GeoJSON (features with `ji` — pixel centres at
+//! integers — `filename`, `id`, and a point in WGS 84 longitude, latitude,
+//! ellipsoidal height), or a CSV `id,col,row,x,y,z` (pixel centres at +½,
+//! as GDAL's GCPs; an optional `image` or `filename` column) whose CRS is a
+//! `.prj` beside it.
+
+use super::file::{Camera, Sensor};
+use super::frame::FrameCamera;
+use super::rotation::AngleConvention;
+use super::SensorModel;
+use crate::error::{Error, Result};
+use crate::geodesy::{Crs, GroundCrs};
+use crate::geom::Affine2;
+use crate::io::bounded_read::{read_text_bounded, LIST};
+use nalgebra::{DMatrix, DVector, Vector3};
+use std::path::Path;
+
+/// One ground control point.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Gcp {
+    pub id: String,
+    /// Where the image shows it (pixel centres at +½).
+    pub col: f64,
+    pub row: f64,
+    /// Where it is: WGS 84 longitude, latitude (degrees) and height (m).
+    pub lon: f64,
+    pub lat: f64,
+    pub height: f64,
+    /// The height is above the ellipsoid (Orthority's files), not in the
+    /// DEM's datum.
+    pub ellipsoidal: bool,
+}
+
+/// How an RPC's bias is modelled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum BiasModel {
+    /// An affine map with three points or more, else a shift.
+    Auto,
+    Shift,
+    Affine,
+}
+
+/// What a refinement did: each point's residual before and after (image
+/// pixels, image − model), and the correction.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GcpFit {
+    /// "rpc shift", "rpc affine" or "resection".
+    pub method: String,
+    pub points: Vec<GcpResidual>,
+    pub rms_before: f64,
+    pub rms_after: f64,
+    /// The RPC's image-space correction (col' = a·col + b·row + c, row' = …),
+    /// or the frame camera's new exterior orientation, as text.
+    pub correction: String,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GcpResidual {
+    pub id: String,
+    pub before: [f64; 2],
+    pub after: [f64; 2],
+}
+
+/// The GCPs of `image` in the file at `path`.
+pub fn read(path: &Path, image: &Path) -> Result<Vec<Gcp>> {
+    let text = read_text_bounded(path, "a GCP file", LIST)?;
+    let t = text.trim_start_matches('\u{feff}').trim_start();
+    let all = if t.starts_with('{') { read_geojson(path, t, image)? } else { read_csv(path, t, image)? };
+    if all.is_empty() {
+        let name = image.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        return Err(Error::format(path, format!("no ground control point for the image {name}")));
+    }
+    Ok(all)
+}
+
+/// Does a GCP file's image name name `image` (by file name, else stem)?
+fn names(entry: &str, image: &Path) -> bool {
+    let entry = entry.rsplit(['/', '\\']).next().unwrap_or(entry);
+    let file = image.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    let stem = |s: &str| Path::new(s).file_stem().and_then(|s| s.to_str()).unwrap_or(s).to_string();
+    entry == file || stem(entry) == stem(file)
+}
+
+fn read_geojson(path: &Path, text: &str, image: &Path) -> Result<Vec<Gcp>> {
+    let v: serde_json::Value = serde_json::from_str(text).map_err(|e| Error::format(path, format!("JSON: {e}")))?;
+    let features = v.get("features").and_then(|f| f.as_array()).ok_or_else(|| Error::config(path, "features", "missing: not a GCP FeatureCollection"))?;
+    let mut out = Vec::new();
+    for (k, f) in features.iter().enumerate() {
+        let field = |n: &str| format!("features[{k}].{n}");
+        let props = f.get("properties").ok_or_else(|| Error::config(path, field("properties"), "missing"))?;
+        let file = props.get("filename").and_then(|n| n.as_str()).ok_or_else(|| Error::config(path, field("properties.filename"), "missing"))?;
+        if !names(file, image) {
+            continue;
+        }
+        let nums = |v: Option<&serde_json::Value>, n: usize, name: &str| -> Result<Vec<f64>> {
+            let a: Option<Vec<f64>> =
+                v.and_then(|a| a.as_array()).filter(|a| a.len() == n).and_then(|a| a.iter().map(|x| x.as_f64().filter(|x| x.is_finite())).collect());
+            a.ok_or_else(|| Error::config(path, field(name), format!("expected {n} numbers")))
+        };
+        let ji = nums(props.get("ji"), 2, "properties.ji")?;
+        let xyz = nums(f.get("geometry").and_then(|g| g.get("coordinates")), 3, "geometry.coordinates")?;
+        let id = match props.get("id") {
+            Some(serde_json::Value::String(s)) => s.clone(),
+            Some(serde_json::Value::Null) | None => format!("{}", out.len() + 1),
+            Some(other) => other.to_string(),
+        };
+        // Orthority's pixel centres are at integers; ours at +½.
+        out.push(Gcp { id, col: ji[0] + 0.5, row: ji[1] + 0.5, lon: xyz[0], lat: xyz[1], height: xyz[2], ellipsoidal: true });
+    }
+    Ok(out)
+}
+
+fn read_csv(path: &Path, text: &str, image: &Path) -> Result<Vec<Gcp>> {
+    let prj = path.with_extension("prj");
+    if !prj.is_file() {
+        return Err(Error::format(path, format!("the CRS of the GCPs' x, y, z is not given: put it in {}", prj.display())));
+    }
+    let crs = Crs::parse(read_text_bounded(&prj, "a .prj", LIST)?.trim(), Path::new("")).map_err(|m| Error::format(&prj, m))?;
+    let ground = GroundCrs::new(&crs).map_err(|m| Error::format(&prj, m))?;
+    let mut r = csv::ReaderBuilder::new().trim(csv::Trim::All).flexible(false).from_reader(text.as_bytes());
+    let head: Vec<String> = r.headers().map_err(|e| Error::format(path, format!("line 1: {e}")))?.iter().map(str::to_ascii_lowercase).collect();
+    let col = |k: &str| head.iter().position(|h| h == k);
+    let need = |k: &str| col(k).ok_or_else(|| Error::format(path, format!("line 1: no {k} column (expected id,col,row,x,y,z)")));
+    let (id, c, rw, x, y, z) = (need("id")?, need("col")?, need("row")?, need("x")?, need("y")?, need("z")?);
+    let image_col = col("image").or_else(|| col("filename"));
+    let mut out = Vec::new();
+    for (n, rec) in r.records().enumerate() {
+        let line = n + 2;
+        let rec = rec.map_err(|e| Error::format(path, format!("line {line}: {e}")))?;
+        if image_col.is_some_and(|k| !names(rec.get(k).unwrap_or(""), image)) {
+            continue;
+        }
+        let num = |k: usize| -> Result<f64> {
+            rec.get(k)
+                .and_then(|v| v.parse::<f64>().ok())
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| Error::format(path, format!("line {line}: {} is not a number", head[k])))
+        };
+        let (lon, lat) = ground.to_lonlat(num(x)?, num(y)?).ok_or_else(|| Error::format(path, format!("line {line}: outside {crs}")))?;
+        out.push(Gcp { id: rec.get(id).unwrap_or("").to_string(), col: num(c)?, row: num(rw)?, lon, lat, height: num(z)?, ellipsoidal: false });
+    }
+    Ok(out)
+}
+
+/// Refines `camera` with `gcps`: an RPC's bias, a frame camera's exterior
+/// orientation. Refuses, naming the worst point, a fit that leaves a
+/// residual above `max_residual` image pixels.
+pub fn refine(camera: &mut Camera, gcps: &[Gcp], model: BiasModel, max_residual: f64, source: &Path) -> Result<GcpFit> {
+    let fit = match &mut camera.sensor {
+        Sensor::Rpc(rpc) => refine_rpc(rpc, gcps, model, source)?,
+        Sensor::Frame(f) => {
+            if model != BiasModel::Auto {
+                return Err(Error::setting("gcp_refine", "shift and affine refine an RPC; a frame camera's pose is refined by resection"));
+            }
+            let (refined, fit) = resection(f, gcps, &camera.crs, source)?;
+            *f = refined;
+            fit
+        }
+        Sensor::ReprojectedFrame(_) => return Err(Error::format(source, "GCPs refine a camera in its own CRS, before it is reprojected")),
+    };
+    if let Some(worst) = fit.points.iter().max_by(|a, b| a.after[0].hypot(a.after[1]).total_cmp(&b.after[0].hypot(b.after[1]))) {
+        let r = worst.after[0].hypot(worst.after[1]);
+        if r > max_residual {
+            return Err(Error::format(
+                source,
+                format!(
+                    "GCP {} is {r:.2} px off the refined model (at most {max_residual} px: --gcp-max-residual); RMS {:.2} px before, {:.2} px after",
+                    worst.id, fit.rms_before, fit.rms_after
+                ),
+            ));
+        }
+    }
+    Ok(fit)
+}
+
+fn rms(v: &[[f64; 2]]) -> f64 {
+    (v.iter().map(|d| d[0] * d[0] + d[1] * d[1]).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}
+
+fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasModel, source: &Path) -> Result<GcpFit> {
+    let mut predicted = Vec::new();
+    for g in gcps {
+        let z = if g.ellipsoidal { rpc.dem_height(g.lon, g.lat, g.height) } else { Some(g.height) };
+        let (x, y) = rpc.crs.from_lonlat(g.lon, g.lat).ok_or_else(|| Error::format(source, format!("GCP {}: outside the CRS", g.id)))?;
+        let p = z.and_then(|z| rpc.project(x, y, z)).ok_or_else(|| Error::format(source, format!("GCP {}: outside the RPC's domain", g.id)))?;
+        predicted.push([p.0, p.1]);
+    }
+    let observed: Vec<[f64; 2]> = gcps.iter().map(|g| [g.col, g.row]).collect();
+    let affine = match model {
+        BiasModel::Affine => true,
+        BiasModel::Shift => false,
+        BiasModel::Auto => gcps.len() >= 3,
+    };
+    if affine && gcps.len() < 3 {
+        return Err(Error::format(source, format!("{} GCPs: an affine bias needs 3 or more (or --gcp-refine shift)", gcps.len())));
+    }
+    let bias = if affine {
+        Affine2::fit(&predicted, &observed).ok_or_else(|| Error::format(source, "the GCPs lie on one line: no affine bias can be fitted"))?
+    } else {
+        let k = predicted.len() as f64;
+        let t = predicted.iter().zip(&observed).fold([0.0, 0.0], |a, (p, o)| [a[0] + (o[0] - p[0]) / k, a[1] + (o[1] - p[1]) / k]);
+        Affine2 { m: nalgebra::Matrix2::identity(), t: nalgebra::Vector2::new(t[0], t[1]) }
+    };
+    let before: Vec<[f64; 2]> = predicted.iter().zip(&observed).map(|(p, o)| [o[0] - p[0], o[1] - p[1]]).collect();
+    let after: Vec<[f64; 2]> = predicted
+        .iter()
+        .zip(&observed)
+        .map(|(p, o)| {
+            let (c, r) = bias.apply(p[0], p[1]);
+            [o[0] - c, o[1] - r]
+        })
+        .collect();
+    let m = bias.m;
+    let correction =
+        format!("col' = {:.6}·col + {:.6}·row + {:.3}, row' = {:.6}·col + {:.6}·row + {:.3}", m[(0, 0)], m[(0, 1)], bias.t.x, m[(1, 0)], m[(1, 1)], bias.t.y);
+    if !rpc.set_bias(bias) {
+        return Err(Error::format(source, "the fitted bias is singular"));
+    }
+    let fit = GcpFit {
+        method: if affine { "rpc affine" } else { "rpc shift" }.into(),
+        points: gcps.iter().zip(before.iter().zip(&after)).map(|(g, (b, a))| GcpResidual { id: g.id.clone(), before: *b, after: *a }).collect(),
+        rms_before: rms(&before),
+        rms_after: rms(&after),
+        correction,
+    };
+    Ok(fit)
+}
+
+/// Space resection: the exterior orientation that best images `gcps`,
+/// from the camera's own as the first guess (Gauss–Newton on the centre
+/// and a small rotation, the interior fixed).
+fn resection(f: &FrameCamera, gcps: &[Gcp], crs: &Crs, source: &Path) -> Result<(FrameCamera, GcpFit)> {
+    if gcps.len() < 3 {
+        return Err(Error::format(source, format!("{} GCPs: a resection needs 3 or more", gcps.len())));
+    }
+    let ground = GroundCrs::new(crs).map_err(|m| Error::format(source, m))?;
+    let points: Vec<Vector3<f64>> = gcps
+        .iter()
+        .map(|g| {
+            ground
+                .from_lonlat(g.lon, g.lat)
+                .map(|(x, y)| Vector3::new(x, y, g.height))
+                .ok_or_else(|| Error::format(source, format!("GCP {}: outside {crs}", g.id)))
+        })
+        .collect::<Result<_>>()?;
+    let camera_at =
+        |c: Vector3<f64>, r: nalgebra::Matrix3<f64>| FrameCamera::new(f.focal_mm, c, r, f.interior.clone(), f.distortion, f.refraction, f.earth_curvature);
+    let residuals = |cam: &FrameCamera| -> Option<Vec<[f64; 2]>> {
+        points.iter().zip(gcps).map(|(p, g)| cam.project(p.x, p.y, p.z).map(|(c, r)| [g.col - c, g.row - r])).collect()
+    };
+    let before = residuals(f).ok_or_else(|| Error::format(source, "a GCP is behind the camera or off its lens model"))?;
+    let (mut c, mut r) = (f.centre, f.r);
+    let mut current = before.clone();
+    let scale = f.centre.z.abs().max(1.0) * 1e-6;
+    for _ in 0..30 {
+        let step_of = |k: usize, h: f64| -> (Vector3<f64>, nalgebra::Matrix3<f64>) {
+            let mut d = [0.0; 6];
+            d[k] = h;
+            (c + Vector3::new(d[0], d[1], d[2]), AngleConvention::OmegaPhiKappa.matrix([d[3], d[4], d[5]]) * r)
+        };
+        let n = points.len();
+        let mut j = DMatrix::<f64>::zeros(2 * n, 6);
+        for k in 0..6 {
+            let h = if k < 3 { scale.max(1e-3) } else { 1e-7 };
+            let (ck, rk) = step_of(k, h);
+            let moved = residuals(&camera_at(ck, rk)).ok_or_else(|| Error::format(source, "the resection left the GCPs' view"))?;
+            for i in 0..n {
+                j[(2 * i, k)] = -(moved[i][0] - current[i][0]) / h;
+                j[(2 * i + 1, k)] = -(moved[i][1] - current[i][1]) / h;
+            }
+        }
+        let e = DVector::from_iterator(2 * n, current.iter().flat_map(|d| [d[0], d[1]]));
+        let delta = j.clone().svd(true, true).solve(&e, 1e-12).map_err(|_| Error::format(source, "the GCPs do not fix the camera's pose"))?;
+        c += Vector3::new(delta[0], delta[1], delta[2]);
+        r = AngleConvention::OmegaPhiKappa.matrix([delta[3], delta[4], delta[5]]) * r;
+        current = residuals(&camera_at(c, r)).ok_or_else(|| Error::format(source, "the resection left the GCPs' view"))?;
+        if delta.rows(0, 3).norm() < 1e-6 && delta.rows(3, 3).norm() < 1e-10 {
+            break;
+        }
+    }
+    // Re-orthonormalised: many small turns multiplied.
+    let svd = r.svd(true, true);
+    if let (Some(u), Some(vt)) = (svd.u, svd.v_t) {
+        r = u * vt;
+    }
+    let refined = camera_at(c, r);
+    let after = residuals(&refined).ok_or_else(|| Error::format(source, "the resection left the GCPs' view"))?;
+    let opk = AngleConvention::OmegaPhiKappa.angles(&r).map(f64::to_degrees);
+    let fit = GcpFit {
+        method: "resection".into(),
+        points: gcps.iter().zip(before.iter().zip(&after)).map(|(g, (b, a))| GcpResidual { id: g.id.clone(), before: *b, after: *a }).collect(),
+        rms_before: rms(&before),
+        rms_after: rms(&after),
+        correction: format!("centre ({:.3}, {:.3}, {:.3}), omega-phi-kappa ({:.5}°, {:.5}°, {:.5}°)", c.x, c.y, c.z, opk[0], opk[1], opk[2]),
+    };
+    Ok((refined, fit))
+}
