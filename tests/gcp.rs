@@ -222,3 +222,43 @@ fn a_frame_cameras_pose_is_recovered_by_resection() {
     }
     assert!(worst < 0.15, "{worst} px from the true camera");
 }
+
+#[test]
+fn batch_jobs_take_their_images_gcps() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let truth = pleiades();
+    let pts = points(&truth, &true_bias(), &[(30.0, 40.0), (450.0, 60.0), (250.0, 250.0), (75.0, 440.0)]);
+    let ground = gcm_ortho::geodesy::GroundCrs::new(&truth.crs).unwrap();
+    // One file for the block: rows of other images are skipped.
+    let mut csv = String::from("image,id,col,row,x,y,z\nother.tif,x1,1,1,5.2,44.2,900\n");
+    for (k, (p, o)) in pts.iter().enumerate() {
+        let (lon, lat) = ground.to_lonlat(p[0], p[1]).unwrap();
+        csv += &format!("left_image.tif,g{k},{},{},{lon:.10},{lat:.10},{}\n", o[0], o[1], p[2]);
+    }
+    std::fs::write(d.join("gcps.csv"), &csv).unwrap();
+    std::fs::write(d.join("gcps.prj"), "EPSG:4326").unwrap();
+    let cam = format!(
+        "crs = \"auto\"\n[camera]\nmodel = \"rpc\"\n[rpc]\nfile = {:?}\noffset_px = [5000, 5000]\ngeoid = {:?}\n",
+        s(&ventoux("left_image.geom")),
+        s(&ventoux("egm96_15_ventoux.gtx"))
+    );
+    std::fs::write(d.join("cam.toml"), cam).unwrap();
+    let manifest = format!(
+        "[defaults]\ndem = {:?}\ngcps = \"gcps.csv\"\noutput_dir = \"out\"\n\n[[job]]\nimage = {:?}\ncamera = \"cam.toml\"\n",
+        s(&ventoux("srtm_N44E005_crop.tif")),
+        s(&ventoux("left_image.tif"))
+    );
+    std::fs::write(d.join("m.toml"), &manifest).unwrap();
+    std::fs::create_dir(d.join("out")).unwrap();
+    let report = d.join("r.jsonl");
+    let r = run(&["batch", s(&d.join("m.toml")), "--quiet", "--report", s(&report)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let line: serde_json::Value = serde_json::from_str(std::fs::read_to_string(&report).unwrap().lines().last().unwrap()).unwrap();
+    assert!(line.to_string().contains("rpc affine"), "{line}");
+    // A refine setting without GCPs is a mistake, named.
+    std::fs::write(d.join("m.toml"), manifest.replace("gcps = \"gcps.csv\"", "gcp_refine = \"shift\"")).unwrap();
+    let r = run(&["batch", s(&d.join("m.toml")), "--quiet", "--dry-run"]);
+    let e = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && e.contains("gcp_refine"), "{e}");
+}

@@ -58,6 +58,10 @@ pub struct Options {
     pub nodata: Option<NodataSetting>,
     pub alpha: Option<bool>,
     pub output_dir: Option<String>,
+    /// Ground control points (each job takes those of its image).
+    pub gcps: Option<String>,
+    pub gcp_refine: Option<String>,
+    pub gcp_max_residual: Option<f64>,
 }
 
 impl Options {
@@ -87,7 +91,10 @@ impl Options {
             cog,
             nodata,
             alpha,
-            output_dir
+            output_dir,
+            gcps,
+            gcp_refine,
+            gcp_max_residual
         )
     }
 }
@@ -328,6 +335,22 @@ fn config(
             c.snap = parse_choice("snap", s)?;
         }
         c.like = o.like.as_deref().map(rel);
+        if let Some(g) = &o.gcps {
+            use crate::camera::gcp::BiasModel;
+            let model = match o.gcp_refine.as_deref().unwrap_or("auto") {
+                "auto" => BiasModel::Auto,
+                "shift" => BiasModel::Shift,
+                "affine" => BiasModel::Affine,
+                other => return Err(Error::setting("gcp_refine", format!("'{other}' (expected auto, shift or affine)"))),
+            };
+            let max_residual = o.gcp_max_residual.unwrap_or(2.0);
+            if !(max_residual.is_finite() && max_residual > 0.0) {
+                return Err(Error::setting("gcp_max_residual", "must be a positive number of pixels"));
+            }
+            c.gcps = Some(crate::options::GcpOptions { file: rel(g), model, max_residual });
+        } else if o.gcp_refine.is_some() || o.gcp_max_residual.is_some() {
+            return Err(Error::setting("gcp_refine", "goes with gcps"));
+        }
         let mode = match &o.corrections {
             Some(m) => parse_choice("corrections", m)?,
             None => c.gcm.mode,

@@ -58,6 +58,8 @@ pub struct JobResult {
     pub error_bound: Option<f64>,
     pub error_within: Option<bool>,
     pub warnings: Vec<String>,
+    /// What ground control points did to the model, where given.
+    pub gcps: Option<crate::camera::gcp::GcpFit>,
 }
 
 /// A 64-bit FNV-1a hash: stable across runs and machines.
@@ -88,6 +90,13 @@ pub fn job_key(c: &RectifyOptions) -> String {
         None => fnv(&mut h, &crate::io::bounded_read::read_bounded(&c.camera, "a camera file", crate::io::bounded_read::SMALL).unwrap_or_default()),
     }
     if let DemSource::File(p) = &c.dem {
+        file_stamp(&mut h, p);
+    }
+    // What else refines the model: a new GCP or pose file redoes the job.
+    if let Some(g) = &c.gcps {
+        file_stamp(&mut h, &g.file);
+    }
+    if let crate::options::ModelSource::WithPoses(p) = &c.model {
         file_stamp(&mut h, p);
     }
     let mut params = c.clone();
@@ -170,6 +179,7 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
         error_bound: None,
         error_within: None,
         warnings: Vec::new(),
+        gcps: None,
     };
     if cancel.is_cancelled() {
         return res;
@@ -204,6 +214,7 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
             res.error_bound = r.error_bound;
             res.error_within = Some(r.error_within);
             res.warnings = r.warnings;
+            res.gcps = r.gcps;
             if let Err(e) = write_sidecar(&cfg.output, &key) {
                 res.status = Status::Failed;
                 res.error = Some(e.to_string());
