@@ -318,6 +318,10 @@ pub struct MosaicArgs {
     /// Write the seamlines here as GeoJSON (one polygon per image)
     #[arg(long)]
     pub seamlines_out: Option<PathBuf>,
+    /// Honour these seamlines (GeoJSON as --seamlines-out writes them,
+    /// edited in a GIS) instead of finding them
+    #[arg(long)]
+    pub seamlines: Option<PathBuf>,
     /// Cloud-Optimized GeoTIFF (else as the manifest's `cog`)
     #[arg(long)]
     pub cog: bool,

@@ -111,6 +111,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         least_cost: a.seams == "least-cost",
         blend: a.blend,
         seamlines_out: a.seamlines_out.clone(),
+        seamlines_in: a.seamlines.clone(),
         memory,
         threads: a.threads,
         cog: a.cog.then_some(true),

@@ -135,3 +135,65 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--blend"));
 }
+
+#[test]
+fn edited_seamlines_are_honoured() {
+    use gcm_ortho::mosaic::plan::{Plan, PlanSettings, NONE};
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    let jobs = gcm_ortho::batch::manifest::load(&d.join("manifest.toml")).unwrap();
+    let settings = PlanSettings { gsd: None, bounds: None, crs: None, memory: 256 << 20 };
+    let make = || Plan::make(jobs.iter().map(|j| (j.name.clone(), j.config.clone())).collect(), &settings, &gcm_ortho::NoProgress).unwrap();
+    let mut plan = make();
+    let planned = plan.label.clone();
+    // A user's cut: the first two images split the block at its middle
+    // easting, each given one half (a GIS's rectangles, in the mosaic's CRS).
+    let g = plan.grid;
+    let (west, east, north, south) = (g.x0, g.x0 + g.width as f64 * g.gsd, g.y0, g.y0 - g.height as f64 * g.gsd);
+    let xm = (west + east) / 2.0;
+    let rect = |x0: f64, x1: f64| serde_json::json!([[[x0, south], [x1, south], [x1, north], [x0, north], [x0, south]]]);
+    let (a, b) = (plan.images[0].name.clone(), plan.images[1].name.clone());
+    let doc = serde_json::json!({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"image": a}, "geometry": {"type": "Polygon", "coordinates": rect(west, xm)}},
+        {"type": "Feature", "properties": {"index": 2}, "geometry": {"type": "Polygon", "coordinates": rect(xm, east)}},
+    ]});
+    let file = d.join("edited.geojson");
+    std::fs::write(&file, doc.to_string()).unwrap();
+    let edited = gcm_ortho::mosaic::seamlines::read(&mut plan, &file).unwrap();
+    let (mut to_a, mut to_b) = (0, 0);
+    for y in 0..plan.ch {
+        for x in 0..plan.cw {
+            let (cx, _) = plan.cell_centre(x, y);
+            let (label, was) = (plan.label_at(x, y), planned[y * plan.cw + x]);
+            let wanted = if cx < xm { 0 } else { 1 };
+            if plan.images[wanted].sees(x, y) {
+                assert_eq!(label, wanted as u16, "cell ({x}, {y}) at {cx}");
+                if cx < xm {
+                    to_a += 1
+                } else {
+                    to_b += 1
+                }
+            } else {
+                // Not seen by the image the user named: the plan's own.
+                assert_eq!(label, was, "cell ({x}, {y})");
+                assert!(label == NONE || plan.images[label as usize].sees(x, y));
+            }
+        }
+    }
+    assert_eq!(edited.cells_given, to_a + to_b);
+    assert!(to_a > 100 && to_b > 100 && edited.cells_kept > 0, "{edited:?}");
+
+    // The mosaic honours them: the seamlines it writes back are the edit.
+    mosaic(d, &["-o", "e.tif", "--seamlines", "edited.geojson", "--seamlines-out", "back.geojson", "--json", "e.json"]);
+    let mut again = make();
+    gcm_ortho::mosaic::seamlines::read(&mut again, &d.join("back.geojson")).unwrap();
+    assert_eq!(again.label, plan.label, "the written seamlines give back the edited partition");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("e.json")).unwrap()).unwrap();
+    assert_eq!(report["edited_seams"]["cells_given"].as_u64().unwrap() as usize, edited.cells_given);
+    // Polygons in another CRS are refused by name.
+    let other = doc.to_string().replacen('{', r#"{"crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::32632"}},"#, 1);
+    std::fs::write(&file, other).unwrap();
+    let e = gcm_ortho::mosaic::seamlines::read(&mut make(), &file).unwrap_err().to_string();
+    assert!(e.contains("edited.geojson") && e.contains("EPSG:32632"), "{e}");
+}

@@ -39,6 +39,8 @@ pub struct MosaicOptions {
     /// Width of the ramp across a seam, output pixels (0: a sharp cut).
     pub blend: f64,
     pub seamlines_out: Option<PathBuf>,
+    /// Edited seamlines to honour instead of finding them.
+    pub seamlines_in: Option<PathBuf>,
     /// Memory budget, bytes.
     pub memory: u64,
     pub threads: usize,
@@ -83,6 +85,8 @@ pub struct MosaicReport {
     pub seams: seams::SeamStats,
     /// Total length of the seamlines, ground units.
     pub seam_length: f64,
+    /// What honouring edited seamlines (`--seamlines`) changed, where given.
+    pub edited_seams: Option<seamlines::EditedSeams>,
     pub images: Vec<ImageReport>,
     pub seconds: PhaseSeconds,
     pub wall_seconds: f64,
@@ -103,6 +107,9 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     // Nothing the mosaic writes may be anything it reads.
     let (inputs, _) = crate::batch::manifest::files(&jobs);
     let mut ins: Vec<Role> = vec![Role::new("manifest", &o.manifest)];
+    if let Some(s) = &o.seamlines_in {
+        ins.push(Role::new("seamlines", s));
+    }
     ins.extend(inputs.iter().map(|(w, p)| Role::new(w, p)));
     let mut outs = vec![Role::new("output", &o.output)];
     if let Some(s) = &o.seamlines_out {
@@ -129,7 +136,22 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         sides.sort_unstable();
         (sides[sides.len() / 2] / 6).clamp(4, 256)
     };
-    let seam_stats = if o.least_cost { seams::refine(&mut plan, &corrections, corridor, &edges) } else { seams::SeamStats::default() };
+    let (seam_stats, edited_seams) = match &o.seamlines_in {
+        Some(path) => {
+            let edited = seamlines::read(&mut plan, path)?;
+            if edited.cells_kept > 0 || edited.cells_overlapping > 0 {
+                progress.warn(&format!(
+                    "{}: {} cells kept their planned image (given to an image that does not see them, or to none), {} lay in two features (the first one's)",
+                    path.display(),
+                    edited.cells_kept,
+                    edited.cells_overlapping
+                ));
+            }
+            (seams::SeamStats::default(), Some(edited))
+        }
+        None if o.least_cost => (seams::refine(&mut plan, &corrections, corridor, &edges), None),
+        None => (seams::SeamStats::default(), None),
+    };
     let t_seams = t.elapsed().as_secs_f64();
     if let Some(path) = &o.seamlines_out {
         seamlines::write(&plan, path)?;
@@ -257,6 +279,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         blend_px: o.blend,
         seams: seam_stats,
         seam_length: seam_cells as f64 * plan.cell_metres(),
+        edited_seams,
         images,
         seconds: PhaseSeconds { plan: t_plan, balance: t_balance, seams: t_seams, render: t_render },
         wall_seconds: wall.elapsed().as_secs_f64(),

@@ -166,3 +166,132 @@ fn polygons(rings: Vec<Vec<Vertex>>) -> Vec<Vec<Vec<Vertex>>> {
     }
     polys
 }
+
+/// What honouring edited seamlines changed.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct EditedSeams {
+    /// Cells the file gives to an image.
+    pub cells_given: usize,
+    /// Cells given to an image that does not see them, or to none where
+    /// one does: they keep the plan's image.
+    pub cells_kept: usize,
+    /// Cells inside two features: the first one's.
+    pub cells_overlapping: usize,
+}
+
+/// Edited seamlines (as [`write`] writes them, moved about in a GIS):
+/// each feature's polygons, in the mosaic's CRS (or WGS 84 longitude and
+/// latitude where the file's `crs` says EPSG:4326 or CRS84), give their
+/// cells to the image its `image` (else `index`, 1-based) names.
+pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
+    let text = crate::io::bounded_read::read_text_bounded(path, "a seamlines file", crate::io::bounded_read::LIST)?;
+    let doc: serde_json::Value = serde_json::from_str(&text).map_err(|e| Error::format(path, format!("JSON: {e}")))?;
+    let features = doc.get("features").and_then(|f| f.as_array()).ok_or_else(|| Error::config(path, "features", "missing: not a GeoJSON FeatureCollection"))?;
+    let named = doc.pointer("/crs/properties/name").and_then(|n| n.as_str()).unwrap_or("");
+    let lonlat = named.ends_with("EPSG::4326") || named.ends_with("CRS84") || named == "EPSG:4326";
+    let to_plan = match (lonlat, named.rsplit(':').next().and_then(|c| c.parse::<u32>().ok())) {
+        (true, _) => Some(crate::geodesy::GroundCrs::new(&plan.crs).map_err(|m| Error::format(path, m))?),
+        (false, Some(code)) if plan.crs.epsg().is_some_and(|own| own != code) => {
+            return Err(Error::unsupported(path, format!("the seamlines are in EPSG:{code}, the mosaic in {}: save them in the mosaic's CRS", plan.crs)));
+        }
+        _ => None,
+    };
+    // Each feature's rings in cell coordinates, and its image.
+    let (g, c) = (plan.grid, plan.cell as f64);
+    let mut shapes: Vec<(u16, Vec<Vec<(f64, f64)>>)> = Vec::new();
+    for (k, f) in features.iter().enumerate() {
+        let field = |n: &str| format!("features[{k}].{n}");
+        let props = f.get("properties").cloned().unwrap_or_default();
+        let image = match (props.get("image").and_then(|v| v.as_str()), props.get("index").and_then(|v| v.as_u64())) {
+            (Some(name), _) => plan
+                .images
+                .iter()
+                .position(|i| i.name == name)
+                .ok_or_else(|| Error::config(path, field("properties.image"), format!("'{name}' is not an image of the manifest")))?,
+            (None, Some(i)) if i >= 1 && (i as usize) <= plan.images.len() => i as usize - 1,
+            _ => return Err(Error::config(path, field("properties.image"), "missing: each feature names its image")),
+        };
+        let geometry = f.get("geometry").ok_or_else(|| Error::config(path, field("geometry"), "missing"))?;
+        let coords = geometry.get("coordinates").ok_or_else(|| Error::config(path, field("geometry.coordinates"), "missing"))?;
+        let polygons: Vec<&serde_json::Value> = match geometry.get("type").and_then(|t| t.as_str()) {
+            Some("Polygon") => vec![coords],
+            Some("MultiPolygon") => coords.as_array().map(|a| a.iter().collect()).unwrap_or_default(),
+            other => return Err(Error::config(path, field("geometry.type"), format!("{other:?}: expected Polygon or MultiPolygon"))),
+        };
+        let mut rings = Vec::new();
+        for poly in polygons {
+            for ring in poly.as_array().into_iter().flatten() {
+                let mut pts = Vec::new();
+                for p in ring.as_array().into_iter().flatten() {
+                    let (x, y) = match (p.get(0).and_then(|v| v.as_f64()), p.get(1).and_then(|v| v.as_f64())) {
+                        (Some(x), Some(y)) if x.is_finite() && y.is_finite() => (x, y),
+                        _ => return Err(Error::config(path, field("geometry.coordinates"), "expected [x, y] numbers")),
+                    };
+                    let (x, y) = match &to_plan {
+                        Some(t) => t.from_lonlat(x, y).ok_or_else(|| Error::config(path, field("geometry.coordinates"), "outside the mosaic's CRS"))?,
+                        None => (x, y),
+                    };
+                    pts.push(((x - g.x0) / g.gsd / c, (g.y0 - y) / g.gsd / c));
+                }
+                if pts.len() >= 3 {
+                    rings.push(pts);
+                }
+            }
+        }
+        shapes.push((image as u16, rings));
+    }
+    // Cell centres, row by row: where each feature's rings cross the row,
+    // the even-odd rule fills between the crossings.
+    let mut given = vec![NONE_GIVEN; plan.cw * plan.ch];
+    let mut report = EditedSeams::default();
+    for y in 0..plan.ch {
+        let yc = y as f64 + 0.5;
+        for (image, rings) in &shapes {
+            let mut xs: Vec<f64> = Vec::new();
+            for r in rings {
+                for k in 0..r.len() {
+                    let (a, b) = (r[k], r[(k + 1) % r.len()]);
+                    if (a.1 > yc) != (b.1 > yc) {
+                        xs.push(a.0 + (yc - a.1) / (b.1 - a.1) * (b.0 - a.0));
+                    }
+                }
+            }
+            xs.sort_by(f64::total_cmp);
+            for pair in xs.chunks_exact(2) {
+                // Cells whose centre x + ½ lies in [pair[0], pair[1]).
+                let from = (pair[0] - 0.5).ceil().max(0.0) as usize;
+                let to = ((pair[1] - 0.5).ceil().max(0.0) as usize).min(plan.cw);
+                for x in from..to {
+                    let cell = &mut given[y * plan.cw + x];
+                    if *cell == NONE_GIVEN {
+                        *cell = *image;
+                    } else if *cell != *image {
+                        report.cells_overlapping += 1;
+                    }
+                }
+            }
+        }
+    }
+    for y in 0..plan.ch {
+        for x in 0..plan.cw {
+            let k = y * plan.cw + x;
+            let planned = plan.label[k];
+            match given[k] {
+                NONE_GIVEN if planned == super::plan::NONE => {}
+                NONE_GIVEN => report.cells_kept += 1,
+                l if plan.images[l as usize].sees(x, y) => {
+                    report.cells_given += 1;
+                    plan.label[k] = l;
+                }
+                _ => report.cells_kept += usize::from(planned != super::plan::NONE),
+            }
+        }
+    }
+    if report.cells_given == 0 {
+        return Err(Error::format(path, "its polygons give no cell of the mosaic to an image that sees it: are they in the mosaic's CRS?"));
+    }
+    Ok(report)
+}
+
+/// A cell no feature covers.
+const NONE_GIVEN: u16 = u16::MAX;
