@@ -198,7 +198,7 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
     };
     // Each feature's rings in cell coordinates, and its image.
     let (g, c) = (plan.grid, plan.cell as f64);
-    let mut shapes: Vec<(u16, Vec<Vec<(f64, f64)>>)> = Vec::new();
+    let mut shapes: Vec<(u16, Rings)> = Vec::new();
     for (k, f) in features.iter().enumerate() {
         let field = |n: &str| format!("features[{k}].{n}");
         let props = f.get("properties").cloned().unwrap_or_default();
@@ -292,6 +292,9 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
     }
     Ok(report)
 }
+
+/// Closed rings in cell coordinates.
+type Rings = Vec<Vec<(f64, f64)>>;
 
 /// A cell no feature covers.
 const NONE_GIVEN: u16 = u16::MAX;
