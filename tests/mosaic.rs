@@ -153,7 +153,8 @@ fn edited_seamlines_are_honoured() {
     let (west, east, north, south) = (g.x0, g.x0 + g.width as f64 * g.gsd, g.y0, g.y0 - g.height as f64 * g.gsd);
     let xm = (west + east) / 2.0;
     let rect = |x0: f64, x1: f64| serde_json::json!([[[x0, south], [x1, south], [x1, north], [x0, north], [x0, south]]]);
-    let (a, b) = (plan.images[0].name.clone(), plan.images[1].name.clone());
+    // The first by its name, the second by its index.
+    let a = plan.images[0].name.clone();
     let doc = serde_json::json!({"type": "FeatureCollection", "features": [
         {"type": "Feature", "properties": {"image": a}, "geometry": {"type": "Polygon", "coordinates": rect(west, xm)}},
         {"type": "Feature", "properties": {"index": 2}, "geometry": {"type": "Polygon", "coordinates": rect(xm, east)}},
