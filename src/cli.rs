@@ -291,9 +291,22 @@ pub struct MosaicArgs {
     /// DEMs); its [defaults] give the output's tile, compression and
     /// overviews.
     pub manifest: PathBuf,
-    /// The orthomosaic (GeoTIFF)
-    #[arg(short = 'o', long = "output")]
-    pub output: PathBuf,
+    /// The orthomosaic (GeoTIFF), or with --window a piece of it for
+    /// `assemble`
+    #[arg(short = 'o', long = "output", required_unless_present = "plan_out")]
+    pub output: Option<PathBuf>,
+    /// Write the plan (grid, seams, gains) here, for shards that render
+    /// pieces of one mosaic with --plan and --window
+    #[arg(long)]
+    pub plan_out: Option<PathBuf>,
+    /// Take the seams and gains from this plan (made by --plan-out from the
+    /// same manifest and settings) instead of finding them
+    #[arg(long, conflicts_with_all = ["seamlines", "seams", "balance"])]
+    pub plan: Option<PathBuf>,
+    /// Render only these tiles of the mosaic: col,row,width,height (a
+    /// piece; `assemble` joins the pieces into the single run's mosaic)
+    #[arg(long, requires = "output")]
+    pub window: Option<String>,
     /// Ground sample distance of the mosaic (default: the images' median)
     #[arg(long)]
     pub gsd: Option<f64>,

@@ -99,8 +99,11 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
     let crs = a.crs.as_deref().map(|c| gcm_ortho::geodesy::Crs::parse(c, Path::new("."))).transpose().map_err(|m| gcm_ortho::Error::setting("crs", m))?;
     if let Some(j) = &a.json {
         check_writable(Role::new("report", j))?;
-        check_outputs(&[Role::new("manifest", &a.manifest)], &[Role::new("report", j), Role::new("output", &a.output)])?;
+        let mut outs = vec![Role::new("report", j)];
+        outs.extend(a.output.iter().map(|o| Role::new("output", o)));
+        check_outputs(&[Role::new("manifest", &a.manifest)], &outs)?;
     }
+    let window = a.window.as_deref().map(|w| gcm_ortho::options::parse_window("window", w)).transpose()?;
     let o = MosaicOptions {
         manifest: a.manifest.clone(),
         output: a.output.clone(),
@@ -112,6 +115,9 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         blend: a.blend,
         seamlines_out: a.seamlines_out.clone(),
         seamlines_in: a.seamlines.clone(),
+        plan_out: a.plan_out.clone(),
+        plan_in: a.plan.clone(),
+        window,
         memory,
         threads: a.threads,
         cog: a.cog.then_some(true),
@@ -124,7 +130,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
     if !a.quiet {
         eprintln!(
             "{}: {}×{} px at {} from {} images; {:.0} % covered; seams {:.0} m; plan {:.1} s, seams {:.1} s, render {:.1} s",
-            report.output.display(),
+            report.output.as_deref().or(a.plan_out.as_deref()).unwrap_or(Path::new("")).display(),
             report.width,
             report.height,
             report.gsd,

@@ -198,3 +198,39 @@ fn edited_seamlines_are_honoured() {
     let e = gcm_ortho::mosaic::seamlines::read(&mut make(), &file).unwrap_err().to_string();
     assert!(e.contains("edited.geojson") && e.contains("EPSG:32632"), "{e}");
 }
+
+#[test]
+fn shards_of_one_plan_assemble_into_the_single_run_byte_for_byte() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    // The single run, Cloud-Optimized (the file's order is the layout's).
+    mosaic(d, &["-o", "whole.tif", "--cog", "--json", "whole.json"]);
+    // The plan once; pieces of it on "other machines".
+    mosaic(d, &["--plan-out", "plan.json"]);
+    let info = gcm_ortho::io::source::SourceImage::open(&d.join("whole.tif"), 1 << 20).unwrap().info;
+    let t = info.chunk.0;
+    let (ta, td) = (info.width.div_ceil(t), info.height.div_ceil(t));
+    let r = td / 2;
+    // A band of rows, and the rest split unevenly in columns.
+    let windows = [[0, 0, ta, r], [0, r, 1, td - r], [1, r, ta - 1, td - r]];
+    let mut a = vec!["assemble".to_string(), "--cog".into(), "-o".into(), "joined.tif".into()];
+    for (k, w) in windows.iter().enumerate() {
+        let name = format!("piece{k}.tif");
+        let win = format!("{},{},{},{}", w[0], w[1], w[2], w[3]);
+        mosaic(d, &["--plan", "plan.json", "--window", &win, "-o", &name]);
+        a.push(name);
+    }
+    let out = std::process::Command::new(bin()).current_dir(d).args(&a).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(std::fs::read(d.join("whole.tif")).unwrap() == std::fs::read(d.join("joined.tif")).unwrap(), "assembled mosaic differs from the single run");
+    // A plan for other settings is refused, named.
+    let out = std::process::Command::new(bin())
+        .current_dir(d)
+        .args(["mosaic", "manifest.toml", "--quiet", "--plan", "plan.json", "--gsd", "3", "-o", "x.tif"])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && e.contains("plan.json") && e.contains("another grid"), "{e}");
+    assert!(!d.join("x.tif").exists());
+}

@@ -23,7 +23,7 @@ pub enum Snap {
     None,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct OutputGrid {
     /// Ground X (easting) of the west edge.
     pub x0: f64,

@@ -23,7 +23,7 @@ impl crate::options::Choice for Balance {
 }
 
 /// One image's correction: `v' = gain · v + offset`, per band.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct Correction {
     pub gain: Vec<f64>,
     pub offset: Vec<f64>,

@@ -8,6 +8,7 @@
 
 pub mod balance;
 pub mod plan;
+pub mod plan_file;
 pub mod render;
 pub mod seamlines;
 pub mod seams;
@@ -29,7 +30,15 @@ use std::time::Instant;
 #[derive(Clone, Debug)]
 pub struct MosaicOptions {
     pub manifest: PathBuf,
-    pub output: PathBuf,
+    /// The mosaic, or a piece of it (`window`); `None`: the plan only.
+    pub output: Option<PathBuf>,
+    /// Write the plan (seams, gains) for shards here.
+    pub plan_out: Option<PathBuf>,
+    /// Take the seams and gains from this plan instead of finding them.
+    pub plan_in: Option<PathBuf>,
+    /// Render only these tiles of the mosaic: first column, first row,
+    /// width, height (a piece for `assemble`).
+    pub window: Option<[u32; 4]>,
     pub gsd: Option<f64>,
     pub bounds: Option<[f64; 4]>,
     pub crs: Option<Crs>,
@@ -71,7 +80,10 @@ pub struct PhaseSeconds {
 
 #[derive(Clone, Debug, Serialize)]
 pub struct MosaicReport {
-    pub output: PathBuf,
+    /// The file written, where one was.
+    pub output: Option<PathBuf>,
+    /// The tiles rendered (all, or the window).
+    pub window: [u32; 4],
     pub width: u32,
     pub height: u32,
     pub gsd: f64,
@@ -111,12 +123,20 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         ins.push(Role::new("seamlines", s));
     }
     ins.extend(inputs.iter().map(|(w, p)| Role::new(w, p)));
-    let mut outs = vec![Role::new("output", &o.output)];
-    if let Some(s) = &o.seamlines_out {
-        outs.push(Role::new("seamlines", s));
+    if let Some(p) = &o.plan_in {
+        ins.push(Role::new("plan", p));
+    }
+    let mut outs: Vec<Role> = o.output.iter().map(|p| Role::new("output", p)).collect();
+    for (what, path) in [("seamlines", &o.seamlines_out), ("plan", &o.plan_out)] {
+        if let Some(p) = path {
+            outs.push(Role::new(what, p));
+        }
+    }
+    if outs.is_empty() {
+        return Err(Error::Usage("mosaic: give -o (the mosaic or a piece) or --plan-out (the plan)".into()));
     }
     check_outputs(&ins, &outs)?;
-    let pending = PendingFile::create(&o.output)?;
+    let pending = o.output.as_deref().map(PendingFile::create).transpose()?;
     let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;
 
     let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs: o.crs.clone(), memory: o.memory };
@@ -126,7 +146,11 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         return Err(Error::Cancelled);
     }
     let t = Instant::now();
-    let corrections = balance::solve(&plan, o.balance);
+    let from_plan = o.plan_in.as_deref().map(|p| plan_file::read(&mut plan, p)).transpose()?;
+    let corrections = match &from_plan {
+        Some(c) => c.clone(),
+        None => balance::solve(&plan, o.balance),
+    };
     let t_balance = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let edges = seams::height_edges(&plan);
@@ -137,6 +161,8 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         (sides[sides.len() / 2] / 6).clamp(4, 256)
     };
     let (seam_stats, edited_seams) = match &o.seamlines_in {
+        // The plan's seams are taken as they are.
+        _ if from_plan.is_some() => (seams::SeamStats::default(), None),
         Some(path) => {
             let edited = seamlines::read(&mut plan, path)?;
             if edited.cells_kept > 0 || edited.cells_overlapping > 0 {
@@ -156,17 +182,35 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     if let Some(path) = &o.seamlines_out {
         seamlines::write(&plan, path)?;
     }
+    if let Some(path) = &o.plan_out {
+        plan_file::write(&plan, &corrections, path)?;
+    }
     let weights = weights::Weights::new(&plan, o.blend, &edges);
+    let grid = plan.grid;
+    let (tx_all, ty_all) = (grid.width.div_ceil(first.tile), grid.height.div_ceil(first.tile));
+    let window = o.window.unwrap_or([0, 0, tx_all, ty_all]);
+    let [tc0, tr0, tcw, trh] = window;
+    if tcw == 0 || trh == 0 || tc0 + tcw > tx_all || tr0 + trh > ty_all {
+        return Err(Error::setting("window", format!("{tc0},{tr0},{tcw},{trh} is not inside the mosaic's {tx_all}×{ty_all} tiles")));
+    }
 
     // The output: the first job's format settings, the plan's grid.
     let tile = first.tile;
     let im0 = &plan.images[0];
-    let grid = plan.grid;
+    // The piece's grid: those tiles of the mosaic's, clipped to it.
+    let (px0, py0) = grid.ground((tc0 * tile) as f64, (tr0 * tile) as f64);
+    let piece = crate::geom::OutputGrid {
+        x0: px0,
+        y0: py0,
+        gsd: grid.gsd,
+        width: ((tc0 + tcw) * tile).min(grid.width) - tc0 * tile,
+        height: ((tr0 + trh) * tile).min(grid.height) - tr0 * tile,
+    };
     let mut spec = OutputSpec {
         overviews: 0,
         cog: false,
-        width: grid.width,
-        height: grid.height,
+        width: piece.width,
+        height: piece.height,
         bands: im0.bands,
         sample: im0.sample,
         chunking: Chunking::Tiles(tile),
@@ -177,14 +221,14 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         alpha: false,
         mask: true,
         geo: Some(GeoTags {
-            x0: grid.x0,
-            y0: grid.y0,
+            x0: piece.x0,
+            y0: piece.y0,
             gsd: grid.gsd,
             keys: crate::geodesy::geokeys::keys_of(&plan.crs).map_err(|m| Error::setting("crs", m))?,
             nodata: None,
         }),
     };
-    spec.overviews = first.overviews.levels(grid.width, grid.height, tile);
+    spec.overviews = first.overviews.levels(piece.width, piece.height, tile);
     spec.cog = o.cog.unwrap_or(first.cog);
     spec.bigtiff = match first.bigtiff {
         BigTiff::Yes => true,
@@ -192,57 +236,76 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         BigTiff::Auto => spec.needs_bigtiff(),
     };
 
-    // Each image's memory: the budget over the most images at work at once
-    // (a band's and the next's), after the plan's arrays and a band of the
-    // mosaic in flight.
-    let threads = match o.threads {
-        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
-        n => n,
-    };
-    let opts_of = |i: usize| RectifyOptions { threads, sync: false, ..plan.images[i].opts.clone() };
-    let mut works = render::work(&plan, &weights, tile, opts_of);
-    let ty = grid.height.div_ceil(tile);
-    let tx = grid.width.div_ceil(tile);
-    let at_once = (0..ty).map(|b| works.iter().filter(|w| w.bands.keys().any(|&k| k == b || k == b + 1)).count()).max().unwrap_or(1).max(1) as u64;
-    let band_bytes = 3 * tx as u64 * spec.tile_bytes() as u64;
-    let plan_bytes = plan.images.iter().map(|i| i.values.len() as u64 * 4).sum::<u64>() + plan.label.len() as u64 * 16;
-    let share = o.memory.saturating_sub(band_bytes + plan_bytes) / at_once;
-    const MIN_SHARE: u64 = 24 << 20;
-    if share < MIN_SHARE {
-        return Err(Error::setting(
-            "memory",
-            format!(
-                "{at_once} images are at work at once on this block, each needing {} MiB or more: give --memory {}M or more",
-                MIN_SHARE >> 20,
-                (band_bytes + plan_bytes + at_once * MIN_SHARE).div_ceil(1 << 20)
-            ),
-        ));
-    }
-    for w in &mut works {
-        w.opts.memory = share;
-    }
+    // The render (none when only the plan is asked for).
+    let mut works: Vec<render::ImageWork> = Vec::new();
+    let mut t_render = 0.0;
+    if let (Some(out), Some(pending)) = (o.output.as_deref(), pending) {
+        // Each image's memory: the budget over the most images at work at once
+        // (a band's and the next's), after the plan's arrays and a band of the
+        // mosaic in flight.
+        let threads = match o.threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n,
+        };
+        let opts_of = |i: usize| RectifyOptions { threads, sync: false, ..plan.images[i].opts.clone() };
+        works = render::work(&plan, &weights, tile, opts_of);
+        // A piece: each image's bands and columns within the window; its grid
+        // stays the whole run's, so that its pixels are the same.
+        for w in &mut works {
+            w.bands = std::mem::take(&mut w.bands)
+                .into_iter()
+                .filter(|(b, _)| (tr0..tr0 + trh).contains(b))
+                .filter_map(|(b, (c0, c1))| {
+                    let (c0, c1) = (c0.max(tc0), c1.min(tc0 + tcw));
+                    (c0 < c1).then_some((b, (c0, c1)))
+                })
+                .collect();
+        }
+        works.retain(|w| !w.bands.is_empty());
+        let (ty, tx) = (trh, tcw);
+        let at_once = (tr0..tr0 + ty).map(|b| works.iter().filter(|w| w.bands.keys().any(|&k| k == b || k == b + 1)).count()).max().unwrap_or(1).max(1) as u64;
+        let band_bytes = 3 * tx as u64 * spec.tile_bytes() as u64;
+        let plan_bytes = plan.images.iter().map(|i| i.values.len() as u64 * 4).sum::<u64>() + plan.label.len() as u64 * 16;
+        let share = o.memory.saturating_sub(band_bytes + plan_bytes) / at_once;
+        const MIN_SHARE: u64 = 24 << 20;
+        if share < MIN_SHARE {
+            return Err(Error::setting(
+                "memory",
+                format!(
+                    "{at_once} images are at work at once on this block, each needing {} MiB or more: give --memory {}M or more",
+                    MIN_SHARE >> 20,
+                    (band_bytes + plan_bytes + at_once * MIN_SHARE).div_ceil(1 << 20)
+                ),
+            ));
+        }
+        for w in &mut works {
+            w.opts.memory = share;
+        }
 
-    let t = Instant::now();
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| Error::setting("threads", e.to_string()))?;
-    let compose = render::Compose { plan: &plan, weights: &weights, corrections: &corrections, tile, bands: im0.bands as usize, fill: 0.0 };
-    progress.start(&Task { name: "mosaic", units: tx as u64 * ty as u64, lines: grid.height as u64, line_name: "rows", input_bytes: 0 });
-    let writing =
-        BandWriting { spec: &spec, path: &o.output, threads, overview_resampling: first.overview_resampling, fill: 0.0, sync: o.sync, progress, cancel };
-    let sample = im0.sample;
-    let written = std::thread::scope(|s| {
-        let mut feeds = render::Feeds::new(s, works.len());
-        write_bands(&writing, pending, |b| {
-            let got = feeds.band(&works, b, cancel)?;
-            let got: Vec<_> = got.iter().map(|(k, band)| (&works[*k], band)).collect();
-            Ok(compose.make_band(b, tx, &got, &pool, sample))
-        })
-    });
-    progress.finish();
-    if cancel.is_cancelled() {
-        return Err(Error::Cancelled);
+        let t = Instant::now();
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| Error::setting("threads", e.to_string()))?;
+        let compose = render::Compose { plan: &plan, weights: &weights, corrections: &corrections, tile, bands: im0.bands as usize, fill: 0.0 };
+        progress.start(&Task { name: "mosaic", units: tx as u64 * ty as u64, lines: piece.height as u64, line_name: "rows", input_bytes: 0 });
+        let writing =
+            BandWriting { spec: &spec, path: out, threads, overview_resampling: first.overview_resampling, fill: 0.0, sync: o.sync, progress, cancel };
+        let sample = im0.sample;
+        let written = std::thread::scope(|s| {
+            let mut feeds = render::Feeds::new(s, works.len());
+            write_bands(&writing, pending, |b| {
+                // The piece's band b is the mosaic's tr0 + b.
+                let got = feeds.band(&works, tr0 + b, cancel)?;
+                let got: Vec<_> = got.iter().map(|(k, band)| (&works[*k], band)).collect();
+                Ok(compose.make_band(tr0 + b, (tc0, tc0 + tx), &got, &pool, sample))
+            })
+        });
+        progress.finish();
+        if cancel.is_cancelled() {
+            return Err(Error::Cancelled);
+        }
+        written?;
+        let t_render_ = t.elapsed().as_secs_f64();
+        t_render = t_render_;
     }
-    written?;
-    let t_render = t.elapsed().as_secs_f64();
 
     // The report.
     let covered = plan.label.iter().filter(|&&l| l != NONE).count();
@@ -269,6 +332,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         .sum::<usize>();
     Ok(MosaicReport {
         output: o.output.clone(),
+        window,
         width: grid.width,
         height: grid.height,
         gsd: grid.gsd,
@@ -284,6 +348,6 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         seconds: PhaseSeconds { plan: t_plan, balance: t_balance, seams: t_seams, render: t_render },
         wall_seconds: wall.elapsed().as_secs_f64(),
         peak_rss_mib: crate::pipeline::peak_rss_mib(),
-        output_bytes: std::fs::metadata(&o.output).map(|m| m.len()).unwrap_or(0),
+        output_bytes: o.output.as_deref().and_then(|p| std::fs::metadata(p).ok()).map_or(0, |m| m.len()),
     })
 }

@@ -263,14 +263,15 @@ impl Compose<'_> {
         }
     }
 
-    /// Band `b` of the mosaic (`tx` tiles) from the images' bands.
-    fn band<T: Px>(&self, b: u32, tx: u32, got: &[(&ImageWork, &BandPixels)], pool: &rayon::ThreadPool) -> (Vec<T>, Vec<u8>) {
+    /// Tile columns `cols` of band `b` of the mosaic from the images' bands.
+    fn band<T: Px>(&self, b: u32, cols: (u32, u32), got: &[(&ImageWork, &BandPixels)], pool: &rayon::ThreadPool) -> (Vec<T>, Vec<u8>) {
         let tpx = (self.tile * self.tile) as usize;
+        let tx = cols.1 - cols.0;
         let mut out = vec![T::put(self.fill); tx as usize * tpx * self.bands];
         let mut valid = vec![0u8; tx as usize * tpx];
         pool.install(|| {
-            out.par_chunks_mut(tpx * self.bands).zip(valid.par_chunks_mut(tpx)).enumerate().for_each(|(tc, (o, v))| {
-                let tc = tc as u32;
+            out.par_chunks_mut(tpx * self.bands).zip(valid.par_chunks_mut(tpx)).enumerate().for_each(|(k, (o, v))| {
+                let tc = cols.0 + k as u32;
                 let pieces: Vec<Piece> = got.iter().filter_map(|(w, band)| piece(w, band, tc, tpx * self.bands * std::mem::size_of::<T>(), tpx)).collect();
                 self.tile::<T>(tc, b, &pieces, o, v);
             })
@@ -278,11 +279,11 @@ impl Compose<'_> {
         (out, valid)
     }
 
-    /// Band `b` in the output's sample type.
+    /// Tile columns `cols` of band `b` in the output's sample type.
     pub fn make_band(
         &self,
         b: u32,
-        tx: u32,
+        cols: (u32, u32),
         got: &[(&ImageWork, &BandPixels)],
         pool: &rayon::ThreadPool,
         sample: crate::io::source::SampleType,
@@ -290,15 +291,15 @@ impl Compose<'_> {
         use crate::io::source::SampleType;
         match sample {
             SampleType::U8 => {
-                let (o, v) = self.band::<u8>(b, tx, got, pool);
+                let (o, v) = self.band::<u8>(b, cols, got, pool);
                 (Raw::U8(o), Some(v))
             }
             SampleType::U16 => {
-                let (o, v) = self.band::<u16>(b, tx, got, pool);
+                let (o, v) = self.band::<u16>(b, cols, got, pool);
                 (Raw::U16(o), Some(v))
             }
             SampleType::F32 => {
-                let (o, v) = self.band::<f32>(b, tx, got, pool);
+                let (o, v) = self.band::<f32>(b, cols, got, pool);
                 (Raw::F32(o), Some(v))
             }
         }
