@@ -139,7 +139,8 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     let pending = o.output.as_deref().map(PendingFile::create).transpose()?;
     let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;
 
-    let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs: o.crs.clone(), memory: o.memory };
+    // A shard that takes a plan needs only where each image sees.
+    let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs: o.crs.clone(), memory: o.memory, thumbnails: o.plan_in.is_none() };
     let mut plan = Plan::make(jobs.into_iter().map(|j| (j.name, j.config)).collect(), &settings, progress)?;
     let t_plan = wall.elapsed().as_secs_f64();
     if cancel.is_cancelled() {

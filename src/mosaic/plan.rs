@@ -88,6 +88,10 @@ pub struct PlanSettings {
     pub crs: Option<Crs>,
     /// Memory for the DEMs and one scan's thumbnail, bytes.
     pub memory: u64,
+    /// Read each scan's thumbnail (what balancing and the least-cost seams
+    /// weigh); without, [`PlanImage::values`] only say where it sees (0),
+    /// as rendering from a plan file needs.
+    pub thumbnails: bool,
 }
 
 impl Plan {
@@ -243,7 +247,7 @@ impl Plan {
             im.cells = [clampc(u0, cw), clampc(v0, ch), (clampc(u1, cw) + 1).min(cw), (clampc(v1, ch) + 1).min(ch)];
             // How far from its centre the image sees each cell (a fraction
             // of its half-diagonal): the partition's measure.
-            let from_centre = sample_image(&plan, &mut im, s.memory)?;
+            let from_centre = sample_image(&plan, &mut im, s.memory, s.thumbnails)?;
             let [x0, y0, x1, _] = im.cells;
             for (j, row) in from_centre.chunks((x1 - x0).max(1)).enumerate() {
                 for (i, &d) in row.iter().enumerate() {
@@ -266,14 +270,15 @@ impl Plan {
 /// averaged across), then sampled bilinearly where each cell's centre is
 /// seen; returns how far from the scan's centre each cell is seen, over
 /// its half-diagonal (NaN: not seen).
-fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64) -> Result<Vec<f32>> {
-    let src = SourceImage::open_within(&im.opts.image, (memory / 8) as usize, memory)?;
+fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64, thumbnails: bool) -> Result<Vec<f32>> {
     let (w, h, nb) = (im.width as usize, im.height as usize, im.bands as usize);
     let f = ((plan.cell_metres() / im.gsd).floor() as usize).clamp(1, w.min(h));
-    let (tw, th) = (w.div_ceil(f), h.div_ceil(f));
+    let (tw, th) = if thumbnails { (w.div_ceil(f), h.div_ceil(f)) } else { (1, 1) };
     let mut thumb = vec![0f32; tw * th * nb];
     let mut win = Window::default();
-    for tr in 0..th {
+    let src = if thumbnails { Some(SourceImage::open_within(&im.opts.image, (memory / 8) as usize, memory)?) } else { None };
+    for tr in 0..th * usize::from(src.is_some()) {
+        let Some(src) = &src else { break };
         let row = (tr * f + f / 2).min(h - 1);
         src.read_window(0, row as u32, w as u32, 1, &mut win)?;
         let line = as_f32(win.bytes(), im.sample);
