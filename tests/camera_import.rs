@@ -4,6 +4,8 @@
 //! ours at +½), and the file-name matching, delimiters and refusals users
 //! meet.
 
+mod common;
+
 use gcm_ortho::camera::file::Camera;
 use gcm_ortho::camera::formats;
 use gcm_ortho::camera::rotation::AngleConvention;
@@ -283,4 +285,22 @@ fn an_image_without_camera_tags_is_refused_by_name() {
     let Err(e) = Camera::read_for(&tif, Path::new("exif"), None, None) else { panic!("a camera from no tags") };
     let e = e.to_string();
     assert!(e.contains("plain.tif") && e.contains("focal length") && e.contains("camera file"), "{e}");
+}
+
+#[test]
+fn a_drone_height_far_from_its_relative_altitude_is_warned_about() {
+    // The DJI fixture flew 120.3 m over its take-off point and is tagged at
+    // 350.5 m: over ground at 230 m that agrees; over ground at 280 m the
+    // camera would be 70 m up, and the run says so (even with --quiet).
+    let dir = tempfile::tempdir().unwrap();
+    let image = fixture("exif/dji_oblique.jpg");
+    for (ground, warned) in [(230.0f32, false), (280.0, true)] {
+        let dem = dir.path().join(format!("dem{ground}.tif"));
+        common::f32_raster(&dem, (200, 200), (657700.0, 4985300.0, 1.0, 32633), |_, _| ground);
+        let out = dir.path().join(format!("o{ground}.tif"));
+        let r = common::run(&["rectify", "--image", common::s(&image), "--camera", "exif", "--dem", common::s(&dem), "--quiet", "-o", common::s(&out)]);
+        let e = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.success(), "{e}");
+        assert_eq!(e.contains("take-off point"), warned, "ground {ground}: {e}");
+    }
 }

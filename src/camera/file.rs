@@ -236,6 +236,9 @@ pub struct Camera {
     pub file: CameraFile,
     /// Doubtful things the camera's files hold, for the run to print.
     pub warnings: Vec<String>,
+    /// A drone's height above its take-off point from its own tags: with the
+    /// DEM, a check of the height the camera is placed at.
+    pub relative_altitude: Option<f64>,
 }
 
 /// One-line position "line L" of a byte offset in a text.
@@ -299,7 +302,7 @@ impl CameraFile {
             let pp = interior.principal_point_mm.unwrap_or([0.0, 0.0]);
             frame = frame.with_format(size, pp).ok_or_else(|| err("interior.format_mm", "the format maps to no area of the scan".into()))?;
         }
-        Ok(Camera { crs, sensor: Sensor::Frame(frame), file: self, warnings: Vec::new() })
+        Ok(Camera { crs, sensor: Sensor::Frame(frame), file: self, warnings: Vec::new(), relative_altitude: None })
     }
 
     /// `model = "rpc"`: the RPC from `[rpc]`, the ground CRS from `crs`
@@ -358,7 +361,7 @@ impl CameraFile {
         };
         let ground = GroundCrs::new(&crs).map_err(|m| err("crs", m))?;
         let model = RpcCamera::new(rpc, ground, geoid);
-        Ok(Camera { crs, sensor: Sensor::Rpc(model), file: self, warnings: Vec::new() })
+        Ok(Camera { crs, sensor: Sensor::Rpc(model), file: self, warnings: Vec::new(), relative_altitude: None })
     }
 }
 
@@ -381,6 +384,7 @@ impl Camera {
         let origin = if super::formats::is_exif(camera) { image } else { poses.unwrap_or(camera) };
         let mut cam = file.build(origin)?;
         cam.warnings = set.warnings;
+        cam.relative_altitude = set.relative_altitude;
         Ok(cam)
     }
 
@@ -428,7 +432,7 @@ impl Camera {
                 Sensor::ReprojectedFrame(Reprojected::new(f, &own, ground, near)?)
             }
         };
-        Ok(Camera { crs: ground.clone(), sensor, file: self.file, warnings: self.warnings })
+        Ok(Camera { crs: ground.clone(), sensor, file: self.file, warnings: self.warnings, relative_altitude: self.relative_altitude })
     }
 
     /// The frame camera, or an error naming the file for a model that is not one.

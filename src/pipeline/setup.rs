@@ -149,6 +149,18 @@ impl RunPlan {
                 _ => z_guess,
             };
             f.check_sees_ground(sw, sh, below, &opts.camera)?;
+            // A drone that says how high it flew over its take-off point:
+            // a camera placed far from that over the DEM is on another
+            // height datum (geoid vs ellipsoid) or mistagged.
+            if let (Some(rel), Some(_)) = (camera.relative_altitude, centre) {
+                let above = f.centre.z - below;
+                if (above - rel).abs() > (0.3 * rel.abs()).max(20.0) {
+                    progress.warn(&format!(
+                        "{}: the camera is {above:.1} m above the DEM below it, but the drone's tags say it flew {rel:.1} m above its take-off point: its absolute height may be on another datum (ellipsoid vs geoid) or wrong; fix it with a camera file (gcm-ortho cameras --camera exif … --out-dir)",
+                        opts.image.display()
+                    ));
+                }
+            }
         }
         // Where the scan and the DEM do not meet, the DEM is the file to name.
         let on_dem = |e: Error| match e {

@@ -203,6 +203,7 @@ pub fn read(image: &Path, crs: Option<&Crs>) -> Result<Imported> {
     set.poses.push(Pose { name, camera: Some(id), position: [x, y, alt], r, origin: format!("{}: EXIF/XMP", image.display()) });
     set.crs = Some(crs.epsg().map_or_else(|| crs.proj4().to_string(), |e| format!("EPSG:{e}")));
     set.files.push(image.to_path_buf());
+    set.relative_altitude = tags.xmp_num(DJI, "RelativeAltitude");
     Ok(set)
 }
 

@@ -194,6 +194,9 @@ pub struct Imported {
     pub warnings: Vec<String>,
     /// The files read, for messages and for the no-overwrite check.
     pub files: Vec<PathBuf>,
+    /// A drone's height above its take-off point, where its tags give one
+    /// (a check of the absolute height against the DEM).
+    pub relative_altitude: Option<f64>,
 }
 
 /// What a file holds, by its content.
