@@ -304,3 +304,23 @@ fn a_drone_height_far_from_its_relative_altitude_is_warned_about() {
         assert_eq!(e.contains("take-off point"), warned, "ground {ground}: {e}");
     }
 }
+
+#[test]
+fn opensfm_radial_cameras_carry_their_principal_point() {
+    // OpenSfM's `radial` camera: focal_x, focal_y, c_x, c_y normalised by
+    // the larger side, k1, k2 radial (Brown's with no tangential terms).
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("cameras.json");
+    std::fs::write(
+        &file,
+        r#"{"cam": {"projection_type": "radial", "width": 800, "height": 600, "focal_x": 0.9, "focal_y": 0.91, "c_x": 0.01, "c_y": -0.02, "k1": -0.05, "k2": 0.01}}"#,
+    )
+    .unwrap();
+    let set = formats::read(&file, None).unwrap();
+    let (_, lens) = &set.lenses[0];
+    assert_eq!(lens.focal_px, [720.0, 728.0]);
+    // (w − 1)/2 + 800·0.01 = 407.5, (h − 1)/2 − 800·0.02 = 283.5; + ½ ours.
+    assert!((lens.principal_point_px[0] - 408.0).abs() < 1e-12 && (lens.principal_point_px[1] - 284.0).abs() < 1e-12, "{:?}", lens.principal_point_px);
+    let b = lens.distortion.brown.unwrap();
+    assert_eq!((b.k1, b.k2, b.p1, b.p2), (-0.05, 0.01, 0.0, 0.0));
+}

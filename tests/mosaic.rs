@@ -188,8 +188,9 @@ fn edited_seamlines_are_honoured() {
     // The mosaic honours them: the seamlines it writes back are the edit.
     mosaic(d, &["-o", "e.tif", "--seamlines", "edited.geojson", "--seamlines-out", "back.geojson", "--json", "e.json"]);
     let mut again = make();
-    gcm_ortho::mosaic::seamlines::read(&mut again, &d.join("back.geojson")).unwrap();
+    let back = gcm_ortho::mosaic::seamlines::read(&mut again, &d.join("back.geojson")).unwrap();
     assert_eq!(again.label, plan.label, "the written seamlines give back the edited partition");
+    assert_eq!((back.cells_kept, back.cells_overlapping), (0, 0), "every labelled cell, edge cells too, is in the file it wrote");
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("e.json")).unwrap()).unwrap();
     assert_eq!(report["edited_seams"]["cells_given"].as_u64().unwrap() as usize, edited.cells_given);
     // Polygons in another CRS are refused by name.
@@ -224,6 +225,13 @@ fn shards_of_one_plan_assemble_into_the_single_run_byte_for_byte() {
     let out = std::process::Command::new(bin()).current_dir(d).args(&a).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(std::fs::read(d.join("whole.tif")).unwrap() == std::fs::read(d.join("joined.tif")).unwrap(), "assembled mosaic differs from the single run");
+    // A damaged plan (a run longer than the grid) is refused, not obeyed.
+    let text = std::fs::read_to_string(d.join("plan.json")).unwrap().replacen("\"labels\":[", "\"labels\":[[0,4000000000],", 1);
+    std::fs::write(d.join("bad.json"), text).unwrap();
+    let out =
+        std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "--quiet", "--plan", "bad.json", "-o", "y.tif"]).output().unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && e.contains("bad.json") && e.contains("damaged"), "{e}");
     // A plan for other settings is refused, named.
     let out = std::process::Command::new(bin())
         .current_dir(d)

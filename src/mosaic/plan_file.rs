@@ -64,21 +64,27 @@ pub fn read(plan: &mut Plan, path: &Path) -> Result<Vec<Correction>> {
     if file.images != names {
         return Err(Error::format(path, "was planned for other images: plan again from this manifest"));
     }
-    if file.grid != plan.grid || (file.cell, file.cw, file.ch) != (plan.cell, plan.cw, plan.ch) {
+    if file.grid != plan.grid || (file.cell, file.cw, file.ch) != (plan.cell, plan.cw, plan.ch) || file.crs != plan.crs.to_string() {
         return Err(Error::format(
             path,
             "was planned on another grid (other --gsd, --bounds, --crs or DEMs): give the settings it was made with, or plan again",
         ));
     }
-    let mut label = Vec::with_capacity(plan.cw * plan.ch);
+    let cells = plan.cw * plan.ch;
+    let damaged = || Error::format(path, "is cut short or damaged");
+    let mut label = Vec::with_capacity(cells);
     for &[l, n] in &file.labels {
         if l != u32::from(super::plan::NONE) && l as usize >= names.len() {
             return Err(Error::format(path, format!("names image {l} of {}", names.len())));
         }
+        if label.len() + n as usize > cells {
+            return Err(damaged());
+        }
         label.extend(std::iter::repeat_n(l as u16, n as usize));
     }
-    if label.len() != plan.cw * plan.ch || file.corrections.len() != names.len() {
-        return Err(Error::format(path, "is cut short or damaged"));
+    let bands_ok = file.corrections.iter().zip(&plan.images).all(|(c, im)| c.gain.len() == im.bands as usize && c.offset.len() == im.bands as usize);
+    if label.len() != cells || file.corrections.len() != names.len() || !bands_ok {
+        return Err(damaged());
     }
     plan.label = label;
     Ok(file.corrections)

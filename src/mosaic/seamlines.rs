@@ -191,14 +191,15 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
     let lonlat = named.ends_with("EPSG::4326") || named.ends_with("CRS84") || named == "EPSG:4326";
     let to_plan = match (lonlat, named.rsplit(':').next().and_then(|c| c.parse::<u32>().ok())) {
         (true, _) => Some(crate::geodesy::GroundCrs::new(&plan.crs).map_err(|m| Error::format(path, m))?),
-        (false, Some(code)) if plan.crs.epsg().is_some_and(|own| own != code) => {
+        (false, Some(code)) if plan.crs.epsg() != Some(code) => {
             return Err(Error::unsupported(path, format!("the seamlines are in EPSG:{code}, the mosaic in {}: save them in the mosaic's CRS", plan.crs)));
         }
         _ => None,
     };
     // Each feature's rings in cell coordinates, and its image.
     let (g, c) = (plan.grid, plan.cell as f64);
-    let mut shapes: Vec<(u16, Rings)> = Vec::new();
+    // Each feature's polygons, each a ring list (outer and holes).
+    let mut shapes: Vec<(u16, Vec<Rings>)> = Vec::new();
     for (k, f) in features.iter().enumerate() {
         let field = |n: &str| format!("features[{k}].{n}");
         let props = f.get("properties").cloned().unwrap_or_default();
@@ -211,15 +212,17 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
             (None, Some(i)) if i >= 1 && (i as usize) <= plan.images.len() => i as usize - 1,
             _ => return Err(Error::config(path, field("properties.image"), "missing: each feature names its image")),
         };
-        let geometry = f.get("geometry").ok_or_else(|| Error::config(path, field("geometry"), "missing"))?;
+        // A feature whose parts were all deleted in a GIS gives nothing.
+        let Some(geometry) = f.get("geometry").filter(|g| !g.is_null()) else { continue };
         let coords = geometry.get("coordinates").ok_or_else(|| Error::config(path, field("geometry.coordinates"), "missing"))?;
         let polygons: Vec<&serde_json::Value> = match geometry.get("type").and_then(|t| t.as_str()) {
             Some("Polygon") => vec![coords],
             Some("MultiPolygon") => coords.as_array().map(|a| a.iter().collect()).unwrap_or_default(),
             other => return Err(Error::config(path, field("geometry.type"), format!("{other:?}: expected Polygon or MultiPolygon"))),
         };
-        let mut rings = Vec::new();
+        let mut parts = Vec::new();
         for poly in polygons {
+            let mut rings = Vec::new();
             for ring in poly.as_array().into_iter().flatten() {
                 let mut pts = Vec::new();
                 for p in ring.as_array().into_iter().flatten() {
@@ -237,36 +240,47 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
                     rings.push(pts);
                 }
             }
+            parts.push(rings);
         }
-        shapes.push((image as u16, rings));
+        shapes.push((image as u16, parts));
     }
-    // Cell centres, row by row: where each feature's rings cross the row,
-    // the even-odd rule fills between the crossings.
+    // Cell centres, row by row: where a polygon's rings cross the row, the
+    // even-odd rule fills between the crossings; a feature is the union of
+    // its polygons. A cell cut by the grid's edge has its centre in the
+    // part inside (as `write` traces it).
+    let (wc, hc) = (g.width as f64 / c, g.height as f64 / c);
+    let centre = |i: usize, n: f64| (i as f64 + (i as f64 + 1.0).min(n)) / 2.0;
     let mut given = vec![NONE_GIVEN; plan.cw * plan.ch];
     let mut report = EditedSeams::default();
     for y in 0..plan.ch {
-        let yc = y as f64 + 0.5;
-        for (image, rings) in &shapes {
-            let mut xs: Vec<f64> = Vec::new();
-            for r in rings {
-                for k in 0..r.len() {
-                    let (a, b) = (r[k], r[(k + 1) % r.len()]);
-                    if (a.1 > yc) != (b.1 > yc) {
-                        xs.push(a.0 + (yc - a.1) / (b.1 - a.1) * (b.0 - a.0));
+        let yc = centre(y, hc);
+        for (image, parts) in &shapes {
+            for rings in parts {
+                let mut xs: Vec<f64> = Vec::new();
+                for r in rings {
+                    for k in 0..r.len() {
+                        let (a, b) = (r[k], r[(k + 1) % r.len()]);
+                        if (a.1 > yc) != (b.1 > yc) {
+                            xs.push(a.0 + (yc - a.1) / (b.1 - a.1) * (b.0 - a.0));
+                        }
                     }
                 }
-            }
-            xs.sort_by(f64::total_cmp);
-            for pair in xs.chunks_exact(2) {
-                // Cells whose centre x + ½ lies in [pair[0], pair[1]).
-                let from = (pair[0] - 0.5).ceil().max(0.0) as usize;
-                let to = ((pair[1] - 0.5).ceil().max(0.0) as usize).min(plan.cw);
-                for x in from..to {
-                    let cell = &mut given[y * plan.cw + x];
-                    if *cell == NONE_GIVEN {
-                        *cell = *image;
-                    } else if *cell != *image {
-                        report.cells_overlapping += 1;
+                xs.sort_by(f64::total_cmp);
+                for pair in xs.chunks_exact(2) {
+                    // Cells whose centre lies in [pair[0], pair[1]).
+                    let from = (pair[0] - 0.5).ceil().clamp(0.0, plan.cw as f64) as usize;
+                    let to = (pair[1].ceil().max(0.0) as usize).min(plan.cw);
+                    for x in from.saturating_sub(1)..to {
+                        let xc = centre(x, wc);
+                        if !(xc >= pair[0] && xc < pair[1]) {
+                            continue;
+                        }
+                        let cell = &mut given[y * plan.cw + x];
+                        if *cell == NONE_GIVEN {
+                            *cell = *image;
+                        } else if *cell != *image {
+                            report.cells_overlapping += 1;
+                        }
                     }
                 }
             }

@@ -51,14 +51,19 @@ impl RunPlan {
         for w in &camera.warnings {
             progress.warn(w);
         }
-        // GCPs refine the model in its own CRS, before anything else uses it.
-        let gcp_fit = match &opts.gcps {
-            Some(g) => {
-                let points = crate::camera::gcp::read(&g.file, &opts.image)?;
-                Some(crate::camera::gcp::refine(&mut camera, &points, g.model, g.max_residual, &g.file)?)
+        // GCPs refine a frame camera's pose in its own CRS, before anything
+        // else uses it (an RPC's bias once its heights' geoid is known, below).
+        let gcps = opts.gcps.as_ref().map(|g| crate::camera::gcp::read(&g.file, &opts.image).map(|p| (g, p))).transpose()?;
+        let mut gcp_fit = None;
+        if let (Some((g, points)), Sensor::Frame(_)) = (&gcps, &camera.sensor) {
+            if points.iter().any(|p| p.ellipsoidal) {
+                progress.warn(&format!(
+                    "{}: the GCPs' heights are ellipsoidal (Orthority's form) and are taken as the DEM's: where its heights are above a geoid they are off by its undulation; give a CSV with heights in the DEM's datum",
+                    g.file.display()
+                ));
             }
-            None => None,
-        };
+            gcp_fit = Some(crate::camera::gcp::refine(&mut camera, points, g.model, g.max_residual, &g.file)?);
+        }
         // The orthophoto's CRS: as given, else the reference grid's, else
         // the camera's.
         let ground = match (&opts.crs, &like) {
@@ -121,6 +126,9 @@ impl RunPlan {
             if r.geoid.is_none() {
                 r.geoid = geoid_of_heights(&dem, opts.crs.as_ref(), progress)?;
             }
+        }
+        if let (Some((g, points)), Sensor::Rpc(_)) = (&gcps, &camera.sensor) {
+            gcp_fit = Some(crate::camera::gcp::refine(&mut camera, points, g.model, g.max_residual, &g.file)?);
         }
         let model = camera.model();
         let (sw, sh) = (src.info.width, src.info.height);

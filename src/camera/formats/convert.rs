@@ -91,7 +91,14 @@ pub fn convert(o: &ConvertOptions) -> Result<Converted> {
     if entries.is_empty() {
         return Err(Error::format(&o.camera, "holds no camera with an exterior orientation: add --exterior with the poses"));
     }
+    let dir = o.camera.parent().unwrap_or(Path::new("")).to_path_buf();
     for e in &mut entries {
+        // A CRS given as a file beside the camera file is written as the
+        // CRS itself: the path would not hold where the output goes.
+        if !e.file.crs.trim().is_empty() && dir.join(e.file.crs.trim()).is_file() {
+            let c = Crs::parse(&e.file.crs, &dir).map_err(|m| Error::config(&o.camera, "crs", m))?;
+            e.file.crs = c.epsg().map_or_else(|| c.proj4().to_string(), |n| format!("EPSG:{n}"));
+        }
         if e.file.crs.trim().is_empty() {
             match &o.crs {
                 Some(c) => e.file.crs = c.epsg().map_or_else(|| c.proj4().to_string(), |n| format!("EPSG:{n}")),
@@ -114,7 +121,7 @@ pub fn convert(o: &ConvertOptions) -> Result<Converted> {
             _ => {}
         }
         // Built once, so that what is written is a camera rectify takes.
-        e.file.clone().build(Path::new(&e.origin))?;
+        e.file.clone().build(&o.camera)?;
     }
     let mut written = Vec::new();
     if let Some(dir) = &o.out_dir {

@@ -80,7 +80,7 @@ impl Tags {
         self.focal_35mm = num(Tag::FocalLengthIn35mmFilm).filter(|f| *f > 0.0);
         self.orientation = e.get_field(Tag::Orientation, In::PRIMARY).and_then(|f| f.value.get_uint(0));
         let (w, h) = (num(Tag::PixelXDimension), num(Tag::PixelYDimension));
-        if let (Some(w), Some(h)) = (w, h) {
+        if let (Some(w), Some(h)) = (w.filter(|w| *w >= 1.0), h.filter(|h| *h >= 1.0)) {
             self.tag_size = Some([w as u32, h as u32]);
         }
         // mm per focal-plane resolution unit: inch, cm, mm, µm.
@@ -213,7 +213,8 @@ pub fn read(image: &Path, crs: Option<&Crs>) -> Result<Imported> {
 fn lens(image: &Path, tags: &Tags, size: [u32; 2]) -> Result<(Lens, Option<String>)> {
     let [w, h] = size.map(f64::from);
     let centre = [(w - 1.0) / 2.0, (h - 1.0) / 2.0];
-    if let (Some(text), Some(tag)) = (tags.xmp.get(&(DJI.to_string(), "DewarpData".to_string())), tags.tag_size) {
+    // Calibrated on the tagged size; without size tags, on the image's own.
+    if let (Some(text), Some(tag)) = (tags.xmp.get(&(DJI.to_string(), "DewarpData".to_string())), tags.tag_size.or(Some(size))) {
         let v: Vec<f64> = text.rsplit(';').next().unwrap_or("").split(',').filter_map(|x| x.trim().parse().ok()).collect();
         if v.len() == 9 && v.iter().any(|x| *x != 0.0) {
             // Calibrated on the tagged size: focal lengths in its pixels,

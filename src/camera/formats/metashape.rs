@@ -37,7 +37,7 @@ fn child<'a, 'i>(n: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
 }
 
 fn numbers(path: &Path, n: Node, field: &str, count: usize) -> Result<Vec<f64>> {
-    let v: Vec<f64> = n.text().unwrap_or("").split_whitespace().filter_map(|x| x.parse().ok()).collect();
+    let v: Vec<f64> = n.text().unwrap_or("").split_whitespace().map(|x| x.parse().unwrap_or(f64::NAN)).collect();
     if v.len() != count || v.iter().any(|x| !x.is_finite()) {
         return Err(Error::config(path, field, format!("expected {count} numbers")));
     }

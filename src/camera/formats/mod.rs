@@ -306,16 +306,18 @@ pub fn read(camera: &Path, exterior: Option<&Path>) -> Result<Imported> {
 
 fn read_one(path: &Path) -> Result<Imported> {
     let text = read_text_bounded(path, "a camera or pose file", SMALL * 64)?;
-    let mut set = match detect(path, &text)? {
+    // A byte-order mark (Windows editors) is no part of any of these forms.
+    let text = text.trim_start_matches('\u{feff}');
+    let mut set = match detect(path, text)? {
         Kind::Ours => {
-            let file = CameraFile::parse(&text, path)?;
+            let file = CameraFile::parse(text, path)?;
             Imported { base: Some(file), ..Default::default() }
         }
-        Kind::OrthorityInterior => orthority::read_interior(path, &text)?,
-        Kind::OrthorityCsv => orthority::read_csv(path, &text)?,
-        Kind::OrthorityGeoJson => orthority::read_geojson(path, &text)?,
-        Kind::OpenSfmReconstruction | Kind::OpenSfmCameras => opensfm::read(path, &text)?,
-        Kind::MetashapeXml => metashape::read(path, &text)?,
+        Kind::OrthorityInterior => orthority::read_interior(path, text)?,
+        Kind::OrthorityCsv => orthority::read_csv(path, text)?,
+        Kind::OrthorityGeoJson => orthority::read_geojson(path, text)?,
+        Kind::OpenSfmReconstruction | Kind::OpenSfmCameras => opensfm::read(path, text)?,
+        Kind::MetashapeXml => metashape::read(path, text)?,
     };
     set.files.push(path.to_path_buf());
     Ok(set)

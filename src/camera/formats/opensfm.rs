@@ -202,8 +202,10 @@ fn lens(path: &Path, at: &str, c: &Value) -> Result<Lens> {
     let Value::Object(m) = c else { return Err(Error::config(path, at, "expected the camera's parameters")) };
     let kind = m.get("projection_type").and_then(Value::as_str).ok_or_else(|| Error::config(path, field("projection_type"), "missing"))?;
     let allowed: &[&str] = match kind {
-        "perspective" | "radial" => &["focal", "k1", "k2"],
-        "simple_radial" => &["focal", "k1"],
+        "perspective" => &["focal", "k1", "k2"],
+        // OpenSfM's radial cameras carry fx, fy and the principal point.
+        "radial" => &["focal_x", "focal_y", "c_x", "c_y", "k1", "k2"],
+        "simple_radial" => &["focal_x", "focal_y", "c_x", "c_y", "k1"],
         "brown" => &["focal_x", "focal_y", "c_x", "c_y", "k1", "k2", "k3", "p1", "p2"],
         "fisheye" => &["focal", "k1", "k2"],
         "fisheye_opencv" => &["focal_x", "focal_y", "c_x", "c_y", "k1", "k2", "k3", "k4"],

@@ -258,7 +258,8 @@ pub fn read_csv(path: &Path, text: &str) -> Result<Imported> {
         let p = [at(position[0])?, at(position[1])?, at(position[2])?];
         let a = [at(angles[0])?.to_radians(), at(angles[1])?.to_radians(), at(angles[2])?.to_radians()];
         let camera = camera_col.and_then(|c| f.get(c)).filter(|c| !c.is_empty()).cloned();
-        rows.push((n + 1, image_name(&f[file_col]), camera, p, a));
+        let file = f.get(file_col).ok_or_else(|| Error::format(path, format!("line {}: no filename", n + 1)))?;
+        rows.push((n + 1, image_name(file), camera, p, a));
     }
 
     // The CRS: a .prj beside the file; latitude/longitude with roll/pitch/yaw
@@ -363,13 +364,28 @@ pub fn write_interior(lenses: &[(String, Lens)], path: &Path) -> Result<String> 
         let pp = l.opencv_pp();
         let c = [(pp[0] - (f64::from(w) - 1.0) / 2.0) / long, (pp[1] - (f64::from(h) - 1.0) / 2.0) / long];
         out += &format!("{id:?}:\n  type: {kind}\n  im_size: [{w}, {h}]\n");
-        out += &if focal[0] == focal[1] { format!("  focal_len: {:?}\n", focal[0]) } else { format!("  focal_len: [{:?}, {:?}]\n", focal[0], focal[1]) };
-        out += &format!("  sensor_size: [{:?}, {:?}]\n  cx: {:?}\n  cy: {:?}\n", sensor[0], sensor[1], c[0], c[1]);
+        let y = yaml_float;
+        out += &if focal[0] == focal[1] { format!("  focal_len: {}\n", y(focal[0])) } else { format!("  focal_len: [{}, {}]\n", y(focal[0]), y(focal[1])) };
+        out += &format!("  sensor_size: [{}, {}]\n  cx: {}\n  cy: {}\n", y(sensor[0]), y(sensor[1]), y(c[0]), y(c[1]));
         for (name, v) in terms {
-            out += &format!("  {name}: {v:?}\n");
+            out += &format!("  {name}: {}\n", y(v));
         }
     }
     Ok(out)
+}
+
+/// A float as YAML 1.1 (PyYAML, which Orthority reads with) takes it: the
+/// shortest round-trip digits, always with a point, and a signed exponent.
+fn yaml_float(v: f64) -> String {
+    let s = format!("{v:?}");
+    match s.split_once('e') {
+        Some((m, e)) => {
+            let m = if m.contains('.') { m.to_string() } else { format!("{m}.0") };
+            let e = if e.starts_with('-') { e.to_string() } else { format!("+{e}") };
+            format!("{m}e{e}")
+        }
+        None => s,
+    }
 }
 
 /// Poses as Orthority's exterior CSV (ω, φ, κ in degrees); `cameras[k]`
@@ -384,4 +400,15 @@ pub fn write_csv(poses: &[Pose], cameras: &[String]) -> String {
         let _ = w.write_record([p.name.clone(), n(p.position[0]), n(p.position[1]), n(p.position[2]), n(a[0]), n(a[1]), n(a[2]), id.clone()]);
     }
     String::from_utf8(w.into_inner().unwrap_or_default()).unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn yaml_floats_read_as_floats_in_yaml_1_1() {
+        assert_eq!(super::yaml_float(1e-5), "1.0e-5");
+        assert_eq!(super::yaml_float(2.5e20), "2.5e+20");
+        assert_eq!(super::yaml_float(-0.25), "-0.25");
+        assert_eq!(super::yaml_float(533.312), "533.312");
+    }
 }
