@@ -261,27 +261,7 @@ fn a_nadir_dji_frame_tagged_roll_180_looks_down() {
 fn an_image_without_camera_tags_is_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let tif = dir.path().join("plain.tif");
-    gcm_ortho::io::tiff_out::write_raster(
-        &tif,
-        &gcm_ortho::io::tiff_out::OutputSpec {
-            overviews: 0,
-            cog: false,
-            width: 8,
-            height: 8,
-            bands: 1,
-            sample: gcm_ortho::io::source::SampleType::U8,
-            chunking: gcm_ortho::io::tiff_out::Chunking::Strips(8),
-            compression: gcm_ortho::io::tiff_out::Compression::None,
-            level: None,
-            bigtiff: false,
-            photometric: 1,
-            alpha: false,
-            mask: false,
-            geo: None,
-        },
-        |_, _, buf| buf.fill(7),
-    )
-    .unwrap();
+    common::f32_raster(&tif, (8, 8), (500000.0, 4100000.0, 1.0, 32633), |_, _| 7.0);
     let Err(e) = Camera::read_for(&tif, Path::new("exif"), None, None) else { panic!("a camera from no tags") };
     let e = e.to_string();
     assert!(e.contains("plain.tif") && e.contains("focal length") && e.contains("camera file"), "{e}");

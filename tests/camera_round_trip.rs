@@ -7,7 +7,6 @@ mod common;
 
 use common::{coordinate_image, coordinate_map_difference, run, s, scene};
 use gcm_ortho::camera::file::Camera;
-use gcm_ortho::synth::{CameraKind, Relief};
 use std::path::{Path, PathBuf};
 
 const W: u32 = 600;
@@ -15,15 +14,7 @@ const H: u32 = 400;
 
 /// The oblique drone frame (Brown distortion, 25° off nadir) over buildings.
 fn drone(dir: &Path) -> gcm_ortho::synth::SynthReport {
-    scene(&dir.join("scene"), W, |o| {
-        o.height = H;
-        o.camera = CameraKind::Drone;
-        o.relief = Relief::Urban;
-        o.dem_posting = 1.0;
-        o.scale = 12_000.0;
-        o.off_nadir_deg = 25.0;
-        o.kappa_deg = 17.0;
-    })
+    common::drone_scene(dir, (W, H), 12_000.0)
 }
 
 /// `cameras --to target` of the scene's camera for `image` into `out`; the

@@ -8,22 +8,8 @@
 
 mod common;
 use common::*;
-use gcm_ortho::synth::{CameraKind, Relief};
+use gcm_ortho::synth::Relief;
 use std::path::Path;
-
-/// The drone over buildings: an oblique frame with strong barrel
-/// distortion over a DSM posted at 1 m, `w`×`h` px from `scale`.
-fn drone_scene(dir: &Path, (w, h): (u32, u32), scale: f64) -> gcm_ortho::synth::SynthReport {
-    scene(&dir.join("scene"), w, |o| {
-        o.height = h;
-        o.camera = CameraKind::Drone;
-        o.relief = Relief::Urban;
-        o.dem_posting = 1.0;
-        o.scale = scale;
-        o.off_nadir_deg = 25.0;
-        o.kappa_deg = 17.0;
-    })
-}
 
 /// `sc`'s coordinate image (made once) rectified with `extra` into `name`;
 /// and the run's report.

@@ -4,11 +4,10 @@
 
 mod common;
 
-use common::{run, s, scene};
+use common::{run, s};
 use gcm_ortho::camera::file::{Camera, CameraFile};
 use gcm_ortho::camera::gcp::{refine, BiasModel, Gcp};
 use gcm_ortho::geom::Affine2;
-use gcm_ortho::synth::{CameraKind, Relief};
 use nalgebra::{Matrix2, Vector2};
 use std::path::{Path, PathBuf};
 
@@ -173,15 +172,7 @@ fn orthority_gcp_files_are_read_as_it_writes_them() {
 #[test]
 fn a_frame_cameras_pose_is_recovered_by_resection() {
     let dir = tempfile::tempdir().unwrap();
-    let sc = scene(&dir.path().join("scene"), 600, |o| {
-        o.height = 400;
-        o.camera = CameraKind::Drone;
-        o.relief = Relief::Urban;
-        o.dem_posting = 1.0;
-        o.scale = 12_000.0;
-        o.off_nadir_deg = 25.0;
-        o.kappa_deg = 17.0;
-    });
+    let sc = common::drone_scene(dir.path(), (600, 400), 12_000.0);
     let truth = Camera::read(&sc.camera).unwrap();
     // The pose a rough GNSS/IMU gives: metres and tenths of a degree off.
     let mut file = CameraFile::read(&sc.camera).unwrap();

@@ -14,6 +14,21 @@ pub fn run(args: &[&str]) -> Output {
     Command::new(bin()).args(args).output().expect("the binary runs")
 }
 
+/// The drone over buildings: an oblique frame (25° off nadir) with strong
+/// barrel distortion over a DSM posted at 1 m, `w`×`h` px from `scale`, in
+/// `dir/scene`.
+pub fn drone_scene(dir: &Path, (w, h): (u32, u32), scale: f64) -> SynthReport {
+    scene(&dir.join("scene"), w, |o| {
+        o.height = h;
+        o.camera = gcm_ortho::synth::CameraKind::Drone;
+        o.relief = gcm_ortho::synth::Relief::Urban;
+        o.dem_posting = 1.0;
+        o.scale = scale;
+        o.off_nadir_deg = 25.0;
+        o.kappa_deg = 17.0;
+    })
+}
+
 /// A small film scene (hilly, swing 30°) in `dir`.
 pub fn scene(dir: &Path, size: u32, f: impl FnOnce(&mut SynthOptions)) -> SynthReport {
     let mut o = SynthOptions { out: dir.to_path_buf(), width: size, height: size, kappa_deg: 30.0, ..Default::default() };

@@ -18,7 +18,7 @@ use crate::error::{Error, Result};
 use crate::geodesy::{utm_zone, Crs, GroundCrs};
 use crate::io::source::SourceImage;
 use exif::{In, Tag, Value};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Matrix3;
 use std::collections::HashMap;
 use std::io::{BufReader, Read};
 use std::path::Path;
@@ -277,11 +277,5 @@ pub fn gimbal_rotation([yaw, pitch, roll]: [f64; 3], lonlat: (f64, f64), ground:
     let body_to_ned = turn(2, yaw) * turn(1, pitch) * turn(0, roll);
     // Photo x = body y, photo y = −body z, photo z = −body x.
     let photo_to_body = Matrix3::new(0.0, 0.0, -1.0, 1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
-    let d = 1e-5;
-    let (x1, y1) = ground.from_lonlat(lonlat.0, lonlat.1 + d)?;
-    let (x2, y2) = ground.from_lonlat(lonlat.0, lonlat.1 - d)?;
-    let north = Vector3::new(x1 - x2, y1 - y2, 0.0).try_normalize(0.0)?;
-    let down = Vector3::new(0.0, 0.0, -1.0);
-    let ned_to_ground = Matrix3::from_columns(&[north, down.cross(&north), down]);
-    Some(ned_to_ground * body_to_ned * photo_to_body)
+    Some(super::orthority::ned_to_ground(lonlat, ground)? * body_to_ned * photo_to_body)
 }

@@ -193,6 +193,13 @@ pub fn opk_rotation(opk: [f64; 3]) -> Matrix3<f64> {
 pub fn rpy_rotation(rpy: [f64; 3], lonlat: (f64, f64), crs: &GroundCrs) -> Option<Matrix3<f64>> {
     let [roll, pitch, yaw] = rpy;
     let c_nb = rz(yaw) * ry(pitch) * rx(roll);
+    let c_bb = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0);
+    Some(ned_to_ground(lonlat, crs)? * c_nb * c_bb)
+}
+
+/// North, east, down at `lonlat` (degrees) → the axes of `crs`, north
+/// taken along the CRS's grid north there (the meridian convergence).
+pub fn ned_to_ground(lonlat: (f64, f64), crs: &GroundCrs) -> Option<Matrix3<f64>> {
     // About a metre: far above the projection's rounding, the meridian's
     // curvature cancels in the central difference.
     let d = 1e-5;
@@ -200,10 +207,7 @@ pub fn rpy_rotation(rpy: [f64; 3], lonlat: (f64, f64), crs: &GroundCrs) -> Optio
     let (x2, y2) = crs.from_lonlat(lonlat.0, lonlat.1 - d)?;
     let north = Vector3::new(x1 - x2, y1 - y2, 0.0).try_normalize(0.0)?;
     let down = Vector3::new(0.0, 0.0, -1.0);
-    let east = down.cross(&north);
-    let c_en = Matrix3::from_columns(&[north, east, down]);
-    let c_bb = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0);
-    Some(c_en * c_nb * c_bb)
+    Some(Matrix3::from_columns(&[north, down.cross(&north), down]))
 }
 
 fn rx(t: f64) -> Matrix3<f64> {
