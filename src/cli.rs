@@ -307,6 +307,10 @@ pub struct MosaicArgs {
     /// piece; `assemble` joins the pieces into the single run's mosaic)
     #[arg(long, requires = "output")]
     pub window: Option<String>,
+    /// Remake the output even where its record says it is current (a rerun
+    /// otherwise leaves a finished mosaic or piece as it is)
+    #[arg(long)]
+    pub force: bool,
     /// Ground sample distance of the mosaic (default: the images' median)
     #[arg(long)]
     pub gsd: Option<f64>,

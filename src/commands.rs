@@ -121,11 +121,18 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         memory,
         threads: a.threads,
         cog: a.cog.then_some(true),
+        force: a.force,
         sync: true,
     };
     let report = mosaic(&o, &Bar::new(a.quiet), &signals.cancel)?;
     if let Some(j) = &a.json {
         write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
+    }
+    if report.skipped {
+        if !a.quiet {
+            eprintln!("{}: current (made from these inputs and settings); --force remakes it", report.output.as_deref().unwrap_or(Path::new("")).display());
+        }
+        return Ok(());
     }
     if !a.quiet {
         eprintln!(

@@ -242,3 +242,34 @@ fn shards_of_one_plan_assemble_into_the_single_run_byte_for_byte() {
     assert!(!out.status.success() && e.contains("plan.json") && e.contains("another grid"), "{e}");
     assert!(!d.join("x.tif").exists());
 }
+
+#[test]
+fn a_restarted_shard_leaves_its_finished_piece_and_redoes_a_changed_one() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    mosaic(d, &["--plan-out", "plan.json"]);
+    let piece = d.join("piece.tif");
+    let args = ["--plan", "plan.json", "--window", "0,0,2,2", "-o", "piece.tif", "--json", "r.json"];
+    mosaic(d, &args);
+    let first = std::fs::metadata(&piece).unwrap().modified().unwrap();
+    let skipped = |d: &Path| -> bool {
+        let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
+        r["skipped"].as_bool().unwrap()
+    };
+    assert!(!skipped(d));
+    // The same command again: the piece is current, left as it is.
+    mosaic(d, &args);
+    assert!(skipped(d));
+    assert_eq!(std::fs::metadata(&piece).unwrap().modified().unwrap(), first);
+    // Another window, or --force, or a changed plan: made again.
+    let mut forced = args.to_vec();
+    forced.push("--force");
+    mosaic(d, &forced);
+    assert!(!skipped(d));
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    let plan = std::fs::read_to_string(d.join("plan.json")).unwrap();
+    std::fs::write(d.join("plan.json"), plan).unwrap();
+    mosaic(d, &args);
+    assert!(!skipped(d), "a plan written anew redoes the piece");
+}

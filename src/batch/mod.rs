@@ -123,11 +123,30 @@ fn record(output: &Path, key: &str) -> Option<String> {
 }
 
 fn is_current(c: &RectifyOptions, key: &str) -> bool {
-    let recorded = crate::io::bounded_read::read_text_bounded(&sidecar(&c.output), "a record", 4096);
-    matches!((recorded, record(&c.output, key)), (Ok(r), Some(now)) if r.trim() == now)
+    output_is_current(&c.output, key)
 }
 
-fn write_sidecar(output: &Path, key: &str) -> crate::Result<()> {
+/// Whether `output` is whole and was made for `key` (its record says so).
+pub fn output_is_current(output: &Path, key: &str) -> bool {
+    let recorded = crate::io::bounded_read::read_text_bounded(&sidecar(output), "a record", 4096);
+    matches!((recorded, record(output, key)), (Ok(r), Some(now)) if r.trim() == now)
+}
+
+/// A key over byte strings and files (path, size, modification time).
+pub fn key_of(bytes: &[&[u8]], files: &[&Path]) -> String {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for b in bytes {
+        fnv(&mut h, &(b.len() as u64).to_le_bytes());
+        fnv(&mut h, b);
+    }
+    for f in files {
+        file_stamp(&mut h, f);
+    }
+    format!("{h:016x}")
+}
+
+/// Records that `output` is finished for `key` (beside it, `.done`).
+pub fn write_sidecar(output: &Path, key: &str) -> crate::Result<()> {
     let r = record(output, key).ok_or_else(|| crate::Error::format(output, "the finished output cannot be read back"))?;
     crate::io::publish::write_file(&sidecar(output), format!("{r}\n").as_bytes())
 }

@@ -55,6 +55,8 @@ pub struct MosaicOptions {
     pub threads: usize,
     /// Write the Cloud-Optimized layout (else as the manifest says).
     pub cog: Option<bool>,
+    /// Remake an output whose record says it is current.
+    pub force: bool,
     pub sync: bool,
 }
 
@@ -82,6 +84,8 @@ pub struct PhaseSeconds {
 pub struct MosaicReport {
     /// The file written, where one was.
     pub output: Option<PathBuf>,
+    /// The output was current (made for these inputs and settings): left as it was.
+    pub skipped: bool,
     /// The tiles rendered (all, or the window).
     pub window: [u32; 4],
     pub width: u32,
@@ -115,6 +119,13 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     let jobs = crate::batch::manifest::load(&o.manifest).map_err(|e| Error::format(&o.manifest, e.to_string()))?;
     if let Some(bad) = jobs.iter().find_map(|j| j.problem.clone()) {
         return Err(Error::format(&o.manifest, bad));
+    }
+    // A rerun (a restarted shard) leaves a current output as it is.
+    let key = run_key(o, &jobs);
+    if let (Some(out), None, false) = (&o.output, &o.plan_out, o.force) {
+        if crate::batch::output_is_current(out, &key) {
+            return Ok(MosaicReport::skipped(out));
+        }
     }
     // Nothing the mosaic writes may be anything it reads.
     let (inputs, _) = crate::batch::manifest::files(&jobs);
@@ -304,6 +315,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             return Err(Error::Cancelled);
         }
         written?;
+        crate::batch::write_sidecar(out, &key)?;
         let t_render_ = t.elapsed().as_secs_f64();
         t_render = t_render_;
     }
@@ -333,6 +345,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         .sum::<usize>();
     Ok(MosaicReport {
         output: o.output.clone(),
+        skipped: false,
         window,
         width: grid.width,
         height: grid.height,
@@ -351,4 +364,52 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         peak_rss_mib: crate::pipeline::peak_rss_mib(),
         output_bytes: o.output.as_deref().and_then(|p| std::fs::metadata(p).ok()).map_or(0, |m| m.len()),
     })
+}
+
+/// The key of a run: the manifest's jobs (their inputs and settings), the
+/// files it takes (plan, seamlines) and every setting that changes the
+/// output.
+fn run_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
+    let settings = format!(
+        "{:?} {:?} {:?} {:?} {} {} {:?} {:?}",
+        o.gsd,
+        o.bounds,
+        o.crs.as_ref().map(ToString::to_string),
+        o.balance,
+        o.least_cost,
+        o.blend,
+        o.window,
+        o.cog
+    );
+    let job_keys: Vec<String> = jobs.iter().map(|j| format!("{}={}", j.name, crate::batch::job_key(&j.config))).collect();
+    let joined = job_keys.join(";");
+    let files: Vec<&std::path::Path> = [Some(&o.manifest), o.plan_in.as_ref(), o.seamlines_in.as_ref()].into_iter().flatten().map(PathBuf::as_path).collect();
+    crate::batch::key_of(&[settings.as_bytes(), joined.as_bytes()], &files)
+}
+
+impl MosaicReport {
+    /// The report of a run that found its output current.
+    fn skipped(out: &std::path::Path) -> MosaicReport {
+        MosaicReport {
+            output: Some(out.to_path_buf()),
+            skipped: true,
+            window: [0; 4],
+            width: 0,
+            height: 0,
+            gsd: 0.0,
+            crs: String::new(),
+            cell_px: 0,
+            coverage: 0.0,
+            balance: Balance::None,
+            blend_px: 0.0,
+            seams: seams::SeamStats::default(),
+            seam_length: 0.0,
+            edited_seams: None,
+            images: Vec::new(),
+            seconds: PhaseSeconds { plan: 0.0, balance: 0.0, seams: 0.0, render: 0.0 },
+            wall_seconds: 0.0,
+            peak_rss_mib: None,
+            output_bytes: std::fs::metadata(out).map_or(0, |m| m.len()),
+        }
+    }
 }
