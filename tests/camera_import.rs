@@ -127,6 +127,8 @@ fn csv_dialects_users_write() {
         ("tab.txt", "filename\tx\ty\tz\tomega\tphi\tkappa\nimg1\t1.0\t2.0\t3.0\t0.1\t0.2\t0.3\n"),
         ("spaces.txt", "img1.tif 1.0 2.0  3.0 0.1 0.2 0.3\nimg2.tif 1.5 2.5 3.5 0.1 0.2 0.3\n"),
         ("block.csv", "name,X,Y,Z,omega,phi,kappa\nimg1,1.0,2.0,3.0,0.1,0.2,0.3\n"),
+        // Pix4D's calibrated external camera parameters.
+        ("pix4d.txt", "imageName X Y Z Omega Phi Kappa\nimg1.JPG 1.0 2.0 3.0 0.1 0.2 0.3\n"),
     ];
     for (name, text) in cases {
         let path = dir.path().join(name);
@@ -134,7 +136,7 @@ fn csv_dialects_users_write() {
         std::fs::write(path.with_extension("prj"), "EPSG:32633").unwrap();
         let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&path)).unwrap_or_else(|e| panic!("{name}: {e}"));
         let p = &set.poses[0];
-        assert_eq!((p.name.trim_end_matches(".tif"), p.position), ("img1", [1.0, 2.0, 3.0]), "{name}");
+        assert_eq!((p.name.trim_end_matches(".tif").trim_end_matches(".JPG"), p.position), ("img1", [1.0, 2.0, 3.0]), "{name}");
         let opk = AngleConvention::OmegaPhiKappa.angles(&p.r).map(f64::to_degrees);
         assert!((opk[0] - 0.1).abs() < 1e-12 && (opk[1] - 0.2).abs() < 1e-12 && (opk[2] - 0.3).abs() < 1e-12, "{name}: {opk:?}");
     }

@@ -239,9 +239,12 @@ pub fn read_csv(path: &Path, text: &str) -> Result<Imported> {
         })
         .ok_or_else(|| Error::format(path, "line 1: expected a header (filename, x, y, z, omega, phi, kappa, …) or seven fields, all lines alike"))?;
     let head: Vec<String> = fields(first, delimiter).iter().map(|f| f.to_ascii_lowercase()).collect();
-    let has_header = head.iter().any(|f| f == "filename" || f == "name");
+    // `name` (our block CSV) and `imagename` (Pix4D's calibrated external
+    // camera parameters: the same columns and ω, φ, κ) name the file too.
+    let is_file_column = |f: &str| f == "filename" || f == "name" || f == "imagename";
+    let has_header = head.iter().any(|f| is_file_column(f));
     let names: Vec<String> = if has_header { head } else { ["filename", "x", "y", "z", "omega", "phi", "kappa"].iter().map(|s| s.to_string()).collect() };
-    let col = |k: &str| names.iter().position(|n| n == k || (k == "filename" && n == "name"));
+    let col = |k: &str| names.iter().position(|n| n == k || (k == "filename" && is_file_column(n)));
     let need = |ks: [&str; 3]| -> Option<[usize; 3]> { Some([col(ks[0])?, col(ks[1])?, col(ks[2])?]) };
     let (xyz, lla) = (need(["x", "y", "z"]), need(["latitude", "longitude", "altitude"]));
     let (opk, rpy) = (need(["omega", "phi", "kappa"]), need(["roll", "pitch", "yaw"]));
