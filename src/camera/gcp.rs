@@ -288,10 +288,7 @@ fn resection(f: &FrameCamera, gcps: &[Gcp], crs: &Crs, source: &Path) -> Result<
         }
     }
     // Re-orthonormalised: many small turns multiplied.
-    let svd = r.svd(true, true);
-    if let (Some(u), Some(vt)) = (svd.u, svd.v_t) {
-        r = u * vt;
-    }
+    r = crate::geodesy::ecef::nearest_rotation(&r).unwrap_or(r);
     let refined = camera_at(c, r);
     let after = residuals(&refined).ok_or_else(|| Error::format(source, "the resection left the GCPs' view"))?;
     let opk = AngleConvention::OmegaPhiKappa.angles(&r).map(f64::to_degrees);

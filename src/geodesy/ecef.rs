@@ -45,6 +45,22 @@ pub fn enu_axes(lon: f64, lat: f64) -> Matrix3<f64> {
     Matrix3::new(-so, -sl * co, cl * co, co, -sl * so, cl * so, 0.0, cl, sl)
 }
 
+/// The rotation nearest `m` (its polar factor, by SVD): a frame's axes
+/// with scale and shear taken out.
+#[must_use]
+pub fn nearest_rotation(m: &Matrix3<f64>) -> Option<Matrix3<f64>> {
+    let svd = m.svd(true, true);
+    Some(svd.u? * svd.v_t?)
+}
+
+/// How `map` turns directions at `p`: its Jacobian by unit steps, scale
+/// removed (a grid's convergence, a tangent plane's tilt).
+pub fn local_turn(map: impl Fn(Vector3<f64>) -> Option<Vector3<f64>>, p: Vector3<f64>) -> Option<Matrix3<f64>> {
+    let here = map(p)?;
+    let cols = [map(p + Vector3::x())? - here, map(p + Vector3::y())? - here, map(p + Vector3::z())? - here];
+    nearest_rotation(&Matrix3::from_columns(&cols))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

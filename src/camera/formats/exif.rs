@@ -13,7 +13,6 @@
 
 use super::{brown_section, Imported, Lens, Pose};
 use crate::camera::distortion::Brown;
-use crate::camera::rotation::AngleConvention;
 use crate::error::{Error, Result};
 use crate::geodesy::{utm_zone, Crs, GroundCrs};
 use crate::io::source::SourceImage;
@@ -269,12 +268,8 @@ fn attitude(image: &Path, tags: &Tags, lonlat: (f64, f64), ground: &GroundCrs) -
 /// rotation photo (x right, y up, z back) → ground.
 #[must_use]
 pub fn gimbal_rotation([yaw, pitch, roll]: [f64; 3], lonlat: (f64, f64), ground: &GroundCrs) -> Option<Matrix3<f64>> {
-    let turn = |axis: usize, t: f64| {
-        let mut a = [0.0; 3];
-        a[axis] = t;
-        AngleConvention::OmegaPhiKappa.matrix(a)
-    };
-    let body_to_ned = turn(2, yaw) * turn(1, pitch) * turn(0, roll);
+    use super::orthority::{rx, ry, rz};
+    let body_to_ned = rz(yaw) * ry(pitch) * rx(roll);
     // Photo x = body y, photo y = −body z, photo z = −body x.
     let photo_to_body = Matrix3::new(0.0, 0.0, -1.0, 1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
     Some(super::orthority::ned_to_ground(lonlat, ground)? * body_to_ned * photo_to_body)

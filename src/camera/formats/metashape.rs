@@ -19,7 +19,7 @@ use super::{brown_section, Imported, Lens, Pose};
 use crate::camera::distortion::{Brown, Metashape};
 use crate::camera::file::DistortionSection;
 use crate::error::{Error, Result};
-use crate::geodesy::ecef::from_ecef;
+use crate::geodesy::ecef::{from_ecef, local_turn, nearest_rotation};
 use crate::geodesy::{utm_zone, Crs, GroundCrs};
 use nalgebra::{Matrix3, Matrix4, Vector3};
 use roxmltree::Node;
@@ -122,10 +122,7 @@ pub fn read(path: &Path, text: &str) -> Result<Imported> {
         let world = to_world * cam;
         let centre = Vector3::new(world[(0, 3)], world[(1, 3)], world[(2, 3)]);
         // Camera axes in geocentric directions, scale removed.
-        let axes = world.fixed_view::<3, 3>(0, 0).into_owned();
-        let svd = axes.svd(true, true);
-        let (Some(u), Some(vt)) = (svd.u, svd.v_t) else { return Err(Error::config(path, &field, "no rotation")) };
-        let r_cv = u * vt;
+        let r_cv = nearest_rotation(&world.fixed_view::<3, 3>(0, 0).into_owned()).ok_or_else(|| Error::config(path, &field, "no rotation"))?;
         // Our photo axes: OpenCV's with y and z turned.
         let r_photo = r_cv * Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0));
         let camera = c.attribute("sensor_id").map(str::to_string);
@@ -192,9 +189,7 @@ fn geocentric_to_ground(p: Vector3<f64>, ground: &GroundCrs) -> Option<([f64; 3]
         Some(Vector3::new(x, y, h))
     };
     let here = at(p)?;
-    let cols = [at(p + Vector3::x())? - here, at(p + Vector3::y())? - here, at(p + Vector3::z())? - here];
-    let svd = Matrix3::from_columns(&cols).svd(true, true);
-    Some(([here.x, here.y, here.z], svd.u? * svd.v_t?))
+    Some(([here.x, here.y, here.z], local_turn(at, p)?))
 }
 
 /// One sensor's lens.

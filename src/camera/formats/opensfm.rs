@@ -19,7 +19,7 @@
 use super::{brown_section, fisheye_section, Imported, Lens, Pose};
 use crate::camera::distortion::{Brown, Fisheye};
 use crate::error::{Error, Result};
-use crate::geodesy::ecef::{enu_axes, from_ecef, to_ecef};
+use crate::geodesy::ecef::{enu_axes, from_ecef, local_turn, to_ecef};
 use crate::geodesy::{utm_zone, GroundCrs};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use serde_json::Value;
@@ -126,11 +126,7 @@ impl Frame<'_> {
     /// The reconstruction's axes at `c`, seen in the world: the grid's
     /// convergence and the tangent plane's tilt, scale removed.
     fn turn(&self, c: Vector3<f64>) -> Option<Matrix3<f64>> {
-        let here = self.at(c)?;
-        let step = 1.0;
-        let cols = [self.at(c + Vector3::x() * step)? - here, self.at(c + Vector3::y() * step)? - here, self.at(c + Vector3::z() * step)? - here];
-        let svd = (Matrix3::from_columns(&cols) / step).svd(true, true);
-        Some(svd.u? * svd.v_t?)
+        local_turn(|p| self.at(p), c)
     }
 
     /// A camera's centre and rotation (photo → reconstruction axes) in the

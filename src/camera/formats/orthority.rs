@@ -210,13 +210,13 @@ pub fn ned_to_ground(lonlat: (f64, f64), crs: &GroundCrs) -> Option<Matrix3<f64>
     Some(Matrix3::from_columns(&[north, down.cross(&north), down]))
 }
 
-fn rx(t: f64) -> Matrix3<f64> {
+pub(super) fn rx(t: f64) -> Matrix3<f64> {
     AngleConvention::OmegaPhiKappa.matrix([t, 0.0, 0.0])
 }
-fn ry(t: f64) -> Matrix3<f64> {
+pub(super) fn ry(t: f64) -> Matrix3<f64> {
     AngleConvention::OmegaPhiKappa.matrix([0.0, t, 0.0])
 }
-fn rz(t: f64) -> Matrix3<f64> {
+pub(super) fn rz(t: f64) -> Matrix3<f64> {
     AngleConvention::OmegaPhiKappa.matrix([0.0, 0.0, t])
 }
 
