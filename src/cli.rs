@@ -11,7 +11,7 @@ use gcm_ortho::io::tiff_out::Compression;
 use gcm_ortho::mosaic::balance::Balance;
 use gcm_ortho::options::{
     parse_bounds, parse_bytes, parse_count, parse_max_error, parse_miss, parse_nodata, parse_offset, parse_overviews, parse_size, parse_window, BandOrder,
-    BigTiff, Choice, DemSource, ModelSource, RectifyOptions,
+    BigTiff, Choice, DemSource, ModelSource, Occlusion, RectifyOptions,
 };
 use gcm_ortho::overview::OverviewResampling;
 use gcm_ortho::resample::Kernel;
@@ -553,6 +553,11 @@ pub struct RectifyArgs {
     /// Add an alpha band instead of a nodata value.
     #[arg(long)]
     pub alpha: bool,
+    /// True orthophoto: ground the sensor does not see on the DSM (behind
+    /// buildings, trees, steep slopes) becomes nodata, or with `mask` keeps
+    /// the scan's pixels but is marked in the internal mask (or alpha)
+    #[arg(long, default_value = "none", value_parser = choice::<Occlusion>())]
+    pub occlusion: Occlusion,
     /// Worker threads (0: all cores; 1: every step one after the other,
     /// one processor busy).
     #[arg(long, default_value_t = 0)]
@@ -637,6 +642,7 @@ impl RectifyArgs {
         o.level = layout.level;
         o.nodata = parse_nodata("nodata", &self.nodata)?;
         o.alpha = self.alpha;
+        o.occlusion = self.occlusion;
         o.threads = self.threads;
         o.memory = parse_bytes("memory", &self.memory)?;
         o.max_output_pixels = self.max_output_pixels.as_deref().map(|m| parse_count("max_output_pixels", m)).transpose()?;

@@ -306,6 +306,9 @@ fn print_report(r: &Report) {
     let e = &r.accuracy_estimate;
     let bound = r.error_bound.map(|b| format!(", bound {b} px {}", if r.error_within { "held" } else { "MISSED" })).unwrap_or_default();
     println!("  GCM vs exact model (sampled): RMS {:.4} px, max {:.4} px over {} pixels{bound}", e.rms, e.max, e.count);
+    if let Some(h) = &r.occlusion {
+        println!("  occlusion: {} of {} imaged pixels hidden from the sensor ({:.2} %)", h.hidden_px, h.imaged_px, 100.0 * h.share);
+    }
     if let Some(g) = &r.gcps {
         println!("  GCPs ({}): RMS {:.3} px before, {:.3} px after; {}", g.method, g.rms_before, g.rms_after, g.correction);
         for p in &g.points {

@@ -144,6 +144,8 @@ pub struct BandGcm {
     pub stats: GcmStats,
     /// The first DEM miss met under the `error` policy.
     pub miss: Option<(f64, f64, Lookup)>,
+    /// Under `--occlusion`: which of the band's pixels the sensor sees.
+    pub seen: Option<crate::transform::visibility::Seen>,
 }
 
 /// The GCM for one output grid.
@@ -473,7 +475,7 @@ impl<'a> Gcm<'a> {
             let curvature = self.smooth_curvature(&rows);
             if self.band_within(&rows, &curvature, bound) {
                 stats.cells = (rows.len().saturating_sub(1) * (self.nodes_x - 1)) as u64;
-                return BandGcm { first_j, rows, cells, stats, miss };
+                return BandGcm { first_j, rows, cells, stats, miss, seen: None };
             }
             for n in 0..rows.len().saturating_sub(1) {
                 let (a, b) = (&rows[n], &rows[n + 1]);
@@ -510,7 +512,7 @@ impl<'a> Gcm<'a> {
                 cells.push(row_cells);
             }
         }
-        BandGcm { first_j, rows, cells, stats, miss }
+        BandGcm { first_j, rows, cells, stats, miss, seen: None }
     }
 
     /// Whether every cell of the band is within `bound` without a look at

@@ -46,11 +46,27 @@ choice!(Trend: "plane" => Trend::Plane, "mean" => Trend::Mean);
 choice!(BandOrder: "auto" => BandOrder::Auto, "rows" => BandOrder::Rows, "columns" => BandOrder::Columns);
 choice!(BigTiff: "auto" => BigTiff::Auto, "yes" => BigTiff::Yes, "no" => BigTiff::No);
 choice!(Snap: "tap" => Snap::Tap, "outward" => Snap::Outward, "none" => Snap::None);
+choice!(Occlusion: "none" => Occlusion::None, "nodata" => Occlusion::Nodata, "mask" => Occlusion::Mask);
 choice!(OverviewResampling: "average" => OverviewResampling::Average, "nearest" => OverviewResampling::Nearest, "mode" => OverviewResampling::Mode);
 
 /// `name` as one of `T`'s choices.
 pub fn parse_choice<T: Choice>(setting: &'static str, name: &str) -> Result<T> {
     T::from_name(name.trim()).ok_or_else(|| Error::setting(setting, format!("'{name}' is not one of {}", T::NAMES.join(", "))))
+}
+
+/// What becomes of output pixels the sensor does not see on the DSM (a
+/// true orthophoto): ground hidden behind a building otherwise takes the
+/// building's pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Occlusion {
+    /// Not looked for: every pixel takes what the scan shows there.
+    None,
+    /// Hidden pixels have no value (nodata, the mask or alpha say so).
+    Nodata,
+    /// Hidden pixels keep what the scan shows there, and the internal mask
+    /// (or alpha) says they have no value.
+    Mask,
 }
 
 /// How the output marks pixels without a value.
@@ -391,6 +407,8 @@ pub struct RectifyOptions {
     pub cog: bool,
     /// How pixels without a value are marked (ignored with `alpha`).
     pub nodata: Nodata,
+    /// Pixels the sensor does not see on the DSM.
+    pub occlusion: Occlusion,
     pub alpha: bool,
     /// Worker threads (0 = all cores; 1 = every step one after the other).
     pub threads: usize,
@@ -481,6 +499,15 @@ impl RectifyOptions {
             return Err(Error::setting("like", "gives the grid: drop the GSD and bounds"));
         }
         check_level(self.compress, self.level)?;
+        if self.occlusion != Occlusion::None && !matches!(self.dem, DemSource::File(_)) {
+            return Err(Error::setting("occlusion", "needs a DSM to see buildings on (a constant height hides nothing)"));
+        }
+        if self.occlusion == Occlusion::Mask && !self.alpha && matches!(self.nodata, Nodata::Value(_)) {
+            return Err(Error::setting(
+                "occlusion",
+                "mask keeps hidden pixels' values and marks them in the internal mask or alpha: drop --nodata VALUE, or take --occlusion nodata",
+            ));
+        }
         if let Some([_, _, w, h]) = self.window {
             if w == 0 || h == 0 {
                 return Err(Error::setting("window", "width and height must be above zero"));
@@ -558,6 +585,7 @@ impl RectifyOptions {
             overview_resampling: OverviewResampling::Average,
             cog: false,
             nodata: Nodata::Auto,
+            occlusion: Occlusion::None,
             alpha: false,
             threads: 0,
             memory: 128 << 20,

@@ -57,6 +57,8 @@ pub struct Options {
     pub cog: Option<bool>,
     pub nodata: Option<NodataSetting>,
     pub alpha: Option<bool>,
+    /// `none`, `nodata` or `mask` (a true orthophoto).
+    pub occlusion: Option<String>,
     pub output_dir: Option<String>,
     /// Ground control points (each job takes those of its image).
     pub gcps: Option<String>,
@@ -91,6 +93,7 @@ impl Options {
             cog,
             nodata,
             alpha,
+            occlusion,
             output_dir,
             gcps,
             gcp_refine,
@@ -393,6 +396,9 @@ fn config(
             None => {}
         }
         c.alpha = o.alpha.unwrap_or(false);
+        if let Some(v) = &o.occlusion {
+            c.occlusion = parse_choice("occlusion", v)?;
+        }
         c.validate()
     };
     settings().map_err(|e| match e {

@@ -19,9 +19,10 @@ use super::stages::SharedRows;
 use crate::error::{Error, Result};
 use crate::gcm::Gcm;
 use crate::io::source::Window;
-use crate::options::{BandOrder, Nodata, RectifyOptions};
+use crate::options::{BandOrder, Nodata, Occlusion, RectifyOptions};
 use crate::overview::ValidBy;
 use crate::progress::{Cancel, NoProgress};
+use crate::transform::visibility::Visibility;
 use crate::transform::Transform;
 use std::sync::Arc;
 
@@ -57,6 +58,8 @@ pub fn render_bands(opts: &RectifyOptions, requests: &[BandRequest], cancel: &Ca
     };
     let t = Transform::new(setup.camera.model(), &setup.dem, setup.grid);
     let gcm = Gcm::new(&t, setup.approx, setup.gcm);
+    let visibility =
+        (opts.occlusion != Occlusion::None).then(|| Visibility::new(&t, (setup.src.info.width, setup.src.info.height), setup.occlusion_tolerance()));
     let (tx, ty) = (setup.grid.width.div_ceil(opts.tile), setup.grid.height.div_ceil(opts.tile));
     let walk = Walk { grid: t.grid, tile: opts.tile, bands: (0, ty), cols: (0, tx), columns: false, piece: (0, 0, tx) };
     let pool = rayon::ThreadPoolBuilder::new()
@@ -64,7 +67,16 @@ pub fn render_bands(opts: &RectifyOptions, requests: &[BandRequest], cancel: &Ca
         .build()
         .map_err(|e| Error::setting("threads", format!("cannot start {} threads: {e}", opts.threads)))?;
     let mut run = Run {
-        inputs: Inputs { gcm: &gcm, src: &setup.src, dem: &setup.dem, spec: &setup.spec, pixels: setup.pixels, output: &opts.output, sync: false },
+        inputs: Inputs {
+            gcm: &gcm,
+            src: &setup.src,
+            dem: &setup.dem,
+            spec: &setup.spec,
+            pixels: setup.pixels,
+            output: &opts.output,
+            sync: false,
+            visibility: visibility.as_ref(),
+        },
         walk,
         budget: MemoryBudget::new(setup.budget.total()),
         counters: Counters::default(),

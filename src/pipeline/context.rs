@@ -31,6 +31,8 @@ pub struct PixelOptions {
     pub area: Option<crate::geom::ImageArea>,
     /// Say which pixels have a value, for the output's internal mask.
     pub mask: bool,
+    /// What becomes of pixels the sensor does not see (with `visibility`).
+    pub occlusion: crate::options::Occlusion,
 }
 
 /// The run's inputs, ready.
@@ -44,6 +46,8 @@ pub struct Inputs<'a> {
     pub output: &'a Path,
     /// Write back the output as it is written (see the write stage).
     pub sync: bool,
+    /// Under `--occlusion`: what the sensor sees on the DSM.
+    pub visibility: Option<&'a crate::transform::visibility::Visibility<'a>>,
 }
 
 impl Inputs<'_> {
@@ -93,6 +97,10 @@ pub struct Counters {
     /// Chunks read in place from the mapped scan.
     pub chunks_in_place: AtomicU64,
     pub gcm: Mutex<GcmStats>,
+    /// Under `--occlusion`: output pixels the scan images, and of them those
+    /// the sensor does not see.
+    pub imaged: AtomicU64,
+    pub hidden: AtomicU64,
 }
 
 /// Cancelled from outside, or failed in one stage (the others then stop).

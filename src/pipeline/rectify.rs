@@ -2,17 +2,18 @@
 //! publish the output, report.
 
 use super::context::{Counters, Inputs, Run, Stop, Walk};
-use super::report::{peak_rss_mib, Report, ScanInfo, StageTimes, UNBOUNDED_WARNING_PX};
+use super::report::{peak_rss_mib, Hidden, Report, ScanInfo, StageTimes, UNBOUNDED_WARNING_PX};
 use super::sequential::run_sequential;
 use super::setup::RunPlan;
 use super::threaded::run_threaded;
 use crate::error::{Error, Result};
 use crate::gcm::Gcm;
 use crate::io::tiff_out::{page_padding, reserve, verify, Compression, PendingFile};
-use crate::options::RectifyOptions;
+use crate::options::{Occlusion, RectifyOptions};
 use crate::overview::{Pyramid, ValidBy};
 use crate::progress::{Cancel, Progress, Task};
 use crate::study::accuracy;
+use crate::transform::visibility::Visibility;
 use crate::transform::Transform;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
@@ -41,6 +42,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     let (t, approx) =
         if columns { (Transform::transposed(model, dem, plan.grid), plan.approx.transposed()) } else { (Transform::new(model, dem, plan.grid), plan.approx) };
     let gcm = Gcm::new(&t, approx, plan.gcm);
+    let visibility = (opts.occlusion != Occlusion::None).then(|| Visibility::new(&t, (src.info.width, src.info.height), plan.occlusion_tolerance()));
 
     // The piece as walked: bands `wr0..wr1` of tile columns `wc0..wc1`
     // (transposed, bands of the output's tile columns).
@@ -74,7 +76,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     }
 
     let run = Run {
-        inputs: Inputs { gcm: &gcm, src, dem, spec, pixels: plan.pixels, output: &opts.output, sync: opts.sync },
+        inputs: Inputs { gcm: &gcm, src, dem, spec, pixels: plan.pixels, output: &opts.output, sync: opts.sync, visibility: visibility.as_ref() },
         walk,
         budget: plan.budget,
         counters: Counters::default(),
@@ -157,5 +159,6 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         output_bytes,
         warnings,
         gcps: plan.gcp_fit.clone(),
+        occlusion: visibility.is_some().then(|| Hidden::new(run.counters.imaged.load(Ordering::Relaxed), run.counters.hidden.load(Ordering::Relaxed))),
     })
 }

@@ -48,6 +48,26 @@ pub struct Report {
     pub warnings: Vec<String>,
     /// What the ground control points did to the model, where given.
     pub gcps: Option<crate::camera::gcp::GcpFit>,
+    /// Under `--occlusion`: how much of the ground the scan images the
+    /// sensor does not see.
+    pub occlusion: Option<Hidden>,
+}
+
+/// Output pixels hidden from the sensor by the DSM (a true orthophoto's).
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct Hidden {
+    /// Output pixels whose ground the scan images.
+    pub imaged_px: u64,
+    /// Of them, those the sensor does not see.
+    pub hidden_px: u64,
+    /// `hidden_px / imaged_px`.
+    pub share: f64,
+}
+
+impl Hidden {
+    pub fn new(imaged_px: u64, hidden_px: u64) -> Hidden {
+        Hidden { imaged_px, hidden_px, share: if imaged_px == 0 { 0.0 } else { hidden_px as f64 / imaged_px as f64 } }
+    }
 }
 
 /// Past this (scan px), a run without a bound is warned about.

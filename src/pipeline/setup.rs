@@ -12,7 +12,7 @@ use crate::geodesy::{Crs, GroundCrs};
 use crate::geom::OutputGrid;
 use crate::io::source::{SampleType, SourceImage};
 use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec};
-use crate::options::{BandOrder, BigTiff, DemSource, Nodata, RectifyOptions};
+use crate::options::{BandOrder, BigTiff, DemSource, Nodata, Occlusion, RectifyOptions};
 use crate::overview::Pyramid;
 use crate::progress::Progress;
 use crate::transform::footprint::{auto_grid, mean_gsd};
@@ -264,7 +264,9 @@ impl RunPlan {
         let piece_h = (tr1 * tile).min(grid.height) - tr0 * tile;
         // A nodata value, or the mask: then the resampler says which pixels
         // have a value, and the encoder makes the mask's tiles of it.
-        let (nodata, mask) = match (opts.alpha, resolve_nodata(opts.nodata, src.info.sample)) {
+        // Hidden pixels that keep their values need the mask to say so.
+        let asked = if opts.occlusion == Occlusion::Mask && opts.nodata == Nodata::Auto { Nodata::Mask } else { opts.nodata };
+        let (nodata, mask) = match (opts.alpha, resolve_nodata(asked, src.info.sample)) {
             (true, _) => (None, false),
             (false, Nodata::Value(v)) => {
                 check_nodata(v, src.info.sample)?;
@@ -320,8 +322,17 @@ impl RunPlan {
             BigTiff::Auto => spec.needs_bigtiff(),
         };
         let area = camera.model().image_area();
-        let pixels = PixelOptions { kernel: opts.kernel, tile, fill: nodata.unwrap_or(0.0), alpha: opts.alpha, bands_out, area, mask };
+        let pixels =
+            PixelOptions { kernel: opts.kernel, tile, fill: nodata.unwrap_or(0.0), alpha: opts.alpha, bands_out, area, mask, occlusion: opts.occlusion };
         Ok(RunPlan { camera, src, dem, grid, approx, band_order, gcm, piece: [tc0, tr0, tcw, trh], spec, pixels, budget, gcp_fit })
+    }
+
+    /// Heights within this of the surface seen count as seen (a quarter of
+    /// an output pixel, in metres, within 2 cm and 1 m): covers the
+    /// positions' error and a surface's curvature within a pixel.
+    pub fn occlusion_tolerance(&self) -> f64 {
+        let metres = if self.camera.crs.is_geographic() { 111_320.0 } else { 1.0 };
+        (0.25 * self.grid.gsd * metres).clamp(0.02, 1.0)
     }
 
     /// Bands of tile columns: the stages walk the transposed grid.

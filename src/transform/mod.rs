@@ -9,6 +9,7 @@
 
 pub mod footprint;
 pub mod inverse;
+pub mod visibility;
 
 use crate::camera::SensorModel;
 use crate::dem::{Dem, Height, Lookup};

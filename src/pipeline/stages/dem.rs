@@ -7,6 +7,7 @@ use crate::pipeline::context::Run;
 
 /// The heights at the nodes of one band, from node row `first_j` on.
 pub struct DemMsg {
+    pub band: u32,
     pub first_j: i64,
     pub heights: Vec<NodeHeights>,
 }
@@ -17,5 +18,5 @@ pub fn node_heights(run: &Run, b: u32, before: &mut SharedRows<NodeHeights>) -> 
     let gcm = run.inputs.gcm;
     let (y0, y1) = run.walk.band_rows(b);
     let (j0, j1) = gcm.node_rows_for(y0, y1);
-    DemMsg { first_j: j0, heights: before.rows(j0, j1, |j| gcm.node_heights(j)).0 }
+    DemMsg { band: b, first_j: j0, heights: before.rows(j0, j1, |j| gcm.node_heights(j)).0 }
 }

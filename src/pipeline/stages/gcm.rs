@@ -7,6 +7,9 @@ use crate::dem::{Dem, Lookup};
 use crate::error::{Error, Result};
 use crate::gcm::{BandGcm, NodeRow};
 use crate::pipeline::context::Run;
+use crate::transform::visibility::{Seen, Visibility};
+use rayon::prelude::*;
+use std::sync::atomic::Ordering;
 
 /// The band's GCM rows; a DEM miss under the `error` policy fails the run.
 pub fn band_gcm(run: &Run, msg: DemMsg, before: &mut SharedRows<NodeRow>) -> Result<BandGcm> {
@@ -15,6 +18,12 @@ pub fn band_gcm(run: &Run, msg: DemMsg, before: &mut SharedRows<NodeRow>) -> Res
     let last_j = msg.first_j + msg.heights.len() as i64 - 1;
     let (rows, reused) = before.rows(msg.first_j, last_j, |j| gcm.node_row(j, &msg.heights[(j - msg.first_j) as usize], &mut miss));
     let mut band = gcm.finish_band(msg.first_j, rows, miss);
+    if let (Some(vis), None) = (run.inputs.visibility, band.miss) {
+        let seen = seen(run, &band, msg.band, vis);
+        run.counters.imaged.fetch_add(seen.imaged, Ordering::Relaxed);
+        run.counters.hidden.fetch_add(seen.hidden, Ordering::Relaxed);
+        band.seen = Some(seen);
+    }
     // Nodes worked out for this band, not those it shares with the one before.
     band.stats.nodes -= (reused * gcm.nodes_per_row()) as u64;
     if let Some(m) = band.miss {
@@ -22,6 +31,33 @@ pub fn band_gcm(run: &Run, msg: DemMsg, before: &mut SharedRows<NodeRow>) -> Res
     }
     run.counters.gcm.lock().expect("stats").add(&band.stats);
     Ok(band)
+}
+
+/// Which pixels of band `b` the sensor sees, a tile a task on the pool:
+/// each tile's scan positions from the band's GCM, then its Z-buffer.
+fn seen(run: &Run, band: &BandGcm, b: u32, vis: &Visibility) -> Seen {
+    let (y0, y1) = run.walk.band_rows(b);
+    let (t, (c0, c1)) = (run.walk.tile, run.walk.cols);
+    let gcm = run.inputs.gcm;
+    let tiles = run.pool.install(|| {
+        (c0..c1)
+            .into_par_iter()
+            .map(|tc| {
+                let (x0, x1) = (tc * t, ((tc + 1) * t).min(run.walk.grid.width));
+                let (w, h) = ((x1 - x0) as usize, (y1 - y0) as usize);
+                let (mut cols, mut rows) = (vec![0.0; w * h], vec![0.0; w * h]);
+                let mut miss = None;
+                for y in y0..y1 {
+                    let k = (y - y0) as usize * w;
+                    gcm.fill_row(band, y, x0, &mut cols[k..k + w], &mut rows[k..k + w], &mut miss);
+                }
+                let mut seen = vec![1u8; (t * t) as usize];
+                let (imaged, hidden) = vis.tile([x0, y0, x1, y1], t, &cols, &rows, &mut seen);
+                (seen, imaged, hidden)
+            })
+            .collect()
+    });
+    Seen::new(y0, c0 * t, t, tiles)
 }
 
 /// The error of a ground point where the DEM has no height and the policy

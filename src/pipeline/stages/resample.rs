@@ -6,6 +6,7 @@ use crate::dem::Lookup;
 use crate::error::Result;
 use crate::gcm::Gcm;
 use crate::io::source::{SampleType, SourceImage, SourceInfo, Window};
+use crate::options::Occlusion;
 use crate::pipeline::context::{PixelOptions, Run};
 use crate::resample::{resample_row, resample_spans, span_bounds, span_position, Kernel, Sample, SpanOutcome, View};
 use rayon::prelude::*;
@@ -287,6 +288,19 @@ pub fn resample_chunk<T: Sample + Recycle>(
                 if resample_row(opts.kernel, &view, cols, rws, px, valid, fill) {
                     for (i, p) in px.chunks_exact_mut(bands_in).enumerate().filter(|(i, _)| valid[*i]) {
                         reread((cols[i], rws[i]), p);
+                    }
+                }
+            }
+            if let Some(seen) = &msg.gcm.seen {
+                // Ground the sensor does not see: no value (and, unless
+                // asked to keep them, not the occluder's pixels either).
+                let keep = opts.occlusion == Occlusion::Mask;
+                for (i, p) in px.chunks_exact_mut(bands_in).enumerate() {
+                    if !seen.at((x0 + i) as u32, y) {
+                        valid[i] = false;
+                        if !keep {
+                            p.fill(fill);
+                        }
                     }
                 }
             }
