@@ -1,6 +1,15 @@
 //! What each subcommand does with its validated options: call the library,
 //! print a summary.
 
+/// `println!` that never panics: where stdout is gone (a closed pipe, as
+/// under `| head`) the line is dropped, and the command's work stands.
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($t)*);
+    }};
+}
+
 use crate::cli::{AccuracyArgs, BatchArgs, Cli, Command, DemoArgs, MosaicArgs, RectifyArgs, SynthArgs};
 use crate::progress_bar::Bar;
 use anyhow::{anyhow, Context, Result};
@@ -82,9 +91,9 @@ fn run_cameras(a: &crate::cli::CamerasArgs) -> Result<()> {
     for w in &done.warnings {
         eprintln!("gcm-ortho: warning: {w}");
     }
-    print!("{}", gcm_ortho::camera::formats::convert::table(&done.entries));
+    say!("{}", gcm_ortho::camera::formats::convert::table(&done.entries).trim_end_matches('\n'));
     for p in &done.written {
-        println!("wrote {}", p.display());
+        say!("wrote {}", p.display());
     }
     Ok(())
 }
@@ -183,7 +192,7 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
     if a.dry_run {
         let mine: Vec<_> = jobs.iter().enumerate().filter(|(i, _)| i % shard.1 == shard.0).collect();
         for (i, j) in &mine {
-            println!("{i:>5}  {}  {} -> {}", j.name, j.config.image.display(), j.config.output.display());
+            say!("{i:>5}  {}  {} -> {}", j.name, j.config.image.display(), j.config.output.display());
         }
         // A job that would fail is said now, and the check fails (exit 3).
         let failing: Vec<_> = mine.iter().filter(|(_, j)| j.problem.is_some()).collect();
@@ -208,9 +217,9 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
         }
     });
     if !a.quiet {
-        println!("{:<24} {:>9} {:>8} {:>8} {:>9}  output", "job", "status", "time s", "MB/s", "max px");
+        say!("{:<24} {:>9} {:>8} {:>8} {:>9}  output", "job", "status", "time s", "MB/s", "max px");
         for r in &results {
-            println!(
+            say!(
                 "{:<24} {:>9} {:>8.2} {:>8} {:>9}  {}",
                 r.job,
                 format!("{:?}", r.status).to_lowercase(),
@@ -221,7 +230,7 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
             );
         }
         let count = |s: Status| results.iter().filter(|r| r.status == s).count();
-        println!(
+        say!(
             "shard {}/{}: {} jobs, {} done, {} skipped (current), {} failed, {} cancelled",
             shard.0 + 1,
             shard.1,
@@ -249,7 +258,7 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
         let (cols, rows) = parse_size("block", b)?;
         let r = gcm_ortho::synth::block::synth_block(&o, cols, rows, &Bar::new(a.quiet))?;
         if !a.quiet {
-            println!(
+            say!(
                 "synth: a block of {} frames of {}x{}, mosaic grid {}x{} at {} m, {:.1} s",
                 r.frames,
                 o.width,
@@ -259,13 +268,13 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
                 r.grid.gsd,
                 t.elapsed().as_secs_f64()
             );
-            println!("  {}\n  {}\n  {}", r.manifest.display(), r.dem.display(), r.truth.display());
+            say!("  {}\n  {}\n  {}", r.manifest.display(), r.dem.display(), r.truth.display());
         }
         return Ok(());
     }
     let r = synth(&o, &Bar::new(a.quiet))?;
     if !a.quiet {
-        println!(
+        say!(
             "synth: {}x{} {} scan, GSD {} m, flying height {:.0} m, relief {:.0}–{:.0} m (steepest {:.0}°), {:.1} s",
             o.width,
             o.height,
@@ -278,7 +287,7 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
             t.elapsed().as_secs_f64()
         );
         for p in [Some(&r.scan), Some(&r.camera), Some(&r.dem), r.truth.as_ref(), Some(&r.checkpoints)].into_iter().flatten() {
-            println!("  {}", p.display());
+            say!("  {}", p.display());
         }
     }
     Ok(())
@@ -286,7 +295,7 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
 
 fn print_report(r: &Report) {
     let s = &r.stage_seconds;
-    println!(
+    say!(
         "rectify: {}x{} px at {} {} ({}), {:.2} s wall, {:.1} MB/s in, {:.1} Mpx/s out, peak RSS {} MiB",
         r.grid.width,
         r.grid.height,
@@ -299,20 +308,17 @@ fn print_report(r: &Report) {
         r.output_mpx_per_s,
         r.peak_rss_mib.map(|m| format!("{m:.0}")).unwrap_or_else(|| "?".into())
     );
-    println!(
-        "  stages (busy s): setup {:.2}, dem {:.2}, gcm {:.2}, read {:.2}, resample {:.2}, encode {:.2}",
-        s.setup, s.dem, s.gcm, s.read, s.resample, s.encode
-    );
+    say!("  stages (busy s): setup {:.2}, dem {:.2}, gcm {:.2}, read {:.2}, resample {:.2}, encode {:.2}", s.setup, s.dem, s.gcm, s.read, s.resample, s.encode);
     let e = &r.accuracy_estimate;
     let bound = r.error_bound.map(|b| format!(", bound {b} px {}", if r.error_within { "held" } else { "MISSED" })).unwrap_or_default();
-    println!("  GCM vs exact model (sampled): RMS {:.4} px, max {:.4} px over {} pixels{bound}", e.rms, e.max, e.count);
+    say!("  GCM vs exact model (sampled): RMS {:.4} px, max {:.4} px over {} pixels{bound}", e.rms, e.max, e.count);
     if let Some(h) = &r.occlusion {
-        println!("  occlusion: {} of {} imaged pixels hidden from the sensor ({:.2} %)", h.hidden_px, h.imaged_px, 100.0 * h.share);
+        say!("  occlusion: {} of {} imaged pixels hidden from the sensor ({:.2} %)", h.hidden_px, h.imaged_px, 100.0 * h.share);
     }
     if let Some(g) = &r.gcps {
-        println!("  GCPs ({}): RMS {:.3} px before, {:.3} px after; {}", g.method, g.rms_before, g.rms_after, g.correction);
+        say!("  GCPs ({}): RMS {:.3} px before, {:.3} px after; {}", g.method, g.rms_before, g.rms_after, g.correction);
         for p in &g.points {
-            println!("    {:<12} before ({:+.3}, {:+.3})  after ({:+.3}, {:+.3}) px", p.id, p.before[0], p.before[1], p.after[0], p.after[1]);
+            say!("    {:<12} before ({:+.3}, {:+.3})  after ({:+.3}, {:+.3}) px", p.id, p.before[0], p.before[1], p.after[0], p.after[1]);
         }
     }
 }
@@ -375,7 +381,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         if a.trend == Trend::Mean { dem.mean_plane(area) } else { dem.trend_plane(area) }.ok_or_else(|| anyhow!("no DEM heights in the output area"))?;
     let approx = Approx::new(cam.model(), &grid, plane).ok_or_else(|| anyhow!("plane behind the camera"))?;
     let t = Transform::new(cam.model(), &dem, grid);
-    println!(
+    say!(
         "accuracy of A + GCM against the exact model: {}x{} output at {} m, every {} row/column, trend {}{}",
         grid.width,
         grid.height,
@@ -384,9 +390,21 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         format!("{:?}", a.trend).to_lowercase(),
         a.max_slope.map(|m| format!(", only where the slope is at most {m}°")).unwrap_or_default()
     );
-    println!(
+    say!(
         "{:>4} {:>9} {:>9} | {:>9} {:>9} {:>9} | {:>6} {:>6} {:>6} {:>6} | {:>8} {:>8} {:>9}",
-        "k", "mode", "bound", "mean px", "RMS px", "max px", "<0.1", "<0.25", "<0.5", "<1", "prep s", "fill s", "refined%"
+        "k",
+        "mode",
+        "bound",
+        "mean px",
+        "RMS px",
+        "max px",
+        "<0.1",
+        "<0.25",
+        "<0.5",
+        "<1",
+        "prep s",
+        "fill s",
+        "refined%"
     );
     let mut rows = Vec::new();
     let mut cases: Vec<(u32, CorrectionMode, Option<f64>)> = Vec::new();
@@ -403,7 +421,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         let ev = gcm_ortho::study::accuracy::evaluate_where(&gcm, a.step, a.max_slope, Some((w, h)), None);
         let e = &ev.errors;
         let refined = 100.0 * ev.gcm.refined_cells as f64 / ev.gcm.cells.max(1) as f64;
-        println!(
+        say!(
             "{:>4} {:>9} {:>9} | {:>9.4} {:>9.4} {:>9.4} | {:>6.1} {:>6.1} {:>6.1} {:>6.1} | {:>8.3} {:>8.3} {:>9.1}",
             k,
             format!("{mode:?}").to_lowercase(),
@@ -430,7 +448,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         let n = offs.len().max(1) as f64;
         let rms = (offs.iter().map(|(_, d)| d[0] * d[0] + d[1] * d[1]).sum::<f64>() / n).sqrt();
         let max = offs.iter().map(|(_, d)| d[0].hypot(d[1])).fold(0.0, f64::max);
-        println!(
+        say!(
             "checkpoints (as Beloshapkin's Table 2), k = {} bilinear: {} points, RMS {:.4} px = {:.4} m, max {:.4} px",
             a.map_sparsity,
             offs.len(),
@@ -503,7 +521,7 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
     let vrt = rpcgrid::geolocation_vrt(&abs(&a.sensor.image), &abs(&a.output), w, h, info.bands, data_type, a.step);
     write_file(&vrt_path, vrt.as_bytes())?;
-    println!(
+    say!(
         "rpc-grid: {}x{} nodes every {} px for {w}x{h} px; {} nodes failed the {} px back-check, {} corrected",
         grid.cols,
         grid.rows,
@@ -512,22 +530,30 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
         rpcgrid::BACK_CHECK_PX,
         grid.corrected
     );
-    println!("  {}\n  {} (gdalwarp -geoloc {} …)", a.output.display(), vrt_path.display(), vrt_path.display());
+    say!("  {}\n  {} (gdalwarp -geoloc {} …)", a.output.display(), vrt_path.display(), vrt_path.display());
     if let Some(steps) = &a.accuracy {
         let steps: Vec<u32> = steps
             .split(',')
             .map(|s| s.trim().parse::<u32>())
             .collect::<std::result::Result<_, _>>()
             .map_err(|_| usage(format!("--accuracy '{steps}' is not a list of steps")))?;
-        println!("accuracy of the grid against the exact solve, every {} px:", a.sample);
-        println!("{:>5} | {:>9} {:>9} {:>9} | {:>6} {:>6} {:>6} {:>6} | {:>9}", "step", "mean m", "RMS m", "max m", "<0.5", "<1", "<2.5", "<5", "corrected");
+        say!("accuracy of the grid against the exact solve, every {} px:", a.sample);
+        say!("{:>5} | {:>9} {:>9} {:>9} | {:>6} {:>6} {:>6} {:>6} | {:>9}", "step", "mean m", "RMS m", "max m", "<0.5", "<1", "<2.5", "<5", "corrected");
         let mut rows = Vec::new();
         for s in steps {
             let g = rpcgrid::build(&model, &dem, w, h, s, z0).map_err(on_dem)?;
             let acc = gcm_ortho::study::rpc_grid::accuracy(&g, &model, &dem, w, h, a.sample, z0);
-            println!(
+            say!(
                 "{:>5} | {:>9.4} {:>9.4} {:>9.4} | {:>6.1} {:>6.1} {:>6.1} {:>6.1} | {:>9}",
-                s, acc.mean_abs_m, acc.rms_m, acc.max_m, acc.pct_under[0], acc.pct_under[1], acc.pct_under[2], acc.pct_under[3], acc.corrected_nodes
+                s,
+                acc.mean_abs_m,
+                acc.rms_m,
+                acc.max_m,
+                acc.pct_under[0],
+                acc.pct_under[1],
+                acc.pct_under[2],
+                acc.pct_under[3],
+                acc.corrected_nodes
             );
             rows.push(acc);
         }
@@ -549,20 +575,24 @@ fn run_demo(a: &DemoArgs, signals: &Signals) -> Result<()> {
     };
     let (width, height) = parse_size("size", &a.size)?;
     let opts = SynthOptions { out: dir.join("scene"), width, height, kappa_deg: 30.0, ..Default::default() };
-    println!("demo: generating a {width}x{height} hilly film scene (swing 30°) in {}", opts.out.display());
+    say!("demo: generating a {width}x{height} hilly film scene (swing 30°) in {}", opts.out.display());
     let t = std::time::Instant::now();
     let scene = synth(&opts, &Bar::new(a.quiet))?;
-    println!("  synth: {:.1} s, GSD {} m, flying height {:.0} m", t.elapsed().as_secs_f64(), scene.gsd, scene.flying_height);
+    say!("  synth: {:.1} s, GSD {} m, flying height {:.0} m", t.elapsed().as_secs_f64(), scene.gsd, scene.flying_height);
     let out = dir.join("ortho.tif");
     let opts = RectifyOptions::new(scene.scan.clone(), scene.camera.clone(), DemSource::File(scene.dem.clone()), out.clone());
     let report = rectify(&opts, &Bar::new(a.quiet), &signals.cancel)?;
     print_report(&report);
     let truth = scene.truth.ok_or_else(|| anyhow!("the demo scene has no truth image"))?;
     let c = compare(&read_grey(&out, 0.0)?, &read_grey(&truth, 0.0)?, 48);
-    println!(
+    say!(
         "  vs truth: mean |difference| {:.2} grey levels over {} pixels; offset by correlation in {} windows: mean {:.3} px, 95% under {:.3} px",
-        c.mean_abs_diff, c.pixels, c.windows, c.mean_shift, c.p95_shift
+        c.mean_abs_diff,
+        c.pixels,
+        c.windows,
+        c.mean_shift,
+        c.p95_shift
     );
-    println!("  files: {}", if a.keep.is_some() { dir.display().to_string() } else { "(temporary, removed; use --keep DIR)".into() });
+    say!("  files: {}", if a.keep.is_some() { dir.display().to_string() } else { "(temporary, removed; use --keep DIR)".into() });
     Ok(())
 }

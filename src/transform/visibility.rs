@@ -93,6 +93,8 @@ pub struct Visibility<'a> {
     tolerance: f64,
     /// The scan's size (columns, rows): pixels imaged outside it are not counted.
     scan: (f64, f64),
+    /// The DSM's posts where the lattice is them (every `n`th).
+    posts: Option<(&'a crate::dem::GridDem, i64)>,
     /// The highest surface in blocks of the lattice, found on first need:
     /// how far toward the sensor a tile's occluders may stand.
     blocks: BlockMax,
@@ -107,7 +109,7 @@ struct BlockMax {
     j0: i64,
     across: usize,
     down: usize,
-    max: Vec<std::sync::OnceLock<f32>>,
+    max: Vec<std::sync::OnceLock<(f32, f32)>>,
 }
 
 /// Lattice cells a side of a block of [`BlockMax`].
@@ -121,6 +123,8 @@ type Projected = (f64, f64, f64);
 const SPLIT_BEND: f64 = 4.0;
 /// A cell that bends is split into this many pieces a side.
 const SPLIT: usize = 4;
+/// Pixels a side of the blocks of a tile that get a Z-buffer each.
+const SUB: usize = 64;
 /// The reach toward the sensor is cut at this many tile sides (a line of
 /// sight within a few degrees of the horizon would reach out of the scene).
 const MAX_REACH_TILES: f64 = 16.0;
@@ -133,6 +137,10 @@ impl<'a> Visibility<'a> {
         let grid = t.grid;
         let aligned = match &t.dem.model {
             HeightModel::Grid(g) if t.dem.to_dem.is_none() && g.transform[2] == 0.0 && g.transform[4] == 0.0 => Some(g.transform),
+            _ => None,
+        };
+        let posts = match (&t.dem.model, aligned) {
+            (HeightModel::Grid(g), Some(gt)) => Some((g, (0.5 * grid.gsd / gt[1].abs()).floor().max(1.0) as i64)),
             _ => None,
         };
         let lattice = match aligned {
@@ -153,59 +161,99 @@ impl<'a> Visibility<'a> {
         let (i0, j0, i1, j1) = lattice.cover(region);
         let (across, down) = (((i1 - i0) / BLOCK + 1) as usize, ((j1 - j0) / BLOCK + 1) as usize);
         let blocks = BlockMax { i0, j0, across, down, max: (0..across * down).map(|_| std::sync::OnceLock::new()).collect() };
-        Visibility { t, lattice, tolerance, scan: (scan.0 as f64, scan.1 as f64), blocks }
+        Visibility { t, lattice, tolerance, scan: (scan.0 as f64, scan.1 as f64), posts, blocks }
     }
 
-    /// The highest height in block (bi, bj) (its nodes and its far edge's),
-    /// −∞ where it has none or lies outside the region.
-    fn block_max(&self, bi: i64, bj: i64) -> f64 {
+    /// The highest height in block (bi, bj) (its nodes and its far edge's)
+    /// and the steepest the surface gets in it (an upper bound of the
+    /// bilinear gradient's length, height per ground unit): −∞, 0 where it
+    /// has none or lies outside the region.
+    fn block(&self, bi: i64, bj: i64) -> (f64, f64) {
         let b = &self.blocks;
         if bi < 0 || bj < 0 || bi >= b.across as i64 || bj >= b.down as i64 {
-            return f64::NEG_INFINITY;
+            return (f64::NEG_INFINITY, 0.0);
         }
-        *b.max[bj as usize * b.across + bi as usize].get_or_init(|| {
+        let (hi, steep) = *b.max[bj as usize * b.across + bi as usize].get_or_init(|| {
             let (i0, j0) = (b.i0 + bi * BLOCK, b.j0 + bj * BLOCK);
-            let mut hi = f64::NEG_INFINITY;
-            for j in j0..=j0 + BLOCK {
-                for i in i0..=i0 + BLOCK {
-                    let (x, y) = self.lattice.node(i, j);
-                    let z = self.z(x, y);
-                    if z > hi {
-                        hi = z;
+            let n = (BLOCK + 1) as usize;
+            let z: Vec<f64> = (j0..=j0 + BLOCK).flat_map(|j| (i0..=i0 + BLOCK).map(move |i| (i, j))).map(|(i, j)| self.node_z(i, j)).collect();
+            let hi = z.iter().copied().filter(|v| v.is_finite()).fold(f64::NEG_INFINITY, f64::max);
+            // Within a bilinear cell each partial derivative lies between
+            // its two edges' differences.
+            let (mut gx, mut gy) = (0.0f64, 0.0f64);
+            for r in 0..n {
+                for c in 0..n {
+                    let k = r * n + c;
+                    if c + 1 < n {
+                        let d = (z[k + 1] - z[k]).abs();
+                        gx = if d.is_nan() { gx } else { gx.max(d) };
+                    }
+                    if r + 1 < n {
+                        let d = (z[k + n] - z[k]).abs();
+                        gy = if d.is_nan() { gy } else { gy.max(d) };
                     }
                 }
             }
-            hi as f32
-        }) as f64
+            (hi as f32, (gx / self.lattice.dx.abs()).hypot(gy / self.lattice.dy.abs()) as f32)
+        });
+        (hi as f64, steep as f64)
     }
 
-    /// How high above `zlo` the tile `rect` must look for occluders: the
-    /// highest block within the capped reach that stands high enough to
-    /// reach the tile along lines of sight sloping `slope` (horizontal per
-    /// unit of height, the steepest at the tile), at least `zhi − zlo`.
-    fn occluder_rise(&self, rect: [f64; 4], window: [f64; 4], zlo: f64, zhi: f64, slope: f64) -> f64 {
+    /// How high above `zlo` the ground `rect` must look for occluders:
+    /// the highest block toward the sensor (lines of sight within `g`,
+    /// horizontal per unit of height, extremes [min x, min y, max x, max
+    /// y]) that stands high enough to reach `rect`, within `cap` of it; at
+    /// least `zhi − zlo`.
+    fn occluder_rise(&self, rect: [f64; 4], g: [f64; 4], zlo: f64, zhi: f64, cap: f64) -> (f64, f64) {
         let mut rise = zhi - zlo;
+        let reach = |v: f64| if v == 0.0 { 0.0 } else { (v * 1e9).clamp(-cap, cap) };
+        let window = [rect[0] + reach(g[0]).min(0.0), rect[1] + reach(g[1]).min(0.0), rect[2] + reach(g[2]).max(0.0), rect[3] + reach(g[3]).max(0.0)];
         let (i0, j0, i1, j1) = self.lattice.cover(window);
         let b = &self.blocks;
         let (bi0, bj0) = ((i0 - b.i0).div_euclid(BLOCK), (j0 - b.j0).div_euclid(BLOCK));
         let (bi1, bj1) = ((i1 - b.i0).div_euclid(BLOCK), (j1 - b.j0).div_euclid(BLOCK));
+        let half = 0.5 * BLOCK as f64 * self.lattice.dx.abs().hypot(self.lattice.dy.abs());
+        let centre = |bi: i64, bj: i64| {
+            let (xa, ya) = self.lattice.node(b.i0 + bi * BLOCK, b.j0 + bj * BLOCK);
+            let (xb, yb) = self.lattice.node(b.i0 + (bi + 1) * BLOCK, b.j0 + (bj + 1) * BLOCK);
+            (0.5 * (xa + xb), 0.5 * (ya + yb))
+        };
         for bj in bj0..=bj1 {
             for bi in bi0..=bi1 {
-                let top = self.block_max(bi, bj) - zlo;
-                if !(top > rise) {
-                    continue;
-                }
-                // The block's ground, and its distance from the tile.
-                let (xa, ya) = self.lattice.node(b.i0 + bi * BLOCK, b.j0 + bj * BLOCK);
-                let (xb, yb) = self.lattice.node(b.i0 + (bi + 1) * BLOCK, b.j0 + (bj + 1) * BLOCK);
-                let dx = (xa.min(xb) - rect[2]).max(rect[0] - xa.max(xb)).max(0.0);
-                let dy = (ya.min(yb) - rect[3]).max(rect[1] - ya.max(yb)).max(0.0);
-                if dx.hypot(dy) <= top * slope {
+                let top = self.block(bi, bj).0 - zlo;
+                // Does the block meet the ground swept from `rect` toward
+                // the sensor as high as it stands?
+                let (x, y) = centre(bi, bj);
+                if top > rise && Corridor::toward(rect, g, top).holds(x, y, half) {
                     rise = top;
                 }
             }
         }
-        rise
+        // The steepest surface in that corridor.
+        let corridor = Corridor::toward(rect, g, rise);
+        let mut steep = 0.0f64;
+        for bj in bj0..=bj1 {
+            for bi in bi0..=bi1 {
+                let (x, y) = centre(bi, bj);
+                if corridor.holds(x, y, half) {
+                    steep = steep.max(self.block(bi, bj).1);
+                }
+            }
+        }
+        (rise, steep)
+    }
+
+    /// Height at lattice node (i, j): the DSM's post where the lattice is
+    /// its posts, NaN where it has none (after the hole policy).
+    fn node_z(&self, i: i64, j: i64) -> f64 {
+        if let Some((g, n)) = self.posts {
+            let z = g.post(i * n, j * n);
+            if z.is_finite() {
+                return z;
+            }
+        }
+        let (x, y) = self.lattice.node(i, j);
+        self.z(x, y)
     }
 
     /// Height of ground (x, y), NaN where the DSM has none.
@@ -271,57 +319,83 @@ impl<'a> Visibility<'a> {
             [rect[0] + m(g[0]).min(0.0), rect[1] + m(g[1]).min(0.0), rect[2] + m(g[2]).max(0.0), rect[3] + m(g[3]).max(0.0)]
         };
         // As far toward the sensor as the highest surface that could hide
-        // the tile stands (within the cap).
+        // the tile stands (within the cap); only the nodes in that corridor.
         let slope = g[0].abs().max(g[2].abs()).hypot(g[1].abs().max(g[3].abs()));
-        let rise = self.occluder_rise(rect, window(f64::INFINITY), zlo, zhi, slope);
-        let lattice = self.project_lattice(window(rise));
-
-        // The Z-buffer over the tile's scan positions, samples about a
-        // pixel's footprint apart.
-        let mut bb = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
-        for (&c, &r) in cols.iter().zip(rows) {
-            if c.is_finite() && r.is_finite() {
-                bb = [bb[0].min(c), bb[1].min(r), bb[2].max(c), bb[3].max(r)];
-            }
+        let (rise, steep) = self.occluder_rise(rect, g, zlo, zhi, cap);
+        // Nothing in reach stands high enough to hide half a pixel, or no
+        // surface there rises as steeply as the lines of sight (terrain
+        // under a camera looking down): all seen.
+        if rise * slope < 0.5 * self.t.grid.gsd || steep * slope < 0.9 {
+            return self.count_imaged(cols, rows);
         }
-        if !bb[0].is_finite() {
-            return (0, 0);
-        }
-        let step = 0.5 * footprint(cols, rows, w, h).max(1e-3);
-        let n = (w * h) as f64;
-        // Never more than 4 samples a pixel (a tile turned 45° fills half its box).
-        let step = step.max(((bb[2] - bb[0]) * (bb[3] - bb[1]) / (16.0 * n)).sqrt());
-        let zb = ZBuffer::new(bb, step);
-        let mut zb = zb;
-        lattice.rasterise(self, &mut zb);
+        let lattice = self.project_lattice(window(rise), &Corridor::toward(rect, g, rise));
 
+        // A Z-buffer for each block of the tile's pixels: the box of a
+        // block's scan positions hugs them (a whole tile's, turned, seen in
+        // perspective, its roofs displaced, holds four times its area).
+        let boxes = lattice.cell_boxes();
         let (src_w, src_h) = self.scan;
         let (mut imaged, mut hidden) = (0, 0);
-        for y in 0..h {
-            for x in 0..w {
-                let k = y * w + x;
-                let (c, r) = (cols[k], rows[k]);
-                if !(c >= 0.0 && r >= 0.0 && c <= src_w && r <= src_h) {
+        for by in (0..h).step_by(SUB) {
+            for bx in (0..w).step_by(SUB) {
+                let (bw, bh) = (SUB.min(w - bx), SUB.min(h - by));
+                let at = |x: usize, y: usize| (by + y) * w + bx + x;
+                let mut bb = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+                for y in 0..bh {
+                    for x in 0..bw {
+                        let (c, r) = (cols[at(x, y)], rows[at(x, y)]);
+                        if c.is_finite() && r.is_finite() {
+                            bb = [bb[0].min(c), bb[1].min(r), bb[2].max(c), bb[3].max(r)];
+                        }
+                    }
+                }
+                if !bb[0].is_finite() {
                     continue;
                 }
-                imaged += 1;
-                let (gx, gy) = self.t.ground(x0 as f64 + x as f64 + 0.5, y0 as f64 + y as f64 + 0.5);
-                let z = self.z(gx, gy);
-                if !z.is_finite() {
-                    continue;
+                let (mut sc, mut sr) = half_pixel_steps(cols, rows, w, [bx, by, bw, bh]);
+                // Never more than 16 samples a pixel.
+                let most = 16.0 * (bw * bh) as f64;
+                let samples = (bb[2] - bb[0] + 4.0 * sc) * (bb[3] - bb[1] + 4.0 * sr) / (sc * sr);
+                if samples > most {
+                    let k = (samples / most).sqrt();
+                    (sc, sr) = (sc * k, sr * k);
                 }
-                let (above, cell) = zb.seen_height(c, r);
-                // Hidden: a surface above the pixel's is seen where it
-                // would be, and not its own or its cell's neighbours' (a
-                // bilinear wall between two posts seen edge-on is no cover).
-                let own = self.lattice.cell(gx, gy);
-                if z + self.tolerance < above && ((cell.0 - own.0).abs() > 1 || (cell.1 - own.1).abs() > 1) {
-                    seen[y * t as usize + x] = 0;
-                    hidden += 1;
+                let mut zb = ZBuffer::new(bb, sc, sr);
+                lattice.rasterise(self, &boxes, &mut zb);
+                for y in 0..bh {
+                    for x in 0..bw {
+                        let k = at(x, y);
+                        let (c, r) = (cols[k], rows[k]);
+                        if !(c >= 0.0 && r >= 0.0 && c <= src_w && r <= src_h) {
+                            continue;
+                        }
+                        imaged += 1;
+                        let (gx, gy) = self.t.ground((x0 as usize + bx + x) as f64 + 0.5, (y0 as usize + by + y) as f64 + 0.5);
+                        let own = self.lattice.cell(gx, gy);
+                        let z = lattice.height(self.lattice, gx, gy, own);
+                        if !z.is_finite() {
+                            continue;
+                        }
+                        let (above, cell) = zb.seen_height(c, r);
+                        // Hidden: a surface above the pixel's is seen where it
+                        // would be, and not its own or its cell's neighbours'
+                        // (a bilinear wall between two posts seen edge-on is
+                        // no cover).
+                        if z + self.tolerance < above && ((cell.0 - own.0).abs() > 1 || (cell.1 - own.1).abs() > 1) {
+                            seen[(by + y) * t as usize + bx + x] = 0;
+                            hidden += 1;
+                        }
+                    }
                 }
             }
         }
         (imaged, hidden)
+    }
+
+    /// Of these scan positions, how many are in the scan (and none hidden).
+    fn count_imaged(&self, cols: &[f64], rows: &[f64]) -> (u64, u64) {
+        let (w, h) = self.scan;
+        (cols.iter().zip(rows).filter(|&(&c, &r)| c >= 0.0 && r >= 0.0 && c <= w && r <= h).count() as u64, 0)
     }
 
     /// The lowest and highest height at the lattice nodes over ground `rect`
@@ -331,8 +405,7 @@ impl<'a> Visibility<'a> {
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for j in j0..=j1 {
             for i in i0..=i1 {
-                let (x, y) = self.lattice.node(i, j);
-                let z = self.z(x, y);
+                let z = self.node_z(i, j);
                 if z.is_finite() {
                     lo = lo.min(z);
                     hi = hi.max(z);
@@ -347,7 +420,7 @@ impl<'a> Visibility<'a> {
     }
 
     /// The lattice nodes over ground `rect`, projected into the scan.
-    fn project_lattice(&self, rect: [f64; 4]) -> ProjectedLattice {
+    fn project_lattice(&self, rect: [f64; 4], corridor: &Corridor) -> ProjectedLattice {
         let (i0, j0, i1, j1) = self.lattice.cover(rect);
         let (ni, nj) = ((i1 - i0 + 1) as usize, (j1 - j0 + 1) as usize);
         let mut xs = Vec::with_capacity(ni * nj);
@@ -358,13 +431,57 @@ impl<'a> Visibility<'a> {
                 let (x, y) = self.lattice.node(i, j);
                 xs.push(x);
                 ys.push(y);
-                zs.push(self.z(x, y));
+                // (A NaN height: not projected, no cell of it drawn.)
+                zs.push(if corridor.holds(x, y, self.lattice.dx.abs().max(self.lattice.dy.abs())) { self.node_z(i, j) } else { f64::NAN });
             }
         }
-        let mut cs = vec![0.0; xs.len()];
-        let mut rs = vec![0.0; xs.len()];
-        self.t.model.project_many(&xs, &ys, &zs, &mut cs, &mut rs);
+        // Only the nodes with a height are projected.
+        let keep: Vec<usize> = (0..zs.len()).filter(|&k| zs[k].is_finite()).collect();
+        let pick = |v: &[f64]| keep.iter().map(|&k| v[k]).collect::<Vec<f64>>();
+        let (mut c, mut r) = (vec![0.0; keep.len()], vec![0.0; keep.len()]);
+        self.t.model.project_many(&pick(&xs), &pick(&ys), &pick(&zs), &mut c, &mut r);
+        let mut cs = vec![f64::NAN; xs.len()];
+        let mut rs = vec![f64::NAN; xs.len()];
+        for (n, &k) in keep.iter().enumerate() {
+            (cs[k], rs[k]) = (c[n], r[n]);
+        }
         ProjectedLattice { i0: i0 as i32, j0: j0 as i32, ni, nj, xs, ys, zs, cs, rs }
+    }
+}
+
+/// The ground a tile's occluders can stand on: the tile swept toward the
+/// sensor along `g` (horizontal per unit of height) up to `rise`.
+struct Corridor {
+    rect: [f64; 4],
+    g: (f64, f64),
+    rise: f64,
+}
+
+impl Corridor {
+    /// `rect` swept along the mean of lines of sight `g` (extremes [min x,
+    /// min y, max x, max y]) up to `rise`, widened by how much they turn.
+    fn toward(rect: [f64; 4], g: [f64; 4], rise: f64) -> Corridor {
+        let mean = (0.5 * (g[0] + g[2]), 0.5 * (g[1] + g[3]));
+        let turn = (0.5 * rise * (g[2] - g[0]), 0.5 * rise * (g[3] - g[1]));
+        Corridor { rect: [rect[0] - turn.0, rect[1] - turn.1, rect[2] + turn.0, rect[3] + turn.1], g: mean, rise }
+    }
+
+    /// Is ground (x, y) within `margin` of the corridor? (Some t in
+    /// [0, rise] puts (x, y) − t g in the rectangle.)
+    fn holds(&self, x: f64, y: f64, margin: f64) -> bool {
+        let (mut lo, mut hi) = (0.0f64, self.rise.max(0.0));
+        for (p, g, a, b) in [(x, self.g.0, self.rect[0] - margin, self.rect[2] + margin), (y, self.g.1, self.rect[1] - margin, self.rect[3] + margin)] {
+            if g.abs() < 1e-12 {
+                if p < a || p > b {
+                    return false;
+                }
+            } else {
+                let (t1, t2) = ((p - b) / g, (p - a) / g);
+                lo = lo.max(t1.min(t2));
+                hi = hi.min(t1.max(t2));
+            }
+        }
+        lo <= hi
     }
 }
 
@@ -383,24 +500,61 @@ struct ProjectedLattice {
 }
 
 impl ProjectedLattice {
+    /// Each cell's box in the scan (its four nodes'), empty where a node
+    /// has no height or no image.
+    fn cell_boxes(&self) -> Vec<[f32; 4]> {
+        let (ni, nj) = (self.ni.saturating_sub(1), self.nj.saturating_sub(1));
+        let mut out = Vec::with_capacity(ni * nj);
+        for j in 0..nj {
+            for i in 0..ni {
+                let k = j * self.ni + i;
+                let ks = [k, k + 1, k + self.ni, k + self.ni + 1];
+                if ks.iter().any(|&q| !(self.cs[q].is_finite() && self.rs[q].is_finite() && self.zs[q].is_finite())) {
+                    out.push([f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY]);
+                    continue;
+                }
+                let (mut b0, mut b1, mut b2, mut b3) = (f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+                for q in ks {
+                    (b0, b1, b2, b3) = (b0.min(self.cs[q]), b1.min(self.rs[q]), b2.max(self.cs[q]), b3.max(self.rs[q]));
+                }
+                out.push([b0 as f32, b1 as f32, b2 as f32, b3 as f32]);
+            }
+        }
+        out
+    }
+
+    /// The bilinear height at ground (x, y) in cell `cell` (global
+    /// indices), from the cell's nodes; NaN where it has none.
+    fn height(&self, l: Lattice, x: f64, y: f64, cell: (i32, i32)) -> f64 {
+        let (i, j) = ((cell.0 - self.i0) as i64, (cell.1 - self.j0) as i64);
+        if i < 0 || j < 0 || i + 1 >= self.ni as i64 || j + 1 >= self.nj as i64 {
+            return f64::NAN;
+        }
+        let k = j as usize * self.ni + i as usize;
+        let fx = (x - l.ox) / l.dx - cell.0 as f64;
+        let fy = (y - l.oy) / l.dy - cell.1 as f64;
+        let z = [self.zs[k], self.zs[k + 1], self.zs[k + self.ni], self.zs[k + self.ni + 1]];
+        (z[0] * (1.0 - fx) + z[1] * fx) * (1.0 - fy) + (z[2] * (1.0 - fx) + z[3] * fx) * fy
+    }
+
     /// Every cell with heights at its four nodes into `zb`: two triangles,
     /// or bilinear pieces where it bends (a building's corner).
-    fn rasterise(&self, vis: &Visibility, zb: &mut ZBuffer) {
+    fn rasterise(&self, vis: &Visibility, boxes: &[[f32; 4]], zb: &mut ZBuffer) {
         let p = |k: usize| -> Projected { (self.cs[k], self.rs[k], self.zs[k]) };
+        let [c0, r0, c1, r1] = zb.extent();
         for j in 0..self.nj.saturating_sub(1) {
             for i in 0..self.ni.saturating_sub(1) {
+                // (A cell without four projected heights has an empty box.)
+                let b = boxes[j * (self.ni - 1) + i];
+                if b[2] < c0 || b[0] > c1 || b[3] < r0 || b[1] > r1 {
+                    continue;
+                }
                 let k = j * self.ni + i;
                 let q = [p(k), p(k + 1), p(k + self.ni), p(k + self.ni + 1)];
-                if q.iter().any(|v| !(v.0.is_finite() && v.1.is_finite() && v.2.is_finite())) {
-                    continue;
-                }
-                if !zb.touches(&q) {
-                    continue;
-                }
                 let bend = (q[0].2 + q[3].2 - q[1].2 - q[2].2).abs();
                 let cell = (self.i0 + i as i32, self.j0 + j as i32);
                 if bend > SPLIT_BEND * vis.tolerance {
-                    self.split(vis, k, cell, zb);
+                    self.split(k, cell, zb);
                 } else {
                     zb.quad(q, cell);
                 }
@@ -408,29 +562,36 @@ impl ProjectedLattice {
         }
     }
 
-    /// Cell `k` (its first node) as `SPLIT²` bilinear pieces, each projected.
-    fn split(&self, vis: &Visibility, k: usize, cell: (i32, i32), zb: &mut ZBuffer) {
-        let (x0, y0) = (self.xs[k], self.ys[k]);
+    /// Cell `k` (its first node) as `SPLIT²` bilinear pieces. Their nodes
+    /// are placed in the scan by the affine map through the cell's four
+    /// projected nodes (which bend, so they span 3-D): over a cell, a
+    /// camera's projection departs from affine by far less than a pixel.
+    fn split(&self, k: usize, cell: (i32, i32), zb: &mut ZBuffer) {
+        let ks = [k, k + 1, k + self.ni, k + self.ni + 1];
+        let (x0, y0, z0) = (self.xs[k], self.ys[k], self.zs[k]);
+        let d = |q: usize| nalgebra::Vector3::new(self.xs[q] - x0, self.ys[q] - y0, self.zs[q] - z0);
+        let m = nalgebra::Matrix3::from_columns(&[d(ks[1]), d(ks[2]), d(ks[3])]);
+        let Some(inv) = m.try_inverse() else {
+            return;
+        };
+        let img = |q: usize| nalgebra::Vector2::new(self.cs[q] - self.cs[k], self.rs[q] - self.rs[k]);
+        let a = nalgebra::Matrix2x3::from_columns(&[img(ks[1]), img(ks[2]), img(ks[3])]) * inv;
+        let z = [self.zs[ks[0]], self.zs[ks[1]], self.zs[ks[2]], self.zs[ks[3]]];
         let (dx, dy) = (self.xs[k + 1] - x0, self.ys[k + self.ni] - y0);
-        let z = [self.zs[k], self.zs[k + 1], self.zs[k + self.ni], self.zs[k + self.ni + 1]];
         let n = SPLIT;
-        let mut pts = Vec::with_capacity((n + 1) * (n + 1));
+        let mut pts = [(0.0, 0.0, 0.0); (SPLIT + 1) * (SPLIT + 1)];
         for b in 0..=n {
-            for a in 0..=n {
-                let (fa, fb) = (a as f64 / n as f64, b as f64 / n as f64);
+            for c in 0..=n {
+                let (fa, fb) = (c as f64 / n as f64, b as f64 / n as f64);
                 let zz = z[0] * (1.0 - fa) * (1.0 - fb) + z[1] * fa * (1.0 - fb) + z[2] * (1.0 - fa) * fb + z[3] * fa * fb;
-                let (x, y) = (x0 + fa * dx, y0 + fb * dy);
-                let (c, r) = vis.t.model.project(x, y, zz).unwrap_or((f64::NAN, f64::NAN));
-                pts.push((c, r, zz));
+                let p = a * nalgebra::Vector3::new(fa * dx, fb * dy, zz - z0);
+                pts[b * (n + 1) + c] = (self.cs[k] + p.x, self.rs[k] + p.y, zz);
             }
         }
         for b in 0..n {
-            for a in 0..n {
-                let k = b * (n + 1) + a;
-                let q = [pts[k], pts[k + 1], pts[k + n + 1], pts[k + n + 2]];
-                if q.iter().all(|v| v.0.is_finite() && v.1.is_finite()) {
-                    zb.quad(q, cell);
-                }
+            for c in 0..n {
+                let q = b * (n + 1) + c;
+                zb.quad([pts[q], pts[q + 1], pts[q + n + 1], pts[q + n + 2]], cell);
             }
         }
     }
@@ -442,41 +603,37 @@ impl ProjectedLattice {
 struct ZBuffer {
     c0: f64,
     r0: f64,
-    inv: f64,
+    /// Samples a scan column and a scan row.
+    inv: (f64, f64),
     w: usize,
     h: usize,
     z: Vec<f32>,
-    /// d z / d (buffer column, row) of the triangle seen at each sample.
-    slope: Vec<[f32; 2]>,
-    /// The lattice cell it belongs to.
-    cell: Vec<(i32, i32)>,
+    /// The triangle seen at each sample, in `tris`.
+    tri: Vec<u32>,
+    /// Each triangle drawn: d z / d (buffer column, row), and its lattice cell.
+    tris: Vec<([f32; 2], (i32, i32))>,
 }
 
 impl ZBuffer {
-    /// Samples `step` scan pixels apart over `[c0, r0, c1, r1]` and a
-    /// sample beyond.
-    fn new([c0, r0, c1, r1]: [f64; 4], step: f64) -> ZBuffer {
-        let (c0, r0) = (c0 - 2.0 * step, r0 - 2.0 * step);
-        let w = ((c1 - c0) / step).ceil() as usize + 3;
-        let h = ((r1 - r0) / step).ceil() as usize + 3;
-        ZBuffer { c0, r0, inv: 1.0 / step, w, h, z: vec![f32::NEG_INFINITY; w * h], slope: vec![[0.0; 2]; w * h], cell: vec![(i32::MIN, i32::MIN); w * h] }
+    /// Samples `sc` scan columns and `sr` rows apart over `[c0, r0, c1,
+    /// r1]` and two beyond.
+    fn new([c0, r0, c1, r1]: [f64; 4], sc: f64, sr: f64) -> ZBuffer {
+        let (c0, r0) = (c0 - 2.0 * sc, r0 - 2.0 * sr);
+        let w = ((c1 - c0) / sc).ceil() as usize + 3;
+        let h = ((r1 - r0) / sr).ceil() as usize + 3;
+        ZBuffer { c0, r0, inv: (1.0 / sc, 1.0 / sr), w, h, z: vec![f32::NEG_INFINITY; w * h], tri: vec![0; w * h], tris: Vec::new() }
     }
 
     /// Buffer coordinates of scan (c, r): sample centres at integers.
     #[inline]
     fn at(&self, c: f64, r: f64) -> (f64, f64) {
-        ((c - self.c0) * self.inv - 0.5, (r - self.r0) * self.inv - 0.5)
+        ((c - self.c0) * self.inv.0 - 0.5, (r - self.r0) * self.inv.1 - 0.5)
     }
 
-    /// Does the quad's box meet the buffer?
-    fn touches(&self, q: &[Projected; 4]) -> bool {
-        let (mut a, mut b) = (f64::INFINITY, f64::INFINITY);
-        let (mut c, mut d) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
-        for p in q {
-            let (x, y) = self.at(p.0, p.1);
-            (a, b, c, d) = (a.min(x), b.min(y), c.max(x), d.max(y));
-        }
-        c >= 0.0 && d >= 0.0 && a <= (self.w - 1) as f64 && b <= (self.h - 1) as f64
+    /// The scan box the samples cover.
+    fn extent(&self) -> [f32; 4] {
+        let (c1, r1) = (self.c0 + self.w as f64 / self.inv.0, self.r0 + self.h as f64 / self.inv.1);
+        [self.c0 as f32, self.r0 as f32, c1 as f32, r1 as f32]
     }
 
     /// Quad `[p00, p10, p01, p11]` as two triangles.
@@ -506,27 +663,46 @@ impl ZBuffer {
         let (db, dc) = (b.2 - a.2, c.2 - a.2);
         let gx = (db * (cy - ay) - dc * (by - ay)) * inv;
         let gy = (dc * (bx - ax) - db * (cx - ax)) * inv;
-        let slope = [gx as f32, gy as f32];
-        // Barycentric weights of b and c, linear in the sample position;
-        // a sample on an edge counts (a max never double-counts).
+        let id = self.tris.len() as u32;
+        let mut drawn = false;
+        // Along a row of samples the barycentric weights of b and c are
+        // p + q x: each row's run of samples inside (edges count, as a max
+        // never double-counts) is found from them, then filled.
+        let (qb, qc) = ((cy - ay) * inv, -(by - ay) * inv);
         let eps = -1e-9;
         for y in ya..=yb {
-            let fy = y as f64;
-            for x in xa..=xb {
-                let fx = x as f64;
-                let wb = ((fx - ax) * (cy - ay) - (fy - ay) * (cx - ax)) * inv;
-                let wc = ((bx - ax) * (fy - ay) - (by - ay) * (fx - ax)) * inv;
-                if wb < eps || wc < eps || 1.0 - wb - wc < eps {
-                    continue;
-                }
-                let z = (a.2 + wb * db + wc * dc) as f32;
-                let k = y as usize * self.w + x as usize;
-                if z > self.z[k] {
-                    self.z[k] = z;
-                    self.slope[k] = slope;
-                    self.cell[k] = cell;
+            let fy = y as f64 - ay;
+            let pb = (-ax * (cy - ay) - fy * (cx - ax)) * inv;
+            let pc = ((bx - ax) * fy + (by - ay) * ax) * inv;
+            let (mut lo, mut hi) = (xa as f64, xb as f64);
+            for (p, q) in [(pb, qb), (pc, qc), (1.0 - pb - pc, -qb - qc)] {
+                if q > 0.0 {
+                    lo = lo.max(((eps - p) / q).ceil());
+                } else if q < 0.0 {
+                    hi = hi.min(((eps - p) / q).floor());
+                } else if p < eps {
+                    hi = lo - 1.0;
                 }
             }
+            if lo > hi {
+                continue;
+            }
+            let row = y as usize * self.w;
+            // z = a + db·wb + dc·wc, linear in x along the row.
+            let z0 = a.2 + db * pb + dc * pc;
+            let dz = db * qb + dc * qc;
+            for x in lo as usize..=hi as usize {
+                let z = (z0 + dz * x as f64) as f32;
+                let k = row + x;
+                if z > self.z[k] {
+                    self.z[k] = z;
+                    self.tri[k] = id;
+                    drawn = true;
+                }
+            }
+        }
+        if drawn {
+            self.tris.push(([gx as f32, gy as f32], cell));
         }
     }
 
@@ -555,9 +731,8 @@ impl ZBuffer {
             return none;
         }
         let (sx, sy) = ((near % self.w) as f64, (near / self.w) as f64);
-        let [gx, gy] = self.slope[near];
+        let ([gx, gy], cell) = self.tris[self.tri[near] as usize];
         let plane = z as f64 + gx as f64 * (x - sx) + gy as f64 * (y - sy);
-        let cell = self.cell[near];
         if lo == f32::NEG_INFINITY {
             return (plane.min(hi as f64), cell);
         }
@@ -565,28 +740,35 @@ impl ZBuffer {
     }
 }
 
-/// About one output pixel's footprint in the scan (scan pixels): the
-/// shorter of the steps between neighbouring pixels at the tile's middle.
-fn footprint(cols: &[f64], rows: &[f64], w: usize, h: usize) -> f64 {
-    let mut best = f64::INFINITY;
-    for (y, x) in [(h / 2, w / 2), (h / 4, w / 4), (3 * h / 4, 3 * w / 4)] {
+/// Steps along scan columns and rows (scan pixels) that are at most half
+/// an output pixel on the output grid, from the tile's local derivatives
+/// (at a few pixels, the finest): an oblique view's pixels are longer one
+/// way than the other, and a square step fine enough for the short way
+/// would sample the long way over and over.
+fn half_pixel_steps(cols: &[f64], rows: &[f64], w: usize, [bx, by, bw, bh]: [usize; 4]) -> (f64, f64) {
+    let (mut sc, mut sr) = (f64::INFINITY, f64::INFINITY);
+    for (y, x) in [(bh / 2, bw / 2), (0, 0), (bh - 1, bw - 1), (0, bw - 1), (bh - 1, 0)] {
+        let (x, y) = ((bx + x).min(bx + bw.saturating_sub(2)), (by + y).min(by + bh.saturating_sub(2)));
         let k = y * w + x;
-        if x + 1 < w {
-            let d = (cols[k + 1] - cols[k]).hypot(rows[k + 1] - rows[k]);
-            if d.is_finite() {
-                best = best.min(d);
-            }
+        if k + w + 1 >= cols.len() {
+            continue;
         }
-        if y + 1 < h {
-            let d = (cols[k + w] - cols[k]).hypot(rows[k + w] - rows[k]);
-            if d.is_finite() {
-                best = best.min(d);
-            }
+        // J = d(col, row)/d(x, y); a scan step along e_c is |J⁻¹ e_c| output pixels.
+        let (a, b) = (cols[k + 1] - cols[k], cols[k + w] - cols[k]);
+        let (c, d) = (rows[k + 1] - rows[k], rows[k + w] - rows[k]);
+        let det = a * d - b * c;
+        if !det.is_finite() || det.abs() < 1e-12 {
+            continue;
         }
+        // J⁻¹ = [d −b; −c a] / det.
+        let along_c = d.hypot(c) / det.abs();
+        let along_r = b.hypot(a) / det.abs();
+        sc = sc.min(0.5 / along_c);
+        sr = sr.min(0.5 / along_r);
     }
-    if best.is_finite() {
-        best
+    if sc.is_finite() && sr.is_finite() {
+        (sc.max(1e-3), sr.max(1e-3))
     } else {
-        1.0
+        (0.5, 0.5)
     }
 }
