@@ -342,6 +342,10 @@ pub struct MosaicArgs {
     /// Cloud-Optimized GeoTIFF (else as the manifest's `cog`)
     #[arg(long)]
     pub cog: bool,
+    /// A true orthomosaic: ground an image does not see on the DSM is taken
+    /// from another image that sees it (else as each job's `occlusion`)
+    #[arg(long, value_parser = choice::<Occlusion>())]
+    pub occlusion: Option<Occlusion>,
     /// Memory budget
     #[arg(long, default_value = "256M")]
     pub memory: String,

@@ -131,6 +131,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         threads: a.threads,
         cog: a.cog.then_some(true),
         force: a.force,
+        occlusion: a.occlusion,
         sync: true,
     };
     let report = mosaic(&o, &Bar::new(a.quiet), &signals.cancel)?;
@@ -157,6 +158,14 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
             report.seconds.seams,
             report.seconds.render
         );
+        if let Some(u) = &report.unseen {
+            eprintln!(
+                "  occlusion: {} px ({:.2} % of the covered ground, {:.1} m²) seen by no image, left without a value",
+                u.unseen_px,
+                100.0 * u.share,
+                u.area
+            );
+        }
     }
     Ok(())
 }

@@ -145,7 +145,7 @@ pub struct BandGcm {
     /// The first DEM miss met under the `error` policy.
     pub miss: Option<(f64, f64, Lookup)>,
     /// Under `--occlusion`: which of the band's pixels the sensor sees.
-    pub seen: Option<crate::transform::visibility::Seen>,
+    pub seen: Option<std::sync::Arc<crate::transform::visibility::Seen>>,
 }
 
 /// The GCM for one output grid.

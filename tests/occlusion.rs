@@ -225,3 +225,200 @@ fn rpc_25_degrees_off_nadir_hides_what_the_boxes_hide() {
     let n = compare(dir.path(), &["--rpc", s(&rpc), "--crs", "EPSG:32631"], |_, _, _| [-tan, 0.0]);
     assert_true_ortho("RPC 25° off nadir", n);
 }
+
+/// A coordinate image whose columns start at `offset` (which frame a
+/// mosaic pixel came from, and where in it).
+fn tagged_coordinate_image(path: &Path, n: u32, offset: f32) {
+    use gcm_ortho::io::source::SampleType;
+    use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, OutputSpec};
+    let spec = OutputSpec {
+        overviews: 0,
+        cog: false,
+        width: n,
+        height: n,
+        bands: 2,
+        sample: SampleType::F32,
+        chunking: Chunking::Strips(16),
+        compression: Compression::None,
+        level: None,
+        bigtiff: false,
+        photometric: 1,
+        alpha: false,
+        mask: false,
+        geo: None,
+    };
+    write_raster(path, &spec, |y0, _, buf| {
+        for (k, px) in buf.chunks_exact_mut(8).enumerate() {
+            let (x, y) = (k as u32 % n, y0 + k as u32 / n);
+            px[..4].copy_from_slice(&(offset + x as f32 + 0.5).to_ne_bytes());
+            px[4..].copy_from_slice(&(y as f32 + 0.5).to_ne_bytes());
+        }
+    })
+    .unwrap();
+}
+
+/// Two vertical frames 40 m apart over the boxes: with `--occlusion`, the
+/// mosaic takes every pixel from a frame that sees its ground (none is
+/// double-mapped where the other frame sees it), and what neither sees is
+/// left without a value and reported.
+#[test]
+fn a_true_orthomosaic_fills_what_one_frame_hides_from_the_other() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_dsm(&d.join("dsm.tif"));
+    let mut centres = Vec::new();
+    for (k, east) in [(0, 20.0), (1, -20.0)] {
+        tagged_coordinate_image(&d.join(format!("f{k}.tif")), 2000, 10_000.0 * k as f32);
+        centres.push(frame_camera(&d.join(format!("f{k}.toml")), 150.0, 0.0, east));
+    }
+    let manifest = "[defaults]\ndem = \"dsm.tif\"\ngsd = 0.2\nnodata = \"nan\"\n\n[[job]]\nimage = \"f0.tif\"\ncamera = \"f0.toml\"\n\n[[job]]\nimage = \"f1.tif\"\ncamera = \"f1.toml\"\n";
+    std::fs::write(d.join("manifest.toml"), manifest).unwrap();
+    let bounds = format!("{},{},{},{}", X0 + 5.0, Y0 - SIDE + 5.0, X0 + SIDE - 5.0, Y0 - 5.0);
+    let mosaic = |out: &str, extra: &[&str]| {
+        let o = std::process::Command::new(common::bin())
+            .current_dir(d)
+            .args(["mosaic", "manifest.toml", "-o", out, "--bounds", &bounds, "--gsd", "0.2", "--balance", "none", "--blend", "0", "--quiet"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        read_f32(&d.join(out))
+    };
+    let (w, h, _, px) = mosaic("true.tif", &["--occlusion", "nodata", "--json", "true.json"]);
+    let (_, _, _, plain) = mosaic("plain.tif", &[]);
+    let blocks = blocks();
+    let (x0, y0) = (X0 + 5.0, Y0 - 5.0);
+    let hidden_from = |c: [f64; 3], x: f64, y: f64| {
+        let z = surface(x, y, &blocks);
+        hidden([x, y, z], [(c[0] - x) / (c[2] - z), (c[1] - y) / (c[2] - z)], &blocks)
+    };
+    // Within a pixel of where the truth changes (circles of ½ and 1 px).
+    let near_boundary = |c: [f64; 3], x: f64, y: f64| {
+        let t = hidden_from(c, x, y);
+        [0.5, 1.0]
+            .into_iter()
+            .flat_map(|r| (0..16).map(move |i| (r, i as f64 * std::f64::consts::PI / 8.0)))
+            .any(|(r, a)| hidden_from(c, x + r * GSD * a.cos(), y + r * GSD * a.sin()) != t)
+    };
+    let (mut from_hiding, mut far, mut unseen_truth, mut valued, mut plain_doubled) = (0, 0, 0, 0, 0);
+    for k in 0..(w * h) as usize {
+        let (x, y) = (x0 + ((k % w as usize) as f64 + 0.5) * GSD, y0 - ((k / w as usize) as f64 + 0.5) * GSD);
+        let seen_by: Vec<bool> = centres.iter().map(|&c| !hidden_from(c, x, y)).collect();
+        if !seen_by.iter().any(|&s| s) {
+            unseen_truth += 1;
+        }
+        // The ordinary mosaic paints what its frame hides.
+        let plain_frame = usize::from(plain[2 * k] >= 10_000.0);
+        plain_doubled += usize::from(!seen_by[plain_frame] && seen_by[1 - plain_frame]);
+        let col = px[2 * k];
+        if col.is_nan() {
+            continue;
+        }
+        valued += 1;
+        let frame = usize::from(col >= 10_000.0);
+        if !seen_by[frame] && seen_by[1 - frame] {
+            // Double-mapped: the frame it came from does not see this ground, the other does.
+            from_hiding += 1;
+            far += usize::from(!near_boundary(centres[frame], x, y));
+        }
+    }
+    eprintln!("mosaic: {valued} px with a value, {from_hiding} from a frame that hides them ({far} off the boundary), {unseen_truth} seen by neither; without --occlusion {plain_doubled} double-mapped");
+    assert!(plain_doubled > 20 * from_hiding.max(50), "the scene double-maps without occlusion");
+    assert!(valued > 150_000);
+    assert_eq!(far, 0, "double-mapped pixels where the other frame sees the ground");
+    assert!(from_hiding as f64 <= 0.002 * valued as f64);
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("true.json")).unwrap()).unwrap();
+    let unseen = report["unseen"]["unseen_px"].as_u64().expect("the report counts what no image sees");
+    assert!(
+        unseen_truth > 0 && (unseen as f64 - unseen_truth as f64).abs() <= 0.2 * unseen_truth as f64 + 50.0,
+        "unseen: reported {unseen}, truth {unseen_truth}"
+    );
+    for im in report["images"].as_array().unwrap() {
+        assert!(im["hidden_share"].as_f64().unwrap() > 0.01, "each frame hides some ground: {im}");
+    }
+}
+
+/// The same hidden pixels whichever way the run goes: one thread or two,
+/// bands of tile rows or of tile columns (the transposed walk).
+#[test]
+fn occlusion_is_the_same_on_one_thread_and_walked_by_columns() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    scene(d);
+    let cam = d.join("cam.toml");
+    frame_camera(&cam, 120.0, -30.0, 120.0 * 30f64.to_radians().tan());
+    let bounds = format!("{},{},{},{}", X0 + 5.0, Y0 - SIDE + 5.0, X0 + SIDE - 5.0, Y0 - 5.0);
+    let (scan, dsm) = (d.join("scan.tif"), d.join("dsm.tif"));
+    let make = |out: &str, extra: &[&str]| {
+        let p = d.join(out);
+        let mut a = vec!["rectify", "--image", s(&scan), "--camera", s(&cam), "--dem", s(&dsm), "--gsd", "0.2"];
+        a.extend_from_slice(&["--bounds", &bounds, "--occlusion", "nodata", "--quiet", "-o", s(&p)]);
+        a.extend_from_slice(extra);
+        let o = run(&a);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        read_f32(&p).3
+    };
+    let base = make("a.tif", &[]);
+    assert!(base.iter().filter(|v| v.is_nan()).count() > 10_000, "ground is hidden");
+    // One thread writes the same bytes.
+    let other = make("b.tif", &["--threads", "1"]);
+    assert!(base.iter().zip(&other).all(|(a, b)| a.to_bits() == b.to_bits()), "one thread: the same pixels");
+    // Walked by columns the GCM's nodes lie otherwise (positions agree
+    // within its bound, 0.1 px): hidden pixels may differ at the boundary.
+    let other = make("c.tif", &["--band-order", "columns"]);
+    let hidden = base.chunks_exact(2).filter(|p| p[0].is_nan()).count();
+    let flipped = base.chunks_exact(2).zip(other.chunks_exact(2)).filter(|(a, b)| a[0].is_nan() != b[0].is_nan()).count();
+    assert!(flipped as f64 <= 0.002 * hidden as f64, "columns: {flipped} of {hidden} hidden pixels differ");
+}
+
+/// `--occlusion mask` keeps what the scan shows at hidden pixels and says
+/// in the internal mask that they have no value (GDAL reads it so); the
+/// settings that cannot work are refused by name.
+#[test]
+fn occlusion_mask_keeps_values_under_the_mask_and_bad_settings_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    scene(d);
+    let cam = d.join("cam.toml");
+    frame_camera(&cam, 150.0, 0.0, 0.0);
+    let bounds = format!("{},{},{},{}", X0 + 5.0, Y0 - SIDE + 5.0, X0 + SIDE - 5.0, Y0 - 5.0);
+    let scan = d.join("scan.tif");
+    let make = |out: &str, extra: &[&str]| {
+        let p = d.join(out);
+        let mut a = vec!["rectify", "--image", s(&scan), "--camera", s(&cam), "--gsd", "0.2", "--bounds", &bounds, "--quiet", "-o", s(&p)];
+        a.extend_from_slice(extra);
+        run(&a)
+    };
+    let dsm = d.join("dsm.tif");
+    for (extra, want) in [
+        (vec!["--height", "100", "--occlusion", "nodata"], "--occlusion"),
+        (vec!["--dem", s(&dsm), "--occlusion", "mask", "--nodata", "0"], "--occlusion"),
+        (vec!["--dem", s(&dsm), "--occlusion", "sometimes"], "--occlusion"),
+    ] {
+        let o = make("bad.tif", &extra);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(want) && !err.contains("panicked"), "{extra:?}: {err}");
+        assert!(!d.join("bad.tif").exists());
+    }
+    assert!(make("plain.tif", &["--dem", s(&dsm)]).status.success());
+    let o = make("mask.tif", &["--dem", s(&dsm), "--occlusion", "mask", "--json", s(&d.join("mask.json"))]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The values are those of the ordinary orthophoto, every one.
+    let (plain, masked) = (read_f32(&d.join("plain.tif")).3, read_f32(&d.join("mask.tif")).3);
+    assert!(plain.iter().zip(&masked).all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())));
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("mask.json")).unwrap()).unwrap();
+    let hidden = report["occlusion"]["hidden_px"].as_u64().unwrap();
+    assert!(hidden > 5000);
+    // GDAL's mask: 0 at the hidden pixels and where there is no image.
+    let Some(python) = common::python_with("osgeo.gdal", "python3-gdal") else { return };
+    let out = std::process::Command::new(python)
+        .args(["-c", "import sys; from osgeo import gdal; ds = gdal.Open(sys.argv[1]); b = ds.GetRasterBand(1); m = b.GetMaskBand().ReadAsArray(); print(int((m == 0).sum()), b.GetMaskFlags())", s(&d.join("mask.tif"))])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    let mut it = text.split_whitespace().map(|v| v.parse::<u64>().unwrap());
+    let (zeros, flags) = (it.next().unwrap(), it.next().unwrap());
+    let outside = plain.chunks_exact(2).filter(|p| p[0].is_nan()).count() as u64;
+    assert_eq!(flags, 2, "a per-dataset mask");
+    assert_eq!(zeros, hidden + outside, "the mask's empty pixels are the hidden ones and those outside the image");
+}

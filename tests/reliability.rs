@@ -424,3 +424,23 @@ fn a_tile_whose_window_passes_the_budget_is_made_strip_by_strip_with_the_same_pi
         assert!(report["peak_rss_mib"].as_f64().unwrap() < 24.0, "{order}: {}", report["peak_rss_mib"]);
     }
 }
+
+/// `gcm-ortho rectify … | head -1`: the report meets a closed pipe. The
+/// orthophoto is made, nothing panics, the exit is 0.
+#[test]
+fn a_closed_stdout_is_no_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = common::scene(&dir.path().join("scene"), 400, |_| {});
+    let out = dir.path().join("o.tif");
+    let mut child = std::process::Command::new(common::bin())
+        .args(["rectify", "--image", common::s(&r.scan), "--camera", common::s(&r.camera), "--dem", common::s(&r.dem), "-o", common::s(&out)])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && !err.contains("panicked"), "{err}");
+    assert!(out.exists());
+}

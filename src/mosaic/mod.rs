@@ -18,7 +18,7 @@ use crate::error::{Error, Result};
 use crate::geodesy::Crs;
 use crate::io::overwrite::{check_outputs, Role};
 use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec, PendingFile};
-use crate::options::{BigTiff, RectifyOptions};
+use crate::options::{BigTiff, Occlusion, RectifyOptions};
 use crate::pipeline::band_writer::{write_bands, BandWriting};
 use crate::progress::{Cancel, Progress, Task};
 use balance::{Balance, Correction};
@@ -57,6 +57,9 @@ pub struct MosaicOptions {
     pub cog: Option<bool>,
     /// Remake an output whose record says it is current.
     pub force: bool,
+    /// Occluded ground (a true orthomosaic), for every image (else as
+    /// each job says).
+    pub occlusion: Option<crate::options::Occlusion>,
     pub sync: bool,
 }
 
@@ -70,6 +73,28 @@ pub struct ImageReport {
     pub correction: Correction,
     /// The grid it was rectified on (tiles of the mosaic's), where any.
     pub grid: Option<crate::geom::OutputGrid>,
+    /// Under occlusion: of the pixels it was made over, the share it does
+    /// not see.
+    pub hidden_share: Option<f64>,
+}
+
+/// Under occlusion: the mosaic's ground that no image sees.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Unseen {
+    /// Pixels some image images.
+    pub covered_px: u64,
+    /// Of them, pixels every image that images them has hidden.
+    pub unseen_px: u64,
+    /// `unseen_px / covered_px`.
+    pub share: f64,
+    /// Their ground area, ground units squared.
+    pub area: f64,
+}
+
+impl Unseen {
+    fn new(covered_px: u64, unseen_px: u64, gsd: f64) -> Unseen {
+        Unseen { covered_px, unseen_px, share: unseen_px as f64 / covered_px.max(1) as f64, area: unseen_px as f64 * gsd * gsd }
+    }
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -104,6 +129,8 @@ pub struct MosaicReport {
     /// What honouring edited seamlines (`--seamlines`) changed, where given.
     pub edited_seams: Option<seamlines::EditedSeams>,
     pub images: Vec<ImageReport>,
+    /// Under occlusion: what no image sees.
+    pub unseen: Option<Unseen>,
     pub seconds: PhaseSeconds,
     pub wall_seconds: f64,
     pub peak_rss_mib: Option<f64>,
@@ -251,6 +278,10 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     // The render (none when only the plan is asked for).
     let mut works: Vec<render::ImageWork> = Vec::new();
     let mut t_render = 0.0;
+    // Under occlusion: each image's pixels imaged and hidden, and the
+    // mosaic's pixels no image sees.
+    let mut hidden = vec![(0u64, 0u64); plan.images.len()];
+    let mut unseen = None;
     if let (Some(out), Some(pending)) = (o.output.as_deref(), pending) {
         // Each image's memory: the budget over the most images at work at once
         // (a band's and the next's), after the plan's arrays and a band of the
@@ -259,8 +290,15 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
             n => n,
         };
-        let opts_of = |i: usize| RectifyOptions { threads, sync: false, ..plan.images[i].opts.clone() };
-        works = render::work(&plan, &weights, tile, opts_of);
+        let opts_of = |i: usize| {
+            let own = &plan.images[i].opts;
+            RectifyOptions { threads, sync: false, occlusion: o.occlusion.unwrap_or(own.occlusion), ..own.clone() }
+        };
+        let true_ortho = (0..plan.images.len()).any(|i| opts_of(i).occlusion != Occlusion::None);
+        // Where an image may not see the ground, every image that sees the
+        // cell is made there, so that another can fill what it hides.
+        let prone = true_ortho.then(|| render::occlusion_prone(&plan));
+        works = render::work(&plan, &weights, tile, prone.as_deref(), opts_of);
         // A piece: each image's bands and columns within the window; its grid
         // stays the whole run's, so that its pixels are the same.
         for w in &mut works {
@@ -295,17 +333,34 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         }
 
         let t = Instant::now();
+        // Pixels without a value: masked, and NaN where samples can hold it.
+        let fill = if im0.sample == crate::io::source::SampleType::F32 { f64::NAN } else { 0.0 };
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| Error::setting("threads", e.to_string()))?;
-        let compose = render::Compose { plan: &plan, weights: &weights, corrections: &corrections, tile, bands: im0.bands as usize, fill: 0.0 };
+        let compose = render::Compose {
+            plan: &plan,
+            weights: &weights,
+            corrections: &corrections,
+            tile,
+            bands: im0.bands as usize,
+            fill,
+            unseen: Default::default(),
+            covered: Default::default(),
+        };
         progress.start(&Task { name: "mosaic", units: tx as u64 * ty as u64, lines: piece.height as u64, line_name: "rows", input_bytes: 0 });
-        let writing =
-            BandWriting { spec: &spec, path: out, threads, overview_resampling: first.overview_resampling, fill: 0.0, sync: o.sync, progress, cancel };
+        let writing = BandWriting { spec: &spec, path: out, threads, overview_resampling: first.overview_resampling, fill, sync: o.sync, progress, cancel };
         let sample = im0.sample;
+        let hidden = &mut hidden;
         let written = std::thread::scope(|s| {
             let mut feeds = render::Feeds::new(s, works.len());
             write_bands(&writing, pending, |b| {
                 // The piece's band b is the mosaic's tr0 + b.
                 let got = feeds.band(&works, tr0 + b, cancel)?;
+                for (k, band) in &got {
+                    if let Some(s) = &band.seen {
+                        hidden[works[*k].image].0 += s.imaged;
+                        hidden[works[*k].image].1 += s.hidden;
+                    }
+                }
                 let got: Vec<_> = got.iter().map(|(k, band)| (&works[*k], band)).collect();
                 Ok(compose.make_band(tr0 + b, (tc0, tc0 + tx), &got, &pool, sample))
             })
@@ -316,6 +371,10 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         }
         written?;
         crate::batch::write_sidecar(out, &key)?;
+        if true_ortho {
+            use std::sync::atomic::Ordering;
+            unseen = Some(Unseen::new(compose.covered.load(Ordering::Relaxed), compose.unseen.load(Ordering::Relaxed), grid.gsd));
+        }
         let t_render_ = t.elapsed().as_secs_f64();
         t_render = t_render_;
     }
@@ -332,6 +391,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             share: plan.label.iter().filter(|&&l| l == k as u16).count() as f64 / covered.max(1) as f64,
             correction: corrections[k].clone(),
             grid: works.iter().find(|w| w.image == k).map(|w| w.grid),
+            hidden_share: unseen.is_some().then(|| hidden[k].1 as f64 / hidden[k].0.max(1) as f64),
         })
         .collect();
     let seam_cells = (0..plan.cw * plan.ch)
@@ -359,6 +419,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         seam_length: seam_cells as f64 * plan.cell_metres(),
         edited_seams,
         images,
+        unseen,
         seconds: PhaseSeconds { plan: t_plan, balance: t_balance, seams: t_seams, render: t_render },
         wall_seconds: wall.elapsed().as_secs_f64(),
         peak_rss_mib: crate::pipeline::peak_rss_mib(),
@@ -371,7 +432,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
 /// output.
 fn run_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
     let settings = format!(
-        "{:?} {:?} {:?} {:?} {} {} {:?} {:?}",
+        "{:?} {:?} {:?} {:?} {} {} {:?} {:?} {:?}",
         o.gsd,
         o.bounds,
         o.crs.as_ref().map(ToString::to_string),
@@ -379,7 +440,8 @@ fn run_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
         o.least_cost,
         o.blend,
         o.window,
-        o.cog
+        o.cog,
+        o.occlusion
     );
     let job_keys: Vec<String> = jobs.iter().map(|j| format!("{}={}", j.name, crate::batch::job_key(&j.config))).collect();
     let joined = job_keys.join(";");
@@ -406,6 +468,7 @@ impl MosaicReport {
             seam_length: 0.0,
             edited_seams: None,
             images: Vec::new(),
+            unseen: None,
             seconds: PhaseSeconds { plan: 0.0, balance: 0.0, seams: 0.0, render: 0.0 },
             wall_seconds: 0.0,
             peak_rss_mib: None,

@@ -36,11 +36,46 @@ impl ImageWork {
     }
 }
 
+/// The cells where an image may not see the ground (under occlusion): a
+/// surface within reach stands higher than the cell by enough to hide half
+/// a pixel along lines of sight up to 56° off nadir (reach: the block's
+/// height range along such a line, in cells). Elsewhere every image sees
+/// it, and only the cell's own image is made there.
+pub fn occlusion_prone(plan: &Plan) -> Vec<bool> {
+    const TAN: f64 = 1.5;
+    let (cw, ch) = (plan.cw, plan.ch);
+    let h = &plan.heights;
+    let (lo, hi) = h.iter().filter(|v| v.is_finite()).fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+    if !lo.is_finite() {
+        return vec![false; cw * ch];
+    }
+    let cell = plan.cell as f64 * plan.grid.gsd;
+    let reach = ((hi - lo) as f64 * TAN / cell).ceil().clamp(1.0, 256.0) as usize;
+    // The highest cell within `reach` of each (a square max filter, one
+    // axis after the other).
+    let filter = |src: &[f32], across: bool| -> Vec<f32> {
+        let mut out = vec![f32::NEG_INFINITY; cw * ch];
+        for y in 0..ch {
+            for x in 0..cw {
+                let (a, n, at) = if across { (x, cw, y * cw) } else { (y, ch, x) };
+                let step = if across { 1 } else { cw };
+                let (s, e) = (a.saturating_sub(reach), (a + reach + 1).min(n));
+                out[y * cw + x] = (s..e).map(|k| src[at + k * step]).filter(|v| v.is_finite()).fold(f32::NEG_INFINITY, f32::max);
+            }
+        }
+        out
+    };
+    let near = filter(&filter(h, true), false);
+    let rise = 0.5 * plan.grid.gsd / TAN;
+    (0..cw * ch).map(|k| h[k].is_finite() && (near[k] - h[k]) as f64 > rise).collect()
+}
+
 /// Which images each tile of the mosaic needs: those with a weight in the
 /// cells it touches (and one around, for the ramp), and where a cell's own
-/// image ends inside the tile (its footprint's edge), every image that sees
-/// the cell, so that no pixel any image has is left empty.
-pub fn work(plan: &Plan, weights: &Weights, tile: u32, opts_of: impl Fn(usize) -> RectifyOptions) -> Vec<ImageWork> {
+/// image ends inside the tile (its footprint's edge), or may not see the
+/// ground (`prone`), every image that sees the cell, so that no pixel any
+/// image has is left empty.
+pub fn work(plan: &Plan, weights: &Weights, tile: u32, prone: Option<&[bool]>, opts_of: impl Fn(usize) -> RectifyOptions) -> Vec<ImageWork> {
     let (tx, ty) = (plan.grid.width.div_ceil(tile), plan.grid.height.div_ceil(tile));
     let c = plan.cell as usize;
     let (cw, ch) = (plan.cw, plan.ch);
@@ -64,7 +99,10 @@ pub fn work(plan: &Plan, weights: &Weights, tile: u32, opts_of: impl Fn(usize) -
                         && [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)]
                             .into_iter()
                             .any(|(a, b)| a < cw && b < ch && !plan.images[l as usize].sees(a, b));
-                    if edge {
+                    // Where the cell's image may not see the ground, any
+                    // image that sees the cell may have to fill it.
+                    let hides = prone.is_some_and(|p| p[y * cw + x]);
+                    if edge || hides {
                         set.extend((0..plan.images.len()).filter(|&i| plan.images[i].sees(x, y)).map(|i| i as u16));
                     }
                 }
@@ -140,6 +178,8 @@ struct Piece<'a> {
     image: u16,
     bytes: &'a [u8],
     valid: &'a [u8],
+    /// Under occlusion: what it sees, and the tile's first pixel on its grid.
+    seen: Option<(&'a crate::transform::visibility::Seen, u32, u32)>,
 }
 
 /// How the compositor weighs and corrects.
@@ -150,6 +190,10 @@ pub struct Compose<'a> {
     pub tile: u32,
     pub bands: usize,
     pub fill: f64,
+    /// Under occlusion: pixels some image images, and of them those every
+    /// image that images them hides.
+    pub covered: std::sync::atomic::AtomicU64,
+    pub unseen: std::sync::atomic::AtomicU64,
 }
 
 impl Compose<'_> {
@@ -263,6 +307,28 @@ impl Compose<'_> {
         }
     }
 
+    /// Under occlusion, counts the tile's pixels that some piece images
+    /// (`valid`: the composed tile's) and those no piece sees.
+    fn count_unseen(&self, pieces: &[Piece], valid: &[u8]) {
+        use std::sync::atomic::Ordering;
+        if pieces.iter().all(|p| p.seen.is_none()) {
+            return;
+        }
+        let t = self.tile;
+        let (mut covered, mut unseen) = (0u64, 0u64);
+        for (k, &v) in valid.iter().enumerate() {
+            let (px, py) = (k as u32 % t, k as u32 / t);
+            if v != 0 {
+                covered += 1;
+            } else if pieces.iter().any(|p| p.seen.is_some_and(|(s, x0, y0)| !s.at(x0 + px, y0 + py))) {
+                covered += 1;
+                unseen += 1;
+            }
+        }
+        self.covered.fetch_add(covered, Ordering::Relaxed);
+        self.unseen.fetch_add(unseen, Ordering::Relaxed);
+    }
+
     /// Tile columns `cols` of band `b` of the mosaic from the images' bands.
     fn band<T: Px>(&self, b: u32, cols: (u32, u32), got: &[(&ImageWork, &BandPixels)], pool: &rayon::ThreadPool) -> (Vec<T>, Vec<u8>) {
         let tpx = (self.tile * self.tile) as usize;
@@ -272,8 +338,10 @@ impl Compose<'_> {
         pool.install(|| {
             out.par_chunks_mut(tpx * self.bands).zip(valid.par_chunks_mut(tpx)).enumerate().for_each(|(k, (o, v))| {
                 let tc = cols.0 + k as u32;
-                let pieces: Vec<Piece> = got.iter().filter_map(|(w, band)| piece(w, band, tc, tpx * self.bands * std::mem::size_of::<T>(), tpx)).collect();
+                let pieces: Vec<Piece> =
+                    got.iter().filter_map(|(w, band)| piece(w, band, tc, self.tile, tpx * self.bands * std::mem::size_of::<T>(), tpx)).collect();
                 self.tile::<T>(tc, b, &pieces, o, v);
+                self.count_unseen(&pieces, v);
             })
         });
         (out, valid)
@@ -307,13 +375,14 @@ impl Compose<'_> {
 }
 
 /// The tile of mosaic column `tc` in an image's band, where it made it.
-fn piece<'a>(w: &ImageWork, band: &'a BandPixels, tc: u32, tile_bytes: usize, tile_px: usize) -> Option<Piece<'a>> {
+fn piece<'a>(w: &ImageWork, band: &'a BandPixels, tc: u32, tile: u32, tile_bytes: usize, tile_px: usize) -> Option<Piece<'a>> {
     let own = tc.checked_sub(w.origin.0)?;
+    let seen = band.seen.as_deref().map(|s| (s, own * tile, band.band * tile));
     band.chunks.iter().find_map(|m: &Made| {
         let k = own.checked_sub(m.first_col)? as usize;
         let bytes = m.raw.bytes().get(k * tile_bytes..(k + 1) * tile_bytes)?;
         let valid = m.valid.as_ref()?.get(k * tile_px..(k + 1) * tile_px)?;
-        Some(Piece { image: w.image as u16, bytes, valid })
+        Some(Piece { image: w.image as u16, bytes, valid, seen })
     })
 }
 

@@ -31,6 +31,8 @@ use std::sync::Arc;
 pub struct BandPixels {
     pub band: u32,
     pub chunks: Vec<Made>,
+    /// Under `--occlusion`: which of the band's pixels the sensor sees.
+    pub seen: Option<std::sync::Arc<crate::transform::visibility::Seen>>,
 }
 
 /// What the caller asks of one band: the band (a row of the image grid's
@@ -112,7 +114,7 @@ pub fn render_bands(opts: &RectifyOptions, requests: &[BandRequest], cancel: &Ca
                 chunks.push(made(&run, b, msg.chunk.x0, raw)?);
                 win = msg.win;
             }
-            Ok(BandPixels { band: b, chunks })
+            Ok(BandPixels { band: b, chunks, seen: gcm.seen.clone() })
         })();
         let failed = band.is_err();
         if !sink(band) || failed {

@@ -22,7 +22,7 @@ pub fn band_gcm(run: &Run, msg: DemMsg, before: &mut SharedRows<NodeRow>) -> Res
         let seen = seen(run, &band, msg.band, vis);
         run.counters.imaged.fetch_add(seen.imaged, Ordering::Relaxed);
         run.counters.hidden.fetch_add(seen.hidden, Ordering::Relaxed);
-        band.seen = Some(seen);
+        band.seen = Some(std::sync::Arc::new(seen));
     }
     // Nodes worked out for this band, not those it shares with the one before.
     band.stats.nodes -= (reused * gcm.nodes_per_row()) as u64;
