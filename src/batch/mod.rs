@@ -60,6 +60,8 @@ pub struct JobResult {
     pub warnings: Vec<String>,
     /// What ground control points did to the model, where given.
     pub gcps: Option<crate::camera::gcp::GcpFit>,
+    /// Under `occlusion`: the ground the image's sensor does not see.
+    pub occlusion: Option<crate::pipeline::Hidden>,
 }
 
 /// A 64-bit FNV-1a hash: stable across runs and machines.
@@ -199,6 +201,7 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
         error_within: None,
         warnings: Vec::new(),
         gcps: None,
+        occlusion: None,
     };
     if cancel.is_cancelled() {
         return res;
@@ -234,6 +237,7 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
             res.error_within = Some(r.error_within);
             res.warnings = r.warnings;
             res.gcps = r.gcps;
+            res.occlusion = r.occlusion;
             if let Err(e) = write_sidecar(&cfg.output, &key) {
                 res.status = Status::Failed;
                 res.error = Some(e.to_string());

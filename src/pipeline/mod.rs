@@ -31,6 +31,6 @@ mod threaded;
 
 pub use budget::MemoryBudget;
 pub use rectify::rectify;
-pub use report::{peak_rss_mib, Report, StageTimes};
+pub use report::{peak_rss_mib, Hidden, Report, StageTimes};
 pub use setup::RunPlan;
 pub use stages::resample::{Made, Raw};
