@@ -57,17 +57,30 @@ pub struct Seen {
     y0: u32,
     x0: u32,
     tile: u32,
-    /// Per tile, `tile × tile` bytes row-major: 1 seen, 0 hidden.
-    tiles: Vec<Vec<u8>>,
+    /// Per tile, a bit a pixel row-major, set where hidden; empty where
+    /// the whole tile is seen (most tiles over terrain).
+    tiles: Vec<Vec<u64>>,
     /// Pixels the sensor images (a position inside the scan) and of them hidden.
     pub imaged: u64,
     pub hidden: u64,
 }
 
 impl Seen {
+    /// From each tile's bytes (`tile × tile`, 0 where hidden) and its
+    /// pixels imaged and hidden.
     pub fn new(y0: u32, x0: u32, tile: u32, tiles: Vec<(Vec<u8>, u64, u64)>) -> Seen {
         let (imaged, hidden) = tiles.iter().fold((0, 0), |(a, b), t| (a + t.1, b + t.2));
-        Seen { y0, x0, tile, tiles: tiles.into_iter().map(|t| t.0).collect(), imaged, hidden }
+        let pack = |(bytes, _, hidden): (Vec<u8>, u64, u64)| -> Vec<u64> {
+            if hidden == 0 {
+                return Vec::new();
+            }
+            let mut bits = vec![0u64; bytes.len().div_ceil(64)];
+            for (k, _) in bytes.iter().enumerate().filter(|(_, &v)| v == 0) {
+                bits[k / 64] |= 1 << (k % 64);
+            }
+            bits
+        };
+        Seen { y0, x0, tile, tiles: tiles.into_iter().map(pack).collect(), imaged, hidden }
     }
 
     /// Is walked pixel (x, y) of the band seen? (Pixels outside the tiles
@@ -79,7 +92,8 @@ impl Seen {
             return true;
         };
         let (cx, cy) = ((x - self.x0) % t, y.wrapping_sub(self.y0));
-        tile.get((cy * t + cx) as usize).is_none_or(|&v| v != 0)
+        let k = (cy * t + cx) as usize;
+        tile.get(k / 64).is_none_or(|&w| w & (1 << (k % 64)) == 0)
     }
 }
 
