@@ -66,12 +66,11 @@ pub struct Seen {
 }
 
 impl Seen {
-    /// From each tile's bytes (`tile × tile`, 0 where hidden) and its
-    /// pixels imaged and hidden.
-    pub fn new(y0: u32, x0: u32, tile: u32, tiles: Vec<(Vec<u8>, u64, u64)>) -> Seen {
-        let (imaged, hidden) = tiles.iter().fold((0, 0), |(a, b), t| (a + t.1, b + t.2));
-        let pack = |(bytes, _, hidden): (Vec<u8>, u64, u64)| -> Vec<u64> {
-            if hidden == 0 {
+    /// From each tile's bytes (`tile × tile`, 0 where hidden), and the
+    /// band's pixels imaged and hidden.
+    pub fn new(y0: u32, x0: u32, tile: u32, tiles: Vec<Vec<u8>>, imaged: u64, hidden: u64) -> Seen {
+        let pack = |bytes: Vec<u8>| -> Vec<u64> {
+            if bytes.iter().all(|&v| v != 0) {
                 return Vec::new();
             }
             let mut bits = vec![0u64; bytes.len().div_ceil(64)];
@@ -299,9 +298,10 @@ impl<'a> Visibility<'a> {
         (gx.is_finite() && gy.is_finite()).then_some((gx, gy))
     }
 
-    /// Which pixels of walked tile `[x0, y0, x1, y1]` are seen, given their
-    /// scan positions (row-major, NaN where none): 1 seen, 0 hidden, into
-    /// `seen` (`t × t`, row-major); and how many pixels are imaged and hidden.
+    /// Which pixels of walked block `[x0, y0, x1, y1]` (a tile or a few side
+    /// by side) are seen, given their scan positions (row-major, NaN where
+    /// none): 1 seen, 0 hidden, into `seen` (rows `t` apart); and how many
+    /// pixels are imaged and hidden.
     pub fn tile(&self, [x0, y0, x1, y1]: [u32; 4], t: u32, cols: &[f64], rows: &[f64], seen: &mut [u8]) -> (u64, u64) {
         let (w, h) = ((x1 - x0) as usize, (y1 - y0) as usize);
         seen.fill(1);

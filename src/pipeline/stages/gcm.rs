@@ -33,17 +33,21 @@ pub fn band_gcm(run: &Run, msg: DemMsg, before: &mut SharedRows<NodeRow>) -> Res
     Ok(band)
 }
 
-/// Which pixels of band `b` the sensor sees, a tile a task on the pool:
-/// each tile's scan positions from the band's GCM, then its Z-buffer.
+/// Which pixels of band `b` the sensor sees, a few tiles a task on the
+/// pool (neighbours share the DSM posts their occluders stand on, projected
+/// once): their scan positions from the band's GCM, then their Z-buffers.
 fn seen(run: &Run, band: &BandGcm, b: u32, vis: &Visibility) -> Seen {
     let (y0, y1) = run.walk.band_rows(b);
     let (t, (c0, c1)) = (run.walk.tile, run.walk.cols);
     let gcm = run.inputs.gcm;
-    let tiles = run.pool.install(|| {
-        (c0..c1)
+    // Up to four tiles a task, and two tasks at least.
+    let group = (c1 - c0).div_ceil(2).clamp(1, 4);
+    let groups: Vec<(u32, u32)> = (c0..c1).step_by(group as usize).map(|g| (g, (g + group).min(c1))).collect();
+    let made: Vec<(Vec<Vec<u8>>, u64, u64)> = run.pool.install(|| {
+        groups
             .into_par_iter()
-            .map(|tc| {
-                let (x0, x1) = (tc * t, ((tc + 1) * t).min(run.walk.grid.width));
+            .map(|(g0, g1)| {
+                let (x0, x1) = (g0 * t, (g1 * t).min(run.walk.grid.width));
                 let (w, h) = ((x1 - x0) as usize, (y1 - y0) as usize);
                 let (mut cols, mut rows) = (vec![0.0; w * h], vec![0.0; w * h]);
                 let mut miss = None;
@@ -51,13 +55,25 @@ fn seen(run: &Run, band: &BandGcm, b: u32, vis: &Visibility) -> Seen {
                     let k = (y - y0) as usize * w;
                     gcm.fill_row(band, y, x0, &mut cols[k..k + w], &mut rows[k..k + w], &mut miss);
                 }
-                let mut seen = vec![1u8; (t * t) as usize];
-                let (imaged, hidden) = vis.tile([x0, y0, x1, y1], t, &cols, &rows, &mut seen);
-                (seen, imaged, hidden)
+                let mut seen = vec![1u8; w * t as usize];
+                let (imaged, hidden) = vis.tile([x0, y0, x1, y1], w as u32, &cols, &rows, &mut seen);
+                // Cut into tiles, `t × t` each.
+                let tiles = (g0..g1)
+                    .map(|tc| {
+                        let (a, n) = (((tc - g0) * t) as usize, (((tc + 1) * t).min(x1) - tc * t) as usize);
+                        let mut tile = vec![1u8; (t * t) as usize];
+                        for y in 0..h {
+                            tile[y * t as usize..y * t as usize + n].copy_from_slice(&seen[y * w + a..y * w + a + n]);
+                        }
+                        tile
+                    })
+                    .collect();
+                (tiles, imaged, hidden)
             })
             .collect()
     });
-    Seen::new(y0, c0 * t, t, tiles)
+    let (imaged, hidden) = made.iter().fold((0, 0), |(a, b), m| (a + m.1, b + m.2));
+    Seen::new(y0, c0 * t, t, made.into_iter().flat_map(|m| m.0).collect(), imaged, hidden)
 }
 
 /// The error of a ground point where the DEM has no height and the policy
