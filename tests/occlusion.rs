@@ -226,37 +226,6 @@ fn rpc_25_degrees_off_nadir_hides_what_the_boxes_hide() {
     assert_true_ortho("RPC 25° off nadir", n);
 }
 
-/// A coordinate image whose columns start at `offset` (which frame a
-/// mosaic pixel came from, and where in it).
-fn tagged_coordinate_image(path: &Path, n: u32, offset: f32) {
-    use gcm_ortho::io::source::SampleType;
-    use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, OutputSpec};
-    let spec = OutputSpec {
-        overviews: 0,
-        cog: false,
-        width: n,
-        height: n,
-        bands: 2,
-        sample: SampleType::F32,
-        chunking: Chunking::Strips(16),
-        compression: Compression::None,
-        level: None,
-        bigtiff: false,
-        photometric: 1,
-        alpha: false,
-        mask: false,
-        geo: None,
-    };
-    write_raster(path, &spec, |y0, _, buf| {
-        for (k, px) in buf.chunks_exact_mut(8).enumerate() {
-            let (x, y) = (k as u32 % n, y0 + k as u32 / n);
-            px[..4].copy_from_slice(&(offset + x as f32 + 0.5).to_ne_bytes());
-            px[4..].copy_from_slice(&(y as f32 + 0.5).to_ne_bytes());
-        }
-    })
-    .unwrap();
-}
-
 /// Two vertical frames 40 m apart over the boxes: with `--occlusion`, the
 /// mosaic takes every pixel from a frame that sees its ground (none is
 /// double-mapped where the other frame sees it), and what neither sees is
@@ -268,7 +237,7 @@ fn a_true_orthomosaic_fills_what_one_frame_hides_from_the_other() {
     write_dsm(&d.join("dsm.tif"));
     let mut centres = Vec::new();
     for (k, east) in [(0, 20.0), (1, -20.0)] {
-        tagged_coordinate_image(&d.join(format!("f{k}.tif")), 2000, 10_000.0 * k as f32);
+        common::coordinate_image_from(&d.join(format!("f{k}.tif")), 2000, 2000, 10_000.0 * k as f32);
         centres.push(frame_camera(&d.join(format!("f{k}.toml")), 150.0, 0.0, east));
     }
     let manifest = "[defaults]\ndem = \"dsm.tif\"\ngsd = 0.2\nnodata = \"nan\"\n\n[[job]]\nimage = \"f0.tif\"\ncamera = \"f0.toml\"\n\n[[job]]\nimage = \"f1.tif\"\ncamera = \"f1.toml\"\n";

@@ -77,6 +77,12 @@ pub fn wait_deadline(mut child: std::process::Child, secs: u64) -> Output {
 /// position of the warper, so two warpers' geometries compare pixel by
 /// pixel, free of any image-matching noise.
 pub fn coordinate_image(path: &Path, w: u32, h: u32) {
+    coordinate_image_from(path, w, h, 0.0);
+}
+
+/// As [`coordinate_image`], its columns counted from `col0` (which of
+/// several images a mosaic's pixel came from, and where in it).
+pub fn coordinate_image_from(path: &Path, w: u32, h: u32, col0: f32) {
     use gcm_ortho::io::source::SampleType;
     use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, OutputSpec};
     let spec = OutputSpec {
@@ -99,7 +105,7 @@ pub fn coordinate_image(path: &Path, w: u32, h: u32) {
         for y in y0..y1 {
             for x in 0..w {
                 let k = 8 * ((y - y0) as usize * w as usize + x as usize);
-                buf[k..k + 4].copy_from_slice(&(x as f32 + 0.5).to_ne_bytes());
+                buf[k..k + 4].copy_from_slice(&(col0 + x as f32 + 0.5).to_ne_bytes());
                 buf[k + 4..k + 8].copy_from_slice(&(y as f32 + 0.5).to_ne_bytes());
             }
         }
