@@ -391,3 +391,43 @@ fn occlusion_mask_keeps_values_under_the_mask_and_bad_settings_are_refused() {
     assert_eq!(flags, 2, "a per-dataset mask");
     assert_eq!(zeros, hidden + outside, "the mask's empty pixels are the hidden ones and those outside the image");
 }
+
+/// Real data: the Pléiades crop over Mont Ventoux on an SRTM crop (EPSG:4326,
+/// reprojected on the fly, 90 m posts). A satellite looking down on
+/// mountain slopes hides nothing: `--occlusion nodata` writes the same
+/// file as none and reports nothing hidden.
+#[test]
+fn a_real_satellite_crop_over_srtm_hides_nothing() {
+    let fx = |n: &str| Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/ventoux").join(n);
+    let dir = tempfile::tempdir().unwrap();
+    let make = |mode: &str| {
+        let out = dir.path().join(format!("{mode}.tif"));
+        let json = dir.path().join(format!("{mode}.json"));
+        let o = run(&[
+            "rectify",
+            "--image",
+            s(&fx("left_image.tif")),
+            "--rpc",
+            s(&fx("left_image.geom")),
+            "--rpc-offset",
+            "5000,5000",
+            "--dem",
+            s(&fx("srtm_N44E005_crop.tif")),
+            "--geoid",
+            s(&fx("egm96_15_ventoux.gtx")),
+            "--occlusion",
+            mode,
+            "--json",
+            s(&json),
+            "--quiet",
+            "-o",
+            s(&out),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (std::fs::read(&out).unwrap(), serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(&json).unwrap()).unwrap())
+    };
+    let ((plain, _), (occ, report)) = (make("none"), make("nodata"));
+    assert_eq!(report["occlusion"]["hidden_px"].as_u64(), Some(0));
+    assert!(report["occlusion"]["imaged_px"].as_u64().unwrap() > 200_000);
+    assert!(plain == occ, "the same orthophoto");
+}

@@ -164,7 +164,19 @@ impl<'a> Visibility<'a> {
                 let n = (0.5 * grid.gsd / gt[1].abs()).floor().max(1.0);
                 Lattice { ox: gt[0] + 0.5 * gt[1], oy: gt[3] + 0.5 * gt[5], dx: gt[1] * n, dy: gt[5] * n }
             }
-            None => Lattice { ox: grid.x0 + 0.5 * grid.gsd, oy: grid.y0 - 0.5 * grid.gsd, dx: grid.gsd, dy: -grid.gsd },
+            None => {
+                // A DSM in another CRS (or flat): a lattice of the output
+                // grid, half a DSM post apart (it bends nowhere finer),
+                // whole pixels, half a pixel at the finest.
+                let (cx, cy) = t.ground(grid.width as f64 / 2.0, grid.height as f64 / 2.0);
+                let post = match (t.dem.sample_coords(cx, cy), t.dem.sample_coords(cx + grid.gsd, cy), t.dem.sample_coords(cx, cy + grid.gsd)) {
+                    (Some(a), Some(b), Some(c)) => grid.gsd / (b.0 - a.0).hypot(b.1 - a.1).max((c.0 - a.0).hypot(c.1 - a.1)),
+                    _ => f64::INFINITY,
+                };
+                let step = if post.is_finite() { (0.5 * post / grid.gsd).floor().max(1.0) * grid.gsd } else { 64.0 * grid.gsd };
+                let step = if post.is_finite() && 0.5 * post < grid.gsd { 0.5 * grid.gsd } else { step };
+                Lattice { ox: grid.x0 + 0.5 * grid.gsd, oy: grid.y0 - 0.5 * grid.gsd, dx: step, dy: -step }
+            }
         };
         // The output's ground, and as far again around it as the reach can go.
         let (xa, ya) = t.ground(0.0, 0.0);
@@ -219,7 +231,7 @@ impl<'a> Visibility<'a> {
     /// least `zhi − zlo`.
     fn occluder_rise(&self, rect: [f64; 4], g: [f64; 4], zlo: f64, zhi: f64, cap: f64) -> (f64, f64) {
         let mut rise = zhi - zlo;
-        let reach = |v: f64| if v == 0.0 { 0.0 } else { (v * 1e9).clamp(-cap, cap) };
+        let reach = |v: f64| if v == 0.0 { 0.0 } else { cap.copysign(v) };
         let window = [rect[0] + reach(g[0]).min(0.0), rect[1] + reach(g[1]).min(0.0), rect[2] + reach(g[2]).max(0.0), rect[3] + reach(g[3]).max(0.0)];
         let (i0, j0, i1, j1) = self.lattice.cover(window);
         let b = &self.blocks;
