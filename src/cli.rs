@@ -62,6 +62,55 @@ pub enum Command {
     /// and write them as gcm-ortho camera files or in Orthority's or
     /// OpenSfM's form.
     Cameras(CamerasArgs),
+    /// Find a film scan's fiducial marks (normalised correlation on an
+    /// image pyramid, after Chibunichev): the marks' places, scores and
+    /// residuals, the camera file with them (--write), a sheet to look at.
+    Fiducials(FiducialsArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct FiducialsArgs {
+    /// The film scan (TIFF, BigTIFF, JPEG, PNG, JPEG 2000).
+    #[arg(long)]
+    pub image: PathBuf,
+    /// The camera file (TOML) with the calibrated marks: fiducials_mm or
+    /// fiducial_distances_mm, and [interior.fiducial_mark] (default: a cross).
+    #[arg(long)]
+    pub camera: PathBuf,
+    /// The marks' shape, over the camera file's: cross, dot, circle-dot,
+    /// cross-dot, corner-dot, wings, or a camera family: wild-rc, zeiss-rmk,
+    /// fairchild, afa.
+    #[arg(long)]
+    pub shape: Option<String>,
+    /// The mark's overall size, mm (a cross's arm to arm, a ring's diameter).
+    #[arg(long)]
+    pub size_mm: Option<f64>,
+    /// The marks' tone on the film: light, dark, or auto (found).
+    #[arg(long, value_parser = choice::<gcm_ortho::fiducials::Polarity>())]
+    pub polarity: Option<gcm_ortho::fiducials::Polarity>,
+    /// How the film lay on the scanner, where the marks cannot tell (a
+    /// layout that looks the same turned): 0, 90, 180 or 270 (degrees
+    /// counter-clockwise), "m" after it for a mirrored scan (90m).
+    #[arg(long)]
+    pub turn: Option<String>,
+    /// The scanner's pixel size, mm (default: the camera file's
+    /// scan_pixel_mm, the scan's resolution tags, else found).
+    #[arg(long)]
+    pub scan_pixel_mm: Option<f64>,
+    /// The most a mark may sit off the fitted interior orientation, px
+    /// (default: the camera file's max_fiducial_residual_px, else 1).
+    #[arg(long)]
+    pub max_residual_px: Option<f64>,
+    /// Write the camera file with the marks found (fiducials_px) here; the
+    /// rest of it as it was.
+    #[arg(long)]
+    pub write: Option<PathBuf>,
+    /// A PNG of the marks with the centres found, to look at.
+    #[arg(long)]
+    pub sheet: Option<PathBuf>,
+    /// The report as JSON on standard output.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// The image and its sensor model: a camera file, or an RPC file with
@@ -420,6 +469,34 @@ pub struct SynthArgs {
     /// `mosaic` and the ground's true colours.
     #[arg(long)]
     pub block: Option<String>,
+    /// Film: the fiducial marks' shape (as `fiducials --shape`).
+    #[arg(long, default_value = "cross")]
+    pub mark: String,
+    /// Film: a negative (dark marks on a light base).
+    #[arg(long)]
+    pub negative: bool,
+    /// Film: its small turn on the scanner, degrees.
+    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
+    pub scan_turn: f64,
+    /// Film: quarter turns counter-clockwise on the scanner (0–3).
+    #[arg(long, default_value_t = 0)]
+    pub scan_quarters: u8,
+    /// Film: scanned through its base (mirrored).
+    #[arg(long)]
+    pub mirrored: bool,
+    /// Film: specks of dust and scratches in the margin.
+    #[arg(long, default_value_t = 0)]
+    pub dust: u32,
+    /// Film: this mark (1-based) scratched out.
+    #[arg(long, default_value_t = 0)]
+    pub hide_mark: u32,
+    /// Film: grain, the margin's random spread of tone (0 to 1).
+    #[arg(long, default_value_t = 0.0)]
+    pub grain: f64,
+    /// Film: only the scan's marks and margin (a plain texture inside) and
+    /// the camera file, no terrain: for trying `fiducials`.
+    #[arg(long)]
+    pub marks_only: bool,
 }
 
 impl SynthArgs {
@@ -443,6 +520,16 @@ impl SynthArgs {
             off_nadir_deg: self.off_nadir,
             seed: self.seed,
             no_scan: self.no_scan,
+            marks: gcm_ortho::synth::film_marks::FilmMarks {
+                shape: self.mark.clone(),
+                negative: self.negative,
+                scan_turn_deg: self.scan_turn,
+                quarters: self.scan_quarters,
+                mirrored: self.mirrored,
+                dust: self.dust,
+                hidden_mark: self.hide_mark,
+                grain: self.grain,
+            },
         })
     }
 }

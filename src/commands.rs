@@ -79,11 +79,87 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::RpcGrid(a) => run_rpc_grid(&a).map(|()| 0),
         Command::Mosaic(a) => run_mosaic(&a, signals).map(|()| 0),
         Command::Cameras(a) => run_cameras(&a).map(|()| 0),
+        Command::Fiducials(a) => run_fiducials(&a).map(|()| 0),
         Command::Assemble(a) => {
             gcm_ortho::assemble::assemble(&a.pieces, &a.output, &a.layout.options()?)?;
             Ok(0)
         }
     }
+}
+
+fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {
+    use gcm_ortho::fiducials::{self, camera::Overrides, Turn};
+    use gcm_ortho::io::overwrite::{check_outputs, Role};
+    let turn = match a.turn.as_deref() {
+        None => None,
+        Some(t) => {
+            let (deg, mirrored) = t.strip_suffix('m').map_or((t, false), |d| (d, true));
+            let quarters = match deg {
+                "0" => 0,
+                "90" => 1,
+                "180" => 2,
+                "270" => 3,
+                _ => return Err(anyhow!("--turn: '{t}' is not 0, 90, 180 or 270 (with m after it for a mirrored scan)")),
+            };
+            Some(Turn { quarters, mirrored })
+        }
+    };
+    let mut outputs = Vec::new();
+    if let Some(w) = &a.write {
+        outputs.push(Role::new("--write", w));
+    }
+    if let Some(s) = &a.sheet {
+        outputs.push(Role::new("--sheet", s));
+    }
+    check_outputs(&[Role::new("--image", &a.image), Role::new("--camera", &a.camera)], &outputs)?;
+    let text = gcm_ortho::io::bounded_read::read_text_bounded(&a.camera, "a camera file", gcm_ortho::io::bounded_read::SMALL)?;
+    let file = gcm_ortho::camera::file::CameraFile::parse(&text, &a.camera)?;
+    let src = gcm_ortho::io::source::SourceImage::open(&a.image, 16 << 20)?;
+    let over = Overrides { shape: a.shape.clone(), size_mm: a.size_mm, polarity: a.polarity, turn, pixel_mm: a.scan_pixel_mm, limit_px: a.max_residual_px };
+    let det = fiducials::camera::detect_for(&file, &a.camera, &src, &over)?;
+    if let Some(w) = &a.write {
+        let measured = fiducials::camera::with_marks(file.clone(), &det)?;
+        // The file must still make a camera.
+        measured.clone().build(&a.camera)?;
+        let edited = fiducials::camera::edit_toml(&text, &measured, &a.camera)?;
+        gcm_ortho::io::publish::write_file(w, edited.as_bytes())?;
+    }
+    if let Some(s) = &a.sheet {
+        fiducials::sheet::write(s, fiducials::sheet::render(&src, &det)?)?;
+    }
+    for w in &det.warnings {
+        eprintln!("gcm-ortho: warning: {}: {w}", a.image.display());
+    }
+    if det.turn_ambiguous && turn.is_none() {
+        eprintln!("gcm-ortho: note: the marks look the same turned; the scan is taken as it lies (--turn if the film was turned)");
+    }
+    if a.json {
+        say!("{}", serde_json::to_string_pretty(&det)?);
+        return Ok(());
+    }
+    say!("{:>4} {:>10} {:>10} {:>11} {:>11} {:>6} {:>6} {:>8} {:>8}  used", "mark", "x mm", "y mm", "column", "row", "score", "centre", "res px", "res µm");
+    for m in &det.marks {
+        let (c, r) = m.px.map_or((f64::NAN, f64::NAN), |p| (p[0], p[1]));
+        let rp = m.residual_px.map_or(f64::NAN, |v| v[0].hypot(v[1]));
+        let ru = m.residual_um.map_or(f64::NAN, |v| v[0].hypot(v[1]));
+        let used = if m.used { "yes".to_string() } else { format!("no: {}", m.why.clone().unwrap_or_default()) };
+        say!("{:>4} {:>10.3} {:>10.3} {:>11.2} {:>11.2} {:>6.2} {:>6.2} {:>8.2} {:>8.1}  {used}", m.mark, m.mm[0], m.mm[1], c, r, m.score, m.centre_score, rp, ru);
+    }
+    say!(
+        "film {}, {:+.3}°; {} marks; scan pixel {:.2} × {:.2} µm; residuals RMS {:.2} px, max {:.2} px ({:.1} µm)",
+        det.turn_text,
+        det.rotation_deg,
+        match det.polarity {
+            fiducials::Polarity::Dark => "dark",
+            _ => "light",
+        },
+        det.pixel_mm[0] * 1e3,
+        det.pixel_mm[1] * 1e3,
+        det.rms_px,
+        det.max_px,
+        det.max_um
+    );
+    Ok(())
 }
 
 fn run_cameras(a: &crate::cli::CamerasArgs) -> Result<()> {
@@ -278,6 +354,16 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
                 t.elapsed().as_secs_f64()
             );
             say!("  {}\n  {}\n  {}", r.manifest.display(), r.dem.display(), r.truth.display());
+        }
+        return Ok(());
+    }
+    if a.marks_only {
+        if o.camera != gcm_ortho::synth::CameraKind::Film {
+            return Err(anyhow!("--marks-only: only for --camera film"));
+        }
+        let (scan, camera) = gcm_ortho::synth::film_marks::marks_only(&o)?;
+        if !a.quiet {
+            say!("synth: {}x{} film scan of {} marks, {:.1} s\n  {}\n  {}", o.width, o.height, o.marks.shape, t.elapsed().as_secs_f64(), scan.display(), camera.display());
         }
         return Ok(());
     }

@@ -13,6 +13,7 @@ pub mod batch;
 pub mod camera;
 pub mod dem;
 pub mod error;
+pub mod fiducials;
 pub mod gcm;
 pub mod geodesy;
 pub mod geom;

@@ -296,7 +296,12 @@ impl ModelSource {
         match self {
             ModelSource::CameraFile => Camera::read_for(image, origin, None, crs),
             ModelSource::WithPoses(poses) => Camera::read_for(image, origin, Some(poses), crs),
-            ModelSource::Inline(f) => f.clone().build(origin),
+            ModelSource::Inline(f) => {
+                let (file, found) = crate::fiducials::camera::measured(f.clone(), origin, image)?;
+                let mut cam = file.build(origin)?;
+                cam.warnings.extend(found);
+                Ok(cam)
+            }
             ModelSource::Rpc { offset, geoid } => {
                 let offset = offset.or_else(|| {
                     let xml = crate::io::bounded_read::read_text_bounded(origin, "an RPC file", crate::io::bounded_read::SMALL).ok()?;

@@ -227,6 +227,8 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
             problems.push(format!("image {} does not exist", image.display()));
         }
         let cam = match &inline {
+            // Marks to be found in the scan are found when the job runs.
+            Some(cf) if cf.needs_marks() => Ok(()),
             Some(cf) => cf.clone().build(&camera).map(|_| ()),
             None => crate::camera::file::Camera::read_for(&image, &camera, None, None).map(|_| ()),
         };

@@ -61,6 +61,45 @@ pub struct InteriorSection {
     /// `"scan"`: the whole scan is image.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub format_mm: Option<FormatSetting>,
+    /// What the fiducial marks look like, for finding them in the scan
+    /// (`fiducials`, or a scan whose `fiducials_px` are not given).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fiducial_mark: Option<MarkSetting>,
+    /// The scanner's pixel size, mm (narrows the search for the marks).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scan_pixel_mm: Option<f64>,
+}
+
+/// `interior.fiducial_mark`: a shape by name (one for all marks, or one a
+/// mark) with its sizes, or a template image.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MarkSetting {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shape: Option<OneOrMany>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub size_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub line_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dot_mm: Option<f64>,
+    /// A small image of the mark (PNG or TIFF, the mark at its centre),
+    /// relative to the camera file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub template: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub template_pixel_mm: Option<f64>,
+    /// "light", "dark" or "auto" (default): the marks' tone on the film.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub polarity: Option<String>,
+}
+
+/// One name, or one a mark.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum OneOrMany {
+    One(String),
+    Many(Vec<String>),
 }
 
 /// `interior.pixel_size_mm`: one size, or across and down.
@@ -260,6 +299,13 @@ impl CameraFile {
         })
     }
 
+    /// A film camera whose marks are calibrated but not measured in the
+    /// scan: they are found in it ([`crate::fiducials::for_camera`]).
+    #[must_use]
+    pub fn needs_marks(&self) -> bool {
+        self.interior.as_ref().is_some_and(|i| (i.fiducials_mm.is_some() || i.fiducial_distances_mm.is_some()) && i.fiducials_px.is_none())
+    }
+
     pub fn to_toml(&self) -> String {
         toml::to_string(self).expect("camera files always serialise")
     }
@@ -377,13 +423,14 @@ impl Camera {
     /// `crs`: the positions' CRS where the files give none.
     pub fn read_for(image: &Path, camera: &Path, poses: Option<&Path>, crs: Option<&Crs>) -> Result<Camera> {
         let set = super::formats::read_for(image, camera, poses, crs)?;
-        let mut file = set.camera_for(image)?;
+        let (mut file, found) = crate::fiducials::camera::measured(set.camera_for(image)?, camera, image)?;
         if let (true, Some(c)) = (file.crs.trim().is_empty(), crs) {
             file.crs = c.epsg().map_or_else(|| c.proj4().to_string(), |e| format!("EPSG:{e}"));
         }
         let origin = if super::formats::is_exif(camera) { image } else { poses.unwrap_or(camera) };
         let mut cam = file.build(origin)?;
         cam.warnings = set.warnings;
+        cam.warnings.extend(found);
         cam.relative_altitude = set.relative_altitude;
         Ok(cam)
     }
@@ -523,8 +570,9 @@ fn build_interior(s: &InteriorSection, focal_mm: f64) -> std::result::Result<Int
     let pp = s.principal_point_mm.unwrap_or([0.0, 0.0]);
     all_finite(&pp).map_err(|m| e("principal_point_mm", m))?;
     let flat = |v: &Vec<[f64; 2]>| v.iter().flatten().copied().collect::<Vec<f64>>();
+    const UNMEASURED: &str = "missing: measure the marks with `gcm-ortho fiducials`, or rectify with the scan so that they are found";
     if let Some(mm) = &s.fiducials_mm {
-        let px = s.fiducials_px.as_ref().ok_or_else(|| e("fiducials_px", "missing".into()))?;
+        let px = s.fiducials_px.as_ref().ok_or_else(|| e("fiducials_px", UNMEASURED.into()))?;
         all_finite(&flat(mm)).map_err(|m| e("fiducials_mm", m))?;
         all_finite(&flat(px)).map_err(|m| e("fiducials_px", m))?;
         let io = InteriorOrientation::from_fiducials(mm, px, pp).map_err(|x| e("fiducials_px", x.to_string()))?;
@@ -532,7 +580,7 @@ fn build_interior(s: &InteriorSection, focal_mm: f64) -> std::result::Result<Int
         return Ok(io);
     }
     if let Some(d) = s.fiducial_distances_mm {
-        let px = s.fiducials_px.as_ref().ok_or_else(|| e("fiducials_px", "missing".into()))?;
+        let px = s.fiducials_px.as_ref().ok_or_else(|| e("fiducials_px", UNMEASURED.into()))?;
         all_finite(&d).map_err(|m| e("fiducial_distances_mm", m))?;
         finite_positive(d[0].min(d[1])).map_err(|m| e("fiducial_distances_mm", m))?;
         all_finite(&flat(px)).map_err(|m| e("fiducials_px", m))?;

@@ -6,6 +6,7 @@
 //! seed; written a band of rows at a time, in parallel, in bounded memory.
 
 pub mod block;
+pub mod film_marks;
 pub mod noise;
 mod render;
 mod satellite;
@@ -90,6 +91,8 @@ pub struct SynthOptions {
     /// Write only the geometry (camera, DEM, checkpoints): for accuracy
     /// studies of scans too large to render.
     pub no_scan: bool,
+    /// A film's marks and margin.
+    pub marks: film_marks::FilmMarks,
 }
 
 impl Default for SynthOptions {
@@ -112,6 +115,7 @@ impl Default for SynthOptions {
             off_nadir_deg: 25.0,
             seed: 1,
             no_scan: false,
+            marks: film_marks::FilmMarks::default(),
         }
     }
 }
@@ -183,6 +187,16 @@ fn check(o: &SynthOptions) -> Result<()> {
     Ok(())
 }
 
+/// The marks' shapes as the camera file says them.
+fn mark_shapes(o: &SynthOptions, marks: usize) -> crate::camera::file::OneOrMany {
+    use crate::camera::file::OneOrMany;
+    match film_marks::shape_names(&o.marks.shape, marks) {
+        Ok(v) if v.iter().all(|n| *n == v[0]) => OneOrMany::One(v[0].clone()),
+        Ok(v) => OneOrMany::Many(v),
+        Err(_) => OneOrMany::One(o.marks.shape.clone()),
+    }
+}
+
 /// The camera file of the scene.
 fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
     let u = |k: i64| noise::unit(k, 3, o.seed);
@@ -191,26 +205,37 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
     let centre_y = ORIGIN.1 + (u(4) * 1000.0).round();
     match o.camera {
         CameraKind::Film => {
-            let px = o.film_mm() / o.width.max(o.height) as f64;
+            // A film turned more than the usual fraction of a degree needs
+            // a wider scan to keep its corners.
+            let g = o.marks.scan_turn_deg.abs().to_radians();
+            let wider = if g > 0.5f64.to_radians() { g.cos() + g.sin() } else { 1.0 };
+            let px = o.film_mm() * wider / o.width.max(o.height) as f64;
             let flying = FILM_FOCAL * o.scale / 1000.0;
-            // A flatbed scanner: turned 0.3°, y pixels 0.08 % longer, film
-            // centre a little off the scan centre.
-            let g = 0.3f64.to_radians();
+            // A flatbed scanner: turned 0.3° (or as asked, and by quarter
+            // turns, mirrored), y pixels 0.08 % longer, film centre a
+            // little off the scan centre.
+            let g = o.marks.scan_turn_deg.to_radians();
             let (sx, sy) = (1.0 / px, 1.0 / (px * 1.0008));
             let (cx, cy) = (o.width as f64 / 2.0 + 12.3, o.height as f64 / 2.0 - 7.8);
             let (sg, cg) = (g.sin(), g.cos());
-            let to_px = |x: f64, y: f64| [cx + sx * x * cg - sy * y * sg, cy - (sx * x * sg + sy * y * cg)];
-            let d = o.frame_half() + 2.5;
-            let mut marks = vec![[-d, -d], [d, d], [-d, d], [d, -d]];
-            if o.fiducials == 8 {
-                marks.extend([[-d, 0.0], [d, 0.0], [0.0, d], [0.0, -d]]);
-            }
+            let quarter = crate::fiducials::Turn { quarters: o.marks.quarters % 4, mirrored: o.marks.mirrored }.matrix();
+            let to_px = |x: f64, y: f64| {
+                let v = quarter * nalgebra::Vector2::new(sx * x, sy * y);
+                [cx + v.x * cg + v.y * sg, cy - v.x * sg + v.y * cg]
+            };
+            let marks = film_marks::mark_places(o);
             let pp = [0.004, -0.009];
             let px_marks = marks.iter().map(|m| to_px(m[0], m[1])).collect();
             CameraFile {
                 crs: format!("EPSG:{EPSG}"),
                 camera: CameraSection { model: "frame".into(), focal_length_mm: Some(FILM_FOCAL) },
-                interior: Some(InteriorSection { fiducials_mm: Some(marks), fiducials_px: Some(px_marks), principal_point_mm: Some(pp), ..Default::default() }),
+                interior: Some(InteriorSection {
+                    fiducial_mark: Some(crate::camera::file::MarkSetting { shape: Some(mark_shapes(o, marks.len())), ..Default::default() }),
+                    fiducials_mm: Some(marks),
+                    fiducials_px: Some(px_marks),
+                    principal_point_mm: Some(pp),
+                    ..Default::default()
+                }),
                 distortion: Some(DistortionSection { radial_mm: Some([0.0, 1.5e-7, -2.0e-9]), ..Default::default() }),
                 exterior: Some(ExteriorSection {
                     position: [centre_x, centre_y, ground_h + flying],
@@ -495,7 +520,21 @@ pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
     let tex = Texture::new(o.seed, gsd, cam.centre.x, cam.centre.y, 2.0 * half);
     let inside = |c: f64, r: f64| in_image(o, cam, c, r);
     let colour = |x: f64, y: f64| tex.rgb(x, y);
-    let scene = Scene { model: cam, dem: &dem, colour: &colour, inside: &inside, margin: &|c, r| film_margin(o, cam, c, r), shade: &|_, _, c| c, mid_z };
+    let film = film_marks::Margin::new(o)?;
+    let pp = file.interior.as_ref().and_then(|i| i.principal_point_mm).unwrap_or([0.0, 0.0]);
+    let to_mm = |c: f64, r: f64| {
+        let (x, y) = cam.interior.px_to_mm(c, r);
+        (x + pp[0], y + pp[1])
+    };
+    let pixel_mm = cam.interior.pixel_size_mm();
+    let margin = |c: f64, r: f64| -> [f32; 3] {
+        if o.camera == CameraKind::Film {
+            [film.tone(c, r, &to_mm, pixel_mm); 3]
+        } else {
+            [0.0; 3]
+        }
+    };
+    let scene = Scene { model: cam, dem: &dem, colour: &colour, inside: &inside, margin: &margin, shade: &|_, _, c| c, mid_z };
     let scan_spec = scan_spec(o);
     if !o.no_scan {
         render_scan(o, &scene, &scan_spec, &scan_path, progress)?;
@@ -666,25 +705,3 @@ fn write_checkpoints(o: &SynthOptions, sc: &Scene<'_>, grid: &crate::geom::Outpu
     f.write_all(csv.as_bytes()).map_err(|e| Error::io(path, e))
 }
 
-/// Film base with the fiducial marks: bright crosses on dark film.
-fn film_margin(o: &SynthOptions, cam: &crate::camera::FrameCamera, c: f64, r: f64) -> [f32; 3] {
-    if o.camera != CameraKind::Film {
-        return [0.0; 3];
-    }
-    let (x, y) = cam.interior.px_to_mm(c, r);
-    let d = o.frame_half() + 2.5;
-    let mut marks = vec![(-d, -d), (d, d), (-d, d), (d, -d)];
-    if o.fiducials == 8 {
-        marks.extend([(-d, 0.0), (d, 0.0), (0.0, d), (0.0, -d)]);
-    }
-    let px = cam.interior.pixel_size_mm();
-    for (mx, my) in marks {
-        let (dx, dy) = ((x - mx).abs(), (y - my).abs());
-        let dot = dx * dx + dy * dy < 0.3 * 0.3;
-        let cross = (dx < px.max(0.02) && dy < 1.5) || (dy < px.max(0.02) && dx < 1.5);
-        if dot || cross {
-            return [0.95; 3];
-        }
-    }
-    [0.06; 3]
-}

@@ -1,0 +1,218 @@
+//! Fiducial marks found without hand work: synthetic film scans of every
+//! mark shape (positives and negatives, grain, dust, scratches, films
+//! turned a few degrees, by quarter turns, mirrored; scanner scales that
+//! differ by 0.08 %) against the marks' true places, which the generator
+//! writes from its scanner's map; the interior orientation against the
+//! true one at the frame's corners; refusals; the command's outputs; and a
+//! rectification whose marks are found, against the one with the true marks.
+
+mod common;
+
+use common::{run, s};
+use gcm_ortho::camera::file::CameraFile;
+use gcm_ortho::camera::interior::InteriorOrientation;
+use gcm_ortho::fiducials::camera::{detect_for, Overrides};
+use gcm_ortho::fiducials::Detection;
+use gcm_ortho::io::source::SourceImage;
+use gcm_ortho::synth::film_marks::{marks_only, FilmMarks};
+use gcm_ortho::synth::SynthOptions;
+use std::path::{Path, PathBuf};
+
+/// A marks-only film scan in `dir`: (scan, camera file without the marks'
+/// places, the true places).
+fn film(dir: &Path, size: u32, fiducials: u32, marks: FilmMarks) -> (PathBuf, PathBuf, Vec<[f64; 2]>) {
+    let o = SynthOptions { out: dir.to_path_buf(), width: size, height: size, bands: 1, fiducials, marks, ..Default::default() };
+    let (scan, camera) = marks_only(&o).expect("synth works");
+    let mut file = CameraFile::read(&camera).unwrap();
+    let truth = file.interior.as_mut().unwrap().fiducials_px.take().unwrap();
+    let bare = dir.join("bare.toml");
+    std::fs::write(&bare, file.to_toml()).unwrap();
+    (scan, bare, truth)
+}
+
+fn detect(scan: &Path, camera: &Path, over: &Overrides) -> gcm_ortho::error::Result<Detection> {
+    let file = CameraFile::read(camera).unwrap();
+    detect_for(&file, camera, &SourceImage::open(scan, 1 << 20).unwrap(), over)
+}
+
+/// Every mark used lies within 0.25 px of its truth, and the interior
+/// orientation within 0.3 px at the 23 cm frame's corners.
+fn assert_found(name: &str, det: &Detection, truth: &[[f64; 2]], used: usize) {
+    assert_found_within(name, det, truth, used, 0.3);
+}
+
+fn assert_found_within(name: &str, det: &Detection, truth: &[[f64; 2]], used: usize, corners_px: f64) {
+    let mut worst: f64 = 0.0;
+    for m in det.marks.iter().filter(|m| m.used) {
+        let p = m.px.unwrap();
+        let t = truth[m.mark - 1];
+        worst = worst.max((p[0] - t[0]).hypot(p[1] - t[1]));
+    }
+    assert_eq!(det.marks.iter().filter(|m| m.used).count(), used, "{name}: marks used: {:#?}", det.marks);
+    assert!(worst < 0.25, "{name}: a mark {worst:.3} px off its truth: {:#?}", det.marks);
+    let all_mm: Vec<[f64; 2]> = det.marks.iter().map(|m| m.mm).collect();
+    let truth_io = InteriorOrientation::from_fiducials(&all_mm, truth, [0.0, 0.0]).unwrap();
+    let (mm, px) = det.used();
+    let io = InteriorOrientation::from_fiducials(&mm, &px, [0.0, 0.0]).unwrap();
+    for (x, y) in [(-115.0, -115.0), (115.0, 115.0), (-115.0, 115.0), (115.0, -115.0)] {
+        let (a, b) = (io.mm_to_px(x, y), truth_io.mm_to_px(x, y));
+        let off = (a.0 - b.0).hypot(a.1 - b.1);
+        assert!(off < corners_px, "{name}: the interior orientation is {off:.3} px off at ({x}, {y})");
+    }
+}
+
+fn marks(shape: &str) -> FilmMarks {
+    FilmMarks { shape: shape.into(), ..Default::default() }
+}
+
+#[test]
+fn every_shape_positive_and_negative_is_found_to_a_quarter_pixel() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: [(&str, u32, u32, FilmMarks); 7] = [
+        ("cross", 4000, 4, marks("cross")),
+        ("cross, negative, 8 marks", 4000, 8, FilmMarks { negative: true, ..marks("cross") }),
+        ("dot", 4000, 4, marks("dot")),
+        ("zeiss-rmk (circle and dot), negative", 4000, 4, FilmMarks { negative: true, ..marks("zeiss-rmk") }),
+        ("wild-rc (cross with a dot)", 4000, 4, marks("wild-rc")),
+        ("fairchild (wings), 8 marks", 4000, 8, marks("fairchild")),
+        ("afa (the thesis' dark corner with a light dot), negative", 6000, 4, FilmMarks { negative: true, ..marks("afa") }),
+    ];
+    for (k, (name, size, n, look)) in cases.into_iter().enumerate() {
+        let negative = look.negative;
+        let (scan, camera, truth) = film(&dir.path().join(k.to_string()), size, n, look);
+        let det = detect(&scan, &camera, &Overrides::default()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_found(name, &det, &truth, n as usize);
+        let want = if negative { gcm_ortho::fiducials::Polarity::Dark } else { gcm_ortho::fiducials::Polarity::Light };
+        // The synthetic negative has dark marks on a light base.
+        assert_eq!(det.polarity, want, "{name}");
+        assert!(det.turn_ambiguous, "{name}: marks alike all round cannot tell a turn");
+        // The scanner's scales: 60 µm across, 0.08 % longer down.
+        let ratio = det.pixel_mm[1] / det.pixel_mm[0];
+        assert!((ratio - 1.0008).abs() < 2e-4, "{name}: scale ratio {ratio}");
+    }
+}
+
+#[test]
+fn films_turned_a_few_degrees_by_quarter_turns_or_mirrored_are_found_and_said() {
+    use gcm_ortho::fiducials::Turn;
+    let dir = tempfile::tempdir().unwrap();
+    // Two marks unlike the others tell every turn and a mirror.
+    let odd4 = "circle-dot,cross,dot,cross";
+    let odd8 = "corner-dot,cross,cross,cross,dot,cross,cross,cross";
+    let cases = [
+        ("+3°", 4, FilmMarks { scan_turn_deg: 3.0, ..marks("cross") }, Turn::NONE),
+        ("−3°, negative", 4, FilmMarks { scan_turn_deg: -3.0, negative: true, ..marks("zeiss-rmk") }, Turn::NONE),
+        ("90°", 4, FilmMarks { quarters: 1, ..marks(odd4) }, Turn { quarters: 1, mirrored: false }),
+        ("180°", 4, FilmMarks { quarters: 2, ..marks(odd4) }, Turn { quarters: 2, mirrored: false }),
+        ("mirrored", 4, FilmMarks { mirrored: true, ..marks(odd4) }, Turn { quarters: 0, mirrored: true }),
+        ("270°, mirrored, 8 marks", 8, FilmMarks { quarters: 3, mirrored: true, ..marks(odd8) }, Turn { quarters: 3, mirrored: true }),
+    ];
+    for (k, (name, n, look, turn)) in cases.into_iter().enumerate() {
+        let small = look.scan_turn_deg;
+        let (scan, camera, truth) = film(&dir.path().join(k.to_string()), 4000, n, look);
+        let det = detect(&scan, &camera, &Overrides::default()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_found(name, &det, &truth, n as usize);
+        assert_eq!(det.turn, turn, "{name}");
+        assert!((det.rotation_deg + small).abs() < 0.02, "{name}: {}°", det.rotation_deg);
+    }
+    // A turned film whose marks look alike: refused, not guessed; told, it is found.
+    let (scan, camera, truth) = film(&dir.path().join("alike"), 4000, 4, FilmMarks { quarters: 1, ..marks("circle-dot,cross,cross,cross") });
+    let e = detect(&scan, &camera, &Overrides::default()).unwrap_err().to_string();
+    assert!(e.contains("give --turn"), "{e}");
+    let told = Overrides { turn: Some(Turn { quarters: 1, mirrored: false }), ..Default::default() };
+    assert_found("told", &detect(&scan, &camera, &told).unwrap(), &truth, 4);
+}
+
+#[test]
+fn grain_dust_and_a_scratched_out_mark_give_a_right_fit_or_a_clear_refusal() {
+    let dir = tempfile::tempdir().unwrap();
+    // Grain and dust, some of it on the marks.
+    let (scan, camera, truth) = film(&dir.path().join("dust"), 4000, 8, FilmMarks { grain: 0.12, dust: 60, ..marks("cross") });
+    assert_found("dust", &detect(&scan, &camera, &Overrides::default()).unwrap(), &truth, 8);
+    // One of eight scratched out: seven used, the eighth said.
+    let (scan, camera, truth) = film(&dir.path().join("seven"), 4000, 8, FilmMarks { hidden_mark: 6, dust: 30, ..marks("cross") });
+    let det = detect(&scan, &camera, &Overrides::default()).unwrap();
+    assert_found("seven", &det, &truth, 7);
+    assert!(!det.marks[5].used && det.warnings.iter().any(|w| w.contains("mark 6 not found")), "{:#?}", det);
+    // One of four: three fit, without a check, said. The lost mark's
+    // corner is extrapolated from the other three's errors (0.1–0.2 px).
+    let (scan, camera, truth) = film(&dir.path().join("three"), 4000, 4, FilmMarks { hidden_mark: 2, ..marks("cross") });
+    let det = detect(&scan, &camera, &Overrides::default()).unwrap();
+    assert_found_within("three", &det, &truth, 3, 0.5);
+    assert!(det.warnings.iter().any(|w| w.contains("no check")), "{:?}", det.warnings);
+    // The wrong shape: nothing found, refused by name.
+    let wrong = Overrides { shape: Some("corner-dot".into()), ..Default::default() };
+    let (scan, camera, _) = film(&dir.path().join("wrong"), 4000, 4, marks("dot"));
+    let e = detect(&scan, &camera, &wrong).unwrap_err().to_string();
+    assert!(e.contains("scan.tif") && (e.contains("found") || e.contains("no fiducial marks")), "{e}");
+    // A calibration wrong for one mark (3 mm off): that mark is not used,
+    // and said, the other three giving the right orientation; or, the
+    // layout no longer symmetric, a refusal naming the scan.
+    let (scan, camera, truth) = film(&dir.path().join("miscalibrated"), 4000, 4, marks("cross"));
+    let mut file = CameraFile::read(&camera).unwrap();
+    let i = file.interior.as_mut().unwrap();
+    i.fiducials_mm = Some(i.fiducials_mm.take().unwrap().into_iter().enumerate().map(|(k, [x, y])| if k == 0 { [x - 3.0, y] } else { [x, y] }).collect());
+    let other = dir.path().join("other.toml");
+    std::fs::write(&other, file.to_toml()).unwrap();
+    match detect(&scan, &other, &Overrides::default()) {
+        Ok(det) => {
+            assert!(!det.marks[0].used && det.warnings.iter().any(|w| w.contains("mark 1")), "{det:#?}");
+            assert_found_within("miscalibrated", &det, &truth, 3, 0.5);
+        }
+        Err(e) => assert!(e.to_string().contains("scan.tif"), "{e}"),
+    }
+}
+
+#[test]
+fn the_command_writes_the_camera_file_a_sheet_and_json_and_never_over_its_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scan, camera, truth) = film(&dir.path().join("f"), 3000, 4, FilmMarks { shape: "cross-dot".into(), ..Default::default() });
+    // The user's comments and layout are kept.
+    let text = format!("# our RC-10, calibrated 1994\n{}", std::fs::read_to_string(&camera).unwrap());
+    std::fs::write(&camera, &text).unwrap();
+    let (out, sheet) = (dir.path().join("measured.toml"), dir.path().join("marks.png"));
+    let r = run(&["fiducials", "--image", s(&scan), "--camera", s(&camera), "--write", s(&out), "--sheet", s(&sheet), "--json"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    assert_eq!(report["marks"].as_array().unwrap().len(), 4);
+    let written = std::fs::read_to_string(&out).unwrap();
+    assert!(written.starts_with("# our RC-10, calibrated 1994\n"), "{written}");
+    let measured = CameraFile::read(&out).unwrap();
+    for (p, t) in measured.interior.as_ref().unwrap().fiducials_px.as_ref().unwrap().iter().zip(&truth) {
+        assert!((p[0] - t[0]).hypot(p[1] - t[1]) < 0.25, "{p:?} vs {t:?}");
+    }
+    measured.build(&out).expect("the written camera file makes a camera");
+    let png = png::Decoder::new(std::fs::File::open(&sheet).unwrap()).read_info().unwrap();
+    assert_eq!((png.info().width, png.info().height), (4 * 160 + 5 * 6, 160 + 2 * 6));
+    // Over its own inputs: refused, the camera file untouched.
+    let r = run(&["fiducials", "--image", s(&scan), "--camera", s(&camera), "--write", s(&camera)]);
+    assert_eq!(r.status.code(), Some(2), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(std::fs::read_to_string(&camera).unwrap(), text);
+    // A shape it does not know: one line naming it.
+    let r = run(&["fiducials", "--image", s(&scan), "--camera", s(&camera), "--shape", "star"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains("unknown mark shape 'star'") && err.lines().count() == 1, "{err}");
+}
+
+#[test]
+fn a_film_rectified_without_measured_marks_finds_them_and_matches_the_true_marks() {
+    let dir = tempfile::tempdir().unwrap();
+    let rep = common::scene(&dir.path().join("scene"), 2400, |_| {});
+    let mut file = CameraFile::read(&rep.camera).unwrap();
+    file.interior.as_mut().unwrap().fiducials_px = None;
+    let bare = dir.path().join("bare.toml");
+    std::fs::write(&bare, file.to_toml()).unwrap();
+    let (a, b) = (dir.path().join("true.tif"), dir.path().join("found.tif"));
+    for (cam, out) in [(&rep.camera, &a), (&bare, &b)] {
+        let r = run(&["rectify", "--image", s(&rep.scan), "--camera", s(cam), "--dem", s(&rep.dem), "-o", s(out), "--quiet"]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    }
+    let (pa, _) = common::whole_image(&a);
+    let (pb, _) = common::whole_image(&b);
+    assert_eq!(pa.len(), pb.len(), "the same grid");
+    // Marks found within a fraction of a pixel move the image by as much:
+    // tones differ little, on average by well under a grey level's few.
+    let diff: f64 = pa.iter().zip(&pb).map(|(x, y)| (*x as f64 - *y as f64).abs()).sum::<f64>() / pa.len() as f64;
+    assert!(diff < 1.5, "mean difference {diff:.2} grey levels");
+    assert_ne!(pa, pb, "the marks were measured, not copied");
+}
