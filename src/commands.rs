@@ -143,7 +143,18 @@ fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {
         let rp = m.residual_px.map_or(f64::NAN, |v| v[0].hypot(v[1]));
         let ru = m.residual_um.map_or(f64::NAN, |v| v[0].hypot(v[1]));
         let used = if m.used { "yes".to_string() } else { format!("no: {}", m.why.clone().unwrap_or_default()) };
-        say!("{:>4} {:>10.3} {:>10.3} {:>11.2} {:>11.2} {:>6.2} {:>6.2} {:>8.2} {:>8.1}  {used}", m.mark, m.mm[0], m.mm[1], c, r, m.score, m.centre_score, rp, ru);
+        say!(
+            "{:>4} {:>10.3} {:>10.3} {:>11.2} {:>11.2} {:>6.2} {:>6.2} {:>8.2} {:>8.1}  {used}",
+            m.mark,
+            m.mm[0],
+            m.mm[1],
+            c,
+            r,
+            m.score,
+            m.centre_score,
+            rp,
+            ru
+        );
     }
     say!(
         "film {}, {:+.3}°; {} marks; scan pixel {:.2} × {:.2} µm; residuals RMS {:.2} px, max {:.2} px ({:.1} µm)",
@@ -363,7 +374,15 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
         }
         let (scan, camera) = gcm_ortho::synth::film_marks::marks_only(&o)?;
         if !a.quiet {
-            say!("synth: {}x{} film scan of {} marks, {:.1} s\n  {}\n  {}", o.width, o.height, o.marks.shape, t.elapsed().as_secs_f64(), scan.display(), camera.display());
+            say!(
+                "synth: {}x{} film scan of {} marks, {:.1} s\n  {}\n  {}",
+                o.width,
+                o.height,
+                o.marks.shape,
+                t.elapsed().as_secs_f64(),
+                scan.display(),
+                camera.display()
+            );
         }
         return Ok(());
     }

@@ -66,7 +66,9 @@ pub fn detect_for(file: &CameraFile, camera_path: &Path, src: &SourceImage, over
     let polarity = match (over.polarity, setting.polarity.as_deref()) {
         (Some(p), _) => p,
         (None, None) => Polarity::Auto,
-        (None, Some(p)) => crate::options::parse_choice::<Polarity>("polarity", p).map_err(|_| err("fiducial_mark.polarity", format!("'{p}' is not light, dark or auto")))?,
+        (None, Some(p)) => {
+            crate::options::parse_choice::<Polarity>("polarity", p).map_err(|_| err("fiducial_mark.polarity", format!("'{p}' is not light, dark or auto")))?
+        }
     };
     let pixel_mm = over.pixel_mm.or(interior.scan_pixel_mm);
     if let Some(p) = pixel_mm {
@@ -75,7 +77,8 @@ pub fn detect_for(file: &CameraFile, camera_path: &Path, src: &SourceImage, over
         }
     }
     let limit_px = over.limit_px.or(interior.max_fiducial_residual_px).unwrap_or(1.0);
-    let mut req = Request { marks_mm: &marks, shapes, shape_index, pixel_mm: pixel_mm.or_else(|| resolution_mm(&src.path)), polarity, turn: over.turn, limit_px };
+    let mut req =
+        Request { marks_mm: &marks, shapes, shape_index, pixel_mm: pixel_mm.or_else(|| resolution_mm(&src.path)), polarity, turn: over.turn, limit_px };
     match super::detect(src, &req) {
         // The resolution tags can be wrong (a scanner's default): search
         // by the scan's size instead before giving up.

@@ -78,7 +78,8 @@ impl Gray {
         if ix0 == x0 && iy0 == y0 && iw == w as i64 / f * f && ih == h as i64 / f * f {
             return Self::read(src, (x0 as u32, y0 as u32, w, h), factor);
         }
-        let inner = if iw > 0 && ih > 0 && ix0 < sw && iy0 < sh { Self::read(src, (ix0 as u32, iy0 as u32, iw as u32, ih as u32), factor)? } else { Gray::default() };
+        let inner =
+            if iw > 0 && ih > 0 && ix0 < sw && iy0 < sh { Self::read(src, (ix0 as u32, iy0 as u32, iw as u32, ih as u32), factor)? } else { Gray::default() };
         let mean = if inner.data.is_empty() { 0.0 } else { inner.data.iter().sum::<f32>() / inner.data.len() as f32 };
         let (oi, oj) = (((ix0 - x0) / f) as usize, ((iy0 - y0) / f) as usize);
         let inside = [oi.min(width), oj.min(height), (oi + inner.width).min(width), (oj + inner.height).min(height)];

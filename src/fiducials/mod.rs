@@ -135,7 +135,10 @@ pub fn detect(src: &SourceImage, req: &Request<'_>) -> Result<Detection> {
     let coarse = search::coarse(req, src, scale)?;
     let found_coarse = coarse.places.iter().filter(|p| p.is_some()).count();
     if found_coarse < 2 {
-        return Err(Error::format(path, format!("no fiducial marks like the camera's ({}) where its calibrated marks would lie in this scan", describe_shapes(req))));
+        return Err(Error::format(
+            path,
+            format!("no fiducial marks like the camera's ({}) where its calibrated marks would lie in this scan", describe_shapes(req)),
+        ));
     }
     let sign = if coarse.polarity == Polarity::Dark { -1.0 } else { 1.0 };
     let refined: Vec<Option<refine::Refined>> = (0..n)
@@ -175,7 +178,10 @@ pub fn detect(src: &SourceImage, req: &Request<'_>) -> Result<Detection> {
     let usable: Vec<(usize, [f64; 2], [f64; 2])> = marks.iter().enumerate().filter(|(_, m)| m.used).filter_map(|(k, m)| Some((k, m.mm, m.px?))).collect();
     let list = |marks: &[FoundMark]| marks.iter().map(|m| format!("mark {}: {:.2}", m.mark, m.score)).collect::<Vec<_>>().join(", ");
     if usable.len() < 3 {
-        return Err(Error::format(path, format!("found {} of {n} fiducial marks, 3 at least are needed ({}): is the mark's shape right?", usable.len(), list(&marks))));
+        return Err(Error::format(
+            path,
+            format!("found {} of {n} fiducial marks, 3 at least are needed ({}): is the mark's shape right?", usable.len(), list(&marks)),
+        ));
     }
     let fit = fit::robust_affine(&usable, req.limit_px).ok_or_else(|| Error::format(path, "the marks found lie on one line"))?;
     let inverse = fit.map.inverse().ok_or_else(|| Error::format(path, "the marks found lie on one line"))?;
@@ -210,7 +216,12 @@ pub fn detect(src: &SourceImage, req: &Request<'_>) -> Result<Detection> {
         if let Some(weak) = kept.iter().find(|m| m.score.min(m.centre_score) < STRONG_SCORE) {
             return Err(Error::format(
                 path,
-                format!("only 3 fiducial marks found, mark {} weakly ({:.2}): an interior orientation from them would have no check ({})", weak.mark, weak.score.min(weak.centre_score), list(&marks)),
+                format!(
+                    "only 3 fiducial marks found, mark {} weakly ({:.2}): an interior orientation from them would have no check ({})",
+                    weak.mark,
+                    weak.score.min(weak.centre_score),
+                    list(&marks)
+                ),
             ));
         }
         warnings.push("only 3 fiducial marks found: the interior orientation has no check".into());

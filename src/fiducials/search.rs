@@ -208,7 +208,15 @@ pub fn coarse(req: &Request<'_>, src: &SourceImage, scale: ScaleRange) -> Result
         }
     }
     let Some((score, mut coarse)) = best else {
-        return Ok(Coarse { turn: Turn::NONE, ambiguous: false, polarity: Polarity::Light, to_px: Matrix2::zeros(), centre: Vector2::zeros(), places: vec![None; req.marks_mm.len()], factor });
+        return Ok(Coarse {
+            turn: Turn::NONE,
+            ambiguous: false,
+            polarity: Polarity::Light,
+            to_px: Matrix2::zeros(),
+            centre: Vector2::zeros(),
+            places: vec![None; req.marks_mm.len()],
+            factor,
+        });
     };
     let winner = turns.iter().position(|t| *t == coarse.turn).unwrap_or(0);
     let tied: Vec<Turn> = scores.iter().filter(|&&(ti, _, sc)| ti != winner && sc >= score - 1e-3 * score.abs()).map(|&(ti, _, _)| turns[ti]).collect();
@@ -275,7 +283,11 @@ fn agree(marks: &[[f64; 2]], turn: Turn, cands: &[Vec<Candidate>], tol: f64) -> 
                     let places: Vec<Option<Candidate>> = (0..n)
                         .map(|k| {
                             let want = centre + lin * Vector2::from(marks[k]);
-                            let hit = cands[k].iter().filter(|c| c.score > 0.0 && (Vector2::from(c.at) - want).norm() < tol).max_by(|x, y| x.score.total_cmp(&y.score)).cloned();
+                            let hit = cands[k]
+                                .iter()
+                                .filter(|c| c.score > 0.0 && (Vector2::from(c.at) - want).norm() < tol)
+                                .max_by(|x, y| x.score.total_cmp(&y.score))
+                                .cloned();
                             total += hit.as_ref().map_or(0.0, |c| c.score as f64);
                             hit
                         })

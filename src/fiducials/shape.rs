@@ -12,12 +12,31 @@ use std::path::Path;
 /// One painted piece; `value` is the tone it leaves (1 the mark, 0 the film).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Primitive {
-    Disc { x: f64, y: f64, r: f64, value: f32 },
-    Ring { r: f64, width: f64, value: f32 },
+    Disc {
+        x: f64,
+        y: f64,
+        r: f64,
+        value: f32,
+    },
+    Ring {
+        r: f64,
+        width: f64,
+        value: f32,
+    },
     /// A rectangle centred at (x, y), `len` along `angle_deg`, `width` across.
-    Bar { x: f64, y: f64, len: f64, width: f64, angle_deg: f64, value: f32 },
+    Bar {
+        x: f64,
+        y: f64,
+        len: f64,
+        width: f64,
+        angle_deg: f64,
+        value: f32,
+    },
     /// A filled triangle.
-    Triangle { p: [[f64; 2]; 3], value: f32 },
+    Triangle {
+        p: [[f64; 2]; 3],
+        value: f32,
+    },
 }
 
 impl Primitive {
@@ -128,7 +147,7 @@ impl Shape {
         let line = look.line_mm.unwrap_or(line0);
         let dot = look.dot_mm.unwrap_or(dot0);
         for (what, v) in [("size_mm", size), ("line_mm", line), ("dot_mm", dot)] {
-            if !(v.is_finite() && v >= 0.0 && v <= 20.0) {
+            if !(v.is_finite() && (0.0..=20.0).contains(&v)) {
                 return Err(format!("{what} = {v}: not a size from 0 to 20 mm"));
             }
         }

@@ -87,7 +87,10 @@ impl Margin {
         let look = o.marks.clone();
         let marks = mark_places(o);
         let names = shape_names(&look.shape, marks.len())?;
-        let shapes = names.iter().map(|n| Shape::from_look(&MarkLook { shape: n.clone(), ..Default::default() }).map_err(|m| Error::setting("mark", m))).collect::<Result<Vec<_>>>()?;
+        let shapes = names
+            .iter()
+            .map(|n| Shape::from_look(&MarkLook { shape: n.clone(), ..Default::default() }).map_err(|m| Error::setting("mark", m)))
+            .collect::<Result<Vec<_>>>()?;
         let reach_mm = shapes.iter().map(|s| s.radius_mm).fold(0.0, f64::max) * 1.5;
         let mut specks = Vec::new();
         let u = |k: u32, j: i64| noise::unit(k as i64, j, o.seed ^ 0xd057);

@@ -704,4 +704,3 @@ fn write_checkpoints(o: &SynthOptions, sc: &Scene<'_>, grid: &crate::geom::Outpu
     let mut f = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
     f.write_all(csv.as_bytes()).map_err(|e| Error::io(path, e))
 }
-
