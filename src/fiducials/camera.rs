@@ -136,7 +136,9 @@ pub fn measured(file: CameraFile, camera_path: &Path, image: &Path) -> Result<(C
         return Ok((file, Vec::new()));
     }
     let src = SourceImage::open(image, 16 << 20)?;
-    let det = detect_for(&file, camera_path, &src, &Overrides::default())?;
+    // The camera file is named first: its marks are what is missing.
+    let det = detect_for(&file, camera_path, &src, &Overrides::default())
+        .map_err(|e| Error::config(camera_path, "interior.fiducials_px", format!("not given, and not found in the scan: {e}")))?;
     let notes: Vec<String> = det.warnings.iter().map(|w| format!("{}: {w}", image.display())).collect();
     Ok((with_marks(file, &det)?, notes))
 }
