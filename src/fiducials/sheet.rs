@@ -1,5 +1,5 @@
 //! A PNG sheet of the marks for a quick look: each mark's surroundings
-//! (stretched to full contrast), its number, and a crosshair where its
+//! (stretched to full contrast), its number, and a diagonal cross where its
 //! centre was found (green: used, red: left out); a grey square for a
 //! mark not found at all.
 
@@ -12,20 +12,6 @@ use std::path::Path;
 /// Side of a mark's square on the sheet, pixels.
 const CELL: usize = 160;
 const GAP: usize = 6;
-
-/// 3 × 5 digits, a row a byte's low three bits.
-const DIGITS: [[u8; 5]; 10] = [
-    [7, 5, 5, 5, 7],
-    [2, 6, 2, 2, 7],
-    [7, 1, 7, 4, 7],
-    [7, 1, 7, 1, 7],
-    [5, 5, 7, 1, 1],
-    [7, 4, 7, 1, 7],
-    [7, 4, 7, 5, 7],
-    [7, 1, 1, 1, 1],
-    [7, 5, 7, 5, 7],
-    [7, 5, 7, 1, 7],
-];
 
 /// The sheet's pixels (RGB) and size.
 pub fn render(src: &SourceImage, det: &Detection) -> Result<(usize, usize, Vec<u8>)> {
@@ -47,7 +33,7 @@ pub fn render(src: &SourceImage, det: &Detection) -> Result<(usize, usize, Vec<u
             // The mark's square at a whole reduction that fits the cell.
             let side = (2.0 * m.radius_mm * scale * 1.2).max(24.0);
             let f = (side / CELL as f64).ceil().max(1.0) as u32;
-            let reach = (CELL as f64 * f as f64) / 2.0;
+            let reach = if f == 1 { side / 2.0 } else { (CELL as f64 * f as f64) / 2.0 };
             let x0 = (at[0] - reach).floor().max(0.0) as u32;
             let y0 = (at[1] - reach).floor().max(0.0) as u32;
             let g = Gray::read(src, (x0, y0, (2.0 * reach) as u32, (2.0 * reach) as u32), f)?;
@@ -69,7 +55,7 @@ pub fn render(src: &SourceImage, det: &Detection) -> Result<(usize, usize, Vec<u
             let cy = ((at[1] - y0 as f64) / f as f64 * zoom as f64) as i64;
             for d in -12i64..=12 {
                 if d.abs() > 3 {
-                    for (x, y) in [(cx + d, cy), (cx, cy + d)] {
+                    for (x, y) in [(cx + d, cy + d), (cx + d, cy - d)] {
                         if x >= 0 && y >= 0 {
                             put(x as usize, y as usize, colour);
                         }
@@ -83,19 +69,8 @@ pub fn render(src: &SourceImage, det: &Detection) -> Result<(usize, usize, Vec<u
                 }
             }
         }
-        // The mark's number, top left, 3× magnified.
-        for (d, ch) in m.mark.to_string().bytes().enumerate() {
-            let glyph = DIGITS[(ch - b'0') as usize];
-            for (r, bits) in glyph.iter().enumerate() {
-                for c in 0..3 {
-                    if bits >> (2 - c) & 1 == 1 {
-                        for a in 0..9 {
-                            put(4 + d * 12 + c * 3 + a % 3, 4 + r * 3 + a / 3, [255, 220, 0]);
-                        }
-                    }
-                }
-            }
-        }
+        // The mark's number, top left.
+        crate::study::maps::draw_text(&mut rgb, w, (ox + 4, oy + 4), &m.mark.to_string(), 3, [255, 220, 0]);
     }
     Ok((w, h, rgb))
 }

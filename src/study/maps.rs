@@ -61,8 +61,9 @@ fn save_png(path: &Path, w: u32, h: u32, rgb: &[u8]) -> Result<()> {
     crate::io::publish::write_file(path, &bytes)
 }
 
-/// Draws digits 0-9 and '.' from a 3×5 font, scaled.
-fn draw_text(img: &mut [u8], iw: usize, x: usize, y: usize, text: &str, s: usize) {
+/// Draws digits 0-9 and '.' from a 3×5 font, scaled `s` times, in
+/// `colour` on an RGB image `iw` pixels wide.
+pub(crate) fn draw_text(img: &mut [u8], iw: usize, (x, y): (usize, usize), text: &str, s: usize, colour: [u8; 3]) {
     const FONT: [[u8; 5]; 11] = [
         [7, 5, 5, 5, 7],
         [2, 6, 2, 2, 7],
@@ -90,7 +91,7 @@ fn draw_text(img: &mut [u8], iw: usize, x: usize, y: usize, text: &str, s: usize
                             let px = x + (n * 4 + c) * s + dx;
                             let py = y + r * s + dy;
                             if px < iw && (py * iw + px) * 3 + 2 < img.len() {
-                                img[(py * iw + px) * 3..][..3].copy_from_slice(&[0, 0, 0]);
+                                img[(py * iw + px) * 3..][..3].copy_from_slice(&colour);
                             }
                         }
                     }
@@ -123,8 +124,8 @@ pub fn write_error_png(path: &Path, map: &[f32], w: u32, h: u32) -> Result<()> {
             img[(y * ow + 20 + x.min(ow - 21)) * 3..][..3].copy_from_slice(&c);
         }
     }
-    draw_text(&mut img, ow, 20, oh + 34, "0", 3);
-    draw_text(&mut img, ow, ow.saturating_sub(20 + 4 * 3 * 6), oh + 34, &format!("{max:.3}"), 3);
+    draw_text(&mut img, ow, (20, oh + 34), "0", 3, [0, 0, 0]);
+    draw_text(&mut img, ow, (ow.saturating_sub(20 + 4 * 3 * 6), oh + 34), &format!("{max:.3}"), 3, [0, 0, 0]);
     save_png(path, ow as u32, ih as u32, &img)
 }
 
