@@ -188,6 +188,13 @@ fn the_command_writes_the_camera_file_a_sheet_and_json_and_never_over_its_inputs
     let r = run(&["fiducials", "--image", s(&scan), "--camera", s(&camera), "--write", s(&camera)]);
     assert_eq!(r.status.code(), Some(2), "{}", String::from_utf8_lossy(&r.stderr));
     assert_eq!(std::fs::read_to_string(&camera).unwrap(), text);
+    // Absurd numbers: refused by the option's name, nothing written.
+    for (flag, value) in [("--max-residual-px", "nan"), ("--scan-pixel-mm", "0"), ("--size-mm", "1e9")] {
+        let r = run(&["fiducials", "--image", s(&scan), "--camera", s(&camera), flag, value, "--write", s(&dir.path().join("no.toml"))]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.code() == Some(2) && err.contains(flag) && err.lines().count() == 1, "{flag} {value}: {err}");
+        assert!(!dir.path().join("no.toml").exists());
+    }
     // A shape it does not know: one line naming it.
     let r = run(&["fiducials", "--image", s(&scan), "--camera", s(&camera), "--shape", "star"]);
     let err = String::from_utf8_lossy(&r.stderr);

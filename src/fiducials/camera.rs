@@ -34,6 +34,13 @@ pub fn calibrated(i: &InteriorSection) -> Option<Vec<[f64; 2]>> {
 /// scan `src`.
 pub fn detect_for(file: &CameraFile, camera_path: &Path, src: &SourceImage, over: &Overrides) -> Result<Detection> {
     let err = |field: &str, m: String| Error::config(camera_path, format!("interior.{field}"), m);
+    // The command line's values are named by their options, the file's by their keys.
+    let pixel_size = |p: f64| (p.is_finite() && p > 0.0 && p < 1.0).then_some(()).ok_or_else(|| format!("{p} is not a scanner's pixel size in mm"));
+    let residual = |r: f64| (r.is_finite() && r > 0.0).then_some(()).ok_or_else(|| format!("{r} is not a positive number of pixels"));
+    let size = |v: f64| (v.is_finite() && v > 0.0 && v <= 20.0).then_some(()).ok_or_else(|| format!("{v} is not a mark's size from 0 to 20 mm"));
+    over.pixel_mm.map(pixel_size).transpose().map_err(|m| Error::setting("scan_pixel_mm", m))?;
+    over.limit_px.map(residual).transpose().map_err(|m| Error::setting("max_residual_px", m))?;
+    over.size_mm.map(size).transpose().map_err(|m| Error::setting("size_mm", m))?;
     let interior = file.interior.as_ref().ok_or_else(|| Error::config(camera_path, "interior", "missing section"))?;
     let marks = calibrated(interior).ok_or_else(|| err("fiducials_mm", "no calibrated fiducial marks (fiducials_mm or fiducial_distances_mm)".into()))?;
     let setting = interior.fiducial_mark.clone().unwrap_or_default();
@@ -70,12 +77,9 @@ pub fn detect_for(file: &CameraFile, camera_path: &Path, src: &SourceImage, over
             crate::options::parse_choice::<Polarity>("polarity", p).map_err(|_| err("fiducial_mark.polarity", format!("'{p}' is not light, dark or auto")))?
         }
     };
+    interior.scan_pixel_mm.map(pixel_size).transpose().map_err(|m| err("scan_pixel_mm", m))?;
+    interior.max_fiducial_residual_px.map(residual).transpose().map_err(|m| err("max_fiducial_residual_px", m))?;
     let pixel_mm = over.pixel_mm.or(interior.scan_pixel_mm);
-    if let Some(p) = pixel_mm {
-        if !(p.is_finite() && p > 0.0 && p < 1.0) {
-            return Err(err("scan_pixel_mm", format!("{p} is not a scanner's pixel size in mm")));
-        }
-    }
     let limit_px = over.limit_px.or(interior.max_fiducial_residual_px).unwrap_or(1.0);
     let mut req =
         Request { marks_mm: &marks, shapes, shape_index, pixel_mm: pixel_mm.or_else(|| resolution_mm(&src.path)), polarity, turn: over.turn, limit_px };
