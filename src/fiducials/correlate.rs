@@ -146,8 +146,7 @@ mod tests {
         // A window with the template's tones (inverted: a negative) at (17, 9).
         let (w, h) = (80, 60);
         let mut g = Gray { factor: 1, width: w, height: h, data: vec![0.7; w * h], ..Default::default() };
-        for (k, &(idx, tone)) in t.nonzero.iter().enumerate() {
-            let _ = k;
+        for &(idx, tone) in &t.nonzero {
             let (i, j) = (idx as usize % t.size, idx as usize / t.size);
             g.data[(9 + j) * w + 17 + i] = 0.7 - 0.5 * tone;
         }

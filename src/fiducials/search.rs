@@ -122,11 +122,11 @@ pub fn coarse(req: &Request<'_>, src: &SourceImage, scale: ScaleRange) -> Result
             for a in -turns_of_film..=turns_of_film {
                 let (sn, cs) = (a as f64 * step).to_radians().sin_cos();
                 let lin = Matrix2::new(cs, -sn, sn, cs) * linear(turn, s / factor as f64, shape, mm);
-                let tpl = match templates.iter().position(|(_, l, sh)| *sh == k_shape(req, k) && (l - lin).norm() < 1e-6) {
+                let tpl = match templates.iter().position(|(_, l, sh)| *sh == req.shape_index[k] && (l - lin).norm() < 1e-6) {
                     Some(i) => i,
                     None => {
                         let Some(t) = Template::render(shape, &lin, shape.radius_mm, [0.0, 0.0]) else { continue };
-                        templates.push((t, lin, k_shape(req, k)));
+                        templates.push((t, lin, req.shape_index[k]));
                         templates.len() - 1
                     }
                 };
@@ -231,10 +231,6 @@ pub fn coarse(req: &Request<'_>, src: &SourceImage, scale: ScaleRange) -> Result
         ));
     }
     Ok(coarse)
-}
-
-fn k_shape(req: &Request<'_>, k: usize) -> usize {
-    req.shape_index[k]
 }
 
 /// The largest distance of a mark from the fiducial centre, mm.

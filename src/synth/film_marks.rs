@@ -7,6 +7,8 @@
 //! `fiducials_px`), without terrain: for the fiducial tests and benchmark.
 
 use super::{camera_file, noise, scan_spec, write_pixel, SynthOptions, BASE_HEIGHT};
+use crate::camera::file::CameraFile;
+use crate::camera::interior::InteriorOrientation;
 use crate::error::{Error, Result};
 use crate::fiducials::search::own_turn;
 use crate::fiducials::{MarkLook, Shape};
@@ -71,6 +73,10 @@ pub struct Margin {
     look: FilmMarks,
     specks: Vec<Speck>,
     seed: u64,
+    /// The scanner's map, and the principal point's offset from the
+    /// fiducial centre (the marks are in the fiducial system).
+    interior: InteriorOrientation,
+    pp: [f64; 2],
 }
 
 /// A speck of dust (a disc) or a scratch (a thin bar), light or dark.
@@ -83,7 +89,10 @@ struct Speck {
 }
 
 impl Margin {
-    pub fn new(o: &SynthOptions) -> Result<Margin> {
+    /// The margin of the film `o` whose camera file is `file` and whose
+    /// scan the interior orientation `interior` maps.
+    pub fn new(o: &SynthOptions, file: &CameraFile, interior: &InteriorOrientation) -> Result<Margin> {
+        let pp = file.interior.as_ref().and_then(|i| i.principal_point_mm).unwrap_or([0.0, 0.0]);
         let look = o.marks.clone();
         let marks = mark_places(o);
         let names = shape_names(&look.shape, marks.len())?;
@@ -112,7 +121,7 @@ impl Margin {
                 tone: if u(k, 6) < 0.5 { 0.0 } else { 1.0 },
             });
         }
-        Ok(Margin { marks, reach_mm, shapes, look, specks, seed: o.seed })
+        Ok(Margin { marks, reach_mm, shapes, look, specks, seed: o.seed, interior: interior.clone(), pp })
     }
 
     /// The mark's tone (0 film, 1 mark) at photo (x, y), or None away from every mark.
@@ -132,8 +141,16 @@ impl Margin {
         None
     }
 
-    /// The margin's tone at scan pixel (c, r), whose photo mm `to_mm` gives.
-    pub fn tone(&self, c: f64, r: f64, to_mm: &dyn Fn(f64, f64) -> (f64, f64), pixel_mm: f64) -> f32 {
+    /// Scan pixel (c, r) → fiducial-system mm.
+    pub fn to_mm(&self, c: f64, r: f64) -> (f64, f64) {
+        let (x, y) = self.interior.px_to_mm(c, r);
+        (x + self.pp[0], y + self.pp[1])
+    }
+
+    /// The margin's tone at scan pixel (c, r).
+    pub fn tone(&self, c: f64, r: f64) -> f32 {
+        let to_mm = |c, r| self.to_mm(c, r);
+        let pixel_mm = self.interior.pixel_size_mm();
         let (x, y) = to_mm(c, r);
         let near = self.marks.iter().any(|m| (x - m[0]).abs() <= self.reach_mm + pixel_mm && (y - m[1]).abs() <= self.reach_mm + pixel_mm);
         let mut mark = 0.0f32;
@@ -178,17 +195,8 @@ pub fn marks_only(o: &SynthOptions) -> Result<(PathBuf, PathBuf)> {
     let file = camera_file(o, BASE_HEIGHT);
     std::fs::write(&cam_path, file.to_toml()).map_err(|e| Error::io(&cam_path, e))?;
     let camera = crate::camera::file::Camera::read(&cam_path)?;
-    let io = camera.frame(&cam_path)?.interior.clone();
-    let margin = Margin::new(o)?;
-    let px = io.pixel_size_mm();
+    let margin = Margin::new(o, &file, &camera.frame(&cam_path)?.interior)?;
     let half = o.frame_half();
-    let pp = file.interior.as_ref().and_then(|i| i.principal_point_mm).unwrap_or([0.0, 0.0]);
-    // px_to_mm gives photo mm (from the principal point); marks are in the
-    // fiducial system.
-    let to_mm = |c: f64, r: f64| {
-        let (x, y) = io.px_to_mm(c, r);
-        (x + pp[0], y + pp[1])
-    };
     let spec = scan_spec(o);
     let pb = o.bands as usize * spec.sample.bytes();
     let width = o.width as usize;
@@ -198,12 +206,8 @@ pub fn marks_only(o: &SynthOptions) -> Result<(PathBuf, PathBuf)> {
             let r = (y0 as usize + k) as f64 + 0.5;
             for (j, out) in row.chunks_mut(pb).enumerate() {
                 let c = j as f64 + 0.5;
-                let (x, y) = to_mm(c, r);
-                let v = if x.abs() <= half && y.abs() <= half {
-                    (0.25 + 0.5 * noise::fbm(x / 3.0, y / 3.0, 4, o.seed)) as f32
-                } else {
-                    margin.tone(c, r, &to_mm, px)
-                };
+                let (x, y) = margin.to_mm(c, r);
+                let v = if x.abs() <= half && y.abs() <= half { (0.25 + 0.5 * noise::fbm(x / 3.0, y / 3.0, 4, o.seed)) as f32 } else { margin.tone(c, r) };
                 write_pixel([v, v, v], o.bands, o.bits, out);
             }
         });

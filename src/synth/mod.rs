@@ -207,14 +207,13 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
         CameraKind::Film => {
             // A film turned more than the usual fraction of a degree needs
             // a wider scan to keep its corners.
-            let g = o.marks.scan_turn_deg.abs().to_radians();
-            let wider = if g > 0.5f64.to_radians() { g.cos() + g.sin() } else { 1.0 };
+            let g = o.marks.scan_turn_deg.to_radians();
+            let wider = if g.abs() > 0.5f64.to_radians() { g.cos() + g.abs().sin() } else { 1.0 };
             let px = o.film_mm() * wider / o.width.max(o.height) as f64;
             let flying = FILM_FOCAL * o.scale / 1000.0;
             // A flatbed scanner: turned 0.3° (or as asked, and by quarter
             // turns, mirrored), y pixels 0.08 % longer, film centre a
             // little off the scan centre.
-            let g = o.marks.scan_turn_deg.to_radians();
             let (sx, sy) = (1.0 / px, 1.0 / (px * 1.0008));
             let (cx, cy) = (o.width as f64 / 2.0 + 12.3, o.height as f64 / 2.0 - 7.8);
             let (sg, cg) = (g.sin(), g.cos());
@@ -520,20 +519,8 @@ pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
     let tex = Texture::new(o.seed, gsd, cam.centre.x, cam.centre.y, 2.0 * half);
     let inside = |c: f64, r: f64| in_image(o, cam, c, r);
     let colour = |x: f64, y: f64| tex.rgb(x, y);
-    let film = film_marks::Margin::new(o)?;
-    let pp = file.interior.as_ref().and_then(|i| i.principal_point_mm).unwrap_or([0.0, 0.0]);
-    let to_mm = |c: f64, r: f64| {
-        let (x, y) = cam.interior.px_to_mm(c, r);
-        (x + pp[0], y + pp[1])
-    };
-    let pixel_mm = cam.interior.pixel_size_mm();
-    let margin = |c: f64, r: f64| -> [f32; 3] {
-        if o.camera == CameraKind::Film {
-            [film.tone(c, r, &to_mm, pixel_mm); 3]
-        } else {
-            [0.0; 3]
-        }
-    };
+    let film = (o.camera == CameraKind::Film).then(|| film_marks::Margin::new(o, &file, &cam.interior)).transpose()?;
+    let margin = |c: f64, r: f64| -> [f32; 3] { film.as_ref().map_or([0.0; 3], |m| [m.tone(c, r); 3]) };
     let scene = Scene { model: cam, dem: &dem, colour: &colour, inside: &inside, margin: &margin, shade: &|_, _, c| c, mid_z };
     let scan_spec = scan_spec(o);
     if !o.no_scan {
