@@ -33,7 +33,7 @@ fn scene() -> (FrameCamera, Dem, OutputGrid) {
         })
         .collect();
     let dem = Dem::grid(GridDem::new(n, n, data, [2500.0, post, 0.0, 7500.0, 0.0, -post], None, None), Path::new("bench"));
-    let grid = OutputGrid { x0: 4000.0, y0: 6000.0, gsd: 0.12, width: W, height: ROWS };
+    let grid = OutputGrid { x0: 4000.0, y0: 6000.0, gsd: gcm_ortho::geom::Gsd::square(0.12), width: W, height: ROWS };
     (cam, dem, grid)
 }
 
@@ -139,7 +139,7 @@ fn kernels(c: &mut Criterion) {
 fn projection(c: &mut Criterion) {
     let (cam, _, grid) = scene();
     let n = W as usize;
-    let x: Vec<f64> = (0..n).map(|i| grid.x0 + (i as f64 + 0.5) * grid.gsd).collect();
+    let x: Vec<f64> = (0..n).map(|i| grid.x0 + (i as f64 + 0.5) * grid.gsd.x).collect();
     let y = vec![grid.y0 - 3.0; n];
     let z: Vec<f64> = (0..n).map(|i| 300.0 + (i as f64 * 0.01).sin() * 30.0).collect();
     let (mut col, mut row) = (vec![0.0; n], vec![0.0; n]);

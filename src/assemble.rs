@@ -47,7 +47,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
     let srcs: Vec<SourceImage> = pieces.iter().map(|p| SourceImage::open(p, 1 << 20)).collect::<Result<_>>()?;
     let first = &srcs[0].info;
     let geo0 = first.georef.clone().ok_or_else(|| Error::format(&pieces[0], "has no georeferencing"))?;
-    let gsd = geo0.transform[1];
+    let gsd = crate::geom::Gsd { x: geo0.transform[1], y: -geo0.transform[5] };
     let tile = first.chunk.0;
     if !first.tiled || first.chunk.0 != first.chunk.1 {
         return Err(Error::format(&pieces[0], "is not made of square tiles"));
@@ -67,7 +67,8 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
             && i.photometric == first.photometric
             && i.has_alpha == first.has_alpha
             && i.mask.is_some() == first.mask.is_some()
-            && (g.transform[1] - gsd).abs() < 1e-12 * gsd
+            && (g.transform[1] - gsd.x).abs() < 1e-12 * gsd.x
+            && (-g.transform[5] - gsd.y).abs() < 1e-12 * gsd.y
             && g.keys == geo0.keys
             && g.nodata == geo0.nodata;
         if !same {
@@ -76,13 +77,13 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
         x_min = x_min.min(g.transform[0]);
         y_max = y_max.max(g.transform[3]);
     }
-    let tile_m = tile as f64 * gsd;
+    let tile_m = gsd.scaled(tile as f64);
     // (piece, tile column and row offset in the whole)
     let mut place = Vec::new();
     let (mut w, mut h) = (0u32, 0u32);
     for (k, s) in srcs.iter().enumerate() {
         let g = s.info.georef.as_ref().expect("checked");
-        let (fc, fr) = ((g.transform[0] - x_min) / tile_m, (y_max - g.transform[3]) / tile_m);
+        let (fc, fr) = ((g.transform[0] - x_min) / tile_m.x, (y_max - g.transform[3]) / tile_m.y);
         if (fc - fc.round()).abs() > 1e-6 || (fr - fr.round()).abs() > 1e-6 {
             return Err(Error::format(&pieces[k], "does not start on the tile grid of the others"));
         }

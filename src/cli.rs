@@ -360,9 +360,10 @@ pub struct MosaicArgs {
     /// otherwise leaves a finished mosaic or piece as it is)
     #[arg(long)]
     pub force: bool,
-    /// Ground sample distance of the mosaic (default: the images' median)
+    /// Pixel size of the mosaic: X, or X,Y for non-square pixels (default:
+    /// the images' median, square)
     #[arg(long)]
-    pub gsd: Option<f64>,
+    pub gsd: Option<gcm_ortho::geom::Gsd>,
     /// The mosaic's extent: minx,miny,maxx,maxy (default: all footprints)
     #[arg(long, allow_hyphen_values = true)]
     pub bounds: Option<String>,
@@ -582,9 +583,10 @@ pub struct RectifyArgs {
     /// What to do outside the DEM: error, nodata, or a height.
     #[arg(long, default_value = "nodata")]
     pub dem_outside: String,
-    /// Output pixel size (default: the scan's mean GSD).
+    /// Output pixel size in ground units: X, or X,Y for pixels X wide and
+    /// Y tall (default: the scan's mean GSD, square).
     #[arg(long)]
-    pub gsd: Option<f64>,
+    pub gsd: Option<gcm_ortho::geom::Gsd>,
     /// minx,miny,maxx,maxy or auto (the scan's footprint on the DEM).
     #[arg(long, default_value = "auto", allow_hyphen_values = true)]
     pub bounds: String,

@@ -489,8 +489,8 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     let dem = Dem::open(&dem_path, &cam.crs)?;
     let z0 = dem.mean_height().unwrap_or_else(|| cam.height_hint());
     let gsd = mean_gsd(cam.model(), &dem, w, h, z0)?;
-    let grid = auto_grid(cam.model(), &dem, w, h, z0, gsd)?;
-    let area = [grid.x0, grid.y0 - grid.gsd * grid.height as f64, grid.x0 + grid.gsd * grid.width as f64, grid.y0];
+    let grid = auto_grid(cam.model(), &dem, w, h, z0, gcm_ortho::geom::Gsd::square(gsd))?;
+    let area = grid.bounds();
     let plane =
         if a.trend == Trend::Mean { dem.mean_plane(area) } else { dem.trend_plane(area) }.ok_or_else(|| anyhow!("no DEM heights in the output area"))?;
     let approx = Approx::new(cam.model(), &grid, plane).ok_or_else(|| anyhow!("plane behind the camera"))?;
@@ -567,10 +567,10 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
             a.map_sparsity,
             offs.len(),
             rms,
-            rms * grid.gsd,
+            rms * grid.gsd.x,
             max
         );
-        rows.push(serde_json::json!({"checkpoints": offs.len(), "k": a.map_sparsity, "rms_px": rms, "rms_m": rms * grid.gsd, "max_px": max}));
+        rows.push(serde_json::json!({"checkpoints": offs.len(), "k": a.map_sparsity, "rms_px": rms, "rms_m": rms * grid.gsd.x, "max_px": max}));
     }
     if a.error_map.is_some() || a.png.is_some() {
         let gcm = Gcm::new(&t, approx, GcmSpec { k: a.map_sparsity, mode: CorrectionMode::Bilinear, max_error: None });

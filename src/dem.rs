@@ -753,7 +753,7 @@ mod tests {
             geo: Some(GeoTags {
                 x0: 1000.0,
                 y0: 2000.0,
-                gsd: 10.0,
+                gsd: crate::geom::Gsd::square(10.0),
                 keys: crate::geodesy::geokeys::keys_of(&Crs::from_epsg(32631).unwrap()).unwrap(),
                 nodata: None,
             }),

@@ -230,8 +230,8 @@ impl<'a> Gcm<'a> {
             crate::dem::HeightModel::Grid(g) if t.dem.to_dem.is_none() && g.transform[2] == 0.0 && g.transform[4] == 0.0 => {
                 let gt = g.transform;
                 let grid = &t.grid;
-                let u = [(gt[0] + 0.5 * gt[1] - grid.x0) / grid.gsd, gt[1] / grid.gsd];
-                let v = [(grid.y0 - gt[3] - 0.5 * gt[5]) / grid.gsd, -gt[5] / grid.gsd];
+                let u = [(gt[0] + 0.5 * gt[1] - grid.x0) / grid.gsd.x, gt[1] / grid.gsd.x];
+                let v = [(grid.y0 - gt[3] - 0.5 * gt[5]) / grid.gsd.y, -gt[5] / grid.gsd.y];
                 // Walked by columns, the DEM's columns are lines of v.
                 let [u, v] = if t.is_transposed() { [v, u] } else { [u, v] };
                 Some([u[0], u[1], v[0], v[1]])
@@ -261,7 +261,7 @@ impl<'a> Gcm<'a> {
                 let deg = g.crs.as_ref().is_some_and(|c| c.is_geographic());
                 let m = if deg { 111_320.0 * 0.5 } else { 1.0 };
                 let posting = g.transform[1].abs().hypot(g.transform[2].abs()).min(g.transform[5].abs().hypot(g.transform[4].abs())) * m;
-                Some((posting / t.grid.gsd / 2.0).max(1.0))
+                Some((posting / t.grid.gsd.max() / 2.0).max(1.0))
             }
             _ => None,
         };

@@ -378,8 +378,9 @@ pub struct RectifyOptions {
     pub dem_hole: Miss,
     pub dem_outside: Miss,
     pub output: PathBuf,
-    /// Output pixel size, ground units; `None`: the scan's mean GSD.
-    pub gsd: Option<f64>,
+    /// Output pixel size, ground units (across, down); `None`: the scan's
+    /// mean GSD, square.
+    pub gsd: Option<crate::geom::Gsd>,
     /// `[minx, miny, maxx, maxy]`; `None`: the scan's footprint on the DEM.
     pub bounds: Option<[f64; 4]>,
     /// How the bounds become a grid.
@@ -486,7 +487,7 @@ impl RectifyOptions {
             return Err(Error::setting("max_output_pixels", "must be at least 1"));
         }
         if let Some(g) = self.gsd {
-            if !(g > 0.0 && g.is_finite()) {
+            if !g.is_valid() {
                 return Err(Error::setting("gsd", format!("{g} must be positive")));
             }
         }

@@ -193,7 +193,13 @@ fn a_dem_too_large_for_memory_is_read_in_chunks_with_the_same_result() {
         photometric: 1,
         alpha: false,
         mask: false,
-        geo: Some(GeoTags { x0: gt[0], y0: gt[3], gsd: gt[1] / f as f64, keys: gcm_ortho::geodesy::geokeys::keys_of_epsg(32631).unwrap(), nodata: None }),
+        geo: Some(GeoTags {
+            x0: gt[0],
+            y0: gt[3],
+            gsd: gcm_ortho::geom::Gsd::square(gt[1] / f as f64),
+            keys: gcm_ortho::geodesy::geokeys::keys_of_epsg(32631).unwrap(),
+            nodata: None,
+        }),
     };
     write_raster(&big, &spec, |y0, y1, buf| {
         let out: &mut [f32] = bytemuck::cast_slice_mut(buf);

@@ -34,7 +34,7 @@ fn camera(conv: AngleConvention, angles_deg: [f64; 3], full: bool) -> FrameCamer
 }
 
 fn grid() -> OutputGrid {
-    OutputGrid { x0: 4000.0, y0: 6000.0, gsd: 2.0, width: 1000, height: 1000 }
+    OutputGrid { x0: 4000.0, y0: 6000.0, gsd: gcm_ortho::geom::Gsd::square(2.0), width: 1000, height: 1000 }
 }
 
 /// A hilly DEM: 20 m posting, smooth hills.
@@ -193,7 +193,7 @@ proptest! {
 fn stepped_spans_at(gsd: f64) -> Option<(usize, f64, bool)> {
     let cam = camera(AngleConvention::AlphaOmegaKappa, [1.3, -0.8, 31.0], true);
     let dem = hills();
-    let g = OutputGrid { x0: 4400.0, y0: 5600.0, gsd, width: 2000, height: 48 };
+    let g = OutputGrid { x0: 4400.0, y0: 5600.0, gsd: gcm_ortho::geom::Gsd::square(gsd), width: 2000, height: 48 };
     let t = Transform::new(&cam, &dem, g);
     let a = Approx::new(&cam, &g, dem.trend_plane([g.x0, g.y0 - 48.0 * gsd, g.x0 + 2000.0 * gsd, g.y0]).unwrap()).unwrap();
     let gcm = Gcm::new(&t, a, GcmSpec { k: 16, mode: CorrectionMode::Bilinear, max_error: None });

@@ -93,3 +93,57 @@ fn like_takes_a_reference_rasters_grid_pixel_for_pixel() {
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert_eq!(grid_of(&d.join("b.tif")), (gt, 517, 389));
 }
+
+#[test]
+fn non_square_pixels_sample_where_their_centres_lie() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene(&d.join("scene"), 400, |_| {});
+    let coords = d.join("coords.tif");
+    coordinate_image(&coords, 400, 400);
+    let rectify = |name: &str, extra: &[&str]| {
+        let out = d.join(name);
+        let mut a = vec!["rectify", "--image", s(&coords), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "-o", s(&out)];
+        a.extend_from_slice(extra);
+        let r = run(&a);
+        assert!(r.status.success(), "{name}: {}", String::from_utf8_lossy(&r.stderr));
+        out
+    };
+    // Inside the scene's footprint: the middle half of its default grid.
+    let (gt, w, h) = grid_of(&rectify("default.tif", &[]));
+    let (x0, y0) = ((gt[0] + gt[1] * w as f64 / 4.0).round(), (gt[3] + gt[5] * h as f64 / 4.0).round());
+    let (cols, rows) = ((gt[1] * w as f64 / 2.0 / 2.0) as u32, (gt[1] * h as f64 / 2.0 / 3.0) as u32);
+    let bounds = format!("{x0},{},{},{y0}", y0 - 3.0 * rows as f64, x0 + 2.0 * cols as f64);
+    let ns = rectify("ns.tif", &["--gsd", "2,3", "--bounds", &bounds, "--snap", "none"]);
+    let want = [x0, 2.0, 0.0, y0, 0.0, -3.0];
+    assert_eq!(grid_of(&ns), (want, cols, rows));
+    if have("gdalinfo") || std::env::var_os("CI").is_some() {
+        let j: serde_json::Value = serde_json::from_slice(&std::process::Command::new("gdalinfo").args(["-json", s(&ns)]).output().unwrap().stdout).unwrap();
+        assert_eq!(j["geoTransform"], serde_json::json!(want), "GDAL reads the pixel size as written");
+        assert_eq!(j["size"], serde_json::json!([cols, rows]));
+    }
+    // Its grid reproduced by --like, non-square pixels included.
+    assert_eq!(grid_of(&rectify("like.tif", &["--like", s(&ns)])), (want, cols, rows));
+    // A square 1 m grid whose pixel centres include every 2 × 3 m pixel's
+    // centre: (x0 + 2c + 1, y0 − 3r − 1.5) is its pixel (2c, 3r).
+    let fine = format!("{},{},{},{}", x0 + 0.5, y0 - 1.0 - 3.0 * rows as f64, x0 + 0.5 + 2.0 * cols as f64, y0 - 1.0);
+    let sq = rectify("sq.tif", &["--gsd", "1", "--bounds", &fine, "--snap", "none"]);
+    let (a, b) = (read_f32(&ns), read_f32(&sq));
+    let (fw, _, _, fine_px) = (b.0, b.1, b.2, b.3);
+    let (mut worst, mut valued) = (0f32, 0usize);
+    for r in 0..rows as usize {
+        for c in 0..cols as usize {
+            let p = &a.3[2 * (r * cols as usize + c)..][..2];
+            let q = &fine_px[2 * (3 * r * fw as usize + 2 * c)..][..2];
+            assert_eq!(p[0].is_nan(), q[0].is_nan(), "({c}, {r}) valued in one grid only");
+            if !p[0].is_nan() {
+                valued += 1;
+                worst = worst.max((p[0] - q[0]).abs()).max((p[1] - q[1]).abs());
+            }
+        }
+    }
+    assert!(valued > (cols * rows) as usize * 9 / 10, "{valued}");
+    // Each within the 0.1 px bound of the exact model.
+    assert!(worst < 0.2, "{worst} scan px apart");
+    println!("2 × 3 m pixels against their centres on a 1 m grid: {valued} px, max {worst:.4} scan px apart");
+}

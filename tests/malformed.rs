@@ -284,7 +284,13 @@ fn rgb_dem() -> Vec<u8> {
         photometric: 2,
         alpha: false,
         mask: false,
-        geo: Some(GeoTags { x0: 649000.0, y0: 4891000.0, gsd: 100.0, keys: gcm_ortho::geodesy::geokeys::keys_of_epsg(32631).unwrap(), nodata: None }),
+        geo: Some(GeoTags {
+            x0: 649000.0,
+            y0: 4891000.0,
+            gsd: gcm_ortho::geom::Gsd::square(100.0),
+            keys: gcm_ortho::geodesy::geokeys::keys_of_epsg(32631).unwrap(),
+            nodata: None,
+        }),
     };
     write_raster(&p, &spec, |_, _, buf| buf.fill(100)).unwrap();
     std::fs::read(&p).unwrap()
@@ -313,7 +319,7 @@ fn small_dem(w: u32, h: u32, height: impl Fn(usize) -> f32 + Sync) -> Vec<u8> {
         geo: Some(GeoTags {
             x0: 649000.0,
             y0: 4893000.0,
-            gsd: 4000.0 / w as f64,
+            gsd: gcm_ortho::geom::Gsd::square(4000.0 / w as f64),
             keys: gcm_ortho::geodesy::geokeys::keys_of_epsg(32631).unwrap(),
             nodata: None,
         }),

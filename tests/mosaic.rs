@@ -150,7 +150,7 @@ fn edited_seamlines_are_honoured() {
     // A user's cut: the first two images split the block at its middle
     // easting, each given one half (a GIS's rectangles, in the mosaic's CRS).
     let g = plan.grid;
-    let (west, east, north, south) = (g.x0, g.x0 + g.width as f64 * g.gsd, g.y0, g.y0 - g.height as f64 * g.gsd);
+    let (west, east, north, south) = (g.x0, g.x0 + g.width as f64 * g.gsd.x, g.y0, g.y0 - g.height as f64 * g.gsd.y);
     let xm = (west + east) / 2.0;
     let rect = |x0: f64, x1: f64| serde_json::json!([[[x0, south], [x1, south], [x1, north], [x0, north], [x0, south]]]);
     // The first by its name, the second by its index.

@@ -555,7 +555,7 @@ fn nodes_projected_from_the_dems_longitude_latitude_equal_the_cameras_own() {
     let dem = gcm_ortho::dem::Dem::open(&ventoux("srtm_N44E005_crop.tif"), &gcm_ortho::geodesy::Crs::from_epsg(32631).unwrap()).unwrap();
     assert_eq!(dem.lonlat_from().and_then(|c| c.epsg()), Some(32631));
     let (x0, y0, gsd, w, h) = VENTOUX_GRID;
-    let grid = gcm_ortho::geom::OutputGrid { x0, y0, gsd, width: w, height: h };
+    let grid = gcm_ortho::geom::OutputGrid { x0, y0, gsd: gcm_ortho::geom::Gsd::square(gsd), width: w, height: h };
     for geoid in [None, Some(gcm_ortho::geodesy::Geoid::read(&ventoux("egm96_15_ventoux.gtx")).unwrap())] {
         let with_geoid = geoid.is_some();
         let model = gcm_ortho::camera::RpcCamera::new(rpc.clone(), gcm_ortho::geodesy::GroundCrs::from_epsg(32631).unwrap(), geoid);

@@ -37,7 +37,8 @@ pub struct Options {
     pub height: Option<f64>,
     pub dem_hole: Option<String>,
     pub dem_outside: Option<String>,
-    pub gsd: Option<f64>,
+    /// A number, or `[x, y]` for non-square pixels.
+    pub gsd: Option<crate::geom::Gsd>,
     pub bounds: Option<[f64; 4]>,
     pub snap: Option<String>,
     /// A raster whose grid the orthophoto takes (relative to the manifest).

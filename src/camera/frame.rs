@@ -299,10 +299,10 @@ impl SensorModel for FrameCamera {
     fn plane_homography(&self, grid: &OutputGrid, plane: &Plane) -> Option<Matrix3<f64>> {
         // (ΔX, ΔY, ΔZ) as an affine function of (u, v, 1). Earth curvature is
         // left to the GCM (it is quadratic).
-        let g = grid.gsd;
+        let (gx, gy) = (grid.gsd.x, grid.gsd.y);
         let cx = grid.x0 - self.centre.x;
         let cy = grid.y0 - self.centre.y;
-        let l = Matrix3::new(g, 0.0, cx, 0.0, -g, cy, plane.b * g, -plane.c * g, plane.a + plane.b * grid.x0 + plane.c * grid.y0 - self.centre.z);
+        let l = Matrix3::new(gx, 0.0, cx, 0.0, -gy, cy, plane.b * gx, -plane.c * gy, plane.a + plane.b * grid.x0 + plane.c * grid.y0 - self.centre.z);
         let f = self.focal_mm;
         // Photo (x, y, w) homogeneous = (−f p.x, −f p.y, p.z) with p = Rᵀ L (u, v, 1).
         let k = Matrix3::new(-f, 0.0, 0.0, 0.0, -f, 0.0, 0.0, 0.0, 1.0);
@@ -446,7 +446,7 @@ mod tests {
         let r = AngleConvention::AlphaOmegaKappa.matrix([0.02, -0.03, 0.7]);
         let io = InteriorOrientation::digital(0.01, [5000.0, 5000.0]).unwrap();
         let cam = FrameCamera::new(150.0, Vector3::new(500.0, 500.0, 1500.0), r, io, Distortion::None, Refraction::None, false);
-        let grid = OutputGrid { x0: 0.0, y0: 1000.0, gsd: 1.0, width: 1000, height: 1000 };
+        let grid = OutputGrid { x0: 0.0, y0: 1000.0, gsd: crate::geom::Gsd::square(1.0), width: 1000, height: 1000 };
         let plane = Plane { a: 100.0, b: 0.05, c: -0.02 };
         let h = cam.plane_homography(&grid, &plane).unwrap();
         for (u, v) in [(0.5, 0.5), (300.5, 700.5), (999.5, 10.5)] {

@@ -1,11 +1,117 @@
-//! The orthophoto grid: north-up, square pixels of size `gsd` (ground units),
-//! origin at the north-west corner of pixel (0, 0). Conventions, stated once:
-//! output pixel `(col, row)` covers ground `[x0 + gsd·col, x0 + gsd·(col+1)]`
-//! × `[y0 − gsd·(row+1), y0 − gsd·row]` (GDAL's pixel-is-area); continuous
-//! output coordinates `(u, v)` put the centre of pixel (col, row) at
-//! `(col + ½, row + ½)`.
+//! The orthophoto grid: north-up pixels `gsd.x` wide and `gsd.y` tall
+//! (ground units; square unless asked), origin at the north-west corner of
+//! pixel (0, 0). Conventions, stated once: output pixel `(col, row)` covers
+//! ground `[x0 + gsd.x·col, x0 + gsd.x·(col+1)]` × `[y0 − gsd.y·(row+1),
+//! y0 − gsd.y·row]` (GDAL's pixel-is-area); continuous output coordinates
+//! `(u, v)` put the centre of pixel (col, row) at `(col + ½, row + ½)`.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
+
+/// An output pixel's size in ground units: across (X, east) and down
+/// (Y, south), both positive. Written `0.2` when square, `5,6` when not
+/// (gdalwarp's `-tr 5 6`); JSON and manifests: a number or `[x, y]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Gsd {
+    pub x: f64,
+    pub y: f64,
+}
+
+impl Gsd {
+    #[must_use]
+    pub fn square(g: f64) -> Gsd {
+        Gsd { x: g, y: g }
+    }
+
+    #[must_use]
+    pub fn is_square(self) -> bool {
+        self.x == self.y
+    }
+
+    /// The side of a square pixel of the same area.
+    #[must_use]
+    pub fn mean(self) -> f64 {
+        (self.x * self.y).sqrt()
+    }
+
+    #[must_use]
+    pub fn min(self) -> f64 {
+        self.x.min(self.y)
+    }
+
+    #[must_use]
+    pub fn max(self) -> f64 {
+        self.x.max(self.y)
+    }
+
+    /// A pixel's ground area.
+    #[must_use]
+    pub fn area(self) -> f64 {
+        self.x * self.y
+    }
+
+    /// Both sides times `f`.
+    #[must_use]
+    pub fn scaled(self, f: f64) -> Gsd {
+        Gsd { x: self.x * f, y: self.y * f }
+    }
+
+    /// Both sides positive and finite.
+    #[must_use]
+    pub fn is_valid(self) -> bool {
+        self.x > 0.0 && self.x.is_finite() && self.y > 0.0 && self.y.is_finite()
+    }
+}
+
+impl std::fmt::Display for Gsd {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.is_square() {
+            write!(f, "{}", self.x)
+        } else {
+            write!(f, "{},{}", self.x, self.y)
+        }
+    }
+}
+
+impl std::str::FromStr for Gsd {
+    type Err = String;
+    /// `X` (square pixels) or `X,Y`.
+    fn from_str(s: &str) -> Result<Gsd, String> {
+        let num = |t: &str| t.trim().parse::<f64>().map_err(|_| format!("{s:?} is not a pixel size (X, or X,Y in ground units)"));
+        let g = match s.split_once(',') {
+            None => Gsd::square(num(s)?),
+            Some((x, y)) => Gsd { x: num(x)?, y: num(y)? },
+        };
+        if !g.is_valid() {
+            return Err(format!("{s} must be positive"));
+        }
+        Ok(g)
+    }
+}
+
+impl Serialize for Gsd {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        if self.is_square() {
+            s.serialize_f64(self.x)
+        } else {
+            [self.x, self.y].serialize(s)
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Gsd {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Gsd, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Form {
+            One(f64),
+            Two([f64; 2]),
+        }
+        Ok(match Form::deserialize(d)? {
+            Form::One(g) => Gsd::square(g),
+            Form::Two([x, y]) => Gsd { x, y },
+        })
+    }
+}
 
 /// How bounds become a grid.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -30,7 +136,7 @@ pub struct OutputGrid {
     /// Ground Y (northing) of the north edge.
     pub y0: f64,
     /// Pixel size in ground units.
-    pub gsd: f64,
+    pub gsd: Gsd,
     pub width: u32,
     pub height: u32,
 }
@@ -40,19 +146,19 @@ impl OutputGrid {
     #[inline]
     #[must_use]
     pub fn ground(&self, u: f64, v: f64) -> (f64, f64) {
-        (self.x0 + self.gsd * u, self.y0 - self.gsd * v)
+        (self.x0 + self.gsd.x * u, self.y0 - self.gsd.y * v)
     }
 
     /// Continuous output coordinates of ground (X, Y).
     #[inline]
     #[must_use]
     pub fn pixel(&self, x: f64, y: f64) -> (f64, f64) {
-        ((x - self.x0) / self.gsd, (self.y0 - y) / self.gsd)
+        ((x - self.x0) / self.gsd.x, (self.y0 - y) / self.gsd.y)
     }
 
     /// The grid covering `[minx, maxx] × [miny, maxy]`, its edges snapped
     /// outward to multiples of `gsd` (textbook §9.10.4; [`Snap::Tap`]).
-    pub fn snapped(minx: f64, miny: f64, maxx: f64, maxy: f64, gsd: f64) -> Option<OutputGrid> {
+    pub fn snapped(minx: f64, miny: f64, maxx: f64, maxy: f64, gsd: Gsd) -> Option<OutputGrid> {
         Self::from_bounds([minx, miny, maxx, maxy], gsd, Snap::Tap)
     }
 
@@ -61,20 +167,20 @@ impl OutputGrid {
     /// of pixels is that number: bounds that are multiples of the GSD in
     /// decimal (2731039.8 at 0.2) are kept, whatever binary rounding makes
     /// of their quotient.
-    pub fn from_bounds([minx, miny, maxx, maxy]: [f64; 4], gsd: f64, snap: Snap) -> Option<OutputGrid> {
-        if !(gsd > 0.0) || !(maxx > minx) || !(maxy > miny) {
+    pub fn from_bounds([minx, miny, maxx, maxy]: [f64; 4], gsd: Gsd, snap: Snap) -> Option<OutputGrid> {
+        if !(gsd.x > 0.0 && gsd.y > 0.0) || !(maxx > minx) || !(maxy > miny) {
             return None;
         }
         const TOL: f64 = 1e-6;
-        let down = |v: f64| (v / gsd + TOL).floor();
-        let up = |v: f64| (v / gsd - TOL).ceil();
+        let down = |v: f64, g: f64| (v / g + TOL).floor();
+        let up = |v: f64, g: f64| (v / g - TOL).ceil();
         let (x0, y0, w, h) = match snap {
             Snap::Tap => {
-                let (i0, j0) = (down(minx), up(maxy));
-                (i0 * gsd, j0 * gsd, up(maxx) - i0, j0 - down(miny))
+                let (i0, j0) = (down(minx, gsd.x), up(maxy, gsd.y));
+                (i0 * gsd.x, j0 * gsd.y, up(maxx, gsd.x) - i0, j0 - down(miny, gsd.y))
             }
-            Snap::Outward => (minx, maxy, ((maxx - minx) / gsd - TOL).ceil(), ((maxy - miny) / gsd - TOL).ceil()),
-            Snap::None => (minx, maxy, ((maxx - minx) / gsd).round(), ((maxy - miny) / gsd).round()),
+            Snap::Outward => (minx, maxy, ((maxx - minx) / gsd.x - TOL).ceil(), ((maxy - miny) / gsd.y - TOL).ceil()),
+            Snap::None => (minx, maxy, ((maxx - minx) / gsd.x).round(), ((maxy - miny) / gsd.y).round()),
         };
         if !(w >= 1.0 && h >= 1.0 && w <= u32::MAX as f64 && h <= u32::MAX as f64) {
             return None;
@@ -82,10 +188,16 @@ impl OutputGrid {
         Some(OutputGrid { x0, y0, gsd, width: w as u32, height: h as u32 })
     }
 
-    /// GDAL geotransform `[x0, gsd, 0, y0, 0, −gsd]`.
+    /// GDAL geotransform `[x0, gsd.x, 0, y0, 0, −gsd.y]`.
     #[must_use]
     pub fn geotransform(&self) -> [f64; 6] {
-        [self.x0, self.gsd, 0.0, self.y0, 0.0, -self.gsd]
+        [self.x0, self.gsd.x, 0.0, self.y0, 0.0, -self.gsd.y]
+    }
+
+    /// Ground `[minx, miny, maxx, maxy]` the grid covers.
+    #[must_use]
+    pub fn bounds(&self) -> [f64; 4] {
+        [self.x0, self.y0 - self.gsd.y * self.height as f64, self.x0 + self.gsd.x * self.width as f64, self.y0]
     }
 
     pub fn pixel_count(&self) -> u64 {
@@ -99,7 +211,7 @@ mod tests {
 
     #[test]
     fn pixel_centres_at_half() {
-        let g = OutputGrid { x0: 1000.0, y0: 2000.0, gsd: 0.5, width: 10, height: 10 };
+        let g = OutputGrid { x0: 1000.0, y0: 2000.0, gsd: Gsd::square(0.5), width: 10, height: 10 };
         assert_eq!(g.ground(0.5, 0.5), (1000.25, 1999.75));
         assert_eq!(g.pixel(1000.25, 1999.75), (0.5, 0.5));
     }
@@ -109,28 +221,44 @@ mod tests {
         // 2731039.8 / 0.2 = 13655198.999999998 in binary: one row too many before.
         let b = [292546.4, 2731039.8, 292848.8, 2731224.4];
         for snap in [Snap::Tap, Snap::Outward, Snap::None] {
-            let g = OutputGrid::from_bounds(b, 0.2, snap).unwrap();
+            let g = OutputGrid::from_bounds(b, Gsd::square(0.2), snap).unwrap();
             assert_eq!((g.width, g.height), (1512, 923), "{snap:?}");
             assert!((g.x0 - 292546.4).abs() < 1e-6 && (g.y0 - 2731224.4).abs() < 1e-6, "{snap:?}");
         }
         // Not multiples: aligned outward, or kept as given.
         let b = [-57094.61, 100.3, -57000.0, 200.0];
-        let tap = OutputGrid::from_bounds(b, 5.0, Snap::Tap).unwrap();
+        let tap = OutputGrid::from_bounds(b, Gsd::square(5.0), Snap::Tap).unwrap();
         assert_eq!((tap.x0, tap.y0, tap.width, tap.height), (-57095.0, 200.0, 19, 20));
-        let out = OutputGrid::from_bounds(b, 5.0, Snap::Outward).unwrap();
+        let out = OutputGrid::from_bounds(b, Gsd::square(5.0), Snap::Outward).unwrap();
         assert_eq!((out.x0, out.y0, out.width, out.height), (-57094.61, 200.0, 19, 20));
-        let none = OutputGrid::from_bounds(b, 5.0, Snap::None).unwrap();
+        let none = OutputGrid::from_bounds(b, Gsd::square(5.0), Snap::None).unwrap();
         assert_eq!((none.x0, none.y0, none.width, none.height), (-57094.61, 200.0, 19, 20));
-        let none = OutputGrid::from_bounds([0.0, 0.0, 12.4, 12.6], 1.0, Snap::None).unwrap();
+        let none = OutputGrid::from_bounds([0.0, 0.0, 12.4, 12.6], Gsd::square(1.0), Snap::None).unwrap();
         assert_eq!((none.width, none.height), (12, 13));
-        let out = OutputGrid::from_bounds([0.0, 0.0, 12.4, 12.6], 1.0, Snap::Outward).unwrap();
+        let out = OutputGrid::from_bounds([0.0, 0.0, 12.4, 12.6], Gsd::square(1.0), Snap::Outward).unwrap();
         assert_eq!((out.width, out.height), (13, 13));
-        assert!(OutputGrid::from_bounds([0.0, 0.0, 0.4, 0.4], 1.0, Snap::None).is_none(), "no whole pixel");
+        assert!(OutputGrid::from_bounds([0.0, 0.0, 0.4, 0.4], Gsd::square(1.0), Snap::None).is_none(), "no whole pixel");
+    }
+
+    #[test]
+    fn non_square_pixels_snap_each_axis_to_its_own_size() {
+        let g = OutputGrid::from_bounds([10.2, 20.7, 29.9, 30.1], Gsd { x: 5.0, y: 2.0 }, Snap::Tap).unwrap();
+        assert_eq!((g.x0, g.y0, g.width, g.height), (10.0, 32.0, 4, 6));
+        assert_eq!(g.geotransform(), [10.0, 5.0, 0.0, 32.0, 0.0, -2.0]);
+        assert_eq!(g.ground(1.0, 1.0), (15.0, 30.0));
+        assert_eq!(g.bounds(), [10.0, 20.0, 30.0, 32.0]);
+        assert_eq!("5,6".parse::<Gsd>().unwrap(), Gsd { x: 5.0, y: 6.0 });
+        assert_eq!("0.2".parse::<Gsd>().unwrap(), Gsd::square(0.2));
+        assert!("5,-6".parse::<Gsd>().is_err() && "5,".parse::<Gsd>().is_err() && "nan".parse::<Gsd>().is_err());
+        assert_eq!(serde_json::to_string(&Gsd { x: 5.0, y: 6.0 }).unwrap(), "[5.0,6.0]");
+        assert_eq!(serde_json::to_string(&Gsd::square(0.5)).unwrap(), "0.5");
+        assert_eq!(serde_json::from_str::<Gsd>("[5, 6]").unwrap(), Gsd { x: 5.0, y: 6.0 });
+        assert_eq!(serde_json::from_str::<Gsd>("0.5").unwrap(), Gsd::square(0.5));
     }
 
     #[test]
     fn snapping_goes_outward() {
-        let g = OutputGrid::snapped(10.2, 20.7, 19.9, 30.1, 1.0).unwrap();
+        let g = OutputGrid::snapped(10.2, 20.7, 19.9, 30.1, Gsd::square(1.0)).unwrap();
         assert_eq!((g.x0, g.y0, g.width, g.height), (10.0, 31.0, 10, 11));
     }
 }

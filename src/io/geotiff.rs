@@ -179,7 +179,7 @@ fn geo_keys(directory: &[f64], doubles: &[f64], ascii: &str) -> GeoKeys {
 /// `keys` (PixelIsArea is added): ModelPixelScale, ModelTiepoint,
 /// GeoKeyDirectory and, where keys need them, GeoDoubleParams and
 /// GeoAsciiParams.
-pub fn georef_tags(x0: f64, y0: f64, gsd: f64, keys: &GeoKeys) -> Vec<(u16, crate::io::tiff_out::TagValue)> {
+pub fn georef_tags(x0: f64, y0: f64, gsd: crate::geom::Gsd, keys: &GeoKeys) -> Vec<(u16, crate::io::tiff_out::TagValue)> {
     use crate::io::tiff_out::TagValue;
     let mut all = keys.clone();
     all.set(GT_RASTER_TYPE, GeoKeyValue::Short(RASTER_PIXEL_IS_AREA));
@@ -200,7 +200,7 @@ pub fn georef_tags(x0: f64, y0: f64, gsd: f64, keys: &GeoKeys) -> Vec<(u16, crat
         }
     }
     let mut tags = vec![
-        (Tag::ModelPixelScaleTag.to_u16(), TagValue::Double(vec![gsd, gsd, 0.0])),
+        (Tag::ModelPixelScaleTag.to_u16(), TagValue::Double(vec![gsd.x, gsd.y, 0.0])),
         (Tag::ModelTiepointTag.to_u16(), TagValue::Double(vec![0.0, 0.0, 0.0, x0, y0, 0.0])),
         (Tag::GeoKeyDirectoryTag.to_u16(), TagValue::Short(directory)),
     ];

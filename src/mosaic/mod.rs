@@ -16,6 +16,7 @@ pub mod weights;
 
 use crate::error::{Error, Result};
 use crate::geodesy::Crs;
+use crate::geom::Gsd;
 use crate::io::overwrite::{check_outputs, Role};
 use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec, PendingFile};
 use crate::options::{BigTiff, Occlusion, RectifyOptions};
@@ -39,7 +40,7 @@ pub struct MosaicOptions {
     /// Render only these tiles of the mosaic: first column, first row,
     /// width, height (a piece for `assemble`).
     pub window: Option<[u32; 4]>,
-    pub gsd: Option<f64>,
+    pub gsd: Option<Gsd>,
     pub bounds: Option<[f64; 4]>,
     pub crs: Option<Crs>,
     pub balance: Balance,
@@ -92,8 +93,8 @@ pub struct Unseen {
 }
 
 impl Unseen {
-    fn new(covered_px: u64, unseen_px: u64, gsd: f64) -> Unseen {
-        Unseen { covered_px, unseen_px, share: unseen_px as f64 / covered_px.max(1) as f64, area: unseen_px as f64 * gsd * gsd }
+    fn new(covered_px: u64, unseen_px: u64, gsd: Gsd) -> Unseen {
+        Unseen { covered_px, unseen_px, share: unseen_px as f64 / covered_px.max(1) as f64, area: unseen_px as f64 * gsd.area() }
     }
 }
 
@@ -115,7 +116,7 @@ pub struct MosaicReport {
     pub window: [u32; 4],
     pub width: u32,
     pub height: u32,
-    pub gsd: f64,
+    pub gsd: Gsd,
     pub crs: String,
     /// The plan's cell side, output pixels.
     pub cell_px: u32,
@@ -458,7 +459,7 @@ impl MosaicReport {
             window: [0; 4],
             width: 0,
             height: 0,
-            gsd: 0.0,
+            gsd: Gsd::square(0.0),
             crs: String::new(),
             cell_px: 0,
             coverage: 0.0,

@@ -9,7 +9,7 @@ use crate::camera::file::Camera;
 use crate::dem::{Dem, Height};
 use crate::error::{Error, Result};
 use crate::geodesy::Crs;
-use crate::geom::{OutputGrid, Snap};
+use crate::geom::{Gsd, OutputGrid, Snap};
 use crate::io::source::{SampleType, SourceImage, Window};
 use crate::options::{DemSource, RectifyOptions};
 use crate::progress::{Progress, Task};
@@ -83,7 +83,7 @@ pub struct Plan {
 
 /// What the plan is made from.
 pub struct PlanSettings {
-    pub gsd: Option<f64>,
+    pub gsd: Option<Gsd>,
     pub bounds: Option<[f64; 4]>,
     pub crs: Option<Crs>,
     /// Memory for the DEMs and one scan's thumbnail, bytes.
@@ -105,9 +105,10 @@ impl Plan {
         self.label[y * self.cw + x]
     }
 
-    /// Ground size of a cell's side.
+    /// Ground size of a cell's side (of a square cell of the same area,
+    /// where pixels are not square).
     pub fn cell_metres(&self) -> f64 {
-        self.cell as f64 * self.grid.gsd
+        self.cell as f64 * self.grid.gsd.mean()
     }
 
     pub fn make(jobs: Vec<(String, RectifyOptions)>, s: &PlanSettings, progress: &dyn Progress) -> Result<Plan> {
@@ -193,14 +194,14 @@ impl Plan {
         let gsd = s.gsd.unwrap_or_else(|| {
             let mut g: Vec<f64> = images.iter().map(|(i, _)| i.gsd).collect();
             g.sort_by(f64::total_cmp);
-            g[g.len() / 2]
+            Gsd::square(g[g.len() / 2])
         });
         let bounds = s.bounds.unwrap_or_else(|| {
             images.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, (_, f)| {
                 [b[0].min(f[0]), b[1].min(f[1]), b[2].max(f[2]), b[3].max(f[3])]
             })
         });
-        if !(gsd > 0.0 && gsd.is_finite()) {
+        if !gsd.is_valid() {
             return Err(Error::setting("gsd", format!("{gsd} is not a pixel size")));
         }
         let grid = OutputGrid::from_bounds(bounds, gsd, Snap::Tap).ok_or_else(|| Error::setting("bounds", format!("{bounds:?} at GSD {gsd} is empty")))?;

@@ -49,7 +49,7 @@ pub fn occlusion_prone(plan: &Plan) -> Vec<bool> {
     if !lo.is_finite() {
         return vec![false; cw * ch];
     }
-    let cell = plan.cell as f64 * plan.grid.gsd;
+    let cell = plan.cell as f64 * plan.grid.gsd.min();
     let reach = ((hi - lo) as f64 * TAN / cell).ceil().clamp(1.0, 256.0) as usize;
     // The highest cell within `reach` of each (a square max filter, one
     // axis after the other).
@@ -66,7 +66,7 @@ pub fn occlusion_prone(plan: &Plan) -> Vec<bool> {
         out
     };
     let near = filter(&filter(h, true), false);
-    let rise = 0.5 * plan.grid.gsd / TAN;
+    let rise = 0.5 * plan.grid.gsd.min() / TAN;
     (0..cw * ch).map(|k| h[k].is_finite() && (near[k] - h[k]) as f64 > rise).collect()
 }
 
@@ -126,7 +126,7 @@ pub fn work(plan: &Plan, weights: &Weights, tile: u32, prone: Option<&[bool]>, o
             // The image's grid: those tiles of the mosaic's, clipped to it.
             let (x0, y0) = g.ground((c0 * tile) as f64, (r0 * tile) as f64);
             let (w, h) = (((c1 * tile).min(g.width) - c0 * tile) as f64, ((r1 * tile).min(g.height) - r0 * tile) as f64);
-            let bounds = [x0, y0 - h * g.gsd, x0 + w * g.gsd, y0];
+            let bounds = [x0, y0 - h * g.gsd.y, x0 + w * g.gsd.x, y0];
             let opts = RectifyOptions {
                 gsd: Some(g.gsd),
                 bounds: Some(bounds),

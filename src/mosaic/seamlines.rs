@@ -234,7 +234,7 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
                         Some(t) => t.from_lonlat(x, y).ok_or_else(|| Error::config(path, field("geometry.coordinates"), "outside the mosaic's CRS"))?,
                         None => (x, y),
                     };
-                    pts.push(((x - g.x0) / g.gsd / c, (g.y0 - y) / g.gsd / c));
+                    pts.push(((x - g.x0) / g.gsd.x / c, (g.y0 - y) / g.gsd.y / c));
                 }
                 if pts.len() >= 3 {
                     rings.push(pts);

@@ -9,7 +9,7 @@ use crate::dem::{Dem, HeightModel};
 use crate::error::{Error, Result};
 use crate::gcm::GcmSpec;
 use crate::geodesy::{Crs, GroundCrs};
-use crate::geom::OutputGrid;
+use crate::geom::{Gsd, OutputGrid};
 use crate::io::source::{SampleType, SourceImage};
 use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec};
 use crate::options::{BandOrder, BigTiff, DemSource, Nodata, Occlusion, RectifyOptions};
@@ -180,7 +180,7 @@ impl RunPlan {
             None => {
                 let gsd = match opts.gsd {
                     Some(g) => g,
-                    None => mean_gsd(model, &dem, sw, sh, z_guess).map_err(on_dem)?,
+                    None => Gsd::square(mean_gsd(model, &dem, sw, sh, z_guess).map_err(on_dem)?),
                 };
                 match opts.bounds {
                     Some(b) => OutputGrid::from_bounds(b, gsd, opts.snap).ok_or_else(|| Error::setting("bounds", format!("{b:?} at GSD {gsd} is empty")))?,
@@ -210,7 +210,7 @@ impl RunPlan {
                 ),
             ));
         }
-        let area = [grid.x0, grid.y0 - grid.gsd * grid.height as f64, grid.x0 + grid.gsd * grid.width as f64, grid.y0];
+        let area = grid.bounds();
         if let Sensor::Rpc(r) = &camera.sensor {
             check_denominators(r, &grid, &dem, &opts.camera)?;
         }
@@ -292,8 +292,8 @@ impl RunPlan {
             alpha: opts.alpha || src.info.has_alpha,
             mask,
             geo: Some(GeoTags {
-                x0: grid.x0 + (tc0 * tile) as f64 * grid.gsd,
-                y0: grid.y0 - (tr0 * tile) as f64 * grid.gsd,
+                x0: grid.x0 + (tc0 * tile) as f64 * grid.gsd.x,
+                y0: grid.y0 - (tr0 * tile) as f64 * grid.gsd.y,
                 gsd: grid.gsd,
                 keys: crate::geodesy::geokeys::keys_of(&camera.crs).map_err(|m| Error::setting("crs", m))?,
                 nodata,
@@ -332,7 +332,7 @@ impl RunPlan {
     /// positions' error and a surface's curvature within a pixel.
     pub fn occlusion_tolerance(&self) -> f64 {
         let metres = if self.camera.crs.is_geographic() { 111_320.0 } else { 1.0 };
-        (0.25 * self.grid.gsd * metres).clamp(0.02, 1.0)
+        (0.25 * self.grid.gsd.min() * metres).clamp(0.02, 1.0)
     }
 
     /// Bands of tile columns: the stages walk the transposed grid.
@@ -438,7 +438,7 @@ fn check_geoid_covers(r: &crate::camera::RpcCamera, w: u32, h: u32, z: f64) -> R
     Ok(())
 }
 
-/// The grid of a reference raster (north-up, square pixels) and its CRS.
+/// The grid of a reference raster (north-up) and its CRS.
 fn reference_grid(path: &std::path::Path) -> Result<(OutputGrid, Crs)> {
     let info = SourceImage::info_of(path)?;
     let g = info.georef.ok_or_else(|| Error::format(path, "has no georeferencing to take the grid from"))?;
@@ -449,10 +449,12 @@ fn reference_grid(path: &std::path::Path) -> Result<(OutputGrid, Crs)> {
     if t[2] != 0.0 || t[4] != 0.0 {
         return Err(Error::unsupported(path, "a turned grid (the orthophoto is north-up)"));
     }
-    if !(t[1] > 0.0 && t[5] < 0.0) || (t[1] + t[5]).abs() > 1e-9 * t[1] {
-        return Err(Error::unsupported(path, format!("pixels of {} × {} (only square, north-up pixels)", t[1], -t[5])));
+    if !(t[1] > 0.0 && t[5] < 0.0 && t[1].is_finite() && t[5].is_finite()) {
+        return Err(Error::unsupported(path, format!("pixels of {} × {} (only north-up grids, rows going south)", t[1], -t[5])));
     }
-    Ok((OutputGrid { x0: t[0], y0: t[3], gsd: t[1], width: info.width, height: info.height }, crs))
+    // Square within a writer's rounding stays square.
+    let gsd = if (t[1] + t[5]).abs() <= 1e-9 * t[1] { Gsd::square(t[1]) } else { Gsd { x: t[1], y: -t[5] } };
+    Ok((OutputGrid { x0: t[0], y0: t[3], gsd, width: info.width, height: info.height }, crs))
 }
 
 /// What `auto` means for these samples: NaN (outside any data) for
@@ -528,7 +530,7 @@ fn auto_sparsity(dem: &Dem, grid: &OutputGrid, ground: &Crs) -> u32 {
     };
     let cos = lat_mid.to_radians().cos();
     let post = metres(g.crs.as_ref(), g.transform[1].abs(), cos).min(metres(g.crs.as_ref(), g.transform[5].abs(), 1.0));
-    let gsd = metres(Some(ground), grid.gsd, 1.0);
+    let gsd = metres(Some(ground), grid.gsd.max(), 1.0);
     if !(post > 0.0 && gsd > 0.0) {
         return 16;
     }

@@ -28,7 +28,7 @@ pub fn write_error_map(path: &Path, map: &[f32], w: u32, h: u32, grid: &OutputGr
         geo: Some(GeoTags {
             x0: grid.x0,
             y0: grid.y0,
-            gsd: grid.gsd * step as f64,
+            gsd: grid.gsd.scaled(step as f64),
             keys: crate::geodesy::geokeys::keys_of(crs).map_err(Error::Geometry)?,
             nodata: None,
         }),

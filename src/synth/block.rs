@@ -105,7 +105,8 @@ pub fn synth_block(o: &SynthOptions, cols: u32, rows: u32, progress: &dyn Progre
     }
     gsds.sort_by(f64::total_cmp);
     let gsd = gsds[gsds.len() / 2];
-    let grid = OutputGrid::snapped(bounds[0], bounds[1], bounds[2], bounds[3], gsd).ok_or_else(|| Error::Geometry("the block's footprint is empty".into()))?;
+    let grid = OutputGrid::snapped(bounds[0], bounds[1], bounds[2], bounds[3], crate::geom::Gsd::square(gsd))
+        .ok_or_else(|| Error::Geometry("the block's footprint is empty".into()))?;
     let truth = o.out.join("truth.tif");
     write_truth(o, &dem, &colour, &grid, &truth)?;
     let manifest_path = o.out.join("manifest.toml");

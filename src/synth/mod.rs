@@ -403,7 +403,7 @@ fn write_dem(path: &std::path::Path, g: &GridDem) -> Result<()> {
         geo: Some(GeoTags {
             x0: g.transform[0],
             y0: g.transform[3],
-            gsd: g.transform[1],
+            gsd: crate::geom::Gsd::square(g.transform[1]),
             keys: crate::geodesy::geokeys::keys_of(&g.crs.clone().unwrap_or_else(|| crate::geodesy::Crs::from_epsg(EPSG).expect("known")))
                 .map_err(Error::Geometry)?,
             nodata: None,
@@ -527,7 +527,7 @@ pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
         render_scan(o, &scene, &scan_spec, &scan_path, progress)?;
     }
     // The truth orthophoto on the grid rectify chooses by default.
-    let grid = auto_grid(cam, &dem, o.width, o.height, mid_z, gsd)?;
+    let grid = auto_grid(cam, &dem, o.width, o.height, mid_z, crate::geom::Gsd::square(gsd))?;
     let measures = Measures { gsd, flying_height: flying, relief_range: [zlo, zhi], max_slope_deg: slope };
     finish(o, &scene.as_dyn(), &scan_spec, &grid, measures)
 }
@@ -678,8 +678,8 @@ fn write_checkpoints(o: &SynthOptions, sc: &Scene<'_>, grid: &crate::geom::Outpu
         if id == 50 {
             break;
         }
-        let x = grid.x0 + grid.gsd * grid.width as f64 * (0.1 + 0.8 * noise::unit(k, 1, o.seed ^ 0xc4));
-        let y = grid.y0 - grid.gsd * grid.height as f64 * (0.1 + 0.8 * noise::unit(k, 2, o.seed ^ 0xc4));
+        let x = grid.x0 + grid.gsd.x * grid.width as f64 * (0.1 + 0.8 * noise::unit(k, 1, o.seed ^ 0xc4));
+        let y = grid.y0 - grid.gsd.y * grid.height as f64 * (0.1 + 0.8 * noise::unit(k, 2, o.seed ^ 0xc4));
         let Height::Value(z) = sc.dem.height(x, y) else { continue };
         let Some((c, r)) = sc.model.project(x, y, z) else { continue };
         if !(sc.inside)(c, r) {

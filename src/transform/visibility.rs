@@ -152,8 +152,10 @@ impl<'a> Visibility<'a> {
             HeightModel::Grid(g) if t.dem.to_dem.is_none() && g.transform[2] == 0.0 && g.transform[4] == 0.0 => Some(g.transform),
             _ => None,
         };
+        // Non-square pixels: lattices as fine as the finer side.
+        let gsd = grid.gsd.min();
         let posts = match (&t.dem.model, aligned) {
-            (HeightModel::Grid(g), Some(gt)) => Some((g, (0.5 * grid.gsd / gt[1].abs()).floor().max(1.0) as i64)),
+            (HeightModel::Grid(g), Some(gt)) => Some((g, (0.5 * gsd / gt[1].abs()).floor().max(1.0) as i64)),
             _ => None,
         };
         let lattice = match aligned {
@@ -161,7 +163,7 @@ impl<'a> Visibility<'a> {
                 // Posts much finer than the output are taken a few at a
                 // time, half a pixel apart at most (a roof's edge moves
                 // with the lattice).
-                let n = (0.5 * grid.gsd / gt[1].abs()).floor().max(1.0);
+                let n = (0.5 * gsd / gt[1].abs()).floor().max(1.0);
                 Lattice { ox: gt[0] + 0.5 * gt[1], oy: gt[3] + 0.5 * gt[5], dx: gt[1] * n, dy: gt[5] * n }
             }
             None => {
@@ -169,19 +171,19 @@ impl<'a> Visibility<'a> {
                 // grid, half a DSM post apart (it bends nowhere finer),
                 // whole pixels, half a pixel at the finest.
                 let (cx, cy) = t.ground(grid.width as f64 / 2.0, grid.height as f64 / 2.0);
-                let post = match (t.dem.sample_coords(cx, cy), t.dem.sample_coords(cx + grid.gsd, cy), t.dem.sample_coords(cx, cy + grid.gsd)) {
-                    (Some(a), Some(b), Some(c)) => grid.gsd / (b.0 - a.0).hypot(b.1 - a.1).max((c.0 - a.0).hypot(c.1 - a.1)),
+                let post = match (t.dem.sample_coords(cx, cy), t.dem.sample_coords(cx + gsd, cy), t.dem.sample_coords(cx, cy + gsd)) {
+                    (Some(a), Some(b), Some(c)) => gsd / (b.0 - a.0).hypot(b.1 - a.1).max((c.0 - a.0).hypot(c.1 - a.1)),
                     _ => f64::INFINITY,
                 };
-                let step = if post.is_finite() { (0.5 * post / grid.gsd).floor().max(1.0) * grid.gsd } else { 64.0 * grid.gsd };
-                let step = if post.is_finite() && 0.5 * post < grid.gsd { 0.5 * grid.gsd } else { step };
-                Lattice { ox: grid.x0 + 0.5 * grid.gsd, oy: grid.y0 - 0.5 * grid.gsd, dx: step, dy: -step }
+                let step = if post.is_finite() { (0.5 * post / gsd).floor().max(1.0) * gsd } else { 64.0 * gsd };
+                let step = if post.is_finite() && 0.5 * post < gsd { 0.5 * gsd } else { step };
+                Lattice { ox: grid.x0 + 0.5 * gsd, oy: grid.y0 - 0.5 * gsd, dx: step, dy: -step }
             }
         };
         // The output's ground, and as far again around it as the reach can go.
         let (xa, ya) = t.ground(0.0, 0.0);
         let (xb, yb) = t.ground(grid.width as f64, grid.height as f64);
-        let reach = MAX_REACH_TILES * 256.0 * grid.gsd;
+        let reach = MAX_REACH_TILES * 256.0 * grid.gsd.max();
         let region = [xa.min(xb) - reach, ya.min(yb) - reach, xa.max(xb) + reach, ya.max(yb) + reach];
         let (i0, j0, i1, j1) = lattice.cover(region);
         let (across, down) = (((i1 - i0) / BLOCK + 1) as usize, ((j1 - j0) / BLOCK + 1) as usize);
@@ -351,7 +353,7 @@ impl<'a> Visibility<'a> {
         // Nothing in reach stands high enough to hide half a pixel, or no
         // surface there rises as steeply as the lines of sight (terrain
         // under a camera looking down): all seen.
-        if rise * slope < 0.5 * self.t.grid.gsd || steep * slope < 0.9 {
+        if rise * slope < 0.5 * self.t.grid.gsd.min() || steep * slope < 0.9 {
             return self.count_imaged(cols, rows);
         }
         let lattice = self.project_lattice(window(rise), &Corridor::toward(rect, g, rise));

@@ -220,7 +220,7 @@ pub fn f32_raster_with_keys(
         photometric: 1,
         alpha: false,
         mask: false,
-        geo: Some(GeoTags { x0, y0, gsd, keys, nodata: None }),
+        geo: Some(GeoTags { x0, y0, gsd: gcm_ortho::geom::Gsd::square(gsd), keys, nodata: None }),
     };
     write_raster(path, &spec, |r0, _, buf| {
         for (k, v) in buf.chunks_exact_mut(4).enumerate() {

@@ -62,7 +62,7 @@ pub struct GeoTags {
     /// Ground X of the west edge, Y of the north edge, pixel size.
     pub x0: f64,
     pub y0: f64,
-    pub gsd: f64,
+    pub gsd: crate::geom::Gsd,
     /// The CRS as GeoTIFF keys.
     pub keys: crate::io::geotiff::GeoKeys,
     pub nodata: Option<f64>,
