@@ -1066,10 +1066,24 @@ impl<'a> Gcm<'a> {
 
     /// [`Gcm::fill_row`] without stepped spans: A itself at every pixel.
     pub fn fill_exact(&self, band: &BandGcm, y: u32, x0: u32, cols: &mut [f64], rows: &mut [f64], miss: &mut Option<(f64, f64, Lookup)>) -> u64 {
+        self.fill_exact_at(band, y, y as f64 + 0.5, x0, cols, rows, miss)
+    }
+
+    /// [`Gcm::fill_exact`] at `v` within output row `y` (its top edge `y`,
+    /// its bottom edge `y + 1`: an area kernel's footprints), from the node
+    /// rows row `y` takes (carried on straight past them).
+    #[allow(clippy::too_many_arguments)] // fill_exact's, and where in the row
+    pub fn fill_exact_at(&self, band: &BandGcm, y: u32, v: f64, x0: u32, cols: &mut [f64], rows: &mut [f64], miss: &mut Option<(f64, f64, Lookup)>) -> u64 {
         let (j0, j1, fy) = self.rows_for(y);
         let a = &band.rows[(j0 - band.first_j) as usize];
         let b = &band.rows[(j1 - band.first_j) as usize];
-        let v = y as f64 + 0.5;
+        let fy = match self.spec.mode {
+            CorrectionMode::Bilinear if v != y as f64 + 0.5 => {
+                let (ya, yb) = (self.ys[(j0 - self.first_node) as usize], self.ys[(j1 - self.first_node) as usize]);
+                (v - ya) / (yb - ya)
+            }
+            _ => fy,
+        };
         let ra = self.a.row(v);
         let cells = band.cells.get((j0 - band.first_j) as usize);
         // The correction along this row at the node columns this segment

@@ -39,7 +39,7 @@ macro_rules! choice {
     };
 }
 
-choice!(Kernel: "nearest" => Kernel::Nearest, "bilinear" => Kernel::Bilinear, "cubic" => Kernel::Cubic, "lanczos3" => Kernel::Lanczos3);
+choice!(Kernel: "nearest" => Kernel::Nearest, "bilinear" => Kernel::Bilinear, "cubic" => Kernel::Cubic, "lanczos3" => Kernel::Lanczos3, "average" => Kernel::Average, "mode" => Kernel::Mode);
 choice!(Compression: "none" => Compression::None, "deflate" => Compression::Deflate, "lzw" => Compression::Lzw, "zstd" => Compression::Zstd);
 choice!(CorrectionMode: "bilinear" => CorrectionMode::Bilinear, "cell" => CorrectionMode::Cell);
 choice!(Trend: "plane" => Trend::Plane, "mean" => Trend::Mean);

@@ -33,6 +33,9 @@ pub struct PixelOptions {
     pub mask: bool,
     /// What becomes of pixels the sensor does not see (with `visibility`).
     pub occlusion: crate::options::Occlusion,
+    /// Under an area kernel: how far, scan pixels, an output pixel's
+    /// footprint reaches from its centre (0 for the point kernels).
+    pub footprint: u32,
 }
 
 /// The run's inputs, ready.

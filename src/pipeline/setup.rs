@@ -322,8 +322,28 @@ impl RunPlan {
             BigTiff::Auto => spec.needs_bigtiff(),
         };
         let area = camera.model().image_area();
-        let pixels =
-            PixelOptions { kernel: opts.kernel, tile, fill: nodata.unwrap_or(0.0), alpha: opts.alpha, bands_out, area, mask, occlusion: opts.occlusion };
+        let footprint = if opts.kernel.area().is_some() { footprint_reach(&approx, &grid) } else { 0 };
+        // A point kernel on output pixels several scan pixels wide reads a
+        // few of the pixels under each: the texture aliases.
+        if let (None, Some(e)) = (opts.kernel.area(), pixel_extent(&approx, grid.width as f64 / 2.0, grid.height as f64 / 2.0)) {
+            if e >= ALIASING_EXTENT {
+                progress.warn(&format!(
+                    "output pixels span about {e:.0} scan pixels: --resample {} reads a few of them under each, so fine texture aliases; --resample average takes them all",
+                    format!("{:?}", opts.kernel).to_lowercase()
+                ));
+            }
+        }
+        let pixels = PixelOptions {
+            kernel: opts.kernel,
+            tile,
+            fill: nodata.unwrap_or(0.0),
+            alpha: opts.alpha,
+            bands_out,
+            area,
+            mask,
+            occlusion: opts.occlusion,
+            footprint,
+        };
         Ok(RunPlan { camera, src, dem, grid, approx, band_order, gcm, piece: [tc0, tr0, tcw, trh], spec, pixels, budget, gcp_fit })
     }
 
@@ -437,6 +457,34 @@ fn check_geoid_covers(r: &crate::camera::RpcCamera, w: u32, h: u32, z: f64) -> R
     }
     Ok(())
 }
+
+/// How far, scan pixels, an output pixel's footprint reaches from its
+/// centre: half its extent along the scan's axes, by `A` at a 9×9 lattice
+/// of the grid, a quarter again for the terrain `A` leaves out (a footprint
+/// that reaches further is read on its own).
+fn footprint_reach(a: &Approx, g: &OutputGrid) -> u32 {
+    let mut most = 0f64;
+    for i in 0..=8 {
+        for j in 0..=8 {
+            if let Some(e) = pixel_extent(a, g.width as f64 * i as f64 / 8.0, g.height as f64 * j as f64 / 8.0) {
+                most = most.max(e);
+            }
+        }
+    }
+    (0.5 * most * 1.25).ceil().min(4096.0) as u32
+}
+
+/// The extent in scan pixels, along the scan's wider axis, of the output
+/// pixel at (u, v), by `A`.
+fn pixel_extent(a: &Approx, u: f64, v: f64) -> Option<f64> {
+    let (p, pu, pv) = (a.at(u, v)?, a.at(u + 1.0, v)?, a.at(u, v + 1.0)?);
+    let extent = ((pu.0 - p.0).abs() + (pv.0 - p.0).abs()).max((pu.1 - p.1).abs() + (pv.1 - p.1).abs());
+    extent.is_finite().then_some(extent)
+}
+
+/// Output pixels this many scan pixels across are warned about under a
+/// point kernel (bilinear reads 4 of the 9 pixels under one at 3×).
+const ALIASING_EXTENT: f64 = 3.0;
 
 /// The grid of a reference raster (north-up) and its CRS.
 fn reference_grid(path: &std::path::Path) -> Result<(OutputGrid, Crs)> {

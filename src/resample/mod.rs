@@ -10,6 +10,7 @@
 //! Positions outside the scan give no value; near the border the kernel's
 //! missing neighbours repeat the edge pixel.
 
+pub mod area;
 mod bilinear_u8;
 
 use crate::geom::{floor_i64, floor_split, ImageArea, Span};
@@ -22,16 +23,30 @@ pub enum Kernel {
     Bilinear,
     Cubic,
     Lanczos3,
+    /// The scan's mean over each output pixel's footprint ([`area`]).
+    Average,
+    /// The value covering most of each output pixel's footprint.
+    Mode,
 }
 
 impl Kernel {
-    /// How many source pixels beyond the position's own the kernel reads.
+    /// How many source pixels beyond the position's own the kernel reads
+    /// (area kernels: beyond the footprint, which the caller adds).
     pub fn radius(self) -> u32 {
         match self {
-            Kernel::Nearest => 0,
+            Kernel::Nearest | Kernel::Average | Kernel::Mode => 0,
             Kernel::Bilinear => 1,
             Kernel::Cubic => 2,
             Kernel::Lanczos3 => 3,
+        }
+    }
+
+    /// The area kernel this is, if it is one.
+    pub fn area(self) -> Option<area::AreaKind> {
+        match self {
+            Kernel::Average => Some(area::AreaKind::Average),
+            Kernel::Mode => Some(area::AreaKind::Mode),
+            _ => None,
         }
     }
 }
@@ -137,7 +152,7 @@ pub struct View<'a, T> {
     in_scan: bool,
     /// Where less than the whole scan holds the image (a film's format):
     /// positions outside it have no value.
-    area: Option<ImageArea>,
+    pub area: Option<ImageArea>,
 }
 
 impl<'a, T: Sample> View<'a, T> {
@@ -173,7 +188,7 @@ impl<'a, T: Sample> View<'a, T> {
     /// Whether scan position (c, r) has a value: inside the scan and the
     /// image area.
     #[inline(always)]
-    fn has_value(&self, c: f64, r: f64) -> bool {
+    pub fn has_value(&self, c: f64, r: f64) -> bool {
         c >= 0.0 && r >= 0.0 && c < self.img_w && r < self.img_h && self.area.is_none_or(|a| a.contains(c, r))
     }
 
@@ -287,6 +302,12 @@ pub fn resample_row<T: Sample>(kernel: Kernel, view: &View<'_, T>, cols: &[f64],
             }
             Kernel::Cubic => separable(view, c, r, cubic_weights, px),
             Kernel::Lanczos3 => separable(view, c, r, lanczos3_weights, px),
+            // Area kernels come here for a footprint without area: the
+            // scan at the position.
+            Kernel::Average | Kernel::Mode => {
+                let s = view.at(floor_i64(c) - view.x0, floor_i64(r) - view.y0);
+                px.copy_from_slice(&view.data[s..s + b]);
+            }
         }
     }
     true

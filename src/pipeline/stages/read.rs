@@ -46,7 +46,7 @@ pub fn plan(run: &Run, b: u32, band: &BandGcm, reader: &mut Reader) -> Vec<Chunk
     let (src, walk) = (run.inputs.src, &run.walk);
     let (y0, y1) = walk.band_rows(b);
     let (sw, sh) = (src.info.width, src.info.height);
-    let margin = run.inputs.pixels.kernel.radius() + 2;
+    let margin = run.inputs.pixels.kernel.radius() + run.inputs.pixels.footprint + 2;
     let (budget_px, max_tiles) = (run.budget.window_pixels(src.info.pixel_bytes()), run.budget.chunk_tiles(run.inputs.chunk_tile_bytes()));
     let chunks = timed(&mut reader.busy, || plan_band(run.inputs.gcm, band, y0, y1, walk.tile, (sw, sh), margin, budget_px, max_tiles, walk.cols));
     let rows = band_scan_rows(&chunks);

@@ -8,6 +8,7 @@ use crate::gcm::Gcm;
 use crate::io::source::{SampleType, SourceImage, SourceInfo, Window};
 use crate::options::Occlusion;
 use crate::pipeline::context::{PixelOptions, Run};
+use crate::resample::area::{area_pixel, footprint_window, pixel_quad, AreaKind, AreaScratch, Covered};
 use crate::resample::{resample_row, resample_spans, span_bounds, span_position, Kernel, Sample, SpanOutcome, View};
 use rayon::prelude::*;
 use std::sync::atomic::Ordering;
@@ -227,6 +228,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
                         px: &mut [T],
                         valid: &mut [bool],
                         spans: &mut Vec<crate::geom::Span>,
+                        feet: &mut Footprints,
                         miss: &mut Option<Miss>| {
             let (px, valid) = (&mut px[cx.start * bands_in..cx.end * bands_in], &mut valid[cx.clone()]);
             let (x0, w) = (x0 + cx.start as u32, cx.len());
@@ -282,6 +284,24 @@ pub fn resample_chunk<T: Sample + Recycle>(
                         }
                     }
                 }
+            } else if let Some(kind) = opts.kernel.area() {
+                positions(cols, rws);
+                gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, miss);
+                feet.corners(gcm, &msg.gcm, y, x0, w, miss);
+                for (i, p) in px.chunks_exact_mut(bands_in).enumerate() {
+                    valid[i] = view.has_value(cols[i], rws[i]) && {
+                        let quad = pixel_quad((&feet.top.0, &feet.top.1), (&feet.bottom.0, &feet.bottom.1), i);
+                        match area_pixel(kind, &view, &quad, p, &mut feet.scratch) {
+                            Covered::Value => true,
+                            Covered::LeavesWindow => single_footprint(src, kind, &quad, opts.area, p, &mut feet.scratch, (cols[i], rws[i])),
+                            // No area (a degenerate corner): the scan at the centre.
+                            Covered::Nothing => nearest_at(&view, (cols[i], rws[i]), p, fill),
+                        }
+                    };
+                    if !valid[i] {
+                        p.fill(fill);
+                    }
+                }
             } else {
                 positions(cols, rws);
                 gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, miss);
@@ -312,8 +332,8 @@ pub fn resample_chunk<T: Sample + Recycle>(
             .enumerate()
             .map_init(
                 // The rows of a task, one after the other.
-                || (Vec::new(), Vec::new(), vec![T::default(); group * stride * bands_in], vec![false; group * w], Vec::new()),
-                |(cols, rws, block, valid_block, spans), (g, (row_pieces, mask_pieces))| {
+                || (Vec::new(), Vec::new(), vec![T::default(); group * stride * bands_in], vec![false; group * w], Vec::new(), Footprints::default()),
+                |(cols, rws, block, valid_block, spans, feet), (g, (row_pieces, mask_pieces))| {
                     let mut miss = None;
                     // (Rows of other strips are theirs; one a task then.)
                     if g * group < rows && !range.contains(&(g * group)) {
@@ -324,7 +344,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
                             let at = j * stride * bands_in;
                             let (px, valid) = (&mut block[at..at + w * bands_in], &mut valid_block[j * w..(j + 1) * w]);
                             if g * group + j < rows {
-                                make_row(g * group + j, cx.clone(), cols, rws, px, valid, spans, &mut miss);
+                                make_row(g * group + j, cx.clone(), cols, rws, px, valid, spans, feet, &mut miss);
                             } else {
                                 // Beyond the grid's edge: zero.
                                 px.fill(T::default());
@@ -365,7 +385,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
                             mask_pieces.iter_mut().for_each(|p| p.fill(0));
                             continue;
                         }
-                        make_row(r, cx.clone(), cols, rws, px, valid, spans, &mut miss);
+                        make_row(r, cx.clone(), cols, rws, px, valid, spans, feet, &mut miss);
                         // Each tile's stretch of the row: of it, the columns `cx`.
                         let part = |tx: usize| {
                             let (xs, n) = (tx * t, t.min(w - tx * t));
@@ -402,6 +422,82 @@ pub fn resample_chunk<T: Sample + Recycle>(
         None => Ok((out, opts.mask.then_some(mask))),
     }
 }
+/// The corners of a row's output pixels in the scan, along its top and
+/// bottom edges, for the area kernels; and their scratch buffers.
+#[derive(Default)]
+struct Footprints {
+    top: (Vec<f64>, Vec<f64>),
+    bottom: (Vec<f64>, Vec<f64>),
+    centres: (Vec<f64>, Vec<f64>),
+    scratch: AreaScratch,
+}
+
+impl Footprints {
+    /// Corners `x0..=x0 + w` of output row `y`: on each edge, half-way
+    /// between the neighbouring pixels' positions on it (the same whatever
+    /// the chunk, so results do not depend on where chunks begin); past the
+    /// grid's first and last pixel, carried on straight.
+    fn corners(&mut self, gcm: &Gcm<'_>, band: &crate::gcm::BandGcm, y: u32, x0: usize, w: usize, miss: &mut Option<Miss>) {
+        let width = gcm.t.grid.width as usize;
+        let (a, b) = (x0.saturating_sub(1), (x0 + w + 1).min(width));
+        let (cc, cr) = &mut self.centres;
+        for (v, (oc, or)) in [(y as f64, &mut self.top), (y as f64 + 1.0, &mut self.bottom)] {
+            cc.resize(b - a, 0.0);
+            cr.resize(b - a, 0.0);
+            gcm.fill_exact_at(band, y, v, a as u32, cc, cr, miss);
+            let p = |x: usize| (cc[x - a], cr[x - a]);
+            oc.clear();
+            or.clear();
+            for x in x0..=x0 + w {
+                let (c, r) = if x == 0 || x == width {
+                    // An end: one pixel's centre and half its step on.
+                    let (e, n) = if x == 0 { (0, 1) } else { (width - 1, width.saturating_sub(2)) };
+                    let (pe, pn) = (p(e), if n < width && n != e { p(n) } else { p(e) });
+                    (pe.0 + 0.5 * (pe.0 - pn.0), pe.1 + 0.5 * (pe.1 - pn.1))
+                } else {
+                    let (l, r) = (p(x - 1), p(x));
+                    (0.5 * (l.0 + r.0), 0.5 * (l.1 + r.1))
+                };
+                oc.push(c);
+                or.push(r);
+            }
+        }
+    }
+}
+
+/// An area kernel's pixel from a window read just for its footprint;
+/// whether it has a value.
+fn single_footprint<T: Sample>(
+    src: &SourceImage,
+    kind: AreaKind,
+    quad: &[[f64; 2]; 4],
+    area: Option<crate::geom::ImageArea>,
+    out: &mut [T],
+    scratch: &mut AreaScratch,
+    centre: (f64, f64),
+) -> bool {
+    let info = &src.info;
+    let Some([c0, r0, c1, r1]) = footprint_window(quad, info.width as f64, info.height as f64) else {
+        return false;
+    };
+    let mut win = Window::default();
+    if src.read_window(c0 as u32, r0 as u32, (c1 - c0) as u32, (r1 - r0) as u32, &mut win).is_err() {
+        return false;
+    }
+    let view = View::<T>::new(&win, info.bands, info.width, info.height).with_area(area);
+    match area_pixel(kind, &view, quad, out, scratch) {
+        Covered::Value => true,
+        _ => nearest_at(&view, centre, out, T::default()),
+    }
+}
+
+/// The scan pixel at `at` (a footprint without area); whether it has a value.
+fn nearest_at<T: Sample>(view: &View<'_, T>, at: (f64, f64), out: &mut [T], fill: T) -> bool {
+    let mut valid = [false];
+    resample_row(Kernel::Nearest, view, &[at.0], &[at.1], out, &mut valid, fill);
+    valid[0]
+}
+
 /// Resamples one pixel from a window read just for it.
 fn single_pixel<T: Sample>(src: &SourceImage, kernel: Kernel, c: f64, r: f64, out: &mut [T], fill: T) {
     let info = &src.info;
