@@ -101,14 +101,23 @@ pub fn area_pixel<T: Sample>(kind: AreaKind, view: &View<'_, T>, quad: &[[f64; 2
         s.tally.iter_mut().for_each(Vec::clear);
     }
     let (ox, oy) = (ox as i64, oy as i64);
+    // The image area is convex: a footprint whose box lies in it needs no
+    // test a pixel.
+    let whole = view.area.is_none_or(|area| area.contains_rect(c0 as f64, r0 as f64, c1 as f64, r1 as f64));
     let (sums, weights, tally) = (&mut s.sums, &mut s.weights, &mut s.tally);
-    s.raster.for_each_pixel(|k, a| {
-        let (ix, iy) = ((k % stride) as i64, (k / stride) as i64);
-        let (c, r) = (ox + ix, oy + iy);
-        if a < NO_COVER || c < c0 || c >= c1 || r < r0 || r >= r1 || ix as usize >= bw {
+    // Cells come in order, row after row.
+    let (mut ix, mut iy) = (0usize, 0i64);
+    s.raster.for_each_pixel(|_, a| {
+        let (c, r) = (ox + ix as i64, oy + iy);
+        let inside = ix < bw;
+        ix += 1;
+        if ix == stride {
+            (ix, iy) = (0, iy + 1);
+        }
+        if a < NO_COVER || !inside || c < c0 || c >= c1 || r < r0 || r >= r1 {
             return;
         }
-        if view.area.is_some() && !view.has_value(c as f64 + 0.5, r as f64 + 0.5) {
+        if !whole && !view.has_value(c as f64 + 0.5, r as f64 + 0.5) {
             return;
         }
         let at = ((r - view.y0) * view.stride + (c - view.x0)) as usize * b;
