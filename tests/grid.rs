@@ -147,3 +147,22 @@ fn non_square_pixels_sample_where_their_centres_lie() {
     assert!(worst < 0.2, "{worst} scan px apart");
     println!("2 × 3 m pixels against their centres on a 1 m grid: {valued} px, max {worst:.4} scan px apart");
 }
+
+#[test]
+fn a_manifest_takes_non_square_pixels_as_a_pair() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene(&d.join("scene"), 300, |_| {});
+    let manifest = d.join("m.toml");
+    let job = format!("[[job]]\nimage = {:?}\ncamera = {:?}\noutput = \"o.tif\"\n", s(&sc.scan), s(&sc.camera));
+    std::fs::write(&manifest, format!("[defaults]\ndem = {:?}\ngsd = [2.0, 3.0]\nresample = \"average\"\n\n{job}", s(&sc.dem))).unwrap();
+    let r = run(&["batch", s(&manifest), "--quiet"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let (gt, _, _) = grid_of(&d.join("o.tif"));
+    assert_eq!((gt[1], gt[5]), (2.0, -3.0));
+    // A third number is no pixel size: refused, naming the line.
+    std::fs::write(&manifest, format!("[defaults]\ndem = {:?}\ngsd = [2.0, 3.0, 4.0]\n\n{job}", s(&sc.dem))).unwrap();
+    let r = run(&["batch", s(&manifest), "--quiet", "--force"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains("line 3") && err.contains("[x, y]"), "{err}");
+}

@@ -100,16 +100,30 @@ impl Serialize for Gsd {
 
 impl<'de> Deserialize<'de> for Gsd {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Gsd, D::Error> {
-        #[derive(Deserialize)]
-        #[serde(untagged)]
-        enum Form {
-            One(f64),
-            Two([f64; 2]),
+        struct Visit;
+        impl<'de> serde::de::Visitor<'de> for Visit {
+            type Value = Gsd;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a pixel size: a number, or [x, y] for pixels x wide and y tall")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Gsd, E> {
+                Ok(Gsd::square(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Gsd, E> {
+                Ok(Gsd::square(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Gsd, E> {
+                Ok(Gsd::square(v as f64))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Gsd, A::Error> {
+                let mut next = || seq.next_element::<f64>();
+                match (next()?, next()?, next()?) {
+                    (Some(x), Some(y), None) => Ok(Gsd { x, y }),
+                    _ => Err(serde::de::Error::custom("a pixel size is a number, or [x, y]: two numbers")),
+                }
+            }
         }
-        Ok(match Form::deserialize(d)? {
-            Form::One(g) => Gsd::square(g),
-            Form::Two([x, y]) => Gsd { x, y },
-        })
+        d.deserialize_any(Visit)
     }
 }
 
@@ -168,7 +182,7 @@ impl OutputGrid {
     /// decimal (2731039.8 at 0.2) are kept, whatever binary rounding makes
     /// of their quotient.
     pub fn from_bounds([minx, miny, maxx, maxy]: [f64; 4], gsd: Gsd, snap: Snap) -> Option<OutputGrid> {
-        if !(gsd.x > 0.0 && gsd.y > 0.0) || !(maxx > minx) || !(maxy > miny) {
+        if !(gsd.x > 0.0 && gsd.y > 0.0 && maxx > minx && maxy > miny) {
             return None;
         }
         const TOL: f64 = 1e-6;
