@@ -367,7 +367,12 @@ pub struct MosaicArgs {
     /// The mosaic's extent: minx,miny,maxx,maxy (default: all footprints)
     #[arg(long, allow_hyphen_values = true)]
     pub bounds: Option<String>,
-    /// The mosaic's CRS, in any form (default: the first camera's)
+    /// The grid of this raster (CRS, origin, pixel size and size), so the
+    /// mosaic lands pixel for pixel on it; instead of --gsd and --bounds
+    #[arg(long, conflicts_with_all = ["gsd", "bounds"])]
+    pub like: Option<PathBuf>,
+    /// The mosaic's CRS, in any form (default: the first camera's, or the
+    /// --like raster's)
     #[arg(long)]
     pub crs: Option<String>,
     /// Radiometric balancing from the overlaps: none, gain, or gain-offset

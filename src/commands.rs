@@ -206,6 +206,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         gsd: a.gsd,
         bounds,
         crs,
+        like: a.like.clone(),
         balance: a.balance,
         least_cost: a.seams == "least-cost",
         blend: a.blend,

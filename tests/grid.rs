@@ -166,3 +166,30 @@ fn a_manifest_takes_non_square_pixels_as_a_pair() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(!r.status.success() && err.contains("line 3") && err.contains("[x, y]"), "{err}");
 }
+
+#[test]
+fn a_mosaic_lands_on_a_reference_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let block = d.join("block");
+    let r = run(&["synth", "--out", s(&block), "--camera", "digital", "--size", "600x400", "--block", "2x1", "--quiet"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let manifest = block.join("manifest.toml");
+    let first = d.join("first.tif");
+    let r = run(&["mosaic", s(&manifest), "-o", s(&first), "--quiet"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    // Inside the block: an origin on no multiple of its pixel size, other
+    // pixels, an odd size.
+    let (gt, w, h) = grid_of(&first);
+    let want = [gt[0] + 7.31, 1.37, 0.0, gt[3] - 5.19, 0.0, -1.37];
+    let (rw, rh) = ((w as f64 * gt[1] / 1.37 * 0.8) as u32 | 1, (h as f64 * gt[1] / 1.37 * 0.8) as u32 | 1);
+    let like = d.join("ref.tif");
+    reference(&like, want, rw, rh, 32631);
+    let out = d.join("like.tif");
+    let r = run(&["mosaic", s(&manifest), "-o", s(&out), "--like", s(&like), "--quiet"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(grid_of(&out), (want, rw, rh));
+    // With --gsd: refused.
+    let r = run(&["mosaic", s(&manifest), "-o", s(&d.join("x.tif")), "--like", s(&like), "--gsd", "2"]);
+    assert_eq!(r.status.code(), Some(2), "{}", String::from_utf8_lossy(&r.stderr));
+}

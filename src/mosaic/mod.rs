@@ -25,7 +25,7 @@ use crate::progress::{Cancel, Progress, Task};
 use balance::{Balance, Correction};
 use plan::{Plan, PlanSettings, NONE};
 use serde::Serialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Clone, Debug)]
@@ -43,6 +43,9 @@ pub struct MosaicOptions {
     pub gsd: Option<Gsd>,
     pub bounds: Option<[f64; 4]>,
     pub crs: Option<Crs>,
+    /// The grid (CRS, origin, pixel size, size) of this raster, instead of
+    /// `gsd` and `bounds`.
+    pub like: Option<PathBuf>,
     pub balance: Balance,
     /// Move the first partition's seams onto least-cost paths.
     pub least_cost: bool,
@@ -165,6 +168,9 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     if let Some(p) = &o.plan_in {
         ins.push(Role::new("plan", p));
     }
+    if let Some(p) = &o.like {
+        ins.push(Role::new("reference grid", p));
+    }
     let mut outs: Vec<Role> = o.output.iter().map(|p| Role::new("output", p)).collect();
     for (what, path) in [("seamlines", &o.seamlines_out), ("plan", &o.plan_out)] {
         if let Some(p) = path {
@@ -179,7 +185,16 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;
 
     // A shard that takes a plan needs only where each image sees.
-    let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs: o.crs.clone(), memory: o.memory, thumbnails: o.plan_in.is_none() };
+    let like = o.like.as_deref().map(crate::pipeline::reference_grid).transpose()?;
+    let crs = match (&o.crs, &like) {
+        (Some(c), Some((_, l))) if c != l => {
+            let path = o.like.as_deref().unwrap_or(Path::new("")).display();
+            return Err(Error::setting("crs", format!("{c}, but the reference grid {path} is in {l}: give one of the two")));
+        }
+        (Some(c), _) => Some(c.clone()),
+        (None, l) => l.as_ref().map(|(_, c)| c.clone()),
+    };
+    let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs, grid: like.map(|(g, _)| g), memory: o.memory, thumbnails: o.plan_in.is_none() };
     let mut plan = Plan::make(jobs.into_iter().map(|j| (j.name, j.config)).collect(), &settings, progress)?;
     let t_plan = wall.elapsed().as_secs_f64();
     if cancel.is_cancelled() {
@@ -446,7 +461,8 @@ fn run_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
     );
     let job_keys: Vec<String> = jobs.iter().map(|j| format!("{}={}", j.name, crate::batch::job_key(&j.config))).collect();
     let joined = job_keys.join(";");
-    let files: Vec<&std::path::Path> = [Some(&o.manifest), o.plan_in.as_ref(), o.seamlines_in.as_ref()].into_iter().flatten().map(PathBuf::as_path).collect();
+    let files: Vec<&std::path::Path> =
+        [Some(&o.manifest), o.plan_in.as_ref(), o.seamlines_in.as_ref(), o.like.as_ref()].into_iter().flatten().map(PathBuf::as_path).collect();
     crate::batch::key_of(&[settings.as_bytes(), joined.as_bytes()], &files)
 }
 

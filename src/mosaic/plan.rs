@@ -84,6 +84,9 @@ pub struct Plan {
 /// What the plan is made from.
 pub struct PlanSettings {
     pub gsd: Option<Gsd>,
+    /// The grid itself (a reference raster's), instead of `gsd` and
+    /// `bounds`.
+    pub grid: Option<OutputGrid>,
     pub bounds: Option<[f64; 4]>,
     pub crs: Option<Crs>,
     /// Memory for the DEMs and one scan's thumbnail, bytes.
@@ -204,7 +207,10 @@ impl Plan {
         if !gsd.is_valid() {
             return Err(Error::setting("gsd", format!("{gsd} is not a pixel size")));
         }
-        let grid = OutputGrid::from_bounds(bounds, gsd, Snap::Tap).ok_or_else(|| Error::setting("bounds", format!("{bounds:?} at GSD {gsd} is empty")))?;
+        let grid = match s.grid {
+            Some(g) => g,
+            None => OutputGrid::from_bounds(bounds, gsd, Snap::Tap).ok_or_else(|| Error::setting("bounds", format!("{bounds:?} at GSD {gsd} is empty")))?,
+        };
         // A GSD or bounds typo makes a mosaic of days: refused before any
         // work, as rectify refuses one (16 times the scans' pixels at most).
         let scans: u64 = images.iter().map(|(i, _)| i.width as u64 * i.height as u64).sum();

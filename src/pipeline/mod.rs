@@ -26,6 +26,7 @@ mod rectify;
 mod report;
 mod sequential;
 mod setup;
+pub(crate) use setup::reference_grid;
 mod stages;
 mod threaded;
 

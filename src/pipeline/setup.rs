@@ -487,7 +487,7 @@ fn pixel_extent(a: &Approx, u: f64, v: f64) -> Option<f64> {
 const ALIASING_EXTENT: f64 = 3.0;
 
 /// The grid of a reference raster (north-up) and its CRS.
-fn reference_grid(path: &std::path::Path) -> Result<(OutputGrid, Crs)> {
+pub fn reference_grid(path: &std::path::Path) -> Result<(OutputGrid, Crs)> {
     let info = SourceImage::info_of(path)?;
     let g = info.georef.ok_or_else(|| Error::format(path, "has no georeferencing to take the grid from"))?;
     let t = g.transform;
