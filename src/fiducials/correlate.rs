@@ -97,16 +97,25 @@ impl Surface {
     /// −1: inverted), at least `apart` places from each other.
     #[must_use]
     pub fn peaks(&self, sign: f32, k: usize, apart: usize) -> Vec<Peak> {
-        let mut order: Vec<usize> = (0..self.r.len()).collect();
-        order.sort_unstable_by(|&a, &b| (sign * self.r[b]).total_cmp(&(sign * self.r[a])));
+        // k passes over the surface (k is a few; sorting it all cost more
+        // than the correlation): each the strongest place apart from those
+        // taken (of equal ones, the first).
         let mut out: Vec<Peak> = Vec::new();
-        for idx in order {
-            if out.len() == k {
-                break;
+        while out.len() < k {
+            let mut best: Option<Peak> = None;
+            for (idx, &r) in self.r.iter().enumerate() {
+                let r = sign * r;
+                if best.is_some_and(|b| !(r > b.r)) || r.is_nan() {
+                    continue;
+                }
+                let (i, j) = (self.i0 + idx % self.width, self.j0 + idx / self.width);
+                if out.iter().all(|p| p.i.abs_diff(i) > apart || p.j.abs_diff(j) > apart) {
+                    best = Some(Peak { i, j, r });
+                }
             }
-            let (i, j) = (self.i0 + idx % self.width, self.j0 + idx / self.width);
-            if out.iter().all(|p| p.i.abs_diff(i) > apart || p.j.abs_diff(j) > apart) {
-                out.push(Peak { i, j, r: sign * self.r[idx] });
+            match best {
+                Some(p) => out.push(p),
+                None => break,
             }
         }
         out

@@ -23,13 +23,14 @@ pub enum Primitive {
         width: f64,
         value: f32,
     },
-    /// A rectangle centred at (x, y), `len` along `angle_deg`, `width` across.
+    /// A rectangle centred at (x, y), `len` along the unit direction
+    /// `dir` (cos, sin of its angle), `width` across.
     Bar {
         x: f64,
         y: f64,
         len: f64,
         width: f64,
-        angle_deg: f64,
+        dir: [f64; 2],
         value: f32,
     },
     /// A filled triangle.
@@ -44,8 +45,7 @@ impl Primitive {
         let hit = match *self {
             Primitive::Disc { x: cx, y: cy, r, .. } => (x - cx).powi(2) + (y - cy).powi(2) <= r * r,
             Primitive::Ring { r, width, .. } => (x.hypot(y) - r).abs() <= width / 2.0,
-            Primitive::Bar { x: cx, y: cy, len, width, angle_deg, .. } => {
-                let (s, c) = angle_deg.to_radians().sin_cos();
+            Primitive::Bar { x: cx, y: cy, len, width, dir: [c, s], .. } => {
                 let (dx, dy) = (x - cx, y - cy);
                 (dx * c + dy * s).abs() <= len / 2.0 && (-dx * s + dy * c).abs() <= width / 2.0
             }
@@ -171,7 +171,7 @@ impl Shape {
                 for k in 0..4 {
                     let a = (k as f64 * 90.0).to_radians();
                     let m = gap + arm / 2.0;
-                    p.push(Primitive::Bar { x: m * a.cos(), y: m * a.sin(), len: arm, width: line, angle_deg: k as f64 * 90.0, value: 1.0 });
+                    p.push(Primitive::Bar { x: m * a.cos(), y: m * a.sin(), len: arm, width: line, dir: [a.cos(), a.sin()], value: 1.0 });
                 }
                 p.push(Primitive::Disc { x: 0.0, y: 0.0, r: dot / 2.0, value: 1.0 });
                 (p, gap + 0.3 * arm, false)
@@ -244,7 +244,8 @@ impl Shape {
 }
 
 fn bar(angle_deg: f64, width: f64, len: f64) -> Primitive {
-    Primitive::Bar { x: 0.0, y: 0.0, len, width, angle_deg, value: 1.0 }
+    let (s, c) = angle_deg.to_radians().sin_cos();
+    Primitive::Bar { x: 0.0, y: 0.0, len, width, dir: [c, s], value: 1.0 }
 }
 
 #[cfg(test)]
