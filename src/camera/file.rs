@@ -435,6 +435,17 @@ impl Camera {
         Ok(cam)
     }
 
+    /// What [`Camera::read_for`] would refuse, short of finding fiducial
+    /// marks in the scan (a batch's check of its jobs: the marks are found
+    /// once, when the job runs).
+    pub fn check_for(image: &Path, camera: &Path) -> Result<()> {
+        let set = super::formats::read_for(image, camera, None, None)?;
+        if set.camera_for(image)?.needs_marks() {
+            return Ok(());
+        }
+        Self::read_for(image, camera, None, None).map(|_| ())
+    }
+
     /// The camera file for an RPC file given on the command line.
     pub fn rpc_file(rpc: &Path, offset: Option<[f64; 2]>, geoid: Option<&Path>) -> CameraFile {
         let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()).to_string_lossy().into_owned();
