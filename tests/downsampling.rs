@@ -34,8 +34,7 @@ const H: u32 = 1000;
 
 /// A one-band 8-bit scan of `value(col, row)`, georeferenced if `geo`.
 fn u8_scan(path: &Path, geo: Option<[f64; 4]>, value: impl Fn(u32, u32) -> u8 + Sync) {
-    use gcm_ortho::io::source::SampleType;
-    use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
+    use gcm_ortho::io::tiff_out::{write_raster, GeoTags};
     let geo = geo.map(|[x0, y0, gx, gy]| GeoTags {
         x0,
         y0,
@@ -43,22 +42,7 @@ fn u8_scan(path: &Path, geo: Option<[f64; 4]>, value: impl Fn(u32, u32) -> u8 + 
         keys: gcm_ortho::geodesy::geokeys::keys_of_epsg(32631).unwrap(),
         nodata: None,
     });
-    let spec = OutputSpec {
-        overviews: 0,
-        cog: false,
-        width: W,
-        height: H,
-        bands: 1,
-        sample: SampleType::U8,
-        chunking: Chunking::Strips(16),
-        compression: Compression::None,
-        level: None,
-        bigtiff: false,
-        photometric: 1,
-        alpha: false,
-        mask: false,
-        geo,
-    };
+    let spec = plain_spec((W, H), 1, gcm_ortho::io::source::SampleType::U8, geo);
     write_raster(path, &spec, |r0, _, buf| {
         for (k, v) in buf.iter_mut().enumerate() {
             *v = value(k as u32 % W, r0 + k as u32 / W);

@@ -83,24 +83,8 @@ pub fn coordinate_image(path: &Path, w: u32, h: u32) {
 /// As [`coordinate_image`], its columns counted from `col0` (which of
 /// several images a mosaic's pixel came from, and where in it).
 pub fn coordinate_image_from(path: &Path, w: u32, h: u32, col0: f32) {
-    use gcm_ortho::io::source::SampleType;
-    use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, OutputSpec};
-    let spec = OutputSpec {
-        overviews: 0,
-        cog: false,
-        width: w,
-        height: h,
-        bands: 2,
-        sample: SampleType::F32,
-        chunking: Chunking::Strips(16),
-        compression: Compression::None,
-        level: None,
-        bigtiff: false,
-        photometric: 1,
-        alpha: false,
-        mask: false,
-        geo: None,
-    };
+    use gcm_ortho::io::tiff_out::write_raster;
+    let spec = plain_spec((w, h), 2, gcm_ortho::io::source::SampleType::F32, None);
     write_raster(path, &spec, |y0, y1, buf| {
         for y in y0..y1 {
             for x in 0..w {
@@ -204,24 +188,9 @@ pub fn f32_raster_with_keys(
     keys: gcm_ortho::io::geotiff::GeoKeys,
     value: impl Fn(u32, u32) -> f32 + Sync,
 ) {
-    use gcm_ortho::io::source::SampleType;
-    use gcm_ortho::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
-    let spec = OutputSpec {
-        overviews: 0,
-        cog: false,
-        width: w,
-        height: h,
-        bands: 1,
-        sample: SampleType::F32,
-        chunking: Chunking::Strips(16),
-        compression: Compression::None,
-        level: None,
-        bigtiff: false,
-        photometric: 1,
-        alpha: false,
-        mask: false,
-        geo: Some(GeoTags { x0, y0, gsd: gcm_ortho::geom::Gsd::square(gsd), keys, nodata: None }),
-    };
+    use gcm_ortho::io::tiff_out::{write_raster, GeoTags};
+    let geo = GeoTags { x0, y0, gsd: gcm_ortho::geom::Gsd::square(gsd), keys, nodata: None };
+    let spec = plain_spec((w, h), 1, gcm_ortho::io::source::SampleType::F32, Some(geo));
     write_raster(path, &spec, |r0, _, buf| {
         for (k, v) in buf.chunks_exact_mut(4).enumerate() {
             let (col, row) = (k as u32 % w, r0 + k as u32 / w);
@@ -229,4 +198,31 @@ pub fn f32_raster_with_keys(
         }
     })
     .expect("the raster is written");
+}
+
+/// An uncompressed striped raster's layout: `bands` of `sample`, grey,
+/// georeferenced by `geo` if given.
+pub fn plain_spec(
+    (w, h): (u32, u32),
+    bands: u32,
+    sample: gcm_ortho::io::source::SampleType,
+    geo: Option<gcm_ortho::io::tiff_out::GeoTags>,
+) -> gcm_ortho::io::tiff_out::OutputSpec {
+    use gcm_ortho::io::tiff_out::{Chunking, Compression, OutputSpec};
+    OutputSpec {
+        overviews: 0,
+        cog: false,
+        width: w,
+        height: h,
+        bands,
+        sample,
+        chunking: Chunking::Strips(16),
+        compression: Compression::None,
+        level: None,
+        bigtiff: false,
+        photometric: 1,
+        alpha: false,
+        mask: false,
+        geo,
+    }
 }
