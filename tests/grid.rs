@@ -122,6 +122,11 @@ fn non_square_pixels_sample_where_their_centres_lie() {
         assert_eq!(j["geoTransform"], serde_json::json!(want), "GDAL reads the pixel size as written");
         assert_eq!(j["size"], serde_json::json!([cols, rows]));
     }
+    // A side absurdly small: refused by name, nothing written.
+    let r = run(&["rectify", "--image", s(&coords), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--gsd", "1e-7,3", "-o", s(&d.join("absurd.tif"))]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.code() == Some(2) && err.contains("--gsd"), "{err}");
+    assert!(!d.join("absurd.tif").exists());
     // Its grid reproduced by --like, non-square pixels included.
     assert_eq!(grid_of(&rectify("like.tif", &["--like", s(&ns)])), (want, cols, rows));
     // A square 1 m grid whose pixel centres include every 2 × 3 m pixel's
