@@ -183,7 +183,8 @@ impl RunPlan {
                     None => Gsd::square(mean_gsd(model, &dem, sw, sh, z_guess).map_err(on_dem)?),
                 };
                 match opts.bounds {
-                    Some(b) => OutputGrid::from_bounds(b, gsd, opts.snap).ok_or_else(|| Error::setting("bounds", format!("{b:?} at GSD {gsd} is empty, or more pixels a side than a raster holds")))?,
+                    Some(b) => OutputGrid::from_bounds(b, gsd, opts.snap)
+                        .ok_or_else(|| Error::setting("bounds", format!("{b:?} at GSD {gsd} is empty, or more pixels a side than a raster holds")))?,
                     None => auto_grid(model, &dem, sw, sh, z_guess, gsd).map_err(on_dem)?,
                 }
             }

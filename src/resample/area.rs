@@ -46,18 +46,24 @@ impl Default for AreaScratch {
 /// Coverage smaller than this (a share of a scan pixel) is rounding.
 const NO_COVER: f32 = 1e-6;
 
+/// The whole pixels around a footprint, `[c0, r0, c1, r1)`, not clipped
+/// to the scan; `None` if a corner is not a number.
+fn pixels_around(quad: &[[f64; 2]; 4]) -> Option<[f64; 4]> {
+    if quad.iter().flatten().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let lo = |k: usize| quad.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min).floor();
+    let hi = |k: usize| quad.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max).ceil();
+    Some([lo(0), lo(1), hi(0), hi(1)])
+}
+
 /// The scan pixels `[c0, r0, c1, r1)` a footprint touches, within the
 /// scan of `w`×`h` pixels; `None` if it has no area there or a corner is
 /// not a number.
 #[must_use]
 pub fn footprint_window(quad: &[[f64; 2]; 4], w: f64, h: f64) -> Option<[i64; 4]> {
-    if quad.iter().flatten().any(|v| !v.is_finite()) {
-        return None;
-    }
-    let lo = |k: usize| quad.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
-    let hi = |k: usize| quad.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max);
-    let (c0, r0) = (lo(0).floor().max(0.0), lo(1).floor().max(0.0));
-    let (c1, r1) = (hi(0).ceil().min(w), hi(1).ceil().min(h));
+    let [c0, r0, c1, r1] = pixels_around(quad)?;
+    let (c0, r0, c1, r1) = (c0.max(0.0), r0.max(0.0), c1.min(w), r1.min(h));
     (c1 > c0 && r1 > r0).then_some([c0 as i64, r0 as i64, c1 as i64, r1 as i64])
 }
 
@@ -81,10 +87,8 @@ pub fn area_pixel<T: Sample>(kind: AreaKind, view: &View<'_, T>, quad: &[[f64; 2
     // Drawn relative to the whole pixels around the footprint (not clipped
     // to the scan, so the outline closes inside the raster), one column
     // spare for the accumulation's last step.
-    let ox = quad.iter().map(|p| p[0]).fold(f64::INFINITY, f64::min).floor();
-    let oy = quad.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min).floor();
-    let bw = (quad.iter().map(|p| p[0]).fold(f64::NEG_INFINITY, f64::max).ceil() - ox) as usize;
-    let bh = (quad.iter().map(|p| p[1]).fold(f64::NEG_INFINITY, f64::max).ceil() - oy) as usize;
+    let [ox, oy, ex, ey] = pixels_around(quad).expect("corners are numbers: the window says so");
+    let (bw, bh) = ((ex - ox) as usize, (ey - oy) as usize);
     let stride = bw + 2;
     s.raster.reset(stride, bh);
     let at = |p: [f64; 2]| point((p[0] - ox) as f32, (p[1] - oy) as f32);
