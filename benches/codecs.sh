@@ -8,7 +8,8 @@
 #   bash benches/codecs.sh [WORKDIR] [SIZE]
 #
 # WORKDIR (default: a folder under /tmp) needs ~4 GB free; SIZE is the
-# scan side in pixels (18918 → 1 GiB of RGB). RUNS (default 3) rounds.
+# scan side in pixels (18918 → 1 GiB of RGB). RUNS (default 3) rounds;
+# CODECS (';'-separated, e.g. "deflate 1;jpeg 85") to time only some.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 work=${1:-/tmp/gcm-ortho-bench}
@@ -22,11 +23,13 @@ if [ ! -f "$scene/scan.tif" ]; then
   "$bin" synth --out "$scene" --size "${size}x${size}" --bands 3 --relief hilly --quiet
 fi
 cat "$scene/scan.tif" > /dev/null
+IFS=';' read -r -a codecs <<< "${CODECS:-none;deflate 1;deflate 2;deflate 4;deflate 6;deflate 9;zstd 1;zstd 3;zstd 9;lzw;jpeg 75;jpeg 85;jpeg 95}"
 for i in $(seq "$runs"); do
-  for codec in "none" "deflate 1" "deflate 2" "deflate 4" "deflate 6" "deflate 9" "zstd 1" "zstd 3" "zstd 9" "lzw"; do
+  for codec in "${codecs[@]}"; do
     set -- $codec
     level=()
     [ $# -gt 1 ] && level=(--level "$2")
+    [ $# -gt 1 ] && [ "$1" = jpeg ] && level=(--quality "$2")
     rm -f "$work/ortho.tif"
     sync
     t=$( { /usr/bin/time -f "wall_s=%e cpu_s=%U+%S peak_KiB=%M" "$bin" rectify --image "$scene/scan.tif" --camera "$scene/camera.toml" \

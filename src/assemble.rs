@@ -12,7 +12,7 @@ use crate::io::source::{SourceImage, Window};
 use crate::io::tiff_out::{
     decode_mask, encode_mask, encode_tile, folder_of, tiff_write_error, verify, Chunking, Compression, GeoTags, OutputSpec, PendingFile, TileWriter,
 };
-use crate::options::{check_level, Overviews};
+use crate::options::{codec_level, Overviews};
 use crate::overview::{OverviewResampling, Pyramid, Quarter, Statistics, TileLayout, ValidBy};
 use rayon::prelude::*;
 use std::os::unix::fs::FileExt;
@@ -27,11 +27,13 @@ pub struct AssembleOptions {
     /// The codec level of the overview tiles (the pieces' own tiles are
     /// copied as they are).
     pub level: Option<u8>,
+    /// The JPEG quality of the overview tiles, for JPEG pieces.
+    pub quality: Option<u8>,
 }
 
 impl Default for AssembleOptions {
     fn default() -> Self {
-        AssembleOptions { overviews: Overviews::Auto, overview_resampling: OverviewResampling::Average, cog: false, level: None }
+        AssembleOptions { overviews: Overviews::Auto, overview_resampling: OverviewResampling::Average, cog: false, level: None, quality: None }
     }
 }
 
@@ -120,9 +122,23 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
         5 => Compression::Lzw,
         8 => Compression::Deflate,
         50000 => Compression::Zstd,
+        7 => Compression::Jpeg,
         c => return Err(Error::unsupported(&pieces[0], format!("compression {c} in pieces"))),
     };
-    check_level(compression, opts.level)?;
+    let mut level = codec_level(compression, opts.level, opts.quality)?;
+    // JPEG pieces' chunks are abbreviated streams: they keep their pieces'
+    // tables (all alike), and the overviews are coded at the pieces'
+    // quality unless another is asked for.
+    let tables = match compression {
+        Compression::Jpeg => {
+            let t = first.jpeg_tables.clone().ok_or_else(|| Error::format(&pieces[0], "JPEG chunks without their JPEGTables"))?;
+            if let Some(k) = srcs.iter().position(|s| s.info.jpeg_tables.as_ref() != Some(&t)) {
+                return Err(Error::format(&pieces[k], format!("is coded with other JPEG tables (another quality) than {}", pieces[0].display())));
+            }
+            Some(t)
+        }
+        _ => None,
+    };
     let mut spec = OutputSpec {
         width: w,
         height: h,
@@ -130,7 +146,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
         sample: first.sample,
         chunking: Chunking::Tiles(tile),
         compression,
-        level: opts.level,
+        level,
         bigtiff: false,
         photometric: first.photometric,
         alpha: first.has_alpha,
@@ -139,6 +155,10 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
         overviews: 0,
         cog: opts.cog,
     };
+    if let (Some(t), None) = (&tables, level) {
+        level = crate::io::tiff_out::jpeg_quality_of(&spec, t);
+        spec.level = level;
+    }
     spec.overviews = opts.overviews.levels(w, h, tile);
     spec.bigtiff = spec.needs_bigtiff();
     let by = ValidBy::of(&spec);
@@ -146,6 +166,9 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
     let files: Vec<std::fs::File> = pieces.iter().map(|p| std::fs::File::open(p).map_err(|e| Error::io(p, e))).collect::<Result<_>>()?;
     let pending = PendingFile::create(out)?;
     let mut writer = TileWriter::new(pending.file()?, &spec, &folder_of(out)).map_err(|e| Error::io(pending.path(), e))?;
+    if let Some(t) = tables {
+        writer.full_level_jpeg_tables(t);
+    }
     let tw = |e| tiff_write_error(pending.path(), e);
     let mask_compression = |k: usize| srcs[k].info.mask_compression;
     let mut statistics = Statistics::default();
@@ -194,7 +217,11 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
         }
         if let Some(p) = pyramid.as_mut() {
             let mut made = Vec::new();
-            p.cascade(finished, |t| (encode_tile(&spec, t.pixels), spec.mask.then(|| encode_mask(&spec, &t.valid))), |l, k, r| made.push((l, k, r)));
+            p.cascade(
+                finished,
+                |t| (encode_tile(&spec, t.pixels, Some(&t.valid)), spec.mask.then(|| encode_mask(&spec, &t.valid))),
+                |l, k, r| made.push((l, k, r)),
+            );
             for (l, k, (image, mask)) in made {
                 writer.put(spec.chunk_index(l, k, false), &image?).map_err(tw)?;
                 if let Some(m) = mask {

@@ -287,6 +287,9 @@ pub struct LayoutArgs {
     /// fastest; higher packs tighter, slower)
     #[arg(long)]
     pub level: Option<u8>,
+    /// JPEG's quality, 1–100 (default 75, as GDAL's)
+    #[arg(long)]
+    pub quality: Option<u8>,
 }
 
 impl LayoutArgs {
@@ -296,6 +299,7 @@ impl LayoutArgs {
             overview_resampling: self.overview_resampling,
             cog: self.cog,
             level: self.level,
+            quality: self.quality,
         })
     }
 }
@@ -635,7 +639,9 @@ pub struct RectifyArgs {
     /// ~90°). The pixels agree to the GCM's accuracy either way.
     #[arg(long, default_value = "auto", value_parser = choice::<BandOrder>())]
     pub band_order: BandOrder,
-    /// Tile compression (with the horizontal predictor for integer samples)
+    /// Tile compression: lossless (with the horizontal predictor for
+    /// integer samples), or jpeg for 8-bit grey or RGB (YCbCr, the
+    /// internal mask for pixels without a value)
     #[arg(long, default_value = "deflate", value_parser = choice::<Compression>())]
     pub compress: Compression,
     /// BigTIFF output (auto: when the output may pass 4 GB)
@@ -738,6 +744,7 @@ impl RectifyArgs {
         o.overview_resampling = layout.overview_resampling;
         o.cog = layout.cog;
         o.level = layout.level;
+        o.quality = layout.quality;
         o.nodata = parse_nodata("nodata", &self.nodata)?;
         o.alpha = self.alpha;
         o.occlusion = self.occlusion;

@@ -40,7 +40,7 @@ macro_rules! choice {
 }
 
 choice!(Kernel: "nearest" => Kernel::Nearest, "bilinear" => Kernel::Bilinear, "cubic" => Kernel::Cubic, "lanczos3" => Kernel::Lanczos3, "average" => Kernel::Average, "mode" => Kernel::Mode);
-choice!(Compression: "none" => Compression::None, "deflate" => Compression::Deflate, "lzw" => Compression::Lzw, "zstd" => Compression::Zstd);
+choice!(Compression: "none" => Compression::None, "deflate" => Compression::Deflate, "lzw" => Compression::Lzw, "zstd" => Compression::Zstd, "jpeg" => Compression::Jpeg);
 choice!(CorrectionMode: "bilinear" => CorrectionMode::Bilinear, "cell" => CorrectionMode::Cell);
 choice!(Trend: "plane" => Trend::Plane, "mean" => Trend::Mean);
 choice!(BandOrder: "auto" => BandOrder::Auto, "rows" => BandOrder::Rows, "columns" => BandOrder::Columns);
@@ -182,14 +182,25 @@ pub fn parse_window(setting: &'static str, s: &str) -> Result<[u32; 4]> {
     }
 }
 
-/// Is `level` one `compression` takes?
-pub fn check_level(compression: Compression, level: Option<u8>) -> Result<()> {
-    let Some(l) = level else { return Ok(()) };
+/// The codec's level for the output: `level` for deflate and zstd,
+/// `quality` for JPEG; each refused, by its name, where the codec has no
+/// such setting or out of its range.
+pub fn codec_level(compression: Compression, level: Option<u8>, quality: Option<u8>) -> Result<Option<u8>> {
     let name = format!("{compression:?}").to_lowercase();
+    let jpeg = compression == Compression::Jpeg;
+    let (given, other) = if jpeg { (quality, level.map(|l| ("level", l))) } else { (level, quality.map(|q| ("quality", q))) };
+    if let Some((setting, v)) = other {
+        return Err(Error::setting(
+            setting,
+            if jpeg { format!("{v}: jpeg compression takes a quality (1–100), not a level") } else { format!("{v}: only jpeg compression has a quality") },
+        ));
+    }
+    let Some(l) = given else { return Ok(None) };
+    let setting = compression.level_name();
     match compression.levels() {
-        None => Err(Error::setting("level", format!("{l}: {name} compression has no levels"))),
-        Some((r, _)) if !r.contains(&l) => Err(Error::setting("level", format!("{l}: {name} takes {} to {}", r.start(), r.end()))),
-        Some(_) => Ok(()),
+        None => Err(Error::setting(setting, format!("{l}: {name} compression has no levels"))),
+        Some((r, _)) if !r.contains(&l) => Err(Error::setting(setting, format!("{l}: {name} takes {} to {}", r.start(), r.end()))),
+        Some(_) => Ok(Some(l)),
     }
 }
 
@@ -405,6 +416,8 @@ pub struct RectifyOptions {
     pub compress: Compression,
     /// The codec's level (`None`: its default).
     pub level: Option<u8>,
+    /// JPEG's quality (`None`: its default).
+    pub quality: Option<u8>,
     pub bigtiff: BigTiff,
     /// Internal overviews, and how their pixels are made.
     pub overviews: Overviews,
@@ -504,7 +517,7 @@ impl RectifyOptions {
         if self.like.is_some() && (self.gsd.is_some() || self.bounds.is_some()) {
             return Err(Error::setting("like", "gives the grid: drop the GSD and bounds"));
         }
-        check_level(self.compress, self.level)?;
+        self.codec_level()?;
         if self.occlusion != Occlusion::None && !matches!(self.dem, DemSource::File(_)) {
             return Err(Error::setting("occlusion", "needs a DSM to see buildings on (a constant height hides nothing)"));
         }
@@ -520,6 +533,11 @@ impl RectifyOptions {
             }
         }
         Ok(())
+    }
+
+    /// The output codec's level or quality (`None`: its default), checked.
+    pub fn codec_level(&self) -> Result<Option<u8>> {
+        codec_level(self.compress, self.level, self.quality)
     }
 
     /// The files the run reads, each with what it is.
@@ -586,6 +604,7 @@ impl RectifyOptions {
             band_order: BandOrder::Auto,
             compress: Compression::Deflate,
             level: None,
+            quality: None,
             bigtiff: BigTiff::Auto,
             overviews: Overviews::Auto,
             overview_resampling: OverviewResampling::Average,
@@ -648,13 +667,27 @@ mod tests {
             (Compression::Lzw, 1, false),
             (Compression::None, 1, false),
         ] {
-            let r = check_level(compression, Some(level));
+            let r = codec_level(compression, Some(level), None);
             assert_eq!(r.is_ok(), ok, "{compression:?} {level}");
-            if let Err(e) = r {
-                assert!(e.to_string().starts_with(&format!("level: {level}: {}", format!("{compression:?}").to_lowercase())), "{e}");
+            match r {
+                Ok(l) => assert_eq!(l, Some(level)),
+                Err(e) => assert!(e.to_string().starts_with(&format!("level: {level}: {}", format!("{compression:?}").to_lowercase())), "{e}"),
             }
         }
-        assert!(check_level(Compression::Lzw, None).is_ok());
+        assert_eq!(codec_level(Compression::Lzw, None, None).unwrap(), None);
+        // JPEG's is its quality, and only JPEG has one.
+        assert_eq!(codec_level(Compression::Jpeg, None, Some(85)).unwrap(), Some(85));
+        assert_eq!(codec_level(Compression::Jpeg, None, None).unwrap(), None);
+        for (compression, level, quality, says) in [
+            (Compression::Jpeg, None, Some(0), "quality: 0: jpeg takes 1 to 100"),
+            (Compression::Jpeg, None, Some(101), "quality: 101: jpeg takes 1 to 100"),
+            (Compression::Jpeg, Some(6), None, "level: 6: jpeg compression takes a quality"),
+            (Compression::Deflate, None, Some(80), "quality: 80: only jpeg compression has a quality"),
+            (Compression::Deflate, Some(6), Some(80), "quality: 80: only jpeg"),
+        ] {
+            let e = codec_level(compression, level, quality).unwrap_err().to_string();
+            assert!(e.starts_with(says), "{e}");
+        }
     }
 
     proptest! {

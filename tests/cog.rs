@@ -39,6 +39,19 @@ for i in range(1, a.RasterCount + 1):
 print(levels)
 "#;
 
+/// The full level of two files (bands and mask) equal, pixel for pixel:
+/// the bands' count.
+const SAME_FULL_LEVEL: &str = r#"
+import sys
+import numpy as np
+from osgeo import gdal
+gdal.UseExceptions()
+a, b = gdal.Open(sys.argv[1]), gdal.Open(sys.argv[2])
+np.testing.assert_array_equal(a.ReadAsArray(), b.ReadAsArray())
+np.testing.assert_array_equal(a.GetRasterBand(1).GetMaskBand().ReadAsArray(), b.GetRasterBand(1).GetMaskBand().ReadAsArray())
+print(a.RasterCount)
+"#;
+
 /// Each overview level against the average of the level below, made here
 /// with numpy: the mean of the 2×2 pixels that have a value (the mask's),
 /// rounded half up; a pixel with a value where any below has one.
@@ -132,6 +145,8 @@ fn every_layout_the_writer_makes_is_a_valid_cog_and_reads_back_as_the_plain_file
         ("u16-zstd-19", &wide, &wide.scan, vec!["--compress", "zstd", "--level", "19"]),
         ("u16-lzw-mode", &wide, &wide.scan, vec!["--compress", "lzw", "--overview-resampling", "mode"]),
         ("float", &rgb, &float_scan, vec![]),
+        ("rgb-jpeg", &rgb, &rgb.scan, vec!["--compress", "jpeg", "--quality", "85"]),
+        ("rgb-jpeg-columns", &rgb, &rgb.scan, vec!["--compress", "jpeg", "--band-order", "columns"]),
     ];
     for (name, sc, image, extra) in cases {
         let plain = d.join(format!("{name}.tif"));
@@ -162,6 +177,23 @@ fn every_layout_the_writer_makes_is_a_valid_cog_and_reads_back_as_the_plain_file
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert_eq!(python(VALIDATE, &[s(&joined)]), "[]", "assembled pieces: GDAL's validator");
     python(SAME_LEVELS, &[s(&joined), s(&d.join("rgb-mask-deflate.tif"))]);
+    // JPEG pieces: their tiles copied with their tables, the full level
+    // the single run's; the overviews are made of the decoded tiles.
+    let (a, b) = (d.join("jpeg-a.tif"), d.join("jpeg-b.tif"));
+    rectify(&rgb, &rgb.scan, &a, &["--compress", "jpeg", "--quality", "85", "--window", &format!("0,0,2,{td}")]);
+    rectify(&rgb, &rgb.scan, &b, &["--compress", "jpeg", "--quality", "85", "--window", &format!("2,0,{},{td}", ta - 2)]);
+    let joined = d.join("jpeg-joined.tif");
+    let r = run(&["assemble", "--cog", "-o", s(&joined), s(&a), s(&b)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(python(VALIDATE, &[s(&joined)]), "[]", "assembled JPEG pieces: GDAL's validator");
+    assert_eq!(python(SAME_FULL_LEVEL, &[s(&joined), s(&d.join("rgb-jpeg.tif"))]), "3");
+    // Pieces coded at two qualities cannot share one file's tables.
+    let c = d.join("jpeg-c.tif");
+    rectify(&rgb, &rgb.scan, &c, &["--compress", "jpeg", "--quality", "60", "--window", &format!("2,0,{},{td}", ta - 2)]);
+    let r = run(&["assemble", "-o", s(&d.join("mixed.tif")), s(&a), s(&c)]);
+    assert_eq!(r.status.code(), Some(1), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("other JPEG tables"), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(!d.join("mixed.tif").exists());
 }
 
 #[test]

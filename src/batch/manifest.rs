@@ -51,6 +51,8 @@ pub struct Options {
     pub tile: Option<u32>,
     pub compress: Option<String>,
     pub level: Option<u8>,
+    /// JPEG's quality (1–100).
+    pub quality: Option<u8>,
     pub bigtiff: Option<String>,
     /// `auto`, `none` or a list of factors.
     pub overviews: Option<String>,
@@ -88,6 +90,7 @@ impl Options {
             tile,
             compress,
             level,
+            quality,
             bigtiff,
             overviews,
             overview_resampling,
@@ -382,6 +385,9 @@ fn config(
         }
         if o.level.is_some() {
             c.level = o.level;
+        }
+        if o.quality.is_some() {
+            c.quality = o.quality;
         }
         if let Some(b) = &o.bigtiff {
             c.bigtiff = parse_choice("bigtiff", b)?;

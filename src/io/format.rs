@@ -26,4 +26,13 @@ impl SampleType {
             SampleType::F32 => 4,
         }
     }
+
+    /// The samples in words: "16-bit unsigned".
+    pub fn describe(self) -> &'static str {
+        match self {
+            SampleType::U8 => "8-bit unsigned",
+            SampleType::U16 => "16-bit unsigned",
+            SampleType::F32 => "32-bit floating-point",
+        }
+    }
 }

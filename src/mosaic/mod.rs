@@ -270,7 +270,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         sample: im0.sample,
         chunking: Chunking::Tiles(tile),
         compression: first.compress,
-        level: first.level,
+        level: first.codec_level()?,
         bigtiff: false,
         photometric: if im0.photometric == 2 && im0.bands >= 3 { 2 } else { 1 },
         alpha: false,
@@ -283,6 +283,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             nodata: None,
         }),
     };
+    spec.check_codec().map_err(|m| Error::setting("compress", m))?;
     spec.overviews = first.overviews.levels(piece.width, piece.height, tile);
     spec.cog = o.cog.unwrap_or(first.cog);
     spec.bigtiff = match first.bigtiff {

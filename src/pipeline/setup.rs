@@ -287,7 +287,7 @@ impl RunPlan {
             sample: src.info.sample,
             chunking: Chunking::Tiles(tile),
             compression: opts.compress,
-            level: opts.level,
+            level: opts.codec_level()?,
             bigtiff: false,
             photometric,
             alpha: opts.alpha || src.info.has_alpha,
@@ -300,6 +300,7 @@ impl RunPlan {
                 nodata,
             }),
         };
+        spec.check_codec().map_err(|m| Error::setting("compress", m))?;
         spec.overviews = opts.overviews.levels(piece_w, piece_h, tile);
         spec.cog = opts.cog;
         // The quarters of unfinished overview tiles: a band of them at each

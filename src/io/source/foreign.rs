@@ -87,6 +87,7 @@ fn plain_info(width: u32, height: u32, bands: u32, sample: SampleType, has_alpha
         byte_counts: vec![bytes],
         mask: None,
         mask_compression: 1,
+        jpeg_tables: None,
     }
 }
 

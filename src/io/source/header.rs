@@ -35,6 +35,8 @@ pub struct SourceInfo {
     pub mask: Option<(Vec<u64>, Vec<u64>)>,
     /// The mask's compression (deflate as GDAL writes it, or none).
     pub mask_compression: u16,
+    /// A JPEG-compressed file's JPEGTables (the tables its chunks' abbreviated streams are coded with).
+    pub jpeg_tables: Option<Vec<u8>>,
 }
 
 impl SourceInfo {
@@ -153,6 +155,11 @@ pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_le
         byte_counts,
         mask: None,
         mask_compression: 1,
+        jpeg_tables: if compression == 7 {
+            dec.find_tag(Tag::JPEGTables).map_err(tf)?.map(|_| dec.get_tag_u8_vec(Tag::JPEGTables)).transpose().map_err(tf)?
+        } else {
+            None
+        },
     };
     // Sizes that overflow or chunk tables that do not match are refused
     // before anything is allocated or mapped.

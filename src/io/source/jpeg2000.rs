@@ -145,6 +145,7 @@ pub(super) fn info(path: &Path, siz: &Siz) -> Result<SourceInfo> {
         byte_counts: vec![0; n],
         mask: None,
         mask_compression: 1,
+        jpeg_tables: None,
     })
 }
 

@@ -17,6 +17,8 @@ pub enum Value {
     Offsets(Vec<u64>),
     Double(Vec<f64>),
     Ascii(String),
+    /// Bytes of no stated kind (JPEGTables).
+    Undefined(Vec<u8>),
 }
 
 impl Value {
@@ -29,6 +31,7 @@ impl Value {
             Value::Offsets(v) => (4, v.len() as u64, 4),
             Value::Double(v) => (12, v.len() as u64, 8),
             Value::Ascii(s) => (2, s.len() as u64 + 1, 1),
+            Value::Undefined(v) => (7, v.len() as u64, 1),
         }
     }
 
@@ -40,6 +43,7 @@ impl Value {
             Value::Offsets(v) => v.iter().flat_map(|&x| (x as u32).to_ne_bytes()).collect(),
             Value::Double(v) => v.iter().flat_map(|x| x.to_ne_bytes()).collect(),
             Value::Ascii(s) => s.bytes().chain([0]).collect(),
+            Value::Undefined(v) => v.clone(),
         }
     }
 }

@@ -14,7 +14,7 @@ mod writer;
 
 pub use crate::io::publish::{folder_of, reserve, PendingFile};
 pub use directory::Value as TagValue;
-pub use encode::{decode_mask, encode_mask, encode_tile};
+pub use encode::{decode_mask, encode_mask, encode_tile, jpeg_quality_of, jpeg_tables};
 pub use verify::verify;
 pub use writer::{page_padding, tiff_write_error, write_placed, write_raster, write_tiled, TileWriter, WriteError};
 
@@ -27,6 +27,10 @@ pub enum Compression {
     Deflate,
     Lzw,
     Zstd,
+    /// Lossy, 8-bit only: YCbCr with 2×2 subsampled chroma for RGB
+    /// (GDAL's `PHOTOMETRIC=YCBCR`), plain for grey; pixels without a
+    /// value are told by the internal mask, never by a value.
+    Jpeg,
 }
 
 impl Compression {
@@ -37,6 +41,9 @@ impl Compression {
         match self {
             Compression::Deflate => Some((1..=12, 1)),
             Compression::Zstd => Some((1..=22, 1)),
+            // Its quality, as libjpeg's (and GDAL's JPEG_QUALITY, whose
+            // default this is).
+            Compression::Jpeg => Some((1..=100, 75)),
             Compression::None | Compression::Lzw => None,
         }
     }
@@ -52,6 +59,16 @@ impl Compression {
             Compression::Lzw => 5,
             Compression::Deflate => 8,
             Compression::Zstd => 50000,
+            Compression::Jpeg => 7,
+        }
+    }
+
+    /// The name its level goes by: JPEG's is its quality.
+    pub fn level_name(self) -> &'static str {
+        if self == Compression::Jpeg {
+            "quality"
+        } else {
+            "level"
         }
     }
 }
@@ -199,14 +216,48 @@ impl OutputSpec {
         let (w, h) = self.chunk();
         w as usize * h as usize * self.bands as usize * self.sample.bytes()
     }
-    /// Horizontal differencing for integer samples under compression.
+    /// Horizontal differencing for integer samples under lossless compression.
     fn predictor(&self) -> u16 {
-        if self.compression != Compression::None && self.sample != SampleType::F32 {
+        if !matches!(self.compression, Compression::None | Compression::Jpeg) && self.sample != SampleType::F32 {
             2
         } else {
             1
         }
     }
+    /// The photometric interpretation the file states: JPEG codes RGB as
+    /// YCbCr (TIFF's 6), each tile's chroma subsampled 2×2.
+    fn stored_photometric(&self) -> u16 {
+        if self.compression == Compression::Jpeg && self.photometric == 2 {
+            6
+        } else {
+            self.photometric
+        }
+    }
+
+    /// Can the codec hold this layout? `Err` says why not, for the user.
+    /// JPEG takes 8-bit grey or RGB only: lossy coding would blur an alpha
+    /// band's edges and a nodata value (the internal mask says which
+    /// pixels have a value instead), and other band counts have no
+    /// colour model in TIFF's JPEG.
+    pub fn check_codec(&self) -> std::result::Result<(), String> {
+        if self.compression != Compression::Jpeg {
+            return Ok(());
+        }
+        if self.sample != SampleType::U8 {
+            return Err(format!("jpeg holds 8-bit samples, these are {}: take deflate or zstd", self.sample.describe()));
+        }
+        if self.alpha {
+            return Err("jpeg holds no alpha band (lossy coding would blur its edges): the internal mask says which pixels have a value; drop --alpha, or take deflate or zstd".into());
+        }
+        if let Some(v) = self.geo.as_ref().and_then(|g| g.nodata) {
+            return Err(format!("jpeg does not keep a nodata value ({v}) exact: the internal mask says which pixels have a value; drop --nodata VALUE"));
+        }
+        match (self.bands, self.photometric) {
+            (1, _) | (3, 2) => Ok(()),
+            (b, _) => Err(format!("jpeg holds grey or RGB images, this one has {b} bands: take deflate or zstd")),
+        }
+    }
+
     /// Would a classic TIFF overflow its 32-bit offsets? (uncompressed size
     /// plus tables, with a margin; compressed output is assumed no larger).
     pub fn needs_bigtiff(&self) -> bool {
@@ -382,7 +433,7 @@ mod tests {
                 }
             };
             let (raw, want) = (bytes(&values), bytes(&want));
-            let encoded = encode_tile(&s, raw).unwrap();
+            let encoded = encode_tile(&s, raw, None).unwrap();
             assert_eq!(inflate(&encoded), want, "{bands} bands of {sample:?}");
         }
     }

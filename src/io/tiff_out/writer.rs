@@ -3,7 +3,7 @@
 //! uncompressed tiles aligned to pages; or the Cloud-Optimized layout.
 
 use super::directory::{header, header_len, Ifd, Value};
-use super::{encode_tile, verify, Chunking, Compression, OutputSpec, PendingFile, SampleType};
+use super::{encode_tile, jpeg_tables, verify, Chunking, Compression, OutputSpec, PendingFile, SampleType};
 use crate::error::{Error, Result};
 use crate::io::geotiff::georef_tags;
 use std::io::{Seek, Write};
@@ -79,6 +79,17 @@ pub struct TileWriter {
     places: Vec<(u64, u64)>,
     written: usize,
     body: Body,
+    /// The tables JPEG chunks are coded with: those of the full level,
+    /// and of the overviews (JPEG compression only).
+    jpeg_tables: Option<JpegTables>,
+}
+
+/// A JPEG file's tables: the full level's, and the overviews'. They differ
+/// only where `assemble` copies chunks coded at another quality.
+#[derive(Clone)]
+struct JpegTables {
+    full: Vec<u8>,
+    overviews: Vec<u8>,
 }
 
 enum Body {
@@ -115,7 +126,22 @@ impl TileWriter {
             out.write_all(&header(0, spec.bigtiff))?;
             Body::Streamed { pos: header_len(spec.bigtiff), paged: page_padding(spec).is_some() }
         };
-        Ok(TileWriter { out, spec: spec.clone(), places: vec![(0, 0); spec.chunk_count()], written: 0, body })
+        let jpeg_tables = match spec.compression {
+            Compression::Jpeg => {
+                let t = jpeg_tables(spec).map_err(|e| std::io::Error::other(e.to_string()))?;
+                Some(JpegTables { full: t.clone(), overviews: t })
+            }
+            _ => None,
+        };
+        Ok(TileWriter { out, spec: spec.clone(), places: vec![(0, 0); spec.chunk_count()], written: 0, body, jpeg_tables })
+    }
+
+    /// The full level's chunks are coded with these JPEG tables (another
+    /// file's, whose chunks are copied), not with the spec's.
+    pub fn full_level_jpeg_tables(&mut self, tables: Vec<u8>) {
+        if let Some(t) = &mut self.jpeg_tables {
+            t.full = tables;
+        }
     }
 
     /// Takes chunk `k` ([`OutputSpec::chunk_index`]).
@@ -180,7 +206,7 @@ impl TileWriter {
                     pos += 1;
                 }
                 let offsets: Vec<u64> = self.places.iter().map(|p| p.0).collect();
-                let ifds = directories(&self.spec, &offsets, &self.places, gdal_metadata);
+                let ifds = directories(&self.spec, &offsets, &self.places, gdal_metadata, self.jpeg_tables.as_ref());
                 let bytes = lay_out(&ifds, pos, big);
                 self.out.write_all(&bytes)?;
                 self.out.write_all_at(&header(pos, big), 0)?;
@@ -197,7 +223,7 @@ impl TileWriter {
         let first = (header_len(big) + ghost.len() as u64).next_multiple_of(2);
         // The directories' size does not depend on the offsets they hold.
         let zeros = vec![0u64; self.places.len()];
-        let sizes: u64 = directories(spec, &zeros, &self.places, gdal_metadata.clone()).iter().map(|d| d.len(big)).sum();
+        let sizes: u64 = directories(spec, &zeros, &self.places, gdal_metadata.clone(), self.jpeg_tables.as_ref()).iter().map(|d| d.len(big)).sum();
         // Each level's chunks in row-major order, a mask's after its image's.
         let order = |l: u32| {
             (0..spec.level_tile_count(l)).flat_map(move |j| {
@@ -214,7 +240,7 @@ impl TileWriter {
                 at += self.places[k].1 + 8;
             }
         }
-        let ifds = directories(spec, &offsets, &self.places, gdal_metadata);
+        let ifds = directories(spec, &offsets, &self.places, gdal_metadata, self.jpeg_tables.as_ref());
         let mut head = header(first, big);
         head.extend_from_slice(&ghost);
         head.resize(first as usize, 0);
@@ -270,7 +296,7 @@ fn lay_out(ifds: &[Ifd], at: u64, big: bool) -> Vec<u8> {
 /// Every directory of the file, in its order: each level's image, then its
 /// mask's (full resolution first). `offsets` and `places` are indexed by
 /// [`OutputSpec::chunk_index`].
-fn directories(spec: &OutputSpec, offsets: &[u64], places: &[(u64, u64)], gdal_metadata: Option<String>) -> Vec<Ifd> {
+fn directories(spec: &OutputSpec, offsets: &[u64], places: &[(u64, u64)], gdal_metadata: Option<String>, jpeg_tables: Option<&JpegTables>) -> Vec<Ifd> {
     let mut ifds = Vec::new();
     for l in 0..=spec.overviews {
         let (w, h) = spec.level_size(l);
@@ -287,7 +313,13 @@ fn directories(spec: &OutputSpec, offsets: &[u64], places: &[(u64, u64)], gdal_m
         d.set(257, Value::Long(vec![h]));
         d.set(258, Value::Short(vec![(spec.sample.bytes() * 8) as u16; spec.bands as usize]));
         d.set(259, Value::Short(vec![spec.compression.tag()]));
-        d.set(262, Value::Short(vec![spec.photometric]));
+        d.set(262, Value::Short(vec![spec.stored_photometric()]));
+        if spec.stored_photometric() == 6 {
+            d.set(TAG_YCBCR_SUBSAMPLING, Value::Short(vec![2, 2]));
+        }
+        if let Some(t) = jpeg_tables {
+            d.set(TAG_JPEG_TABLES, Value::Undefined(if l == 0 { t.full.clone() } else { t.overviews.clone() }));
+        }
         d.set(277, Value::Short(vec![spec.bands as u16]));
         d.set(284, Value::Short(vec![1]));
         let (o, c) = table(false);
@@ -341,6 +373,8 @@ fn directories(spec: &OutputSpec, offsets: &[u64], places: &[(u64, u64)], gdal_m
 
 const TAG_NEW_SUBFILE_TYPE: u16 = 254;
 const TAG_GDAL_METADATA: u16 = 42112;
+const TAG_YCBCR_SUBSAMPLING: u16 = 530;
+const TAG_JPEG_TABLES: u16 = 347;
 const TAG_GDAL_NODATA: u16 = 42113;
 
 /// The chunk size and table tags of a directory.
@@ -411,7 +445,7 @@ pub fn write_raster(path: &Path, spec: &OutputSpec, produce: impl Fn(u32, u32, &
                         let s = y * row_bytes + x0 as usize * pb;
                         t[y * cw as usize * pb..][..n].copy_from_slice(&band[s..s + n]);
                     }
-                    encode_tile(spec, t)
+                    encode_tile(spec, t, None)
                 })
                 .collect();
             for t in tiles {

@@ -80,7 +80,10 @@ pub fn tiles(run: &Output, made: Made, free: &crossbeam_channel::Sender<Raw>, bu
         let done = timed(busy, || {
             let bytes = raw.bytes();
             run.pool.install(|| {
-                (0..n).into_par_iter().map(|k| (encode_tile(spec, bytes[k * tb..(k + 1) * tb].to_vec()).map(Tile::Owned), mask(k), summary(k, bytes))).collect()
+                (0..n)
+                    .into_par_iter()
+                    .map(|k| (encode_tile(spec, bytes[k * tb..(k + 1) * tb].to_vec(), valid_of(k)).map(Tile::Owned), mask(k), summary(k, bytes)))
+                    .collect()
             })
         });
         let _ = free.try_send(raw);
@@ -119,7 +122,7 @@ fn overview_tiles(run: &Output, pyramid: &mut Pyramid, finished: Vec<LevelTile>,
                 finished,
                 |t| {
                     let mask = spec.mask.then(|| encode_mask(spec, &t.valid));
-                    (encode_tile(spec, t.pixels), mask)
+                    (encode_tile(spec, t.pixels, Some(&t.valid)), mask)
                 },
                 |l, k, (tile, mask)| {
                     out.push(tile.map(|t| (spec.chunk_index(l, k, false), Tile::Owned(t))).map_err(|e| run.stop.fail(e)));
