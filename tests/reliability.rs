@@ -444,3 +444,41 @@ fn a_closed_stdout_is_no_panic() {
     assert!(o.status.success() && !err.contains("panicked"), "{err}");
     assert!(out.exists());
 }
+
+/// A scan five times the size its camera file describes (the wrong camera
+/// file, or a resized image), rectified at a coarse pixel: the plan's
+/// samples of some chunks all fell off the scan while pixels between them
+/// were on it; the resampler indexed the empty window and panicked, and
+/// the pipeline then waited for that chunk forever. Now such pixels are
+/// read on their own: the run ends, and the same at any memory budget.
+#[test]
+fn a_chunk_whose_window_is_empty_neither_panics_nor_hangs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let small = scene(&d.join("small"), 800, |o| {
+        o.height = 600;
+        o.camera = gcm_ortho::synth::CameraKind::Drone;
+        o.relief = gcm_ortho::synth::Relief::Urban;
+    });
+    let big = scene(&d.join("big"), 4000, |o| {
+        o.height = 3000;
+        o.camera = gcm_ortho::synth::CameraKind::Drone;
+        o.relief = gcm_ortho::synth::Relief::Urban;
+        o.no_scan = false;
+    });
+    let mut outputs = Vec::new();
+    for memory in ["24M", "1G"] {
+        let out = d.join(format!("o-{memory}.tif"));
+        let child = std::process::Command::new(bin())
+            .args(["rectify", "--image", s(&big.scan), "--camera", s(&small.camera), "--dem", s(&small.dem), "-o", s(&out), "--quiet"])
+            .args(["--gsd", "2", "--overviews", "none", "--memory", memory])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let r = wait_deadline(child, 60);
+        assert!(r.status.success(), "{memory}: {}", String::from_utf8_lossy(&r.stderr));
+        outputs.push(whole_image(&out).0);
+    }
+    assert!(outputs[0] == outputs[1], "the same pixels at 24M and 1G");
+}

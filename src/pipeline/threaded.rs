@@ -126,7 +126,10 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
                     let tx_done = tx_done.clone();
                     chunks.start(seq, rows_now);
                     scope.spawn(move |_| {
-                        let raw = resample(run, &msg, spare);
+                        // A panic (a bug) must still report the chunk: the
+                        // stage waits for it, and the run would hang.
+                        let raw = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| resample(run, &msg, spare)))
+                            .unwrap_or_else(|p| Err(super::stages::resample::Failed::Read(panicked("resampling", p.as_ref()))));
                         let _ = tx_done.send(Resampled { seq, raw, win: msg.win, band: msg.band, x0: msg.chunk.x0 });
                     });
                     while chunks.len() >= in_flight {
@@ -165,7 +168,7 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
         });
         [h_dem, h_gcm, h_read, h_resample, h_encode, h_write]
             .into_iter()
-            .map(|h| h.join().unwrap_or_else(|_| Err(Error::Geometry("a pipeline stage panicked".into()))))
+            .map(|h| h.join().unwrap_or_else(|p| Err(panicked("a pipeline stage", p.as_ref()))))
             .collect()
     });
     let mut times = Vec::with_capacity(results.len());
@@ -187,6 +190,13 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
         return Err(Error::Cancelled);
     }
     Ok(Busy { dem: times[0], gcm: times[1], read: times[2], resample: times[3], encode: times[4] })
+}
+
+/// A panic of `what` as the run's error: a bug, said as one, with the
+/// panic's message (the hook has printed where).
+fn panicked(what: &str, payload: &(dyn std::any::Any + Send)) -> Error {
+    let msg = payload.downcast_ref::<String>().map(String::as_str).or_else(|| payload.downcast_ref::<&str>().copied()).unwrap_or("no message");
+    Error::Geometry(format!("internal error in {what} (a bug; please report it): {msg}"))
 }
 
 /// A chunk resampled by a pool worker, with its number in the band order

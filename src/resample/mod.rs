@@ -185,6 +185,11 @@ impl<'a, T: Sample> View<'a, T> {
         self
     }
 
+    /// A window of no pixels.
+    pub fn is_empty(&self) -> bool {
+        self.w <= 0 || self.h <= 0
+    }
+
     /// Whether scan position (c, r) has a value: inside the scan and the
     /// image area.
     #[inline(always)]
@@ -261,6 +266,16 @@ fn lanczos3_weights(t: f32) -> [f32; 6] {
 /// pixels again from a wider window). Bilinear tells exactly; the other
 /// kernels always say yes.
 pub fn resample_row<T: Sample>(kernel: Kernel, view: &View<'_, T>, cols: &[f64], rows: &[f64], out: &mut [T], valid: &mut [bool], fill: T) -> bool {
+    if view.is_empty() {
+        // A window of no pixels (the plan's samples of the chunk all fell
+        // off the scan, the pixels between them did not): every pixel
+        // with a value is the caller's to read on its own.
+        for (i, (&c, &r)) in cols.iter().zip(rows).enumerate() {
+            valid[i] = view.has_value(c, r);
+        }
+        out.fill(fill);
+        return valid.iter().any(|&v| v);
+    }
     // The common kernels with the band count known at compile time.
     match (kernel, view.bands) {
         (Kernel::Bilinear, 1) => return bilinear_row::<T, 1>(view, cols, rows, out, valid, fill),
@@ -738,6 +753,25 @@ fn bilinear_spans<T: Sample, const B: usize>(view: &View<'_, T>, spans: &[Span],
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A window of no pixels (the plan's samples of a chunk all off the
+    /// scan, pixels between them on it): no kernel reads it; the pixels
+    /// with a value are said to need reading on their own.
+    #[test]
+    fn an_empty_window_leaves_every_pixel_to_the_caller() {
+        let data: [u8; 0] = [];
+        for (x0, w, h) in [(0, 0, 0), (40, 0, 30), (0, 30, 0)] {
+            let view = View::<u8>::in_place(&data, x0, 0, w, h, w as usize, 3, 40, 30);
+            for kernel in [Kernel::Nearest, Kernel::Bilinear, Kernel::Cubic, Kernel::Lanczos3] {
+                let (cols, rows) = ([5.5, 39.0, 45.0], [5.5, 29.5, 5.0]);
+                let mut out = [7u8; 9];
+                let mut valid = [false; 3];
+                assert!(resample_row(kernel, &view, &cols, &rows, &mut out, &mut valid, 0));
+                assert_eq!(valid, [true, true, false], "{kernel:?}");
+                assert_eq!(out, [0; 9]);
+            }
+        }
+    }
 
     /// A 4×4 one-band image whose value is 10·col + row.
     fn ramp() -> Window {

@@ -247,7 +247,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
                 }
             };
             let x0 = x0 as usize;
-            if opts.kernel == Kernel::Bilinear && gcm.row_spans(&msg.gcm, y, x0 as u32, w, spans) {
+            if opts.kernel == Kernel::Bilinear && !view.is_empty() && gcm.row_spans(&msg.gcm, y, x0 as u32, w, spans) {
                 // Stepped spans: positions step in fixed point, runs
                 // of them in one call; the rest (refined cells) pixel
                 // by pixel.
