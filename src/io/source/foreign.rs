@@ -3,9 +3,8 @@
 //! temporary file of plain rows (removed by the system when the run ends,
 //! however it ends), which is then read as an uncompressed TIFF is: mapped,
 //! a window at a time. PNG rows are decoded one after another, in little
-//! memory; a JPEG is decoded whole (the decoder has no row-by-row output),
-//! so it must fit the memory budget. JPEG 2000 is decoded a tile at a time
-//! (`jpeg2000.rs`).
+//! memory, and so are a sequential JPEG's (`jpeg.rs`); JPEG 2000 is
+//! decoded a tile at a time (`jpeg2000.rs`).
 
 use super::header::SourceInfo;
 use super::SampleType;
@@ -68,7 +67,7 @@ impl ImageFormat {
 pub(super) type Decoded = (SourceInfo, Option<File>);
 
 /// `info` for plain chunky rows of `width`×`height` at offset 0.
-fn plain_info(width: u32, height: u32, bands: u32, sample: SampleType, has_alpha: bool) -> SourceInfo {
+pub(super) fn plain_info(width: u32, height: u32, bands: u32, sample: SampleType, has_alpha: bool) -> SourceInfo {
     let bytes = width as u64 * height as u64 * bands as u64 * sample.bytes() as u64;
     SourceInfo {
         width,
@@ -92,7 +91,7 @@ fn plain_info(width: u32, height: u32, bands: u32, sample: SampleType, has_alpha
 }
 
 /// Refuses sizes past what any scan needs before anything is allocated.
-fn check_size(path: &Path, width: u32, height: u32, bands: u32) -> Result<()> {
+pub(super) fn check_size(path: &Path, width: u32, height: u32, bands: u32) -> Result<()> {
     if width == 0 || height == 0 {
         return Err(Error::format(path, format!("has a size of {width}×{height}")));
     }
@@ -104,7 +103,7 @@ fn check_size(path: &Path, width: u32, height: u32, bands: u32) -> Result<()> {
 
 /// An image decoded whole (`what`) needs `need` bytes, more than the
 /// `memory` budget: refused naming the file and the budget that would do.
-fn past_budget(path: &Path, what: &str, need: u64, memory: u64) -> Error {
+pub(super) fn past_budget(path: &Path, what: &str, need: u64, memory: u64) -> Error {
     let mib = |b: u64| b.div_ceil(1 << 20);
     Error::setting(
         "memory",
@@ -119,78 +118,8 @@ fn past_budget(path: &Path, what: &str, need: u64, memory: u64) -> Error {
 }
 
 /// A file for the decoded rows: unnamed, so nothing is left behind.
-fn scratch(path: &Path) -> Result<File> {
+pub(super) fn scratch(path: &Path) -> Result<File> {
     tempfile::tempfile().map_err(|e| Error::format(path, format!("no temporary file for its decoded pixels: {e}")))
-}
-
-/// Decodes the JPEG at `path` within `memory` bytes (`None`: reads only
-/// its header).
-pub(super) fn decode_jpeg(path: &Path, memory: Option<u64>) -> Result<Decoded> {
-    use zune_jpeg::zune_core::colorspace::ColorSpace;
-    use zune_jpeg::zune_core::options::DecoderOptions;
-    let data = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let bad = |e: zune_jpeg::errors::DecodeErrors| Error::format(path, format!("JPEG: {e}"));
-    let options = DecoderOptions::default().set_max_width(1 << 16).set_max_height(1 << 16).set_strict_mode(false);
-    let mut dec = zune_jpeg::JpegDecoder::new_with_options(&data, options);
-    dec.decode_headers().map_err(bad)?;
-    let (w, h) = dec.dimensions().ok_or_else(|| Error::format(path, "JPEG: no frame header"))?;
-    let (w, h) = (w as u32, h as u32);
-    if let Some(exif) = dec.exif() {
-        check_orientation(path, exif)?;
-    }
-    let bands = match dec.get_input_colorspace() {
-        Some(ColorSpace::Luma) => 1,
-        Some(ColorSpace::YCbCr | ColorSpace::RGB) => 3,
-        Some(c) => return Err(Error::unsupported(path, format!("a JPEG in {c:?} (grey, YCbCr and RGB are read)"))),
-        None => return Err(Error::format(path, "JPEG: no colour space")),
-    };
-    check_size(path, w, h, bands)?;
-    let info = plain_info(w, h, bands, SampleType::U8, false);
-    let Some(memory) = memory else { return Ok((info, None)) };
-    let out = if bands == 1 { ColorSpace::Luma } else { ColorSpace::RGB };
-    dec.set_options(options.jpeg_set_out_colorspace(out));
-    let pixels = w as u64 * h as u64 * bands as u64;
-    let need = pixels + data.len() as u64;
-    if need > memory {
-        return Err(past_budget(path, &format!("a JPEG ({w}×{h}×{bands})"), need, memory));
-    }
-    let mut px = vec![0u8; pixels as usize];
-    dec.decode_into(&mut px).map_err(bad)?;
-    drop(data);
-    let mut file = scratch(path)?;
-    file.write_all(&px).map_err(|e| Error::format(path, format!("writing its decoded pixels to a temporary file: {e}")))?;
-    Ok((info, Some(file)))
-}
-
-/// A JPEG whose EXIF says its rows are to be shown turned or mirrored is
-/// refused: the camera's interior orientation is of the sensor's rows and
-/// columns as stored, and turning the pixels for display would move them.
-fn check_orientation(path: &Path, exif: &[u8]) -> Result<()> {
-    let Ok(data) = exif::Reader::new().read_raw(exif.to_vec()) else {
-        return Ok(());
-    };
-    let Some(o) = data.get_field(exif::Tag::Orientation, exif::In::PRIMARY).and_then(|f| f.value.get_uint(0)) else {
-        return Ok(());
-    };
-    if o == 1 {
-        return Ok(());
-    }
-    let what = match o {
-        2 => "mirrored left to right",
-        3 => "turned 180°",
-        4 => "mirrored top to bottom",
-        5 => "mirrored and turned 90°",
-        6 => "turned 90° clockwise",
-        7 => "mirrored and turned 90° anticlockwise",
-        8 => "turned 90° anticlockwise",
-        _ => "of an unknown orientation",
-    };
-    Err(Error::unsupported(
-        path,
-        format!(
-            "its EXIF orientation is {o} (to be shown {what}): the camera model is of the rows as stored; clear the tag (exiftool -Orientation=1 -n) if the camera file was made for the stored rows"
-        ),
-    ))
 }
 
 /// Decodes the PNG at `path`, a row at a time (an interlaced one whole,

@@ -10,6 +10,7 @@
 mod coded;
 mod foreign;
 mod header;
+mod jpeg;
 mod jpeg2000;
 mod mapped;
 mod window;
@@ -57,7 +58,7 @@ impl SourceImage {
     pub fn open_within(path: &Path, cache_bytes: usize, memory: u64) -> Result<SourceImage> {
         let (info, file) = match ImageFormat::of(path)? {
             ImageFormat::Tiff => return Self::open_tiff(path, cache_bytes),
-            ImageFormat::Jpeg => foreign::decode_jpeg(path, Some(memory))?,
+            ImageFormat::Jpeg => jpeg::decode_jpeg(path, Some(memory))?,
             ImageFormat::Png => foreign::decode_png(path, Some(memory))?,
             ImageFormat::Jpeg2000 => {
                 let siz = jpeg2000::read_siz(path)?;
@@ -78,7 +79,7 @@ impl SourceImage {
     pub fn info_of(path: &Path) -> Result<SourceInfo> {
         Ok(match ImageFormat::of(path)? {
             ImageFormat::Tiff => Self::open_tiff(path, 1 << 20)?.info,
-            ImageFormat::Jpeg => foreign::decode_jpeg(path, None)?.0,
+            ImageFormat::Jpeg => jpeg::decode_jpeg(path, None)?.0,
             ImageFormat::Png => foreign::decode_png(path, None)?.0,
             ImageFormat::Jpeg2000 => jpeg2000::info(path, &jpeg2000::read_siz(path)?)?,
         })
