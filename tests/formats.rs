@@ -267,7 +267,7 @@ fn files_that_are_not_images_we_read_are_refused_saying_what_they_are() {
 }
 
 #[test]
-fn a_dem_in_tiles_as_a_vrt_or_a_folder_gives_the_merged_dems_orthophoto() {
+fn a_dem_in_tiles_as_a_vrt_a_folder_or_a_list_gives_the_merged_dems_orthophoto() {
     if !have("gdal_translate") || !have("gdalbuildvrt") {
         eprintln!("skipped: GDAL is not installed");
         return;
@@ -290,12 +290,24 @@ fn a_dem_in_tiles_as_a_vrt_or_a_folder_gives_the_merged_dems_orthophoto() {
     args.extend(["a", "b", "c", "d"].map(|n| s(&tiles.join(format!("{n}.tif"))).to_string()));
     assert!(Command::new("gdalbuildvrt").args(&args).status().unwrap().success());
     let want = rectified(&sc, &sc.scan, &d.join("merged.tif"));
-    for (what, dem) in [("VRT", &vrt), ("folder", &tiles)] {
+    // A list of the tiles (relative to the list; a comment, a blank line).
+    let list = d.join("tiles.txt");
+    std::fs::write(&list, "# SRTM-like tiles\ntiles/a.tif\n\ntiles/b.tif\ntiles/c.tif\ntiles/d.tif\n").unwrap();
+    for (what, dem) in [("VRT", &vrt), ("folder", &tiles), ("list", &list)] {
         let out = d.join(format!("{what}.tif"));
         let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(dem), "-o", s(&out), "--quiet"]);
         assert!(r.status.success(), "{what}: {}", String::from_utf8_lossy(&r.stderr));
         assert!(whole_image(&out).0 == want, "{what}: the orthophoto differs from the merged DEM's");
     }
+    // A list naming a file that is not there is refused by its line.
+    let bad_list = d.join("bad-list.txt");
+    std::fs::write(&bad_list, "tiles/a.tif\ntiles/e.tif\n").unwrap();
+    let out = d.join("bad.tif");
+    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&bad_list), "-o", s(&out), "--quiet"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.contains(s(&bad_list)) && err.contains("line 2 names no file: \"tiles/e.tif\""), "{err}");
+    assert!(!out.exists());
     // What a VRT may hold beyond placed sources is refused by name.
     let text = std::fs::read_to_string(&vrt).unwrap();
     let at = text.find("<DstRect").unwrap();

@@ -1,5 +1,7 @@
 //! A DEM handed over in tiles: a GDAL VRT mosaic (`gdalbuildvrt`'s simple
-//! and complex sources) or a folder of GeoTIFF / `.hgt` tiles on one grid.
+//! and complex sources), or GeoTIFF / `.hgt` tiles on one grid given as a
+//! folder or as a list (a text file, a path a line, as `gdalbuildvrt
+//! -input_file_list` takes).
 //! Each tile stays its own grid, read as any DEM is (whole when small, a
 //! chunk at a time when large, within its share of the budget); a sample
 //! of the mosaic is looked up in the tile that holds it, never copied into
@@ -72,37 +74,87 @@ impl Mosaic {
     }
 }
 
-/// Is `path` a mosaic: a folder, or a file that begins as a VRT does?
+/// Is `path` a mosaic: a folder, a file that begins as a VRT does, or a
+/// text file (a list of tiles)?
 pub(super) fn is_mosaic(path: &Path) -> bool {
-    if path.is_dir() {
-        return true;
-    }
-    let head = crate::io::bounded_read::read_head(path, 64).unwrap_or_default();
-    String::from_utf8_lossy(&head).trim_start().starts_with("<VRTDataset")
+    path.is_dir() || matches!(kind_of(path), Some(Kind::Vrt | Kind::List))
 }
 
-/// Opens the mosaic at `path` (a VRT file or a folder of tiles), its tiles
-/// holding at most about `max_bytes` of heights in memory together.
+enum Kind {
+    Vrt,
+    List,
+}
+
+/// A file that is a VRT or a list of tiles, told from its first bytes.
+fn kind_of(path: &Path) -> Option<Kind> {
+    let head = crate::io::bounded_read::read_head(path, 64).ok()?;
+    if String::from_utf8_lossy(&head).trim_start().starts_with("<VRTDataset") {
+        return Some(Kind::Vrt);
+    }
+    let printable = !head.is_empty() && head.iter().all(|&b| b == b'\t' || b == b'\n' || b == b'\r' || b >= 0x20);
+    printable.then_some(Kind::List)
+}
+
+/// Opens the mosaic at `path` (a VRT file, a folder or a list of tiles),
+/// its tiles holding at most about `max_bytes` of heights in memory
+/// together.
 pub(super) fn open(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
     if path.is_dir() {
         open_folder(path, max_bytes)
+    } else if matches!(kind_of(path), Some(Kind::List)) {
+        open_list(path, max_bytes)
     } else {
         open_vrt(path, max_bytes)
     }
 }
 
-/// A folder's `.tif`, `.tiff` and `.hgt` files, on one grid: the same CRS
-/// and pixel size, each placed a whole number of samples from the others.
+/// The tile extensions a folder's files are taken by.
+const TILE_EXTENSIONS: [&str; 3] = ["tif", "tiff", "hgt"];
+
+/// A folder's `.tif`, `.tiff` and `.hgt` files, on one grid.
 fn open_folder(dir: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
         .map_err(|e| Error::io(dir, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().and_then(|e| e.to_str()).is_some_and(|e| ["tif", "tiff", "hgt"].contains(&e.to_ascii_lowercase().as_str())))
+        .filter(|p| p.extension().and_then(|e| e.to_str()).is_some_and(|e| TILE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str())))
         .collect();
     files.sort();
     if files.is_empty() {
         return Err(Error::format(dir, "is a folder without DEM tiles (.tif, .tiff or .hgt)"));
     }
+    open_tiles(files, max_bytes)
+}
+
+/// A list of tiles: a path a line (relative to the list's folder), blank
+/// lines and lines starting with `#` left out. A line naming no file is
+/// refused by its number.
+fn open_list(list: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
+    let text = crate::io::bounded_read::read_text_bounded(list, "a list of DEM tiles", 1 << 20)?;
+    let base = list.parent().unwrap_or(Path::new(""));
+    let mut files = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let file = base.join(line);
+        if !file.is_file() {
+            return Err(Error::format(
+                list,
+                format!("read as a list of DEM tiles (a path a line, as gdalbuildvrt -input_file_list): line {} names no file: {line:?} (a DEM is a GeoTIFF, an .hgt, a GDAL VRT, or a folder or list of those)", n + 1),
+            ));
+        }
+        files.push(file);
+    }
+    if files.is_empty() {
+        return Err(Error::format(list, "read as a list of DEM tiles (a path a line): it names none"));
+    }
+    open_tiles(files, max_bytes)
+}
+
+/// Tiles on one grid: the same CRS and pixel size, each placed a whole
+/// number of samples from the others.
+fn open_tiles(files: Vec<PathBuf>, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
     let share = max_bytes / files.len() as u64;
     let grids: Vec<GridDem> = files.iter().map(|f| GridDem::read_within(f, share)).collect::<Result<_>>()?;
     let (step_x, step_y, first_epsg) = (grids[0].transform[1], grids[0].transform[5], grids[0].crs.clone());
@@ -112,10 +164,7 @@ fn open_folder(dir: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
     let (mut width, mut height) = (0, 0);
     for (g, f) in grids.into_iter().zip(&files) {
         if g.crs != first_epsg {
-            return Err(Error::format(
-                f,
-                format!("is in {}, the folder's first tile in {}: the tiles of a DEM share one CRS", crs_name(&g.crs), crs_name(&first_epsg)),
-            ));
+            return Err(Error::format(f, format!("is in {}, the first tile in {}: the tiles of a DEM share one CRS", crs_name(&g.crs), crs_name(&first_epsg))));
         }
         if !same(g.transform[1], step_x) || !same(g.transform[5], step_y) {
             return Err(Error::format(
@@ -128,7 +177,7 @@ fn open_folder(dir: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
         if (cx - x0).abs() > 1e-3 || (cy - y0).abs() > 1e-3 {
             return Err(Error::format(
                 f,
-                format!("lies {cx:.4}, {cy:.4} samples from the folder's corner, not a whole number: the tiles of a DEM share one grid"),
+                format!("lies {cx:.4}, {cy:.4} samples from the tiles' corner, not a whole number: the tiles of a DEM share one grid"),
             ));
         }
         let (x0, y0) = (x0 as usize, y0 as usize);
