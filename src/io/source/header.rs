@@ -155,11 +155,7 @@ pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_le
         byte_counts,
         mask: None,
         mask_compression: 1,
-        jpeg_tables: if compression == 7 {
-            dec.find_tag(Tag::JPEGTables).map_err(tf)?.map(|_| dec.get_tag_u8_vec(Tag::JPEGTables)).transpose().map_err(tf)?
-        } else {
-            None
-        },
+        jpeg_tables: if compression == 7 { dec.find_tag(Tag::JPEGTables).map_err(tf)?.map(|v| v.into_u8_vec()).transpose().map_err(tf)? } else { None },
     };
     // Sizes that overflow or chunk tables that do not match are refused
     // before anything is allocated or mapped.

@@ -47,14 +47,16 @@ pub struct SourceImage {
 
 impl SourceImage {
     /// Opens a scan; `cache_bytes` bounds the decoded-chunk cache of
-    /// compressed files. A JPEG or PNG is decoded at once within the
-    /// default memory budget (see [`SourceImage::open_within`]).
+    /// compressed files. A JPEG or PNG is decoded at opening, within the
+    /// default memory budget where it is decoded whole (see
+    /// [`SourceImage::open_within`]).
     pub fn open(path: &Path, cache_bytes: usize) -> Result<SourceImage> {
         Self::open_within(path, cache_bytes, 128 << 20)
     }
 
     /// Opens a scan of any format this build reads; an image decoded whole
-    /// at opening (a JPEG, an interlaced PNG) must fit `memory` bytes.
+    /// at opening (a progressive JPEG, an interlaced PNG) must fit `memory`
+    /// bytes.
     pub fn open_within(path: &Path, cache_bytes: usize, memory: u64) -> Result<SourceImage> {
         let (info, file) = match ImageFormat::of(path)? {
             ImageFormat::Tiff => return Self::open_tiff(path, cache_bytes),
