@@ -141,8 +141,9 @@ pub struct SensorArgs {
     /// records for the image's file name, else none).
     #[arg(long, requires = "rpc")]
     pub rpc_offset: Option<String>,
-    /// With --rpc: the DEM's heights are above this geoid (PROJ .gtx grid,
-    /// e.g. egm96_15.gtx for SRTM); RPCs expect ellipsoidal heights.
+    /// With --rpc: the DEM's heights are above this geoid (PROJ's .gtx or
+    /// GeoTIFF grid, e.g. us_nga_egm96_15.tif for SRTM); RPCs expect
+    /// ellipsoidal heights.
     #[arg(long, requires = "rpc")]
     pub geoid: Option<PathBuf>,
 }

@@ -39,12 +39,39 @@ enum Samples {
     Chunked(ChunkedSamples),
     /// Tiles of a VRT or a folder, each read as a DEM of its own.
     Mosaic(mosaic::Mosaic),
+    /// An SRTM `.hgt` tile: big-endian Int16 in the mapped file, so that
+    /// a folder of them holds only the pages lookups touch.
+    Hgt(std::sync::Arc<memmap2::Mmap>),
+}
+
+/// Sample `k` of a mapped `.hgt` tile.
+#[inline]
+fn hgt_at(m: &memmap2::Mmap, k: usize) -> f32 {
+    i16::from_be_bytes([m[2 * k], m[2 * k + 1]]) as f32
 }
 
 /// Out-of-core samples: the file's strips or tiles, decoded on demand.
 struct ChunkedSamples {
     raster: ChunkedRaster,
     cache: std::sync::Mutex<ChunkCache<f32>>,
+    rescale: Option<Rescale>,
+}
+
+/// Stored values to heights by the band's scale and offset (GDAL's
+/// metadata); the stored nodata value becomes NaN first.
+#[derive(Clone, Copy)]
+struct Rescale {
+    scale: f64,
+    offset: f64,
+    nodata: Option<f64>,
+}
+
+impl Rescale {
+    fn apply(&self, v: &mut [f32]) {
+        for s in v {
+            *s = if s.is_nan() || self.nodata == Some(*s as f64) { f32::NAN } else { (*s as f64 * self.scale + self.offset) as f32 };
+        }
+    }
 }
 
 impl ChunkedSamples {
@@ -52,7 +79,11 @@ impl ChunkedSamples {
         if let Some(c) = self.cache.lock().ok()?.get(k) {
             return Some(c);
         }
-        let v = std::sync::Arc::new(self.raster.chunk(k).ok()?);
+        let mut v = self.raster.chunk(k).ok()?;
+        if let Some(r) = self.rescale {
+            r.apply(&mut v);
+        }
+        let v = std::sync::Arc::new(v);
         self.cache.lock().ok()?.put(k, v.clone());
         Some(v)
     }
@@ -123,6 +154,7 @@ impl GridDem {
             Samples::Memory(v) => v[j * self.width + i],
             Samples::Chunked(c) => c.get(i, j),
             Samples::Mosaic(m) => m.get(i, j),
+            Samples::Hgt(m) => hgt_at(m, j * self.width + i),
         }
     }
 
@@ -133,6 +165,10 @@ impl GridDem {
             Samples::Memory(v) => [v[j0 * self.width + i0], v[j0 * self.width + i1], v[j1 * self.width + i0], v[j1 * self.width + i1]],
             Samples::Chunked(c) => c.corners(i0, j0, i1, j1),
             Samples::Mosaic(m) => [m.get(i0, j0), m.get(i1, j0), m.get(i0, j1), m.get(i1, j1)],
+            Samples::Hgt(m) => {
+                let w = self.width;
+                [hgt_at(m, j0 * w + i0), hgt_at(m, j0 * w + i1), hgt_at(m, j1 * w + i0), hgt_at(m, j1 * w + i1)]
+            }
         }
     }
 
@@ -232,7 +268,7 @@ impl GridDem {
                 let (top, bottom) = (&v[k..k + 2], &v[k + self.width..k + self.width + 2]);
                 (top[0], top[1], bottom[0], bottom[1])
             }
-            Samples::Chunked(_) | Samples::Mosaic(_) => {
+            Samples::Chunked(_) | Samples::Mosaic(_) | Samples::Hgt(_) => {
                 let [z00, z10, z01, z11] = self.corners(i0, j0, i0 + 1, j0 + 1);
                 (z00, z10, z01, z11)
             }
@@ -349,6 +385,9 @@ impl GridDem {
         if w < 2 || h < 2 {
             return Err(Error::format(path, format!("a DEM of {w}×{h} posts: heights are interpolated between posts, so at least 2×2 are needed")));
         }
+        let rescale = geo.scale_offset.map(|(scale, offset)| Rescale { scale, offset, nodata: geo.nodata });
+        // Rescaled, holes are NaN: the stored nodata value is no height's.
+        let nodata = if rescale.is_some() { None } else { geo.nodata };
         let pixels = (w as u64) * (h as u64);
         if pixels > 1 << 40 {
             return Err(Error::limits(path, format!("DEM of {w}×{h} samples is too large")));
@@ -363,14 +402,14 @@ impl GridDem {
             // At least four chunks: the corners of a cell may lie in four.
             let chunk_bytes = cw * ch * 4;
             let keep = (cache / chunk_bytes).max(4);
-            let chunked = ChunkedSamples { raster, cache: std::sync::Mutex::new(ChunkCache::new(keep * chunk_bytes)) };
+            let chunked = ChunkedSamples { raster, cache: std::sync::Mutex::new(ChunkCache::new(keep * chunk_bytes)), rescale };
             let gt = geo.transform;
             let g = GridDem {
                 width: w as usize,
                 height: h as usize,
                 data: Samples::Chunked(chunked),
                 transform: gt,
-                nodata: geo.nodata,
+                nodata,
                 crs,
                 inv_step: (1.0 / gt[1], 1.0 / gt[5]),
             };
@@ -380,8 +419,11 @@ impl GridDem {
             }
             return Ok(g);
         }
-        let data = raster.read_all()?;
-        let g = GridDem::new(w as usize, h as usize, data, geo.transform, geo.nodata, crs);
+        let mut data = raster.read_all()?;
+        if let Some(r) = rescale {
+            r.apply(&mut data);
+        }
+        let g = GridDem::new(w as usize, h as usize, data, geo.transform, nodata, crs);
         if g.samples(1).iter().all(|&v| g.is_nodata(v)) {
             return Err(Error::format(path, "every sample of the DEM is nodata"));
         }
@@ -409,9 +451,9 @@ fn check_north_up(geo: &GeoRef, path: &Path) -> Result<()> {
 /// An SRTM `.hgt` tile: big-endian Int16, 1201² (3″) or 3601² (1″) samples on
 /// whole-degree lines, named after its south-west corner (e.g. N44E005).
 fn read_hgt(path: &Path) -> Result<GridDem> {
-    // The size says which tile it is: read only one that is a tile.
-    let bytes = crate::io::bounded_read::read_bounded(path, "an SRTM tile", 3601 * 3601 * 2)?;
-    let n = match bytes.len() {
+    // The size says which tile it is: map only one that is a tile.
+    let len = std::fs::metadata(path).map_err(|e| Error::io(path, e))?.len();
+    let n = match len {
         l if l == 1201 * 1201 * 2 => 1201,
         l if l == 3601 * 3601 * 2 => 3601,
         l => return Err(Error::format(path, format!("{l} bytes is not the size of a 1201² or 3601² SRTM tile"))),
@@ -435,8 +477,26 @@ fn read_hgt(path: &Path) -> Result<GridDem> {
     };
     let (lat, lon) = parse().ok_or_else(|| Error::format(path, "an .hgt file must be named like N44E005.hgt"))?;
     let d = 1.0 / (n - 1) as f64;
-    let data = bytes.chunks_exact(2).map(|b| i16::from_be_bytes([b[0], b[1]]) as f32).collect();
-    Ok(GridDem::new(n, n, data, [lon - 0.5 * d, d, 0.0, lat + 1.0 + 0.5 * d, 0.0, -d], Some(-32768.0), Some(Crs::wgs84())))
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    // SAFETY: read-only map of a file whose length was checked above to be
+    // n² samples, so no lookup reads past its end. Another process
+    // truncating it meanwhile raises SIGBUS, which the binary's guard
+    // reports naming it.
+    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(path, e))?;
+    if map.len() as u64 != len {
+        return Err(Error::format(path, "the tile changed size while it was opened"));
+    }
+    crate::io::mmap_guard::watch_also(path);
+    let t = [lon - 0.5 * d, d, 0.0, lat + 1.0 + 0.5 * d, 0.0, -d];
+    Ok(GridDem {
+        width: n,
+        height: n,
+        data: Samples::Hgt(std::sync::Arc::new(map)),
+        transform: t,
+        nodata: Some(-32768.0),
+        crs: Some(Crs::wgs84()),
+        inv_step: (1.0 / t[1], 1.0 / t[5]),
+    })
 }
 
 /// A DEM without a nodata tag whose heights include a value that only a

@@ -287,7 +287,7 @@ pub enum ModelSource {
         /// None: the tile offset a DigitalGlobe XML records for the image's
         /// file name, else none.
         offset: Option<[f64; 2]>,
-        /// The DEM's heights are above this geoid (PROJ .gtx).
+        /// The DEM's heights are above this geoid (PROJ .gtx or GeoTIFF grid).
         geoid: Option<PathBuf>,
     },
     /// Built already (a block's interior file with one row of exterior

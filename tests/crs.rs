@@ -105,6 +105,8 @@ fn every_spelling_of_a_crs_converts_as_gdal_does() {
         ("EPSG:3031", (-180.0, 180.0, -88.0, -65.0)),
         ("EPSG:5070", (-120.0, -75.0, 25.0, 48.0)),
         ("EPSG:2193", (166.0, 178.0, -47.0, -34.0)),
+        ("ESRI:102022", (0.0, 50.0, -33.0, 33.0)),
+        ("ESRI:102003", (-120.0, -75.0, 25.0, 48.0)),
         ("+proj=tmerc +lon_0=25 +k=1 +x_0=0 +datum=WGS84", (17.0, 33.0, -35.0, -22.0)),
         ("+proj=tmerc +lat_0=0 +lon_0=19 +k=0.9993 +x_0=500000 +y_0=-5300000 +ellps=GRS80 +units=m", (14.0, 24.0, 49.0, 55.0)),
     ];
@@ -122,6 +124,13 @@ fn every_spelling_of_a_crs_converts_as_gdal_does() {
             assert!(worst < 0.01, "{definition} as {how}: {worst} m from GDAL ({})", ours.proj4());
         }
     }
+    // An ESRI code on ED50 takes ED50's shift by the datum's name: within
+    // metres of PROJ, which picks regional ED50 transformations (as for
+    // DHDN in docs/CRS.md).
+    let ed50 = Crs::parse("ESRI:102013", dir.path()).unwrap();
+    assert!(ed50.proj4().contains("+towgs84=-87,-98,-121") && ed50.unknown_datum().is_none(), "{}", ed50.proj4());
+    let worst = worst_against_gdal(dir.path(), &ed50, "ESRI:102013", &[(10.0, 50.0), (2.0, 47.0), (15.0, 45.0)]);
+    assert!(worst < 3.0, "ESRI:102013: {worst} m from GDAL");
     // A .prj beside the data, URNs and compound codes.
     std::fs::write(dir.path().join("lo25.prj"), python(GDAL_WKT, &["+proj=tmerc +lon_0=25 +k=1 +x_0=0 +datum=WGS84", "esri"])).unwrap();
     let prj = Crs::parse("lo25.prj", dir.path()).unwrap();
@@ -309,7 +318,7 @@ fn crs_refusals_name_what_is_read() {
     let out = dir.path().join("o.tif");
     for (crs, want) in [
         ("UTM31", "PROJ string"),
-        ("ESRI:102022", "wkt_esri"),
+        ("ESRI:999999", "ESRI codes"),
         ("+proj=robin +lon_0=0 +datum=WGS84", "+proj=robin"),
         ("EPSG:5773", "vertical"),
         ("missing.prj", "missing.prj"),
@@ -363,4 +372,82 @@ fn a_dem_without_keys_takes_the_prj_beside_it() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(!r.status.success() && err.contains("bare.prj"), "{err}");
     assert!(!bad.exists());
+}
+
+/// An NTv2 grid rewritten as PROJ's GeoTIFF grids are (its
+/// `ntv2_to_gtiff.py`): latitude and longitude offsets in arc-seconds,
+/// longitudes positive east (NTv2's are positive west).
+const NTV2_TO_GEOTIFF: &str = r#"
+import sys
+from osgeo import gdal
+gdal.UseExceptions()
+src = gdal.Open(sys.argv[1])
+dst = gdal.GetDriverByName("GTiff").Create(sys.argv[2], src.RasterXSize, src.RasterYSize, 2, gdal.GDT_Float32, ["COMPRESS=DEFLATE", "PREDICTOR=3", "INTERLEAVE=PIXEL"])
+dst.SetGeoTransform(src.GetGeoTransform())
+dst.SetProjection(src.GetProjection())
+dst.SetMetadataItem("TYPE", "HORIZONTAL_OFFSET")
+for k, (name, sign) in enumerate([("latitude_offset", 1), ("longitude_offset", -1)]):
+    b = dst.GetRasterBand(k + 1)
+    b.WriteArray(sign * src.GetRasterBand(k + 1).ReadAsArray())
+    b.SetDescription(name)
+    b.SetUnitType("arc-second")
+    if name == "longitude_offset":
+        b.SetMetadataItem("positive_value", "east")
+dst = None
+"#;
+
+/// Datum shift grids (`+nadgrids=`): NTv2 grids of France (NTF → RGF93),
+/// Germany (DHDN → ETRS89, BETA2007) and New Zealand (NZGD49 → NZGD2000)
+/// convert points as PROJ does with the same grid.
+#[test]
+fn datum_shift_grids_convert_as_proj_does() {
+    if python_with("osgeo.gdal", "python3-gdal").is_none() {
+        eprintln!("skipped: GDAL's Python bindings are not installed");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "+proj=lcc +lat_1=46.8 +lat_0=46.8 +lon_0=0 +k_0=0.99987742 +x_0=600000 +y_0=2200000 +a=6378249.2 +b=6356515 +pm=paris +units=m +nadgrids=ntf_r93.gsb",
+            (-4.5, 7.5, 42.5, 50.5),
+        ),
+        ("+proj=tmerc +lat_0=0 +lon_0=9 +k=1 +x_0=3500000 +y_0=0 +ellps=bessel +nadgrids=BETA2007.gsb +units=m", (6.0, 14.5, 47.5, 54.5)),
+        (
+            "+proj=tmerc +lat_0=-36.87986527777778 +lon_0=174.7643393611111 +k=0.9999 +x_0=300000 +y_0=700000 +ellps=intl +nadgrids=nzgd2kgrid0005.gsb +units=m",
+            (173.0, 176.5, -38.0, -35.0),
+        ),
+    ];
+    for (definition, area) in cases {
+        let grid = ["ntf_r93.gsb", "BETA2007.gsb", "nzgd2kgrid0005.gsb"].into_iter().find(|g| definition.contains(g)).unwrap();
+        if gcm_ortho::geodesy::find_proj_grid(grid).is_none() {
+            assert!(std::env::var_os("CI").is_none(), "PROJ's grid {grid} (Debian's proj-data) is missing");
+            eprintln!("skipped {definition}: PROJ's grid {grid} is not installed");
+            continue;
+        }
+        let ours = Crs::parse(definition, dir.path()).unwrap_or_else(|e| panic!("{definition}: {e}"));
+        let worst = worst_against_gdal(dir.path(), &ours, definition, &lattice(area));
+        eprintln!("{grid}: {worst:.2e} m from PROJ");
+        assert!(worst < 0.01, "{definition}: {worst} m from PROJ ({})", ours.proj4());
+    }
+    // The French grid as PROJ's GeoTIFF grids hold it (two Float32 bands,
+    // arc-seconds, longitudes positive east), made by GDAL from the NTv2.
+    if let Some(gsb) = gcm_ortho::geodesy::find_proj_grid("ntf_r93.gsb") {
+        let tif = dir.path().join("fr_ntf_r93.tif");
+        python(NTV2_TO_GEOTIFF, &[gsb.to_str().unwrap(), tif.to_str().unwrap()]);
+        let lcc = "+proj=lcc +lat_1=46.8 +lat_0=46.8 +lon_0=0 +k_0=0.99987742 +x_0=600000 +y_0=2200000 +a=6378249.2 +b=6356515 +pm=paris +units=m";
+        let ours = Crs::parse(&format!("{lcc} +nadgrids={}", tif.display()), dir.path()).unwrap();
+        let worst = worst_against_gdal(dir.path(), &ours, &format!("{lcc} +nadgrids=ntf_r93.gsb"), &lattice((-4.5, 7.5, 42.5, 50.5)));
+        eprintln!("ntf_r93 as GeoTIFF: {worst:.2e} m from PROJ with the NTv2");
+        assert!(worst < 0.01, "the GeoTIFF grid: {worst} m from PROJ with the NTv2");
+    }
+    // Without the grid's shift the same points are metres to a hundred
+    // metres away: the comparison above sees the grid.
+    let no_grid = Crs::parse("+proj=tmerc +lat_0=0 +lon_0=9 +k=1 +x_0=3500000 +y_0=0 +ellps=bessel +towgs84=0,0,0 +units=m", dir.path()).unwrap();
+    let with_grid = "+proj=tmerc +lat_0=0 +lon_0=9 +k=1 +x_0=3500000 +y_0=0 +ellps=bessel +nadgrids=BETA2007.gsb +units=m";
+    if gcm_ortho::geodesy::find_proj_grid("BETA2007.gsb").is_some() {
+        assert!(worst_against_gdal(dir.path(), &no_grid, with_grid, &lattice((6.0, 14.5, 47.5, 54.5))) > 50.0);
+    }
+    // A grid that is nowhere is refused naming it and where it was looked for.
+    let e = Crs::parse("+proj=longlat +ellps=intl +nadgrids=no_such_grid.gsb", dir.path()).unwrap_err();
+    assert!(e.contains("no_such_grid.gsb") && e.contains("PROJ_DATA"), "{e}");
 }

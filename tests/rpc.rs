@@ -729,3 +729,162 @@ fn a_dem_in_egm96_heights_gets_its_geoid_from_projs_grids() {
     assert!(err.contains("EGM96") && err.contains("egm96_15.gtx") && err.contains("--geoid"), "{err}");
     assert!(!missing.exists());
 }
+
+/// Geoid grids in PROJ's GeoTIFF form (Float32, deflate with the floating
+/// point predictor, tiled, pixel-is-point, as `us_nga_egm96_15.tif`) give
+/// the undulations of the same grid as `.gtx`; a grid packed as Int16 with
+/// GDAL's scale and offset gives them within its quantum. A DEM in EGM96
+/// heights finds the GeoTIFF under PROJ's name when no `.gtx` is there.
+#[test]
+fn geoid_grids_in_geotiff_form_read_as_the_gtx() {
+    if !have("gdal_translate") {
+        assert!(std::env::var_os("CI").is_none(), "GDAL is needed under CI");
+        eprintln!("skipped: GDAL is not installed");
+        return;
+    }
+    use gcm_ortho::geodesy::Geoid;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let gtx = ventoux("egm96_15_ventoux.gtx");
+    let float = d.join("us_nga_egm96_15.tif");
+    let packed = d.join("packed.tif");
+    let translate = |args: &[&str]| {
+        let out = Command::new("gdal_translate").arg("-q").args(args).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    };
+    translate(&[
+        "-co",
+        "COMPRESS=DEFLATE",
+        "-co",
+        "PREDICTOR=3",
+        "-co",
+        "TILED=YES",
+        "-co",
+        "BLOCKXSIZE=16",
+        "-co",
+        "BLOCKYSIZE=16",
+        "-mo",
+        "AREA_OR_POINT=Point",
+        s(&gtx),
+        s(&float),
+    ]);
+    // N = stored · 0.001 + 50: the stored value is (N − 50) · 1000.
+    translate(&["-ot", "Int16", "-scale", "0", "100", "-50000", "50000", "-a_scale", "0.001", "-a_offset", "50", s(&gtx), s(&packed)]);
+    let reference = Geoid::read(&gtx).unwrap();
+    let (as_float, as_packed) = (Geoid::read(&float).unwrap(), Geoid::read(&packed).unwrap());
+    let (mut worst_float, mut worst_packed, mut n) = (0.0f64, 0.0f64, 0);
+    for k in 0..400 {
+        let (lon, lat) = (3.0 + 4.0 * (k % 20) as f64 / 19.0, 43.0 + 3.0 * (k / 20) as f64 / 19.0);
+        let want = reference.undulation(lon, lat).unwrap();
+        worst_float = worst_float.max((as_float.undulation(lon, lat).unwrap() - want).abs());
+        worst_packed = worst_packed.max((as_packed.undulation(lon, lat).unwrap() - want).abs());
+        n += 1;
+    }
+    assert_eq!(n, 400);
+    assert!(worst_float < 1e-9, "the GeoTIFF grid: {worst_float} m from the .gtx");
+    assert!(worst_packed < 0.001, "the packed grid: {worst_packed} m from the .gtx");
+    assert_eq!(as_float.undulation(10.0, 44.0), None, "outside the grid");
+
+    // Found in PROJ's folder under PROJ's current name.
+    let (dir2, with_geoid, _) = ventoux_maps(true, &[], false);
+    let d2 = dir2.path();
+    let dem = d2.join("dem-egm96.tif");
+    translate(&["-a_srs", "EPSG:4326+5773", s(&ventoux("srtm_N44E005_crop.tif")), s(&dem)]);
+    let proj = d2.join("proj");
+    std::fs::create_dir_all(&proj).unwrap();
+    std::fs::copy(&float, proj.join("us_nga_egm96_15.tif")).unwrap();
+    let (x0, y0, gsd, w, h) = VENTOUX_GRID;
+    let bounds = format!("{x0},{},{},{y0}", y0 - h as f64 * gsd, x0 + w as f64 * gsd);
+    let found = d2.join("found.tif");
+    let r = Command::new(bin())
+        .args(["rectify", "--image", s(&d2.join("coords.tif")), "--rpc", s(&d2.join("coords_RPC.TXT")), "--dem", s(&dem), "--crs", "EPSG:32631"])
+        .args(["--bounds", &bounds, "--gsd", "0.5", "--nodata", "-1", "--compress", "none", "--quiet", "-o", s(&found)])
+        .env("PROJ_DATA", &proj)
+        .env("HOME", d2)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let (a, b) = (whole_image(&found).0, whole_image(&with_geoid).0);
+    assert_eq!(a.len(), b.len());
+    let floats = |v: &[u8]| v.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect::<Vec<_>>();
+    let worst = floats(&a).iter().zip(&floats(&b)).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+    assert!(worst < 1e-3, "the GeoTIFF geoid found: {worst} px from --geoid with the .gtx");
+}
+
+/// The SRTM crop as the `.hgt` tile it was cut from (N44E005: 1201² posts
+/// of 3″ on whole degrees, voids elsewhere): GDAL places and reads the
+/// tile as we do, and the orthophoto over it — alone or in a folder of
+/// tiles — is the crop's, byte for byte.
+#[test]
+fn an_hgt_tile_reads_as_gdal_reads_it_and_gives_the_crops_orthophoto() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let crop = ventoux("srtm_N44E005_crop.tif");
+    let posts = gcm_ortho::dem::GridDem::read(&crop).unwrap();
+    assert_eq!((posts.width, posts.height), (80, 80));
+    // The crop's first post is 5° + 200·3″ east, 45° − 920·3″ north.
+    let mut tile = vec![-32768i16; 1201 * 1201];
+    for j in 0..80 {
+        for i in 0..80 {
+            tile[(920 + j) * 1201 + 200 + i] = posts.sample(i, j) as i16;
+        }
+    }
+    let tiles = d.join("srtm");
+    std::fs::create_dir(&tiles).unwrap();
+    let hgt = tiles.join("N44E005.hgt");
+    std::fs::write(&hgt, tile.iter().flat_map(|v| v.to_be_bytes()).collect::<Vec<u8>>()).unwrap();
+    // A neighbour without data: the folder is a mosaic of two tiles.
+    std::fs::write(tiles.join("N44E004.hgt"), [0x80u8, 0x00].repeat(1201 * 1201)).unwrap();
+
+    let ours = gcm_ortho::dem::GridDem::read(&hgt).unwrap();
+    assert_eq!(ours.sample(200 + 17, 920 + 33), posts.sample(17, 33));
+    assert!(ours.sample(200 + 17, 920 + 33) > 50.0);
+    if have("gdalinfo") {
+        let out = Command::new("gdalinfo").args(["-json", s(&hgt)]).output().unwrap();
+        let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let gt: Vec<f64> = j["geoTransform"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        for (a, b) in gt.iter().zip(ours.transform) {
+            assert!((a - b).abs() < 1e-12, "GDAL's geotransform {gt:?}, ours {:?}", ours.transform);
+        }
+        assert_eq!(j["driverShortName"], "SRTMHGT");
+    } else {
+        assert!(std::env::var_os("CI").is_none(), "GDAL is needed under CI");
+    }
+
+    let (x0, y0, gsd, w, h) = VENTOUX_GRID;
+    let bounds = format!("{x0},{},{},{y0}", y0 - h as f64 * gsd, x0 + w as f64 * gsd);
+    let image = d.join("coords.tif");
+    coordinate_image(&image, 500, 500);
+    let sidecar = d.join("coords_RPC.TXT");
+    std::fs::write(&sidecar, Rpc::read(&ventoux("left_image.geom")).unwrap().cropped(5000.0, 5000.0).to_gdal_text()).unwrap();
+    let rectify = |dem: &Path, name: &str| {
+        let out = d.join(name);
+        let r = run(&[
+            "rectify",
+            "--image",
+            s(&image),
+            "--rpc",
+            s(&sidecar),
+            "--dem",
+            s(dem),
+            "--crs",
+            "EPSG:32631",
+            "--bounds",
+            &bounds,
+            "--gsd",
+            "0.5",
+            "--nodata",
+            "-1",
+            "--compress",
+            "none",
+            "--quiet",
+            "-o",
+            s(&out),
+        ]);
+        assert!(r.status.success(), "{name}: {}", String::from_utf8_lossy(&r.stderr));
+        whole_image(&out).0
+    };
+    let want = rectify(&crop, "crop.tif");
+    assert!(rectify(&hgt, "hgt.tif") == want, "the .hgt tile's orthophoto differs from the crop's");
+    assert!(rectify(&tiles, "folder.tif") == want, "the folder of .hgt tiles gives another orthophoto");
+}

@@ -229,7 +229,7 @@ pub struct RpcSection {
     /// describes (the image is a crop of it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub offset_px: Option<[f64; 2]>,
-    /// Geoid grid (PROJ `.gtx`): the DEM's heights are above this geoid.
+    /// Geoid grid (PROJ `.gtx` or GeoTIFF): the DEM's heights are above this geoid.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub geoid: Option<String>,
     #[serde(flatten)]

@@ -31,7 +31,7 @@ struct Definition {
 
 /// What is read, for refusals.
 pub const ACCEPTED: &str =
-    "EPSG:<code> (EPSG:<code>+<vertical code> for a compound CRS), an OGC URN or URI, a PROJ string (+proj=…), WKT1, WKT2 or ESRI WKT, or a .prj file";
+    "EPSG:<code> (EPSG:<code>+<vertical code> for a compound CRS), ESRI:<code>, an OGC URN or URI, a PROJ string (+proj=…), WKT1, WKT2 or ESRI WKT, or a .prj file";
 
 impl PartialEq for Crs {
     /// The same CRS: the same EPSG code, or the same PROJ definition.
@@ -102,6 +102,9 @@ impl Crs {
         if t.contains('[') {
             return Crs::from_wkt(t);
         }
+        if let Some(rest) = t.strip_prefix("ESRI:").or_else(|| t.strip_prefix("esri:")) {
+            return Crs::from_esri(rest);
+        }
         if let Some((h, v)) = codes(t)? {
             let mut crs = Crs::from_epsg(h)?;
             if let Some(v) = v {
@@ -114,6 +117,26 @@ impl Crs {
         Err(format!("'{shown}' is not a CRS: give {ACCEPTED}"))
     }
 
+    /// An ESRI code's CRS, from the table of PROJ's database: its datum's
+    /// shift taken by the datum's name where the definition has none.
+    fn from_esri(code: &str) -> Result<Crs, String> {
+        let n: u32 = code.trim().parse().map_err(|_| format!("ESRI:{code}: '{code}' is not an ESRI code"))?;
+        let e = super::esri::lookup(n).ok_or_else(|| format!("ESRI:{n} is not a horizontal CRS in this build's table of ESRI codes (from PROJ's database)"))?;
+        let mut proj4 = e.proj4.clone();
+        let given = ["+towgs84=", "+datum=", "+nadgrids="].iter().any(|k| proj4.contains(k));
+        let shift = if given { None } else { datum::shift_of(Some(&e.datum), None) };
+        if let Some(s) = &shift {
+            proj4.push_str(&format!(" {s}"));
+        }
+        let mut crs = Crs::from_definition(&proj4, None).map_err(|m| format!("ESRI:{n}: {m}"))?;
+        let d = Arc::get_mut(&mut crs.def).expect("just made");
+        d.label = format!("ESRI:{n} ({})", e.name);
+        if d.unknown_datum.is_some() {
+            d.unknown_datum = Some(e.datum);
+        }
+        Ok(crs)
+    }
+
     /// A PROJ string (`+proj=…`). It keeps the EPSG code of the definition
     /// it spells out, where this build has one spelled the same.
     pub fn from_proj4(s: &str) -> Result<Crs, String> {
@@ -124,6 +147,10 @@ impl Crs {
     /// A PROJ definition with its EPSG code, if known. (Looking the code
     /// up reads every EPSG definition: done only for users' PROJ strings.)
     fn from_definition(s: &str, epsg: Option<u32>) -> Result<Crs, String> {
+        super::grid_shift::load_for(s).map_err(|m| match epsg {
+            Some(c) => format!("EPSG:{c}: {m}"),
+            None => m,
+        })?;
         let proj = Proj::from_proj_string(s).map_err(|e| format!("'{s}': {e}"))?;
         let vertical = Vertical::from_proj4(s);
         let datum_given = ["+towgs84=", "+datum=", "+nadgrids="].iter().any(|k| s.contains(k));
@@ -263,9 +290,6 @@ fn codes(t: &str) -> Result<Option<(u32, Option<u32>)>, String> {
         };
         return Ok(Some((h, v)));
     }
-    if let Some(rest) = lower.strip_prefix("esri:") {
-        return Err(format!("ESRI:{rest}: ESRI codes are not in this build's tables; give the CRS's WKT or .prj (gdalsrsinfo -o wkt_esri ESRI:{rest})"));
-    }
     if let Some(rest) = lower.strip_prefix("urn:ogc:def:crs,") {
         let parts: Vec<u32> = rest.split(',').map(|p| urn_code(p.strip_prefix("crs:").unwrap_or(p), t)).collect::<Result<_, _>>()?;
         return match parts.as_slice() {
@@ -355,7 +379,8 @@ mod tests {
     fn refusals_say_what_is_read() {
         for (s, want) in [
             ("EPSG:999999", "not a CRS this build knows"),
-            ("ESRI:102022", "wkt_esri"),
+            ("ESRI:999999", "table of ESRI codes"),
+            ("ESRI:abc", "not an ESRI code"),
             ("UTM31", "is not a CRS: give EPSG"),
             ("", "empty"),
             ("EPSG:5773", "vertical"),

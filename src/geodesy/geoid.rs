@@ -1,10 +1,14 @@
-//! Geoid undulation grids in PROJ's `.gtx` format: a 40-byte big-endian
-//! header (latitude and longitude of the south-west sample, the two steps in
-//! degrees, rows, columns) and rows × columns big-endian f32, south row
-//! first. Ellipsoidal height h = H + N(φ, λ), N interpolated bilinearly
-//! (as PROJ's `vgridshift`). The file is memory-mapped: a scene reads the
-//! few pages under it, also of a global grid at 1′ (900 MB).
+//! Geoid undulation grids in PROJ's two forms: `.gtx` (a 40-byte
+//! big-endian header — latitude and longitude of the south-west sample,
+//! the two steps in degrees, rows, columns — and rows × columns big-endian
+//! f32, south row first) and GeoTIFF (PROJ's current grids, e.g.
+//! `us_nga_egm96_15.tif`: one band on longitude/latitude). Ellipsoidal
+//! height h = H + N(φ, λ), N interpolated bilinearly (as PROJ's
+//! `vgridshift`). A `.gtx` is memory-mapped and a large GeoTIFF read a
+//! tile at a time: a scene reads the few pages under it, also of a global
+//! grid at 1′ (900 MB).
 
+use crate::dem::GridDem;
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 
@@ -25,26 +29,51 @@ pub struct Geoid {
     pub path: PathBuf,
 }
 
-/// The grid's samples: decoded, or big-endian in the mapped file (after
-/// its 40-byte header).
+/// The grid's samples, south row first: decoded, big-endian in the mapped
+/// `.gtx` (after its 40-byte header), or a GeoTIFF's (north row first).
 #[derive(Clone, Debug)]
 enum Samples {
     Owned(Vec<f32>),
     Mapped(std::sync::Arc<memmap2::Mmap>),
+    Raster(Raster),
+}
+
+/// A GeoTIFF grid read as a DEM is (in memory, or a tile at a time).
+#[derive(Clone)]
+struct Raster(std::sync::Arc<GridDem>);
+
+impl std::fmt::Debug for Raster {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Raster({}×{})", self.0.width, self.0.height)
+    }
 }
 
 impl Samples {
+    /// Sample `k` counted from the south-west, row by row; NaN for no value.
     #[inline]
-    fn at(&self, k: usize) -> f32 {
+    fn at(&self, k: usize, cols: usize) -> f32 {
         match self {
             Samples::Owned(v) => v[k],
             Samples::Mapped(m) => f32::from_be_bytes(m[40 + 4 * k..44 + 4 * k].try_into().expect("4 bytes")),
+            Samples::Raster(Raster(g)) => {
+                let v = g.sample(k % cols, g.height - 1 - k / cols);
+                if g.is_nodata(v) {
+                    f32::NAN
+                } else {
+                    v
+                }
+            }
         }
     }
 }
 
 impl Geoid {
+    /// A `.gtx` or GeoTIFF geoid grid.
     pub fn read(path: &Path) -> Result<Geoid> {
+        let magic = crate::io::bounded_read::read_head(path, 4)?;
+        if [b"II*\0", b"MM\0*", b"II+\0", b"MM\0+"].iter().any(|m| magic == m.as_slice()) {
+            return Geoid::read_geotiff(path);
+        }
         // The header says how large the grid is: a file of another size is
         // refused before it is read.
         let head = crate::io::bounded_read::read_head(path, 40)?;
@@ -70,6 +99,32 @@ impl Geoid {
         let mut g = Geoid::parse_header(&map, path)?;
         g.n = Samples::Mapped(std::sync::Arc::new(map));
         Ok(g)
+    }
+
+    /// A GeoTIFF grid (PROJ's form since PROJ 7): one band of undulations
+    /// on WGS84 (or another geographic CRS on its ellipsoid) longitude and
+    /// latitude, north-up.
+    fn read_geotiff(path: &Path) -> Result<Geoid> {
+        let g = GridDem::read_within(path, crate::dem::IN_MEMORY_LIMIT)?;
+        if let Some(crs) = &g.crs {
+            if !crs.is_geographic() {
+                return Err(Error::format(path, format!("a geoid grid must be on longitude and latitude; its GeoTIFF keys say {crs}")));
+            }
+        }
+        let gt = g.transform;
+        let (cols, rows) = (g.width, g.height);
+        // Sample centres: the south-west one and the steps, as a .gtx says them.
+        let (dlon, dlat) = (gt[1], -gt[5]);
+        let lon0 = gt[0] + 0.5 * dlon;
+        let lat0 = gt[3] + gt[5] * (rows as f64 - 0.5);
+        if !(lat0 >= -90.5 && lat0 + dlat * (rows - 1) as f64 <= 90.5) {
+            return Err(Error::format(
+                path,
+                format!("a geoid grid must be on longitude and latitude; its latitudes run {lat0}..{}", lat0 + dlat * (rows - 1) as f64),
+            ));
+        }
+        let global = (dlon * cols as f64 - 360.0).abs() < dlon * 1.01;
+        Ok(Geoid { lat0, lon0, dlat, dlon, rows, cols, global, n: Samples::Raster(Raster(std::sync::Arc::new(g))), path: path.to_path_buf() })
     }
 
     /// A grid from the bytes of a `.gtx` file.
@@ -133,7 +188,7 @@ impl Geoid {
             return None;
         };
         let (fx, fy) = (x - i as f64, y - j as f64);
-        let at = |c: usize, r: usize| self.n.at(r * self.cols + c);
+        let at = |c: usize, r: usize| self.n.at(r * self.cols + c, self.cols);
         let v = [at(i, j), at(i1, j), at(i, j + 1), at(i1, j + 1)];
         if v.iter().any(|&s| s == GTX_NODATA || !s.is_finite()) {
             return None;

@@ -8,13 +8,17 @@
 mod crs;
 mod datum;
 pub mod ecef;
+mod esri;
 mod geoid;
 pub mod geokeys;
+mod grid_shift;
+mod proj_data;
 mod projection;
 mod vertical;
 mod wkt;
 
 pub use crs::{Crs, ACCEPTED};
 pub use geoid::Geoid;
+pub use proj_data::find_grid as find_proj_grid;
 pub use projection::{utm_zone, utm_zone_epsg, GroundCrs, Reprojection};
 pub use vertical::Vertical;

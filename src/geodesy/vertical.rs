@@ -81,16 +81,9 @@ impl Vertical {
     }
 
     /// The first of this height's geoid grids found where PROJ looks for
-    /// its grids (the user's proj folder, then `PROJ_DATA` or `PROJ_LIB`
-    /// where set, else the system's proj folders), in a format this build
-    /// reads (`.gtx`).
+    /// its grids, in a format this build reads (`.gtx`, GeoTIFF).
     pub fn find_grid(&self) -> Option<PathBuf> {
-        let user = std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local/share/proj"));
-        let set: Vec<PathBuf> =
-            ["PROJ_DATA", "PROJ_LIB"].iter().filter_map(std::env::var_os).flat_map(|v| std::env::split_paths(&v).collect::<Vec<_>>()).collect();
-        let system = if set.is_empty() { vec![PathBuf::from("/usr/local/share/proj"), PathBuf::from("/usr/share/proj")] } else { set };
-        let dirs: Vec<PathBuf> = user.into_iter().chain(system).collect();
-        self.grids.iter().filter(|g| g.ends_with(".gtx")).flat_map(|g| dirs.iter().map(move |d| d.join(g))).find(|p| p.is_file())
+        self.grids.iter().find_map(|g| super::proj_data::find_grid(g))
     }
 }
 

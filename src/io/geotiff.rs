@@ -82,6 +82,9 @@ pub struct GeoRef {
     /// The GeoTIFF keys (the CRS), empty when the file has none.
     pub keys: GeoKeys,
     pub nodata: Option<f64>,
+    /// The first band's scale and offset from GDAL's metadata (value =
+    /// stored · scale + offset), where they are other than 1 and 0.
+    pub scale_offset: Option<(f64, f64)>,
 }
 
 /// Any numeric tag value (or list of them) as f64s.
@@ -107,6 +110,30 @@ fn as_f64_list(v: Value) -> Option<Vec<f64>> {
     }
 }
 
+/// GDAL's metadata tag: an XML of items, some per band.
+const GDAL_METADATA: u16 = 42112;
+
+/// The first band's `role="scale"` and `role="offset"` items of GDAL's
+/// metadata XML (`gdal_translate -a_scale/-a_offset`, PROJ's packed grids):
+/// `None` where they leave values as stored.
+fn band_scale_offset(xml: &str) -> std::result::Result<Option<(f64, f64)>, String> {
+    let doc = roxmltree::Document::parse(xml.trim_matches(char::from(0))).map_err(|e| e.to_string())?;
+    let (mut scale, mut offset) = (1.0, 0.0);
+    for item in doc.descendants().filter(|n| n.has_tag_name("Item") && n.attribute("sample") == Some("0")) {
+        let value =
+            || item.text().unwrap_or("").trim().parse::<f64>().map_err(|_| format!("the band's {} is not a number", item.attribute("role").unwrap_or("item")));
+        match item.attribute("role") {
+            Some("scale") => scale = value()?,
+            Some("offset") => offset = value()?,
+            _ => {}
+        }
+    }
+    if !(scale.is_finite() && offset.is_finite()) {
+        return Err(format!("band scale {scale} and offset {offset}"));
+    }
+    Ok((scale != 1.0 || offset != 0.0).then_some((scale, offset)))
+}
+
 /// Reads the georeferencing of the current image of `dec`. `None` if the
 /// file has no geotransform at all.
 pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<Option<GeoRef>> {
@@ -125,6 +152,10 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
             let s = s.trim_matches(char::from(0)).trim();
             Some(s.parse::<f64>().map_err(|_| Error::format(path, format!("GDAL_NODATA '{s}' is not a number")))?)
         }
+        _ => None,
+    };
+    let scale_offset = match dec.find_tag(Tag::Unknown(GDAL_METADATA)).map_err(tf)? {
+        Some(Value::Ascii(xml)) => band_scale_offset(&xml).map_err(|m| Error::format(path, format!("its GDAL metadata: {m}")))?,
         _ => None,
     };
     let keys = geo_keys(&directory, &doubles, &ascii);
@@ -148,7 +179,7 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
     if gt.iter().any(|v| !v.is_finite()) {
         return Err(Error::format(path, "geotransform has non-finite values"));
     }
-    Ok(Some(GeoRef { transform: gt, keys, nodata }))
+    Ok(Some(GeoRef { transform: gt, keys, nodata, scale_offset }))
 }
 
 /// The keys of a GeoKeyDirectory (header of four SHORTs, then four a
