@@ -170,6 +170,18 @@ fn user_defined_geotiff_keys_read_back_in_gdal_and_gdals_here() {
         ("+proj=stere +lat_0=-90 +lat_ts=-71 +lon_0=0 +x_0=0 +y_0=0 +datum=WGS84 +units=m", (-180.0, 180.0, -88.0, -65.0)),
         ("+proj=sterea +lat_0=52.1561605555556 +lon_0=5.38763888888889 +k=0.9999079 +x_0=155000 +y_0=463000 +ellps=bessel +towgs84=565.417,50.3319,465.552,-0.398957,0.343988,-1.8774,4.0725 +units=m", (3.5, 7.0, 51.0, 53.4)),
         ("+proj=tmerc +lat_0=49 +lon_0=-2 +k=0.9996012717 +x_0=400000 +y_0=-100000 +ellps=airy +towgs84=446.448,-125.157,542.06,0.15,0.247,0.842,-20.489 +units=m", (-6.0, 1.5, 50.0, 58.0)),
+        ("+proj=robin +lon_0=10 +x_0=1000 +y_0=-500 +datum=WGS84 +units=m", (-150.0, 150.0, -70.0, 70.0)),
+        ("+proj=eqdc +lat_0=40 +lon_0=-96 +lat_1=20 +lat_2=60 +x_0=0 +y_0=0 +datum=WGS84 +units=m", (-120.0, -75.0, 25.0, 48.0)),
+        ("+proj=cea +lat_ts=30 +lon_0=0 +x_0=0 +y_0=0 +datum=WGS84 +units=m", (-170.0, 170.0, -80.0, 80.0)),
+        ("+proj=mill +lat_0=0 +lon_0=20 +x_0=0 +y_0=0 +R=6371000 +units=m", (-150.0, 150.0, -70.0, 70.0)),
+        ("+proj=ortho +lat_0=45 +lon_0=5 +x_0=0 +y_0=0 +datum=WGS84 +units=m", (-5.0, 15.0, 38.0, 52.0)),
+        ("+proj=gnom +lat_0=45 +lon_0=5 +x_0=0 +y_0=0 +R=6371000 +units=m", (-5.0, 15.0, 38.0, 52.0)),
+        // Malaysia's RSO (variant A) and a Hotine variant B, as national grids use them.
+        (
+            "+proj=omerc +no_uoff +lat_0=4 +lonc=102.25 +alpha=323.0257905 +gamma=323.1301023611111 +k=0.99984 +x_0=804670.24 +y_0=0 +datum=WGS84 +units=m",
+            (100.5, 104.0, 1.5, 6.5),
+        ),
+        ("+proj=omerc +lat_0=57 +lonc=-133.6666666666667 +alpha=323.1301023611111 +k=0.9999 +x_0=5000000 +y_0=-5000000 +datum=WGS84 +units=m", (-141.0, -129.0, 54.0, 60.0)),
     ];
     for (k, (definition, area)) in cases.into_iter().enumerate() {
         let crs = Crs::parse(definition, dir.path()).unwrap();
@@ -319,7 +331,7 @@ fn crs_refusals_name_what_is_read() {
     for (crs, want) in [
         ("UTM31", "PROJ string"),
         ("ESRI:999999", "ESRI codes"),
-        ("+proj=robin +lon_0=0 +datum=WGS84", "+proj=robin"),
+        ("+proj=moll +lon_0=0 +datum=WGS84", "+proj=moll"),
         ("EPSG:5773", "vertical"),
         ("missing.prj", "missing.prj"),
     ] {

@@ -43,6 +43,7 @@ const SCALE_AT_NAT_ORIGIN: u16 = 3092;
 const SCALE_AT_CENTER: u16 = 3093;
 const AZIMUTH: u16 = 3094;
 const STRAIGHT_VERT_POLE_LONG: u16 = 3095;
+const RECTIFIED_GRID_ANGLE: u16 = 3096;
 const VERTICAL_TYPE: u16 = 4096;
 const VERTICAL_UNITS: u16 = 4099;
 
@@ -67,6 +68,15 @@ const CT_EQUIRECTANGULAR: u16 = 17;
 const CT_CASSINI: u16 = 18;
 const CT_POLYCONIC: u16 = 22;
 const CT_SINUSOIDAL: u16 = 24;
+const CT_EQUIDISTANT_CONIC: u16 = 13;
+const CT_GNOMONIC: u16 = 19;
+const CT_MILLER: u16 = 20;
+const CT_ORTHOGRAPHIC: u16 = 21;
+const CT_ROBINSON: u16 = 23;
+const CT_CYLINDRICAL_EQUAL_AREA: u16 = 28;
+/// Hotine oblique Mercator, variant B (the natural origin at the centre
+/// of the projection; PROJ's `omerc` without `+no_uoff`).
+const CT_HOTINE_AZIMUTH_CENTER: u16 = 9815;
 
 /// The CRS the keys name; `None` when they name none (no keys, or only a
 /// raster type). A CRS they name in a way this build cannot follow is an
@@ -215,13 +225,30 @@ fn projection_of(keys: &GeoKeys) -> Result<String, String> {
         CT_CASSINI => format!("+proj=cass +lat_0={lat0} +lon_0={lon0} {xy}"),
         CT_POLYCONIC => format!("+proj=poly +lat_0={lat0} +lon_0={lon0} {xy}"),
         CT_SINUSOIDAL => format!("+proj=sinu +lon_0={} {xy}", v(&[CENTER_LONG, NAT_ORIGIN_LONG])),
-        CT_OBLIQUE_MERCATOR => format!(
-            "+proj=omerc +lat_0={} +lonc={} +alpha={} +k={} {xy}",
-            v(&[CENTER_LAT]),
-            v(&[CENTER_LONG]),
-            v(&[AZIMUTH]),
-            ids_or(keys, &[SCALE_AT_CENTER], 1.0)
-        ),
+        // Variant A (GeoTIFF's CT 3) has its false origin at the natural
+        // origin of the uv grid: PROJ's +no_uoff.
+        CT_OBLIQUE_MERCATOR | CT_HOTINE_AZIMUTH_CENTER => {
+            let alpha = v(&[AZIMUTH]);
+            format!(
+                "+proj=omerc{} +lat_0={} +lonc={} +alpha={alpha} +gamma={} +k={} {xy}",
+                if ct == CT_OBLIQUE_MERCATOR { " +no_uoff" } else { "" },
+                v(&[CENTER_LAT, NAT_ORIGIN_LAT]),
+                v(&[CENTER_LONG, NAT_ORIGIN_LONG]),
+                ids_or(keys, &[RECTIFIED_GRID_ANGLE], alpha),
+                ids_or(keys, &[SCALE_AT_CENTER, SCALE_AT_NAT_ORIGIN], 1.0)
+            )
+        }
+        CT_EQUIDISTANT_CONIC => format!("+proj=eqdc +lat_1={} +lat_2={} +lat_0={lat0} +lon_0={lon0} {xy}", v(&[STD_PARALLEL_1]), v(&[STD_PARALLEL_2])),
+        CT_CYLINDRICAL_EQUAL_AREA => format!("+proj=cea +lat_ts={} +lon_0={lon0} {xy}", v(&[STD_PARALLEL_1])),
+        CT_GNOMONIC | CT_ORTHOGRAPHIC | CT_MILLER => {
+            let name = match ct {
+                CT_GNOMONIC => "gnom",
+                CT_ORTHOGRAPHIC => "ortho",
+                _ => "mill",
+            };
+            format!("+proj={name} +lat_0={} +lon_0={} {xy}", v(&[CENTER_LAT, NAT_ORIGIN_LAT]), v(&[CENTER_LONG, NAT_ORIGIN_LONG]))
+        }
+        CT_ROBINSON => format!("+proj=robin +lon_0={} {xy}", v(&[CENTER_LONG, NAT_ORIGIN_LONG])),
         other => return Err(format!("ProjCoordTransGeoKey {other} is not a projection method this build reads")),
     })
 }
@@ -433,13 +460,40 @@ fn user_defined_projection(keys: &mut GeoKeys, t: &Tokens, crs: &Crs) -> Result<
             natural(keys, CT_EQUIRECTANGULAR);
             d(keys, STD_PARALLEL_1, t.num_or("lat_ts", 0.0)?);
         }
-        "sinu" => {
-            keys.set(COORD_TRANS, GeoKeyValue::Short(CT_SINUSOIDAL));
+        "sinu" | "robin" => {
+            keys.set(COORD_TRANS, GeoKeyValue::Short(if proj == "sinu" { CT_SINUSOIDAL } else { CT_ROBINSON }));
             d(keys, CENTER_LONG, lon0);
             d(keys, FALSE_EASTING, x0);
             d(keys, FALSE_NORTHING, y0);
         }
-        other => return Err(format!("{crs}: +proj={other} has no GeoTIFF keys this build writes; give the output an EPSG CRS or one of tmerc, utm, lcc, aea, laea, aeqd, stere, sterea, merc, eqc, cass, poly, sinu")),
+        "gnom" => centred(keys, CT_GNOMONIC),
+        "ortho" => centred(keys, CT_ORTHOGRAPHIC),
+        "mill" => centred(keys, CT_MILLER),
+        "eqdc" => {
+            natural(keys, CT_EQUIDISTANT_CONIC);
+            d(keys, STD_PARALLEL_1, t.num_or("lat_1", 0.0)?);
+            d(keys, STD_PARALLEL_2, t.num_or("lat_2", t.num_or("lat_1", 0.0)?)?);
+        }
+        "cea" => {
+            keys.set(COORD_TRANS, GeoKeyValue::Short(CT_CYLINDRICAL_EQUAL_AREA));
+            d(keys, STD_PARALLEL_1, t.num_or("lat_ts", 0.0)?);
+            d(keys, NAT_ORIGIN_LONG, lon0);
+            d(keys, FALSE_EASTING, x0);
+            d(keys, FALSE_NORTHING, y0);
+        }
+        "omerc" => {
+            let no_uoff = t.0.iter().any(|(k, _)| matches!(*k, "no_uoff" | "no_off"));
+            let alpha = t.num("alpha")?.ok_or_else(|| format!("{crs}: +proj=omerc without +alpha (the two-point form) has no GeoTIFF keys this build writes"))?;
+            keys.set(COORD_TRANS, GeoKeyValue::Short(if no_uoff { CT_OBLIQUE_MERCATOR } else { CT_HOTINE_AZIMUTH_CENTER }));
+            d(keys, CENTER_LAT, lat0);
+            d(keys, CENTER_LONG, t.num_or("lonc", 0.0)?);
+            d(keys, AZIMUTH, alpha);
+            d(keys, RECTIFIED_GRID_ANGLE, t.num_or("gamma", alpha)?);
+            d(keys, SCALE_AT_CENTER, k);
+            d(keys, FALSE_EASTING, x0);
+            d(keys, FALSE_NORTHING, y0);
+        }
+        other => return Err(format!("{crs}: +proj={other} has no GeoTIFF keys this build writes; give the output an EPSG CRS or one of tmerc, utm, lcc, aea, laea, aeqd, stere, sterea, merc, eqc, cass, poly, sinu, robin, gnom, ortho, mill, eqdc, cea, omerc")),
     }
     Ok(())
 }
@@ -493,8 +547,8 @@ mod tests {
 
     #[test]
     fn projections_without_keys_are_refused_by_name() {
-        let c = Crs::parse("+proj=robin +lon_0=0 +datum=WGS84", Path::new(".")).unwrap();
-        assert!(keys_of(&c).unwrap_err().contains("+proj=robin"));
+        let c = Crs::parse("+proj=moll +lon_0=0 +datum=WGS84", Path::new(".")).unwrap();
+        assert!(keys_of(&c).unwrap_err().contains("+proj=moll"));
     }
 
     #[test]
