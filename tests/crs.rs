@@ -181,6 +181,9 @@ fn user_defined_geotiff_keys_read_back_in_gdal_and_gdals_here() {
             "+proj=omerc +no_uoff +lat_0=4 +lonc=102.25 +alpha=323.0257905 +gamma=323.1301023611111 +k=0.99984 +x_0=804670.24 +y_0=0 +datum=WGS84 +units=m",
             (100.5, 104.0, 1.5, 6.5),
         ),
+        // No method keys in GeoTIFF: an ESRI PE String citation, as GDAL writes.
+        ("+proj=moll +lon_0=10 +x_0=100 +y_0=0 +datum=WGS84 +units=m", (-150.0, 150.0, -70.0, 70.0)),
+        ("+proj=eqearth +lon_0=-20 +x_0=0 +y_0=0 +ellps=GRS80 +units=m", (-150.0, 150.0, -70.0, 70.0)),
         ("+proj=omerc +lat_0=57 +lonc=-133.6666666666667 +alpha=323.1301023611111 +k=0.9999 +x_0=5000000 +y_0=-5000000 +datum=WGS84 +units=m", (-141.0, -129.0, 54.0, 60.0)),
     ];
     for (k, (definition, area)) in cases.into_iter().enumerate() {
@@ -201,12 +204,18 @@ fn user_defined_geotiff_keys_read_back_in_gdal_and_gdals_here() {
             let (x, y) = ground.from_lonlat(lon, lat).unwrap();
             assert!((v[0] - x).hypot(v[1] - y) < 0.01, "{definition}: GDAL reads our keys as another CRS: ({}, {}) vs ({x}, {y})", v[0], v[1]);
         }
-        // GDAL written, ours reading.
+        // GDAL written, ours reading (GDAL 3.6 writes no keys for Equal
+        // Earth: a local CRS in its .aux.xml).
+        if definition.contains("eqearth") {
+            continue;
+        }
         let theirs = dir.path().join(format!("theirs{k}.tif"));
         let out = Command::new("gdal_translate").args(["-q", "-a_srs", definition, s(&ours), s(&theirs)]).output().unwrap();
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         let info = gcm_ortho::io::source::SourceImage::info_of(&theirs).unwrap();
-        let read = gcm_ortho::geodesy::geokeys::crs_of(&info.georef.unwrap().keys).unwrap_or_else(|e| panic!("{definition}: {e}")).unwrap();
+        let read = gcm_ortho::geodesy::geokeys::crs_of(&info.georef.unwrap().keys)
+            .unwrap_or_else(|e| panic!("{definition}: {e}"))
+            .unwrap_or_else(|| panic!("{definition}: GDAL's keys read as no CRS"));
         let g2 = GroundCrs::new(&read).unwrap();
         for &(lon, lat) in &pts {
             let (a, b) = (ground.from_lonlat(lon, lat).unwrap(), g2.from_lonlat(lon, lat).unwrap());
@@ -331,7 +340,7 @@ fn crs_refusals_name_what_is_read() {
     for (crs, want) in [
         ("UTM31", "PROJ string"),
         ("ESRI:999999", "ESRI codes"),
-        ("+proj=moll +lon_0=0 +datum=WGS84", "+proj=moll"),
+        ("+proj=moll +lon_0=0 +ellps=bessel +towgs84=1,2,3 +units=m", "+proj=moll"),
         ("EPSG:5773", "vertical"),
         ("missing.prj", "missing.prj"),
     ] {

@@ -493,7 +493,28 @@ fn user_defined_projection(keys: &mut GeoKeys, t: &Tokens, crs: &Crs) -> Result<
             d(keys, FALSE_EASTING, x0);
             d(keys, FALSE_NORTHING, y0);
         }
-        other => return Err(format!("{crs}: +proj={other} has no GeoTIFF keys this build writes; give the output an EPSG CRS or one of tmerc, utm, lcc, aea, laea, aeqd, stere, sterea, merc, eqc, cass, poly, sinu, robin, gnom, ortho, mill, eqdc, cea, omerc")),
+        // GeoTIFF has no method keys for these: GDAL writes (and reads) them
+        // as an ESRI PE String citation, which carries the datum too.
+        "moll" | "eqearth" => {
+            // (Spherical methods: the ellipsoid is told by name, not by `Proj`.)
+            let on_wgs84 = t.get("datum") == Some("WGS84") || matches!(t.get("ellps"), Some("WGS84" | "GRS80"));
+            let shifted = t.get("towgs84").is_some_and(|s| s.split(',').any(|v| v.parse::<f64>() != Ok(0.0))) || t.get("nadgrids").is_some();
+            if !on_wgs84 || shifted || unit != 9001 {
+                return Err(format!("{crs}: +proj={proj} is written (as GDAL does) only on WGS84 or GRS80 and in metres; give the output an EPSG CRS"));
+            }
+            // As GDAL writes it: the model user-defined, no projection keys.
+            keys.set(MODEL_TYPE, GeoKeyValue::Short(USER_DEFINED));
+            keys.0.retain(|(k, _)| !matches!(*k, PROJECTED_TYPE | PROJECTION));
+            let method = if proj == "moll" { "Mollweide" } else { "Equal_Earth" };
+            let name: String = crs.to_string().chars().filter(|c| *c != '"' && *c != '[' && *c != ']').take(80).collect();
+            keys.set(
+                PCS_CITATION,
+                GeoKeyValue::Ascii(format!(
+                    "ESRI PE String = PROJCS[\"{name}\",GEOGCS[\"GCS_WGS_1984\",DATUM[\"D_WGS_1984\",SPHEROID[\"WGS_1984\",6378137.0,298.257223563]],PRIMEM[\"Greenwich\",0.0],UNIT[\"Degree\",0.0174532925199433]],PROJECTION[\"{method}\"],PARAMETER[\"False_Easting\",{x0:?}],PARAMETER[\"False_Northing\",{y0:?}],PARAMETER[\"Central_Meridian\",{lon0:?}],UNIT[\"Meter\",1.0]]"
+                )),
+            );
+        }
+        other => return Err(format!("{crs}: +proj={other} has no GeoTIFF keys this build writes; give the output an EPSG CRS or one of tmerc, utm, lcc, aea, laea, aeqd, stere, sterea, merc, eqc, cass, poly, sinu, robin, gnom, ortho, mill, eqdc, cea, omerc, moll, eqearth")),
     }
     Ok(())
 }
@@ -547,8 +568,8 @@ mod tests {
 
     #[test]
     fn projections_without_keys_are_refused_by_name() {
-        let c = Crs::parse("+proj=moll +lon_0=0 +datum=WGS84", Path::new(".")).unwrap();
-        assert!(keys_of(&c).unwrap_err().contains("+proj=moll"));
+        let c = Crs::parse("+proj=geos +h=35785831 +lon_0=0 +datum=WGS84", Path::new(".")).unwrap();
+        assert!(keys_of(&c).unwrap_err().contains("+proj=geos"));
     }
 
     #[test]
