@@ -715,18 +715,21 @@ impl ZBuffer {
             if lo > hi {
                 continue;
             }
-            let row = y as usize * self.w;
-            // z = a + db·wb + dc·wc, linear in x along the row.
+            let (row, lo, hi) = (y as usize * self.w, lo as usize, hi as usize);
+            // z = a + db·wb + dc·wc, linear in x along the row. (The row's
+            // slices and an f64 counter: no bounds check nor unsigned
+            // conversion a sample, the fill's cost.)
             let z0 = a.2 + db * pb + dc * pc;
             let dz = db * qb + dc * qc;
-            for x in lo as usize..=hi as usize {
-                let z = (z0 + dz * x as f64) as f32;
-                let k = row + x;
-                if z > self.z[k] {
-                    self.z[k] = z;
-                    self.tri[k] = id;
+            let mut x = lo as f64;
+            for (zk, tk) in self.z[row + lo..=row + hi].iter_mut().zip(&mut self.tri[row + lo..=row + hi]) {
+                let z = (z0 + dz * x) as f32;
+                if z > *zk {
+                    *zk = z;
+                    *tk = id;
                     drawn = true;
                 }
+                x += 1.0;
             }
         }
         if drawn {
