@@ -4,7 +4,6 @@
 
 use super::{Compression, OutputSpec, SampleType};
 use crate::error::{Error, Result};
-use tiff::encoder::compression::{CompressionAlgorithm, Lzw};
 
 /// Applies the predictor and compression to one chunk (chunky,
 /// native-endian samples, whole rows of the chunk width). Consumes the
@@ -52,9 +51,12 @@ pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>, valid: Option<&[u8]>) -
         }
         Compression::Lzw => {
             // Room for tiles that hardly compress (overviews of detailed
-            // scenes), without growing the buffer.
+            // scenes), without growing the buffer. Straight into it: weezl's
+            // stream interface (the tiff crate's) takes a 16 MiB buffer for
+            // every tile, 50 MiB past the budget with two threads.
             let mut out = Vec::with_capacity(tile.len() + 1024);
-            Lzw.write_to(&mut out, &tile).map_err(io)?;
+            let mut lzw = weezl::encode::Encoder::with_tiff_size_switch(weezl::BitOrder::Msb, 8);
+            lzw.into_vec(&mut out).encode_all(&tile).status.map_err(|e| io(std::io::Error::other(e)))?;
             out
         }
         Compression::Zstd => {
