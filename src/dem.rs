@@ -5,7 +5,7 @@
 use crate::error::{Error, Result};
 use crate::geodesy::{Crs, Reprojection};
 use crate::geom::{floor_split, Plane};
-use crate::io::chunk_cache::ChunkCache;
+use crate::io::cached_raster::{CachedRaster, Rescale};
 use crate::io::chunked_raster::ChunkedRaster;
 use crate::io::geotiff::{read_georef, GeoRef};
 use std::path::{Path, PathBuf};
@@ -36,7 +36,7 @@ pub enum Miss {
 /// into a bounded cache (large DEMs: a 1 m DEM of 20×20 km is 1.6 GB).
 enum Samples {
     Memory(Vec<f32>),
-    Chunked(ChunkedSamples),
+    Chunked(CachedRaster),
     /// Tiles of a VRT or a folder, each read as a DEM of its own.
     Mosaic(mosaic::Mosaic),
     /// An SRTM `.hgt` tile: big-endian Int16 in the mapped file, so that
@@ -48,75 +48,6 @@ enum Samples {
 #[inline]
 fn hgt_at(m: &memmap2::Mmap, k: usize) -> f32 {
     i16::from_be_bytes([m[2 * k], m[2 * k + 1]]) as f32
-}
-
-/// Out-of-core samples: the file's strips or tiles, decoded on demand.
-struct ChunkedSamples {
-    raster: ChunkedRaster,
-    cache: std::sync::Mutex<ChunkCache<f32>>,
-    rescale: Option<Rescale>,
-}
-
-/// Stored values to heights by the band's scale and offset (GDAL's
-/// metadata); the stored nodata value becomes NaN first.
-#[derive(Clone, Copy)]
-struct Rescale {
-    scale: f64,
-    offset: f64,
-    nodata: Option<f64>,
-}
-
-impl Rescale {
-    fn apply(&self, v: &mut [f32]) {
-        for s in v {
-            *s = if s.is_nan() || self.nodata == Some(*s as f64) { f32::NAN } else { (*s as f64 * self.scale + self.offset) as f32 };
-        }
-    }
-}
-
-impl ChunkedSamples {
-    fn chunk(&self, k: usize) -> Option<std::sync::Arc<Vec<f32>>> {
-        if let Some(c) = self.cache.lock().ok()?.get(k) {
-            return Some(c);
-        }
-        let mut v = self.raster.chunk(k).ok()?;
-        if let Some(r) = self.rescale {
-            r.apply(&mut v);
-        }
-        let v = std::sync::Arc::new(v);
-        self.cache.lock().ok()?.put(k, v.clone());
-        Some(v)
-    }
-
-    /// Sample (i, j); NaN when its chunk cannot be read.
-    fn get(&self, i: usize, j: usize) -> f32 {
-        let (cw, ch) = self.raster.chunk;
-        let (tx, ty) = (i / cw, j / ch);
-        match self.chunk(ty * self.raster.across() + tx) {
-            // Chunks come at their full width (strips span the image).
-            Some(c) => c.get((j - ty * ch) * cw + (i - tx * cw)).copied().unwrap_or(f32::NAN),
-            None => f32::NAN,
-        }
-    }
-
-    /// Samples (i0, j0), (i1, j0), (i0, j1), (i1, j1): from one look into
-    /// the cache where the four share a chunk (all but the cells on a
-    /// chunk's edge). Four looks (lock, hash, reference count) for each
-    /// bilinear height took ~9 % of a 1 GiB RPC run's CPU time.
-    fn corners(&self, i0: usize, j0: usize, i1: usize, j1: usize) -> [f32; 4] {
-        let (cw, ch) = self.raster.chunk;
-        let (tx, ty) = (i0 / cw, j0 / ch);
-        if i1 / cw != tx || j1 / ch != ty {
-            return [self.get(i0, j0), self.get(i1, j0), self.get(i0, j1), self.get(i1, j1)];
-        }
-        match self.chunk(ty * self.raster.across() + tx) {
-            Some(c) => {
-                let at = |i: usize, j: usize| c.get((j - ty * ch) * cw + (i - tx * cw)).copied().unwrap_or(f32::NAN);
-                [at(i0, j0), at(i1, j0), at(i0, j1), at(i1, j1)]
-            }
-            None => [f32::NAN; 4],
-        }
-    }
 }
 
 /// DEMs larger than this are read a chunk at a time.
@@ -402,7 +333,7 @@ impl GridDem {
             // At least four chunks: the corners of a cell may lie in four.
             let chunk_bytes = cw * ch * 4;
             let keep = (cache / chunk_bytes).max(4);
-            let chunked = ChunkedSamples { raster, cache: std::sync::Mutex::new(ChunkCache::new(keep * chunk_bytes)), rescale };
+            let chunked = CachedRaster::new(raster, keep * chunk_bytes, rescale);
             let gt = geo.transform;
             let g = GridDem {
                 width: w as usize,

@@ -8,9 +8,14 @@
 //! tile at a time: a scene reads the few pages under it, also of a global
 //! grid at 1′ (900 MB).
 
-use crate::dem::GridDem;
 use crate::error::{Error, Result};
+use crate::io::cached_raster::{CachedRaster, Rescale};
+use crate::io::chunked_raster::ChunkedRaster;
+use crate::io::geotiff::read_georef;
 use std::path::{Path, PathBuf};
+
+/// GeoTIFF grids up to this size are read whole.
+const IN_MEMORY: u64 = 64 << 20;
 
 /// PROJ's "no value" for `.gtx` grids.
 const GTX_NODATA: f32 = -88.8888;
@@ -38,13 +43,13 @@ enum Samples {
     Raster(Raster),
 }
 
-/// A GeoTIFF grid read as a DEM is (in memory, or a tile at a time).
+/// A large GeoTIFF grid, read a tile at a time (north row first; holes NaN).
 #[derive(Clone)]
-struct Raster(std::sync::Arc<GridDem>);
+struct Raster(std::sync::Arc<CachedRaster>);
 
 impl std::fmt::Debug for Raster {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Raster({}×{})", self.0.width, self.0.height)
+        write!(f, "Raster({}×{})", self.0.raster().width, self.0.raster().height)
     }
 }
 
@@ -55,14 +60,7 @@ impl Samples {
         match self {
             Samples::Owned(v) => v[k],
             Samples::Mapped(m) => f32::from_be_bytes(m[40 + 4 * k..44 + 4 * k].try_into().expect("4 bytes")),
-            Samples::Raster(Raster(g)) => {
-                let v = g.sample(k % cols, g.height - 1 - k / cols);
-                if g.is_nodata(v) {
-                    f32::NAN
-                } else {
-                    v
-                }
-            }
+            Samples::Raster(Raster(g)) => g.get(k % cols, g.raster().height - 1 - k / cols),
         }
     }
 }
@@ -72,7 +70,7 @@ impl Geoid {
     pub fn read(path: &Path) -> Result<Geoid> {
         let magic = crate::io::bounded_read::read_head(path, 4)?;
         if [b"II*\0", b"MM\0*", b"II+\0", b"MM\0+"].iter().any(|m| magic == m.as_slice()) {
-            return Geoid::read_geotiff(path);
+            return Geoid::read_geotiff(path, IN_MEMORY);
         }
         // The header says how large the grid is: a file of another size is
         // refused before it is read.
@@ -104,15 +102,29 @@ impl Geoid {
     /// A GeoTIFF grid (PROJ's form since PROJ 7): one band of undulations
     /// on WGS84 (or another geographic CRS on its ellipsoid) longitude and
     /// latitude, north-up.
-    fn read_geotiff(path: &Path) -> Result<Geoid> {
-        let g = GridDem::read_within(path, crate::dem::IN_MEMORY_LIMIT)?;
-        if let Some(crs) = &g.crs {
+    /// As [`Geoid::read`] for a GeoTIFF grid, holding it whole up to
+    /// `max_bytes`, else a tile at a time.
+    pub fn read_geotiff(path: &Path, max_bytes: u64) -> Result<Geoid> {
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let mut dec =
+            tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(|e| Error::from_tiff(path, e))?.with_limits(crate::io::format::decoder_limits());
+        let raster = ChunkedRaster::open(&mut dec, path)?;
+        let geo = read_georef(&mut dec, path)?.ok_or_else(|| Error::format(path, "a geoid grid without georeferencing (no ModelPixelScale/ModelTiepoint)"))?;
+        if let Some(crs) = super::geokeys::crs_of(&geo.keys).map_err(|m| Error::format(path, format!("its GeoTIFF keys: {m}")))? {
             if !crs.is_geographic() {
                 return Err(Error::format(path, format!("a geoid grid must be on longitude and latitude; its GeoTIFF keys say {crs}")));
             }
         }
-        let gt = g.transform;
-        let (cols, rows) = (g.width, g.height);
+        let gt = geo.transform;
+        if gt[2] != 0.0 || gt[4] != 0.0 || !(gt[1] > 0.0) || !(gt[5] < 0.0) {
+            return Err(Error::unsupported(path, format!("a geoid grid must be north-up (geotransform {gt:?})")));
+        }
+        let (cols, rows) = (raster.width, raster.height);
+        if cols < 2 || rows < 2 {
+            return Err(Error::format(path, format!("a geoid grid of {cols}×{rows} samples: at least 2×2 are needed")));
+        }
+        // Stored values to undulations, holes to NaN (as a .gtx's no-value).
+        let rescale = Rescale { scale: geo.scale_offset.map_or(1.0, |s| s.0), offset: geo.scale_offset.map_or(0.0, |s| s.1), nodata: geo.nodata };
         // Sample centres: the south-west one and the steps, as a .gtx says them.
         let (dlon, dlat) = (gt[1], -gt[5]);
         let lon0 = gt[0] + 0.5 * dlon;
@@ -124,7 +136,18 @@ impl Geoid {
             ));
         }
         let global = (dlon * cols as f64 - 360.0).abs() < dlon * 1.01;
-        Ok(Geoid { lat0, lon0, dlat, dlon, rows, cols, global, n: Samples::Raster(Raster(std::sync::Arc::new(g))), path: path.to_path_buf() })
+        let n = if (cols * rows) as u64 * 4 <= max_bytes {
+            // Small (a national grid, EGM96 at 15′): whole, south row first.
+            let mut v = raster.read_all()?;
+            rescale.apply(&mut v);
+            Samples::Owned(v.chunks_exact(cols).rev().flatten().copied().collect())
+        } else {
+            // A few tiles of cache: the lookups of a scene fall in a few.
+            let (cw, ch) = raster.chunk;
+            let cache = (16usize << 20).max(4 * cw * ch * 4);
+            Samples::Raster(Raster(std::sync::Arc::new(CachedRaster::new(raster, cache, Some(rescale)))))
+        };
+        Ok(Geoid { lat0, lon0, dlat, dlon, rows, cols, global, n, path: path.to_path_buf() })
     }
 
     /// A grid from the bytes of a `.gtx` file.

@@ -1,6 +1,7 @@
 //! Reading scans and rasters, writing the tiled GeoTIFF.
 
 pub mod bounded_read;
+pub mod cached_raster;
 pub mod chunk_cache;
 pub mod chunk_codec;
 pub mod chunked_raster;
