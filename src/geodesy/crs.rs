@@ -123,10 +123,10 @@ impl Crs {
         let n: u32 = code.trim().parse().map_err(|_| format!("ESRI:{code}: '{code}' is not an ESRI code"))?;
         let e = super::esri::lookup(n).ok_or_else(|| format!("ESRI:{n} is not a horizontal CRS in this build's table of ESRI codes (from PROJ's database)"))?;
         let mut proj4 = e.proj4.clone();
-        let given = ["+towgs84=", "+datum=", "+nadgrids="].iter().any(|k| proj4.contains(k));
-        let shift = if given { None } else { datum::shift_of(Some(&e.datum), None) };
-        if let Some(s) = &shift {
-            proj4.push_str(&format!(" {s}"));
+        if !names_datum_shift(&proj4) {
+            if let Some(s) = datum::shift_of(Some(&e.datum), None) {
+                proj4.push_str(&format!(" {s}"));
+            }
         }
         let mut crs = Crs::from_definition(&proj4, None).map_err(|m| format!("ESRI:{n}: {m}"))?;
         let d = Arc::get_mut(&mut crs.def).expect("just made");
@@ -153,7 +153,7 @@ impl Crs {
         })?;
         let proj = Proj::from_proj_string(s).map_err(|e| format!("'{s}': {e}"))?;
         let vertical = Vertical::from_proj4(s);
-        let datum_given = ["+towgs84=", "+datum=", "+nadgrids="].iter().any(|k| s.contains(k));
+        let datum_given = names_datum_shift(s);
         let (a, b) = proj.ellipse_parameters();
         let unknown_datum = (!datum_given && !datum::is_wgs84_compatible(a, b)).then(|| format!("ellipsoid a = {a} m"));
         Ok(Crs {
@@ -260,6 +260,11 @@ impl Crs {
     pub fn proj(&self) -> Result<Proj, String> {
         Proj::from_proj_string(&self.def.proj4).map_err(|e| format!("{}: {e}", self.def.label))
     }
+}
+
+/// Whether a PROJ definition says how its datum goes to WGS84.
+fn names_datum_shift(s: &str) -> bool {
+    ["+towgs84=", "+datum=", "+nadgrids="].iter().any(|k| s.contains(k))
 }
 
 /// A path rather than a definition: a file name ending in .prj or .wkt, or

@@ -68,13 +68,12 @@ impl Samples {
 impl Geoid {
     /// A `.gtx` or GeoTIFF geoid grid.
     pub fn read(path: &Path) -> Result<Geoid> {
-        let magic = crate::io::bounded_read::read_head(path, 4)?;
-        if [b"II*\0", b"MM\0*", b"II+\0", b"MM\0+"].iter().any(|m| magic == m.as_slice()) {
+        let head = crate::io::bounded_read::read_head(path, 40)?;
+        if [b"II*\0", b"MM\0*", b"II+\0", b"MM\0+"].iter().any(|m| head.starts_with(m.as_slice())) {
             return Geoid::read_geotiff(path, IN_MEMORY);
         }
         // The header says how large the grid is: a file of another size is
         // refused before it is read.
-        let head = crate::io::bounded_read::read_head(path, 40)?;
         let len = std::fs::metadata(path).map_err(|e| Error::io(path, e))?.len();
         if head.len() == 40 {
             let rows = i32::from_be_bytes(head[32..36].try_into().expect("4 bytes")) as i64;
@@ -101,9 +100,8 @@ impl Geoid {
 
     /// A GeoTIFF grid (PROJ's form since PROJ 7): one band of undulations
     /// on WGS84 (or another geographic CRS on its ellipsoid) longitude and
-    /// latitude, north-up.
-    /// As [`Geoid::read`] for a GeoTIFF grid, holding it whole up to
-    /// `max_bytes`, else a tile at a time.
+    /// latitude, north-up; held whole up to `max_bytes`, else read a tile
+    /// at a time.
     pub fn read_geotiff(path: &Path, max_bytes: u64) -> Result<Geoid> {
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
         let mut dec =

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 /// PROJ's grid folders, in the order it searches them.
-pub fn grid_dirs() -> Vec<PathBuf> {
+fn grid_dirs() -> Vec<PathBuf> {
     let user = std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".local/share/proj"));
     let set: Vec<PathBuf> = ["PROJ_DATA", "PROJ_LIB"].iter().filter_map(std::env::var_os).flat_map(|v| std::env::split_paths(&v).collect::<Vec<_>>()).collect();
     let system = if set.is_empty() { vec![PathBuf::from("/usr/local/share/proj"), PathBuf::from("/usr/share/proj")] } else { set };
