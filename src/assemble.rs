@@ -12,7 +12,7 @@ use crate::io::source::{SourceImage, Window};
 use crate::io::tiff_out::{
     decode_mask, encode_mask, encode_tile, folder_of, tiff_write_error, verify, Chunking, Compression, GeoTags, OutputSpec, PendingFile, TileWriter,
 };
-use crate::options::{codec_level, Overviews};
+use crate::options::{codec_level, overview_codec_level, Overviews};
 use crate::overview::{OverviewResampling, Pyramid, Quarter, Statistics, TileLayout, ValidBy};
 use rayon::prelude::*;
 use std::os::unix::fs::FileExt;
@@ -25,15 +25,23 @@ pub struct AssembleOptions {
     pub overview_resampling: OverviewResampling,
     pub cog: bool,
     /// The codec level of the overview tiles (the pieces' own tiles are
-    /// copied as they are).
+    /// copied as they are), unless `overview_level` is given.
     pub level: Option<u8>,
+    pub overview_level: Option<u8>,
     /// The JPEG quality of the overview tiles, for JPEG pieces.
     pub quality: Option<u8>,
 }
 
 impl Default for AssembleOptions {
     fn default() -> Self {
-        AssembleOptions { overviews: Overviews::Auto, overview_resampling: OverviewResampling::Average, cog: false, level: None, quality: None }
+        AssembleOptions {
+            overviews: Overviews::Auto,
+            overview_resampling: OverviewResampling::Average,
+            cog: false,
+            level: None,
+            overview_level: None,
+            quality: None,
+        }
     }
 }
 
@@ -147,6 +155,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
         chunking: Chunking::Tiles(tile),
         compression,
         level,
+        overview_level: overview_codec_level(compression, opts.overview_level)?,
         bigtiff: false,
         photometric: first.photometric,
         alpha: first.has_alpha,
@@ -219,7 +228,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
             let mut made = Vec::new();
             p.cascade(
                 finished,
-                |t| (encode_tile(&spec, t.pixels, Some(&t.valid)), spec.mask.then(|| encode_mask(&spec, &t.valid))),
+                |t| (encode_tile(&spec, t.level, t.pixels, Some(&t.valid)), spec.mask.then(|| encode_mask(&spec, &t.valid))),
                 |l, k, r| made.push((l, k, r)),
             );
             for (l, k, (image, mask)) in made {

@@ -737,6 +737,7 @@ mod tests {
             chunking: Chunking::Tiles(16),
             compression: Compression::Deflate,
             level: None,
+            overview_level: None,
             bigtiff: false,
             photometric: 1,
             alpha: false,

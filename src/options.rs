@@ -204,6 +204,20 @@ pub fn codec_level(compression: Compression, level: Option<u8>, quality: Option<
     }
 }
 
+/// `--overview-level` checked against the codec: the levels `level`
+/// takes; JPEG's overviews keep the full level's quality.
+pub fn overview_codec_level(compression: Compression, level: Option<u8>) -> Result<Option<u8>> {
+    let Some(l) = level else { return Ok(None) };
+    let name = format!("{compression:?}").to_lowercase();
+    let why = match compression.levels() {
+        _ if compression == Compression::Jpeg => "jpeg overviews take the full level's quality (--quality)".to_string(),
+        None => format!("{name} compression has no levels"),
+        Some((r, _)) if !r.contains(&l) => format!("{name} takes {} to {}", r.start(), r.end()),
+        Some(_) => return Ok(Some(l)),
+    };
+    Err(Error::setting("overview_level", format!("{l}: {why}")))
+}
+
 /// Which overview levels a tiled output gets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -416,6 +430,8 @@ pub struct RectifyOptions {
     pub compress: Compression,
     /// The codec's level (`None`: its default).
     pub level: Option<u8>,
+    /// The overview tiles' level (`None`: `level`, else the fastest).
+    pub overview_level: Option<u8>,
     /// JPEG's quality (`None`: its default).
     pub quality: Option<u8>,
     pub bigtiff: BigTiff,
@@ -518,6 +534,7 @@ impl RectifyOptions {
             return Err(Error::setting("like", "gives the grid: drop the GSD and bounds"));
         }
         self.codec_level()?;
+        self.overview_codec_level()?;
         if self.occlusion != Occlusion::None && !matches!(self.dem, DemSource::File(_)) {
             return Err(Error::setting("occlusion", "needs a DSM to see buildings on (a constant height hides nothing)"));
         }
@@ -538,6 +555,11 @@ impl RectifyOptions {
     /// The output codec's level or quality (`None`: its default), checked.
     pub fn codec_level(&self) -> Result<Option<u8>> {
         codec_level(self.compress, self.level, self.quality)
+    }
+
+    /// The overview tiles' codec level (`None`: see `overview_level`), checked.
+    pub fn overview_codec_level(&self) -> Result<Option<u8>> {
+        overview_codec_level(self.compress, self.overview_level)
     }
 
     /// The files the run reads, each with what it is.
@@ -604,6 +626,7 @@ impl RectifyOptions {
             band_order: BandOrder::Auto,
             compress: Compression::Deflate,
             level: None,
+            overview_level: None,
             quality: None,
             bigtiff: BigTiff::Auto,
             overviews: Overviews::Auto,
@@ -660,9 +683,10 @@ mod tests {
         for (compression, level, ok) in [
             (Compression::Deflate, 1, true),
             (Compression::Deflate, 12, true),
-            (Compression::Deflate, 0, false),
+            (Compression::Deflate, 0, true),
             (Compression::Deflate, 13, false),
             (Compression::Zstd, 22, true),
+            (Compression::Zstd, 0, false),
             (Compression::Zstd, 23, false),
             (Compression::Lzw, 1, false),
             (Compression::None, 1, false),

@@ -269,3 +269,63 @@ fn batch_writes_cogs_and_their_overviews_as_the_manifest_says() {
     assert!(!r.status.success());
     assert!(String::from_utf8_lossy(&r.stderr).contains("overviews"), "{}", String::from_utf8_lossy(&r.stderr));
 }
+
+/// Overview tiles are coded at their own level: by default deflate's
+/// fastest coder (level 0), at `--overview-level` when given, at `--level`
+/// when only that is; the pixels are the same whichever (lossless), the
+/// file's size is not, GDAL's validator takes each as a COG, and a level a
+/// codec does not take is refused by name.
+#[test]
+fn overview_tiles_are_coded_at_their_own_level_with_the_same_pixels() {
+    if python_with("osgeo.gdal", "python3-gdal").is_none() {
+        eprintln!("skipped: GDAL's Python bindings are not installed (apt-get install python3-gdal)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene(&d.join("s"), 900, |o| o.kappa_deg = 35.0);
+    let made = |name: &str, extra: &[&str]| {
+        let out = d.join(name);
+        rectify(&sc, &sc.scan, &out, extra);
+        out
+    };
+    let fastest = made("fastest.tif", &["--cog"]);
+    let tight = made("tight.tif", &["--cog", "--overview-level", "9"]);
+    let level1 = made("level1.tif", &["--cog", "--overview-level", "1"]);
+    let both9 = made("both9.tif", &["--cog", "--level", "9"]);
+    let full9 = made("full9.tif", &["--cog", "--level", "9", "--overview-level", "0"]);
+    let size = |p: &Path| std::fs::metadata(p).unwrap().len();
+    for f in [&fastest, &tight, &level1, &both9, &full9] {
+        assert_eq!(python(VALIDATE, &[s(f)]), "[]", "{}", f.display());
+        assert!(python(SAME_LEVELS, &[s(&fastest), s(f)]).parse::<u32>().unwrap() > 2);
+    }
+    // Tighter levels make smaller overviews; the full level's bytes stay.
+    assert!(size(&tight) < size(&level1) && size(&level1) < size(&fastest), "{} {} {}", size(&tight), size(&level1), size(&fastest));
+    // `--level` alone sets the overviews' level too: as the full level at 9
+    // with overviews at 9 is to the full level at 9 with the fastest ones.
+    assert!(size(&both9) < size(&full9));
+    assert_eq!(size(&fastest) - size(&tight), size(&full9) - size(&both9));
+    for (compress, level) in [("jpeg", "80"), ("lzw", "3"), ("deflate", "13"), ("zstd", "0")] {
+        let out = d.join("refused.tif");
+        let r = run(&[
+            "rectify",
+            "--image",
+            s(&sc.scan),
+            "--camera",
+            s(&sc.camera),
+            "--dem",
+            s(&sc.dem),
+            "-o",
+            s(&out),
+            "--quiet",
+            "--compress",
+            compress,
+            "--overview-level",
+            level,
+        ]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{compress} {level}: {err}");
+        assert!(err.contains("--overview-level") && err.lines().count() == 1, "{err}");
+        assert!(!out.exists());
+    }
+}

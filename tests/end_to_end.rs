@@ -189,6 +189,7 @@ fn a_dem_too_large_for_memory_is_read_in_chunks_with_the_same_result() {
         chunking: Chunking::Tiles(256),
         compression: Compression::Deflate,
         level: None,
+        overview_level: None,
         bigtiff: false,
         photometric: 1,
         alpha: false,

@@ -51,6 +51,8 @@ pub struct Options {
     pub tile: Option<u32>,
     pub compress: Option<String>,
     pub level: Option<u8>,
+    /// The overview tiles' level.
+    pub overview_level: Option<u8>,
     /// JPEG's quality (1–100).
     pub quality: Option<u8>,
     pub bigtiff: Option<String>,
@@ -90,6 +92,7 @@ impl Options {
             tile,
             compress,
             level,
+            overview_level,
             quality,
             bigtiff,
             overviews,
@@ -385,6 +388,9 @@ fn config(
         }
         if o.level.is_some() {
             c.level = o.level;
+        }
+        if o.overview_level.is_some() {
+            c.overview_level = o.overview_level;
         }
         if o.quality.is_some() {
             c.quality = o.quality;

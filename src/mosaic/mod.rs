@@ -271,6 +271,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         chunking: Chunking::Tiles(tile),
         compression: first.compress,
         level: first.codec_level()?,
+        overview_level: first.overview_codec_level()?,
         bigtiff: false,
         photometric: if im0.photometric == 2 && im0.bands >= 3 { 2 } else { 1 },
         alpha: false,

@@ -92,19 +92,25 @@ impl Pyramid {
         let (t, b) = (self.lay.tile, self.lay.bands);
         let px = b * self.lay.sample.bytes();
         let half = t / 2;
-        let mut pixels = vec![0u8; t * t * px];
-        let fill = fill_pixel(self.lay, self.fill);
-        for p in pixels.chunks_exact_mut(px) {
-            p.copy_from_slice(&fill);
-        }
-        let mut valid = vec![0u8; t * t];
-        for (s, q) in slots.iter().enumerate() {
-            let Some(q) = q else { continue };
-            let (qx, qy) = (s % 2 * half, s / 2 * half);
-            for y in 0..half {
-                let row = (qy + y) * t + qx;
-                pixels[row * px..(row + half) * px].copy_from_slice(&q.pixels[y * half * px..(y + 1) * half * px]);
-                valid[row..row + half].copy_from_slice(&q.valid[y * half..(y + 1) * half]);
+        // Row by row, each byte written once: the halves of a row from
+        // their quarters, or the fill where a quarter is missing.
+        let fill_row: Vec<u8> = fill_pixel(self.lay, self.fill).repeat(half);
+        let no_value = vec![0u8; half];
+        let mut pixels = Vec::with_capacity(t * t * px);
+        let mut valid = Vec::with_capacity(t * t);
+        for y in 0..t {
+            for q in &slots[y / half * 2..][..2] {
+                match q {
+                    Some(q) => {
+                        let r = y % half;
+                        pixels.extend_from_slice(&q.pixels[r * half * px..(r + 1) * half * px]);
+                        valid.extend_from_slice(&q.valid[r * half..(r + 1) * half]);
+                    }
+                    None => {
+                        pixels.extend_from_slice(&fill_row);
+                        valid.extend_from_slice(&no_value);
+                    }
+                }
             }
         }
         LevelTile { level: l, k, pixels, valid }
@@ -167,6 +173,7 @@ mod tests {
             chunking: Chunking::Tiles(4),
             compression: Compression::Deflate,
             level: None,
+            overview_level: None,
             bigtiff: false,
             photometric: 1,
             alpha: false,

@@ -288,6 +288,7 @@ impl RunPlan {
             chunking: Chunking::Tiles(tile),
             compression: opts.compress,
             level: opts.codec_level()?,
+            overview_level: opts.overview_codec_level()?,
             bigtiff: false,
             photometric,
             alpha: opts.alpha || src.info.has_alpha,

@@ -21,6 +21,7 @@ pub fn write_error_map(path: &Path, map: &[f32], w: u32, h: u32, grid: &OutputGr
         chunking: Chunking::Tiles(256),
         compression: Compression::Deflate,
         level: None,
+        overview_level: None,
         bigtiff: false,
         photometric: 1,
         alpha: false,

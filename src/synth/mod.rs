@@ -396,6 +396,7 @@ fn write_dem(path: &std::path::Path, g: &GridDem) -> Result<()> {
         chunking: Chunking::Strips(16),
         compression: Compression::None,
         level: None,
+        overview_level: None,
         bigtiff: false,
         photometric: 1,
         alpha: false,
@@ -613,6 +614,7 @@ fn scan_spec(o: &SynthOptions) -> OutputSpec {
         chunking: if o.tiled { Chunking::Tiles(256) } else { Chunking::Strips(16) },
         compression: o.compress,
         level: None,
+        overview_level: None,
         bigtiff: false,
         photometric: if o.bands >= 3 { 2 } else { 1 },
         alpha: false,
@@ -631,6 +633,7 @@ fn truth_spec(scan: &OutputSpec, grid: &crate::geom::OutputGrid) -> Result<Outpu
         chunking: Chunking::Tiles(256),
         compression: Compression::Deflate,
         level: None,
+        overview_level: None,
         geo: Some(GeoTags {
             x0: grid.x0,
             y0: grid.y0,

@@ -219,6 +219,7 @@ pub fn plain_spec(
         chunking: Chunking::Strips(16),
         compression: Compression::None,
         level: None,
+        overview_level: None,
         bigtiff: false,
         photometric: 1,
         alpha: false,

@@ -6,10 +6,11 @@ use super::{Compression, OutputSpec, SampleType};
 use crate::error::{Error, Result};
 
 /// Applies the predictor and compression to one chunk (chunky,
-/// native-endian samples, whole rows of the chunk width). Consumes the
+/// native-endian samples, whole rows of the chunk width) of level `l`
+/// (0: full resolution), at that level's codec level. Consumes the
 /// buffer. `valid` (1 where a pixel has a value, under a mask) lets JPEG
 /// fill the pixels without one from their neighbours first.
-pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>, valid: Option<&[u8]>) -> Result<Vec<u8>> {
+pub fn encode_tile(spec: &OutputSpec, l: u32, mut tile: Vec<u8>, valid: Option<&[u8]>) -> Result<Vec<u8>> {
     if spec.predictor() == 2 {
         let per_row = spec.chunk().0 as usize * spec.bands as usize;
         let b = spec.bands as usize;
@@ -41,7 +42,7 @@ pub fn encode_tile(spec: &OutputSpec, mut tile: Vec<u8>, valid: Option<&[u8]>) -
         }
     }
     let io = |e: std::io::Error| Error::Usage(format!("tile compression failed: {e}"));
-    let level = spec.compression.level_or_default(spec.level);
+    let level = spec.level_of(l);
     Ok(match spec.compression {
         Compression::None => tile,
         Compression::Deflate => {
@@ -256,8 +257,17 @@ const MASK_LEVEL: u8 = 6;
 /// `bytes` as a zlib stream (deflate with the Adler-32 check, as TIFF's
 /// compression 8 holds it), by libdeflate at `level` (1–12): at level 1
 /// far tighter than zlib's fastest, above it as tight as zlib and faster
-/// (docs/BENCHMARKS.md).
+/// (docs/BENCHMARKS.md); at 0 by fdeflate, the fastest.
 pub fn zlib(bytes: &[u8], level: u8) -> Vec<u8> {
+    if level == 0 {
+        // Its one table is trained on predicted image rows: on bytes unlike
+        // them (floats, noise) it can come out larger than they are.
+        let z = fdeflate::compress_to_vec(bytes);
+        if z.len() <= bytes.len() {
+            return z;
+        }
+        return zlib(bytes, 1);
+    }
     thread_local! {
         /// A compressor per thread and level: making one allocates its
         /// hash tables.
@@ -351,6 +361,7 @@ mod tests {
                 chunking: super::super::Chunking::Tiles(32),
                 compression: Compression::Jpeg,
                 level: Some(80),
+                overview_level: None,
                 bigtiff: false,
                 photometric: if bands == 3 { 2 } else { 1 },
                 alpha: false,
@@ -361,7 +372,7 @@ mod tests {
             };
             let pixels: Vec<u8> = (0..spec.tile_bytes()).map(|i| ((i * 37) % 199 + (i / 96) % 40) as u8).collect();
             let whole = jpeg_stream(&spec, &pixels, 80).unwrap();
-            let tile = encode_tile(&spec, pixels.clone(), None).unwrap();
+            let tile = encode_tile(&spec, 0, pixels.clone(), None).unwrap();
             let tables = jpeg_tables(&spec).unwrap();
             assert!(tile.len() + 250 < whole.len(), "the tables are not in the tile");
             let mut joined = tables[..tables.len() - 2].to_vec();
@@ -377,12 +388,30 @@ mod tests {
     #[test]
     fn every_deflate_level_round_trips_through_zlib() {
         let bytes: Vec<u8> = (0..200_000u32).map(|i| ((i * 7919) % 251 / 9 + (i / 1000) % 7) as u8).collect();
-        for level in [1, 2, 6, 12] {
+        for level in [0, 1, 2, 6, 12] {
             let z = zlib(&bytes, level);
             let mut back = Vec::new();
             flate2::read::ZlibDecoder::new(&z[..]).read_to_end(&mut back).unwrap();
             assert!(back == bytes, "level {level}");
             assert!(z.len() < bytes.len() / 4, "level {level}: {} bytes", z.len());
         }
+    }
+
+    /// Level 0 (fdeflate) on what it is for, rows of a photograph after the
+    /// predictor: small differences around zero. Decodes by zlib, within
+    /// a quarter of level 1's size.
+    #[test]
+    fn level_zero_codes_predicted_rows_nearly_as_tight_as_level_one() {
+        let mut state = 12345u32;
+        let mut noise = || {
+            state = state.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            (state >> 16) % 9
+        };
+        let bytes: Vec<u8> = (0..300_000).map(|_| (noise() as u8).wrapping_sub(4)).collect();
+        let (z0, z1) = (zlib(&bytes, 0), zlib(&bytes, 1));
+        let mut back = Vec::new();
+        flate2::read::ZlibDecoder::new(&z0[..]).read_to_end(&mut back).unwrap();
+        assert!(back == bytes);
+        assert!(z0.len() * 4 < z1.len() * 5, "{} vs level 1's {}", z0.len(), z1.len());
     }
 }

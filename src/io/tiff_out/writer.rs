@@ -445,7 +445,7 @@ pub fn write_raster(path: &Path, spec: &OutputSpec, produce: impl Fn(u32, u32, &
                         let s = y * row_bytes + x0 as usize * pb;
                         t[y * cw as usize * pb..][..n].copy_from_slice(&band[s..s + n]);
                     }
-                    encode_tile(spec, t, None)
+                    encode_tile(spec, 0, t, None)
                 })
                 .collect();
             for t in tiles {

@@ -82,7 +82,7 @@ pub fn tiles(run: &Output, made: Made, free: &crossbeam_channel::Sender<Raw>, bu
             run.pool.install(|| {
                 (0..n)
                     .into_par_iter()
-                    .map(|k| (encode_tile(spec, bytes[k * tb..(k + 1) * tb].to_vec(), valid_of(k)).map(Tile::Owned), mask(k), summary(k, bytes)))
+                    .map(|k| (encode_tile(spec, 0, bytes[k * tb..(k + 1) * tb].to_vec(), valid_of(k)).map(Tile::Owned), mask(k), summary(k, bytes)))
                     .collect()
             })
         });
@@ -122,7 +122,7 @@ fn overview_tiles(run: &Output, pyramid: &mut Pyramid, finished: Vec<LevelTile>,
                 finished,
                 |t| {
                     let mask = spec.mask.then(|| encode_mask(spec, &t.valid));
-                    (encode_tile(spec, t.pixels, Some(&t.valid)), mask)
+                    (encode_tile(spec, t.level, t.pixels, Some(&t.valid)), mask)
                 },
                 |l, k, (tile, mask)| {
                     out.push(tile.map(|t| (spec.chunk_index(l, k, false), Tile::Owned(t))).map_err(|e| run.stop.fail(e)));
