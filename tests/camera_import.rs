@@ -60,7 +60,7 @@ fn orthority_geojson_as_it_writes_it() {
 
 #[test]
 fn the_portrait_reading_of_focal_len_is_warned_about() {
-    let set = formats::read(&fixture("orthority/int_param.yaml"), None).unwrap();
+    let set = formats::read(&fixture("orthority/int_param.yaml"), None, None).unwrap();
     assert_eq!(set.lenses.len(), 5);
     assert!(set.warnings.iter().any(|w| w.contains("portrait cam") && w.contains("width")), "{:?}", set.warnings);
     // pinhole with sensor_size: fx = 120·150/75, fy = 121·200/100; the
@@ -74,7 +74,7 @@ fn the_portrait_reading_of_focal_len_is_warned_about() {
 #[test]
 fn latitude_longitude_with_roll_pitch_yaw_as_orthority_converts_them() {
     let csv = "orthority/ext_lla_rpy.csv";
-    let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&fixture(csv))).unwrap();
+    let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&fixture(csv)), None).unwrap();
     // No .prj: the UTM zone of the positions' mean (longitude 16.3°).
     assert_eq!(set.crs.as_deref(), Some("EPSG:32633"));
     let pose = |n: &str| set.poses.iter().find(|p| p.name == n).unwrap();
@@ -97,7 +97,7 @@ fn latitude_longitude_with_roll_pitch_yaw_as_orthority_converts_them() {
 
 #[test]
 fn an_image_finds_its_pose_by_name_with_or_without_extension() {
-    let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&fixture("orthority/ext_param.csv"))).unwrap();
+    let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&fixture("orthority/ext_param.csv")), None).unwrap();
     let at = |image: &str| set.camera_for(Path::new(image)).map(|c| c.exterior.unwrap().position);
     assert_eq!(at("/data/img_a.tif").unwrap(), [500100.0, 4100200.0, 700.0]);
     assert_eq!(at("img_a.jpg").unwrap(), [500100.0, 4100200.0, 700.0], "by the stem");
@@ -112,7 +112,7 @@ fn an_image_finds_its_pose_by_name_with_or_without_extension() {
     std::fs::write(dir.path().join("twice.prj"), "EPSG:32633").unwrap();
     let one = dir.path().join("one.yaml");
     std::fs::write(&one, "cam:\n  type: pinhole\n  im_size: [640, 480]\n  focal_len: 0.8\n").unwrap();
-    let set = formats::read(&one, Some(&twice)).unwrap();
+    let set = formats::read(&one, Some(&twice), None).unwrap();
     assert!(set.camera_for(Path::new("img1.tif")).is_ok(), "the exact file name wins");
     let e = set.camera_for(Path::new("img1.png")).unwrap_err().to_string();
     assert!(e.contains("2 exterior orientations match") && e.contains("twice.csv:2") && e.contains("twice.csv:3"), "{e}");
@@ -134,7 +134,7 @@ fn csv_dialects_users_write() {
         let path = dir.path().join(name);
         std::fs::write(&path, text).unwrap();
         std::fs::write(path.with_extension("prj"), "EPSG:32633").unwrap();
-        let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&path)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&path), None).unwrap_or_else(|e| panic!("{name}: {e}"));
         let p = &set.poses[0];
         assert_eq!((p.name.trim_end_matches(".tif").trim_end_matches(".JPG"), p.position), ("img1", [1.0, 2.0, 3.0]), "{name}");
         let opk = AngleConvention::OmegaPhiKappa.angles(&p.r).map(f64::to_degrees);
@@ -151,15 +151,15 @@ fn bad_files_are_refused_by_name() {
         p
     };
     let unknown = write("int.yaml", "cam:\n  type: brown\n  im_size: [640, 480]\n  focal_len: 0.8\n  k9: 0.1\n");
-    let e = formats::read(&unknown, None).unwrap_err().to_string();
+    let e = formats::read(&unknown, None, None).unwrap_err().to_string();
     assert!(e.contains("int.yaml") && e.contains("cam.k9") && e.contains("unknown"), "{e}");
 
     let tilt = write("tilt.yaml", "cam:\n  type: opencv\n  im_size: [640, 480]\n  focal_len: 0.8\n  tx: 0.01\n");
-    let e = formats::read(&tilt, None).unwrap_err().to_string();
+    let e = formats::read(&tilt, None, None).unwrap_err().to_string();
     assert!(e.contains("cam.tx") && e.contains("tilted"), "{e}");
 
     let not_number = write("bad.csv", "filename,x,y,z,omega,phi,kappa\nimg1,1,2,x,0,0,0\n");
-    let e = formats::read(&fixture("orthority/int_param.yaml"), Some(&not_number)).unwrap_err().to_string();
+    let e = formats::read(&fixture("orthority/int_param.yaml"), Some(&not_number), None).unwrap_err().to_string();
     assert!(e.contains("bad.csv") && e.contains("line 2") && e.contains("z is not a number"), "{e}");
 
     // Omega/phi/kappa need the CRS they are in; without a .prj it is refused
@@ -171,7 +171,7 @@ fn bad_files_are_refused_by_name() {
     assert!(e.contains("crs") && e.contains(".prj") && e.contains("--crs"), "{e}");
 
     let json = write("other.json", "{\"a\": 1}");
-    let e = formats::read(&json, None).unwrap_err().to_string();
+    let e = formats::read(&json, None, None).unwrap_err().to_string();
     assert!(e.contains("other.json") && e.contains("OpenSfM"), "{e}");
 }
 
@@ -180,7 +180,7 @@ fn opensfm_shots_in_the_topocentric_frame_are_placed_rigorously() {
     // Outside an OpenDroneMap project: east-north-up metres at reference_lla,
     // through geocentric coordinates into its UTM zone (the centre computed
     // independently with PROJ: ENU → ECEF → EPSG:32633).
-    let set = formats::read(&fixture("opensfm/reconstruction.json"), None).unwrap();
+    let set = formats::read(&fixture("opensfm/reconstruction.json"), None, None).unwrap();
     assert_eq!(set.crs.as_deref(), Some("EPSG:32633"));
     let p = &set.poses[0];
     assert_eq!(p.name, "img_o.jpg");
@@ -204,7 +204,7 @@ fn opendronemap_reconstructions_are_utm_less_an_offset() {
     let text = std::fs::read_to_string(fixture("opensfm/reconstruction.json")).unwrap();
     std::fs::write(dir.path().join("reconstruction.json"), &text).unwrap();
     std::fs::write(dir.path().join("reconstruction.topocentric.json"), &text).unwrap();
-    let set = formats::read(&dir.path().join("reconstruction.json"), None).unwrap();
+    let set = formats::read(&dir.path().join("reconstruction.json"), None, None).unwrap();
     let p = &set.poses[0];
     let expected = [657651.7031179434, 4984920.645428927, 250.85553169477427];
     for k in 0..3 {
@@ -298,11 +298,100 @@ fn opensfm_radial_cameras_carry_their_principal_point() {
         r#"{"cam": {"projection_type": "radial", "width": 800, "height": 600, "focal_x": 0.9, "focal_y": 0.91, "c_x": 0.01, "c_y": -0.02, "k1": -0.05, "k2": 0.01}}"#,
     )
     .unwrap();
-    let set = formats::read(&file, None).unwrap();
+    let set = formats::read(&file, None, None).unwrap();
     let (_, lens) = &set.lenses[0];
     assert_eq!(lens.focal_px, [720.0, 728.0]);
     // (w − 1)/2 + 800·0.01 = 407.5, (h − 1)/2 − 800·0.02 = 283.5; + ½ ours.
     assert!((lens.principal_point_px[0] - 408.0).abs() < 1e-12 && (lens.principal_point_px[1] - 284.0).abs() < 1e-12, "{:?}", lens.principal_point_px);
     let b = lens.distortion.brown.unwrap();
     assert_eq!((b.k1, b.k2, b.p1, b.p2), (-0.05, 0.01, 0.0, 0.0));
+}
+
+/// Pix4D's calibrated camera parameters of a real project (EasyIDP's maize
+/// field, DJI FC550): the camera as the file's P-matrix (`K [R | −Rt]`, in
+/// the project's local frame, the offset beside) images the ground, to
+/// the P-matrix's printed precision; the lens is OpenCV's Brown with
+/// p1, p2 = T1, T2 (as Pix4D's own tools map them); the `.cam` in mm gives
+/// the same lens on the image's 4608 pixels.
+#[test]
+fn pix4d_calibrated_parameters_image_the_ground_as_their_p_matrix() {
+    let dir = fixture("pix4d");
+    let ccp = dir.join("maize_calibrated_camera_parameters.txt");
+    let set = formats::read(&ccp, None, None).unwrap();
+    let mut file = set.camera_for(Path::new("DJI_0954.JPG")).unwrap();
+    let brown = file.distortion.as_ref().and_then(|d| d.brown).expect("Brown's model");
+    assert_eq!(
+        [brown.k1, brown.k2, brown.k3, brown.p1, brown.p2],
+        ["0.03833474118270804865", "-0.01750917966495743258", "0.02049798716391852335", "0.00240851666319534747", "0.00292562392135245920"]
+            .map(|v| v.parse::<f64>().unwrap())
+    );
+    // The P-matrix leaves the lens out.
+    file.distortion = None;
+    file.crs = "EPSG:32654".into();
+    let cam = file.build(&ccp).unwrap();
+    let p: Vec<f64> = std::fs::read_to_string(dir.join("maize_pmatrix.txt")).unwrap().split_whitespace().skip(1).map(|v| v.parse().unwrap()).collect();
+    let offset = [368009.0, 3955854.0, 97.0];
+    let mut seen = 0;
+    for local in [[0.0, 0.0, 0.0], [25.0, -35.0, 1.0], [15.0, -20.0, -0.5], [30.0, -25.0, 0.3]] {
+        let x = [local[0], local[1], local[2], 1.0];
+        let m: Vec<f64> = (0..3).map(|i| (0..4).map(|j| p[4 * i + j] * x[j]).sum()).collect();
+        let (want_c, want_r) = (m[0] / m[2], m[1] / m[2]);
+        let (c, r) = cam.model().project(local[0] + offset[0], local[1] + offset[1], local[2] + offset[2]).expect("imaged");
+        assert!((c - want_c).abs() < 0.02 && (r - want_r).abs() < 0.02, "{local:?}: ({c}, {r}) vs the P-matrix's ({want_c}, {want_r})");
+        seen += usize::from((0.0..4608.0).contains(&c) && (0.0..3456.0).contains(&r));
+    }
+    assert!(seen >= 3, "the points lie in the frame");
+    // The .cam (mm) on an image 4608 × 3456 px: the same lens.
+    let tmp = tempfile::tempdir().unwrap();
+    let image = tmp.path().join("DJI_0954.tif");
+    write_blank_tiff(&image, 4608, 3456);
+    let cam_file = formats::read(&dir.join("maize_pix4d_calibrated_internal_camera_parameters.cam"), None, Some(&image)).unwrap();
+    let (mm, px) = (&cam_file.lenses[0].1, &set.lenses[0].1);
+    for (a, b) in [(mm.focal_px[0], px.focal_px[0]), (mm.principal_point_px[0], px.principal_point_px[0]), (mm.principal_point_px[1], px.principal_point_px[1])]
+    {
+        assert!((a - b).abs() < 1e-6, "{a} vs {b}");
+    }
+    assert_eq!(mm.distortion, px.distortion);
+    // Without the image its pixels are unknown: refused by name.
+    let e = formats::read(&dir.join("maize_pix4d_calibrated_internal_camera_parameters.cam"), None, None).unwrap_err().to_string();
+    assert!(e.contains("maize_pix4d_calibrated_internal_camera_parameters.cam") && e.contains("mm"), "{e}");
+}
+
+/// The two Pix4D files of one real image (a Nikon frame): the calibrated
+/// camera parameters' R (world → OpenCV camera) and the external
+/// parameters' ω, φ, κ (Pix4D's convention, read as any exterior CSV) are
+/// one rotation, to the digits the external file prints; the calibrated
+/// file used as the lens with the external file as the poses needs no
+/// offset; a calibrated file without its offset is refused by name.
+#[test]
+fn pix4d_calibrated_and_external_parameters_agree() {
+    let dir = fixture("pix4d");
+    let ccp = dir.join("nikon_calibrated_camera_parameters.txt");
+    let ext = dir.join("nikon_calibrated_external_camera_parameters.txt");
+    let image = Path::new("DSC_0157.JPG");
+    let alone = formats::read(&ccp, None, None).unwrap().camera_for(image).unwrap();
+    let with_ext = formats::read(&ccp, Some(&ext), None).unwrap().camera_for(image).unwrap();
+    let (a, b) = (alone.exterior.unwrap(), with_ext.exterior.unwrap());
+    let ra = a.convention.matrix(a.angles_deg.map(f64::to_radians));
+    let rb = b.convention.matrix(b.angles_deg.map(f64::to_radians));
+    // ω, φ, κ printed to 1e-6°: 2e-8 rad.
+    assert!((ra - rb).abs().max() < 5e-8, "{ra} vs {rb}");
+    for i in 0..3 {
+        assert!((a.position[i] - b.position[i]).abs() < 1e-6, "{:?} vs {:?}", a.position, b.position);
+    }
+    assert_eq!(alone.interior, with_ext.interior);
+    // The same calibrated file away from its offset.
+    let tmp = tempfile::tempdir().unwrap();
+    let lone = tmp.path().join("p_calibrated_camera_parameters.txt");
+    std::fs::copy(&ccp, &lone).unwrap();
+    let e = formats::read(&lone, None, None).unwrap_err().to_string();
+    assert!(e.contains("p_calibrated_camera_parameters.txt") && e.contains("offset.xyz") && e.contains("--exterior"), "{e}");
+    assert!(formats::read(&lone, Some(&ext), None).is_ok());
+}
+
+/// A grey 8-bit TIFF of `w`×`h` zeros, deflated (small on disk).
+fn write_blank_tiff(path: &Path, w: u32, h: u32) {
+    let f = std::fs::File::create(path).unwrap();
+    let mut enc = tiff::encoder::TiffEncoder::new(f).unwrap().with_compression(tiff::encoder::Compression::Deflate(tiff::encoder::DeflateLevel::Fast));
+    enc.write_image::<tiff::encoder::colortype::Gray8>(w, h, &vec![0u8; (w * h) as usize]).unwrap();
 }

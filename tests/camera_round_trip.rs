@@ -257,7 +257,7 @@ fn a_metashape_export_reads_as_the_camera_it_describes() {
     for (reference, label) in [(UTM31_WKT, "scan"), (WGS84_WKT, "C:\\flights\\day1\\scan.tif")] {
         let xml = dir.path().join("cameras.xml");
         std::fs::write(&xml, metashape_xml(&truth_file, (W, H), reference, label)).unwrap();
-        let set = gcm_ortho::camera::formats::read(&xml, None).unwrap();
+        let set = gcm_ortho::camera::formats::read(&xml, None, None).unwrap();
         assert!(set.warnings.iter().any(|w| w.contains("1 of 2 cameras are not aligned")), "{:?}", set.warnings);
         let cam = Camera::read_for(&sc.scan, &xml, None, None).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(cam.crs.epsg(), Some(32631), "a geographic chunk goes to its UTM zone");
@@ -299,7 +299,7 @@ fn metashape_exports_we_cannot_use_are_refused_by_name() {
     for (name, text, want) in cases {
         let xml = dir.path().join(format!("{name}.xml"));
         std::fs::write(&xml, text).unwrap();
-        let e = gcm_ortho::camera::formats::read(&xml, None).map(|_| ()).err().unwrap_or_else(|| panic!("{name}: read")).to_string();
+        let e = gcm_ortho::camera::formats::read(&xml, None, None).map(|_| ()).err().unwrap_or_else(|| panic!("{name}: read")).to_string();
         assert!(e.contains(&format!("{name}.xml")) && e.contains(want), "{name}: {e}");
     }
 }

@@ -209,7 +209,7 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         let line = line_of(&text, b.span().start);
         let b = b.get_ref();
         let exterior = b.exterior.as_deref().map(&rel);
-        match crate::camera::formats::read(&rel(&b.interior), exterior.as_deref()).and_then(|set| set.all()) {
+        match crate::camera::formats::read(&rel(&b.interior), exterior.as_deref(), None).and_then(|set| set.all()) {
             Ok(cams) => {
                 for (name, cam, origin) in cams {
                     let image = rel(&image_of(&b.images, &name));

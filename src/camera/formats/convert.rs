@@ -64,7 +64,7 @@ pub fn convert(o: &ConvertOptions) -> Result<Converted> {
     if exif && o.images.is_empty() {
         return Err(Error::Usage("--camera exif: name the images".into()));
     }
-    let mut set = if exif { Default::default() } else { super::read(&o.camera, o.exterior.as_deref())? };
+    let mut set = if exif { Default::default() } else { super::read(&o.camera, o.exterior.as_deref(), o.images.first().map(PathBuf::as_path))? };
     let mut entries = Vec::new();
     if !o.images.is_empty() {
         for image in &o.images {

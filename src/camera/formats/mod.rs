@@ -7,6 +7,9 @@
 //!   GeoJSON) — [`orthority`];
 //! * OpenSfM / OpenDroneMap: `reconstruction.json` (cameras and shots) and
 //!   `cameras.json` — [`opensfm`];
+//! * Metashape's camera XML — [`metashape`];
+//! * Pix4D's calibrated camera parameters and `.cam` — [`pix4d`] (its
+//!   external parameters are an exterior CSV);
 //! * our own camera file (TOML) as the interior, with a list of poses.
 //!
 //! Each reader yields lenses (by camera id) and poses (by image name). An
@@ -21,6 +24,7 @@ pub mod exif;
 pub mod metashape;
 pub mod opensfm;
 pub mod orthority;
+pub mod pix4d;
 
 use super::distortion::{Brown, Fisheye, OpenCv};
 use super::file::{CameraFile, CameraSection, DistortionSection, ExteriorSection, InteriorSection, PixelSize};
@@ -197,6 +201,10 @@ pub struct Imported {
     /// A drone's height above its take-off point, where its tags give one
     /// (a check of the absolute height against the DEM).
     pub relative_altitude: Option<f64>,
+    /// The lens each image was calibrated with (image name, lens id), where
+    /// the lenses' file says so: poses from another file that name no
+    /// camera take it by their image's name.
+    pub lens_of_image: Vec<(String, String)>,
 }
 
 /// What a file holds, by its content.
@@ -210,6 +218,8 @@ pub enum Kind {
     OpenSfmReconstruction,
     OpenSfmCameras,
     MetashapeXml,
+    Pix4dCalibrated,
+    Pix4dCam,
 }
 
 impl Kind {
@@ -224,6 +234,8 @@ impl Kind {
             Kind::OpenSfmReconstruction => "OpenSfM reconstruction",
             Kind::OpenSfmCameras => "OpenSfM cameras",
             Kind::MetashapeXml => "Metashape cameras (XML)",
+            Kind::Pix4dCalibrated => "Pix4D calibrated camera parameters",
+            Kind::Pix4dCam => "Pix4D internal camera parameters (.cam)",
         }
     }
 }
@@ -241,6 +253,12 @@ pub fn detect(path: &Path, text: &str) -> Result<Kind> {
     }
     if toml::from_str::<toml::Table>(t).is_ok_and(|table| table.contains_key("camera") || table.contains_key("crs")) {
         return Ok(Kind::Ours);
+    }
+    if pix4d::looks_like_cam(t) {
+        return Ok(Kind::Pix4dCam);
+    }
+    if pix4d::looks_like_calibrated(t) {
+        return Ok(Kind::Pix4dCalibrated);
     }
     if orthority::looks_like_interior(t) {
         return Ok(Kind::OrthorityInterior);
@@ -272,7 +290,7 @@ pub fn is_exif(camera: &Path) -> bool {
 /// (positions in `crs`, default their UTM zone), else [`read`].
 pub fn read_for(image: &Path, camera: &Path, exterior: Option<&Path>, crs: Option<&Crs>) -> Result<Imported> {
     if !is_exif(camera) {
-        return read(camera, exterior);
+        return read(camera, exterior, Some(image));
     }
     if let Some(e) = exterior {
         return Err(Error::unsupported(e, "--camera exif takes the position from the image: give a camera file with --exterior"));
@@ -281,11 +299,17 @@ pub fn read_for(image: &Path, camera: &Path, exterior: Option<&Path>, crs: Optio
 }
 
 /// Reads a camera file (`--camera`) and, where given, a pose file
-/// (`--exterior`) into one set.
-pub fn read(camera: &Path, exterior: Option<&Path>) -> Result<Imported> {
-    let mut set = read_one(camera)?;
+/// (`--exterior`) into one set; `image`, where known, gives the pixels of
+/// a lens given in mm only (Pix4D's `.cam`).
+pub fn read(camera: &Path, exterior: Option<&Path>, image: Option<&Path>) -> Result<Imported> {
+    let mut set = read_one(camera, exterior.is_some(), image)?;
     if let Some(e) = exterior {
-        let poses = read_one(e)?;
+        let mut poses = read_one(e, false, image)?;
+        let stem = |n: &str| Path::new(n).file_stem().and_then(|s| s.to_str()).unwrap_or(n).to_string();
+        for p in poses.poses.iter_mut().filter(|p| p.camera.is_none()) {
+            let named = set.lens_of_image.iter().find(|(n, _)| *n == p.name).or_else(|| set.lens_of_image.iter().find(|(n, _)| stem(n) == stem(&p.name)));
+            p.camera = named.map(|(_, id)| id.clone());
+        }
         if poses.poses.is_empty() {
             return Err(Error::format(e, "holds no exterior orientations"));
         }
@@ -304,7 +328,8 @@ pub fn read(camera: &Path, exterior: Option<&Path>) -> Result<Imported> {
     Ok(set)
 }
 
-fn read_one(path: &Path) -> Result<Imported> {
+/// One file; `for_lenses` when another gives the poses.
+fn read_one(path: &Path, for_lenses: bool, image: Option<&Path>) -> Result<Imported> {
     let text = read_text_bounded(path, "a camera or pose file", SMALL * 64)?;
     // A byte-order mark (Windows editors) is no part of any of these forms.
     let text = text.trim_start_matches('\u{feff}');
@@ -318,6 +343,17 @@ fn read_one(path: &Path) -> Result<Imported> {
         Kind::OrthorityGeoJson => orthority::read_geojson(path, text)?,
         Kind::OpenSfmReconstruction | Kind::OpenSfmCameras => opensfm::read(path, text)?,
         Kind::MetashapeXml => metashape::read(path, text)?,
+        Kind::Pix4dCalibrated => pix4d::read_calibrated(path, text, for_lenses)?,
+        Kind::Pix4dCam => {
+            let image = image.ok_or_else(|| {
+                Error::unsupported(
+                    path,
+                    "gives the lens in mm, whose pixels come from the image: give it per image, or take the calibrated_camera_parameters.txt",
+                )
+            })?;
+            let info = crate::io::source::SourceImage::info_of(image)?;
+            pix4d::read_cam(path, text, [info.width, info.height])?
+        }
     };
     set.files.push(path.to_path_buf());
     Ok(set)
