@@ -223,6 +223,7 @@ pub enum GcpRefine {
     Auto,
     Shift,
     Affine,
+    Interior,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -577,8 +578,10 @@ pub struct RectifyArgs {
     /// corrected in image space; a frame camera's pose by resection.
     #[arg(long)]
     pub gcps: Option<PathBuf>,
-    /// An RPC's bias model: auto (affine with 3 or more GCPs, else a
-    /// shift), shift, affine.
+    /// auto: an RPC's bias (affine with 3 or more GCPs, else a shift), a
+    /// frame camera's pose (interior fixed); shift, affine (RPC); interior:
+    /// a frame camera's pose, focal length and principal point (5 or more
+    /// GCPs spread in height).
     #[arg(long, value_enum, default_value_t = GcpRefine::Auto, requires = "gcps")]
     pub gcp_refine: GcpRefine,
     /// The most any GCP may sit off the refined model, image pixels: past
@@ -722,6 +725,7 @@ impl RectifyArgs {
                 GcpRefine::Auto => BiasModel::Auto,
                 GcpRefine::Shift => BiasModel::Shift,
                 GcpRefine::Affine => BiasModel::Affine,
+                GcpRefine::Interior => BiasModel::Interior,
             };
             o.gcps = Some(gcm_ortho::options::GcpOptions { file: file.clone(), model, max_residual: self.gcp_max_residual });
         }

@@ -253,3 +253,80 @@ fn batch_jobs_take_their_images_gcps() {
     let e = String::from_utf8_lossy(&r.stderr);
     assert!(!r.status.success() && e.contains("gcp_refine"), "{e}");
 }
+
+/// `--gcp-refine interior`: a drone frame whose calibration is off (focal
+/// length 1 %, principal point 6 and −4 px) and whose pose is rough is
+/// recovered — focal length, principal point and pose — from twelve GCPs
+/// spread over the frame and in height; GCPs at one height under a camera
+/// looking straight down cannot tell focal length from flying height, and
+/// are refused by name.
+#[test]
+fn a_frame_cameras_interior_is_recovered_with_its_pose() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = common::drone_scene(dir.path(), (600, 400), 12_000.0);
+    let truth_file = CameraFile::read(&sc.camera).unwrap();
+    let truth = Camera::read(&sc.camera).unwrap();
+    let f_true = truth_file.camera.focal_length_mm.unwrap();
+    let pp_true = truth_file.interior.as_ref().unwrap().principal_point_px.unwrap();
+    let perturb = |mut file: CameraFile| {
+        file.camera.focal_length_mm = Some(f_true * 1.01);
+        let i = file.interior.as_mut().unwrap();
+        i.principal_point_px = Some([pp_true[0] + 6.0, pp_true[1] - 4.0]);
+        let ext = file.exterior.as_mut().unwrap();
+        ext.position = [ext.position[0] + 2.0, ext.position[1] - 1.5, ext.position[2] + 1.0];
+        ext.angles_deg = [ext.angles_deg[0] + 0.2, ext.angles_deg[1] - 0.1, ext.angles_deg[2] + 0.3];
+        file
+    };
+    let gcp_set = |truth: &Camera, crs: &str, height: &dyn Fn(usize) -> f64, name: &str| {
+        let mut csv = String::from("id,col,row,x,y,z\n");
+        let mut k = 0;
+        for j in 0..3 {
+            for i in 0..4 {
+                let (c, r) = (40.0 + 173.0 * i as f64, 40.0 + 160.0 * j as f64);
+                let z = height(k);
+                let (x, y) = gcm_ortho::camera::locate(truth.model(), c, r, z, 1e-9).unwrap();
+                let noise = [0.03, -0.02, 0.01, -0.03][k % 4];
+                csv += &format!("{k},{},{},{x},{y},{z}\n", c + noise, r - noise);
+                k += 1;
+            }
+        }
+        let file = dir.path().join(format!("{name}.csv"));
+        std::fs::write(&file, csv).unwrap();
+        std::fs::write(dir.path().join(format!("{name}.prj")), crs).unwrap();
+        gcm_ortho::camera::gcp::read(&file, &sc.scan).map(|g| (g, file)).unwrap()
+    };
+    let crs = truth_file.crs.clone();
+    let (gcps, file) = gcp_set(&truth, &crs, &|k| 150.0 + 20.0 * (k % 4) as f64 + 5.0 * (k / 4) as f64, "spread");
+    let mut cam = perturb(truth_file.clone()).build(&sc.camera).unwrap();
+    // The pose alone cannot take up the calibration's error.
+    let mut pose_only = perturb(truth_file.clone()).build(&sc.camera).unwrap();
+    let pose_fit = refine(&mut pose_only, &gcps, BiasModel::Auto, 50.0, &file).unwrap();
+    let fit = refine(&mut cam, &gcps, BiasModel::Interior, 1.0, &file).unwrap();
+    assert_eq!(fit.method, "resection with interior");
+    assert!(fit.rms_after < 0.05 && pose_fit.rms_after > 4.0 * fit.rms_after, "{fit:?} vs pose only {pose_fit:?}");
+    let gcm_ortho::camera::file::Sensor::Frame(f) = &cam.sensor else { panic!("a frame camera") };
+    assert!((f.focal_mm / f_true - 1.0).abs() < 1e-3, "focal {} vs {f_true}", f.focal_mm);
+    let pp = f.interior.principal_point_px();
+    assert!((pp[0] - pp_true[0]).hypot(pp[1] - pp_true[1]) < 0.5, "{pp:?} vs {pp_true:?}");
+    let mut worst = 0f64;
+    for j in 0..=8 {
+        for i in 0..=12 {
+            let (c, r) = (i as f64 * 50.0, j as f64 * 50.0);
+            let z = 150.0 + 10.0 * ((i + j) % 4) as f64;
+            let (x, y) = gcm_ortho::camera::locate(truth.model(), c, r, z, 1e-9).unwrap();
+            let (c2, r2) = cam.model().project(x, y, z).unwrap();
+            worst = worst.max((c2 - c).hypot(r2 - r));
+        }
+    }
+    assert!(worst < 0.15, "{worst} px from the true camera");
+    // Straight down over GCPs at one height: refused, naming the file.
+    let mut nadir_file = truth_file.clone();
+    let ext = nadir_file.exterior.as_mut().unwrap();
+    ext.angles_deg = [0.0, 0.0, ext.angles_deg[2]];
+    nadir_file.distortion = None;
+    let nadir = nadir_file.clone().build(&sc.camera).unwrap();
+    let (flat, flat_file) = gcp_set(&nadir, &crs, &|_| 150.0, "flat");
+    let mut off = perturb(nadir_file).build(&sc.camera).unwrap();
+    let e = refine(&mut off, &flat, BiasModel::Interior, 1.0, &flat_file).unwrap_err().to_string();
+    assert!(e.contains("flat.csv") && e.contains("focal length"), "{e}");
+}

@@ -353,7 +353,8 @@ fn config(
                 "auto" => BiasModel::Auto,
                 "shift" => BiasModel::Shift,
                 "affine" => BiasModel::Affine,
-                other => return Err(Error::setting("gcp_refine", format!("'{other}' (expected auto, shift or affine)"))),
+                "interior" => BiasModel::Interior,
+                other => return Err(Error::setting("gcp_refine", format!("'{other}' (expected auto, shift, affine or interior)"))),
             };
             let max_residual = o.gcp_max_residual.unwrap_or(2.0);
             if !(max_residual.is_finite() && max_residual > 0.0) {

@@ -5,7 +5,9 @@
 //!   2003): a shift, or an affine map with three or more points;
 //! * a frame camera's exterior orientation by space resection (least
 //!   squares on the collinearity of every point, the interior fixed), with
-//!   three or more points.
+//!   three or more points; or with the focal length and the principal
+//!   point too (`--gcp-refine interior`), with five or more points at
+//!   heights that tell focal length from flying height.
 //!
 //! Files: Orthority's GCP GeoJSON (features with `ji` — pixel centres at
 //! integers — `filename`, `id`, and a point in WGS 84 longitude, latitude,
@@ -47,6 +49,8 @@ pub enum BiasModel {
     Auto,
     Shift,
     Affine,
+    /// A frame camera: its pose, focal length and principal point.
+    Interior,
 }
 
 /// What a refinement did: each point's residual before and after (image
@@ -158,10 +162,10 @@ pub fn refine(camera: &mut Camera, gcps: &[Gcp], model: BiasModel, max_residual:
     let fit = match &mut camera.sensor {
         Sensor::Rpc(rpc) => refine_rpc(rpc, gcps, model, source)?,
         Sensor::Frame(f) => {
-            if model != BiasModel::Auto {
-                return Err(Error::setting("gcp_refine", "shift and affine refine an RPC; a frame camera's pose is refined by resection"));
+            if matches!(model, BiasModel::Shift | BiasModel::Affine) {
+                return Err(Error::setting("gcp_refine", "shift and affine refine an RPC; a frame camera's pose is refined by resection (auto, or interior)"));
             }
-            let (refined, fit) = resection(f, gcps, &camera.crs, source)?;
+            let (refined, fit) = resection(f, gcps, &camera.crs, model == BiasModel::Interior, source)?;
             *f = refined;
             fit
         }
@@ -187,6 +191,9 @@ fn rms(v: &[[f64; 2]]) -> f64 {
 }
 
 fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasModel, source: &Path) -> Result<GcpFit> {
+    if model == BiasModel::Interior {
+        return Err(Error::setting("gcp_refine", "interior refines a frame camera; an RPC's bias is a shift or an affine map"));
+    }
     let mut predicted = Vec::new();
     for g in gcps {
         let z = if g.ellipsoidal { rpc.dem_height(g.lon, g.lat, g.height) } else { Some(g.height) };
@@ -198,7 +205,7 @@ fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasMo
     let affine = match model {
         BiasModel::Affine => true,
         BiasModel::Shift => false,
-        BiasModel::Auto => gcps.len() >= 3,
+        BiasModel::Auto | BiasModel::Interior => gcps.len() >= 3,
     };
     if affine && gcps.len() < 3 {
         return Err(Error::format(source, format!("{} GCPs: an affine bias needs 3 or more (or --gcp-refine shift)", gcps.len())));
@@ -235,12 +242,17 @@ fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasMo
     Ok(fit)
 }
 
-/// Space resection: the exterior orientation that best images `gcps`,
-/// from the camera's own as the first guess (Gauss–Newton on the centre
-/// and a small rotation, the interior fixed).
-fn resection(f: &FrameCamera, gcps: &[Gcp], crs: &Crs, source: &Path) -> Result<(FrameCamera, GcpFit)> {
-    if gcps.len() < 3 {
-        return Err(Error::format(source, format!("{} GCPs: a resection needs 3 or more", gcps.len())));
+/// Space resection: the exterior orientation (with `interior`, also the
+/// focal length and principal point) that best images `gcps`, from the
+/// camera's own as the first guess (Gauss–Newton on the centre, a small
+/// rotation and the interior's changes). A solution the points do not fix
+/// — the interior from points near one plane seen square-on, where focal
+/// length and flying height trade off — is refused.
+fn resection(f: &FrameCamera, gcps: &[Gcp], crs: &Crs, interior: bool, source: &Path) -> Result<(FrameCamera, GcpFit)> {
+    let least = if interior { 5 } else { 3 };
+    if gcps.len() < least {
+        let what = if interior { "a resection with the interior" } else { "a resection" };
+        return Err(Error::format(source, format!("{} GCPs: {what} needs {least} or more", gcps.len())));
     }
     let ground = GroundCrs::new(crs).map_err(|m| Error::format(source, m))?;
     let points: Vec<Vector3<f64>> = gcps
@@ -252,52 +264,107 @@ fn resection(f: &FrameCamera, gcps: &[Gcp], crs: &Crs, source: &Path) -> Result<
                 .ok_or_else(|| Error::format(source, format!("GCP {}: outside {crs}", g.id)))
         })
         .collect::<Result<_>>()?;
-    let camera_at =
-        |c: Vector3<f64>, r: nalgebra::Matrix3<f64>| FrameCamera::new(f.focal_mm, c, r, f.interior.clone(), f.distortion, f.refraction, f.earth_curvature);
+    // The unknowns' current values: centre, rotation, focal length (mm),
+    // principal point's move (px).
+    struct State {
+        c: Vector3<f64>,
+        r: nalgebra::Matrix3<f64>,
+        focal: f64,
+        pp: [f64; 2],
+    }
+    let camera_at = |s: &State| FrameCamera::new(s.focal, s.c, s.r, f.interior.with_principal_point_moved(s.pp), f.distortion, f.refraction, f.earth_curvature);
     let residuals = |cam: &FrameCamera| -> Option<Vec<[f64; 2]>> {
         points.iter().zip(gcps).map(|(p, g)| cam.project(p.x, p.y, p.z).map(|(c, r)| [g.col - c, g.row - r])).collect()
     };
+    let left_view = || Error::format(source, "the resection left the GCPs' view");
     let before = residuals(f).ok_or_else(|| Error::format(source, "a GCP is behind the camera or off its lens model"))?;
-    let (mut c, mut r) = (f.centre, f.r);
+    let mut s = State { c: f.centre, r: f.r, focal: f.focal_mm, pp: [0.0, 0.0] };
+    let unknowns = if interior { 9 } else { 6 };
+    let moved = |s: &State, d: &[f64]| State {
+        c: s.c + Vector3::new(d[0], d[1], d[2]),
+        r: AngleConvention::OmegaPhiKappa.matrix([d[3], d[4], d[5]]) * s.r,
+        focal: s.focal + d.get(6).copied().unwrap_or(0.0),
+        pp: [s.pp[0] + d.get(7).copied().unwrap_or(0.0), s.pp[1] + d.get(8).copied().unwrap_or(0.0)],
+    };
     let mut current = before.clone();
     let scale = f.centre.z.abs().max(1.0) * 1e-6;
+    let n = points.len();
+    let mut j = DMatrix::<f64>::zeros(2 * n, unknowns);
     for _ in 0..30 {
-        let step_of = |k: usize, h: f64| -> (Vector3<f64>, nalgebra::Matrix3<f64>) {
-            let mut d = [0.0; 6];
+        for k in 0..unknowns {
+            let h = match k {
+                0..=2 => scale.max(1e-3),
+                3..=5 => 1e-7,
+                6 => f.focal_mm * 1e-7,
+                _ => 1e-4,
+            };
+            let mut d = vec![0.0; unknowns];
             d[k] = h;
-            (c + Vector3::new(d[0], d[1], d[2]), AngleConvention::OmegaPhiKappa.matrix([d[3], d[4], d[5]]) * r)
-        };
-        let n = points.len();
-        let mut j = DMatrix::<f64>::zeros(2 * n, 6);
-        for k in 0..6 {
-            let h = if k < 3 { scale.max(1e-3) } else { 1e-7 };
-            let (ck, rk) = step_of(k, h);
-            let moved = residuals(&camera_at(ck, rk)).ok_or_else(|| Error::format(source, "the resection left the GCPs' view"))?;
+            let shifted = residuals(&camera_at(&moved(&s, &d))).ok_or_else(left_view)?;
             for i in 0..n {
-                j[(2 * i, k)] = -(moved[i][0] - current[i][0]) / h;
-                j[(2 * i + 1, k)] = -(moved[i][1] - current[i][1]) / h;
+                j[(2 * i, k)] = -(shifted[i][0] - current[i][0]) / h;
+                j[(2 * i + 1, k)] = -(shifted[i][1] - current[i][1]) / h;
             }
+        }
+        if interior {
+            fixes_interior(&j, source)?;
         }
         let e = DVector::from_iterator(2 * n, current.iter().flat_map(|d| [d[0], d[1]]));
         let delta = j.clone().svd(true, true).solve(&e, 1e-12).map_err(|_| Error::format(source, "the GCPs do not fix the camera's pose"))?;
-        c += Vector3::new(delta[0], delta[1], delta[2]);
-        r = AngleConvention::OmegaPhiKappa.matrix([delta[3], delta[4], delta[5]]) * r;
-        current = residuals(&camera_at(c, r)).ok_or_else(|| Error::format(source, "the resection left the GCPs' view"))?;
-        if delta.rows(0, 3).norm() < 1e-6 && delta.rows(3, 3).norm() < 1e-10 {
+        s = moved(&s, delta.as_slice());
+        current = residuals(&camera_at(&s)).ok_or_else(left_view)?;
+        if delta.rows(0, 3).norm() < 1e-6 && delta.rows(3, 3).norm() < 1e-10 && delta.rows(6, unknowns - 6).norm() < 1e-7 {
             break;
         }
     }
     // Re-orthonormalised: many small turns multiplied.
-    r = crate::geodesy::ecef::nearest_rotation(&r).unwrap_or(r);
-    let refined = camera_at(c, r);
-    let after = residuals(&refined).ok_or_else(|| Error::format(source, "the resection left the GCPs' view"))?;
-    let opk = AngleConvention::OmegaPhiKappa.angles(&r).map(f64::to_degrees);
+    s.r = crate::geodesy::ecef::nearest_rotation(&s.r).unwrap_or(s.r);
+    let refined = camera_at(&s);
+    let after = residuals(&refined).ok_or_else(left_view)?;
+    let opk = AngleConvention::OmegaPhiKappa.angles(&s.r).map(f64::to_degrees);
+    let mut correction = format!("centre ({:.3}, {:.3}, {:.3}), omega-phi-kappa ({:.5}°, {:.5}°, {:.5}°)", s.c.x, s.c.y, s.c.z, opk[0], opk[1], opk[2]);
+    if interior {
+        let pp = refined.interior.principal_point_px();
+        correction += &format!(
+            ", focal length {:.4} mm (was {:.4}), principal point ({:.2}, {:.2}) px (moved {:+.2}, {:+.2})",
+            s.focal, f.focal_mm, pp[0], pp[1], s.pp[0], s.pp[1]
+        );
+    }
     let fit = GcpFit {
-        method: "resection".into(),
+        method: if interior { "resection with interior" } else { "resection" }.into(),
         points: gcps.iter().zip(before.iter().zip(&after)).map(|(g, (b, a))| GcpResidual { id: g.id.clone(), before: *b, after: *a }).collect(),
         rms_before: rms(&before),
         rms_after: rms(&after),
-        correction: format!("centre ({:.3}, {:.3}, {:.3}), omega-phi-kappa ({:.5}°, {:.5}°, {:.5}°)", c.x, c.y, c.z, opk[0], opk[1], opk[2]),
+        correction,
     };
     Ok((refined, fit))
+}
+
+/// The least ratio of the smallest to the largest singular value of the
+/// column-scaled Jacobian at which a resection with the interior is taken.
+const INTERIOR_CONDITION: f64 = 1e-4;
+
+/// Refuses a Jacobian `j` (residuals by pose and interior) whose columns,
+/// each scaled to unit length, leave a near-zero singular value: a
+/// combination of changes the points cannot see.
+fn fixes_interior(j: &DMatrix<f64>, source: &Path) -> Result<()> {
+    let mut scaled = j.clone();
+    for mut col in scaled.column_iter_mut() {
+        let norm = col.norm();
+        if norm > 0.0 {
+            col /= norm;
+        }
+    }
+    let sv = scaled.singular_values();
+    let ratio = sv.min() / sv.max();
+    if ratio > INTERIOR_CONDITION {
+        return Ok(());
+    }
+    Err(Error::format(
+        source,
+        format!(
+            "the GCPs do not fix the focal length and principal point apart from the pose (condition {:.0e}): they need to spread in height over the frame (or keep the interior fixed: --gcp-refine auto)",
+            1.0 / ratio
+        ),
+    ))
 }

@@ -169,6 +169,22 @@ impl InteriorOrientation {
         Self::from_affine(Affine2 { m, t: Vector2::new(principal_point_px[0], principal_point_px[1]) }, Vec::new())
     }
 
+    /// The same orientation with the principal point `d` pixels further
+    /// (a calibration refined by resection).
+    #[must_use]
+    pub fn with_principal_point_moved(&self, d: [f64; 2]) -> Self {
+        let mut to_px = self.to_px;
+        to_px.t += Vector2::new(d[0], d[1]);
+        let to_mm = to_px.inverse().expect("a translation keeps the map regular");
+        InteriorOrientation { to_px, to_mm, residuals: self.residuals.clone() }
+    }
+
+    /// The principal point, pixels.
+    #[must_use]
+    pub fn principal_point_px(&self) -> [f64; 2] {
+        [self.to_px.t.x, self.to_px.t.y]
+    }
+
     /// Photo mm (relative to the principal point) → scan pixel.
     #[inline]
     pub fn mm_to_px(&self, x: f64, y: f64) -> (f64, f64) {
