@@ -386,7 +386,8 @@ pub struct MosaicArgs {
     /// --like raster's)
     #[arg(long)]
     pub crs: Option<String>,
-    /// Radiometric balancing from the overlaps: none, gain, or gain-offset
+    /// Radiometric balancing from the overlaps: none, gain, gain-offset, or
+    /// gain-offset-vignetting (also each image's radial falloff)
     #[arg(long, default_value = "gain-offset", value_parser = choice::<Balance>())]
     pub balance: Balance,
     /// Seamlines: least-cost (moved onto the cheapest path through the

@@ -1,7 +1,10 @@
 //! Radiometric balancing: per image and band a gain and an offset, solved
 //! by least squares from the overlaps' statistics on the plan's cells, so
 //! that overlapping images agree in mean (and, with offsets, in spread),
-//! anchored so that the block keeps its overall mean and spread.
+//! anchored so that the block keeps its overall mean and spread. With
+//! `gain-offset-vignetting`, also a radial falloff in each image's frame
+//! (terms in ρ² and ρ⁴, ρ the distance from the scan's centre over its
+//! half-diagonal), solved cell by cell from the overlaps.
 
 use super::plan::Plan;
 use nalgebra::{DMatrix, DVector};
@@ -13,29 +16,54 @@ pub enum Balance {
     None,
     Gain,
     GainOffset,
+    GainOffsetVignetting,
 }
 
 impl crate::options::Choice for Balance {
-    const NAMES: &'static [&'static str] = &["none", "gain", "gain-offset"];
+    const NAMES: &'static [&'static str] = &["none", "gain", "gain-offset", "gain-offset-vignetting"];
     fn from_name(name: &str) -> Option<Self> {
-        [Balance::None, Balance::Gain, Balance::GainOffset].into_iter().zip(Self::NAMES).find(|(_, n)| **n == name).map(|(b, _)| b)
+        [Balance::None, Balance::Gain, Balance::GainOffset, Balance::GainOffsetVignetting]
+            .into_iter()
+            .zip(Self::NAMES)
+            .find(|(_, n)| **n == name)
+            .map(|(b, _)| b)
     }
 }
 
-/// One image's correction: `v' = gain · v + offset`, per band.
+/// One image's correction, per band:
+/// `v' = gain · v + radial[0] · v · ρ² + radial[1] · v · ρ⁴ + offset`
+/// (ρ: the pixel's distance from the scan's centre over its
+/// half-diagonal; `radial` empty without the vignetting term).
 #[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct Correction {
     pub gain: Vec<f64>,
     pub offset: Vec<f64>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub radial: Vec<[f64; 2]>,
 }
 
 impl Correction {
     pub fn identity(bands: usize) -> Correction {
-        Correction { gain: vec![1.0; bands], offset: vec![0.0; bands] }
+        Correction { gain: vec![1.0; bands], offset: vec![0.0; bands], radial: Vec::new() }
     }
 
     pub fn is_identity(&self) -> bool {
-        self.gain.iter().all(|&g| g == 1.0) && self.offset.iter().all(|&o| o == 0.0)
+        self.gain.iter().all(|&g| g == 1.0) && self.offset.iter().all(|&o| o == 0.0) && !self.has_radial()
+    }
+
+    /// Does it depend on where in the scan a pixel was seen?
+    pub fn has_radial(&self) -> bool {
+        self.radial.iter().any(|r| r[0] != 0.0 || r[1] != 0.0)
+    }
+
+    /// Value `v` of `band` seen at `rho2` (ρ²) corrected.
+    #[inline]
+    pub fn apply(&self, band: usize, v: f64, rho2: f64) -> f64 {
+        let mut out = self.gain[band] * v + self.offset[band];
+        if let Some([b, e]) = self.radial.get(band) {
+            out += v * rho2 * (b + e * rho2);
+        }
+        out
     }
 }
 
@@ -61,6 +89,27 @@ impl Sums {
 const MIN_CELLS: f64 = 16.0;
 /// Weight of each image's pull towards no correction, against one overlap's.
 const PRIOR: f64 = 0.01;
+
+/// Refuses a balance whose dense system for `images` images would take
+/// more than a quarter of `memory` (the vignetting balance: four
+/// unknowns an image).
+pub fn check_fits(mode: Balance, images: usize, memory: u64) -> crate::error::Result<()> {
+    let per = match mode {
+        Balance::GainOffsetVignetting => 4,
+        _ => return Ok(()),
+    };
+    let bytes = (per * images).pow(2) as u64 * 8;
+    if bytes <= memory / 4 {
+        return Ok(());
+    }
+    Err(crate::error::Error::setting(
+        "balance",
+        format!(
+            "gain-offset-vignetting for {images} images solves a system of {} MiB, more than a quarter of --memory: take gain-offset, or more --memory",
+            bytes >> 20
+        ),
+    ))
+}
 
 /// The corrections of `mode` for every image of the plan.
 pub fn solve(plan: &Plan, mode: Balance) -> Vec<Correction> {
@@ -102,6 +151,9 @@ pub fn solve(plan: &Plan, mode: Balance) -> Vec<Correction> {
     if pairs.is_empty() {
         return out;
     }
+    if mode == Balance::GainOffsetVignetting {
+        return solve_radial(plan, &pairs, out);
+    }
     let offsets = mode == Balance::GainOffset;
     let per = if offsets { 2 } else { 1 };
     for band in 0..nb {
@@ -139,27 +191,89 @@ pub fn solve(plan: &Plan, mode: Balance) -> Vec<Correction> {
             }
         }
         let Some(x) = ata.cholesky().map(|c| c.solve(&atb)) else { continue };
-        let (mut g, mut o): (Vec<f64>, Vec<f64>) = (0..n).map(|i| (x[per * i], if offsets { x[2 * i + 1] * scale } else { 0.0 })).unzip();
-        anchor(plan, band, offsets, &mut g, &mut o);
+        let (g, o): (Vec<f64>, Vec<f64>) = (0..n).map(|i| (x[per * i], if offsets { x[2 * i + 1] * scale } else { 0.0 })).unzip();
         for i in 0..n {
             out[i].gain[band] = g[i];
             out[i].offset[band] = o[i];
         }
+        anchor(plan, band, offsets, &mut out);
+    }
+    out
+}
+
+/// Gains, offsets and radial terms from every cell two images both see:
+/// each such cell asks that the two corrected values agree. Weakly pulled
+/// towards no correction; anchored as [`solve`]'s.
+fn solve_radial(plan: &Plan, pairs: &[(usize, usize, Vec<Sums>)], mut out: Vec<Correction>) -> Vec<Correction> {
+    let nb = out.first().map_or(1, |c| c.gain.len());
+    let n = plan.images.len();
+    const PER: usize = 4;
+    for c in &mut out {
+        c.radial = vec![[0.0; 2]; nb];
+    }
+    for band in 0..nb {
+        let level = pairs.iter().map(|(_, _, s)| s[band].a + s[band].b).sum::<f64>() / pairs.iter().map(|(_, _, s)| 2.0 * s[band].n).sum::<f64>();
+        let scale = if level.abs() > 1e-12 { level.abs() } else { 1.0 };
+        let total: f64 = pairs.iter().map(|(_, _, s)| s[band].n).sum();
+        let mut ata = DMatrix::<f64>::zeros(PER * n, PER * n);
+        let mut atb = DVector::<f64>::zeros(PER * n);
+        let mut add = |row: &[(usize, f64)], rhs: f64, w: f64| {
+            for &(p, u) in row {
+                atb[p] += w * u * rhs;
+                for &(q, v) in row {
+                    ata[(p, q)] += w * u * v;
+                }
+            }
+        };
+        // Unknowns of image i: gain, ρ² term, ρ⁴ term, offset.
+        let terms = |i: usize, v: f64, rho: f32, sign: f64| {
+            let r2 = f64::from(rho * rho);
+            [(PER * i, sign * v), (PER * i + 1, sign * v * r2), (PER * i + 2, sign * v * r2 * r2), (PER * i + 3, sign)]
+        };
+        for (i, j, _) in pairs {
+            let (a, b) = (&plan.images[*i], &plan.images[*j]);
+            let (x0, x1) = (a.cells[0].max(b.cells[0]), a.cells[2].min(b.cells[2]));
+            let (y0, y1) = (a.cells[1].max(b.cells[1]), a.cells[3].min(b.cells[3]));
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let (Some(va), Some(vb), Some(ra), Some(rb)) = (a.value(x, y), b.value(x, y), a.radius(x, y), b.radius(x, y)) else { continue };
+                    let (ta, tb) = (terms(*i, f64::from(va[band]) / scale, ra, 1.0), terms(*j, f64::from(vb[band]) / scale, rb, -1.0));
+                    let row: Vec<(usize, f64)> = ta.into_iter().chain(tb).collect();
+                    add(&row, 0.0, 1.0 / total);
+                }
+            }
+        }
+        let prior = PRIOR / n as f64;
+        for i in 0..n {
+            add(&[(PER * i, 1.0)], 1.0, prior);
+            for k in 1..PER {
+                add(&[(PER * i + k, 1.0)], 0.0, prior);
+            }
+        }
+        let Some(x) = ata.cholesky().map(|c| c.solve(&atb)) else { continue };
+        for (i, c) in out.iter_mut().enumerate() {
+            c.gain[band] = x[PER * i];
+            c.radial[band] = [x[PER * i + 1], x[PER * i + 2]];
+            c.offset[band] = x[PER * i + 3] * scale;
+        }
+        anchor(plan, band, true, &mut out);
     }
     out
 }
 
 /// Keeps the block's mean and spread (with offsets; its mean alone
 /// without) on the cells each image is taken from: one common gain and
-/// offset over all images' corrections.
-fn anchor(plan: &Plan, band: usize, offsets: bool, g: &mut [f64], o: &mut [f64]) {
+/// offset over all images' corrections of `band`.
+fn anchor(plan: &Plan, band: usize, offsets: bool, out: &mut [Correction]) {
     let (mut n, mut s, mut ss, mut c, mut cc) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for y in 0..plan.ch {
         for x in 0..plan.cw {
-            let l = plan.label_at(x, y);
-            let Some(v) = plan.images.get(l as usize).and_then(|im| im.value(x, y)) else { continue };
+            let l = plan.label_at(x, y) as usize;
+            let Some(im) = plan.images.get(l) else { continue };
+            let Some(v) = im.value(x, y) else { continue };
             let v = v[band] as f64;
-            let w = g[l as usize] * v + o[l as usize];
+            let rho = im.radius(x, y).unwrap_or(0.0) as f64;
+            let w = out[l].apply(band, v, rho * rho);
             n += 1.0;
             s += v;
             ss += v * v;
@@ -172,14 +286,35 @@ fn anchor(plan: &Plan, band: usize, offsets: bool, g: &mut [f64], o: &mut [f64])
     }
     let (m0, m1) = (s / n, c / n);
     let (sd0, sd1) = ((ss / n - m0 * m0).max(0.0).sqrt(), (cc / n - m1 * m1).max(0.0).sqrt());
-    if !offsets {
-        let k = if m1.abs() > 1e-12 { m0 / m1 } else { 1.0 };
-        g.iter_mut().for_each(|g| *g *= k);
-        return;
+    let k = match (offsets, m1.abs() > 1e-12, sd1 > 1e-12) {
+        (false, true, _) => m0 / m1,
+        (true, _, true) => sd0 / sd1,
+        _ => 1.0,
+    };
+    for corr in out.iter_mut() {
+        corr.gain[band] *= k;
+        if let Some(r) = corr.radial.get_mut(band) {
+            *r = [r[0] * k, r[1] * k];
+        }
+        if offsets {
+            corr.offset[band] = k * (corr.offset[band] - m1) + m0;
+        }
     }
-    let k = if sd1 > 1e-12 { sd0 / sd1 } else { 1.0 };
-    for (g, o) in g.iter_mut().zip(o.iter_mut()) {
-        *g *= k;
-        *o = k * (*o - m1) + m0;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The vignetting balance's dense system (4 unknowns an image, 8 bytes
+    /// an entry) must fit a quarter of the budget: 724 images in 256 MiB,
+    /// not 725; the other balances are not limited here.
+    #[test]
+    fn the_vignetting_system_must_fit_a_quarter_of_the_memory() {
+        let m = 256 << 20;
+        assert!(check_fits(Balance::GainOffsetVignetting, 724, m).is_ok());
+        let e = check_fits(Balance::GainOffsetVignetting, 725, m).unwrap_err().to_string();
+        assert!(e.contains("balance") && e.contains("725 images") && e.contains("64 MiB"), "{e}");
+        assert!(check_fits(Balance::GainOffset, 100_000, m).is_ok());
     }
 }

@@ -43,6 +43,9 @@ pub struct PlanImage {
     /// Its low-resolution orthophoto on the cells of the box, band after
     /// band inside each cell; NaN where it does not see the cell.
     pub values: Vec<f32>,
+    /// Where in the scan it sees each cell of the box: the distance from
+    /// the scan's centre over its half-diagonal (NaN: not seen).
+    pub radius: Vec<f32>,
 }
 
 impl PlanImage {
@@ -50,6 +53,12 @@ impl PlanImage {
     pub fn at(&self, x: usize, y: usize) -> Option<usize> {
         let [x0, y0, x1, y1] = self.cells;
         (x >= x0 && x < x1 && y >= y0 && y < y1).then(|| ((y - y0) * (x1 - x0) + (x - x0)) * self.bands as usize)
+    }
+
+    /// Where in the scan it sees cell (x, y) (see `radius`), if it does.
+    pub fn radius(&self, x: usize, y: usize) -> Option<f32> {
+        let k = self.at(x, y)? / self.bands as usize;
+        self.radius.get(k).copied().filter(|r| r.is_finite())
     }
 
     /// Its low-resolution pixel at cell (x, y), where it sees it.
@@ -176,6 +185,7 @@ impl Plan {
                     gsd,
                     cells: [0; 4],
                     values: Vec::new(),
+                    radius: Vec::new(),
                 },
                 fp,
             ));
@@ -328,6 +338,7 @@ fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64, thumbnails: bool) 
         }
     });
     im.values = values;
+    im.radius = from_centre.clone();
     Ok(from_centre)
 }
 

@@ -82,7 +82,10 @@ pub fn read(plan: &mut Plan, path: &Path) -> Result<Vec<Correction>> {
         }
         label.extend(std::iter::repeat_n(l as u16, n as usize));
     }
-    let bands_ok = file.corrections.iter().zip(&plan.images).all(|(c, im)| c.gain.len() == im.bands as usize && c.offset.len() == im.bands as usize);
+    let bands_ok = file.corrections.iter().zip(&plan.images).all(|(c, im)| {
+        let nb = im.bands as usize;
+        c.gain.len() == nb && c.offset.len() == nb && (c.radial.is_empty() || c.radial.len() == nb)
+    });
     if label.len() != cells || file.corrections.len() != names.len() || !bands_ok {
         return Err(damaged());
     }

@@ -233,6 +233,45 @@ impl Compose<'_> {
         let blends = self.weights.blends();
         let samples: Vec<&[T]> = pieces.iter().map(|p| bytemuck::cast_slice::<u8, T>(p.bytes)).collect();
         let corrections: Vec<&Correction> = pieces.iter().map(|p| &self.corrections[p.image as usize]).collect();
+        // Where a correction has a radial term: each piece's ρ (where in its
+        // scan it sees each cell) on the same cells, NaN where unseen.
+        let radii: Vec<Option<Vec<f32>>> = pieces
+            .iter()
+            .zip(&corrections)
+            .map(|(p, corr)| {
+                corr.has_radial().then(|| {
+                    let im = &self.plan.images[p.image as usize];
+                    (0..nx * ny)
+                        .map(|k| {
+                            let (x, y) = ((cx0 + (k % nx) as i64).clamp(0, cw - 1), (cy0 + (k / nx) as i64).clamp(0, ch - 1));
+                            im.radius(x as usize, y as usize).unwrap_or(f32::NAN)
+                        })
+                        .collect()
+                })
+            })
+            .collect();
+        // ρ² of piece j at the tile's pixel (px, py): bilinear between the
+        // cells' centres (ρ is smooth), else the nearest cell's, else the
+        // mean of those there are.
+        let rho2 = |j: usize, px: usize, py: usize| -> f64 {
+            let Some(r) = &radii[j] else { return 0.0 };
+            let ((iu, fu, nu), (iv, fv, nv)) = (cols[px], rows[py]);
+            let at = |x: usize, y: usize| r[(y * nx + x).min(r.len() - 1)] as f64;
+            let b = (at(iu, iv) * (1.0 - fu) + at(iu + 1, iv) * fu) * (1.0 - fv) + (at(iu, iv + 1) * (1.0 - fu) + at(iu + 1, iv + 1) * fu) * fv;
+            let rho = if b.is_finite() {
+                b
+            } else if at(nu, nv).is_finite() {
+                at(nu, nv)
+            } else {
+                let near: Vec<f64> = [at(iu, iv), at(iu + 1, iv), at(iu, iv + 1), at(iu + 1, iv + 1)].into_iter().filter(|v| v.is_finite()).collect();
+                if near.is_empty() {
+                    0.0
+                } else {
+                    near.iter().sum::<f64>() / near.len() as f64
+                }
+            };
+            rho * rho
+        };
         // One image with all the weight over the whole tile: its pixels as
         // they are (corrected), others only where it has none.
         let sole =
@@ -248,8 +287,9 @@ impl Compose<'_> {
                     match from {
                         Some(j) if corrections[j].is_identity() => pixel.copy_from_slice(&samples[j][k * nb..(k + 1) * nb]),
                         Some(j) => {
+                            let r2 = rho2(j, px, py);
                             for (band, v) in pixel.iter_mut().enumerate() {
-                                *v = T::put(corrections[j].gain[band] * samples[j][k * nb + band].get() + corrections[j].offset[band]);
+                                *v = T::put(corrections[j].apply(band, samples[j][k * nb + band].get(), r2));
                             }
                         }
                         None => pixel.iter_mut().for_each(|v| *v = T::put(self.fill)),
@@ -268,10 +308,11 @@ impl Compose<'_> {
                 }
                 let (mut wsum, mut spare_n) = (0f64, 0f64);
                 acc.iter_mut().for_each(|a| *a = 0.0);
-                for (((p, s), g), corr) in pieces.iter().zip(&samples).zip(&grids).zip(&corrections) {
+                for (j, (((p, s), g), corr)) in pieces.iter().zip(&samples).zip(&grids).zip(&corrections).enumerate() {
                     if p.valid[k] == 0 {
                         continue;
                     }
+                    let r2 = rho2(j, px, py);
                     let wt = if blends {
                         let at = |x: usize, y: usize| g[y * nx + x] as f64;
                         (at(iu, iv) * (1.0 - fu) + at(iu + 1, iv) * fu) * (1.0 - fv) + (at(iu, iv + 1) * (1.0 - fu) + at(iu + 1, iv + 1) * fu) * fv
@@ -282,14 +323,14 @@ impl Compose<'_> {
                     if wt > 0.0 {
                         wsum += wt;
                         for (band, a) in acc.iter_mut().enumerate() {
-                            *a += wt * (corr.gain[band] * px_in[band].get() + corr.offset[band]);
+                            *a += wt * corr.apply(band, px_in[band].get(), r2);
                         }
                     } else if spare_n == 0.0 {
                         // No weight here (a footprint's edge inside the
                         // cell): the first image that has the pixel.
                         spare_n = 1.0;
                         for (band, a) in spare.iter_mut().enumerate() {
-                            *a = corr.gain[band] * px_in[band].get() + corr.offset[band];
+                            *a = corr.apply(band, px_in[band].get(), r2);
                         }
                     }
                 }

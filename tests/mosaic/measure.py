@@ -58,7 +58,9 @@ def jumps(p, L):
         v = (mm[:, :-1] & mm[:, 1:]) if ax == 2 else (mm[:-1] & mm[1:])
         j.append(d1[lab & ok & v]); s.append(d1[~lab & ok & v])
     return float(np.concatenate(j).mean()), float(np.concatenate(s).mean())
-for n in ("a", "b"):
+for n in ("a", "b", "v"):
+    if n == "v" and not os.path.exists(f"{d}/v.tif"):
+        continue
     out[f"{n}_truth_mad"] = vs_truth(f"{d}/{n}.tif")
     out[f"{n}_seam_jump"], out[f"{n}_texture_step"] = jumps(f"{d}/{n}.tif", L)
 # Height edges under the seams: least-cost (a) against voronoi (c).
