@@ -371,6 +371,11 @@ pub struct MosaicArgs {
     /// otherwise leaves a finished mosaic or piece as it is)
     #[arg(long)]
     pub force: bool,
+    /// Render by pieces finished in this folder, so that a stopped run,
+    /// run again, keeps its finished pieces (the folder is emptied once the
+    /// mosaic is made; it holds about the mosaic's size meanwhile)
+    #[arg(long, requires = "output", conflicts_with_all = ["window", "plan", "plan_out"])]
+    pub resume_dir: Option<PathBuf>,
     /// Pixel size of the mosaic: X, or X,Y for non-square pixels (default:
     /// the images' median, square)
     #[arg(long)]

@@ -218,11 +218,15 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         memory,
         threads: a.threads,
         cog: a.cog.then_some(true),
+        overviews: None,
         force: a.force,
         occlusion: a.occlusion,
         sync: true,
     };
-    let report = mosaic(&o, &Bar::new(a.quiet), &signals.cancel)?;
+    let report = match &a.resume_dir {
+        Some(dir) => gcm_ortho::mosaic::resume::resumable(&o, dir, &Bar::new(a.quiet), &signals.cancel)?,
+        None => mosaic(&o, &Bar::new(a.quiet), &signals.cancel)?,
+    };
     if let Some(j) = &a.json {
         write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
     }

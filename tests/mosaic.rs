@@ -328,3 +328,48 @@ fn true_orthomosaic_shards_assemble_into_the_single_run() {
         "assembled true orthomosaic differs from the single run"
     );
 }
+
+/// `--resume-dir`: a mosaic stopped (as Ctrl-C stops it) once some of its
+/// pieces are finished, run again, takes those pieces as they are, renders
+/// the rest and ends with the single run's file byte for byte; the folder
+/// is emptied.
+#[test]
+fn a_stopped_mosaic_run_again_keeps_its_finished_pieces() {
+    use std::time::{Duration, Instant};
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    mosaic(d, &["-o", "single.tif", "--cog"]);
+    let args = ["mosaic", "manifest.toml", "--quiet", "-o", "r.tif", "--cog", "--resume-dir", "work"];
+    let mut child = std::process::Command::new(bin()).current_dir(d).args(args).spawn().unwrap();
+    let finished = || {
+        std::fs::read_dir(d.join("work")).map_or(0, |r| {
+            r.flatten()
+                .filter(|e| {
+                    let n = e.file_name().to_string_lossy().into_owned();
+                    n.starts_with("piece-") && n.ends_with(".done")
+                })
+                .count()
+        })
+    };
+    let t0 = Instant::now();
+    while finished() == 0 {
+        assert!(child.try_wait().unwrap().is_none(), "the run ended before a piece was finished");
+        assert!(t0.elapsed() < Duration::from_secs(120));
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let kill = std::process::Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(kill.success());
+    assert!(!child.wait().unwrap().success(), "stopped");
+    assert!(!d.join("r.tif").exists());
+    let kept = finished();
+    let mut again: Vec<&str> = args.to_vec();
+    again.extend(["--json", "r.json"]);
+    let out = std::process::Command::new(bin()).current_dir(d).args(&again).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
+    let reused = &report["pieces_reused"];
+    assert!(reused[0].as_u64().unwrap() as usize == kept && kept < reused[1].as_u64().unwrap() as usize, "{reused} after {kept} finished");
+    assert!(std::fs::read(d.join("r.tif")).unwrap() == std::fs::read(d.join("single.tif")).unwrap(), "the resumed mosaic differs from the single run");
+    assert!(!d.join("work").exists());
+}

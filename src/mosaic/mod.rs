@@ -10,6 +10,7 @@ pub mod balance;
 pub mod plan;
 pub mod plan_file;
 pub mod render;
+pub mod resume;
 pub mod seamlines;
 pub mod seams;
 pub mod weights;
@@ -59,6 +60,8 @@ pub struct MosaicOptions {
     pub threads: usize,
     /// Write the Cloud-Optimized layout (else as the manifest says).
     pub cog: Option<bool>,
+    /// Overviews (else as the manifest says).
+    pub overviews: Option<crate::options::Overviews>,
     /// Remake an output whose record says it is current.
     pub force: bool,
     /// Occluded ground (a true orthomosaic), for every image (else as
@@ -139,6 +142,9 @@ pub struct MosaicReport {
     pub wall_seconds: f64,
     pub peak_rss_mib: Option<f64>,
     pub output_bytes: u64,
+    /// With `--resume-dir`: the pieces a stopped run had finished, taken as
+    /// they were, and the pieces in all.
+    pub pieces_reused: Option<[usize; 2]>,
 }
 
 /// Makes the mosaic of the manifest's images (see the module doc).
@@ -288,7 +294,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         }),
     };
     spec.check_codec().map_err(|m| Error::setting("compress", m))?;
-    spec.overviews = first.overviews.levels(piece.width, piece.height, tile);
+    spec.overviews = o.overviews.unwrap_or(first.overviews).levels(piece.width, piece.height, tile);
     spec.cog = o.cog.unwrap_or(first.cog);
     spec.bigtiff = match first.bigtiff {
         BigTiff::Yes => true,
@@ -445,6 +451,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         wall_seconds: wall.elapsed().as_secs_f64(),
         peak_rss_mib: crate::pipeline::peak_rss_mib(),
         output_bytes: o.output.as_deref().and_then(|p| std::fs::metadata(p).ok()).map_or(0, |m| m.len()),
+        pieces_reused: None,
     })
 }
 
@@ -453,7 +460,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
 /// output.
 fn run_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
     let settings = format!(
-        "{:?} {:?} {:?} {:?} {} {} {:?} {:?} {:?}",
+        "{:?} {:?} {:?} {:?} {} {} {:?} {:?} {:?} {:?}",
         o.gsd,
         o.bounds,
         o.crs.as_ref().map(ToString::to_string),
@@ -462,7 +469,8 @@ fn run_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
         o.blend,
         o.window,
         o.cog,
-        o.occlusion
+        o.occlusion,
+        o.overviews
     );
     let job_keys: Vec<String> = jobs.iter().map(|j| format!("{}={}", j.name, crate::batch::job_key(&j.config))).collect();
     let joined = job_keys.join(";");
@@ -495,6 +503,7 @@ impl MosaicReport {
             wall_seconds: 0.0,
             peak_rss_mib: None,
             output_bytes: std::fs::metadata(out).map_or(0, |m| m.len()),
+            pieces_reused: None,
         }
     }
 }

@@ -52,6 +52,13 @@ pub fn write(plan: &Plan, corrections: &[Correction], path: &Path) -> Result<()>
     crate::io::publish::write_file(path, text.as_bytes())
 }
 
+/// The grid of the plan file at `path`.
+pub fn grid_of(path: &Path) -> Result<OutputGrid> {
+    let text = crate::io::bounded_read::read_text_bounded(path, "a mosaic plan", crate::io::bounded_read::LIST)?;
+    let file: PlanFile = serde_json::from_str(&text).map_err(|e| Error::format(path, format!("is not a mosaic plan: {e}")))?;
+    Ok(file.grid)
+}
+
 /// Takes the seams of the plan file at `path` into `plan` (made again from
 /// the same manifest and settings) and returns its corrections.
 pub fn read(plan: &mut Plan, path: &Path) -> Result<Vec<Correction>> {
