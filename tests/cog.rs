@@ -268,6 +268,19 @@ fn batch_writes_cogs_and_their_overviews_as_the_manifest_says() {
     let r = run(&["batch", s(&manifest), "--quiet", "--force"]);
     assert!(!r.status.success());
     assert!(String::from_utf8_lossy(&r.stderr).contains("overviews"), "{}", String::from_utf8_lossy(&r.stderr));
+    // The overviews' own level from the manifest: tighter, the same pixels;
+    // one the codec does not take is refused by its key.
+    let fastest = std::fs::read(&out).unwrap();
+    std::fs::copy(&out, d.join("fastest.tif")).unwrap();
+    let text = std::fs::read_to_string(&manifest).unwrap().replace("\"2,8\"", "\"2,4\"");
+    std::fs::write(&manifest, text.replace("cog = true\n", "cog = true\noverview_level = 9\n")).unwrap();
+    let r = run(&["batch", s(&manifest), "--quiet", "--force"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(std::fs::metadata(&out).unwrap().len() < fastest.len() as u64);
+    assert_eq!(python(SAME_LEVELS, &[s(&out), s(&d.join("fastest.tif"))]), "3");
+    std::fs::write(&manifest, text.replace("cog = true\n", "cog = true\noverview_level = 13\n")).unwrap();
+    let r = run(&["batch", s(&manifest), "--quiet", "--force"]);
+    assert!(!r.status.success() && String::from_utf8_lossy(&r.stderr).contains("overview_level"), "{}", String::from_utf8_lossy(&r.stderr));
 }
 
 /// Overview tiles are coded at their own level: by default deflate's
