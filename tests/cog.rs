@@ -113,10 +113,16 @@ fn python(script: &str, args: &[&str]) -> String {
     String::from_utf8_lossy(&out.stdout).trim().to_string()
 }
 
-fn rectify(sc: &gcm_ortho::synth::SynthReport, image: &Path, out: &Path, extra: &[&str]) {
+/// `rectify` of `image` with the scene's camera and DEM into `out`, tiles
+/// of 128, and `extra`.
+fn rectify_run(sc: &gcm_ortho::synth::SynthReport, image: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
     let mut a = vec!["rectify", "--image", s(image), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(out), "--quiet", "--tile", "128"];
     a.extend_from_slice(extra);
-    let r = run(&a);
+    run(&a)
+}
+
+fn rectify(sc: &gcm_ortho::synth::SynthReport, image: &Path, out: &Path, extra: &[&str]) {
+    let r = rectify_run(sc, image, out, extra);
     assert!(r.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&r.stderr));
 }
 
@@ -320,22 +326,7 @@ fn overview_tiles_are_coded_at_their_own_level_with_the_same_pixels() {
     assert_eq!(size(&fastest) - size(&tight), size(&full9) - size(&both9));
     for (compress, level) in [("jpeg", "80"), ("lzw", "3"), ("deflate", "13"), ("zstd", "0")] {
         let out = d.join("refused.tif");
-        let r = run(&[
-            "rectify",
-            "--image",
-            s(&sc.scan),
-            "--camera",
-            s(&sc.camera),
-            "--dem",
-            s(&sc.dem),
-            "-o",
-            s(&out),
-            "--quiet",
-            "--compress",
-            compress,
-            "--overview-level",
-            level,
-        ]);
+        let r = rectify_run(&sc, &sc.scan, &out, &["--compress", compress, "--overview-level", level]);
         let err = String::from_utf8_lossy(&r.stderr);
         assert_eq!(r.status.code(), Some(2), "{compress} {level}: {err}");
         assert!(err.contains("--overview-level") && err.lines().count() == 1, "{err}");
