@@ -157,21 +157,9 @@ pub fn solve(plan: &Plan, mode: Balance) -> Vec<Correction> {
     let offsets = mode == Balance::GainOffset;
     let per = if offsets { 2 } else { 1 };
     for band in 0..nb {
-        // Values in units of the block's mean level, so that gains and
-        // offsets weigh alike.
-        let level = pairs.iter().map(|(_, _, s)| s[band].a + s[band].b).sum::<f64>() / pairs.iter().map(|(_, _, s)| 2.0 * s[band].n).sum::<f64>();
-        let scale = if level.abs() > 1e-12 { level.abs() } else { 1.0 };
-        let total: f64 = pairs.iter().map(|(_, _, s)| s[band].n).sum();
-        let mut ata = DMatrix::<f64>::zeros(per * n, per * n);
-        let mut atb = DVector::<f64>::zeros(per * n);
-        let mut add = |row: &[(usize, f64)], rhs: f64, w: f64| {
-            for &(p, u) in row {
-                atb[p] += w * u * rhs;
-                for &(q, v) in row {
-                    ata[(p, q)] += w * u * v;
-                }
-            }
-        };
+        let (scale, total) = level_and_cells(&pairs, band);
+        let mut normal = Normal::new(per * n);
+        let mut add = |row: &[(usize, f64)], rhs: f64, w: f64| normal.add(row, rhs, w);
         for (i, j, s) in &pairs {
             let ((ma, sa), (mb, sb)) = s[band].mean_sd();
             let w = s[band].n / total;
@@ -190,7 +178,7 @@ pub fn solve(plan: &Plan, mode: Balance) -> Vec<Correction> {
                 add(&[(2 * i + 1, 1.0)], 0.0, prior);
             }
         }
-        let Some(x) = ata.cholesky().map(|c| c.solve(&atb)) else { continue };
+        let Some(x) = normal.solve() else { continue };
         let (g, o): (Vec<f64>, Vec<f64>) = (0..n).map(|i| (x[per * i], if offsets { x[2 * i + 1] * scale } else { 0.0 })).unzip();
         for i in 0..n {
             out[i].gain[band] = g[i];
@@ -199,6 +187,43 @@ pub fn solve(plan: &Plan, mode: Balance) -> Vec<Correction> {
         anchor(plan, band, offsets, &mut out);
     }
     out
+}
+
+/// The normal equations AᵀA x = Aᵀb of a least-squares problem, filled
+/// one weighted row of A at a time.
+struct Normal {
+    ata: DMatrix<f64>,
+    atb: DVector<f64>,
+}
+
+impl Normal {
+    fn new(unknowns: usize) -> Normal {
+        Normal { ata: DMatrix::zeros(unknowns, unknowns), atb: DVector::zeros(unknowns) }
+    }
+
+    /// The row (unknown, coefficient)…, its right-hand side and weight.
+    fn add(&mut self, row: &[(usize, f64)], rhs: f64, w: f64) {
+        for &(p, u) in row {
+            self.atb[p] += w * u * rhs;
+            for &(q, v) in row {
+                self.ata[(p, q)] += w * u * v;
+            }
+        }
+    }
+
+    fn solve(self) -> Option<DVector<f64>> {
+        let atb = self.atb;
+        self.ata.cholesky().map(|c| c.solve(&atb))
+    }
+}
+
+/// The block's mean level of `band` over the overlaps (values are solved
+/// in its units, so that gains and offsets weigh alike) and the overlaps'
+/// cells in all.
+fn level_and_cells(pairs: &[(usize, usize, Vec<Sums>)], band: usize) -> (f64, f64) {
+    let level = pairs.iter().map(|(_, _, s)| s[band].a + s[band].b).sum::<f64>() / pairs.iter().map(|(_, _, s)| 2.0 * s[band].n).sum::<f64>();
+    let scale = if level.abs() > 1e-12 { level.abs() } else { 1.0 };
+    (scale, pairs.iter().map(|(_, _, s)| s[band].n).sum())
 }
 
 /// Gains, offsets and radial terms from every cell two images both see:
@@ -212,19 +237,9 @@ fn solve_radial(plan: &Plan, pairs: &[(usize, usize, Vec<Sums>)], mut out: Vec<C
         c.radial = vec![[0.0; 2]; nb];
     }
     for band in 0..nb {
-        let level = pairs.iter().map(|(_, _, s)| s[band].a + s[band].b).sum::<f64>() / pairs.iter().map(|(_, _, s)| 2.0 * s[band].n).sum::<f64>();
-        let scale = if level.abs() > 1e-12 { level.abs() } else { 1.0 };
-        let total: f64 = pairs.iter().map(|(_, _, s)| s[band].n).sum();
-        let mut ata = DMatrix::<f64>::zeros(PER * n, PER * n);
-        let mut atb = DVector::<f64>::zeros(PER * n);
-        let mut add = |row: &[(usize, f64)], rhs: f64, w: f64| {
-            for &(p, u) in row {
-                atb[p] += w * u * rhs;
-                for &(q, v) in row {
-                    ata[(p, q)] += w * u * v;
-                }
-            }
-        };
+        let (scale, total) = level_and_cells(pairs, band);
+        let mut normal = Normal::new(PER * n);
+        let mut add = |row: &[(usize, f64)], rhs: f64, w: f64| normal.add(row, rhs, w);
         // Unknowns of image i: gain, ρ² term, ρ⁴ term, offset.
         let terms = |i: usize, v: f64, rho: f32, sign: f64| {
             let r2 = f64::from(rho * rho);
@@ -250,7 +265,7 @@ fn solve_radial(plan: &Plan, pairs: &[(usize, usize, Vec<Sums>)], mut out: Vec<C
                 add(&[(PER * i + k, 1.0)], 0.0, prior);
             }
         }
-        let Some(x) = ata.cholesky().map(|c| c.solve(&atb)) else { continue };
+        let Some(x) = normal.solve() else { continue };
         for (i, c) in out.iter_mut().enumerate() {
             c.gain[band] = x[PER * i];
             c.radial[band] = [x[PER * i + 1], x[PER * i + 2]];
