@@ -87,7 +87,8 @@ pub struct Plan {
     /// The image each cell is taken from ([`NONE`]: none sees it).
     pub label: Vec<u16>,
     pub images: Vec<PlanImage>,
-    pub dems: Vec<Dem>,
+    /// The images' DEMs, each opened once (renders share them).
+    pub dems: Vec<std::sync::Arc<Dem>>,
 }
 
 /// What the plan is made from.
@@ -127,7 +128,7 @@ impl Plan {
         if jobs.len() >= NONE as usize {
             return Err(Error::setting("manifest", format!("{} images, more than the {} a mosaic takes", jobs.len(), NONE - 1)));
         }
-        let mut dems: Vec<Dem> = Vec::new();
+        let mut dems: Vec<std::sync::Arc<Dem>> = Vec::new();
         let mut dem_of: HashMap<PathBuf, usize> = HashMap::new();
         let mut images = Vec::new();
         let mut crs = s.crs.clone();
@@ -148,17 +149,17 @@ impl Plan {
                         }
                         d.on_hole = opts.dem_hole;
                         d.on_outside = opts.dem_outside;
-                        dems.push(d);
+                        dems.push(std::sync::Arc::new(d));
                         dem_of.insert(p.clone(), dems.len() - 1);
                         dems.len() - 1
                     }
                 },
                 DemSource::Height(h) => {
-                    dems.push(Dem::flat(*h));
+                    dems.push(std::sync::Arc::new(Dem::flat(*h)));
                     dems.len() - 1
                 }
                 DemSource::ModelHeight => {
-                    dems.push(Dem::flat(camera.height_hint()));
+                    dems.push(std::sync::Arc::new(Dem::flat(camera.height_hint())));
                     dems.len() - 1
                 }
             };

@@ -28,6 +28,9 @@ pub struct ImageWork {
     pub bands: BTreeMap<u32, (u32, u32)>,
     pub opts: RectifyOptions,
     pub grid: crate::geom::OutputGrid,
+    /// The plan's DEM for it and the CRS it was opened in (the render takes
+    /// it rather than reading the file again).
+    pub dem: crate::pipeline::band_render::SharedDem,
 }
 
 impl ImageWork {
@@ -138,7 +141,7 @@ pub fn work(plan: &Plan, weights: &Weights, tile: u32, prone: Option<&[bool]>, o
                 ..opts_of(i)
             };
             let grid = crate::geom::OutputGrid { x0, y0, gsd: g.gsd, width: w as u32, height: h as u32 };
-            ImageWork { image: i, origin: (c0, r0), bands, opts, grid }
+            ImageWork { image: i, origin: (c0, r0), bands, opts, grid, dem: Some((plan.dems[plan.images[i].dem].clone(), plan.crs.clone())) }
         })
         .collect()
 }
@@ -278,6 +281,22 @@ impl Compose<'_> {
             (0..pieces.len()).find(|&i| grids[i].iter().all(|&v| v == 1.0) && grids.iter().enumerate().all(|(j, g)| j == i || g.iter().all(|&v| v == 0.0)));
         let mut acc = vec![0f64; nb];
         let mut spare = vec![0f64; nb];
+        // Between four cell centres where one piece has all the weight and
+        // the others none (most of a tile a seam crosses), a pixel that
+        // piece has is that piece's, corrected.
+        let one_piece: Vec<Option<usize>> = (0..nx * ny)
+            .map(|q| {
+                let (x, y) = (q % nx, q / nx);
+                if x + 1 >= nx || y + 1 >= ny {
+                    return None;
+                }
+                let corners = [q, q + 1, q + nx, q + nx + 1];
+                let full = |g: &Vec<f32>| corners.iter().all(|&c| g[c] == 1.0);
+                let empty = |g: &Vec<f32>| corners.iter().all(|&c| g[c] == 0.0);
+                let j = grids.iter().position(full)?;
+                grids.iter().enumerate().all(|(i, g)| i == j || empty(g)).then_some(j)
+            })
+            .collect();
         for (py, &(iv, fv, nv)) in rows.iter().enumerate() {
             if let Some(i) = sole {
                 for px in 0..t {
@@ -304,6 +323,15 @@ impl Compose<'_> {
                 if gx0 + px >= w || gy0 + py >= h {
                     pixel.iter_mut().for_each(|v| *v = T::put(self.fill));
                     valid[k] = 0;
+                    continue;
+                }
+                let quad = if blends { iv * nx + iu } else { nv * nx + nu };
+                if let Some(j) = one_piece.get(quad).copied().flatten().filter(|&j| pieces[j].valid[k] != 0) {
+                    let r2 = rho2(j, px, py);
+                    for (band, v) in pixel.iter_mut().enumerate() {
+                        *v = T::put(corrections[j].apply(band, samples[j][k * nb + band].get(), r2));
+                    }
+                    valid[k] = 1;
                     continue;
                 }
                 let (mut wsum, mut spare_n) = (0f64, 0f64);
@@ -451,7 +479,7 @@ impl<'scope, 'env> Feeds<'scope, 'env> {
                 self.receivers[k] = Some(rx);
                 self.scope.spawn(move || {
                     let requests = w.requests();
-                    let r = render_bands(&w.opts, &requests, cancel, |band| tx.send(band).is_ok());
+                    let r = render_bands(&w.opts, w.dem.clone(), &requests, cancel, |band| tx.send(band).is_ok());
                     if let Err(e) = r {
                         let _ = tx.send(Err(e));
                     }

@@ -39,6 +39,10 @@ pub struct BandPixels {
 /// tiles) and its tile columns `cols.0..cols.1`.
 pub type BandRequest = (u32, (u32, u32));
 
+/// A DEM already open, and the ground CRS it was opened for: taken where
+/// the image asks for that file in that CRS with the same policies.
+pub type SharedDem = Option<(Arc<crate::dem::Dem>, crate::geodesy::Crs)>;
+
 /// The options an image is made with inside a mosaic: rows of tiles (the
 /// mosaic's bands), every pixel's validity (a mask), nothing of the output
 /// file's own.
@@ -49,9 +53,15 @@ pub fn in_memory(opts: &RectifyOptions) -> RectifyOptions {
 /// Makes the bands `requests` names (in increasing order) of the image of
 /// `opts` (see [`in_memory`]), handing each to `sink`; stops early when
 /// `sink` says so (its reader went away) or `cancel` is set.
-pub fn render_bands(opts: &RectifyOptions, requests: &[BandRequest], cancel: &Cancel, mut sink: impl FnMut(Result<BandPixels>) -> bool) -> Result<()> {
+pub fn render_bands(
+    opts: &RectifyOptions,
+    dem: SharedDem,
+    requests: &[BandRequest],
+    cancel: &Cancel,
+    mut sink: impl FnMut(Result<BandPixels>) -> bool,
+) -> Result<()> {
     let opts = in_memory(opts);
-    let setup = match RunPlan::new(&opts, &NoProgress) {
+    let setup = match RunPlan::with_dem(&opts, &NoProgress, dem) {
         Ok(p) => p,
         Err(e) => {
             sink(Err(e));

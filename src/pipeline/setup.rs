@@ -25,7 +25,7 @@ const MAX_SIDE: u32 = 1 << 21;
 pub struct RunPlan {
     pub camera: Camera,
     pub src: SourceImage,
-    pub dem: Dem,
+    pub dem: std::sync::Arc<Dem>,
     /// The whole output grid (a piece keeps its geometry).
     pub grid: OutputGrid,
     /// `A` on the whole grid, not transposed.
@@ -45,6 +45,12 @@ pub struct RunPlan {
 
 impl RunPlan {
     pub fn new(opts: &RectifyOptions, progress: &dyn Progress) -> Result<RunPlan> {
+        Self::with_dem(opts, progress, None)
+    }
+
+    /// [`RunPlan::new`] taking `shared` for the DEM where it is the one the
+    /// options name, opened in the camera's CRS with the same policies.
+    pub fn with_dem(opts: &RectifyOptions, progress: &dyn Progress, shared: super::band_render::SharedDem) -> Result<RunPlan> {
         let mut budget = MemoryBudget::new(opts.memory);
         let like = opts.like.as_deref().map(reference_grid).transpose()?;
         let mut camera = opts.model.load(&opts.image, &opts.camera, opts.crs.as_ref())?;
@@ -108,19 +114,30 @@ impl RunPlan {
             }
             budget = MemoryBudget::new(budget.total() - decoding);
         }
-        let mut dem = match &opts.dem {
-            DemSource::File(p) => Dem::open_within(p, &camera.crs, budget.dem())?,
-            DemSource::Height(h) => Dem::flat(*h),
-            DemSource::ModelHeight => match &camera.sensor {
-                Sensor::Rpc(r) => Dem::flat(r.height_hint()),
-                Sensor::Frame(_) | Sensor::ReprojectedFrame(_) => return Err(Error::setting("dem", "a frame camera needs a DEM file or a constant height")),
-            },
+        let shared = shared.filter(|(d, ground)| {
+            matches!(&opts.dem, DemSource::File(p) if *p == d.path) && d.on_hole == opts.dem_hole && d.on_outside == opts.dem_outside && camera.crs == *ground
+        });
+        let dem = match shared {
+            Some((d, _)) => d,
+            None => {
+                let mut dem = match &opts.dem {
+                    DemSource::File(p) => Dem::open_within(p, &camera.crs, budget.dem())?,
+                    DemSource::Height(h) => Dem::flat(*h),
+                    DemSource::ModelHeight => match &camera.sensor {
+                        Sensor::Rpc(r) => Dem::flat(r.height_hint()),
+                        Sensor::Frame(_) | Sensor::ReprojectedFrame(_) => {
+                            return Err(Error::setting("dem", "a frame camera needs a DEM file or a constant height"))
+                        }
+                    },
+                };
+                for w in &dem.warnings {
+                    progress.warn(w);
+                }
+                dem.on_hole = opts.dem_hole;
+                dem.on_outside = opts.dem_outside;
+                std::sync::Arc::new(dem)
+            }
         };
-        for w in &dem.warnings {
-            progress.warn(w);
-        }
-        dem.on_hole = opts.dem_hole;
-        dem.on_outside = opts.dem_outside;
         let mut camera = camera;
         if let Sensor::Rpc(r) = &mut camera.sensor {
             if r.geoid.is_none() {
