@@ -347,7 +347,7 @@ fn a_stopped_mosaic_run_again_keeps_its_finished_pieces() {
             r.flatten()
                 .filter(|e| {
                     let n = e.file_name().to_string_lossy().into_owned();
-                    n.starts_with("piece-") && n.ends_with(".done")
+                    n.starts_with("gcm-ortho-mosaic-piece-") && n.ends_with(".done")
                 })
                 .count()
         })
@@ -372,4 +372,17 @@ fn a_stopped_mosaic_run_again_keeps_its_finished_pieces() {
     assert!(reused[0].as_u64().unwrap() as usize == kept && kept < reused[1].as_u64().unwrap() as usize, "{reused} after {kept} finished");
     assert!(std::fs::read(d.join("r.tif")).unwrap() == std::fs::read(d.join("single.tif")).unwrap(), "the resumed mosaic differs from the single run");
     assert!(!d.join("work").exists());
+    // A folder that is the output, or a file: refused by the option's name,
+    // nothing made.
+    for dir in ["r2.tif", "manifest.toml"] {
+        let out = std::process::Command::new(bin())
+            .current_dir(d)
+            .args(["mosaic", "manifest.toml", "--quiet", "-o", "r2.tif", "--resume-dir", dir])
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{e}");
+        assert!(e.contains("--resume-dir") && e.contains(dir), "{e}");
+        assert!(!d.join("r2.tif").exists());
+    }
 }

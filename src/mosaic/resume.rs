@@ -30,11 +30,19 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
     if !o.force && crate::batch::output_is_current(&out, &key) {
         return Ok(MosaicReport::skipped(&out));
     }
+    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    if absolute(dir) == absolute(&out) {
+        return Err(Error::setting("resume_dir", format!("{} is the output itself: give a folder of its own", dir.display())));
+    }
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::setting("resume_dir", format!("{} is a file, not a folder", dir.display())));
+    }
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
 
     // The plan, once: kept while its record says it was made for these
     // images and settings (remaking it would change the pieces' inputs).
-    let plan = dir.join("plan.json");
+    // Names of our own, beside whatever else the folder holds.
+    let plan = dir.join("gcm-ortho-mosaic-plan.json");
     let planning = MosaicOptions { output: None, plan_out: Some(plan.clone()), ..o.clone() };
     let plan_key = run_key(&planning, &jobs);
     if o.force || !crate::batch::output_is_current(&plan, &plan_key) {
@@ -53,7 +61,7 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
         if cancel.is_cancelled() {
             return Err(Error::Cancelled);
         }
-        let piece = dir.join(format!("piece-{r0:06}.tif"));
+        let piece = dir.join(format!("gcm-ortho-mosaic-piece-{r0:06}.tif"));
         let po = MosaicOptions {
             output: Some(piece.clone()),
             plan_in: Some(plan.clone()),
