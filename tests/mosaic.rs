@@ -372,6 +372,24 @@ fn a_stopped_mosaic_run_again_keeps_its_finished_pieces() {
     assert!(reused[0].as_u64().unwrap() as usize == kept && kept < reused[1].as_u64().unwrap() as usize, "{reused} after {kept} finished");
     assert!(std::fs::read(d.join("r.tif")).unwrap() == std::fs::read(d.join("single.tif")).unwrap(), "the resumed mosaic differs from the single run");
     assert!(!d.join("work").exists());
+    // Stopped again, then run on without --cog: the plan and the finished
+    // pieces still serve (the layout is the assembly's alone).
+    std::fs::remove_file(d.join("r.tif")).unwrap();
+    let mut child = std::process::Command::new(bin()).current_dir(d).args(args).spawn().unwrap();
+    let t0 = Instant::now();
+    while finished() == 0 {
+        assert!(child.try_wait().unwrap().is_none(), "the run ended before a piece was finished");
+        assert!(t0.elapsed() < Duration::from_secs(120));
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    std::process::Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(!child.wait().unwrap().success());
+    let kept = finished();
+    let plain: Vec<&str> = again.iter().copied().filter(|a| *a != "--cog").collect();
+    let out = std::process::Command::new(bin()).current_dir(d).args(&plain).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
+    assert_eq!(report["pieces_reused"][0].as_u64().unwrap() as usize, kept, "{}", report["pieces_reused"]);
     // A folder that is the output, or a file: refused by the option's name,
     // nothing made.
     for dir in ["r2.tif", "manifest.toml"] {

@@ -44,7 +44,9 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
     // Names of our own, beside whatever else the folder holds.
     let plan = dir.join("gcm-ortho-mosaic-plan.json");
     let planning = MosaicOptions { output: None, plan_out: Some(plan.clone()), ..o.clone() };
-    let plan_key = run_key(&planning, &jobs);
+    // The layout and the blend are the render's and the assembly's: a
+    // rerun that changes them keeps the plan (and the pieces, --cog).
+    let plan_key = run_key(&MosaicOptions { cog: None, blend: 0.0, ..planning.clone() }, &jobs);
     if o.force || !crate::batch::output_is_current(&plan, &plan_key) {
         mosaic(&planning, progress, cancel)?;
         crate::batch::write_sidecar(&plan, &plan_key)?;
