@@ -275,6 +275,13 @@ impl Compose<'_> {
             };
             rho * rho
         };
+        // Pixel k (at px, py) of piece j, corrected, into `pixel`.
+        let corrected = |pixel: &mut [T], j: usize, k: usize, px: usize, py: usize| {
+            let r2 = rho2(j, px, py);
+            for (band, v) in pixel.iter_mut().enumerate() {
+                *v = T::put(corrections[j].apply(band, samples[j][k * nb + band].get(), r2));
+            }
+        };
         // One image with all the weight over the whole tile: its pixels as
         // they are (corrected), others only where it has none.
         let sole =
@@ -305,12 +312,7 @@ impl Compose<'_> {
                     let from = if gx0 + px >= w || gy0 + py >= h { None } else { std::iter::once(i).chain(0..pieces.len()).find(|&j| pieces[j].valid[k] != 0) };
                     match from {
                         Some(j) if corrections[j].is_identity() => pixel.copy_from_slice(&samples[j][k * nb..(k + 1) * nb]),
-                        Some(j) => {
-                            let r2 = rho2(j, px, py);
-                            for (band, v) in pixel.iter_mut().enumerate() {
-                                *v = T::put(corrections[j].apply(band, samples[j][k * nb + band].get(), r2));
-                            }
-                        }
+                        Some(j) => corrected(pixel, j, k, px, py),
                         None => pixel.iter_mut().for_each(|v| *v = T::put(self.fill)),
                     }
                     valid[k] = u8::from(from.is_some());
@@ -327,10 +329,7 @@ impl Compose<'_> {
                 }
                 let quad = if blends { iv * nx + iu } else { nv * nx + nu };
                 if let Some(j) = one_piece.get(quad).copied().flatten().filter(|&j| pieces[j].valid[k] != 0) {
-                    let r2 = rho2(j, px, py);
-                    for (band, v) in pixel.iter_mut().enumerate() {
-                        *v = T::put(corrections[j].apply(band, samples[j][k * nb + band].get(), r2));
-                    }
+                    corrected(pixel, j, k, px, py);
                     valid[k] = 1;
                     continue;
                 }
