@@ -6,7 +6,11 @@
 //! each Z-buffer sample keeps the highest surface point seen there (along
 //! one line of sight from above, the highest point is the one nearest the
 //! sensor). An output pixel is seen when its own height reaches what the
-//! Z-buffer holds around its scan position, which the GCM already gives.
+//! Z-buffer holds around its scan position: interpolated between the
+//! projected posts of its own DSM cell (the GCM's would repeat the exact
+//! model at every wall), or the GCM's where the lattice is not the DSM's.
+//! Only cells higher than a block's lowest pixel are drawn (no other can
+//! hide one), on samples half a pixel apart along the output's axes.
 //!
 //! Why this method: ray tracing along the DSM from every output pixel costs
 //! a walk of the occluders' reach per pixel (tens of DSM cells behind a
@@ -313,11 +317,15 @@ impl<'a> Visibility<'a> {
     }
 
     /// Which pixels of walked block `[x0, y0, x1, y1]` (a tile or a few side
-    /// by side) are seen, given their scan positions (row-major, NaN where
-    /// none): 1 seen, 0 hidden, into `seen` (rows `t` apart); and how many
-    /// pixels are imaged and hidden.
-    pub fn tile(&self, [x0, y0, x1, y1]: [u32; 4], t: u32, cols: &[f64], rows: &[f64], seen: &mut [u8]) -> (u64, u64) {
+    /// by side) are seen: 1 seen, 0 hidden, into `seen` (rows `t` apart);
+    /// and how many pixels are imaged and hidden. `positions` fills the
+    /// block's scan positions (row-major, NaN where none) from the GCM;
+    /// where the lattice is the DSM's posts, a block that needs its
+    /// Z-buffer takes them from the lattice instead (see
+    /// [`ProjectedLattice::position`]).
+    pub fn tile(&self, [x0, y0, x1, y1]: [u32; 4], t: u32, positions: impl FnOnce(&mut [f64], &mut [f64]), seen: &mut [u8]) -> (u64, u64) {
         let (w, h) = ((x1 - x0) as usize, (y1 - y0) as usize);
+        let (mut cols, mut rows) = (vec![f64::NAN; w * h], vec![f64::NAN; w * h]);
         seen.fill(1);
         // The tile's ground (pixel centres) and its heights.
         let corners =
@@ -328,7 +336,8 @@ impl<'a> Visibility<'a> {
             .fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, &(x, y)| [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)]);
         let (zlo, zhi) = self.height_range(rect);
         if !zlo.is_finite() {
-            return (0, 0);
+            positions(&mut cols, &mut rows);
+            return self.count_imaged(&cols, &rows);
         }
         // Lines of sight at the corners, at the tile's lowest height: where
         // the occluders of the tile can stand.
@@ -339,7 +348,8 @@ impl<'a> Visibility<'a> {
             }
         }
         if !g[0].is_finite() {
-            return (0, 0);
+            positions(&mut cols, &mut rows);
+            return self.count_imaged(&cols, &rows);
         }
         let cap = MAX_REACH_TILES * (rect[2] - rect[0]).max(rect[3] - rect[1]).max(self.lattice.dx.abs());
         let window = |dz: f64| {
@@ -354,9 +364,21 @@ impl<'a> Visibility<'a> {
         // surface there rises as steeply as the lines of sight (terrain
         // under a camera looking down): all seen.
         if rise * slope < 0.5 * self.t.grid.gsd.min() || steep * slope < 0.9 {
-            return self.count_imaged(cols, rows);
+            positions(&mut cols, &mut rows);
+            return self.count_imaged(&cols, &rows);
         }
         let lattice = self.project_lattice(window(rise), &Corridor::toward(rect, g, rise));
+        if self.posts.is_some() {
+            for y in 0..h {
+                for x in 0..w {
+                    let (gx, gy) = self.t.ground((x0 as usize + x) as f64 + 0.5, (y0 as usize + y) as f64 + 0.5);
+                    (cols[y * w + x], rows[y * w + x]) = lattice.position(self.lattice, gx, gy, self.lattice.cell(gx, gy));
+                }
+            }
+        } else {
+            positions(&mut cols, &mut rows);
+        }
+        let (cols, rows) = (&cols[..], &rows[..]);
 
         // A Z-buffer for each block of the tile's pixels: the box of a
         // block's scan positions hugs them (a whole tile's, turned, seen in
@@ -368,32 +390,13 @@ impl<'a> Visibility<'a> {
             for bx in (0..w).step_by(SUB) {
                 let (bw, bh) = (SUB.min(w - bx), SUB.min(h - by));
                 let at = |x: usize, y: usize| (by + y) * w + bx + x;
-                let mut bb = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+                // The block's imaged pixels with a height: where, how
+                // high, their cell.
+                let mut pixels = Vec::with_capacity(bw * bh);
+                let mut lowest = f64::INFINITY;
                 for y in 0..bh {
                     for x in 0..bw {
                         let (c, r) = (cols[at(x, y)], rows[at(x, y)]);
-                        if c.is_finite() && r.is_finite() {
-                            bb = [bb[0].min(c), bb[1].min(r), bb[2].max(c), bb[3].max(r)];
-                        }
-                    }
-                }
-                if !bb[0].is_finite() {
-                    continue;
-                }
-                let (mut sc, mut sr) = half_pixel_steps(cols, rows, w, [bx, by, bw, bh]);
-                // Never more than 16 samples a pixel.
-                let most = 16.0 * (bw * bh) as f64;
-                let samples = (bb[2] - bb[0] + 4.0 * sc) * (bb[3] - bb[1] + 4.0 * sr) / (sc * sr);
-                if samples > most {
-                    let k = (samples / most).sqrt();
-                    (sc, sr) = (sc * k, sr * k);
-                }
-                let mut zb = ZBuffer::new(bb, sc, sr);
-                lattice.rasterise(self, &boxes, &mut zb);
-                for y in 0..bh {
-                    for x in 0..bw {
-                        let k = at(x, y);
-                        let (c, r) = (cols[k], rows[k]);
                         if !(c >= 0.0 && r >= 0.0 && c <= src_w && r <= src_h) {
                             continue;
                         }
@@ -401,18 +404,60 @@ impl<'a> Visibility<'a> {
                         let (gx, gy) = self.t.ground((x0 as usize + bx + x) as f64 + 0.5, (y0 as usize + by + y) as f64 + 0.5);
                         let own = self.lattice.cell(gx, gy);
                         let z = lattice.height(self.lattice, gx, gy, own);
-                        if !z.is_finite() {
-                            continue;
+                        if z.is_finite() {
+                            lowest = lowest.min(z);
+                            pixels.push((x, y, z, own));
                         }
-                        let (above, cell) = zb.seen_height(c, r);
-                        // Hidden: a surface above the pixel's is seen where it
-                        // would be, and not its own or its cell's neighbours'
-                        // (a bilinear wall between two posts seen edge-on is
-                        // no cover).
-                        if z + self.tolerance < above && ((cell.0 - own.0).abs() > 1 || (cell.1 - own.1).abs() > 1) {
-                            seen[(by + y) * t as usize + bx + x] = 0;
-                            hidden += 1;
+                    }
+                }
+                if pixels.is_empty() {
+                    continue;
+                }
+                let frame = self.sample_frame([x0 as usize + bx, y0 as usize + by, bw, bh], zlo, cols, rows, w, [bx, by]);
+                let mut frame = match frame {
+                    Some(f) => f,
+                    None => continue,
+                };
+                let bb = |f: &SampleFrame| {
+                    let mut bb = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+                    for y in 0..bh {
+                        for x in 0..bw {
+                            let (c, r) = (cols[at(x, y)], rows[at(x, y)]);
+                            if c.is_finite() && r.is_finite() {
+                                let (u, v) = f.apply(c, r);
+                                bb = [bb[0].min(u), bb[1].min(v), bb[2].max(u), bb[3].max(v)];
+                            }
                         }
+                    }
+                    bb
+                };
+                let mut samples = bb(&frame);
+                if !samples[0].is_finite() {
+                    continue;
+                }
+                // Never more than 16 samples a pixel.
+                let most = 16.0 * (bw * bh) as f64;
+                let many = (samples[2] - samples[0] + 4.0) * (samples[3] - samples[1] + 4.0);
+                if many > most {
+                    frame = frame.scaled((most / many).sqrt());
+                    samples = bb(&frame);
+                }
+                let mut zb = ZBuffer::new(frame, samples);
+                // A cell no higher than the lowest pixel (and the
+                // tolerance) hides none of them: only roofs, walls and
+                // rising ground are drawn.
+                if !lattice.rasterise(self, &boxes, &mut zb, lowest + self.tolerance) {
+                    continue;
+                }
+                for (x, y, z, own) in pixels {
+                    let (above, cell) = zb.seen_height(cols[at(x, y)], rows[at(x, y)]);
+                    // Hidden: a surface above the pixel's is seen where it
+                    // would be, and not its own or its cell's neighbours'
+                    // (a bilinear wall between two posts seen edge-on is
+                    // no cover).
+                    if z + self.tolerance < above && ((cell.0 - own.0).abs() > 1 || (cell.1 - own.1).abs() > 1) {
+                        seen[(by + y) * t as usize + bx + x] = 0;
+                        hidden += 1;
                     }
                 }
             }
@@ -565,9 +610,29 @@ impl ProjectedLattice {
         (z[0] * (1.0 - fx) + z[1] * fx) * (1.0 - fy) + (z[2] * (1.0 - fx) + z[3] * fx) * fy
     }
 
-    /// Every cell with heights at its four nodes into `zb`: two triangles,
-    /// or bilinear pieces where it bends (a building's corner).
-    fn rasterise(&self, vis: &Visibility, boxes: &[[f32; 4]], zb: &mut ZBuffer) {
+    /// The scan position of ground (x, y) in cell `cell`: its four nodes'
+    /// positions interpolated bilinearly (NaN where one has none). Over a
+    /// DSM cell the bilinear surface projects bilinearly but for the
+    /// camera's curvature, hundredths of a scan pixel, and so does a pixel
+    /// on it; the GCM would repeat the exact model at every wall.
+    fn position(&self, l: Lattice, x: f64, y: f64, cell: (i32, i32)) -> (f64, f64) {
+        let (i, j) = ((cell.0 - self.i0) as i64, (cell.1 - self.j0) as i64);
+        if i < 0 || j < 0 || i + 1 >= self.ni as i64 || j + 1 >= self.nj as i64 {
+            return (f64::NAN, f64::NAN);
+        }
+        let k = j as usize * self.ni + i as usize;
+        let fx = (x - l.ox) / l.dx - cell.0 as f64;
+        let fy = (y - l.oy) / l.dy - cell.1 as f64;
+        let ks = [k, k + 1, k + self.ni, k + self.ni + 1];
+        let bilerp = |v: &[f64]| (v[ks[0]] * (1.0 - fx) + v[ks[1]] * fx) * (1.0 - fy) + (v[ks[2]] * (1.0 - fx) + v[ks[3]] * fx) * fy;
+        (bilerp(&self.cs), bilerp(&self.rs))
+    }
+
+    /// Every cell with heights at its four nodes, one of them above
+    /// `floor`, into `zb`: two triangles, or bilinear pieces where it bends
+    /// (a building's corner). Whether any was drawn.
+    fn rasterise(&self, vis: &Visibility, boxes: &[[f32; 4]], zb: &mut ZBuffer, floor: f64) -> bool {
+        let mut drawn = false;
         let p = |k: usize| -> Projected { (self.cs[k], self.rs[k], self.zs[k]) };
         let [c0, r0, c1, r1] = zb.extent();
         for j in 0..self.nj.saturating_sub(1) {
@@ -579,6 +644,10 @@ impl ProjectedLattice {
                 }
                 let k = j * self.ni + i;
                 let q = [p(k), p(k + 1), p(k + self.ni), p(k + self.ni + 1)];
+                if q.iter().all(|v| v.2 <= floor) {
+                    continue;
+                }
+                drawn = true;
                 let bend = (q[0].2 + q[3].2 - q[1].2 - q[2].2).abs();
                 let cell = (self.i0 + i as i32, self.j0 + j as i32);
                 if bend > SPLIT_BEND * vis.tolerance {
@@ -588,6 +657,7 @@ impl ProjectedLattice {
                 }
             }
         }
+        drawn
     }
 
     /// Cell `k` (its first node) as `SPLIT²` bilinear pieces. Their nodes
@@ -629,10 +699,10 @@ impl ProjectedLattice {
 /// slope of the triangle that put it there: the surface seen at any scan
 /// position is then its nearest sample's plane, not the sample's value.
 struct ZBuffer {
-    c0: f64,
-    r0: f64,
-    /// Samples a scan column and a scan row.
-    inv: (f64, f64),
+    /// Scan → samples, and the first sample's place in that frame.
+    frame: SampleFrame,
+    u0: f64,
+    v0: f64,
     w: usize,
     h: usize,
     z: Vec<f32>,
@@ -643,25 +713,30 @@ struct ZBuffer {
 }
 
 impl ZBuffer {
-    /// Samples `sc` scan columns and `sr` rows apart over `[c0, r0, c1,
-    /// r1]` and two beyond.
-    fn new([c0, r0, c1, r1]: [f64; 4], sc: f64, sr: f64) -> ZBuffer {
-        let (c0, r0) = (c0 - 2.0 * sc, r0 - 2.0 * sr);
-        let w = ((c1 - c0) / sc).ceil() as usize + 3;
-        let h = ((r1 - r0) / sr).ceil() as usize + 3;
-        ZBuffer { c0, r0, inv: (1.0 / sc, 1.0 / sr), w, h, z: vec![f32::NEG_INFINITY; w * h], tri: vec![0; w * h], tris: Vec::new() }
+    /// Samples of `frame` over its box `[u0, v0, u1, v1]` and two beyond.
+    fn new(frame: SampleFrame, [u0, v0, u1, v1]: [f64; 4]) -> ZBuffer {
+        let (u0, v0) = (u0 - 2.0, v0 - 2.0);
+        let w = (u1 - u0).ceil() as usize + 3;
+        let h = (v1 - v0).ceil() as usize + 3;
+        ZBuffer { frame, u0, v0, w, h, z: vec![f32::NEG_INFINITY; w * h], tri: vec![0; w * h], tris: Vec::new() }
     }
 
     /// Buffer coordinates of scan (c, r): sample centres at integers.
     #[inline]
     fn at(&self, c: f64, r: f64) -> (f64, f64) {
-        ((c - self.c0) * self.inv.0 - 0.5, (r - self.r0) * self.inv.1 - 0.5)
+        let (u, v) = self.frame.apply(c, r);
+        (u - self.u0 - 0.5, v - self.v0 - 0.5)
     }
 
     /// The scan box the samples cover.
     fn extent(&self) -> [f32; 4] {
-        let (c1, r1) = (self.c0 + self.w as f64 / self.inv.0, self.r0 + self.h as f64 / self.inv.1);
-        [self.c0 as f32, self.r0 as f32, c1 as f32, r1 as f32]
+        let (u1, v1) = (self.u0 + self.w as f64, self.v0 + self.h as f64);
+        let mut b = [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY];
+        for (u, v) in [(self.u0, self.v0), (u1, self.v0), (self.u0, v1), (u1, v1)] {
+            let (c, r) = self.frame.invert(u, v);
+            b = [b[0].min(c as f32), b[1].min(r as f32), b[2].max(c as f32), b[3].max(r as f32)];
+        }
+        b
     }
 
     /// Quad `[p00, p10, p01, p11]` as two triangles.
@@ -691,46 +766,73 @@ impl ZBuffer {
         let (db, dc) = (b.2 - a.2, c.2 - a.2);
         let gx = (db * (cy - ay) - dc * (by - ay)) * inv;
         let gy = (dc * (bx - ax) - db * (cx - ax)) * inv;
-        let id = self.tris.len() as u32;
-        let mut drawn = false;
         // Along a row of samples the barycentric weights of b and c are
-        // p + q x: each row's run of samples inside (edges count, as a max
-        // never double-counts) is found from them, then filled.
+        // p + q x, p linear in the row: each edge bounds the row's run of
+        // samples inside (edges count, as a max never double-counts) by a
+        // column linear in the row, worked out once a triangle.
         let (qb, qc) = ((cy - ay) * inv, -(by - ay) * inv);
+        let (pb0, pb1) = (-ax * (cy - ay) * inv, -(cx - ax) * inv);
+        let (pc0, pc1) = ((by - ay) * ax * inv, (bx - ax) * inv);
         let eps = -1e-9;
-        for y in ya..=yb {
-            let fy = y as f64 - ay;
-            let pb = (-ax * (cy - ay) - fy * (cx - ax)) * inv;
-            let pc = ((bx - ax) * fy + (by - ay) * ax) * inv;
+        // Per edge: its weight's p (at row offset 0, per row) and q.
+        let edges = [(pb0, pb1, qb), (pc0, pc1, qc), (1.0 - pb0 - pc0, -pb1 - pc1, -qb - qc)];
+        // (from, per row, lower bound?) of each edge whose q is not 0;
+        // an edge along the rows bounds the rows instead.
+        let mut bounds = [(0.0, 0.0, true); 3];
+        let mut n = 0;
+        let (mut ya, mut yb) = (ya as f64, yb as f64);
+        for (p0, p1, q) in edges {
+            if q != 0.0 {
+                bounds[n] = ((eps - p0) / q, -p1 / q, q > 0.0);
+                n += 1;
+            } else if p1 == 0.0 {
+                if p0 < eps {
+                    return;
+                }
+            } else {
+                // p0 + p1 (y − ay) ≥ eps
+                let edge = ay + (eps - p0) / p1;
+                if p1 > 0.0 {
+                    ya = ya.max(edge.ceil());
+                } else {
+                    yb = yb.min(edge.floor());
+                }
+            }
+        }
+        let (z_b, z_c) = (db * qb + dc * qc, a.2 + db * pb0 + dc * pc0);
+        let z_row = db * pb1 + dc * pc1;
+        let (id, dz) = (self.tris.len() as u32, z_b as f32);
+        let mut drawn = false;
+        let mut y = ya;
+        while y <= yb {
+            let fy = y - ay;
             let (mut lo, mut hi) = (xa as f64, xb as f64);
-            for (p, q) in [(pb, qb), (pc, qc), (1.0 - pb - pc, -qb - qc)] {
-                if q > 0.0 {
-                    lo = lo.max(((eps - p) / q).ceil());
-                } else if q < 0.0 {
-                    hi = hi.min(((eps - p) / q).floor());
-                } else if p < eps {
-                    hi = lo - 1.0;
+            for &(from, step, lower) in &bounds[..n] {
+                let edge = from + fy * step;
+                if lower {
+                    lo = lo.max(edge.ceil());
+                } else {
+                    hi = hi.min(edge.floor());
                 }
             }
-            if lo > hi {
-                continue;
-            }
-            let (row, lo, hi) = (y as usize * self.w, lo as usize, hi as usize);
-            // z = a + db·wb + dc·wc, linear in x along the row. (The row's
-            // slices and an f64 counter: no bounds check nor unsigned
-            // conversion a sample, the fill's cost.)
-            let z0 = a.2 + db * pb + dc * pc;
-            let dz = db * qb + dc * qc;
-            let mut x = lo as f64;
-            for (zk, tk) in self.z[row + lo..=row + hi].iter_mut().zip(&mut self.tri[row + lo..=row + hi]) {
-                let z = (z0 + dz * x) as f32;
-                if z > *zk {
-                    *zk = z;
-                    *tk = id;
-                    drawn = true;
+            if lo <= hi {
+                let (row, lo, hi) = (y as usize * self.w, lo as usize, hi as usize);
+                // z = a + db·wb + dc·wc, linear in x along the row, in f32
+                // (a millimetre on heights of thousands of metres); the
+                // row's slices and a float counter, no branch: the fill's
+                // cost.
+                let z0 = (z_c + z_row * fy) as f32;
+                let mut x = lo as f32;
+                for (zk, tk) in self.z[row + lo..=row + hi].iter_mut().zip(&mut self.tri[row + lo..=row + hi]) {
+                    let z = z0 + dz * x;
+                    let higher = z > *zk;
+                    *zk = if higher { z } else { *zk };
+                    *tk = if higher { id } else { *tk };
+                    drawn |= higher;
+                    x += 1.0;
                 }
-                x += 1.0;
             }
+            y += 1.0;
         }
         if drawn {
             self.tris.push(([gx as f32, gy as f32], cell));
@@ -771,35 +873,95 @@ impl ZBuffer {
     }
 }
 
-/// Steps along scan columns and rows (scan pixels) that are at most half
-/// an output pixel on the output grid, from the tile's local derivatives
-/// (at a few pixels, the finest): an oblique view's pixels are longer one
-/// way than the other, and a square step fine enough for the short way
-/// would sample the long way over and over.
-fn half_pixel_steps(cols: &[f64], rows: &[f64], w: usize, [bx, by, bw, bh]: [usize; 4]) -> (f64, f64) {
-    let (mut sc, mut sr) = (f64::INFINITY, f64::INFINITY);
-    for (y, x) in [(bh / 2, bw / 2), (0, 0), (bh - 1, bw - 1), (0, bw - 1), (bh - 1, 0)] {
-        let (x, y) = ((bx + x).min(bx + bw.saturating_sub(2)), (by + y).min(by + bh.saturating_sub(2)));
-        let k = y * w + x;
-        if k + w + 1 >= cols.len() {
-            continue;
-        }
-        // J = d(col, row)/d(x, y); a scan step along e_c is |J⁻¹ e_c| output pixels.
-        let (a, b) = (cols[k + 1] - cols[k], cols[k + w] - cols[k]);
-        let (c, d) = (rows[k + 1] - rows[k], rows[k + w] - rows[k]);
-        let det = a * d - b * c;
+/// A Z-buffer's sampling of the scan: a linear map from scan (column,
+/// row) to samples, half an output pixel apart along the output grid's own
+/// axes. Samples along the scan's axes would need as many again: an oblique
+/// view turns and shears the output's pixels in the scan, and a box of the
+/// scan around them holds far more than they cover.
+#[derive(Clone, Copy, Debug)]
+struct SampleFrame {
+    /// Scan → samples, and back.
+    m: [[f64; 2]; 2],
+    inv: [[f64; 2]; 2],
+}
+
+impl SampleFrame {
+    /// The frame of `j` (d(column, row) / d(output x, y), at a point),
+    /// samples `1/density` output pixels apart; `None` where `j` is singular.
+    fn of_jacobian(j: [[f64; 2]; 2], density: f64) -> Option<SampleFrame> {
+        let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
         if !det.is_finite() || det.abs() < 1e-12 {
-            continue;
+            return None;
         }
-        // J⁻¹ = [d −b; −c a] / det.
-        let along_c = d.hypot(c) / det.abs();
-        let along_r = b.hypot(a) / det.abs();
-        sc = sc.min(0.5 / along_c);
-        sr = sr.min(0.5 / along_r);
+        let inv = [[j[1][1] / det, -j[0][1] / det], [-j[1][0] / det, j[0][0] / det]];
+        let m = [[inv[0][0] * density, inv[0][1] * density], [inv[1][0] * density, inv[1][1] * density]];
+        Some(SampleFrame { m, inv: [[j[0][0] / density, j[0][1] / density], [j[1][0] / density, j[1][1] / density]] })
     }
-    if sc.is_finite() && sr.is_finite() {
-        (sc.max(1e-3), sr.max(1e-3))
-    } else {
-        (0.5, 0.5)
+
+    #[inline]
+    fn apply(&self, c: f64, r: f64) -> (f64, f64) {
+        (self.m[0][0] * c + self.m[0][1] * r, self.m[1][0] * c + self.m[1][1] * r)
+    }
+
+    fn invert(&self, u: f64, v: f64) -> (f64, f64) {
+        (self.inv[0][0] * u + self.inv[0][1] * v, self.inv[1][0] * u + self.inv[1][1] * v)
+    }
+
+    /// The same axes, `k` times as many samples a unit.
+    fn scaled(&self, k: f64) -> SampleFrame {
+        let m = self.m.map(|row| row.map(|v| v * k));
+        let inv = self.inv.map(|row| row.map(|v| v / k));
+        SampleFrame { m, inv }
+    }
+}
+
+/// d(column, row) / d(x, y) from positions at a point and one step along x and y.
+fn jacobian(p: (f64, f64), px: (f64, f64), py: (f64, f64)) -> [[f64; 2]; 2] {
+    [[px.0 - p.0, py.0 - p.0], [px.1 - p.1, py.1 - p.1]]
+}
+
+impl Visibility<'_> {
+    /// The sampling of the Z-buffer for walked pixels `[x, y, w, h]`: from
+    /// the model on the plane of the tile's lowest height `z` (a roof's
+    /// pixels are larger in the scan: sampled more finely), at the block's
+    /// centre, made finer until samples are half a pixel apart at its
+    /// corners too (perspective). Where the model gives no position there,
+    /// from the block's own positions (`cols`, `rows`, rows `w` apart,
+    /// the block at `at`).
+    fn sample_frame(&self, [x, y, bw, bh]: [usize; 4], z: f64, cols: &[f64], rows: &[f64], w: usize, at: [usize; 2]) -> Option<SampleFrame> {
+        let project = |u: f64, v: f64| {
+            let (gx, gy) = self.t.ground(u, v);
+            self.t.model.project(gx, gy, z)
+        };
+        let model_j = |u: f64, v: f64| Some(jacobian(project(u, v)?, project(u + 1.0, v)?, project(u, v + 1.0)?));
+        let (cu, cv) = (x as f64 + 0.5 * bw as f64, y as f64 + 0.5 * bh as f64);
+        let frame = match model_j(cu, cv) {
+            Some(j) => SampleFrame::of_jacobian(j, 2.0),
+            None => {
+                // The first point of the block with positions a step on.
+                let (bx, by) = (at[0], at[1]);
+                [(bh / 2, bw / 2), (0, 0), (bh - 1, bw - 1), (0, bw - 1), (bh - 1, 0)].into_iter().find_map(|(yy, xx)| {
+                    let (xx, yy) = ((bx + xx).min(bx + bw.saturating_sub(2)), (by + yy).min(by + bh.saturating_sub(2)));
+                    let k = yy * w + xx;
+                    if k + w + 1 >= cols.len() {
+                        return None;
+                    }
+                    SampleFrame::of_jacobian(jacobian((cols[k], rows[k]), (cols[k + 1], rows[k + 1]), (cols[k + w], rows[k + w])), 2.0)
+                })
+            }
+        }?;
+        // A sample step along either axis of the frame, as output pixels
+        // at each corner: half a pixel at the most.
+        let mut k = 1.0f64;
+        for (u, v) in [(x as f64, y as f64), ((x + bw) as f64, y as f64), (x as f64, (y + bh) as f64), ((x + bw) as f64, (y + bh) as f64)] {
+            let Some(j) = model_j(u, v) else { continue };
+            let Some(back) = SampleFrame::of_jacobian(j, 1.0) else { continue };
+            for e in [(1.0, 0.0), (0.0, 1.0)] {
+                let (c, r) = frame.invert(e.0, e.1);
+                let (du, dv) = back.apply(c, r);
+                k = k.max(2.0 * du.hypot(dv));
+            }
+        }
+        Some(frame.scaled(k))
     }
 }
