@@ -318,14 +318,31 @@ impl<'a> Visibility<'a> {
 
     /// Which pixels of walked block `[x0, y0, x1, y1]` (a tile or a few side
     /// by side) are seen: 1 seen, 0 hidden, into `seen` (rows `t` apart);
-    /// and how many pixels are imaged and hidden. `positions` fills the
-    /// block's scan positions (row-major, NaN where none) from the GCM;
-    /// where the lattice is the DSM's posts, a block that needs its
-    /// Z-buffer takes them from the lattice instead (see
-    /// [`ProjectedLattice::position`]).
-    pub fn tile(&self, [x0, y0, x1, y1]: [u32; 4], t: u32, positions: impl FnOnce(&mut [f64], &mut [f64]), seen: &mut [u8]) -> (u64, u64) {
+    /// and how many pixels are imaged and hidden. `positions(y, x, cols,
+    /// rows)` fills scan positions (NaN where none) from the GCM along
+    /// walked row `y` from column `x`; where the lattice is the DSM's
+    /// posts, a block that needs its Z-buffer takes them from the lattice
+    /// instead (see [`ProjectedLattice::position`]).
+    pub fn tile(&self, [x0, y0, x1, y1]: [u32; 4], t: u32, positions: impl Fn(u32, u32, &mut [f64], &mut [f64]), seen: &mut [u8]) -> (u64, u64) {
         let (w, h) = ((x1 - x0) as usize, (y1 - y0) as usize);
-        let (mut cols, mut rows) = (vec![f64::NAN; w * h], vec![f64::NAN; w * h]);
+        let all_positions = || {
+            let (mut cols, mut rows) = (vec![f64::NAN; w * h], vec![f64::NAN; w * h]);
+            for y in 0..h {
+                positions(y0 + y as u32, x0, &mut cols[y * w..(y + 1) * w], &mut rows[y * w..(y + 1) * w]);
+            }
+            (cols, rows)
+        };
+        // Nothing hidden: how many pixels are imaged. Over a DSM without a
+        // hole there, the whole block is when its border is (the ground
+        // seen unhidden maps one to one into the scan, a rectangle): 4/w
+        // of the positions.
+        let all_seen = |complete: bool| {
+            if complete && self.border_imaged([x0, y0, x1, y1], &positions) {
+                return ((w * h) as u64, 0);
+            }
+            let (cols, rows) = all_positions();
+            self.count_imaged(&cols, &rows)
+        };
         seen.fill(1);
         // The tile's ground (pixel centres) and its heights.
         let corners =
@@ -334,10 +351,9 @@ impl<'a> Visibility<'a> {
         let rect = ground
             .iter()
             .fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, &(x, y)| [b[0].min(x), b[1].min(y), b[2].max(x), b[3].max(y)]);
-        let (zlo, zhi) = self.height_range(rect);
+        let (zlo, zhi, complete) = self.height_range(rect);
         if !zlo.is_finite() {
-            positions(&mut cols, &mut rows);
-            return self.count_imaged(&cols, &rows);
+            return all_seen(false);
         }
         // Lines of sight at the corners, at the tile's lowest height: where
         // the occluders of the tile can stand.
@@ -348,8 +364,7 @@ impl<'a> Visibility<'a> {
             }
         }
         if !g[0].is_finite() {
-            positions(&mut cols, &mut rows);
-            return self.count_imaged(&cols, &rows);
+            return all_seen(false);
         }
         let cap = MAX_REACH_TILES * (rect[2] - rect[0]).max(rect[3] - rect[1]).max(self.lattice.dx.abs());
         let window = |dz: f64| {
@@ -364,27 +379,27 @@ impl<'a> Visibility<'a> {
         // surface there rises as steeply as the lines of sight (terrain
         // under a camera looking down): all seen.
         if rise * slope < 0.5 * self.t.grid.gsd.min() || steep * slope < 0.9 {
-            positions(&mut cols, &mut rows);
-            return self.count_imaged(&cols, &rows);
+            return all_seen(complete);
         }
         let lattice = self.project_lattice(window(rise), &Corridor::toward(rect, g, rise));
-        if self.posts.is_some() {
+        let (cols, rows) = if self.posts.is_some() {
+            let (mut cols, mut rows) = (vec![f64::NAN; w * h], vec![f64::NAN; w * h]);
             for y in 0..h {
                 for x in 0..w {
                     let (gx, gy) = self.t.ground((x0 as usize + x) as f64 + 0.5, (y0 as usize + y) as f64 + 0.5);
                     (cols[y * w + x], rows[y * w + x]) = lattice.position(self.lattice, gx, gy, self.lattice.cell(gx, gy));
                 }
             }
+            (cols, rows)
         } else {
-            positions(&mut cols, &mut rows);
-        }
+            all_positions()
+        };
         let (cols, rows) = (&cols[..], &rows[..]);
 
         // A Z-buffer for each block of the tile's pixels: the box of a
         // block's scan positions hugs them (a whole tile's, turned, seen in
         // perspective, its roofs displaced, holds four times its area).
         let boxes = lattice.cell_boxes();
-        let (src_w, src_h) = self.scan;
         let (mut imaged, mut hidden) = (0, 0);
         for by in (0..h).step_by(SUB) {
             for bx in (0..w).step_by(SUB) {
@@ -397,7 +412,7 @@ impl<'a> Visibility<'a> {
                 for y in 0..bh {
                     for x in 0..bw {
                         let (c, r) = (cols[at(x, y)], rows[at(x, y)]);
-                        if !(c >= 0.0 && r >= 0.0 && c <= src_w && r <= src_h) {
+                        if !self.in_scan(c, r) {
                             continue;
                         }
                         imaged += 1;
@@ -467,28 +482,55 @@ impl<'a> Visibility<'a> {
 
     /// Of these scan positions, how many are in the scan (and none hidden).
     fn count_imaged(&self, cols: &[f64], rows: &[f64]) -> (u64, u64) {
-        let (w, h) = self.scan;
-        (cols.iter().zip(rows).filter(|&(&c, &r)| c >= 0.0 && r >= 0.0 && c <= w && r <= h).count() as u64, 0)
+        (cols.iter().zip(rows).filter(|&(&c, &r)| self.in_scan(c, r)).count() as u64, 0)
+    }
+
+    #[inline]
+    fn in_scan(&self, c: f64, r: f64) -> bool {
+        c >= 0.0 && r >= 0.0 && c <= self.scan.0 && r <= self.scan.1
+    }
+
+    /// Are the border pixels of walked block `[x0, y0, x1, y1]` all in the
+    /// scan (`positions` as for [`Visibility::tile`])?
+    fn border_imaged(&self, [x0, y0, x1, y1]: [u32; 4], positions: &impl Fn(u32, u32, &mut [f64], &mut [f64])) -> bool {
+        let w = (x1 - x0) as usize;
+        let (mut cols, mut rows) = (vec![f64::NAN; w], vec![f64::NAN; w]);
+        for y in [y0, y1 - 1] {
+            positions(y, x0, &mut cols, &mut rows);
+            if !cols.iter().zip(&rows).all(|(&c, &r)| self.in_scan(c, r)) {
+                return false;
+            }
+        }
+        (y0 + 1..y1.saturating_sub(1)).all(|y| {
+            [x0, x1 - 1].into_iter().all(|x| {
+                positions(y, x, &mut cols[..1], &mut rows[..1]);
+                self.in_scan(cols[0], rows[0])
+            })
+        })
     }
 
     /// The lowest and highest height at the lattice nodes over ground `rect`
-    /// (NaN, NaN where none).
-    fn height_range(&self, rect: [f64; 4]) -> (f64, f64) {
+    /// (NaN, NaN where none), and whether they are the DSM's every post
+    /// there and all have a height (no hole, all inside).
+    fn height_range(&self, rect: [f64; 4]) -> (f64, f64, bool) {
         let (i0, j0, i1, j1) = self.lattice.cover(rect);
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut complete = matches!(self.posts, Some((_, 1)));
         for j in j0..=j1 {
             for i in i0..=i1 {
                 let z = self.node_z(i, j);
                 if z.is_finite() {
                     lo = lo.min(z);
                     hi = hi.max(z);
+                } else {
+                    complete = false;
                 }
             }
         }
         if lo.is_finite() {
-            (lo, hi)
+            (lo, hi, complete)
         } else {
-            (f64::NAN, f64::NAN)
+            (f64::NAN, f64::NAN, false)
         }
     }
 

@@ -49,12 +49,8 @@ fn seen(run: &Run, band: &BandGcm, b: u32, vis: &Visibility) -> Seen {
             .map(|(g0, g1)| {
                 let (x0, x1) = (g0 * t, (g1 * t).min(run.walk.grid.width));
                 let (w, h) = ((x1 - x0) as usize, (y1 - y0) as usize);
-                let positions = |cols: &mut [f64], rows: &mut [f64]| {
-                    let mut miss = None;
-                    for y in y0..y1 {
-                        let k = (y - y0) as usize * w;
-                        gcm.fill_row(band, y, x0, &mut cols[k..k + w], &mut rows[k..k + w], &mut miss);
-                    }
+                let positions = |y: u32, x: u32, cols: &mut [f64], rows: &mut [f64]| {
+                    gcm.fill_row(band, y, x, cols, rows, &mut None);
                 };
                 let mut seen = vec![1u8; w * t as usize];
                 let (imaged, hidden) = vis.tile([x0, y0, x1, y1], w as u32, positions, &mut seen);
