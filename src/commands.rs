@@ -499,7 +499,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     let plane =
         if a.trend == Trend::Mean { dem.mean_plane(area) } else { dem.trend_plane(area) }.ok_or_else(|| anyhow!("no DEM heights in the output area"))?;
     let approx = Approx::new(cam.model(), &grid, plane).ok_or_else(|| anyhow!("plane behind the camera"))?;
-    let t = Transform::new(cam.model(), &dem, grid);
+    let t = Transform::new(cam.model(), &dem, grid).with_scan((w, h));
     say!(
         "accuracy of A + GCM against the exact model: {}x{} output at {} m, every {} row/column, trend {}{}",
         grid.width,

@@ -1125,12 +1125,12 @@ impl<'a> Gcm<'a> {
             let (oc, or) = (&mut cols[p..seg_end - x0 as usize], &mut rows[p..seg_end - x0 as usize]);
             if refined {
                 let q = cells.and_then(|c| c[i].as_ref()).expect("refined cell");
+                // The corrections leaf by leaf along the row, then A.
+                quad_row(q, v, x, oc, or);
                 for (m, (oc, or)) in oc.iter_mut().zip(or.iter_mut()).enumerate() {
-                    let u = (x + m) as f64 + 0.5;
-                    let (ac, ar) = ra.at(u);
-                    let c = leaf(q, u, v).map(|l| bilerp(&l.corners, (u - l.u0) / l.du, (v - l.v0) / l.dv)).unwrap_or([f64::NAN; 2]);
-                    *oc = ac + c[0];
-                    *or = ar + c[1];
+                    let (ac, ar) = ra.at((x + m) as f64 + 0.5);
+                    *oc += ac;
+                    *or += ar;
                 }
             } else {
                 let (c0, r0) = (cc[il], cr[il]);
@@ -1220,41 +1220,65 @@ fn bilerp(c: &[[f64; 2]; 4], fu: f64, fv: f64) -> [f64; 2] {
     [c[0][0] * w[0] + c[1][0] * w[1] + c[2][0] * w[2] + c[3][0] * w[3], c[0][1] * w[0] + c[1][1] * w[1] + c[2][1] * w[2] + c[3][1] * w[3]]
 }
 
-/// The leaf of `q` containing (u, v); `None` for a leaf marked exact.
-fn leaf(q: &Quad, u: f64, v: f64) -> Option<&Quad> {
-    let mut q = q;
-    loop {
-        if q.exact {
-            return None;
-        }
-        match &q.kids {
-            None => return Some(q),
-            Some(k) => {
-                let i = usize::from(u >= q.split.0) + 2 * usize::from(v >= q.split.1);
-                q = &k[i];
+/// The corrections of `q` along row `v` at pixels `x0, x0 + 1, …` (their
+/// centres half a pixel on), as many as `dc` holds: each leaf's run of
+/// pixels interpolated between its corners, NaN on a leaf marked exact
+/// (one descent a run of pixels, not one a pixel).
+fn quad_row(q: &Quad, v: f64, x0: usize, dc: &mut [f64], dr: &mut [f64]) {
+    if q.exact {
+        dc.fill(f64::NAN);
+        dr.fill(f64::NAN);
+        return;
+    }
+    match &q.kids {
+        None => {
+            let fv = (v - q.v0) / q.dv;
+            for (m, (dc, dr)) in dc.iter_mut().zip(dr.iter_mut()).enumerate() {
+                [*dc, *dr] = bilerp(&q.corners, ((x0 + m) as f64 + 0.5 - q.u0) / q.du, fv);
             }
+        }
+        Some(k) => {
+            let first = 2 * usize::from(v >= q.split.1);
+            // Pixels whose centre is at or past the split take the right kid.
+            let right = ((q.split.0 - 0.5).ceil() - x0 as f64).clamp(0.0, dc.len() as f64) as usize;
+            let ((lc, rc), (lr, rr)) = (dc.split_at_mut(right), dr.split_at_mut(right));
+            quad_row(&k[first], v, x0, lc, lr);
+            quad_row(&k[first + 1], v, x0 + right, rc, rr);
         }
     }
 }
 
-/// Over `t`'s grid, with half again as margin: the most scan pixels a metre
-/// of height moves the image (R), and the most that rate changes a metre
-/// (|∂²T/∂Z²|), from projections at a 7×7 lattice of the grid at the DEM's
-/// mean height, ±50 m.
+/// Over `t`'s grid where it images the scan, with half again as margin:
+/// the most scan pixels a metre of height moves the image (R), and the most
+/// that rate changes a metre (|∂²T/∂Z²|), from projections at a 13×13
+/// lattice of the grid at the DEM's mean height, ±50 m. Points that the
+/// camera puts well outside the scan (an oblique frame's grid reaches far
+/// beyond its footprint, where the lens polynomial runs wild) are left out:
+/// nothing there is resampled. All count where the scan is not known or
+/// none is inside.
 fn relief_rates(t: &Transform<'_>) -> (f64, f64) {
+    const N: usize = 13;
     let z = t.dem.mean_height().unwrap_or(0.0);
     let (w, h) = (t.grid.width as f64, t.grid.height as f64);
-    let (mut rate, mut bend) = (0.0f64, 0.0f64);
-    for i in 0..7 {
-        for j in 0..7 {
-            let (x, y) = t.ground(w * i as f64 / 6.0, h * j as f64 / 6.0);
-            if let (Some(a), Some(b), Some(c)) = (t.model.project(x, y, z - 50.0), t.model.project(x, y, z), t.model.project(x, y, z + 50.0)) {
-                rate = rate.max((c.0 - a.0).hypot(c.1 - a.1) / 100.0);
-                bend = bend.max((c.0 + a.0 - 2.0 * b.0).hypot(c.1 + a.1 - 2.0 * b.1) / 2500.0);
+    let near_scan = |(c, r): (f64, f64)| t.scan.is_none_or(|(sw, sh)| c >= -0.1 * sw && r >= -0.1 * sh && c <= 1.1 * sw && r <= 1.1 * sh);
+    let rates = |only_near: bool| {
+        let (mut rate, mut bend, mut seen) = (0.0f64, 0.0f64, false);
+        for i in 0..N {
+            for j in 0..N {
+                let (x, y) = t.ground(w * i as f64 / (N - 1) as f64, h * j as f64 / (N - 1) as f64);
+                if let (Some(a), Some(b), Some(c)) = (t.model.project(x, y, z - 50.0), t.model.project(x, y, z), t.model.project(x, y, z + 50.0)) {
+                    if only_near && !near_scan(b) {
+                        continue;
+                    }
+                    seen = true;
+                    rate = rate.max((c.0 - a.0).hypot(c.1 - a.1) / 100.0);
+                    bend = bend.max((c.0 + a.0 - 2.0 * b.0).hypot(c.1 + a.1 - 2.0 * b.1) / 2500.0);
+                }
             }
         }
-    }
-    (1.5 * rate, 1.5 * bend)
+        seen.then_some((1.5 * rate, 1.5 * bend))
+    };
+    rates(true).or_else(|| rates(false)).unwrap_or((0.0, 0.0))
 }
 
 #[cfg(test)]

@@ -68,10 +68,9 @@ pub fn render_bands(
             return Ok(());
         }
     };
-    let t = Transform::new(setup.camera.model(), &setup.dem, setup.grid);
+    let t = Transform::new(setup.camera.model(), &setup.dem, setup.grid).with_scan((setup.src.info.width, setup.src.info.height));
     let gcm = Gcm::new(&t, setup.approx, setup.gcm);
-    let visibility =
-        (opts.occlusion != Occlusion::None).then(|| Visibility::new(&t, (setup.src.info.width, setup.src.info.height), setup.occlusion_tolerance()));
+    let visibility = (opts.occlusion != Occlusion::None).then(|| Visibility::new(&t, setup.occlusion_tolerance()));
     let (tx, ty) = (setup.grid.width.div_ceil(opts.tile), setup.grid.height.div_ceil(opts.tile));
     let walk = Walk { grid: t.grid, tile: opts.tile, bands: (0, ty), cols: (0, tx), columns: false, piece: (0, 0, tx) };
     let pool = rayon::ThreadPoolBuilder::new()

@@ -41,8 +41,9 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     // output's columns.
     let (t, approx) =
         if columns { (Transform::transposed(model, dem, plan.grid), plan.approx.transposed()) } else { (Transform::new(model, dem, plan.grid), plan.approx) };
+    let t = t.with_scan((src.info.width, src.info.height));
     let gcm = Gcm::new(&t, approx, plan.gcm);
-    let visibility = (opts.occlusion != Occlusion::None).then(|| Visibility::new(&t, (src.info.width, src.info.height), plan.occlusion_tolerance()));
+    let visibility = (opts.occlusion != Occlusion::None).then(|| Visibility::new(&t, plan.occlusion_tolerance()));
 
     // The piece as walked: bands `wr0..wr1` of tile columns `wc0..wc1`
     // (transposed, bands of the output's tile columns).

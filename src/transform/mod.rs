@@ -37,11 +37,19 @@ pub struct Transform<'a> {
     /// from [`Transform::ground`].
     pub grid: OutputGrid,
     transposed: bool,
+    /// The scan's size (columns, rows), where known: what lies outside it
+    /// is never resampled.
+    pub scan: Option<(f64, f64)>,
 }
 
 impl<'a> Transform<'a> {
     pub fn new(model: &'a dyn SensorModel, dem: &'a Dem, grid: OutputGrid) -> Self {
-        Transform { model, dem, grid, transposed: false }
+        Transform { model, dem, grid, transposed: false, scan: None }
+    }
+
+    /// The same, knowing the scan is `size` (columns, rows).
+    pub fn with_scan(self, size: (u32, u32)) -> Self {
+        Transform { scan: Some((size.0 as f64, size.1 as f64)), ..self }
     }
 
     /// `T` of `grid` walked by columns: its (u, v) is (v, u) of `grid`, so
@@ -49,7 +57,7 @@ impl<'a> Transform<'a> {
     /// output then reads scan rows along each of them.
     pub fn transposed(model: &'a dyn SensorModel, dem: &'a Dem, grid: OutputGrid) -> Self {
         let walked = OutputGrid { width: grid.height, height: grid.width, ..grid };
-        Transform { model, dem, grid: walked, transposed: true }
+        Transform { model, dem, grid: walked, transposed: true, scan: None }
     }
 
     pub fn is_transposed(&self) -> bool {

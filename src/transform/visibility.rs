@@ -147,10 +147,10 @@ const SUB: usize = 64;
 const MAX_REACH_TILES: f64 = 16.0;
 
 impl<'a> Visibility<'a> {
-    /// Visibility for `t` (its model, DSM and walked grid) of a scan of
-    /// `scan` (columns, rows); heights within `tolerance` of the surface
-    /// seen count as seen.
-    pub fn new(t: &'a Transform<'a>, scan: (u32, u32), tolerance: f64) -> Visibility<'a> {
+    /// Visibility for `t` (its model, DSM, walked grid and scan: positions
+    /// outside the scan are not imaged; all are where `t` does not know
+    /// it); heights within `tolerance` of the surface seen count as seen.
+    pub fn new(t: &'a Transform<'a>, tolerance: f64) -> Visibility<'a> {
         let grid = t.grid;
         let aligned = match &t.dem.model {
             HeightModel::Grid(g) if t.dem.to_dem.is_none() && g.transform[2] == 0.0 && g.transform[4] == 0.0 => Some(g.transform),
@@ -192,7 +192,7 @@ impl<'a> Visibility<'a> {
         let (i0, j0, i1, j1) = lattice.cover(region);
         let (across, down) = (((i1 - i0) / BLOCK + 1) as usize, ((j1 - j0) / BLOCK + 1) as usize);
         let blocks = BlockMax { i0, j0, across, down, max: (0..across * down).map(|_| std::sync::OnceLock::new()).collect() };
-        Visibility { t, lattice, tolerance, scan: (scan.0 as f64, scan.1 as f64), posts, blocks }
+        Visibility { t, lattice, tolerance, scan: t.scan.unwrap_or((f64::INFINITY, f64::INFINITY)), posts, blocks }
     }
 
     /// The highest height in block (bi, bj) (its nodes and its far edge's)
