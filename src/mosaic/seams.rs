@@ -8,7 +8,6 @@
 
 use super::balance::Correction;
 use super::plan::{Plan, NONE};
-use pathfinding::prelude::dijkstra;
 use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 use std::collections::VecDeque;
 
@@ -110,7 +109,13 @@ fn stretches(plan: &Plan, i: u16, j: u16) -> Vec<Vec<usize>> {
         };
         neighbours4(x, y, cw, ch).any(|(a, b)| plan.label_at(a, b) == other)
     };
-    let cells: HashSet<usize> = (0..cw * ch).filter(|&k| on(k % cw, k / cw)).collect();
+    // A cell labelled i with a neighbour labelled j lies in i's box and
+    // next to j's (and the other way round): only where the boxes meet,
+    // a cell around, is looked at.
+    let (bi, bj) = (plan.images[i as usize].cells, plan.images[j as usize].cells);
+    let (x0, y0) = (bi[0].max(bj[0]).saturating_sub(1), bi[1].max(bj[1]).saturating_sub(1));
+    let (x1, y1) = ((bi[2].min(bj[2]) + 1).min(cw), (bi[3].min(bj[3]) + 1).min(ch));
+    let cells: HashSet<usize> = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))).filter(|&(x, y)| on(x, y)).map(|(x, y)| y * cw + x).collect();
     let mut seen = HashSet::default();
     let mut out = Vec::new();
     let mut sorted: Vec<usize> = cells.iter().copied().collect();
@@ -156,6 +161,102 @@ fn reach(cw: usize, ch: usize, from: &[usize], limit: usize, inside: impl Fn(usi
     dist
 }
 
+/// A zone's cells on a dense grid of their box (the search and the flood
+/// fill after it look cells up there, not in hash maps).
+struct ZoneGrid {
+    x0: usize,
+    y0: usize,
+    w: usize,
+    h: usize,
+    /// The mosaic's cells a row.
+    cw: usize,
+    /// Each cell's cost, NaN off the zone.
+    cost: Vec<f64>,
+}
+
+impl ZoneGrid {
+    /// The zone of `cost`'s cells (indices of a grid `cw` cells wide).
+    fn new(cost: &HashMap<usize, f64>, cw: usize) -> Option<ZoneGrid> {
+        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+        for &k in cost.keys() {
+            let (x, y) = (k % cw, k / cw);
+            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+        }
+        let (w, h) = (x1.checked_sub(x0)?, y1.checked_sub(y0)?);
+        let mut zone = ZoneGrid { x0, y0, w, h, cw, cost: vec![f64::NAN; w * h] };
+        for (&k, &v) in cost {
+            let l = zone.local(k).expect("in the box");
+            zone.cost[l] = v;
+        }
+        Some(zone)
+    }
+
+    /// The local index of mosaic cell `k`, if it is in the box.
+    #[inline]
+    fn local(&self, k: usize) -> Option<usize> {
+        let (x, y) = ((k % self.cw).wrapping_sub(self.x0), (k / self.cw).wrapping_sub(self.y0));
+        (x < self.w && y < self.h).then_some(y * self.w + x)
+    }
+
+    /// Is mosaic cell `k` in the zone?
+    #[inline]
+    fn holds(&self, k: usize) -> Option<usize> {
+        self.local(k).filter(|&l| !self.cost[l].is_nan())
+    }
+
+    #[inline]
+    fn global(&self, l: usize) -> usize {
+        (self.y0 + l / self.w) * self.cw + self.x0 + l % self.w
+    }
+
+    /// The least-cost 8-connected path from cell `e0` to `e1` (mosaic
+    /// indices) over the zone (a cell's cost a unit of length; a step
+    /// costs the mean of its two cells' times its length): Dijkstra's
+    /// search, whole-number costs, ties to the lower cell. `None` where
+    /// `e1` cannot be reached.
+    fn least_cost_path(&self, e0: usize, e1: usize) -> Option<Vec<usize>> {
+        let (start, goal) = (self.holds(e0)?, self.holds(e1)?);
+        let (w, h, c) = (self.w, self.h, &self.cost);
+        let mut dist = vec![u64::MAX; w * h];
+        let mut prev = vec![u32::MAX; w * h];
+        let mut heap = std::collections::BinaryHeap::new();
+        dist[start] = 0;
+        heap.push(std::cmp::Reverse((0u64, start as u32)));
+        while let Some(std::cmp::Reverse((d, k))) = heap.pop() {
+            let k = k as usize;
+            if k == goal {
+                break;
+            }
+            if d > dist[k] {
+                continue;
+            }
+            let (x, y) = (k % w, k / w);
+            for (nx, ny) in neighbours8(x, y, w, h) {
+                let n = ny * w + nx;
+                if c[n].is_nan() {
+                    continue;
+                }
+                let len = if nx != x && ny != y { std::f64::consts::SQRT_2 } else { 1.0 };
+                let nd = d + (0.5 * (c[k] + c[n]) * len * RESOLUTION).round() as u64;
+                if nd < dist[n] {
+                    dist[n] = nd;
+                    prev[n] = k as u32;
+                    heap.push(std::cmp::Reverse((nd, n as u32)));
+                }
+            }
+        }
+        if dist[goal] == u64::MAX {
+            return None;
+        }
+        let mut path = vec![goal];
+        while let Some(&k) = path.last().filter(|&&k| k != start) {
+            path.push(prev[k] as usize);
+        }
+        path.reverse();
+        Some(path.into_iter().map(|l| self.global(l)).collect())
+    }
+}
+
 /// One stretch moved onto its least-cost path; the cells that changed
 /// image, or `None` where it stays as it was.
 fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: &[bool], (i, j): (u16, u16), stretch: &[usize]) -> Option<usize> {
@@ -199,53 +300,49 @@ fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: 
             _ => 0.0,
         }
     };
-    let mean = zone.keys().map(|&k| diff(k)).sum::<f64>() / zone.len() as f64;
-    let cost = |k: usize| 1.0 + DIFFERENCE * diff(k) / mean.max(1e-9) + if edges[k] { HEIGHT_EDGE } else { 0.0 };
-    let (path, _) = dijkstra(
-        &e0,
-        |&k| {
-            let ck = cost(k);
-            neighbours8(k % cw, k / cw, cw, ch)
-                .map(|(x, y)| y * cw + x)
-                .filter(|n| zone.contains_key(n))
-                .map(|n| {
-                    let len = if n % cw != k % cw && n / cw != k / cw { std::f64::consts::SQRT_2 } else { 1.0 };
-                    (n, (0.5 * (ck + cost(n)) * len * RESOLUTION).round() as u64)
-                })
-                .collect::<Vec<_>>()
-        },
-        |&k| k == e1,
-    )?;
-    let on_path: HashSet<usize> = path.iter().copied().collect();
+    // Each zone cell's difference once (the search asks for a cell's cost
+    // from each of its neighbours).
+    let diffs: HashMap<usize, f64> = zone.keys().map(|&k| (k, diff(k))).collect();
+    let mean = diffs.values().sum::<f64>() / zone.len() as f64;
+    let cost: HashMap<usize, f64> =
+        diffs.iter().map(|(&k, &d)| (k, 1.0 + DIFFERENCE * d / mean.max(1e-9) + if edges[k] { HEIGHT_EDGE } else { 0.0 })).collect();
+    let zone = ZoneGrid::new(&cost, cw)?;
+    let path = zone.least_cost_path(e0, e1)?;
     // The zone's cells off the path, in 4-connected parts; each part goes
     // to the image its outside neighbours all belong to.
-    let mut part_of: HashMap<usize, usize> = HashMap::default();
+    const NO_PART: u32 = u32::MAX;
+    let mut part_of = vec![NO_PART; zone.cost.len()];
+    for &k in &path {
+        part_of[zone.holds(k).expect("the path is in the zone")] = NO_PART - 1;
+    }
     let mut parts: Vec<(Vec<usize>, bool, bool)> = Vec::new();
-    let mut keys: Vec<usize> = zone.keys().copied().filter(|k| !on_path.contains(k)).collect();
-    keys.sort_unstable();
-    for &start in &keys {
-        if part_of.contains_key(&start) {
+    // (Local order is the mosaic's order: rows of the box.)
+    for start in 0..zone.cost.len() {
+        if zone.cost[start].is_nan() || part_of[start] != NO_PART {
             continue;
         }
-        let id = parts.len();
-        part_of.insert(start, id);
+        let id = parts.len() as u32;
+        part_of[start] = id;
+        let start = zone.global(start);
         let (mut cells, mut to_i, mut to_j) = (vec![start], false, false);
         let mut queue = VecDeque::from([start]);
         while let Some(k) = queue.pop_front() {
             for (x, y) in neighbours4(k % cw, k / cw, cw, ch) {
                 let n = y * cw + x;
-                if on_path.contains(&n) {
-                    continue;
-                }
-                if zone.contains_key(&n) {
-                    if let std::collections::hash_map::Entry::Vacant(e) = part_of.entry(n) {
-                        e.insert(id);
-                        cells.push(n);
-                        queue.push_back(n);
+                match zone.holds(n) {
+                    // On the path: a border, not a neighbour.
+                    Some(l) if part_of[l] == NO_PART - 1 => {}
+                    Some(l) => {
+                        if part_of[l] == NO_PART {
+                            part_of[l] = id;
+                            cells.push(n);
+                            queue.push_back(n);
+                        }
                     }
-                } else {
-                    to_i |= plan.label[n] == i;
-                    to_j |= plan.label[n] == j;
+                    None => {
+                        to_i |= plan.label[n] == i;
+                        to_j |= plan.label[n] == j;
+                    }
                 }
             }
         }
