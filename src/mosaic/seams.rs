@@ -175,20 +175,46 @@ struct ZoneGrid {
 }
 
 impl ZoneGrid {
-    /// The zone of `cost`'s cells (indices of a grid `cw` cells wide).
-    fn new(cost: &HashMap<usize, f64>, cw: usize) -> Option<ZoneGrid> {
+    /// The cells `inside` admits within `corridor` 8-connected steps of
+    /// `from` (mosaic cells of a `cw` × `ch` grid), on the grid of the
+    /// box that reach allows; their cost 0 until set.
+    fn around(from: &[usize], corridor: usize, (cw, ch): (usize, usize), inside: impl Fn(usize) -> bool) -> ZoneGrid {
         let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
-        for &k in cost.keys() {
+        for &k in from {
             let (x, y) = (k % cw, k / cw);
             (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
         }
-        let (w, h) = (x1.checked_sub(x0)?, y1.checked_sub(y0)?);
+        let (x0, y0) = (x0.saturating_sub(corridor), y0.saturating_sub(corridor));
+        let (x1, y1) = ((x1 + corridor).min(cw), (y1 + corridor).min(ch));
+        let (w, h) = (x1 - x0, y1 - y0);
         let mut zone = ZoneGrid { x0, y0, w, h, cw, cost: vec![f64::NAN; w * h] };
-        for (&k, &v) in cost {
+        let mut dist = vec![usize::MAX; w * h];
+        let mut queue = VecDeque::new();
+        for &k in from {
             let l = zone.local(k).expect("in the box");
-            zone.cost[l] = v;
+            if dist[l] == usize::MAX {
+                (dist[l], zone.cost[l]) = (0, 0.0);
+                queue.push_back(l);
+            }
         }
-        Some(zone)
+        while let Some(l) = queue.pop_front() {
+            if dist[l] == corridor {
+                continue;
+            }
+            for (x, y) in neighbours8(l % w, l / w, w, h) {
+                let n = y * w + x;
+                if dist[n] == usize::MAX && inside(zone.global(n)) {
+                    (dist[n], zone.cost[n]) = (dist[l] + 1, 0.0);
+                    queue.push_back(n);
+                }
+            }
+        }
+        zone
+    }
+
+    /// The zone's cells (local indices).
+    fn cells(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.cost.len()).filter(|&l| !self.cost[l].is_nan())
     }
 
     /// The local index of mosaic cell `k`, if it is in the box.
@@ -281,7 +307,7 @@ fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: 
     if e0 == e1 {
         return None;
     }
-    let zone = reach(cw, ch, &ends, corridor, pair);
+    let mut zone = ZoneGrid::around(&ends, corridor, (cw, ch), pair);
     // Each cell's cost: where the balanced images differ, relative to
     // their mean difference over the zone, and height edges.
     let nb = a.bands as usize;
@@ -300,13 +326,15 @@ fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: 
             _ => 0.0,
         }
     };
-    // Each zone cell's difference once (the search asks for a cell's cost
-    // from each of its neighbours).
-    let diffs: HashMap<usize, f64> = zone.keys().map(|&k| (k, diff(k))).collect();
-    let mean = diffs.values().sum::<f64>() / zone.len() as f64;
-    let cost: HashMap<usize, f64> =
-        diffs.iter().map(|(&k, &d)| (k, 1.0 + DIFFERENCE * d / mean.max(1e-9) + if edges[k] { HEIGHT_EDGE } else { 0.0 })).collect();
-    let zone = ZoneGrid::new(&cost, cw)?;
+    let cells: Vec<usize> = zone.cells().collect();
+    for &l in &cells {
+        zone.cost[l] = diff(zone.global(l));
+    }
+    let mean = cells.iter().map(|&l| zone.cost[l]).sum::<f64>() / cells.len() as f64;
+    for &l in &cells {
+        let k = zone.global(l);
+        zone.cost[l] = 1.0 + DIFFERENCE * zone.cost[l] / mean.max(1e-9) + if edges[k] { HEIGHT_EDGE } else { 0.0 };
+    }
     let path = zone.least_cost_path(e0, e1)?;
     // The zone's cells off the path, in 4-connected parts; each part goes
     // to the image its outside neighbours all belong to.
