@@ -256,16 +256,25 @@ impl Plan {
             plan.heights = heights;
         }
         progress.start(&Task { name: "plan", units: images.len() as u64, lines: images.len() as u64, line_name: "images", input_bytes: 0 });
+        // Each image's low-resolution orthophoto, several at once (each
+        // reads its own scan); the partition then in the images' order.
+        let sampled: Vec<(PlanImage, Vec<f32>)> = images
+            .into_par_iter()
+            .map(|(mut im, fp)| {
+                let (u0, v0) = plan.grid.pixel(fp[0], fp[3]);
+                let (u1, v1) = plan.grid.pixel(fp[2], fp[1]);
+                let c = plan.cell as f64;
+                let clampc = |v: f64, n: usize| (v / c).floor().clamp(0.0, n as f64) as usize;
+                im.cells = [clampc(u0, cw), clampc(v0, ch), (clampc(u1, cw) + 1).min(cw), (clampc(v1, ch) + 1).min(ch)];
+                // How far from its centre the image sees each cell (a
+                // fraction of its half-diagonal): the partition's measure.
+                let from_centre = sample_image(&plan, &mut im, s.memory, s.thumbnails)?;
+                progress.advance(1);
+                Ok((im, from_centre))
+            })
+            .collect::<Result<_>>()?;
         let mut best = vec![f32::INFINITY; cw * ch];
-        for (k, (mut im, fp)) in images.into_iter().enumerate() {
-            let (u0, v0) = plan.grid.pixel(fp[0], fp[3]);
-            let (u1, v1) = plan.grid.pixel(fp[2], fp[1]);
-            let c = plan.cell as f64;
-            let clampc = |v: f64, n: usize| (v / c).floor().clamp(0.0, n as f64) as usize;
-            im.cells = [clampc(u0, cw), clampc(v0, ch), (clampc(u1, cw) + 1).min(cw), (clampc(v1, ch) + 1).min(ch)];
-            // How far from its centre the image sees each cell (a fraction
-            // of its half-diagonal): the partition's measure.
-            let from_centre = sample_image(&plan, &mut im, s.memory, s.thumbnails)?;
+        for (k, (im, from_centre)) in sampled.into_iter().enumerate() {
             let [x0, y0, x1, _] = im.cells;
             for (j, row) in from_centre.chunks((x1 - x0).max(1)).enumerate() {
                 for (i, &d) in row.iter().enumerate() {
@@ -276,7 +285,6 @@ impl Plan {
                 }
             }
             plan.images.push(im);
-            progress.advance(1);
         }
         progress.finish();
         Ok(plan)
