@@ -404,3 +404,53 @@ fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: 
     }
     Some(moved)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 7 × 5 zone of cost 1 crossed by a wall of cost 100 at column 3,
+    /// open at the bottom row (or, `closed`, not in the zone at all).
+    fn walled(closed: bool) -> ZoneGrid {
+        let (cw, ch) = (7, 5);
+        let mut zone = ZoneGrid::around(&[0], 10, (cw, ch), |_| true);
+        for y in 0..ch {
+            for x in 0..cw {
+                let l = zone.local(y * cw + x).expect("in the box");
+                zone.cost[l] = match (x, y) {
+                    (3, 4) if closed => f64::NAN,
+                    (3, 4) => 1.0,
+                    (3, _) if closed => f64::NAN,
+                    (3, _) => 100.0,
+                    _ => 1.0,
+                };
+            }
+        }
+        zone
+    }
+
+    #[test]
+    fn the_least_cost_path_goes_round_a_costly_wall() {
+        let zone = walled(false);
+        assert_eq!((zone.w, zone.h), (7, 5), "the whole grid is within reach");
+        let path = zone.least_cost_path(0, 6).expect("a path");
+        // Through the gap at (3, 4): down the diagonal and up again, 8
+        // steps (the straight way over the wall would cost 100 a step).
+        assert_eq!((path[0], *path.last().unwrap()), (0, 6));
+        assert!(path.contains(&(4 * 7 + 3)), "{path:?}");
+        assert_eq!(path.len(), 9, "{path:?}");
+        assert!(path.windows(2).all(|p| (p[0] % 7).abs_diff(p[1] % 7) <= 1 && (p[0] / 7).abs_diff(p[1] / 7) <= 1));
+        // With the wall out of the zone, no way across.
+        assert_eq!(walled(true).least_cost_path(0, 6), None);
+    }
+
+    #[test]
+    fn the_corridor_reaches_so_many_steps_through_the_cells_admitted() {
+        // From the middle of a 9 × 9 grid, 2 steps, column 5 not admitted.
+        let zone = ZoneGrid::around(&[4 * 9 + 4], 2, (9, 9), |k| k % 9 != 5);
+        let cells: Vec<usize> = zone.cells().map(|l| zone.global(l)).collect();
+        // 5 × 5 around the middle, less column 5 and what lies past it.
+        assert_eq!(cells.len(), 15, "{cells:?}");
+        assert!(cells.iter().all(|&k| (2..5).contains(&(k % 9)) && (2..7).contains(&(k / 9))));
+    }
+}
