@@ -108,8 +108,6 @@ pub struct Visibility<'a> {
     /// of height): covers the positions' error and the surface's curvature
     /// within a Z-buffer sample.
     tolerance: f64,
-    /// The scan's size (columns, rows): pixels imaged outside it are not counted.
-    scan: (f64, f64),
     /// The DSM's posts where the lattice is them (every `n`th).
     posts: Option<(&'a crate::dem::GridDem, i64)>,
     /// The highest surface in blocks of the lattice, found on first need:
@@ -192,7 +190,7 @@ impl<'a> Visibility<'a> {
         let (i0, j0, i1, j1) = lattice.cover(region);
         let (across, down) = (((i1 - i0) / BLOCK + 1) as usize, ((j1 - j0) / BLOCK + 1) as usize);
         let blocks = BlockMax { i0, j0, across, down, max: (0..across * down).map(|_| std::sync::OnceLock::new()).collect() };
-        Visibility { t, lattice, tolerance, scan: t.scan.unwrap_or((f64::INFINITY, f64::INFINITY)), posts, blocks }
+        Visibility { t, lattice, tolerance, posts, blocks }
     }
 
     /// The highest height in block (bi, bj) (its nodes and its far edge's)
@@ -485,9 +483,11 @@ impl<'a> Visibility<'a> {
         (cols.iter().zip(rows).filter(|&(&c, &r)| self.in_scan(c, r)).count() as u64, 0)
     }
 
+    /// Is scan position (c, r) imaged: in the scan (anywhere, where the
+    /// transform does not know the scan's size)?
     #[inline]
     fn in_scan(&self, c: f64, r: f64) -> bool {
-        c >= 0.0 && r >= 0.0 && c <= self.scan.0 && r <= self.scan.1
+        c >= 0.0 && r >= 0.0 && self.t.scan.is_none_or(|(w, h)| c <= w && r <= h)
     }
 
     /// Are the border pixels of walked block `[x0, y0, x1, y1]` all in the
