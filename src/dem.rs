@@ -78,6 +78,17 @@ impl GridDem {
         matches!(self.data, Samples::Chunked(_))
     }
 
+    /// The most its samples hold in memory, bytes (a mapped `.hgt`: none,
+    /// its pages are the kernel's to drop).
+    pub fn held_bytes(&self) -> u64 {
+        match &self.data {
+            Samples::Memory(v) => v.len() as u64 * 4,
+            Samples::Chunked(c) => c.cache_bytes() as u64,
+            Samples::Mosaic(m) => m.held_bytes(),
+            Samples::Hgt(_) => 0,
+        }
+    }
+
     /// Sample (i, j) (column, row).
     #[inline]
     pub fn sample(&self, i: usize, j: usize) -> f32 {
@@ -478,6 +489,14 @@ pub enum Height {
 }
 
 impl Dem {
+    /// The most its heights hold in memory, bytes.
+    pub fn held_bytes(&self) -> u64 {
+        match &self.model {
+            HeightModel::Flat(_) => 0,
+            HeightModel::Grid(g) => g.held_bytes(),
+        }
+    }
+
     pub fn flat(z: f64) -> Dem {
         Dem { model: HeightModel::Flat(z), on_hole: Miss::Error, on_outside: Miss::Error, path: PathBuf::from("(flat)"), to_dem: None, warnings: Vec::new() }
     }

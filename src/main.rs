@@ -8,9 +8,27 @@ mod progress_bar;
 use clap::Parser;
 use std::process::ExitCode;
 
+/// glibc gives threads that allocate arenas of their own, up to eight a
+/// core, and each keeps what is freed in it: a mosaic's image threads left
+/// some 100 MB freed but resident. Half as many arenas as cores (two at
+/// least) keep the peak near the live heap, at the same speed.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+fn few_malloc_arenas() {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    // SAFETY: mallopt only sets one of the allocator's tuning parameters;
+    // it is called before any other thread starts.
+    unsafe {
+        libc::mallopt(libc::M_ARENA_MAX, (cores / 2).max(2) as libc::c_int);
+    }
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn few_malloc_arenas() {}
+
 /// Exit codes: 0 success, 1 bad input or failure, 2 usage, 3 a batch in
 /// which some jobs failed, 130 SIGINT, 143 SIGTERM.
 fn main() -> ExitCode {
+    few_malloc_arenas();
     let cli = cli::Cli::parse();
     let polls = matches!(cli.command, cli::Command::Rectify(_) | cli::Command::Batch(_) | cli::Command::Demo(_) | cli::Command::Mosaic(_));
     let signals = match commands::Signals::install(polls) {

@@ -43,6 +43,11 @@ pub(super) struct MosaicGrid {
 }
 
 impl Mosaic {
+    /// The most its tiles hold in memory, bytes.
+    pub fn held_bytes(&self) -> u64 {
+        self.tiles.iter().map(|t| t.grid.held_bytes()).sum()
+    }
+
     /// Sample (i, j) of the mosaic: the last tile over it that has a value
     /// there; NaN where none has.
     pub fn get(&self, i: usize, j: usize) -> f32 {

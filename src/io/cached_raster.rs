@@ -36,6 +36,11 @@ impl CachedRaster {
         CachedRaster { raster, cache: std::sync::Mutex::new(ChunkCache::new(cache_bytes)), rescale }
     }
 
+    /// The most its cache holds, bytes.
+    pub fn cache_bytes(&self) -> usize {
+        self.cache.lock().map_or(0, |c| c.budget())
+    }
+
     /// The raster read.
     pub fn raster(&self) -> &ChunkedRaster {
         &self.raster

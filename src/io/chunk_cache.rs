@@ -19,6 +19,11 @@ impl<T> ChunkCache<T> {
         ChunkCache { map: HashMap::new(), bytes: 0, budget, tick: 0 }
     }
 
+    /// The most it holds, bytes.
+    pub fn budget(&self) -> usize {
+        self.budget
+    }
+
     pub fn get(&mut self, k: usize) -> Option<Arc<Vec<T>>> {
         self.tick += 1;
         let t = self.tick;

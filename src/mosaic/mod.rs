@@ -13,6 +13,7 @@ pub mod render;
 pub mod resume;
 pub mod seamlines;
 pub mod seams;
+pub mod turns;
 pub mod weights;
 
 use crate::error::{Error, Result};
@@ -24,10 +25,14 @@ use crate::options::{BigTiff, Occlusion, RectifyOptions};
 use crate::pipeline::band_writer::{write_bands, BandWriting};
 use crate::progress::{Cancel, Progress, Task};
 use balance::{Balance, Correction};
-use plan::{Plan, PlanSettings, NONE};
+use plan::{Plan, PlanImage, PlanSettings, NONE};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// The least memory an image's render in a mosaic runs in: its scan's rows
+/// read in place (no copy) for frames a few thousand pixels wide.
+const MIN_SHARE: u64 = 24 << 20;
 
 #[derive(Clone, Debug)]
 pub struct MosaicOptions {
@@ -250,6 +255,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         plan_file::write(&plan, &corrections, path)?;
     }
     let weights = weights::Weights::new(&plan, o.blend, &edges);
+    plan.images.iter_mut().for_each(PlanImage::forget_values);
     let grid = plan.grid;
     let (tx_all, ty_all) = (grid.width.div_ceil(first.tile), grid.height.div_ceil(first.tile));
     let window = o.window.unwrap_or([0, 0, tx_all, ty_all]);
@@ -310,9 +316,6 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     let mut hidden = vec![(0u64, 0u64); plan.images.len()];
     let mut unseen = None;
     if let (Some(out), Some(pending)) = (o.output.as_deref(), pending) {
-        // Each image's memory: the budget over the most images at work at once
-        // (a band's and the next's), after the plan's arrays and a band of the
-        // mosaic in flight.
         let threads = match o.threads {
             0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
             n => n,
@@ -340,21 +343,36 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         }
         works.retain(|w| !w.bands.is_empty());
         let (ty, tx) = (trh, tcw);
-        let at_once = (tr0..tr0 + ty).map(|b| works.iter().filter(|w| w.bands.keys().any(|&k| k == b || k == b + 1)).count()).max().unwrap_or(1).max(1) as u64;
+        // Memory: a band of the mosaic in flight (three: composed, being
+        // encoded, written), the plan's arrays and DEMs; the images' bands
+        // in hand, of a band of the mosaic and the next (see `turns`), a
+        // tile and its mask for each of their tile columns; what is left
+        // goes to the renders that run at once, as many as it holds at
+        // [`MIN_SHARE`] each, up to all the images those two bands need
+        // (more at once keep the cores busy through each one's serial work).
         let band_bytes = 3 * tx as u64 * spec.tile_bytes() as u64;
-        let plan_bytes = plan.images.iter().map(|i| i.values.len() as u64 * 4).sum::<u64>() + plan.label.len() as u64 * 16;
-        let share = o.memory.saturating_sub(band_bytes + plan_bytes) / at_once;
-        const MIN_SHARE: u64 = 24 << 20;
-        if share < MIN_SHARE {
+        let plan_bytes = plan.images.iter().map(|i| i.radius.len() as u64 * 4).sum::<u64>()
+            + plan.label.len() as u64 * 16
+            + plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>();
+        let image_tile = spec.tile_bytes() as u64 + tile as u64 * tile as u64;
+        let columns = |b: u32| works.iter().filter_map(|w| w.bands.get(&b)).map(|&(c0, c1)| (c1 - c0) as u64).sum::<u64>();
+        let held = (tr0..tr0 + ty).map(|b| columns(b) + columns(b + 1)).max().unwrap_or(0) * image_tile;
+        let fixed = band_bytes + plan_bytes + held;
+        let room = o.memory.saturating_sub(fixed);
+        if room < MIN_SHARE {
             return Err(Error::setting(
                 "memory",
                 format!(
-                    "{at_once} images are at work at once on this block, each needing {} MiB or more: give --memory {}M or more",
+                    "the mosaic's bands, its plan and the images' bands in hand take {} MiB, and a render needs {} MiB more: give --memory {}M or more",
+                    fixed.div_ceil(1 << 20),
                     MIN_SHARE >> 20,
-                    (band_bytes + plan_bytes + at_once * MIN_SHARE).div_ceil(1 << 20)
+                    (fixed + MIN_SHARE).div_ceil(1 << 20)
                 ),
             ));
         }
+        let most = (tr0..tr0 + ty).map(|b| works.iter().filter(|w| w.bands.contains_key(&b) || w.bands.contains_key(&(b + 1))).count()).max().unwrap_or(1);
+        let at_once = (room / MIN_SHARE).clamp(1, most.max(1) as u64);
+        let share = room / at_once;
         for w in &mut works {
             w.opts.memory = share;
         }
@@ -378,7 +396,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         let sample = im0.sample;
         let hidden = &mut hidden;
         let written = std::thread::scope(|s| {
-            let mut feeds = render::Feeds::new(s, works.len());
+            let mut feeds = render::Feeds::new(s, works.len(), at_once as usize);
             write_bands(&writing, pending, |b| {
                 // The piece's band b is the mosaic's tr0 + b.
                 let got = feeds.band(&works, tr0 + b, cancel)?;

@@ -41,7 +41,8 @@ pub struct PlanImage {
     /// The box of cells that may see it: `[x0, y0, x1, y1)`.
     pub cells: [usize; 4],
     /// Its low-resolution orthophoto on the cells of the box, band after
-    /// band inside each cell; NaN where it does not see the cell.
+    /// band inside each cell; NaN where it does not see the cell. Dropped
+    /// once balance and seams are worked out ([`PlanImage::forget_values`]).
     pub values: Vec<f32>,
     /// Where in the scan it sees each cell of the box: the distance from
     /// the scan's centre over its half-diagonal (NaN: not seen).
@@ -49,27 +50,33 @@ pub struct PlanImage {
 }
 
 impl PlanImage {
-    /// Index into `values` of cell (x, y), or `None` outside the box.
-    pub fn at(&self, x: usize, y: usize) -> Option<usize> {
+    /// Index of cell (x, y) in the box, or `None` outside it.
+    fn at(&self, x: usize, y: usize) -> Option<usize> {
         let [x0, y0, x1, y1] = self.cells;
-        (x >= x0 && x < x1 && y >= y0 && y < y1).then(|| ((y - y0) * (x1 - x0) + (x - x0)) * self.bands as usize)
+        (x >= x0 && x < x1 && y >= y0 && y < y1).then(|| (y - y0) * (x1 - x0) + (x - x0))
     }
 
     /// Where in the scan it sees cell (x, y) (see `radius`), if it does.
     pub fn radius(&self, x: usize, y: usize) -> Option<f32> {
-        let k = self.at(x, y)? / self.bands as usize;
-        self.radius.get(k).copied().filter(|r| r.is_finite())
+        self.radius.get(self.at(x, y)?).copied().filter(|r| r.is_finite())
     }
 
     /// Its low-resolution pixel at cell (x, y), where it sees it.
     pub fn value(&self, x: usize, y: usize) -> Option<&[f32]> {
-        let k = self.at(x, y)?;
-        let v = &self.values[k..k + self.bands as usize];
+        let nb = self.bands as usize;
+        let k = self.at(x, y)? * nb;
+        let v = self.values.get(k..k + nb)?;
         (!v[0].is_nan()).then_some(v)
     }
 
     pub fn sees(&self, x: usize, y: usize) -> bool {
-        self.value(x, y).is_some()
+        self.radius(x, y).is_some()
+    }
+
+    /// Drops the low-resolution orthophoto (three quarters of the plan's
+    /// memory on RGB): the render needs only where the image sees.
+    pub fn forget_values(&mut self) {
+        self.values = Vec::new();
     }
 }
 

@@ -8,6 +8,7 @@
 
 use super::balance::Correction;
 use super::plan::{Plan, NONE};
+use super::turns::Turns;
 use super::weights::Weights;
 use crate::error::{Error, Result};
 use crate::geom::Snap;
@@ -18,6 +19,7 @@ use crate::progress::Cancel;
 use crossbeam_channel::{bounded, Receiver};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 /// The part of the mosaic an image is made over.
 pub struct ImageWork {
@@ -455,20 +457,23 @@ fn piece<'a>(w: &ImageWork, band: &'a BandPixels, tc: u32, tile: u32, tile_bytes
 }
 
 /// The images' threads: started a band before their first, each sending
-/// its bands in order.
+/// its bands in order, each band made in its turn (see [`Turns`]).
 pub struct Feeds<'scope, 'env> {
     receivers: Vec<Option<Receiver<Result<BandPixels>>>>,
     started: Vec<bool>,
+    turns: Arc<Turns>,
     scope: &'scope std::thread::Scope<'scope, 'env>,
 }
 
 impl<'scope, 'env> Feeds<'scope, 'env> {
-    pub fn new(scope: &'scope std::thread::Scope<'scope, 'env>, n: usize) -> Feeds<'scope, 'env> {
-        Feeds { receivers: (0..n).map(|_| None).collect(), started: vec![false; n], scope }
+    /// Feeds for `n` images, `at_once` of them making a band at a time.
+    pub fn new(scope: &'scope std::thread::Scope<'scope, 'env>, n: usize, at_once: usize) -> Feeds<'scope, 'env> {
+        Feeds { receivers: (0..n).map(|_| None).collect(), started: vec![false; n], turns: Arc::new(Turns::new(at_once)), scope }
     }
 
     /// The bands of band `b` from the images that have it (starting those
-    /// whose first band is `b` or the next).
+    /// whose first band is `b` or the next, and letting the next band's
+    /// be made meanwhile).
     pub fn band(&mut self, works: &'env [ImageWork], b: u32, cancel: &'env Cancel) -> Result<Vec<(usize, BandPixels)>> {
         for (k, w) in works.iter().enumerate() {
             let first = *w.bands.keys().next().unwrap_or(&u32::MAX);
@@ -476,15 +481,19 @@ impl<'scope, 'env> Feeds<'scope, 'env> {
                 self.started[k] = true;
                 let (tx, rx) = bounded(1);
                 self.receivers[k] = Some(rx);
+                let turns = self.turns.clone();
                 self.scope.spawn(move || {
                     let requests = w.requests();
-                    let r = render_bands(&w.opts, w.dem.clone(), &requests, cancel, |band| tx.send(band).is_ok());
+                    let (x0, y0) = w.origin;
+                    let turn = |&(band, cols): &BandRequest| turns.wait((band + y0, cols.0 + x0, k));
+                    let r = render_bands(&w.opts, w.dem.clone(), &requests, cancel, turn, |band| tx.send(band).is_ok());
                     if let Err(e) = r {
                         let _ = tx.send(Err(e));
                     }
                 });
             }
         }
+        self.turns.open_to(b + 1);
         let mut got = Vec::new();
         for (k, w) in works.iter().enumerate() {
             if !w.bands.contains_key(&b) {
@@ -500,5 +509,12 @@ impl<'scope, 'env> Feeds<'scope, 'env> {
             }
         }
         Ok(got)
+    }
+}
+
+impl Drop for Feeds<'_, '_> {
+    /// The composer is done (or failed): renders still waiting end.
+    fn drop(&mut self) {
+        self.turns.close();
     }
 }

@@ -51,13 +51,16 @@ pub fn in_memory(opts: &RectifyOptions) -> RectifyOptions {
 }
 
 /// Makes the bands `requests` names (in increasing order) of the image of
-/// `opts` (see [`in_memory`]), handing each to `sink`; stops early when
-/// `sink` says so (its reader went away) or `cancel` is set.
-pub fn render_bands(
+/// `opts` (see [`in_memory`]), handing each to `sink`. Each band waits for
+/// `turn`, whose answer is held while the band is made; stops early when
+/// `turn` gives none, `sink` says so (its reader went away) or `cancel` is
+/// set.
+pub fn render_bands<T>(
     opts: &RectifyOptions,
     dem: SharedDem,
     requests: &[BandRequest],
     cancel: &Cancel,
+    mut turn: impl FnMut(&BandRequest) -> Option<T>,
     mut sink: impl FnMut(Result<BandPixels>) -> bool,
 ) -> Result<()> {
     let opts = in_memory(opts);
@@ -104,6 +107,7 @@ pub fn render_bands(
     let mut win = Window::default();
     let mut mapped: Option<(u32, u32)> = None;
     for &(b, cols) in requests {
+        let Some(turn) = turn(&(b, cols)) else { break };
         if cancel.is_cancelled() {
             return Err(Error::Cancelled);
         }
@@ -125,13 +129,16 @@ pub fn render_bands(
             }
             Ok(BandPixels { band: b, chunks, seen: gcm.seen.clone() })
         })();
+        // Until its next turn the image holds no scan rows and no window.
+        if let Some(rows) = mapped.take() {
+            release_outside(run.inputs.src, rows, None);
+        }
+        win = Window::default();
+        drop(turn);
         let failed = band.is_err();
         if !sink(band) || failed {
             break;
         }
-    }
-    if let Some(rows) = mapped {
-        release_outside(run.inputs.src, rows, None);
     }
     Ok(())
 }
