@@ -150,31 +150,74 @@ pub fn work(plan: &Plan, weights: &Weights, tile: u32, prone: Option<&[bool]>, o
 
 /// A sample of the output's type, composed in f64.
 trait Px: Copy + Send + Sync + bytemuck::Pod {
+    /// The values a sample takes, where few enough for a correction to be
+    /// tabulated (u8); 0: none.
+    const LEVELS: usize;
     fn get(self) -> f64;
     fn put(v: f64) -> Self;
+    /// Its index in a table of [`Px::LEVELS`].
+    fn level(self) -> usize;
 }
 impl Px for u8 {
+    const LEVELS: usize = 256;
     fn get(self) -> f64 {
         self as f64
     }
     fn put(v: f64) -> u8 {
         v.round().clamp(0.0, 255.0) as u8
     }
+    fn level(self) -> usize {
+        self as usize
+    }
 }
 impl Px for u16 {
+    const LEVELS: usize = 0;
     fn get(self) -> f64 {
         self as f64
     }
     fn put(v: f64) -> u16 {
         v.round().clamp(0.0, 65535.0) as u16
     }
+    fn level(self) -> usize {
+        0
+    }
 }
 impl Px for f32 {
+    const LEVELS: usize = 0;
     fn get(self) -> f64 {
         self as f64
     }
     fn put(v: f64) -> f32 {
         v as f32
+    }
+    fn level(self) -> usize {
+        0
+    }
+}
+
+/// A correction without a radial term on samples of few values, as
+/// tables of each band's values: the corrected sample, and the corrected
+/// value for blending.
+struct Table<T> {
+    sample: Vec<T>,
+    value: Vec<f64>,
+}
+
+impl<T: Px> Table<T> {
+    fn of(c: &Correction, bands: usize) -> Option<Table<T>> {
+        if T::LEVELS == 0 || c.has_radial() {
+            return None;
+        }
+        let value: Vec<f64> = (0..bands).flat_map(|band| (0..T::LEVELS).map(move |v| c.apply(band, v as f64, 0.0))).collect();
+        Some(Table { sample: value.iter().map(|&v| T::put(v)).collect(), value })
+    }
+
+    /// Pixel `from` corrected into `pixel`.
+    #[inline]
+    fn put(&self, pixel: &mut [T], from: &[T]) {
+        for (band, (v, s)) in pixel.iter_mut().zip(from).enumerate() {
+            *v = self.sample[band * T::LEVELS + s.level()];
+        }
     }
 }
 
@@ -277,12 +320,23 @@ impl Compose<'_> {
             };
             rho * rho
         };
+        let tables: Vec<Option<Table<T>>> = corrections.iter().map(|c| Table::of(c, nb)).collect();
+        let identity: Vec<bool> = corrections.iter().map(|c| c.is_identity()).collect();
         // Pixel k (at px, py) of piece j, corrected, into `pixel`.
         let corrected = |pixel: &mut [T], j: usize, k: usize, px: usize, py: usize| {
-            let r2 = rho2(j, px, py);
-            for (band, v) in pixel.iter_mut().enumerate() {
-                *v = T::put(corrections[j].apply(band, samples[j][k * nb + band].get(), r2));
+            let from = &samples[j][k * nb..(k + 1) * nb];
+            if let Some(t) = &tables[j] {
+                return t.put(pixel, from);
             }
+            let r2 = rho2(j, px, py);
+            for (band, (v, s)) in pixel.iter_mut().zip(from).enumerate() {
+                *v = T::put(corrections[j].apply(band, s.get(), r2));
+            }
+        };
+        // Sample `s` of `band` of piece j seen at ρ² `r2`, corrected.
+        let value = |j: usize, band: usize, s: T, r2: f64| match &tables[j] {
+            Some(t) => t.value[band * T::LEVELS + s.level()],
+            None => corrections[j].apply(band, s.get(), r2),
         };
         // One image with all the weight over the whole tile: its pixels as
         // they are (corrected), others only where it has none.
@@ -308,13 +362,24 @@ impl Compose<'_> {
             .collect();
         for (py, &(iv, fv, nv)) in rows.iter().enumerate() {
             if let Some(i) = sole {
+                // Pixels of the row inside the mosaic.
+                let inside = if gy0 + py < h { t.min(w.saturating_sub(gx0)) } else { 0 };
                 for px in 0..t {
                     let k = py * t + px;
                     let pixel = &mut out[k * nb..(k + 1) * nb];
-                    let from = if gx0 + px >= w || gy0 + py >= h { None } else { std::iter::once(i).chain(0..pieces.len()).find(|&j| pieces[j].valid[k] != 0) };
+                    let from = if px >= inside {
+                        None
+                    } else if pieces[i].valid[k] != 0 {
+                        Some(i)
+                    } else {
+                        (0..pieces.len()).find(|&j| pieces[j].valid[k] != 0)
+                    };
                     match from {
-                        Some(j) if corrections[j].is_identity() => pixel.copy_from_slice(&samples[j][k * nb..(k + 1) * nb]),
-                        Some(j) => corrected(pixel, j, k, px, py),
+                        Some(j) if identity[j] => pixel.copy_from_slice(&samples[j][k * nb..(k + 1) * nb]),
+                        Some(j) => match &tables[j] {
+                            Some(t) => t.put(pixel, &samples[j][k * nb..(k + 1) * nb]),
+                            None => corrected(pixel, j, k, px, py),
+                        },
                         None => pixel.iter_mut().for_each(|v| *v = T::put(self.fill)),
                     }
                     valid[k] = u8::from(from.is_some());
@@ -331,17 +396,20 @@ impl Compose<'_> {
                 }
                 let quad = if blends { iv * nx + iu } else { nv * nx + nu };
                 if let Some(j) = one_piece.get(quad).copied().flatten().filter(|&j| pieces[j].valid[k] != 0) {
-                    corrected(pixel, j, k, px, py);
+                    match &tables[j] {
+                        Some(t) => t.put(pixel, &samples[j][k * nb..(k + 1) * nb]),
+                        None => corrected(pixel, j, k, px, py),
+                    }
                     valid[k] = 1;
                     continue;
                 }
                 let (mut wsum, mut spare_n) = (0f64, 0f64);
                 acc.iter_mut().for_each(|a| *a = 0.0);
-                for (j, (((p, s), g), corr)) in pieces.iter().zip(&samples).zip(&grids).zip(&corrections).enumerate() {
+                for (j, ((p, s), g)) in pieces.iter().zip(&samples).zip(&grids).enumerate() {
                     if p.valid[k] == 0 {
                         continue;
                     }
-                    let r2 = rho2(j, px, py);
+                    let r2 = if tables[j].is_some() { 0.0 } else { rho2(j, px, py) };
                     let wt = if blends {
                         let at = |x: usize, y: usize| g[y * nx + x] as f64;
                         (at(iu, iv) * (1.0 - fu) + at(iu + 1, iv) * fu) * (1.0 - fv) + (at(iu, iv + 1) * (1.0 - fu) + at(iu + 1, iv + 1) * fu) * fv
@@ -352,14 +420,14 @@ impl Compose<'_> {
                     if wt > 0.0 {
                         wsum += wt;
                         for (band, a) in acc.iter_mut().enumerate() {
-                            *a += wt * corr.apply(band, px_in[band].get(), r2);
+                            *a += wt * value(j, band, px_in[band], r2);
                         }
                     } else if spare_n == 0.0 {
                         // No weight here (a footprint's edge inside the
                         // cell): the first image that has the pixel.
                         spare_n = 1.0;
                         for (band, a) in spare.iter_mut().enumerate() {
-                            *a = corr.apply(band, px_in[band].get(), r2);
+                            *a = value(j, band, px_in[band], r2);
                         }
                     }
                 }
@@ -516,5 +584,30 @@ impl Drop for Feeds<'_, '_> {
     /// The composer is done (or failed): renders still waiting end.
     fn drop(&mut self) {
         self.turns.close();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The table of a gain and offset on bytes gives what the correction
+    /// gives, rounded and clamped; a radial term or wider samples get none.
+    #[test]
+    fn tabled_corrections_equal_the_correction() {
+        let c = Correction { gain: vec![0.93, 1.2], offset: vec![-13.5, 4.25], radial: Vec::new() };
+        let t = Table::<u8>::of(&c, 2).expect("bytes without a radial term are tabled");
+        for v in 0..=255u8 {
+            let mut pixel = [0u8; 2];
+            t.put(&mut pixel, &[v, v]);
+            assert_eq!(pixel, [u8::put(c.apply(0, v as f64, 0.0)), u8::put(c.apply(1, v as f64, 0.0))]);
+            assert_eq!(t.value[256 + v as usize], 1.2 * v as f64 + 4.25);
+        }
+        let mut p = [0u8; 2];
+        t.put(&mut p, &[0, 255]);
+        assert_eq!(p, [0, 255], "clamped at both ends");
+        let radial = Correction { radial: vec![[0.1, 0.0], [0.0, 0.0]], ..c.clone() };
+        assert!(Table::<u8>::of(&radial, 2).is_none());
+        assert!(Table::<u16>::of(&c, 2).is_none());
     }
 }
