@@ -344,13 +344,14 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         works.retain(|w| !w.bands.is_empty());
         let (ty, tx) = (trh, tcw);
         // Memory: a band of the mosaic in flight (three: composed, being
-        // encoded, written), the plan's arrays and DEMs; the images' bands
+        // encoded, written) and its overviews' unfinished tiles, the plan's
+        // arrays and DEMs; the images' bands
         // in hand, of a band of the mosaic and the next (see `turns`), a
         // tile and its mask for each of their tile columns; what is left
         // goes to the renders that run at once, as many as it holds at
         // [`MIN_SHARE`] each, up to all the images those two bands need
         // (more at once keep the cores busy through each one's serial work).
-        let band_bytes = 3 * tx as u64 * spec.tile_bytes() as u64;
+        let band_bytes = 3 * tx as u64 * spec.tile_bytes() as u64 + crate::overview::Pyramid::held_bytes(&spec, tx);
         let plan_bytes = plan.images.iter().map(|i| i.radius.len() as u64 * 4).sum::<u64>()
             + plan.label.len() as u64 * 16
             + plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>();

