@@ -7,6 +7,7 @@
 //! can be written as GeoJSON polygons (`seamlines.rs`).
 
 pub mod balance;
+pub mod normal;
 pub mod plan;
 pub mod plan_file;
 pub mod render;
@@ -205,9 +206,6 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         (Some(c), _) => Some(c.clone()),
         (None, l) => l.as_ref().map(|(_, c)| c.clone()),
     };
-    if o.plan_in.is_none() {
-        balance::check_fits(o.balance, jobs.len(), o.memory)?;
-    }
     let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs, grid: like.map(|(g, _)| g), memory: o.memory, thumbnails: o.plan_in.is_none() };
     let mut plan = Plan::make(jobs.into_iter().map(|j| (j.name, j.config)).collect(), &settings, progress)?;
     let t_plan = wall.elapsed().as_secs_f64();
