@@ -769,17 +769,28 @@ mod tests {
                 nodata: None,
             }),
         };
-        write_raster(&path, &spec, |y0, y1, buf| {
-            let out: &mut [f32] = bytemuck::cast_slice_mut(buf);
-            for j in y0 as usize..y1 as usize {
-                for i in 0..w {
-                    out[(j - y0 as usize) * w + i] = z(i, j);
+        let write = |path: &Path, lift: f32| {
+            write_raster(path, &spec, |y0, y1, buf| {
+                let out: &mut [f32] = bytemuck::cast_slice_mut(buf);
+                for j in y0 as usize..y1 as usize {
+                    for i in 0..w {
+                        out[(j - y0 as usize) * w + i] = z(i, j) + lift;
+                    }
                 }
-            }
-        })
-        .unwrap();
+            })
+            .unwrap()
+        };
+        write(&path, 0.0);
         let whole = GridDem::read(&path).unwrap();
         let chunked = GridDem::read_within(&path, 4 * 16 * 16 * 4).unwrap();
+        // Another chunked DEM, 500 m higher, looked up in turn with the
+        // first: a thread's last chunk is its own raster's.
+        let other = dir.path().join("other.tif");
+        write(&other, 500.0);
+        let lifted = GridDem::read_within(&other, 4 * 16 * 16 * 4).unwrap();
+        for (i, j) in [(3, 4), (3, 5), (40, 33), (41, 33), (99, 69)] {
+            assert_eq!((chunked.sample(i, j), lifted.sample(i, j), chunked.sample(i, j)), (z(i, j), z(i, j) + 500.0, z(i, j)));
+        }
         assert!(!whole.is_chunked() && chunked.is_chunked());
         let mut n = 0;
         for jj in 0..(h * 4) {

@@ -4,12 +4,30 @@
 
 use crate::io::chunk_cache::ChunkCache;
 use crate::io::chunked_raster::ChunkedRaster;
+use std::cell::RefCell;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 
 /// Out-of-core samples: the file's strips or tiles, decoded on demand.
 pub struct CachedRaster {
     raster: ChunkedRaster,
     cache: std::sync::Mutex<ChunkCache<f32>>,
     rescale: Option<Rescale>,
+    /// Its own number, for the threads' last looks ([`LAST`]).
+    id: u64,
+}
+
+/// Numbers for the rasters, never given twice.
+static NEXT_ID: AtomicU64 = AtomicU64::new(0);
+
+/// A thread's last look: (raster, chunk, samples).
+type LastLook = Option<(u64, usize, Arc<Vec<f32>>)>;
+
+thread_local! {
+    /// The chunk this thread looked into last. Most looks fall in the chunk of the one before, and then need
+    /// neither the cache's lock nor its hash: on a DEM of 5029² read
+    /// through the cache, those took a fifth of a mosaic's CPU time.
+    static LAST: RefCell<LastLook> = const { RefCell::new(None) };
 }
 
 /// Stored values to heights by the band's scale and offset (GDAL's
@@ -33,7 +51,7 @@ impl CachedRaster {
     /// `raster`'s samples through a cache of about `cache_bytes`, each
     /// chunk rescaled as it is decoded.
     pub fn new(raster: ChunkedRaster, cache_bytes: usize, rescale: Option<Rescale>) -> CachedRaster {
-        CachedRaster { raster, cache: std::sync::Mutex::new(ChunkCache::new(cache_bytes)), rescale }
+        CachedRaster { raster, cache: std::sync::Mutex::new(ChunkCache::new(cache_bytes)), rescale, id: NEXT_ID.fetch_add(1, Ordering::Relaxed) }
     }
 
     /// The most its cache holds, bytes.
@@ -46,7 +64,7 @@ impl CachedRaster {
         &self.raster
     }
 
-    fn chunk(&self, k: usize) -> Option<std::sync::Arc<Vec<f32>>> {
+    fn chunk(&self, k: usize) -> Option<Arc<Vec<f32>>> {
         if let Some(c) = self.cache.lock().ok()?.get(k) {
             return Some(c);
         }
@@ -54,20 +72,34 @@ impl CachedRaster {
         if let Some(r) = self.rescale {
             r.apply(&mut v);
         }
-        let v = std::sync::Arc::new(v);
+        let v = Arc::new(v);
         self.cache.lock().ok()?.put(k, v.clone());
         Some(v)
+    }
+
+    /// `look` at chunk `k`'s samples: the thread's last chunk where it is
+    /// that one, else from the cache (or the file), which then becomes the
+    /// thread's last. `None` when the chunk cannot be read.
+    fn with_chunk<R>(&self, k: usize, look: impl FnOnce(&[f32]) -> R) -> Option<R> {
+        LAST.with(|last| {
+            if let Some((id, kk, c)) = &*last.borrow() {
+                if (*id, *kk) == (self.id, k) {
+                    return Some(look(c));
+                }
+            }
+            let c = self.chunk(k)?;
+            let r = look(&c);
+            *last.borrow_mut() = Some((self.id, k, c));
+            Some(r)
+        })
     }
 
     /// Sample (i, j); NaN when its chunk cannot be read.
     pub fn get(&self, i: usize, j: usize) -> f32 {
         let (cw, ch) = self.raster.chunk;
         let (tx, ty) = (i / cw, j / ch);
-        match self.chunk(ty * self.raster.across() + tx) {
-            // Chunks come at their full width (strips span the image).
-            Some(c) => c.get((j - ty * ch) * cw + (i - tx * cw)).copied().unwrap_or(f32::NAN),
-            None => f32::NAN,
-        }
+        // Chunks come at their full width (strips span the image).
+        self.with_chunk(ty * self.raster.across() + tx, |c| c.get((j - ty * ch) * cw + (i - tx * cw)).copied().unwrap_or(f32::NAN)).unwrap_or(f32::NAN)
     }
 
     /// Samples (i0, j0), (i1, j0), (i0, j1), (i1, j1): from one look into
@@ -80,12 +112,10 @@ impl CachedRaster {
         if i1 / cw != tx || j1 / ch != ty {
             return [self.get(i0, j0), self.get(i1, j0), self.get(i0, j1), self.get(i1, j1)];
         }
-        match self.chunk(ty * self.raster.across() + tx) {
-            Some(c) => {
-                let at = |i: usize, j: usize| c.get((j - ty * ch) * cw + (i - tx * cw)).copied().unwrap_or(f32::NAN);
-                [at(i0, j0), at(i1, j0), at(i0, j1), at(i1, j1)]
-            }
-            None => [f32::NAN; 4],
-        }
+        self.with_chunk(ty * self.raster.across() + tx, |c| {
+            let at = |i: usize, j: usize| c.get((j - ty * ch) * cw + (i - tx * cw)).copied().unwrap_or(f32::NAN);
+            [at(i0, j0), at(i1, j0), at(i0, j1), at(i1, j1)]
+        })
+        .unwrap_or([f32::NAN; 4])
     }
 }
