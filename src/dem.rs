@@ -476,6 +476,9 @@ pub struct Dem {
     pub to_dem: Option<Reprojection>,
     /// What reading it found doubtful (for the run's warnings).
     pub warnings: Vec<String>,
+    /// [`Dem::mean_height`], worked out once: it samples the whole grid,
+    /// which a DEM larger than its cache reads whole again each time.
+    mean: std::sync::OnceLock<Option<f64>>,
 }
 
 /// The height at a ground point after the policy, or why there is none.
@@ -497,12 +500,16 @@ impl Dem {
         }
     }
 
+    fn of(model: HeightModel, path: PathBuf) -> Dem {
+        Dem { model, on_hole: Miss::Error, on_outside: Miss::Error, path, to_dem: None, warnings: Vec::new(), mean: std::sync::OnceLock::new() }
+    }
+
     pub fn flat(z: f64) -> Dem {
-        Dem { model: HeightModel::Flat(z), on_hole: Miss::Error, on_outside: Miss::Error, path: PathBuf::from("(flat)"), to_dem: None, warnings: Vec::new() }
+        Dem::of(HeightModel::Flat(z), PathBuf::from("(flat)"))
     }
 
     pub fn grid(g: GridDem, path: &Path) -> Dem {
-        Dem { model: HeightModel::Grid(g), on_hole: Miss::Error, on_outside: Miss::Error, path: path.to_path_buf(), to_dem: None, warnings: Vec::new() }
+        Dem::of(HeightModel::Grid(g), path.to_path_buf())
     }
 
     /// Reads a DEM for an orthophoto in the CRS `ground`. A DEM in another CRS
@@ -547,14 +554,14 @@ impl Dem {
     /// The mean of (at most ~20 000 of) the grid's valid heights; the
     /// height of a flat DEM; `None` for a grid without any.
     pub fn mean_height(&self) -> Option<f64> {
-        match &self.model {
+        *self.mean.get_or_init(|| match &self.model {
             HeightModel::Flat(z) => Some(*z),
             HeightModel::Grid(g) => {
                 let step = (g.width * g.height / 20_000).max(1);
                 let valid: Vec<f64> = g.samples(step).iter().filter(|&&v| !g.is_nodata(v)).map(|&v| f64::from(v)).collect();
                 (!valid.is_empty()).then(|| valid.iter().sum::<f64>() / valid.len() as f64)
             }
-        }
+        })
     }
 
     /// Ground (X, Y) in the grid's own CRS.
