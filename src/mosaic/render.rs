@@ -376,10 +376,7 @@ impl Compose<'_> {
                     };
                     match from {
                         Some(j) if identity[j] => pixel.copy_from_slice(&samples[j][k * nb..(k + 1) * nb]),
-                        Some(j) => match &tables[j] {
-                            Some(t) => t.put(pixel, &samples[j][k * nb..(k + 1) * nb]),
-                            None => corrected(pixel, j, k, px, py),
-                        },
+                        Some(j) => corrected(pixel, j, k, px, py),
                         None => pixel.iter_mut().for_each(|v| *v = T::put(self.fill)),
                     }
                     valid[k] = u8::from(from.is_some());
@@ -396,10 +393,7 @@ impl Compose<'_> {
                 }
                 let quad = if blends { iv * nx + iu } else { nv * nx + nu };
                 if let Some(j) = one_piece.get(quad).copied().flatten().filter(|&j| pieces[j].valid[k] != 0) {
-                    match &tables[j] {
-                        Some(t) => t.put(pixel, &samples[j][k * nb..(k + 1) * nb]),
-                        None => corrected(pixel, j, k, px, py),
-                    }
+                    corrected(pixel, j, k, px, py);
                     valid[k] = 1;
                     continue;
                 }
