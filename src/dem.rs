@@ -500,6 +500,14 @@ impl Dem {
         }
     }
 
+    /// Its heights' bytes, read whole (what a larger budget may hold).
+    pub fn whole_bytes(&self) -> u64 {
+        match &self.model {
+            HeightModel::Flat(_) => 0,
+            HeightModel::Grid(g) => g.width as u64 * g.height as u64 * 4,
+        }
+    }
+
     fn of(model: HeightModel, path: PathBuf) -> Dem {
         Dem { model, on_hole: Miss::Error, on_outside: Miss::Error, path, to_dem: None, warnings: Vec::new(), mean: std::sync::OnceLock::new() }
     }

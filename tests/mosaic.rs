@@ -153,6 +153,17 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     let out = std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "out.tif", "--blend", "-3", "--quiet"]).output().unwrap();
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--blend"));
+    // Too little memory for the render: refused in one line with the
+    // figure that would do, nothing left behind; that figure runs.
+    let out =
+        std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "out.tif", "--memory", "20M", "--quiet"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("--memory") && err.trim().lines().count() == 1, "{err}");
+    assert!(!d.join("out.tif").exists() && common::files_containing(d, "out.tif").is_empty());
+    let enough = err.split("give --memory ").nth(1).and_then(|t| t.split_whitespace().next()).expect("a figure").to_string();
+    mosaic(d, &["-o", "out.tif", "--memory", &enough]);
+    assert!(d.join("out.tif").exists());
 }
 
 #[test]

@@ -31,12 +31,6 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// The least memory an image's render in a mosaic runs in: its scan's rows
-/// read in place (no copy) for frames a few thousand pixels wide.
-const MIN_SHARE: u64 = 24 << 20;
-/// What an image's thread holds between its turns (see the render's budget).
-const IDLE_IMAGE: u64 = 1 << 20;
-
 #[derive(Clone, Debug)]
 pub struct MosaicOptions {
     pub manifest: PathBuf,
@@ -343,40 +337,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         }
         works.retain(|w| !w.bands.is_empty());
         let (ty, tx) = (trh, tcw);
-        // Memory: a band of the mosaic in flight (three: composed, being
-        // encoded, written) and its overviews' unfinished tiles, the plan's
-        // arrays and DEMs; the images' bands
-        // in hand, of a band of the mosaic and the next (see `turns`), a
-        // tile and its mask for each of their tile columns; what is left
-        // goes to the renders that run at once, as many as it holds at
-        // [`MIN_SHARE`] each, up to all the images those two bands need
-        // (more at once keep the cores busy through each one's serial work).
-        let band_bytes = 3 * tx as u64 * spec.tile_bytes() as u64 + crate::overview::Pyramid::held_bytes(&spec, tx);
-        let plan_bytes = plan.images.iter().map(|i| i.radius.len() as u64 * 4).sum::<u64>()
-            + plan.label.len() as u64 * 16
-            + plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>();
-        let image_tile = spec.tile_bytes() as u64 + tile as u64 * tile as u64;
-        let columns = |b: u32| works.iter().filter_map(|w| w.bands.get(&b)).map(|&(c0, c1)| (c1 - c0) as u64).sum::<u64>();
-        let held = (tr0..tr0 + ty).map(|b| columns(b) + columns(b + 1)).max().unwrap_or(0) * image_tile;
-        // Each image whose thread is alive (a band of the mosaic's and the
-        // next's) holds its set-up between turns: its GCM's node rows, its
-        // threads' stacks; about 1 MiB measured on 2000² frames.
-        let most = (tr0..tr0 + ty).map(|b| works.iter().filter(|w| w.bands.contains_key(&b) || w.bands.contains_key(&(b + 1))).count()).max().unwrap_or(1);
-        let fixed = band_bytes + plan_bytes + held + most as u64 * IDLE_IMAGE;
-        let room = o.memory.saturating_sub(fixed);
-        if room < MIN_SHARE {
-            return Err(Error::setting(
-                "memory",
-                format!(
-                    "the mosaic's bands, its plan and the images at work take {} MiB, and a render needs {} MiB more: give --memory {}M or more",
-                    fixed.div_ceil(1 << 20),
-                    MIN_SHARE >> 20,
-                    (fixed + MIN_SHARE).div_ceil(1 << 20)
-                ),
-            ));
-        }
-        let at_once = (room / MIN_SHARE).clamp(1, most.max(1) as u64);
-        let share = room / at_once;
+        let (at_once, share) = render::budget(&plan, &works, &spec, (tr0, ty), o.memory)?;
         for w in &mut works {
             w.opts.memory = share;
         }
@@ -400,7 +361,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         let sample = im0.sample;
         let hidden = &mut hidden;
         let written = std::thread::scope(|s| {
-            let mut feeds = render::Feeds::new(s, works.len(), at_once as usize);
+            let mut feeds = render::Feeds::new(s, works.len(), at_once);
             write_bands(&writing, pending, |b| {
                 // The piece's band b is the mosaic's tr0 + b.
                 let got = feeds.band(&works, tr0 + b, cancel)?;

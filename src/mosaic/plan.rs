@@ -271,7 +271,7 @@ impl Plan {
         progress.start(&Task { name: "plan", units: images.len() as u64, lines: images.len() as u64, line_name: "images", input_bytes: 0 });
         // Each image's low-resolution orthophoto, several at once (each
         // reads its own scan); the partition then in the images' order.
-        let sampled: Vec<(PlanImage, Vec<f32>)> = images
+        let sampled: Vec<PlanImage> = images
             .into_par_iter()
             .map(|(mut im, fp)| {
                 let (u0, v0) = plan.grid.pixel(fp[0], fp[3]);
@@ -281,15 +281,15 @@ impl Plan {
                 im.cells = [clampc(u0, cw), clampc(v0, ch), (clampc(u1, cw) + 1).min(cw), (clampc(v1, ch) + 1).min(ch)];
                 // How far from its centre the image sees each cell (a
                 // fraction of its half-diagonal): the partition's measure.
-                let from_centre = sample_image(&plan, &mut im, s.memory, s.thumbnails)?;
+                sample_image(&plan, &mut im, s.memory, s.thumbnails)?;
                 progress.advance(1);
-                Ok((im, from_centre))
+                Ok(im)
             })
             .collect::<Result<_>>()?;
         let mut best = vec![f32::INFINITY; cw * ch];
-        for (k, (im, from_centre)) in sampled.into_iter().enumerate() {
+        for (k, im) in sampled.into_iter().enumerate() {
             let [x0, y0, x1, _] = im.cells;
-            for (j, row) in from_centre.chunks((x1 - x0).max(1)).enumerate() {
+            for (j, row) in im.radius.chunks((x1 - x0).max(1)).enumerate() {
                 for (i, &d) in row.iter().enumerate() {
                     let at = (y0 + j) * cw + x0 + i;
                     if d < best[at] {
@@ -307,9 +307,9 @@ impl Plan {
 /// The image's low-resolution orthophoto on the cells of its box: its scan
 /// reduced to about a cell a pixel (one row of each block of rows read,
 /// averaged across), then sampled bilinearly where each cell's centre is
-/// seen; returns how far from the scan's centre each cell is seen, over
-/// its half-diagonal (NaN: not seen).
-fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64, thumbnails: bool) -> Result<Vec<f32>> {
+/// seen, and how far from the scan's centre each cell is seen, over its
+/// half-diagonal (NaN: not seen).
+fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64, thumbnails: bool) -> Result<()> {
     let (w, h, nb) = (im.width as usize, im.height as usize, im.bands as usize);
     let f = ((plan.cell_metres() / im.gsd).floor() as usize).clamp(1, w.min(h));
     let (tw, th) = if thumbnails { (w.div_ceil(f), h.div_ceil(f)) } else { (1, 1) };
@@ -360,8 +360,8 @@ fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64, thumbnails: bool) 
         }
     });
     im.values = values;
-    im.radius = from_centre.clone();
-    Ok(from_centre)
+    im.radius = from_centre;
+    Ok(())
 }
 
 /// Samples of a row of the scan as f32.

@@ -12,6 +12,7 @@ use super::turns::Turns;
 use super::weights::Weights;
 use crate::error::{Error, Result};
 use crate::geom::Snap;
+use crate::io::tiff_out::OutputSpec;
 use crate::options::RectifyOptions;
 use crate::pipeline::band_render::{render_bands, BandPixels, BandRequest};
 use crate::pipeline::{Made, Raw};
@@ -146,6 +147,56 @@ pub fn work(plan: &Plan, weights: &Weights, tile: u32, prone: Option<&[bool]>, o
             ImageWork { image: i, origin: (c0, r0), bands, opts, grid, dem: Some((plan.dems[plan.images[i].dem].clone(), plan.crs.clone())) }
         })
         .collect()
+}
+
+/// The least memory an image's render in a mosaic runs in: its scan's rows
+/// read in place (no copy) for frames a few thousand pixels wide.
+const MIN_SHARE: u64 = 24 << 20;
+/// What an image's thread holds between its turns: its GCM's node rows,
+/// its threads' stacks (about 1 MiB measured on 2000² frames).
+const IDLE_IMAGE: u64 = 1 << 20;
+
+/// The render's memory for the mosaic bands `b0..b0 + n` of `spec`: a band
+/// of the mosaic in flight (three: composed, being encoded, written) and
+/// its overviews' unfinished tiles; the plan's arrays and DEMs; the images'
+/// bands in hand, of a band of the mosaic and the next (see [`Turns`]), a
+/// tile and its mask for each of their tile columns; the images alive
+/// between turns. What is left goes to the renders that run at once, as
+/// many as it holds at [`MIN_SHARE`] each, up to all the images those two
+/// bands need (more at once keep the cores busy through each one's serial
+/// stages). Returns how many at once, and each one's memory.
+pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, (b0, n): (u32, u32), memory: u64) -> Result<(usize, u64)> {
+    let tile = spec.chunk().0 as u64;
+    let band_bytes = 3 * spec.tiles_across() as u64 * spec.tile_bytes() as u64 + crate::overview::Pyramid::held_bytes(spec, spec.tiles_across());
+    let dems = plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>();
+    let plan_bytes = plan.images.iter().map(|i| i.radius.len() as u64 * 4).sum::<u64>() + plan.label.len() as u64 * 16 + dems;
+    let image_tile = spec.tile_bytes() as u64 + tile * tile;
+    let columns = |b: u32| works.iter().filter_map(|w| w.bands.get(&b)).map(|&(c0, c1)| (c1 - c0) as u64).sum::<u64>();
+    let held = (b0..b0 + n).map(|b| columns(b) + columns(b + 1)).max().unwrap_or(0) * image_tile;
+    let alive = |b: u32| works.iter().filter(|w| w.bands.contains_key(&b) || w.bands.contains_key(&(b + 1))).count();
+    let most = (b0..b0 + n).map(alive).max().unwrap_or(1).max(1);
+    let fixed = band_bytes + plan_bytes + held + most as u64 * IDLE_IMAGE;
+    let room = memory.saturating_sub(fixed);
+    if room < MIN_SHARE {
+        // The figure that does: more memory lets the plan hold more of its
+        // DEMs (a quarter of the budget each, up to the whole).
+        let other = fixed - dems;
+        let mut enough = fixed + MIN_SHARE;
+        for _ in 0..8 {
+            enough = other + MIN_SHARE + plan.dems.iter().map(|d| d.whole_bytes().min(enough / 4).max(d.held_bytes())).sum::<u64>();
+        }
+        return Err(Error::setting(
+            "memory",
+            format!(
+                "the mosaic's bands, its plan and the images at work take {} MiB, and a render needs {} MiB more: give --memory {}M or more",
+                fixed.div_ceil(1 << 20),
+                MIN_SHARE >> 20,
+                enough.div_ceil(1 << 20)
+            ),
+        ));
+    }
+    let at_once = (room / MIN_SHARE).clamp(1, most as u64);
+    Ok((at_once as usize, room / at_once))
 }
 
 /// A sample of the output's type, composed in f64.
