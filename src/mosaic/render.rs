@@ -156,9 +156,8 @@ const MIN_SHARE: u64 = 24 << 20;
 /// its threads' stacks (about 1 MiB measured on 2000² frames).
 const IDLE_IMAGE: u64 = 1 << 20;
 
-/// The render's memory for the mosaic bands `b0..b0 + n` of `spec`: a band
-/// of the mosaic in flight (three: composed, being encoded, written) and
-/// its overviews' unfinished tiles; the plan's arrays and DEMs; the images'
+/// The render's memory for the mosaic bands `b0..b0 + n` of `spec`: the
+/// writer's bands in flight and unfinished overview tiles; the plan's arrays and DEMs; the images'
 /// bands in hand, of a band of the mosaic and the next (see [`Turns`]), a
 /// tile and its mask for each of their tile columns; the images alive
 /// between turns. What is left goes to the renders that run at once, as
@@ -167,7 +166,7 @@ const IDLE_IMAGE: u64 = 1 << 20;
 /// stages). Returns how many at once, and each one's memory.
 pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, (b0, n): (u32, u32), memory: u64) -> Result<(usize, u64)> {
     let tile = spec.chunk().0 as u64;
-    let band_bytes = 3 * spec.tiles_across() as u64 * spec.tile_bytes() as u64 + crate::overview::Pyramid::held_bytes(spec, spec.tiles_across());
+    let band_bytes = crate::pipeline::band_writer::held_bytes(spec);
     let dems = plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>();
     let plan_bytes = plan.images.iter().map(|i| i.radius.len() as u64 * 4).sum::<u64>() + plan.label.len() as u64 * 16 + dems;
     let image_tile = spec.tile_bytes() as u64 + tile * tile;

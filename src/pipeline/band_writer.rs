@@ -31,6 +31,14 @@ pub struct BandWriting<'a> {
     pub cancel: &'a Cancel,
 }
 
+/// What writing `spec` a band at a time holds at most, bytes: a band in
+/// flight three times (made, being encoded, being written) and the
+/// overview tiles not yet finished.
+pub fn held_bytes(spec: &OutputSpec) -> u64 {
+    let across = spec.tiles_across();
+    3 * across as u64 * spec.tile_bytes() as u64 + Pyramid::held_bytes(spec, across)
+}
+
 /// Writes `w.path` from the bands `make_band` makes, in order: each band's
 /// tiles one after the other from tile column 0, padded to whole tiles,
 /// and (under a mask) a byte a pixel saying which have a value. Returns the
