@@ -173,7 +173,7 @@ fn edited_seamlines_are_honoured() {
     let d = tmp.path();
     block(d);
     let jobs = gcm_ortho::batch::manifest::load(&d.join("manifest.toml")).unwrap();
-    let settings = PlanSettings { gsd: None, grid: None, bounds: None, crs: None, memory: 256 << 20, thumbnails: true };
+    let settings = PlanSettings { gsd: None, grid: None, bounds: None, crs: None, memory: 256 << 20, cell: None, thumbnails: true };
     let make = || Plan::make(jobs.iter().map(|j| (j.name.clone(), j.config.clone())).collect(), &settings, &gcm_ortho::NoProgress).unwrap();
     let mut plan = make();
     let planned = plan.label.clone();

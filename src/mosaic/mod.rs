@@ -202,7 +202,8 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         (Some(c), _) => Some(c.clone()),
         (None, l) => l.as_ref().map(|(_, c)| c.clone()),
     };
-    let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs, grid: like.map(|(g, _)| g), memory: o.memory, thumbnails: o.plan_in.is_none() };
+    let cell = o.plan_in.as_deref().map(plan_file::cell_of).transpose()?;
+    let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs, grid: like.map(|(g, _)| g), memory: o.memory, cell, thumbnails: o.plan_in.is_none() };
     let mut plan = Plan::make(jobs.into_iter().map(|j| (j.name, j.config)).collect(), &settings, progress)?;
     let t_plan = wall.elapsed().as_secs_f64();
     if cancel.is_cancelled() {

@@ -1,6 +1,6 @@
 //! The mosaic's plan, cheap and for all images at once: each image's
 //! footprint and GSD, the mosaic grid, and on a coarse lattice of *cells*
-//! (a few pixels each, at most [`MAX_CELLS`]) the heights, each image's
+//! (a few pixels each, at most [`MAX_CELLS`], fewer on a small budget) the heights, each image's
 //! low-resolution orthophoto, and the first partition: each cell to the
 //! image that sees it nearest its centre (least relief displacement and
 //! lens falloff), computed on the DEM, not from the image centres alone.
@@ -23,6 +23,10 @@ pub const NONE: u16 = u16::MAX;
 /// The plan's cells are at most this many: its arrays stay a few tens of
 /// MB whatever the mosaic's size.
 pub const MAX_CELLS: u64 = 2_000_000;
+/// And at most one for this many bytes of the memory budget: a cell costs
+/// about 60 (its label, height and weights, and each image's thumbnail and
+/// distance where its box holds it), so the plan takes under half of it.
+pub const BUDGET_PER_CELL: u64 = 128;
 
 /// One image as the plan sees it.
 pub struct PlanImage {
@@ -86,6 +90,18 @@ impl PlanImage {
     }
 }
 
+/// The side of the plan's cells over `px` output pixels on a budget of
+/// `memory` bytes: 4 pixels or more, doubled until there are at most
+/// [`MAX_CELLS`] and one for each [`BUDGET_PER_CELL`] bytes.
+pub fn cell_side(px: u64, memory: u64) -> u32 {
+    let most = MAX_CELLS.min(memory / BUDGET_PER_CELL).max(1);
+    let mut cell = 4u32;
+    while px / (cell as u64 * cell as u64) > most {
+        cell *= 2;
+    }
+    cell
+}
+
 /// The mosaic's grid and its cells.
 pub struct Plan {
     pub grid: OutputGrid,
@@ -114,6 +130,8 @@ pub struct PlanSettings {
     pub crs: Option<Crs>,
     /// Memory for the DEMs and one scan's thumbnail, bytes.
     pub memory: u64,
+    /// The cells' side, where a plan file fixes it.
+    pub cell: Option<u32>,
     /// Read each scan's thumbnail (what balancing and the least-cost seams
     /// weigh); without, [`PlanImage::values`] only say where it sees (0),
     /// as rendering from a plan file needs.
@@ -245,12 +263,9 @@ impl Plan {
                 format!("a mosaic of {}×{} pixels at GSD {gsd} is more than 16 times its scans' pixels; check the GSD and bounds", grid.width, grid.height),
             ));
         }
-        // Cells of 4 pixels or more, at most MAX_CELLS of them.
-        let px = grid.width as u64 * grid.height as u64;
-        let mut cell = 4u32;
-        while px / (cell as u64 * cell as u64) > MAX_CELLS {
-            cell *= 2;
-        }
+        // A plan file's cells, else as many as the budget holds (the
+        // default 256 MiB holds MAX_CELLS).
+        let cell = s.cell.unwrap_or_else(|| cell_side(grid.width as u64 * grid.height as u64, s.memory));
         let (cw, ch) = (grid.width.div_ceil(cell) as usize, grid.height.div_ceil(cell) as usize);
         let mut plan = Plan { grid, crs, cell, cw, ch, heights: vec![f32::NAN; cw * ch], label: vec![NONE; cw * ch], images: Vec::new(), dems };
         // Heights of the first image's DEM: the seams' height edges.
@@ -370,5 +385,24 @@ fn as_f32(bytes: &[u8], sample: SampleType) -> Vec<f32> {
         SampleType::U8 => bytes.iter().map(|&v| v as f32).collect(),
         SampleType::U16 => bytes.chunks_exact(2).map(|b| u16::from_ne_bytes([b[0], b[1]]) as f32).collect(),
         SampleType::F32 => bytes.chunks_exact(4).map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The default budget plans on up to MAX_CELLS cells; a small one on
+    /// coarser cells, one for each BUDGET_PER_CELL bytes at most.
+    #[test]
+    fn the_cells_grow_as_the_budget_shrinks() {
+        let px = 7954 * 12297;
+        assert_eq!(cell_side(px, 256 << 20), 8, "1.53 million cells of 8 px fit the default");
+        assert_eq!(cell_side(px, 100 << 20), 16, "0.82 million at most on 100 MiB");
+        assert_eq!(cell_side(1000 * 1000, 256 << 20), 4, "never under 4 px");
+        for memory in [32u64 << 20, 100 << 20, 1 << 30] {
+            let side = cell_side(px, memory) as u64;
+            assert!(px / (side * side) <= (memory / BUDGET_PER_CELL).min(MAX_CELLS));
+        }
     }
 }

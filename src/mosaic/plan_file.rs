@@ -52,18 +52,26 @@ pub fn write(plan: &Plan, corrections: &[Correction], path: &Path) -> Result<()>
     crate::io::publish::write_file(path, text.as_bytes())
 }
 
+fn load(path: &Path) -> Result<PlanFile> {
+    let text = crate::io::bounded_read::read_text_bounded(path, "a mosaic plan", crate::io::bounded_read::LIST)?;
+    serde_json::from_str(&text).map_err(|e| Error::format(path, format!("is not a mosaic plan: {e}")))
+}
+
 /// The grid of the plan file at `path`.
 pub fn grid_of(path: &Path) -> Result<OutputGrid> {
-    let text = crate::io::bounded_read::read_text_bounded(path, "a mosaic plan", crate::io::bounded_read::LIST)?;
-    let file: PlanFile = serde_json::from_str(&text).map_err(|e| Error::format(path, format!("is not a mosaic plan: {e}")))?;
-    Ok(file.grid)
+    load(path).map(|f| f.grid)
+}
+
+/// The cell side of the plan file at `path` (a shard plans on the plan's
+/// cells whatever its own memory budget).
+pub fn cell_of(path: &Path) -> Result<u32> {
+    load(path).map(|f| f.cell)
 }
 
 /// Takes the seams of the plan file at `path` into `plan` (made again from
 /// the same manifest and settings) and returns its corrections.
 pub fn read(plan: &mut Plan, path: &Path) -> Result<Vec<Correction>> {
-    let text = crate::io::bounded_read::read_text_bounded(path, "a mosaic plan", crate::io::bounded_read::LIST)?;
-    let file: PlanFile = serde_json::from_str(&text).map_err(|e| Error::format(path, format!("not a mosaic plan: {e}")))?;
+    let file = load(path)?;
     if file.format != FORMAT {
         return Err(Error::format(path, format!("'{}' is not a plan this version reads ({FORMAT})", file.format)));
     }

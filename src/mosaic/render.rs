@@ -168,7 +168,8 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, (b0, n): (u32
     let tile = spec.chunk().0 as u64;
     let band_bytes = crate::pipeline::band_writer::held_bytes(spec);
     let dems = plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>();
-    let plan_bytes = plan.images.iter().map(|i| i.radius.len() as u64 * 4).sum::<u64>() + plan.label.len() as u64 * 16 + dems;
+    let arrays = plan.images.iter().map(|i| i.radius.len() as u64 * 4).sum::<u64>() + plan.label.len() as u64 * 16;
+    let plan_bytes = arrays + dems;
     let image_tile = spec.tile_bytes() as u64 + tile * tile;
     let columns = |b: u32| works.iter().filter_map(|w| w.bands.get(&b)).map(|&(c0, c1)| (c1 - c0) as u64).sum::<u64>();
     let held = (b0..b0 + n).map(|b| columns(b) + columns(b + 1)).max().unwrap_or(0) * image_tile;
@@ -178,11 +179,16 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, (b0, n): (u32
     let room = memory.saturating_sub(fixed);
     if room < MIN_SHARE {
         // The figure that does: more memory lets the plan hold more of its
-        // DEMs (a quarter of the budget each, up to the whole).
-        let other = fixed - dems;
+        // DEMs (a quarter of the budget each, up to the whole) and take
+        // more cells.
+        let other = fixed - plan_bytes;
+        let px = plan.grid.width as u64 * plan.grid.height as u64;
+        let cells = (plan.cw * plan.ch).max(1) as u64;
         let mut enough = fixed + MIN_SHARE;
         for _ in 0..8 {
-            enough = other + MIN_SHARE + plan.dems.iter().map(|d| d.whole_bytes().min(enough / 4).max(d.held_bytes())).sum::<u64>();
+            let side = super::plan::cell_side(px, enough) as u64;
+            let arrays_then = arrays * (px / (side * side)).max(cells) / cells;
+            enough = other + MIN_SHARE + arrays_then + plan.dems.iter().map(|d| d.whole_bytes().min(enough / 4).max(d.held_bytes())).sum::<u64>();
         }
         return Err(Error::setting(
             "memory",
