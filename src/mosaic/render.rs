@@ -190,6 +190,9 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, (b0, n): (u32
             let arrays_then = arrays * (px / (side * side)).max(cells) / cells;
             enough = other + MIN_SHARE + arrays_then + plan.dems.iter().map(|d| d.whole_bytes().min(enough / 4).max(d.held_bytes())).sum::<u64>();
         }
+        // The cells' count is estimated (boxes round up to whole cells):
+        // a sixteenth more, so that the figure given does run.
+        enough += enough / 16;
         return Err(Error::setting(
             "memory",
             format!(
