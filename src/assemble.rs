@@ -30,6 +30,8 @@ pub struct AssembleOptions {
     pub overview_level: Option<u8>,
     /// The JPEG quality of the overview tiles, for JPEG pieces.
     pub quality: Option<u8>,
+    /// BigTIFF or not (`None`: as the size needs).
+    pub bigtiff: Option<bool>,
 }
 
 impl Default for AssembleOptions {
@@ -41,6 +43,7 @@ impl Default for AssembleOptions {
             level: None,
             overview_level: None,
             quality: None,
+            bigtiff: None,
         }
     }
 }
@@ -169,7 +172,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
         spec.level = level;
     }
     spec.overviews = opts.overviews.levels(w, h, tile);
-    spec.bigtiff = spec.needs_bigtiff();
+    spec.bigtiff = opts.bigtiff.unwrap_or_else(|| spec.needs_bigtiff());
     let by = ValidBy::of(&spec);
     let mut pyramid = Pyramid::new(&spec, opts.overview_resampling, by, geo0.nodata.unwrap_or(0.0));
     let files: Vec<std::fs::File> = pieces.iter().map(|p| std::fs::File::open(p).map_err(|e| Error::io(p, e))).collect::<Result<_>>()?;

@@ -166,6 +166,39 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     assert!(d.join("out.tif").exists());
 }
 
+/// A mosaic whose bands the memory cannot hold across its width is made
+/// in strips of tile columns and assembled: byte for byte the file of a
+/// run with room for the whole width (the same plan, so the same cells),
+/// in plain and Cloud-Optimized layouts, the strips' folder removed.
+#[test]
+fn a_mosaic_too_wide_for_the_memory_is_made_in_strips_with_the_same_bytes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    mosaic(d, &["--plan-out", "plan.json"]);
+    let strips = |name: &str| -> u64 {
+        let report: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join(name)).unwrap()).unwrap();
+        report["strips"].as_u64().unwrap()
+    };
+    for layout in [&[][..], &["--cog"][..]] {
+        let with = |out: &'static str, memory: &'static str, json: &'static str| -> Vec<&'static str> {
+            [&["--plan", "plan.json", "-o", out, "--memory", memory, "--json", json][..], layout].concat()
+        };
+        mosaic(d, &with("whole.tif", "256M", "whole.json"));
+        assert_eq!(strips("whole.json"), 1);
+        // 48 MiB holds this block's plan and a few tile columns of its
+        // bands, not all of them.
+        mosaic(d, &with("strips.tif", "48M", "strips.json"));
+        assert!(strips("strips.json") > 1, "made at once in 48 MiB: the test no longer makes strips");
+        assert!(std::fs::read(d.join("whole.tif")).unwrap() == std::fs::read(d.join("strips.tif")).unwrap(), "strips {layout:?} differ from the whole");
+        let left: Vec<_> = std::fs::read_dir(d).unwrap().flatten().filter(|e| e.file_name().to_string_lossy().contains("strips-")).collect();
+        assert!(left.is_empty(), "the strips' folder was left");
+        for f in ["whole.tif", "strips.tif"] {
+            std::fs::remove_file(d.join(f)).unwrap();
+        }
+    }
+}
+
 #[test]
 fn edited_seamlines_are_honoured() {
     use gcm_ortho::mosaic::plan::{Plan, PlanSettings, NONE};

@@ -17,12 +17,13 @@ pub mod seams;
 pub mod turns;
 pub mod weights;
 
+use crate::assemble::AssembleOptions;
 use crate::error::{Error, Result};
 use crate::geodesy::Crs;
 use crate::geom::Gsd;
 use crate::io::overwrite::{check_outputs, Role};
 use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec, PendingFile};
-use crate::options::{BigTiff, Occlusion, RectifyOptions};
+use crate::options::{BigTiff, Occlusion, Overviews, RectifyOptions};
 use crate::pipeline::band_writer::{write_bands, BandWriting};
 use crate::progress::{Cancel, Progress, Task};
 use balance::{Balance, Correction};
@@ -147,6 +148,9 @@ pub struct MosaicReport {
     /// With `--resume-dir`: the pieces a stopped run had finished, taken as
     /// they were, and the pieces in all.
     pub pieces_reused: Option<[usize; 2]>,
+    /// Strips of tile columns the render was made in, then assembled: 1
+    /// where the memory held the mosaic's width at once.
+    pub strips: usize,
 }
 
 /// Makes the mosaic of the manifest's images (see the module doc).
@@ -261,51 +265,13 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
 
     // The output: the first job's format settings, the plan's grid.
     let tile = first.tile;
-    let im0 = &plan.images[0];
-    // The piece's grid: those tiles of the mosaic's, clipped to it.
-    let (px0, py0) = grid.ground((tc0 * tile) as f64, (tr0 * tile) as f64);
-    let piece = crate::geom::OutputGrid {
-        x0: px0,
-        y0: py0,
-        gsd: grid.gsd,
-        width: ((tc0 + tcw) * tile).min(grid.width) - tc0 * tile,
-        height: ((tr0 + trh) * tile).min(grid.height) - tr0 * tile,
-    };
-    let mut spec = OutputSpec {
-        overviews: 0,
-        cog: false,
-        width: piece.width,
-        height: piece.height,
-        bands: im0.bands,
-        sample: im0.sample,
-        chunking: Chunking::Tiles(tile),
-        compression: first.compress,
-        level: first.codec_level()?,
-        overview_level: first.overview_codec_level()?,
-        bigtiff: false,
-        photometric: if im0.photometric == 2 && im0.bands >= 3 { 2 } else { 1 },
-        alpha: false,
-        mask: true,
-        geo: Some(GeoTags {
-            x0: piece.x0,
-            y0: piece.y0,
-            gsd: grid.gsd,
-            keys: crate::geodesy::geokeys::keys_of(&plan.crs).map_err(|m| Error::setting("crs", m))?,
-            nodata: None,
-        }),
-    };
-    spec.check_codec().map_err(|m| Error::setting("compress", m))?;
-    spec.overviews = o.overviews.unwrap_or(first.overviews).levels(piece.width, piece.height, tile);
-    spec.cog = o.cog.unwrap_or(first.cog);
-    spec.bigtiff = match first.bigtiff {
-        BigTiff::Yes => true,
-        BigTiff::No => false,
-        BigTiff::Auto => spec.needs_bigtiff(),
-    };
+    let layout = (o.overviews.unwrap_or(first.overviews), o.cog.unwrap_or(first.cog));
+    let spec = piece_spec(&plan, &first, window, layout)?;
 
     // The render (none when only the plan is asked for).
     let mut works: Vec<render::ImageWork> = Vec::new();
     let mut t_render = 0.0;
+    let mut strips_made = 0;
     // Under occlusion: each image's pixels imaged and hidden, and the
     // mosaic's pixels no image sees.
     let mut hidden = vec![(0u64, 0u64); plan.images.len()];
@@ -323,73 +289,56 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         // Where an image may not see the ground, every image that sees the
         // cell is made there, so that another can fill what it hides.
         let prone = true_ortho.then(|| render::occlusion_prone(&plan));
-        works = render::work(&plan, &weights, tile, prone.as_deref(), opts_of);
-        // A piece: each image's bands and columns within the window; its grid
-        // stays the whole run's, so that its pixels are the same.
-        for w in &mut works {
-            w.bands = std::mem::take(&mut w.bands)
-                .into_iter()
-                .filter(|(b, _)| (tr0..tr0 + trh).contains(b))
-                .filter_map(|(b, (c0, c1))| {
-                    let (c0, c1) = (c0.max(tc0), c1.min(tc0 + tcw));
-                    (c0 < c1).then_some((b, (c0, c1)))
-                })
-                .collect();
-        }
-        works.retain(|w| !w.bands.is_empty());
-        let (ty, tx) = (trh, tcw);
-        let (at_once, share) = render::budget(&plan, &works, &spec, (tr0, ty), o.memory)?;
-        for w in &mut works {
-            w.opts.memory = share;
-        }
+        works = within(&render::work(&plan, &weights, tile, prone.as_deref(), opts_of), window);
 
         let t = Instant::now();
         // Pixels without a value: masked, and NaN where samples can hold it.
-        let fill = if im0.sample == crate::io::source::SampleType::F32 { f64::NAN } else { 0.0 };
+        let fill = if plan.images[0].sample == crate::io::source::SampleType::F32 { f64::NAN } else { 0.0 };
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| Error::setting("threads", e.to_string()))?;
         let compose = render::Compose {
             plan: &plan,
             weights: &weights,
             corrections: &corrections,
             tile,
-            bands: im0.bands as usize,
+            bands: plan.images[0].bands as usize,
             fill,
             unseen: Default::default(),
             covered: Default::default(),
         };
-        progress.start(&Task { name: "mosaic", units: tx as u64 * ty as u64, lines: piece.height as u64, line_name: "rows", input_bytes: 0 });
-        let writing = BandWriting { spec: &spec, path: out, threads, overview_resampling: first.overview_resampling, fill, sync: o.sync, progress, cancel };
-        let sample = im0.sample;
-        let hidden = &mut hidden;
-        let written = std::thread::scope(|s| {
-            let mut feeds = render::Feeds::new(s, works.len(), at_once);
-            write_bands(&writing, pending, |b| {
-                // The piece's band b is the mosaic's tr0 + b.
-                let got = feeds.band(&works, tr0 + b, cancel)?;
-                for (k, band) in &got {
-                    if let Some(s) = &band.seen {
-                        hidden[works[*k].image].0 += s.imaged;
-                        hidden[works[*k].image].1 += s.hidden;
-                    }
+        let pieces = PieceRender { plan: &plan, compose: &compose, works: &works, threads, pool: &pool, fill, o, first: &first, progress, cancel };
+        match render::budget(&plan, &within(&works, window), &spec, (tr0, trh), o.memory) {
+            Ok(fit) => {
+                pieces.render(window, &spec, fit, (out, pending), &mut hidden)?;
+                strips_made = 1;
+            }
+            // Too wide for the memory: strips of tile columns, each made
+            // alone into a folder beside the output, then assembled
+            // (overviews and the layout made there), the same bytes.
+            Err(refusal) => {
+                drop(pending);
+                let strips = if tcw > 1 { column_strips(&plan, &works, &first, window, o.memory)? } else { return Err(refusal.into()) };
+                strips_made = strips.len();
+                let dir = tempfile::Builder::new()
+                    .prefix(".gcm-ortho-mosaic-strips-")
+                    .tempdir_in(crate::io::publish::folder_of(out))
+                    .map_err(|e| Error::io(out, e))?;
+                let mut paths = Vec::new();
+                for (k, (strip, fit)) in strips.into_iter().enumerate() {
+                    let path = dir.path().join(format!("strip-{k:04}.tif"));
+                    let spec = piece_spec(&plan, &first, strip, (Overviews::None, false))?;
+                    pieces.render(strip, &spec, fit, (&path, PendingFile::create(&path)?), &mut hidden)?;
+                    paths.push(path);
                 }
-                let got: Vec<_> = got.iter().map(|(k, band)| (&works[*k], band)).collect();
-                Ok(compose.make_band(tr0 + b, (tc0, tc0 + tx), &got, &pool, sample))
-            })
-        });
-        progress.finish();
-        if cancel.is_cancelled() {
-            return Err(Error::Cancelled);
+                crate::assemble::assemble(&paths, out, &assembly(layout, &first))?;
+            }
         }
-        written?;
         crate::batch::write_sidecar(out, &key)?;
         if true_ortho {
             use std::sync::atomic::Ordering;
             unseen = Some(Unseen::new(compose.covered.load(Ordering::Relaxed), compose.unseen.load(Ordering::Relaxed), grid.gsd));
         }
-        let t_render_ = t.elapsed().as_secs_f64();
-        t_render = t_render_;
+        t_render = t.elapsed().as_secs_f64();
     }
-
     // The report.
     let covered = plan.label.iter().filter(|&&l| l != NONE).count();
     let images = plan
@@ -436,7 +385,185 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         peak_rss_mib: crate::pipeline::peak_rss_mib(),
         output_bytes: o.output.as_deref().and_then(|p| std::fs::metadata(p).ok()).map_or(0, |m| m.len()),
         pieces_reused: None,
+        strips: strips_made,
     })
+}
+
+/// The output file of the mosaic's tiles `window` (first column, first
+/// row, columns, rows): the first job's format settings, the plan's grid
+/// clipped to those tiles, with `layout`'s overviews and Cloud-Optimized
+/// layout.
+fn piece_spec(plan: &Plan, first: &RectifyOptions, window: [u32; 4], layout: (Overviews, bool)) -> Result<OutputSpec> {
+    let [tc0, tr0, tcw, trh] = window;
+    let (grid, tile, im0) = (plan.grid, first.tile, &plan.images[0]);
+    let (x0, y0) = grid.ground((tc0 * tile) as f64, (tr0 * tile) as f64);
+    let (width, height) = (((tc0 + tcw) * tile).min(grid.width) - tc0 * tile, ((tr0 + trh) * tile).min(grid.height) - tr0 * tile);
+    let mut spec = OutputSpec {
+        overviews: 0,
+        cog: false,
+        width,
+        height,
+        bands: im0.bands,
+        sample: im0.sample,
+        chunking: Chunking::Tiles(tile),
+        compression: first.compress,
+        level: first.codec_level()?,
+        overview_level: first.overview_codec_level()?,
+        bigtiff: false,
+        photometric: if im0.photometric == 2 && im0.bands >= 3 { 2 } else { 1 },
+        alpha: false,
+        mask: true,
+        geo: Some(GeoTags { x0, y0, gsd: grid.gsd, keys: crate::geodesy::geokeys::keys_of(&plan.crs).map_err(|m| Error::setting("crs", m))?, nodata: None }),
+    };
+    spec.check_codec().map_err(|m| Error::setting("compress", m))?;
+    spec.overviews = layout.0.levels(width, height, tile);
+    spec.cog = layout.1;
+    spec.bigtiff = bigtiff(first.bigtiff).unwrap_or_else(|| spec.needs_bigtiff());
+    Ok(spec)
+}
+
+/// A BigTIFF setting as said (`None`: as the size needs).
+fn bigtiff(b: BigTiff) -> Option<bool> {
+    match b {
+        BigTiff::Yes => Some(true),
+        BigTiff::No => Some(false),
+        BigTiff::Auto => None,
+    }
+}
+
+/// How strips of the mosaic are put together into the file a single run
+/// writes.
+fn assembly(layout: (Overviews, bool), first: &RectifyOptions) -> AssembleOptions {
+    AssembleOptions {
+        overviews: layout.0,
+        overview_resampling: first.overview_resampling,
+        cog: layout.1,
+        level: first.level,
+        overview_level: first.overview_level,
+        quality: first.quality,
+        bigtiff: bigtiff(first.bigtiff),
+    }
+}
+
+/// Each image's bands and columns within `window` (the images with none
+/// left out); its grid stays the whole run's, so that its pixels are the
+/// same.
+fn within(works: &[render::ImageWork], window: [u32; 4]) -> Vec<render::ImageWork> {
+    let [tc0, tr0, tcw, trh] = window;
+    works
+        .iter()
+        .map(|w| render::ImageWork {
+            bands: w
+                .bands
+                .iter()
+                .filter(|(b, _)| (tr0..tr0 + trh).contains(*b))
+                .filter_map(|(&b, &(c0, c1))| {
+                    let (c0, c1) = (c0.max(tc0), c1.min(tc0 + tcw));
+                    (c0 < c1).then_some((b, (c0, c1)))
+                })
+                .collect(),
+            ..(*w).clone()
+        })
+        .filter(|w| !w.bands.is_empty())
+        .collect()
+}
+
+/// Tiles of the mosaic: first column, first row, columns, rows.
+type Strip = [u32; 4];
+
+/// `window` cut into the fewest strips of tile columns, as wide as one
+/// another, whose renders each fit `memory` (strips hold no overviews:
+/// the assembly makes them); with each strip's renders at once and their
+/// memory. When strips a tile column wide do not fit either, the refusal
+/// of the one that needs the most (its figure is the least that runs).
+fn column_strips(plan: &Plan, works: &[render::ImageWork], first: &RectifyOptions, window: [u32; 4], memory: u64) -> Result<Vec<(Strip, render::Fit)>> {
+    let [tc0, tr0, tcw, trh] = window;
+    let strips = |n: u32| -> Result<Vec<(Strip, std::result::Result<render::Fit, render::Short>)>> {
+        let wide = tcw.div_ceil(n);
+        (tc0..tc0 + tcw)
+            .step_by(wide as usize)
+            .map(|c0| {
+                let strip = [c0, tr0, wide.min(tc0 + tcw - c0), trh];
+                let spec = piece_spec(plan, first, strip, (Overviews::None, false))?;
+                Ok((strip, render::budget(plan, &within(works, strip), &spec, (tr0, trh), memory)))
+            })
+            .collect()
+    };
+    let fitting = |cut: &[(Strip, std::result::Result<render::Fit, render::Short>)]| -> Option<Vec<(Strip, render::Fit)>> {
+        cut.iter().map(|&(strip, fit)| fit.ok().map(|f| (strip, f))).collect()
+    };
+    for n in 2..tcw {
+        if let Some(fit) = fitting(&strips(n)?) {
+            return Ok(fit);
+        }
+    }
+    let narrowest = strips(tcw)?;
+    match fitting(&narrowest) {
+        Some(fit) => Ok(fit),
+        None => Err(narrowest.into_iter().filter_map(|(_, fit)| fit.err()).max_by_key(|s| s.enough).expect("a strip that does not fit").into()),
+    }
+}
+
+/// What renders any window of the mosaic: the plan, the compositor, every
+/// image's work, the threads.
+struct PieceRender<'a> {
+    plan: &'a Plan,
+    compose: &'a render::Compose<'a>,
+    works: &'a [render::ImageWork],
+    threads: usize,
+    pool: &'a rayon::ThreadPool,
+    fill: f64,
+    o: &'a MosaicOptions,
+    first: &'a RectifyOptions,
+    progress: &'a dyn Progress,
+    cancel: &'a Cancel,
+}
+
+impl PieceRender<'_> {
+    /// The mosaic's tiles `window` into `path` (through `pending`) as
+    /// `spec` says, with `fit`'s renders at once and memory each; each
+    /// image's pixels imaged and hidden added to `hidden`.
+    fn render(&self, window: [u32; 4], spec: &OutputSpec, fit: render::Fit, (path, pending): (&Path, PendingFile), hidden: &mut [(u64, u64)]) -> Result<()> {
+        let [tc0, tr0, tx, ty] = window;
+        let (at_once, share) = fit;
+        let mut works = within(self.works, window);
+        for w in &mut works {
+            w.opts.memory = share;
+        }
+        let (cancel, progress) = (self.cancel, self.progress);
+        progress.start(&Task { name: "mosaic", units: tx as u64 * ty as u64, lines: spec.height as u64, line_name: "rows", input_bytes: 0 });
+        let writing = BandWriting {
+            spec,
+            path,
+            threads: self.threads,
+            overview_resampling: self.first.overview_resampling,
+            fill: self.fill,
+            sync: self.o.sync,
+            progress,
+            cancel,
+        };
+        let sample = self.plan.images[0].sample;
+        let written = std::thread::scope(|s| {
+            let mut feeds = render::Feeds::new(s, works.len(), at_once);
+            write_bands(&writing, pending, |b| {
+                // The piece's band b is the mosaic's tr0 + b.
+                let got = feeds.band(&works, tr0 + b, cancel)?;
+                for (k, band) in &got {
+                    if let Some(s) = &band.seen {
+                        hidden[works[*k].image].0 += s.imaged;
+                        hidden[works[*k].image].1 += s.hidden;
+                    }
+                }
+                let got: Vec<_> = got.iter().map(|(k, band)| (&works[*k], band)).collect();
+                Ok(self.compose.make_band(tr0 + b, (tc0, tc0 + tx), &got, self.pool, sample))
+            })
+        });
+        progress.finish();
+        if cancel.is_cancelled() {
+            return Err(Error::Cancelled);
+        }
+        written.map(|_| ())
+    }
 }
 
 /// The key of a run: the manifest's jobs (their inputs and settings), the
@@ -488,6 +615,7 @@ impl MosaicReport {
             peak_rss_mib: None,
             output_bytes: std::fs::metadata(out).map_or(0, |m| m.len()),
             pieces_reused: None,
+            strips: 0,
         }
     }
 }

@@ -23,6 +23,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 /// The part of the mosaic an image is made over.
+#[derive(Clone)]
 pub struct ImageWork {
     pub image: usize,
     /// Its grid's first tile in the mosaic (column, row).
@@ -149,6 +150,32 @@ pub fn work(plan: &Plan, weights: &Weights, tile: u32, prone: Option<&[bool]>, o
         .collect()
 }
 
+/// A render the memory does not hold: what the rest takes, and the
+/// memory that holds it all (bytes).
+#[derive(Clone, Copy, Debug)]
+pub struct Short {
+    pub fixed: u64,
+    pub enough: u64,
+}
+
+impl From<Short> for Error {
+    fn from(s: Short) -> Error {
+        Error::setting(
+            "memory",
+            format!(
+                "the mosaic's bands, its plan and the images at work take {} MiB, and a render needs {} MiB more: give --memory {}M or more",
+                s.fixed.div_ceil(1 << 20),
+                MIN_SHARE >> 20,
+                s.enough.div_ceil(1 << 20)
+            ),
+        )
+    }
+}
+
+/// How a render fits its memory: images making a band at once, and the
+/// memory of each.
+pub type Fit = (usize, u64);
+
 /// The least memory an image's render in a mosaic runs in: its scan's rows
 /// read in place (no copy) for frames a few thousand pixels wide.
 const MIN_SHARE: u64 = 24 << 20;
@@ -164,7 +191,7 @@ const IDLE_IMAGE: u64 = 1 << 20;
 /// many as it holds at [`MIN_SHARE`] each, up to all the images those two
 /// bands need (more at once keep the cores busy through each one's serial
 /// stages). Returns how many at once, and each one's memory.
-pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, (b0, n): (u32, u32), memory: u64) -> Result<(usize, u64)> {
+pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, (b0, n): (u32, u32), memory: u64) -> std::result::Result<Fit, Short> {
     let tile = spec.chunk().0 as u64;
     let band_bytes = crate::pipeline::band_writer::held_bytes(spec);
     let dems = plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>();
@@ -184,24 +211,23 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, (b0, n): (u32
         let other = fixed - plan_bytes;
         let px = plan.grid.width as u64 * plan.grid.height as u64;
         let cells = (plan.cw * plan.ch).max(1) as u64;
+        // The cells' count is estimated (boxes round up to whole cells):
+        // a sixteenth more, so that the figure given does run. The plan's
+        // cells and DEMs are taken at the figure itself (a little more
+        // memory may double the cells across and down), until it holds.
         let mut enough = fixed + MIN_SHARE;
-        for _ in 0..8 {
+        for _ in 0..16 {
             let side = super::plan::cell_side(px, enough) as u64;
             let arrays_then = arrays * (px / (side * side)).max(cells) / cells;
-            enough = other + MIN_SHARE + arrays_then + plan.dems.iter().map(|d| d.whole_bytes().min(enough / 4).max(d.held_bytes())).sum::<u64>();
+            let dems_then = plan.dems.iter().map(|d| d.whole_bytes().min(enough / 4).max(d.held_bytes())).sum::<u64>();
+            let need = other + MIN_SHARE + arrays_then + dems_then;
+            let need = need + need / 16;
+            if need <= enough {
+                break;
+            }
+            enough = need;
         }
-        // The cells' count is estimated (boxes round up to whole cells):
-        // a sixteenth more, so that the figure given does run.
-        enough += enough / 16;
-        return Err(Error::setting(
-            "memory",
-            format!(
-                "the mosaic's bands, its plan and the images at work take {} MiB, and a render needs {} MiB more: give --memory {}M or more",
-                fixed.div_ceil(1 << 20),
-                MIN_SHARE >> 20,
-                enough.div_ceil(1 << 20)
-            ),
-        ));
+        return Err(Short { fixed, enough });
     }
     let at_once = (room / MIN_SHARE).clamp(1, most as u64);
     Ok((at_once as usize, room / at_once))

@@ -7,7 +7,7 @@
 //! mosaic's worth of pieces until the output is made, then is emptied.
 
 use super::{mosaic, plan_file, run_key, MosaicOptions, MosaicReport, Unseen};
-use crate::assemble::{assemble, AssembleOptions};
+use crate::assemble::assemble;
 use crate::error::{Error, Result};
 use crate::options::Overviews;
 use crate::progress::{Cancel, Progress};
@@ -79,14 +79,7 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
         pieces.push(piece);
     }
 
-    let layout = AssembleOptions {
-        overviews: o.overviews.unwrap_or(first.overviews),
-        overview_resampling: first.overview_resampling,
-        cog: o.cog.unwrap_or(first.cog),
-        level: first.level,
-        overview_level: first.overview_level,
-        quality: first.quality,
-    };
+    let layout = super::assembly((o.overviews.unwrap_or(first.overviews), o.cog.unwrap_or(first.cog)), &first);
     assemble(&pieces, &out, &layout)?;
     crate::batch::write_sidecar(&out, &key)?;
     for p in pieces.iter().chain([&plan]) {
@@ -112,6 +105,7 @@ fn joined(reports: Vec<MosaicReport>, out: &Path, window: [u32; 4], grid: crate:
     whole.peak_rss_mib = rendered.iter().filter_map(|r| r.peak_rss_mib).reduce(f64::max);
     whole.output_bytes = std::fs::metadata(out).map_or(0, |m| m.len());
     whole.pieces_reused = Some(reused);
+    whole.strips = rendered.iter().map(|r| r.strips).max().unwrap_or(0);
     let unseen: Vec<Unseen> = rendered.iter().filter_map(|r| r.unseen).collect();
     whole.unseen = (!unseen.is_empty()).then(|| {
         let (c, u) = unseen.iter().fold((0, 0), |(c, u), s| (c + s.covered_px, u + s.unseen_px));
