@@ -78,7 +78,11 @@ pub fn remove_dead_temporaries(dir: &Path) {
         let name = e.file_name();
         let Some((pid, host)) = name.to_str().and_then(temp_owner) else { continue };
         if host == me && !Path::new(&format!("/proc/{pid}")).exists() {
-            let _ = std::fs::remove_file(e.path());
+            // A folder of an output's parts (`pending_dir`), or a file.
+            let _ = match e.file_type() {
+                Ok(t) if t.is_dir() => std::fs::remove_dir_all(e.path()),
+                _ => std::fs::remove_file(e.path()),
+            };
         }
     }
 }
@@ -89,6 +93,18 @@ pub fn folder_of(target: &Path) -> PathBuf {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     }
+}
+
+/// A temporary folder beside `target` for the parts an output is made of
+/// before they are put together into it; named as temporary outputs are,
+/// so that one a killed run left is removed as theirs are. Dropped, it is
+/// removed.
+pub fn pending_dir(target: &Path) -> Result<tempfile::TempDir> {
+    let dir = folder_of(target);
+    remove_dead_temporaries(&dir);
+    let name = target.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+    let prefix = temp_prefix(name, std::process::id(), &host());
+    tempfile::Builder::new().prefix(&prefix).suffix(SUFFIX).tempdir_in(&dir).map_err(|e| Error::io(&dir, e))
 }
 
 impl PendingFile {
@@ -169,8 +185,16 @@ mod tests {
         for f in [&dead, &other, &user] {
             std::fs::write(f, b"").unwrap();
         }
+        // A folder of parts of a process that is gone, with a part in it;
+        // one of this process stays.
+        let dead_parts = dir.path().join(format!("{}ghijkl{SUFFIX}", temp_prefix("y.tif", 0, &me)));
+        std::fs::create_dir(&dead_parts).unwrap();
+        std::fs::write(dead_parts.join("strip-0000.tif"), b"part").unwrap();
+        let parts = pending_dir(&dir.path().join("y.tif")).unwrap();
+        assert_eq!(temp_owner(parts.path().file_name().unwrap().to_str().unwrap()), Some((std::process::id(), me.as_str())));
         remove_dead_temporaries(dir.path());
         assert!(!dead.exists() && other.exists() && user.exists() && p.path().exists());
+        assert!(!dead_parts.exists() && parts.path().exists());
         p.publish().unwrap();
         assert!(dir.path().join(&long).exists());
     }

@@ -318,10 +318,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
                 drop(pending);
                 let strips = if tcw > 1 { column_strips(&plan, &works, &first, window, o.memory)? } else { return Err(refusal.into()) };
                 strips_made = strips.len();
-                let dir = tempfile::Builder::new()
-                    .prefix(".gcm-ortho-mosaic-strips-")
-                    .tempdir_in(crate::io::publish::folder_of(out))
-                    .map_err(|e| Error::io(out, e))?;
+                let dir = crate::io::publish::pending_dir(out)?;
                 let mut paths = Vec::new();
                 for (k, (strip, fit)) in strips.into_iter().enumerate() {
                     let path = dir.path().join(format!("strip-{k:04}.tif"));
