@@ -169,18 +169,19 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
 /// A mosaic whose bands the memory cannot hold across its width is made
 /// in strips of tile columns and assembled: byte for byte the file of a
 /// run with room for the whole width (the same plan, so the same cells),
-/// in plain and Cloud-Optimized layouts, the strips' folder removed.
+/// in plain and Cloud-Optimized layouts and as a true orthomosaic, the
+/// strips' folder removed.
 #[test]
 fn a_mosaic_too_wide_for_the_memory_is_made_in_strips_with_the_same_bytes() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     block(d);
-    mosaic(d, &["--plan-out", "plan.json"]);
     let strips = |name: &str| -> u64 {
         let report: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join(name)).unwrap()).unwrap();
         report["strips"].as_u64().unwrap()
     };
-    for layout in [&[][..], &["--cog"][..]] {
+    for layout in [&[][..], &["--cog"][..], &["--occlusion", "nodata"][..]] {
+        mosaic(d, &[&["--plan-out", "plan.json"][..], layout].concat());
         let with = |out: &'static str, memory: &'static str, json: &'static str| -> Vec<&'static str> {
             [&["--plan", "plan.json", "-o", out, "--memory", memory, "--json", json][..], layout].concat()
         };
@@ -339,8 +340,9 @@ fn a_restarted_shard_leaves_its_finished_piece_and_redoes_a_changed_one() {
 }
 
 /// A true orthomosaic in shards: the plan made with `--occlusion nodata`,
-/// pieces rendered from it with the same setting, assembled, equal the
-/// single true-orthomosaic run byte for byte.
+/// pieces rendered from it with the same setting (quarters, so that bands
+/// are cut across), assembled, equal the single true-orthomosaic run byte
+/// for byte.
 #[test]
 fn true_orthomosaic_shards_assemble_into_the_single_run() {
     let tmp = tempfile::tempdir().unwrap();
@@ -356,7 +358,9 @@ fn true_orthomosaic_shards_assemble_into_the_single_run() {
     let info = gcm_ortho::io::source::SourceImage::open(&d.join("whole.tif"), 1 << 20).unwrap().info;
     let t = info.chunk.0;
     let (ta, td) = (info.width.div_ceil(t), info.height.div_ceil(t));
-    let windows = [[0, 0, ta, td / 2], [0, td / 2, ta, td - td / 2]];
+    // Quarters: pieces cut across bands as well as between them.
+    let (ha, hd) = (ta / 2, td / 2);
+    let windows = [[0, 0, ha, hd], [ha, 0, ta - ha, hd], [0, hd, ha, td - hd], [ha, hd, ta - ha, td - hd]];
     let mut a = vec!["assemble".to_string(), "-o".into(), "joined.tif".into()];
     for (k, w) in windows.iter().enumerate() {
         let name = format!("piece{k}.tif");

@@ -33,16 +33,17 @@ pub fn band_gcm(run: &Run, msg: DemMsg, before: &mut SharedRows<NodeRow>) -> Res
     Ok(band)
 }
 
-/// Which pixels of band `b` the sensor sees, a few tiles a task on the
-/// pool (neighbours share the DSM posts their occluders stand on, projected
-/// once): their scan positions from the band's GCM, then their Z-buffers.
+/// Which pixels of band `b` the sensor sees, a tile a task on the pool:
+/// their scan positions from the band's GCM, then their Z-buffers.
 fn seen(run: &Run, band: &BandGcm, b: u32, vis: &Visibility) -> Seen {
     let (y0, y1) = run.walk.band_rows(b);
     let (t, (c0, c1)) = (run.walk.tile, run.walk.cols);
     let gcm = run.inputs.gcm;
-    // Up to four tiles a task, and two tasks at least.
-    let group = (c1 - c0).div_ceil(2).clamp(1, 4);
-    let groups: Vec<(u32, u32)> = (c0..c1).step_by(group as usize).map(|g| (g, (g + group).min(c1))).collect();
+    // A tile a task: what a tile's pixels are found to see then depends
+    // on that tile alone, not on which of its neighbours the band holds
+    // (pieces of a --window, a mosaic's strips and its images' own column
+    // ranges all cut bands differently).
+    let groups: Vec<(u32, u32)> = (c0..c1).map(|g| (g, g + 1)).collect();
     let made: Vec<(Vec<Vec<u8>>, u64, u64)> = run.pool.install(|| {
         groups
             .into_par_iter()
