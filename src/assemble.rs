@@ -14,6 +14,7 @@ use crate::io::tiff_out::{
 };
 use crate::options::{codec_level, overview_codec_level, Overviews};
 use crate::overview::{OverviewResampling, Pyramid, Quarter, Statistics, TileLayout, ValidBy};
+use crate::progress::Cancel;
 use rayon::prelude::*;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
@@ -32,6 +33,11 @@ pub struct AssembleOptions {
     pub quality: Option<u8>,
     /// BigTIFF or not (`None`: as the size needs).
     pub bigtiff: Option<bool>,
+    /// What overview pixels without a value hold (`None`: the pieces'
+    /// nodata value, else 0): NaN for a float mosaic, as its own run writes.
+    pub fill: Option<f64>,
+    /// Sync the file before it takes its name.
+    pub sync: bool,
 }
 
 impl Default for AssembleOptions {
@@ -44,13 +50,16 @@ impl Default for AssembleOptions {
             overview_level: None,
             quality: None,
             bigtiff: None,
+            fill: None,
+            sync: true,
         }
     }
 }
 
 /// Assembles `pieces` into `out`. Every tile of the union must come from
 /// exactly one piece.
-pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Result<()> {
+/// A cancelled run stops between rows of tiles and leaves nothing.
+pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: &Cancel) -> Result<()> {
     if pieces.is_empty() {
         return Err(Error::Usage("assemble needs at least one piece".into()));
     }
@@ -174,7 +183,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
     spec.overviews = opts.overviews.levels(w, h, tile);
     spec.bigtiff = opts.bigtiff.unwrap_or_else(|| spec.needs_bigtiff());
     let by = ValidBy::of(&spec);
-    let mut pyramid = Pyramid::new(&spec, opts.overview_resampling, by, geo0.nodata.unwrap_or(0.0));
+    let mut pyramid = Pyramid::new(&spec, opts.overview_resampling, by, opts.fill.or(geo0.nodata).unwrap_or(0.0));
     let files: Vec<std::fs::File> = pieces.iter().map(|p| std::fs::File::open(p).map_err(|e| Error::io(p, e))).collect::<Result<_>>()?;
     let pending = PendingFile::create(out)?;
     let mut writer = TileWriter::new(pending.file()?, &spec, &folder_of(out)).map_err(|e| Error::io(pending.path(), e))?;
@@ -187,6 +196,9 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
     // A row of tiles at a time: each tile's stored bytes (and its mask's)
     // read, and under overviews its pixels decoded and reduced, in parallel.
     for row in 0..td {
+        if cancel.is_cancelled() {
+            return Err(Error::Cancelled);
+        }
         let tiles: Vec<Result<StoredTile>> = (0..ta)
             .into_par_iter()
             .map(|col| {
@@ -244,7 +256,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions) -> Resul
     }
     writer.finish(statistics.gdal_metadata()).map_err(tw)?;
     verify(pending.path(), &spec)?;
-    pending.publish()
+    pending.publish_synced(opts.sync)
 }
 
 /// A tile's stored bytes, its mask's, its quarter for the overview and its

@@ -307,7 +307,7 @@ impl LayoutArgs {
             level: self.level,
             overview_level: self.overview_level,
             quality: self.quality,
-            bigtiff: None,
+            ..Default::default()
         })
     }
 }

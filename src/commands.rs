@@ -81,7 +81,7 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Cameras(a) => run_cameras(&a).map(|()| 0),
         Command::Fiducials(a) => run_fiducials(&a).map(|()| 0),
         Command::Assemble(a) => {
-            gcm_ortho::assemble::assemble(&a.pieces, &a.output, &a.layout.options()?)?;
+            gcm_ortho::assemble::assemble(&a.pieces, &a.output, &a.layout.options()?, &signals.cancel)?;
             Ok(0)
         }
     }

@@ -149,7 +149,9 @@ pub struct MosaicReport {
     /// they were, and the pieces in all.
     pub pieces_reused: Option<[usize; 2]>,
     /// Strips of tile columns the render was made in, then assembled: 1
-    /// where the memory held the mosaic's width at once.
+    /// where the memory held the mosaic's width at once; 0 where nothing
+    /// was rendered (the plan only, or a current output left as it was);
+    /// under `--resume-dir`, the most any one piece took.
     pub strips: usize,
 }
 
@@ -292,8 +294,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         works = within(&render::work(&plan, &weights, tile, prone.as_deref(), opts_of), window);
 
         let t = Instant::now();
-        // Pixels without a value: masked, and NaN where samples can hold it.
-        let fill = if plan.images[0].sample == crate::io::source::SampleType::F32 { f64::NAN } else { 0.0 };
+        let fill = fill_of(plan.images[0].sample);
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| Error::setting("threads", e.to_string()))?;
         let compose = render::Compose {
             plan: &plan,
@@ -305,10 +306,10 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             unseen: Default::default(),
             covered: Default::default(),
         };
-        let pieces = PieceRender { plan: &plan, compose: &compose, works: &works, threads, pool: &pool, fill, o, first: &first, progress, cancel };
-        match render::budget(&plan, &within(&works, window), &spec, (tr0, trh), o.memory) {
+        let pieces = PieceRender { plan: &plan, compose: &compose, works: &works, threads, pool: &pool, fill, first: &first, progress, cancel };
+        match render::budget(&plan, &works, &spec, (tr0, trh), o.memory) {
             Ok(fit) => {
-                pieces.render(window, &spec, fit, (out, pending), &mut hidden)?;
+                pieces.render(window, &spec, fit, (out, pending, o.sync), &mut hidden)?;
                 strips_made = 1;
             }
             // Too wide for the memory: strips of tile columns, each made
@@ -320,13 +321,13 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
                 strips_made = strips.len();
                 let dir = crate::io::publish::pending_dir(out)?;
                 let mut paths = Vec::new();
-                for (k, (strip, fit)) in strips.into_iter().enumerate() {
+                for (k, (strip, spec, fit)) in strips.into_iter().enumerate() {
                     let path = dir.path().join(format!("strip-{k:04}.tif"));
-                    let spec = piece_spec(&plan, &first, strip, (Overviews::None, false))?;
-                    pieces.render(strip, &spec, fit, (&path, PendingFile::create(&path)?), &mut hidden)?;
+                    // Throwaway files: not synced.
+                    pieces.render(strip, &spec, fit, (&path, PendingFile::create(&path)?, false), &mut hidden)?;
                     paths.push(path);
                 }
-                crate::assemble::assemble(&paths, out, &assembly(layout, &first))?;
+                crate::assemble::assemble(&paths, out, &assembly(layout, &first, fill, o.sync), cancel)?;
             }
         }
         crate::batch::write_sidecar(out, &key)?;
@@ -428,10 +429,22 @@ fn bigtiff(b: BigTiff) -> Option<bool> {
     }
 }
 
-/// How strips of the mosaic are put together into the file a single run
-/// writes.
-fn assembly(layout: (Overviews, bool), first: &RectifyOptions) -> AssembleOptions {
+/// What a mosaic's pixels without a value hold: masked, and NaN where
+/// samples can hold it.
+fn fill_of(sample: crate::io::source::SampleType) -> f64 {
+    if sample == crate::io::source::SampleType::F32 {
+        f64::NAN
+    } else {
+        0.0
+    }
+}
+
+/// How strips (or pieces) of the mosaic are put together into the file a
+/// single run writes: its layout, its codec levels, its `fill`.
+fn assembly(layout: (Overviews, bool), first: &RectifyOptions, fill: f64, sync: bool) -> AssembleOptions {
     AssembleOptions {
+        fill: Some(fill),
+        sync,
         overviews: layout.0,
         overview_resampling: first.overview_resampling,
         cog: layout.1,
@@ -468,37 +481,41 @@ fn within(works: &[render::ImageWork], window: [u32; 4]) -> Vec<render::ImageWor
 /// Tiles of the mosaic: first column, first row, columns, rows.
 type Strip = [u32; 4];
 
-/// `window` cut into the fewest strips of tile columns, as wide as one
-/// another, whose renders each fit `memory` (strips hold no overviews:
-/// the assembly makes them); with each strip's renders at once and their
-/// memory. When strips a tile column wide do not fit either, the refusal
-/// of the one that needs the most (its figure is the least that runs).
-fn column_strips(plan: &Plan, works: &[render::ImageWork], first: &RectifyOptions, window: [u32; 4], memory: u64) -> Result<Vec<(Strip, render::Fit)>> {
+/// A strip, its file's layout and how its render fits the memory.
+type StripPlan = (Strip, OutputSpec, render::Fit);
+
+/// `window` cut into strips of tile columns whose renders each fit
+/// `memory` (strips hold no overviews: the assembly makes them), as wide
+/// as halving the width between one column and the whole finds (the
+/// whole is known not to fit). When strips a tile column wide do not fit
+/// either, the refusal of the one that needs the most (its figure is the
+/// least that runs).
+fn column_strips(plan: &Plan, works: &[render::ImageWork], first: &RectifyOptions, window: Strip, memory: u64) -> Result<Vec<StripPlan>> {
     let [tc0, tr0, tcw, trh] = window;
-    let strips = |n: u32| -> Result<Vec<(Strip, std::result::Result<render::Fit, render::Short>)>> {
-        let wide = tcw.div_ceil(n);
-        (tc0..tc0 + tcw)
-            .step_by(wide as usize)
-            .map(|c0| {
-                let strip = [c0, tr0, wide.min(tc0 + tcw - c0), trh];
-                let spec = piece_spec(plan, first, strip, (Overviews::None, false))?;
-                Ok((strip, render::budget(plan, &within(works, strip), &spec, (tr0, trh), memory)))
-            })
-            .collect()
+    // Strips `wide` columns wide (the last what is left), or the most
+    // that one of them lacks.
+    let cut = |wide: u32| -> Result<std::result::Result<Vec<StripPlan>, render::Short>> {
+        let (mut fits, mut worst) = (Vec::new(), None::<render::Short>);
+        for c0 in (tc0..tc0 + tcw).step_by(wide as usize) {
+            let strip = [c0, tr0, wide.min(tc0 + tcw - c0), trh];
+            let spec = piece_spec(plan, first, strip, (Overviews::None, false))?;
+            match render::budget(plan, &within(works, strip), &spec, (tr0, trh), memory) {
+                Ok(fit) => fits.push((strip, spec, fit)),
+                Err(short) => worst = Some(worst.filter(|w| w.enough >= short.enough).unwrap_or(short)),
+            }
+        }
+        Ok(worst.map_or(Ok(fits), Err))
     };
-    let fitting = |cut: &[(Strip, std::result::Result<render::Fit, render::Short>)]| -> Option<Vec<(Strip, render::Fit)>> {
-        cut.iter().map(|&(strip, fit)| fit.ok().map(|f| (strip, f))).collect()
-    };
-    for n in 2..tcw {
-        if let Some(fit) = fitting(&strips(n)?) {
-            return Ok(fit);
+    let mut best = cut(1)?.map_err(Error::from)?;
+    let (mut lo, mut hi) = (1, tcw);
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        match cut(mid)? {
+            Ok(fits) => (lo, best) = (mid, fits),
+            Err(_) => hi = mid,
         }
     }
-    let narrowest = strips(tcw)?;
-    match fitting(&narrowest) {
-        Some(fit) => Ok(fit),
-        None => Err(narrowest.into_iter().filter_map(|(_, fit)| fit.err()).max_by_key(|s| s.enough).expect("a strip that does not fit").into()),
-    }
+    Ok(best)
 }
 
 /// What renders any window of the mosaic: the plan, the compositor, every
@@ -510,17 +527,23 @@ struct PieceRender<'a> {
     threads: usize,
     pool: &'a rayon::ThreadPool,
     fill: f64,
-    o: &'a MosaicOptions,
     first: &'a RectifyOptions,
     progress: &'a dyn Progress,
     cancel: &'a Cancel,
 }
 
 impl PieceRender<'_> {
-    /// The mosaic's tiles `window` into `path` (through `pending`) as
-    /// `spec` says, with `fit`'s renders at once and memory each; each
-    /// image's pixels imaged and hidden added to `hidden`.
-    fn render(&self, window: [u32; 4], spec: &OutputSpec, fit: render::Fit, (path, pending): (&Path, PendingFile), hidden: &mut [(u64, u64)]) -> Result<()> {
+    /// The mosaic's tiles `window` into `path` (through `pending`, synced
+    /// or not) as `spec` says, with `fit`'s renders at once and memory
+    /// each; each image's pixels imaged and hidden added to `hidden`.
+    fn render(
+        &self,
+        window: Strip,
+        spec: &OutputSpec,
+        fit: render::Fit,
+        (path, pending, sync): (&Path, PendingFile, bool),
+        hidden: &mut [(u64, u64)],
+    ) -> Result<()> {
         let [tc0, tr0, tx, ty] = window;
         let (at_once, share) = fit;
         let mut works = within(self.works, window);
@@ -529,16 +552,8 @@ impl PieceRender<'_> {
         }
         let (cancel, progress) = (self.cancel, self.progress);
         progress.start(&Task { name: "mosaic", units: tx as u64 * ty as u64, lines: spec.height as u64, line_name: "rows", input_bytes: 0 });
-        let writing = BandWriting {
-            spec,
-            path,
-            threads: self.threads,
-            overview_resampling: self.first.overview_resampling,
-            fill: self.fill,
-            sync: self.o.sync,
-            progress,
-            cancel,
-        };
+        let writing =
+            BandWriting { spec, path, threads: self.threads, overview_resampling: self.first.overview_resampling, fill: self.fill, sync, progress, cancel };
         let sample = self.plan.images[0].sample;
         let written = std::thread::scope(|s| {
             let mut feeds = render::Feeds::new(s, works.len(), at_once);

@@ -79,8 +79,9 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
         pieces.push(piece);
     }
 
-    let layout = super::assembly((o.overviews.unwrap_or(first.overviews), o.cog.unwrap_or(first.cog)), &first);
-    assemble(&pieces, &out, &layout)?;
+    let fill = super::fill_of(crate::io::source::SourceImage::open(&pieces[0], 1 << 20)?.info.sample);
+    let layout = super::assembly((o.overviews.unwrap_or(first.overviews), o.cog.unwrap_or(first.cog)), &first, fill, o.sync);
+    assemble(&pieces, &out, &layout, cancel)?;
     crate::batch::write_sidecar(&out, &key)?;
     for p in pieces.iter().chain([&plan]) {
         let _ = std::fs::remove_file(crate::batch::sidecar(p));

@@ -314,9 +314,9 @@ impl<'a> Visibility<'a> {
         (gx.is_finite() && gy.is_finite()).then_some((gx, gy))
     }
 
-    /// Which pixels of walked block `[x0, y0, x1, y1]` (a tile or a few side
-    /// by side) are seen: 1 seen, 0 hidden, into `seen` (rows `t` apart);
-    /// and how many pixels are imaged and hidden. `positions(y, x, cols,
+    /// Which pixels of walked block `[x0, y0, x1, y1]` (a tile) are seen:
+    /// 1 seen, 0 hidden, into `seen` (rows `t` apart); and how many pixels
+    /// are imaged and hidden. `positions(y, x, cols,
     /// rows)` fills scan positions (NaN where none) from the GCM along
     /// walked row `y` from column `x`; where the lattice is the DSM's
     /// posts, a block that needs its Z-buffer takes them from the lattice

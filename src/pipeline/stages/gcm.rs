@@ -43,35 +43,22 @@ fn seen(run: &Run, band: &BandGcm, b: u32, vis: &Visibility) -> Seen {
     // on that tile alone, not on which of its neighbours the band holds
     // (pieces of a --window, a mosaic's strips and its images' own column
     // ranges all cut bands differently).
-    let groups: Vec<(u32, u32)> = (c0..c1).map(|g| (g, g + 1)).collect();
-    let made: Vec<(Vec<Vec<u8>>, u64, u64)> = run.pool.install(|| {
-        groups
+    let made: Vec<(Vec<u8>, u64, u64)> = run.pool.install(|| {
+        (c0..c1)
             .into_par_iter()
-            .map(|(g0, g1)| {
-                let (x0, x1) = (g0 * t, (g1 * t).min(run.walk.grid.width));
-                let (w, h) = ((x1 - x0) as usize, (y1 - y0) as usize);
+            .map(|tc| {
+                let (x0, x1) = (tc * t, ((tc + 1) * t).min(run.walk.grid.width));
                 let positions = |y: u32, x: u32, cols: &mut [f64], rows: &mut [f64]| {
                     gcm.fill_row(band, y, x, cols, rows, &mut None);
                 };
-                let mut seen = vec![1u8; w * t as usize];
-                let (imaged, hidden) = vis.tile([x0, y0, x1, y1], w as u32, positions, &mut seen);
-                // Cut into tiles, `t × t` each.
-                let tiles = (g0..g1)
-                    .map(|tc| {
-                        let (a, n) = (((tc - g0) * t) as usize, (((tc + 1) * t).min(x1) - tc * t) as usize);
-                        let mut tile = vec![1u8; (t * t) as usize];
-                        for y in 0..h {
-                            tile[y * t as usize..y * t as usize + n].copy_from_slice(&seen[y * w + a..y * w + a + n]);
-                        }
-                        tile
-                    })
-                    .collect();
-                (tiles, imaged, hidden)
+                let mut tile = vec![1u8; (t * t) as usize];
+                let (imaged, hidden) = vis.tile([x0, y0, x1, y1], t, positions, &mut tile);
+                (tile, imaged, hidden)
             })
             .collect()
     });
     let (imaged, hidden) = made.iter().fold((0, 0), |(a, b), m| (a + m.1, b + m.2));
-    Seen::new(y0, c0 * t, t, made.into_iter().flat_map(|m| m.0).collect(), imaged, hidden)
+    Seen::new(y0, c0 * t, t, made.into_iter().map(|m| m.0).collect(), imaged, hidden)
 }
 
 /// The error of a ground point where the DEM has no height and the policy
