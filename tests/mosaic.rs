@@ -199,6 +199,26 @@ fn a_mosaic_too_wide_for_the_memory_is_made_in_strips_with_the_same_bytes() {
     }
 }
 
+/// A Float32 mosaic made in strips holds NaN where it has no value in its
+/// overviews too (a float mosaic's fill), as the run with room for its
+/// width does: the same bytes.
+#[test]
+fn a_float_mosaic_made_in_strips_is_the_single_runs_file() {
+    let Some(python) = python_with("osgeo.gdal", "python3-gdal") else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    let to_float = "import glob, os\nfrom osgeo import gdal\nfor p in sorted(glob.glob('scans/*.tif')):\n    gdal.Translate(p + '.f.tif', p, outputType=gdal.GDT_Float32)\n    os.replace(p + '.f.tif', p)\n";
+    let out = std::process::Command::new(python).current_dir(d).args(["-c", to_float]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    mosaic(d, &["--plan-out", "plan.json"]);
+    mosaic(d, &["--plan", "plan.json", "-o", "whole.tif"]);
+    mosaic(d, &["--plan", "plan.json", "-o", "strips.tif", "--memory", "64M", "--json", "strips.json"]);
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join("strips.json")).unwrap()).unwrap();
+    assert!(report["strips"].as_u64().unwrap() > 1, "made at once in 64 MiB: the test no longer makes strips");
+    assert!(std::fs::read(d.join("whole.tif")).unwrap() == std::fs::read(d.join("strips.tif")).unwrap(), "the float mosaic's strips differ from the whole");
+}
+
 #[test]
 fn edited_seamlines_are_honoured() {
     use gcm_ortho::mosaic::plan::{Plan, PlanSettings, NONE};
