@@ -92,7 +92,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
             && (g.transform[1] - gsd.x).abs() < 1e-12 * gsd.x
             && (-g.transform[5] - gsd.y).abs() < 1e-12 * gsd.y
             && g.keys == geo0.keys
-            && g.nodata == geo0.nodata;
+            && same_nodata(g.nodata, geo0.nodata);
         if !same {
             return Err(Error::format(p, format!("is not a piece of the same orthophoto as {}", pieces[0].display())));
         }
@@ -257,6 +257,14 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
     writer.finish(statistics.gdal_metadata()).map_err(tw)?;
     verify(pending.path(), &spec)?;
     pending.publish_synced(opts.sync)
+}
+
+/// Do two pieces say "no value" alike? (NaN is, to them, NaN.)
+fn same_nodata(a: Option<f64>, b: Option<f64>) -> bool {
+    match (a, b) {
+        (Some(x), Some(y)) => x == y || (x.is_nan() && y.is_nan()),
+        (a, b) => a.is_none() && b.is_none(),
+    }
 }
 
 /// A tile's stored bytes, its mask's, its quarter for the overview and its

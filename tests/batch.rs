@@ -297,6 +297,25 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     let o = run(&["assemble", "-o", s(&d.join("gap.tif")), s(&pieces[0]), s(&pieces[1])]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("no piece covers tile"));
+    // Float pieces (NaN their nodata value, which is not equal to
+    // itself) assemble as well: a coordinate image in two pieces.
+    let src = gcm_ortho::io::source::SourceImage::open(&sc.scan, 1 << 20).unwrap().info;
+    let coords = d.join("coords.tif");
+    common::coordinate_image(&coords, src.width, src.height);
+    let base = ["--image", s(&coords), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "--tile", "128"];
+    let with = |extra: &[&str]| -> bool {
+        let mut a = vec!["rectify"];
+        a.extend_from_slice(&base);
+        a.extend_from_slice(extra);
+        run(&a).status.success()
+    };
+    let (whole, p0, p1, joined) = (d.join("fwhole.tif"), d.join("f0.tif"), d.join("f1.tif"), d.join("fjoined.tif"));
+    assert!(with(&["-o", s(&whole), "--cog"]));
+    assert!(with(&["--window", &format!("0,0,{c},{td}"), "-o", s(&p0)]));
+    assert!(with(&["--window", &format!("{c},0,{},{td}", ta - c), "-o", s(&p1)]));
+    let o = run(&["assemble", "--cog", "-o", s(&joined), s(&p0), s(&p1)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::read(&whole).unwrap() == std::fs::read(&joined).unwrap(), "assembled float file differs from the single run");
 }
 
 /// The manifest takes the error bound as the CLI does: 0.1 by default,
