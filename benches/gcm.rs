@@ -156,5 +156,20 @@ fn projection(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, mapping, kernels, projection);
+/// An RGB tile of 256² reduced 2×2 for the overview above it (`average`,
+/// every pixel with a value: nearly every tile of an orthophoto).
+fn overview_reduce(c: &mut Criterion) {
+    use gcm_ortho::io::format::SampleType;
+    use gcm_ortho::overview::{reduce, OverviewResampling, TileLayout, ValidBy};
+    let t = 256usize;
+    let lay = TileLayout { tile: t, bands: 3, sample: SampleType::U8 };
+    let px: Vec<u8> = (0..t * t * 3).map(|i| (i * 7 % 251) as u8).collect();
+    let valid = vec![1u8; t * t];
+    let mut g = c.benchmark_group("overview_reduce");
+    g.throughput(Throughput::Bytes(px.len() as u64));
+    g.bench_function("average_rgb_u8", |b| b.iter(|| reduce(OverviewResampling::Average, lay, ValidBy::Mask, 0.0, &px, Some(&valid), (t, t))));
+    g.finish();
+}
+
+criterion_group!(benches, mapping, kernels, projection, overview_reduce);
 criterion_main!(benches);
