@@ -100,19 +100,22 @@ pub fn folder_of(target: &Path) -> PathBuf {
 /// so that one a killed run left is removed as theirs are. Dropped, it is
 /// removed.
 pub fn pending_dir(target: &Path) -> Result<tempfile::TempDir> {
+    let (dir, prefix) = temporary_beside(target);
+    tempfile::Builder::new().prefix(&prefix).suffix(SUFFIX).tempdir_in(&dir).map_err(|e| Error::io(&dir, e))
+}
+
+/// The folder of `target`, cleared of dead temporaries, and the prefix of
+/// a temporary of ours for it there.
+fn temporary_beside(target: &Path) -> (PathBuf, String) {
     let dir = folder_of(target);
     remove_dead_temporaries(&dir);
     let name = target.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-    let prefix = temp_prefix(name, std::process::id(), &host());
-    tempfile::Builder::new().prefix(&prefix).suffix(SUFFIX).tempdir_in(&dir).map_err(|e| Error::io(&dir, e))
+    (dir, temp_prefix(name, std::process::id(), &host()))
 }
 
 impl PendingFile {
     pub fn create(target: &Path) -> Result<PendingFile> {
-        let dir = folder_of(target);
-        remove_dead_temporaries(&dir);
-        let name = target.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-        let prefix = temp_prefix(name, std::process::id(), &host());
+        let (dir, prefix) = temporary_beside(target);
         let tmp = tempfile::Builder::new().prefix(&prefix).suffix(SUFFIX).tempfile_in(&dir).map_err(|e| Error::io(&dir, e))?;
         crate::io::mmap_guard::register_cleanup(tmp.path());
         Ok(PendingFile { tmp: Some(tmp), target: target.to_path_buf() })
