@@ -27,6 +27,14 @@ pub struct LevelTile {
     pub valid: Vec<u8>,
 }
 
+/// A tile of an overview level whose quarters are all in, to be joined
+/// ([`Pyramid::join`]; on any thread).
+pub struct Ready {
+    level: u32,
+    k: usize,
+    slots: [Option<Quarter>; 4],
+}
+
 /// The overview levels being made.
 pub struct Pyramid {
     pub kernel: OverviewResampling,
@@ -67,8 +75,8 @@ impl Pyramid {
     }
 
     /// Puts tile `k` of level `l`, reduced, into its tile of level `l + 1`:
-    /// that tile, when this was its last quarter.
-    pub fn place(&mut self, l: u32, k: usize, q: Quarter) -> Option<LevelTile> {
+    /// that tile's quarters, when this was its last.
+    pub fn place(&mut self, l: u32, k: usize, q: Quarter) -> Option<Ready> {
         let (a, d) = self.spec.level_tiles(l);
         let (a, d) = (a as usize, d as usize);
         let (cx, cy) = (k % a, k / a);
@@ -83,12 +91,12 @@ impl Pyramid {
             return None;
         }
         let slots = self.pending[up].remove(&parent).expect("just filled");
-        Some(self.join(up as u32, parent, slots))
+        Some(Ready { level: up as u32, k: parent, slots })
     }
 
-    /// A tile of level `l` from its quarters (those missing, beyond the
-    /// level below's edge, left empty).
-    fn join(&self, l: u32, k: usize, slots: [Option<Quarter>; 4]) -> LevelTile {
+    /// A tile from its quarters (those missing, beyond the level below's
+    /// edge, left empty).
+    pub fn join(&self, Ready { level: l, k, slots }: Ready) -> LevelTile {
         let (t, b) = (self.lay.tile, self.lay.bands);
         let px = b * self.lay.sample.bytes();
         let half = t / 2;
@@ -117,17 +125,19 @@ impl Pyramid {
     }
 
     /// The overview tiles `finished`, and those they finish in turn, level
-    /// after level: each reduced for the level above (below the top) and
-    /// then given to `make`, many at once on the current rayon pool; what
-    /// `make` returns goes to `take` with the tile's level and number.
-    pub fn cascade<R: Send>(&mut self, mut finished: Vec<LevelTile>, make: impl Fn(LevelTile) -> R + Sync, mut take: impl FnMut(u32, usize, R)) {
+    /// after level: each joined from its quarters, reduced for the level
+    /// above (below the top) and then given to `make`, many at once on the
+    /// current rayon pool; what `make` returns goes to `take` with the
+    /// tile's level and number.
+    pub fn cascade<R: Send>(&mut self, mut finished: Vec<Ready>, make: impl Fn(LevelTile) -> R + Sync, mut take: impl FnMut(u32, usize, R)) {
         use rayon::prelude::*;
         let top = self.top();
         while !finished.is_empty() {
             let p = &*self;
             let made: Vec<(u32, usize, R, Option<Quarter>)> = finished
                 .into_par_iter()
-                .map(|t| {
+                .map(|r| {
+                    let t = p.join(r);
                     let q = (t.level < top).then(|| p.reduce(t.level, t.k, &t.pixels, Some(&t.valid)));
                     (t.level, t.k, make(t), q)
                 })
@@ -232,7 +242,8 @@ mod tests {
                 }
                 if l < p.top() {
                     let q = p.reduce(l, k, &px, Some(&ok));
-                    if let Some(t) = p.place(l, k, q) {
+                    if let Some(r) = p.place(l, k, q) {
+                        let t = p.join(r);
                         queue.push((t.level, t.k, t.pixels, t.valid));
                     }
                 }

@@ -262,7 +262,11 @@ pub fn zlib(bytes: &[u8], level: u8) -> Vec<u8> {
     if level == 0 {
         // Its one table is trained on predicted image rows: on bytes unlike
         // them (floats, noise) it can come out larger than they are.
-        let z = fdeflate::compress_to_vec(bytes);
+        // Room for the whole stream up front (its `compress_to_vec` starts
+        // at a quarter and grows, copying, on tiles that hardly compress).
+        let mut c = fdeflate::Compressor::new(Vec::with_capacity(bytes.len() + bytes.len() / 64 + 64)).expect("writes to memory");
+        c.write_data(bytes).expect("writes to memory");
+        let z = c.finish().expect("writes to memory");
         if z.len() <= bytes.len() {
             return z;
         }

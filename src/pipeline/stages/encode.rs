@@ -5,7 +5,7 @@ use super::resample::{Made, Raw};
 use super::timed;
 use crate::error::Result;
 use crate::io::tiff_out::{encode_mask, encode_tile, Compression};
-use crate::overview::{LevelTile, Pyramid, Quarter, Statistics, TileLayout};
+use crate::overview::{Pyramid, Quarter, Ready, Statistics, TileLayout};
 use crate::pipeline::context::Output;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -114,7 +114,7 @@ pub fn tiles(run: &Output, made: Made, free: &crossbeam_channel::Sender<Raw>, bu
 
 /// The overview tiles `finished` (and those they finish in turn, level
 /// after level): each compressed and its mask's tile made, in parallel.
-fn overview_tiles(run: &Output, pyramid: &mut Pyramid, finished: Vec<LevelTile>, out: &mut Vec<Result<(usize, Tile)>>, busy: &mut Duration) {
+fn overview_tiles(run: &Output, pyramid: &mut Pyramid, finished: Vec<Ready>, out: &mut Vec<Result<(usize, Tile)>>, busy: &mut Duration) {
     let spec = run.spec;
     timed(busy, || {
         run.pool.install(|| {
