@@ -171,5 +171,28 @@ fn overview_reduce(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, mapping, kernels, projection, overview_reduce);
+/// An overview tile's coding: a 256² RGB tile of a detailed photograph
+/// after the horizontal predictor (differences spread like an overview's),
+/// by deflate's level 0 (Huffman codes alone, the overviews' default)
+/// and by libdeflate's level 1 (the full level's).
+fn overview_code(c: &mut Criterion) {
+    use gcm_ortho::io::tiff_out::zlib;
+    let mut s = 1u64;
+    let tile: Vec<u8> = (0..256 * 256 * 3)
+        .map(|_| {
+            s = s.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            // A two-sided spread of about ±12 grey levels, most near 0.
+            let (a, b) = ((s >> 40) % 13, (s >> 20) % 13);
+            (a as i32 - b as i32) as u8
+        })
+        .collect();
+    let mut g = c.benchmark_group("overview_code");
+    g.throughput(Throughput::Bytes(tile.len() as u64));
+    for level in [0u8, 1] {
+        g.bench_function(format!("deflate_level_{level}"), |b| b.iter(|| zlib(&tile, level)));
+    }
+    g.finish();
+}
+
+criterion_group!(benches, mapping, kernels, projection, overview_reduce, overview_code);
 criterion_main!(benches);

@@ -257,20 +257,13 @@ const MASK_LEVEL: u8 = 6;
 /// `bytes` as a zlib stream (deflate with the Adler-32 check, as TIFF's
 /// compression 8 holds it), by libdeflate at `level` (1–12): at level 1
 /// far tighter than zlib's fastest, above it as tight as zlib and faster
-/// (docs/BENCHMARKS.md); at 0 by fdeflate, the fastest.
+/// (docs/BENCHMARKS.md); at 0 by Huffman codes alone ([`super::huffman`]),
+/// the fastest.
 pub fn zlib(bytes: &[u8], level: u8) -> Vec<u8> {
     if level == 0 {
-        // Its one table is trained on predicted image rows: on bytes unlike
-        // them (floats, noise) it can come out larger than they are.
-        // Room for the whole stream up front (its `compress_to_vec` starts
-        // at a quarter and grows, copying, on tiles that hardly compress).
-        let mut c = fdeflate::Compressor::new(Vec::with_capacity(bytes.len() + bytes.len() / 64 + 64)).expect("writes to memory");
-        c.write_data(bytes).expect("writes to memory");
-        let z = c.finish().expect("writes to memory");
-        if z.len() <= bytes.len() {
-            return z;
-        }
-        return zlib(bytes, 1);
+        // Huffman codes only: on bytes unlike predicted rows (floats,
+        // noise) it would come out larger than they are.
+        return super::huffman::zlib(bytes).unwrap_or_else(|| zlib(bytes, 1));
     }
     thread_local! {
         /// A compressor per thread and level: making one allocates its
@@ -397,11 +390,13 @@ mod tests {
             let mut back = Vec::new();
             flate2::read::ZlibDecoder::new(&z[..]).read_to_end(&mut back).unwrap();
             assert!(back == bytes, "level {level}");
-            assert!(z.len() < bytes.len() / 4, "level {level}: {} bytes", z.len());
+            // Level 0 looks for no matches: a code a byte (here about 5 bits).
+            let most = if level == 0 { bytes.len() * 2 / 3 } else { bytes.len() / 4 };
+            assert!(z.len() < most, "level {level}: {} bytes", z.len());
         }
     }
 
-    /// Level 0 (fdeflate) on what it is for, rows of a photograph after the
+    /// Level 0 (Huffman codes alone) on what it is for, rows of a photograph after the
     /// predictor: small differences around zero. Decodes by zlib, within
     /// a quarter of level 1's size.
     #[test]

@@ -9,12 +9,13 @@
 
 mod directory;
 mod encode;
+mod huffman;
 mod verify;
 mod writer;
 
 pub use crate::io::publish::{folder_of, reserve, PendingFile};
 pub use directory::Value as TagValue;
-pub use encode::{decode_mask, encode_mask, encode_tile, jpeg_quality_of, jpeg_tables};
+pub use encode::{decode_mask, encode_mask, encode_tile, jpeg_quality_of, jpeg_tables, zlib};
 pub use verify::verify;
 pub use writer::{page_padding, tiff_write_error, write_placed, write_raster, write_tiled, TileWriter, WriteError};
 
@@ -37,10 +38,10 @@ impl Compression {
     /// The levels a codec takes and the one it gets by default; `None` for
     /// a codec without levels. The defaults are the fastest levels: higher
     /// ones cost far more time than they save space (docs/BENCHMARKS.md).
-    /// Deflate's 1–12 are libdeflate's; its 0 is fdeflate's coder (one
-    /// fixed Huffman table, runs of zeros its only matches), two to three
-    /// times as fast as level 1 on predicted image rows for some 12 % more
-    /// bytes.
+    /// Deflate's 1–12 are libdeflate's; its 0 is our own Huffman-only
+    /// coder (a code fitted to each tile, runs of zeros its only matches),
+    /// several times as fast as level 1 on predicted image rows for some
+    /// 13 % more bytes.
     pub fn levels(self) -> Option<(std::ops::RangeInclusive<u8>, u8)> {
         match self {
             Compression::Deflate => Some((0..=12, 1)),
