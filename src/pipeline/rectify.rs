@@ -109,7 +109,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     let wall_s = wall.elapsed().as_secs_f64();
     times.write = (wall_s - times.setup).max(0.0);
     // On the run's own workers: one thread stays one thread to the end.
-    let mut estimate = run.pool.install(|| accuracy::sample_errors(&gcm, (t.grid.height / 64).max(1), 7));
+    let mut estimate = accuracy::ErrorStats::of(&run.counters.sampled.lock().expect("sample"), accuracy::run_sample_steps(&t.grid).1);
     if columns {
         // Where the largest error is, on the output grid.
         estimate.argmax.swap(0, 1);

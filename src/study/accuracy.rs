@@ -25,8 +25,9 @@ pub struct ErrorStats {
     pub argmax: [u32; 2],
 }
 
+/// Errors summed as they are sampled.
 #[derive(Clone, Copy, Debug, Default)]
-struct Acc {
+pub struct Acc {
     n: u64,
     sum: f64,
     sum2: f64,
@@ -50,7 +51,7 @@ impl Acc {
             }
         }
     }
-    fn merge(mut self, o: Acc) -> Acc {
+    pub fn merge(mut self, o: Acc) -> Acc {
         self.n += o.n;
         self.sum += o.sum;
         self.sum2 += o.sum2;
@@ -165,53 +166,56 @@ pub fn evaluate_where(gcm: &Gcm<'_>, step: u32, max_slope_deg: Option<f64>, scan
             }
         }
     }
-    let n = acc.n.max(1) as f64;
-    let errors = ErrorStats {
-        count: acc.n,
-        mean_abs: acc.sum / n,
-        rms: (acc.sum2 / n).sqrt(),
-        max: acc.max,
-        pct_under: acc.under.map(|u| 100.0 * u as f64 / n),
-        step,
-        argmax: acc.argmax,
-    };
-    Evaluation { errors, gcm: stats, prepare, fill }
+    Evaluation { errors: ErrorStats::of(&acc, step), gcm: stats, prepare, fill }
 }
 
-/// `|A + c − T|` on every `row_step`-th row and `col_step`-th column, each
-/// sampled row prepared on its own (cheap; for run reports).
-pub fn sample_errors(gcm: &Gcm<'_>, row_step: u32, col_step: u32) -> ErrorStats {
-    let grid = gcm.t.grid;
-    let rows: Vec<u32> = (0..grid.height).step_by(row_step as usize).collect();
-    let acc = rows
-        .par_iter()
-        .map(|&y| {
-            let band = gcm.prepare(y, y + 1);
-            let mut cols = vec![0.0; grid.width as usize];
-            let mut rws = vec![0.0; grid.width as usize];
-            let mut miss = None;
-            gcm.fill_row(&band, y, 0, &mut cols, &mut rws, &mut miss);
-            let mut acc = Acc::default();
-            for x in (0..grid.width).step_by(col_step as usize) {
-                if let Mapped::Px(c, r) = gcm.t.exact(x as f64 + 0.5, y as f64 + 0.5) {
-                    if !cols[x as usize].is_nan() {
-                        acc.push((c - cols[x as usize]).hypot(r - rws[x as usize]), x, y);
-                    }
+impl ErrorStats {
+    /// The statistics of `acc`, sampled every `step`-th column.
+    pub fn of(acc: &Acc, step: u32) -> ErrorStats {
+        let n = acc.n.max(1) as f64;
+        ErrorStats {
+            count: acc.n,
+            mean_abs: acc.sum / n,
+            rms: (acc.sum2 / n).sqrt(),
+            max: acc.max,
+            pct_under: acc.under.map(|u| 100.0 * u as f64 / n),
+            step,
+            argmax: acc.argmax,
+        }
+    }
+}
+
+/// The grid's rows and columns a run's report samples: every
+/// `(height / 64)`-th row, every 7th column.
+pub fn run_sample_steps(grid: &crate::geom::OutputGrid) -> (u32, u32) {
+    ((grid.height / 64).max(1), 7)
+}
+
+/// `|A + c − T|` in `band`, the GCM a run made and used, on its rows
+/// `rows` and columns `cols` at the steps of [`run_sample_steps`]
+/// (counted from the grid's first row and column, so that pieces of a
+/// grid sample what the whole would).
+pub fn sample_band(gcm: &Gcm<'_>, band: &crate::gcm::BandGcm, rows: std::ops::Range<u32>, cols: std::ops::Range<u32>) -> Acc {
+    let (row_step, col_step) = run_sample_steps(&gcm.t.grid);
+    let mut acc = Acc::default();
+    let x0 = cols.start.next_multiple_of(col_step);
+    if x0 >= cols.end {
+        return acc;
+    }
+    let len = (cols.end - x0) as usize;
+    let (mut at_c, mut at_r) = (vec![0.0; len], vec![0.0; len]);
+    for y in rows.filter(|y| y % row_step == 0) {
+        gcm.fill_row(band, y, x0, &mut at_c, &mut at_r, &mut None);
+        for x in (x0..cols.end).step_by(col_step as usize) {
+            let i = (x - x0) as usize;
+            if let Mapped::Px(c, r) = gcm.t.exact(x as f64 + 0.5, y as f64 + 0.5) {
+                if !at_c[i].is_nan() {
+                    acc.push((c - at_c[i]).hypot(r - at_r[i]), x, y);
                 }
             }
-            acc
-        })
-        .reduce(Acc::default, Acc::merge);
-    let n = acc.n.max(1) as f64;
-    ErrorStats {
-        count: acc.n,
-        mean_abs: acc.sum / n,
-        rms: (acc.sum2 / n).sqrt(),
-        max: acc.max,
-        pct_under: acc.under.map(|u| 100.0 * u as f64 / n),
-        step: col_step,
-        argmax: acc.argmax,
+        }
     }
+    acc
 }
 
 /// A ground point with its exact scan position (synth's checkpoints.csv).
