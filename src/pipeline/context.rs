@@ -104,8 +104,9 @@ pub struct Counters {
     /// the sensor does not see.
     pub imaged: AtomicU64,
     pub hidden: AtomicU64,
-    /// The report's sample of the GCM's error, band by band.
-    pub sampled: Mutex<crate::study::accuracy::Acc>,
+    /// The report's sample of the GCM's error, band by band (`None`: no
+    /// report wants it, as a mosaic's images).
+    pub sampled: Option<Mutex<crate::study::accuracy::Acc>>,
 }
 
 /// Cancelled from outside, or failed in one stage (the others then stop).

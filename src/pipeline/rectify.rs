@@ -80,7 +80,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         inputs: Inputs { gcm: &gcm, src, dem, spec, pixels: plan.pixels, output: &opts.output, sync: opts.sync, visibility: visibility.as_ref() },
         walk,
         budget: plan.budget,
-        counters: Counters::default(),
+        counters: Counters { sampled: Some(Default::default()), ..Default::default() },
         stop: Stop::new(cancel),
         pool,
         progress,
@@ -109,7 +109,8 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     let wall_s = wall.elapsed().as_secs_f64();
     times.write = (wall_s - times.setup).max(0.0);
     // On the run's own workers: one thread stays one thread to the end.
-    let mut estimate = accuracy::ErrorStats::of(&run.counters.sampled.lock().expect("sample"), accuracy::run_sample_steps(&t.grid).1);
+    let sampled = run.counters.sampled.as_ref().map(|s| *s.lock().expect("sample")).unwrap_or_default();
+    let mut estimate = accuracy::ErrorStats::of(&sampled, accuracy::run_sample_steps(&t.grid).1);
     if columns {
         // Where the largest error is, on the output grid.
         estimate.argmax.swap(0, 1);

@@ -31,12 +31,14 @@ pub fn band_gcm(run: &Run, msg: DemMsg, before: &mut SharedRows<NodeRow>) -> Res
         return Err(run.stop.fail(dem_miss_error(run.inputs.dem, m)));
     }
     run.counters.gcm.lock().expect("stats").add(&band.stats);
-    // The report's sample of the error, from the band as it is used.
-    let (y0, y1) = run.walk.band_rows(msg.band);
-    let (t, (c0, c1)) = (run.walk.tile, run.walk.cols);
-    let sampled = accuracy::sample_band(gcm, &band, y0..y1, c0 * t..(c1 * t).min(run.walk.grid.width));
-    let mut acc = run.counters.sampled.lock().expect("sample");
-    *acc = acc.merge(sampled);
+    if let Some(sampled) = &run.counters.sampled {
+        // The report's sample of the error, from the band as it is used.
+        let (y0, y1) = run.walk.band_rows(msg.band);
+        let (t, (c0, c1)) = (run.walk.tile, run.walk.cols);
+        let here = accuracy::sample_band(gcm, &band, y0..y1, c0 * t..(c1 * t).min(run.walk.grid.width));
+        let mut acc = sampled.lock().expect("sample");
+        *acc = acc.merge(here);
+    }
     Ok(band)
 }
 
