@@ -895,7 +895,8 @@ impl<'a> Gcm<'a> {
     }
 
     /// Output row `y`'s columns `x0..x0+len` as [`Span`]s, one per gap
-    /// between node columns, into `spans`; `false` (and `spans` empty)
+    /// between node columns (in a refined cell, one per leaf the row
+    /// crosses; a leaf marked exact not stepped), into `spans`; `false` (and `spans` empty)
     /// where the row cannot have stepped spans: cell mode, A behind the
     /// camera anywhere along the row, or A, whose denominator is linear in
     /// u, curving so much that a gap would need more than
@@ -953,6 +954,8 @@ impl<'a> Gcm<'a> {
         let (mut acs, mut ars) = ([0.0f64; BLOCK + 1], [0.0f64; BLOCK + 1]);
         let (mut mc, mut mr) = ([0.0f64; BLOCK], [0.0f64; BLOCK]);
         let n_gaps = xs.len() - 1;
+        // A refined cell's leaves along the row (reused from cell to cell).
+        let mut leaf_runs = Vec::new();
         let mut g0 = 0;
         while g0 < n_gaps {
             // Nodes g0..=g0+m (the first one is the last of the block before).
@@ -986,9 +989,41 @@ impl<'a> Gcm<'a> {
                 // Within what the fixed point's conversion holds exactly
                 // (positions ·2³² below 2⁵¹: a scan of 2¹⁸ pixels a side).
                 const FIXED: f64 = (1u64 << 18) as f64;
-                let refined = refined.is_some_and(|q| q[g].is_some());
-                let stepped = |c: f64, r: f64, d: [f64; 4]| !refined && c.abs() < FIXED && r.abs() < FIXED && d.iter().all(|d| d.abs() * 1024.0 < FIXED);
-                if end > x && straight {
+                let leaves = refined.and_then(|q| q[g].as_ref());
+                let fits = |c: f64, r: f64, d: [f64; 4]| c.abs() < FIXED && r.abs() < FIXED && d.iter().all(|d| d.abs() * 1024.0 < FIXED);
+                let stepped = |c: f64, r: f64, d: [f64; 4]| leaves.is_none() && fits(c, r, d);
+                if let (Some(q), true, true) = (leaves, end > x, cuts == 1) {
+                    // A refined cell: a span for each leaf's run of
+                    // pixels along the row (A and the leaf's correction,
+                    // linear along it, as one quadratic: a piece of a gap
+                    // A fits within the tolerance across), anchored at the
+                    // run's first pixel in the whole gap; a leaf marked
+                    // exact, pixel by pixel.
+                    let v = y as f64 + 0.5;
+                    let (gap_first, gap_end) = (first_px[g], first_px[g + 1].max(end));
+                    leaf_runs.clear();
+                    quad_runs(q, v, gap_first, gap_end, &mut leaf_runs);
+                    for &(l0, l1, leaf) in &leaf_runs {
+                        let (first, stop) = (l0.max(x), l1.min(end));
+                        if first >= stop {
+                            continue;
+                        }
+                        if leaf.exact {
+                            spans.push(Span { stepped: false, first, end: stop, anchor: l0, c: 0.0, r: 0.0, dc: 0.0, dr: 0.0, ddc: 0.0, ddr: 0.0 });
+                            continue;
+                        }
+                        let fv = (v - leaf.v0) / leaf.dv;
+                        let at = |px: usize| {
+                            let u = px as f64 + 0.5;
+                            let (ac, ar) = ra.at(u);
+                            let [dc, dr] = bilerp(&leaf.corners, (u - leaf.u0) / leaf.du, fv);
+                            (ac + dc, ar + dr)
+                        };
+                        let (c, r) = at(l0);
+                        let ([dc, dr], [ddc, ddr]) = quadratic_steps((c, r), l0, l1, at);
+                        spans.push(Span { stepped: fits(c, r, [dc, dr, ddc, ddr]), first, end: stop, anchor: l0, c, r, dc, dr, ddc, ddr });
+                    }
+                } else if end > x && straight {
                     let inv = inv_dx[g];
                     let (dc, dr) = ((right.0 - left.0) * inv, (right.1 - left.1) * inv);
                     let off = anchor_off[g];
@@ -1245,6 +1280,24 @@ fn quad_row(q: &Quad, v: f64, x0: usize, dc: &mut [f64], dr: &mut [f64]) {
             quad_row(&k[first], v, x0, lc, lr);
             quad_row(&k[first + 1], v, x0 + right, rc, rr);
         }
+    }
+}
+
+/// The leaves of `q` along row `v` over pixels `[x0, x1)`, in order: each
+/// leaf's run of the pixels whose centres it holds (split as [`quad_row`]
+/// splits them).
+fn quad_runs<'q>(q: &'q Quad, v: f64, x0: usize, x1: usize, out: &mut Vec<(usize, usize, &'q Quad)>) {
+    if x0 >= x1 {
+        return;
+    }
+    match &q.kids {
+        Some(k) if !q.exact => {
+            let first = 2 * usize::from(v >= q.split.1);
+            let right = x0 + ((q.split.0 - 0.5).ceil() - x0 as f64).clamp(0.0, (x1 - x0) as f64) as usize;
+            quad_runs(&k[first], v, x0, right, out);
+            quad_runs(&k[first + 1], v, right, x1, out);
+        }
+        _ => out.push((x0, x1, q)),
     }
 }
 
