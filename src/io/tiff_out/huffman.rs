@@ -19,17 +19,21 @@ const END: usize = 256;
 const CL_ORDER: [usize; 19] = [16, 17, 18, 0, 8, 7, 9, 6, 10, 5, 11, 4, 12, 3, 13, 2, 14, 1, 15];
 
 /// `data` as a zlib stream (deflate with the Adler-32 check, as TIFF's
-/// compression 8 holds it); `None` where it would be larger than `data`.
+/// compression 8 holds it); `None` where it might come out larger than
+/// `data` (or `data` holds more bytes than a count of them does).
 pub fn zlib(data: &[u8]) -> Option<Vec<u8>> {
+    if data.len() >= u32::MAX as usize {
+        return None;
+    }
     let runs = zero_runs(data);
     let freqs = symbol_counts(data, &runs);
     let lengths = code_lengths(&freqs, MAX_LEN);
     let codes = canonical(&lengths);
     // The stream's size is known before it is written: at most the
-    // header's 2 + 261 bytes, the codes, the last byte and the check.
+    // header's 2 + 262 bytes, the codes, the last byte and the check.
     let body_bits: u64 = freqs.iter().zip(&lengths).map(|(&f, &l)| f as u64 * l as u64).sum::<u64>() + freqs[RUN_SYMBOL] as u64;
-    let size = 2 + 261 + body_bits.div_ceil(8) as usize + 1 + 4;
-    if size > data.len() + 16 {
+    let size = 2 + 262 + body_bits.div_ceil(8) as usize + 1 + 4;
+    if size > data.len() {
         return None;
     }
     // 8 bytes spare: each write puts a whole word.
@@ -127,14 +131,15 @@ fn zero_runs(data: &[u8]) -> Vec<(usize, usize)> {
 }
 
 /// The block's header: last block, dynamic codes; all 286 literal/length
-/// code lengths and one distance code (distance 1, of one bit), each
-/// length written as itself in the code-length code.
+/// code lengths and two distance codes of one bit (the first, distance 1,
+/// for runs; two, a complete code, as zlib itself sends for old
+/// decoders' sake), each length written as itself in the code-length code.
 fn block_header(bits: &mut Bits, lengths: &[u8; SYMBOLS]) {
     bits.put(1, 1);
     bits.put(2, 2);
     bits.put((SYMBOLS - 257) as u64, 5);
-    bits.put(0, 5);
-    let all: Vec<u8> = lengths.iter().copied().chain([1]).collect();
+    bits.put(1, 5);
+    let all: Vec<u8> = lengths.iter().copied().chain([1, 1]).collect();
     let mut cl_freqs = [0u32; 19];
     for &l in &all {
         cl_freqs[l as usize] += 1;
