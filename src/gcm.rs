@@ -1192,22 +1192,9 @@ impl<'a> Gcm<'a> {
         // fall back to T itself.
         let den = |x: usize| ra.e * (x as f64 + 0.5) + ra.f;
         let den_ok = den(x0 as usize) > 0.0 && den(x_end.saturating_sub(1)) > 0.0;
-        let mut fallback = 0;
-        for (m, (oc, or)) in cols.iter_mut().zip(rows.iter_mut()).enumerate() {
-            let x = x0 as usize + m;
-            if oc.is_nan() || or.is_nan() || (!den_ok && !(den(x) > 0.0)) {
-                fallback += 1;
-                (*oc, *or) = match self.t.exact(x as f64 + 0.5, v) {
-                    Mapped::Px(c, r) => (c, r),
-                    Mapped::Nodata => (f64::NAN, f64::NAN),
-                    Mapped::DemMiss(gx, gy, l) => {
-                        miss.get_or_insert((gx, gy, l));
-                        (f64::NAN, f64::NAN)
-                    }
-                };
-            }
-        }
-        fallback
+        let exact: Vec<usize> = (0..len).filter(|&m| cols[m].is_nan() || rows[m].is_nan() || (!den_ok && !(den(x0 as usize + m) > 0.0))).collect();
+        self.t.exact_at(v, x0 as f64 + 0.5, &exact, cols, rows, miss);
+        exact.len() as u64
     }
 
     /// The bilinear segment (absolute index of its left node) of column `x`.

@@ -88,6 +88,38 @@ impl<'a> Transform<'a> {
         }
     }
 
+    /// `T` at `(u0 + i, v)` for each `i` of `at`, into `cols[i]`/`rows[i]`
+    /// (NaN where there is no value), the projections a batch at a time
+    /// ([`SensorModel::project_many`]: the same numbers as `exact`, fewer
+    /// steps a point). The first DEM miss goes into `miss`.
+    pub fn exact_at(&self, v: f64, u0: f64, at: &[usize], cols: &mut [f64], rows: &mut [f64], miss: &mut Option<(f64, f64, Lookup)>) {
+        const BATCH: usize = 64;
+        let (mut x, mut y, mut z) = ([0.0; BATCH], [0.0; BATCH], [0.0; BATCH]);
+        let (mut c, mut r) = ([0.0; BATCH], [0.0; BATCH]);
+        let mut which = [0usize; BATCH];
+        for batch in at.chunks(BATCH) {
+            let mut n = 0;
+            for &i in batch {
+                let (gx, gy) = self.ground(u0 + i as f64, v);
+                (cols[i], rows[i]) = (f64::NAN, f64::NAN);
+                match self.dem.height(gx, gy) {
+                    Height::Value(h) => {
+                        (x[n], y[n], z[n], which[n]) = (gx, gy, h, i);
+                        n += 1;
+                    }
+                    Height::Nodata => {}
+                    Height::Missing(l) => {
+                        miss.get_or_insert((gx, gy, l));
+                    }
+                }
+            }
+            self.model.project_many(&x[..n], &y[..n], &z[..n], &mut c[..n], &mut r[..n]);
+            for k in 0..n {
+                (cols[which[k]], rows[which[k]]) = (c[k], r[k]);
+            }
+        }
+    }
+
     /// `T` over one output row `v` for the columns `u0 + i` (i < out.len()),
     /// scan columns/rows into `cols`/`rows`, NaN where there is no value.
     /// Returns the first DEM miss, if any.
