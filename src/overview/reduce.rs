@@ -188,6 +188,7 @@ fn reduce_as<T: Sample>(
     let integer = px.first().is_some_and(|p| p.widen().is_some());
     let mut column_sums = vec![0u32; t * b];
     let mut narrow_sums = vec![0u16; t * b];
+    let mut means = Vec::with_capacity(t * b);
     for oy in 0..half {
         let rows_inside = 2 * oy + 1 < extent.1;
         let (r0, r1) = (2 * oy * t, (2 * oy + 1) * t);
@@ -195,8 +196,9 @@ fn reduce_as<T: Sample>(
             && integer
             && rows_inside
             && extent.0 == t
-            && !valid_below[r0..r0 + t].contains(&0)
-            && !valid_below[r1..r1 + t].contains(&0)
+            // (The two rows are one run of the mask; 0/1 bytes folded
+            // with a branch-free AND, which the compiler vectorises.)
+            && valid_below[r0..r1 + t].iter().fold(1u8, |a, &m| a & m) != 0
         {
             // A whole row of blocks with values (nearly every row): the
             // two rows added sample by sample, then pairs of pixels, in
@@ -208,10 +210,10 @@ fn reduce_as<T: Sample>(
                     *s = a as u16 + c as u16;
                 }
                 match b {
-                    1 => pair_means_u8::<1>(&narrow_sums, to),
-                    2 => pair_means_u8::<2>(&narrow_sums, to),
-                    3 => pair_means_u8::<3>(&narrow_sums, to),
-                    4 => pair_means_u8::<4>(&narrow_sums, to),
+                    1 => pair_means_u8::<1>(&narrow_sums, to, &mut means),
+                    2 => pair_means_u8::<2>(&narrow_sums, to, &mut means),
+                    3 => pair_means_u8::<3>(&narrow_sums, to, &mut means),
+                    4 => pair_means_u8::<4>(&narrow_sums, to, &mut means),
                     _ => {
                         for (to, pair) in to.chunks_exact_mut(b).zip(narrow_sums.chunks_exact(2 * b)) {
                             for (k, d) in to.iter_mut().enumerate() {
@@ -321,23 +323,25 @@ fn as_u8_mut<T: Sample>(s: &mut [T]) -> Option<&mut [u8]> {
     (std::mem::size_of::<T>() == 1).then(|| bytemuck::cast_slice_mut(s))
 }
 
-/// [`pair_means`] of 8-bit samples from 16-bit sums, four pixels' sums
-/// (two out) at a time: fixed-size blocks the compiler turns into a few
-/// vector shuffles.
-fn pair_means_u8<const B: usize>(sums: &[u16], to: &mut [u8]) {
-    let blocks = to.chunks_exact_mut(2 * B).zip(sums.chunks_exact(4 * B));
-    let done = blocks.len();
-    for (to, four) in blocks {
-        let to: &mut [u8] = to;
-        for k in 0..B {
-            to[k] = ((four[k] + four[B + k] + 2) >> 2) as u8;
-            to[B + k] = ((four[2 * B + k] + four[3 * B + k] + 2) >> 2) as u8;
-        }
+/// [`pair_means`] of 8-bit samples from 16-bit sums: every sample's mean
+/// with the same band's a pixel on (one vectorised pass over the row, into
+/// `means`), then every other pixel's kept, eight bytes copied a pixel
+/// (each copy's excess overwritten by the next; the last pixels one by
+/// one).
+fn pair_means_u8<const B: usize>(sums: &[u16], to: &mut [u8], means: &mut Vec<u8>) {
+    let n = sums.len() - B;
+    means.resize(n, 0);
+    for (m, (&a, &c)) in means.iter_mut().zip(sums.iter().zip(&sums[B..])) {
+        *m = ((a + c + 2) >> 2) as u8;
     }
-    for (to, pair) in to[done * 2 * B..].chunks_exact_mut(B).zip(sums[done * 4 * B..].chunks_exact(2 * B)) {
-        for k in 0..B {
-            to[k] = ((pair[k] + pair[B + k] + 2) >> 2) as u8;
-        }
+    let pixels = to.len() / B;
+    // Pixels whose eight bytes stay inside both rows.
+    let wide = if B < 8 { pixels.saturating_sub(8usize.div_ceil(B)).min((n.saturating_sub(8)) / (2 * B) + 1) } else { 0 };
+    for i in 0..wide {
+        to[i * B..i * B + 8].copy_from_slice(&means[2 * i * B..2 * i * B + 8]);
+    }
+    for i in wide..pixels {
+        to[i * B..(i + 1) * B].copy_from_slice(&means[2 * i * B..2 * i * B + B]);
     }
 }
 
