@@ -195,9 +195,6 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
     let crs = a.crs.as_deref().map(|c| gcm_ortho::geodesy::Crs::parse(c, Path::new("."))).transpose().map_err(|m| gcm_ortho::Error::setting("crs", m))?;
     if let Some(j) = &a.json {
         check_writable(Role::new("report", j))?;
-        let mut outs = vec![Role::new("report", j)];
-        outs.extend(a.output.iter().map(|o| Role::new("output", o)));
-        check_outputs(&[Role::new("manifest", &a.manifest)], &outs)?;
     }
     let window = a.window.as_deref().map(|w| gcm_ortho::options::parse_window("window", w)).transpose()?;
     let o = MosaicOptions {
@@ -222,6 +219,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         force: a.force,
         occlusion: a.occlusion,
         sync: true,
+        report: a.json.clone(),
     };
     let report = match &a.resume_dir {
         Some(dir) => gcm_ortho::mosaic::resume::resumable(&o, dir, &Bar::new(a.quiet), &signals.cancel)?,
@@ -269,7 +267,7 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
     if memory < RectifyOptions::MIN_MEMORY {
         return Err(gcm_ortho::Error::setting("memory", "must be at least 16M").into());
     }
-    let jobs = batch::manifest::load(&a.manifest).map_err(|e| anyhow!("{}: {e}", a.manifest.display()))?;
+    let jobs = batch::manifest::load(&a.manifest).map_err(|e| e.into_error())?;
     if let Some(report) = &a.report {
         let (mut ins, outs) = batch::manifest::files(&jobs);
         ins.push(("manifest".into(), a.manifest.clone()));

@@ -520,6 +520,12 @@ impl Dem {
         Dem::of(HeightModel::Grid(g), path.to_path_buf())
     }
 
+    /// The files a DEM given as a folder, a list of tiles or a VRT reads
+    /// (none for a single file): inputs no command may write over.
+    pub fn tile_files(path: &Path) -> Vec<PathBuf> {
+        mosaic::files_of(path)
+    }
+
     /// Reads a DEM for an orthophoto in the CRS `ground`. A DEM in another CRS
     /// (SRTM in EPSG:4326 under a UTM orthophoto) is looked up through a
     /// reprojection; one without a CRS is taken to be in the ground CRS.

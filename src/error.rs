@@ -35,6 +35,10 @@ pub enum Error {
     /// Arguments that contradict each other or are out of range.
     #[error("{0}")]
     Usage(String),
+    /// Problems of a file whose message names it (a manifest's, each with
+    /// its line).
+    #[error("{0}")]
+    Named(String),
     /// The run was cancelled (signal, or another stage failed first).
     #[error("cancelled")]
     Cancelled,

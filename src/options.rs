@@ -570,6 +570,9 @@ impl RectifyOptions {
             _ => "camera file",
         };
         v.push((what, self.camera.clone()));
+        if matches!(self.model, ModelSource::CameraFile) {
+            v.extend(crate::camera::file::CameraFile::files_named_in(&self.camera));
+        }
         if let ModelSource::Rpc { geoid: Some(g), .. } = &self.model {
             v.push(("geoid grid", g.clone()));
         }
@@ -581,6 +584,7 @@ impl RectifyOptions {
         }
         if let DemSource::File(d) = &self.dem {
             v.push(("DEM", d.clone()));
+            v.extend(crate::dem::Dem::tile_files(d).into_iter().map(|t| ("DEM tile", t)));
         }
         if let Some(l) = &self.like {
             v.push(("reference grid", l.clone()));

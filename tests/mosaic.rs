@@ -135,11 +135,19 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     let d = tmp.path();
     block(d);
     let before = std::fs::read(d.join("scans/002.tif")).unwrap();
+    let camera = std::fs::read(d.join("scans/001.toml")).unwrap();
     for target in ["scans/002.tif", "dem.tif", "manifest.toml"] {
         let out = std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", target, "--quiet"]).output().unwrap();
         assert_eq!(out.status.code(), Some(2), "{target}: {}", String::from_utf8_lossy(&out.stderr));
     }
+    // Nor its report, written after the run.
+    for target in ["scans/001.toml", "scans/002.tif", "dem.tif"] {
+        let out = std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "r.tif", "--json", target, "--quiet"]).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{target}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(!d.join("r.tif").exists());
+    }
     assert_eq!(std::fs::read(d.join("scans/002.tif")).unwrap(), before);
+    assert_eq!(std::fs::read(d.join("scans/001.toml")).unwrap(), camera);
     // A missing scan: one line naming it, nothing at the output path.
     std::fs::rename(d.join("scans/003.tif"), d.join("scans/gone.tif")).unwrap();
     let out = std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "out.tif", "--quiet"]).output().unwrap();

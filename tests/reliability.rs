@@ -76,6 +76,69 @@ fn rectify_never_writes_over_an_input_under_any_name() {
 }
 
 #[test]
+fn files_an_input_names_are_inputs_too() {
+    // A DEM folder's, list's or VRT's tiles, and the RPC file a camera
+    // file names, are never written over; nor is anything made inside a
+    // DEM folder (it would be read as a tile next time).
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    std::fs::create_dir(d.join("tiles")).unwrap();
+    let tile = d.join("tiles/a.tif");
+    std::fs::copy(&dem, &tile).unwrap();
+    std::fs::write(d.join("list.txt"), "tiles/a.tif\n").unwrap();
+    std::fs::write(
+        d.join("dem.vrt"),
+        "<VRTDataset rasterXSize=\"1\" rasterYSize=\"1\"><VRTRasterBand band=\"1\"><SimpleSource><SourceFilename relativeToVRT=\"1\">tiles/a.tif</SourceFilename></SimpleSource></VRTRasterBand></VRTDataset>\n",
+    )
+    .unwrap();
+    let rectify = |dem: &Path, camera: &Path, out: &Path| -> Vec<String> {
+        ["rectify", "--image", s(&scan), "--camera", s(camera), "--dem", s(dem), "--quiet", "-o", s(out)].iter().map(|a| a.to_string()).collect()
+    };
+    let tiles = d.join("tiles");
+    for (dem, out, words) in [
+        (d.join("tiles"), tile.clone(), vec!["inside the DEM", "refusing to write into an input"]),
+        (d.join("tiles"), tiles.join("new.tif"), vec!["inside the DEM"]),
+        (d.join("list.txt"), tile.clone(), vec!["DEM tile", "refusing to write over an input"]),
+        (d.join("dem.vrt"), tile.clone(), vec!["DEM tile"]),
+    ] {
+        let args = rectify(&dem, &camera, &out);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        refused(&tiles, &args, &words);
+    }
+    // A camera file of model "rpc" naming its coefficients' file.
+    let rpc = d.join("scan_RPC.TXT");
+    std::fs::write(&rpc, "LINE_OFF: 1\n").unwrap();
+    let rpc_camera = d.join("rpc.toml");
+    std::fs::write(&rpc_camera, "crs = \"EPSG:4326\"\n[camera]\nmodel = \"rpc\"\n[rpc]\nfile = \"scan_RPC.TXT\"\n").unwrap();
+    let args = rectify(&dem, &rpc_camera, &rpc);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    refused(d, &args, &["RPC file", "refusing to write over an input"]);
+}
+
+#[test]
+fn batch_names_two_images_of_one_name_by_their_folders() {
+    // scan.tif in two folders, each job with its own output: both run.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fixture(d);
+    for f in ["one", "two"] {
+        std::fs::create_dir(d.join(f)).unwrap();
+        std::fs::copy(d.join("scan.tif"), d.join(f).join("scan.tif")).unwrap();
+    }
+    let manifest = d.join("m.toml");
+    std::fs::write(
+        &manifest,
+        "[defaults]\ndem = \"dem.tif\"\noutput_dir = \"out\"\n[[job]]\nimage = \"one/scan.tif\"\ncamera = \"camera.toml\"\n[[job]]\nimage = \"two/scan.tif\"\ncamera = \"camera.toml\"\n",
+    )
+    .unwrap();
+    std::fs::create_dir(d.join("out")).unwrap();
+    let r = run(&["batch", s(&manifest), "--quiet"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(d.join("out/scan.tif").exists() && d.join("out/two_scan.tif").exists());
+}
+
+#[test]
 fn assemble_accuracy_and_rpc_grid_never_write_over_an_input() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
@@ -136,8 +199,10 @@ fn batch_refuses_outputs_over_inputs_and_collisions() {
         for extra in [&["--dry-run"][..], &[][..]] {
             let r = run(&[&["batch", s(&manifest), "--quiet"][..], extra].concat());
             let err = String::from_utf8_lossy(&r.stderr);
-            assert_ne!(r.status.code(), Some(0), "{text}");
+            // A refusal, as for rectify: exit 2, the manifest named once.
+            assert_eq!(r.status.code(), Some(2), "{text}: {err}");
             assert!(err.contains(word), "{text}: {err}");
+            assert_eq!(err.matches("m.toml").count(), 1, "{err}");
         }
         assert!(snapshot(d) == before, "{text}");
     }

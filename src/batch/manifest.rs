@@ -152,13 +152,36 @@ pub struct Job {
     pub problem: Option<String>,
 }
 
-/// Problems found in a manifest, each with where it is.
+/// Problems found in a manifest, each with where it is (each names the
+/// manifest).
 #[derive(Debug)]
-pub struct ManifestErrors(pub Vec<String>);
+pub struct ManifestErrors {
+    pub problems: Vec<String>,
+    /// A job would write over an input: refused as arguments are.
+    pub refusal: bool,
+}
+
+impl ManifestErrors {
+    fn of(problems: Vec<String>) -> ManifestErrors {
+        ManifestErrors { problems, refusal: false }
+    }
+
+    /// As a run's error: a refusal to write over an input is a usage error.
+    pub fn into_error(self) -> Error {
+        if self.refusal {
+            Error::Usage(self.to_string())
+        } else {
+            Error::Named(self.to_string())
+        }
+    }
+}
 
 impl std::fmt::Display for ManifestErrors {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{} problem(s): {}", self.0.len(), self.0.join("; "))
+        match self.problems.as_slice() {
+            [one] => write!(f, "{one}"),
+            all => write!(f, "{} problems: {}", all.len(), all.join("; ")),
+        }
     }
 }
 
@@ -170,10 +193,10 @@ fn line_of(text: &str, offset: usize) -> usize {
 /// manifest that cannot be read as a whole is an error listing every
 /// problem; a job with a bad input comes back with its `problem` set.
 pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
-    let text = read_text_bounded(path, "a manifest", LIST).map_err(|e| ManifestErrors(vec![e.to_string()]))?;
+    let text = read_text_bounded(path, "a manifest", LIST).map_err(|e| ManifestErrors::of(vec![e.to_string()]))?;
     let m: ManifestFile = toml::from_str(&text).map_err(|e| {
         let line = e.span().map(|s| format!(" line {}", line_of(&text, s.start))).unwrap_or_default();
-        ManifestErrors(vec![format!("{}:{line}: {}", path.display(), e.message().replace('\n', " "))])
+        ManifestErrors::of(vec![format!("{}:{line}: {}", path.display(), e.message().replace('\n', " "))])
     })?;
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let rel = |p: &str| -> PathBuf {
@@ -224,11 +247,15 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
     }
     let mut names = std::collections::HashSet::new();
     for Entry { image, camera, inline, output, options: opts, line } in entries {
-        let name = image.file_stem().and_then(|s| s.to_str()).unwrap_or("job").to_string();
-        if !names.insert(name.clone()) {
-            errors.push(format!("{}: a second job named {name}", at(line)));
+        // The image's name; where two images share it (scan.tif in two
+        // folders), its path from the manifest's folder.
+        let stem = image.file_stem().and_then(|s| s.to_str()).unwrap_or("job").to_string();
+        let longer = image.strip_prefix(&base).unwrap_or(&image).with_extension("").to_string_lossy().into_owned();
+        let Some(name) = [stem, longer].into_iter().find(|n| !names.contains(n)) else {
+            errors.push(format!("{}: a second job for the image {}", at(line), image.display()));
             continue;
-        }
+        };
+        names.insert(name.clone());
         let mut problems = Vec::new();
         if !image.is_file() {
             problems.push(format!("image {} does not exist", image.display()));
@@ -253,6 +280,7 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         jobs.push(Job { name, config: cfg, problem });
     }
     // No job may write over what any job reads, nor two jobs to one file.
+    let mut refusal = false;
     if errors.is_empty() {
         let mut inputs = vec![("manifest".to_string(), path.to_path_buf())];
         if let Some(b) = &m.block {
@@ -268,12 +296,13 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         let outs: Vec<Role> = outputs.iter().map(|(w, p)| Role::new(w, p)).collect();
         if let Err(e) = check_outputs(&ins, &outs) {
             errors.push(format!("{}: {e}", path.display()));
+            refusal = true;
         }
     }
     if errors.is_empty() {
         Ok(jobs)
     } else {
-        Err(ManifestErrors(errors))
+        Err(ManifestErrors { problems: errors, refusal })
     }
 }
 
@@ -329,8 +358,9 @@ fn config(
     };
     let output = match (output, &o.output_dir) {
         (Some(p), _) => p,
-        (None, Some(dir)) => rel(dir).join(format!("{name}.tif")),
-        (None, None) => rel(&format!("{name}.ortho.tif")),
+        // A name with folders (two images of one name) as one file name.
+        (None, Some(dir)) => rel(dir).join(format!("{}.tif", name.replace('/', "_"))),
+        (None, None) => rel(&format!("{}.ortho.tif", name.replace('/', "_"))),
     };
     let mut c = RectifyOptions::new(image, camera, dem, output);
     c.model = inline.map_or(ModelSource::CameraFile, ModelSource::Inline);

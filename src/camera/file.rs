@@ -286,6 +286,21 @@ fn line_of(text: &str, offset: usize) -> usize {
 }
 
 impl CameraFile {
+    /// The files a camera file at `path` names (an RPC file, a geoid grid,
+    /// a fiducial mark's template), each with what it is: inputs of a run
+    /// as much as the camera file. None where `path` is not a camera file
+    /// (its reader says why).
+    pub fn files_named_in(path: &Path) -> Vec<(&'static str, PathBuf)> {
+        let Ok(file) = CameraFile::read(path) else { return Vec::new() };
+        let near = |f: &String| path.parent().unwrap_or(Path::new("")).join(f);
+        let rpc = file.rpc.as_ref();
+        let template = file.interior.as_ref().and_then(|i| i.fiducial_mark.as_ref()).and_then(|m| m.template.as_ref());
+        [("RPC file", rpc.and_then(|r| r.file.as_ref())), ("geoid grid", rpc.and_then(|r| r.geoid.as_ref())), ("fiducial template", template)]
+            .into_iter()
+            .filter_map(|(what, f)| Some((what, near(f?))))
+            .collect()
+    }
+
     pub fn read(path: &Path) -> Result<CameraFile> {
         let text = crate::io::bounded_read::read_text_bounded(path, "a camera file", crate::io::bounded_read::SMALL)?;
         Self::parse(&text, path)

@@ -116,14 +116,51 @@ pub(super) fn open(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> 
 /// The tile extensions a folder's files are taken by.
 const TILE_EXTENSIONS: [&str; 3] = ["tif", "tiff", "hgt"];
 
+/// Whether a file in a DEM folder is taken as one of its tiles.
+pub(super) fn is_tile_name(path: &Path) -> bool {
+    path.extension().and_then(|e| e.to_str()).is_some_and(|e| TILE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+}
+
+/// A folder's tiles, in order.
+fn folder_tiles(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut files: Vec<PathBuf> =
+        std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| is_tile_name(p)).collect();
+    files.sort();
+    Ok(files)
+}
+
+/// The files the DEM mosaic at `path` reads (a folder's tiles, a list's
+/// lines, a VRT's sources), as far as they can be told: the files no
+/// command may write over. Empty where `path` is not a mosaic or cannot
+/// be read (its reader says why).
+pub(super) fn files_of(path: &Path) -> Vec<PathBuf> {
+    if path.is_dir() {
+        return folder_tiles(path).unwrap_or_default();
+    }
+    match kind_of(path) {
+        Some(Kind::List) => list_lines(path).map(|l| l.into_iter().map(|(_, _, f)| f).collect()).unwrap_or_default(),
+        Some(Kind::Vrt) => {
+            let Ok(text) = crate::io::bounded_read::read_text_bounded(path, "VRT", 64 << 20) else { return Vec::new() };
+            let Ok(doc) = roxmltree::Document::parse(&text) else { return Vec::new() };
+            doc.descendants().filter(|n| n.has_tag_name("SourceFilename")).map(|f| source_path(path, f)).collect()
+        }
+        None => Vec::new(),
+    }
+}
+
+/// A VRT source's file: relative to the VRT's folder where it says so.
+fn source_path(vrt: &Path, file: roxmltree::Node) -> PathBuf {
+    let name = file.text().unwrap_or("").trim();
+    if file.attribute("relativeToVRT").is_some_and(|v| v.trim() == "1") {
+        vrt.parent().unwrap_or(Path::new(".")).join(name)
+    } else {
+        PathBuf::from(name)
+    }
+}
+
 /// A folder's `.tif`, `.tiff` and `.hgt` files, on one grid.
 fn open_folder(dir: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(|e| Error::io(dir, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().and_then(|e| e.to_str()).is_some_and(|e| TILE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str())))
-        .collect();
-    files.sort();
+    let files = folder_tiles(dir)?;
     if files.is_empty() {
         return Err(Error::format(dir, "is a folder without DEM tiles (.tif, .tiff or .hgt)"));
     }
@@ -134,15 +171,8 @@ fn open_folder(dir: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
 /// lines and lines starting with `#` left out. A line naming no file is
 /// refused by its number.
 fn open_list(list: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
-    let text = crate::io::bounded_read::read_text_bounded(list, "a list of DEM tiles", 1 << 20)?;
-    let base = list.parent().unwrap_or(Path::new(""));
     let mut files = Vec::new();
-    for (n, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let file = base.join(line);
+    for (n, line, file) in list_lines(list)? {
         if !file.is_file() {
             return Err(Error::format(
                 list,
@@ -155,6 +185,19 @@ fn open_list(list: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
         return Err(Error::format(list, "read as a list of DEM tiles (a path a line): it names none"));
     }
     open_tiles(files, max_bytes)
+}
+
+/// A list's lines that name tiles: their index, text and path.
+fn list_lines(list: &Path) -> Result<Vec<(usize, String, PathBuf)>> {
+    let text = crate::io::bounded_read::read_text_bounded(list, "a list of DEM tiles", 1 << 20)?;
+    let base = list.parent().unwrap_or(Path::new(""));
+    Ok(text
+        .lines()
+        .enumerate()
+        .map(|(n, l)| (n, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
+        .map(|(n, l)| (n, l.to_string(), base.join(l)))
+        .collect())
 }
 
 /// Tiles on one grid: the same CRS and pixel size, each placed a whole
@@ -238,8 +281,7 @@ fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
     for s in sources {
         let file = child(s, "SourceFilename").ok_or_else(|| bad("a source without SourceFilename".into()))?;
         let name = file.text().unwrap_or("").trim();
-        let relative = file.attribute("relativeToVRT").is_some_and(|v| v.trim() == "1");
-        let tile_path = if relative { dir.join(name) } else { PathBuf::from(name) };
+        let tile_path = source_path(path, file);
         let mut nodata = None;
         for e in s.children().filter(|n| n.is_element()) {
             match e.tag_name().name() {

@@ -43,14 +43,34 @@ fn identity(path: &Path) -> Option<Identity> {
     Some(Identity::Planned(std::fs::canonicalize(dir).ok()?.join(name)))
 }
 
+/// The real path of the folder `path` is in.
+fn folder_of(path: &Path) -> Option<PathBuf> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    std::fs::canonicalize(dir).ok()
+}
+
 /// Refuses, naming both paths, an output that is the same file as an input
-/// or as another output. Inputs that do not exist are left to their
-/// readers to report.
+/// or as another output, or that would be made inside an input that is a
+/// folder (a DEM folder takes what is put into it as a tile). Inputs that
+/// do not exist are left to their readers to report.
 pub fn check_outputs(inputs: &[Role], outputs: &[Role]) -> Result<()> {
     let ins: Vec<(Role, Identity)> = inputs.iter().filter_map(|r| Some((*r, identity(r.path).filter(|i| matches!(i, Identity::Inode(..)))?))).collect();
+    let folders: Vec<(Role, PathBuf)> = inputs.iter().filter(|r| r.path.is_dir()).filter_map(|r| Some((*r, std::fs::canonicalize(r.path).ok()?))).collect();
     let mut outs: Vec<(Role, Identity)> = Vec::with_capacity(outputs.len());
     for out in outputs {
         let Some(id) = identity(out.path) else { continue };
+        if let Some((input, _)) = folders.iter().find(|(_, f)| folder_of(out.path).as_ref() == Some(f)) {
+            return Err(Error::Usage(format!(
+                "the {} {} is inside the {} {}, a folder the run reads: refusing to write into an input",
+                out.what,
+                out.path.display(),
+                input.what,
+                input.path.display()
+            )));
+        }
         if let Some((input, _)) = ins.iter().find(|(_, i)| *i == id) {
             return Err(Error::Usage(format!(
                 "the {} {} is the {} {}: refusing to write over an input",
@@ -107,6 +127,21 @@ mod tests {
         check_outputs(&inputs, &[Role::new("output", &a)]).unwrap();
         let e = check_outputs(&inputs, &[Role::new("output", &a), Role::new("report", &b)]).unwrap_err().to_string();
         assert!(e.contains("are one file"), "{e}");
+    }
+
+    #[test]
+    fn an_output_inside_an_input_folder_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir(d.join("dem")).unwrap();
+        std::fs::write(d.join("dem/a.tif"), b"x").unwrap();
+        let dem = d.join("dem");
+        let inputs = [Role::new("DEM", &dem)];
+        for out in [d.join("dem/a.tif"), d.join("dem/new.tif"), d.join("dem/../dem/new.json")] {
+            let e = check_outputs(&inputs, &[Role::new("output", &out)]).unwrap_err().to_string();
+            assert!(e.contains("inside the DEM") && e.contains("refusing to write into an input"), "{e}");
+        }
+        check_outputs(&inputs, &[Role::new("output", &d.join("ortho.tif"))]).unwrap();
     }
 
     #[test]

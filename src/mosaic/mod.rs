@@ -71,6 +71,9 @@ pub struct MosaicOptions {
     /// each job says).
     pub occlusion: Option<crate::options::Occlusion>,
     pub sync: bool,
+    /// Where the caller writes the run's report: checked with the outputs
+    /// (never one of the inputs), not written here.
+    pub report: Option<PathBuf>,
 }
 
 /// One image's part in the mosaic.
@@ -161,16 +164,9 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     if !(o.blend >= 0.0 && o.blend.is_finite()) {
         return Err(Error::setting("blend", format!("{} is not a width in pixels (0 or more)", o.blend)));
     }
-    let jobs = crate::batch::manifest::load(&o.manifest).map_err(|e| Error::format(&o.manifest, e.to_string()))?;
+    let jobs = crate::batch::manifest::load(&o.manifest).map_err(|e| e.into_error())?;
     if let Some(bad) = jobs.iter().find_map(|j| j.problem.clone()) {
         return Err(Error::format(&o.manifest, bad));
-    }
-    // A rerun (a restarted shard) leaves a current output as it is.
-    let key = run_key(o, &jobs);
-    if let (Some(out), None, false) = (&o.output, &o.plan_out, o.force) {
-        if crate::batch::output_is_current(out, &key) {
-            return Ok(MosaicReport::skipped(out));
-        }
     }
     // Nothing the mosaic writes may be anything it reads.
     let (inputs, _) = crate::batch::manifest::files(&jobs);
@@ -186,15 +182,22 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         ins.push(Role::new("reference grid", p));
     }
     let mut outs: Vec<Role> = o.output.iter().map(|p| Role::new("output", p)).collect();
-    for (what, path) in [("seamlines", &o.seamlines_out), ("plan", &o.plan_out)] {
+    for (what, path) in [("seamlines", &o.seamlines_out), ("plan", &o.plan_out), ("report", &o.report)] {
         if let Some(p) = path {
             outs.push(Role::new(what, p));
         }
     }
-    if outs.is_empty() {
+    if o.output.is_none() && o.plan_out.is_none() {
         return Err(Error::Usage("mosaic: give -o (the mosaic or a piece) or --plan-out (the plan)".into()));
     }
     check_outputs(&ins, &outs)?;
+    // A rerun (a restarted shard) leaves a current output as it is.
+    let key = run_key(o, &jobs);
+    if let (Some(out), None, false) = (&o.output, &o.plan_out, o.force) {
+        if crate::batch::output_is_current(out, &key) {
+            return Ok(MosaicReport::skipped(out));
+        }
+    }
     let pending = o.output.as_deref().map(PendingFile::create).transpose()?;
     let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;
 

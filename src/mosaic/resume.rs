@@ -24,7 +24,7 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
     if o.window.is_some() || o.plan_in.is_some() || o.plan_out.is_some() {
         return Err(Error::setting("resume_dir", "renders the whole mosaic from a plan of its own: drop --window, --plan and --plan-out"));
     }
-    let jobs = crate::batch::manifest::load(&o.manifest).map_err(|e| Error::format(&o.manifest, e.to_string()))?;
+    let jobs = crate::batch::manifest::load(&o.manifest).map_err(|e| e.into_error())?;
     let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;
     let key = run_key(o, &jobs);
     if !o.force && crate::batch::output_is_current(&out, &key) {
