@@ -28,6 +28,11 @@ pub const MAX_CELLS: u64 = 2_000_000;
 /// distance where its box holds it), so the plan takes under half of it.
 pub const BUDGET_PER_CELL: u64 = 128;
 
+/// A DEM is held whole when it takes at most this share of the memory
+/// budget, else read through its chunk cache (a render reads heights at
+/// every wall pixel: through the cache a sixth slower).
+pub const DEM_SHARE: u64 = 4;
+
 /// One image as the plan sees it.
 pub struct PlanImage {
     pub name: String,
@@ -174,7 +179,7 @@ impl Plan {
                 DemSource::File(p) => match dem_of.get(p) {
                     Some(&k) => k,
                     None => {
-                        let mut d = Dem::open_within(p, &ground, s.memory / 4)?;
+                        let mut d = Dem::open_within(p, &ground, s.memory / DEM_SHARE)?;
                         for w in &d.warnings {
                             progress.warn(w);
                         }

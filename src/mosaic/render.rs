@@ -206,7 +206,7 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, (b0, n): (u32
     let room = memory.saturating_sub(fixed);
     if room < MIN_SHARE {
         // The figure that does: more memory lets the plan hold more of its
-        // DEMs (a quarter of the budget each, up to the whole) and take
+        // DEMs (a share of the budget each, up to the whole) and take
         // more cells.
         let other = fixed - plan_bytes;
         let px = plan.grid.width as u64 * plan.grid.height as u64;
@@ -214,18 +214,21 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, (b0, n): (u32
         // The cells' count is estimated (boxes round up to whole cells):
         // a sixteenth more, so that the figure given does run. The plan's
         // cells and DEMs are taken at the figure itself (a little more
-        // memory may double the cells across and down), until it holds.
-        let mut enough = fixed + MIN_SHARE;
+        // memory may double the cells across and down), until it holds;
+        // in whole MiB, as the figure is given (a figure rounded up may
+        // be the one that doubles them).
+        let mib = |b: u64| b.next_multiple_of(1 << 20);
+        let mut enough = mib(fixed + MIN_SHARE);
         for _ in 0..16 {
             let side = super::plan::cell_side(px, enough) as u64;
             let arrays_then = arrays * (px / (side * side)).max(cells) / cells;
-            let dems_then = plan.dems.iter().map(|d| d.whole_bytes().min(enough / 4).max(d.held_bytes())).sum::<u64>();
+            let dems_then = plan.dems.iter().map(|d| d.whole_bytes().min(enough / super::plan::DEM_SHARE).max(d.held_bytes())).sum::<u64>();
             let need = other + MIN_SHARE + arrays_then + dems_then;
             let need = need + need / 16;
             if need <= enough {
                 break;
             }
-            enough = need;
+            enough = mib(need);
         }
         return Err(Short { fixed, enough });
     }
