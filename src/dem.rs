@@ -479,6 +479,8 @@ pub struct Dem {
     /// [`Dem::mean_height`], worked out once: it samples the whole grid,
     /// which a DEM larger than its cache reads whole again each time.
     mean: std::sync::OnceLock<Option<f64>>,
+    /// [`Dem::height_range`], worked out once.
+    range: std::sync::OnceLock<Option<(f64, f64)>>,
 }
 
 /// The height at a ground point after the policy, or why there is none.
@@ -509,7 +511,16 @@ impl Dem {
     }
 
     fn of(model: HeightModel, path: PathBuf) -> Dem {
-        Dem { model, on_hole: Miss::Error, on_outside: Miss::Error, path, to_dem: None, warnings: Vec::new(), mean: std::sync::OnceLock::new() }
+        Dem {
+            model,
+            on_hole: Miss::Error,
+            on_outside: Miss::Error,
+            path,
+            to_dem: None,
+            warnings: Vec::new(),
+            mean: std::sync::OnceLock::new(),
+            range: std::sync::OnceLock::new(),
+        }
     }
 
     pub fn flat(z: f64) -> Dem {
@@ -574,6 +585,19 @@ impl Dem {
                 let step = (g.width * g.height / 20_000).max(1);
                 let valid: Vec<f64> = g.samples(step).iter().filter(|&&v| !g.is_nodata(v)).map(|&v| f64::from(v)).collect();
                 (!valid.is_empty()).then(|| valid.iter().sum::<f64>() / valid.len() as f64)
+            }
+        })
+    }
+
+    /// The lowest and highest of (at most ~4 million of) the grid's valid
+    /// heights: every height of a DEM of that size, so that no street or
+    /// roof is missed; the height of a flat DEM.
+    pub fn height_range(&self) -> Option<(f64, f64)> {
+        *self.range.get_or_init(|| match &self.model {
+            HeightModel::Flat(z) => Some((*z, *z)),
+            HeightModel::Grid(g) => {
+                let step = (g.width * g.height / 4_000_000).max(1);
+                g.samples(step).iter().filter(|&&v| !g.is_nodata(v)).map(|&v| (f64::from(v), f64::from(v))).reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
             }
         })
     }

@@ -142,7 +142,8 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     }
     // Nor its report, written after the run.
     for target in ["scans/001.toml", "scans/002.tif", "dem.tif"] {
-        let out = std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "r.tif", "--json", target, "--quiet"]).output().unwrap();
+        let out =
+            std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "r.tif", "--json", target, "--quiet"]).output().unwrap();
         assert_eq!(out.status.code(), Some(2), "{target}: {}", String::from_utf8_lossy(&out.stderr));
         assert!(!d.join("r.tif").exists());
     }

@@ -9,6 +9,12 @@ use crate::dem::Dem;
 use crate::error::{Error, Result};
 use crate::geom::{ImageArea, OutputGrid};
 
+/// The outline's spacing, scan pixels. On a DSM the edge's rays land
+/// farther out where they meet the ground between buildings than on the
+/// roofs: sparse points (32 an edge) missed streets, and the default
+/// bounds cut off part of the image.
+const EDGE_STEP_PX: f64 = 4.0;
+
 /// Ground bounds `[minx, miny, maxx, maxy]` of a `w × h` scan on the DEM:
 /// of the part of it that holds the image, where the model says so (a
 /// film's format).
@@ -16,11 +22,21 @@ pub fn footprint(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f6
     let mut caster = RayCaster::new(model, dem);
     let outline = image_outline(model.image_area(), w as f64, h as f64);
     let mut b = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+    let mut take = |p: [f64; 3]| b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
+    let range = dem.height_range();
     let mut hits = 0;
     for &(c, r) in &outline {
         if let Some(p) = caster.cast(c, r, None, z_guess, 1e-3) {
-            b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
+            take(p);
             hits += 1;
+            // Down to the lowest height and up to the highest: where the
+            // camera's nadir lies outside the image (an oblique frame), an
+            // edge's rays rise outward.
+            for end in range.map_or(vec![], |(lo, hi)| vec![lo, hi]) {
+                for q in other_crossings(&mut caster, (c, r), p, end) {
+                    take(q);
+                }
+            }
         }
     }
     if hits < 4 {
@@ -29,17 +45,54 @@ pub fn footprint(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f6
     Ok(b)
 }
 
-/// Points along the edge of the scan's image: the scan's edges (33 points
-/// each) where no `area` limits it; else the edges of the scan and of the
-/// area, each kept where it lies inside the other, and the points where
-/// they cross.
+/// Where the ray of scan point `(c, r)`, beyond its ground point `hit`,
+/// meets the DEM again on its way to the height `low` (below it or above):
+/// on a DSM it passes walls and meets streets and roofs elsewhere, and
+/// every ground point on it is imaged at `(c, r)` (hidden or not). The
+/// ray is walked at half the DEM's posting; each crossing is polished by
+/// the caster.
+fn other_crossings(caster: &mut RayCaster<'_, dyn SensorModel + '_>, (c, r): (f64, f64), hit: [f64; 3], low: f64) -> Vec<[f64; 3]> {
+    let mut found = Vec::new();
+    if hit[2] == low || !low.is_finite() {
+        return found;
+    }
+    let (dem, model) = (caster.dem, caster.model);
+    let Some(end) = model.locate_approx(c, r, low) else { return found };
+    let (Some(s0), Some(s1)) = (dem.sample_coords(hit[0], hit[1]), dem.sample_coords(end.0, end.1)) else { return found };
+    let n = (2.0 * (s1.0 - s0.0).abs().max((s1.1 - s0.1).abs())).ceil().clamp(1.0, 4096.0) as usize;
+    let at = |t: f64| (hit[0] + t * (end.0 - hit[0]), hit[1] + t * (end.1 - hit[1]), hit[2] + t * (low - hit[2]));
+    // Above the surface (+) or below (−), by how much.
+    let above = |(x, y, z): (f64, f64, f64)| dem.height_gradient(x, y).map(|(h, _, _)| z - h);
+    let mut before = (0.0, f64::NAN);
+    for k in 1..=n {
+        let t = k as f64 / n as f64;
+        let Some(d) = above(at(t)) else {
+            before = (t, f64::NAN);
+            continue;
+        };
+        let (t0, d0) = before;
+        before = (t, d);
+        if d0.is_nan() || (d0 > 0.0) == (d > 0.0) {
+            continue;
+        }
+        let tc = t0 + (t - t0) * d0 / (d0 - d);
+        let (x, y, z) = at(tc);
+        found.push(caster.cast(c, r, Some((x, y)), z, 1e-3).unwrap_or([x, y, z]));
+    }
+    found
+}
+
+/// Points along the edge of the scan's image, every [`EDGE_STEP_PX`]
+/// scan pixels: the scan's edges where no `area` limits it; else the edges
+/// of the scan and of the area, each kept where it lies inside the other,
+/// and the points where they cross.
 fn image_outline(area: Option<ImageArea>, w: f64, h: f64) -> Vec<(f64, f64)> {
-    let n = 32;
     let scan = [(0.0, 0.0), (w, 0.0), (w, h), (0.0, h)];
     let along = |poly: [(f64, f64); 4]| -> Vec<(f64, f64)> {
         (0..4)
             .flat_map(|e| {
                 let (p, q) = (poly[e], poly[(e + 1) % 4]);
+                let n = ((q.0 - p.0).hypot(q.1 - p.1) / EDGE_STEP_PX).ceil().clamp(32.0, 4096.0) as usize;
                 (0..n).map(move |k| {
                     let t = k as f64 / n as f64;
                     (p.0 + t * (q.0 - p.0), p.1 + t * (q.1 - p.1))
