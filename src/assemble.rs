@@ -127,8 +127,15 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
         for r in 0..pd {
             for c in 0..pa {
                 let slot = &mut owner[((tr + r) * ta + tc + c) as usize];
-                if slot.is_some() {
-                    return Err(Error::format(&pieces[k], format!("overlaps another piece at tile ({}, {})", tc + c, tr + r)));
+                if let Some((other, _)) = *slot {
+                    // Like a gap, a fault of the pieces given, not of a file.
+                    return Err(Error::Usage(format!(
+                        "{} and {} both cover tile ({}, {}) of the whole",
+                        pieces[other].display(),
+                        pieces[k].display(),
+                        tc + c,
+                        tr + r
+                    )));
                 }
                 *slot = Some((k, (r * pa + c) as usize));
             }

@@ -117,13 +117,14 @@ pub struct FiducialsArgs {
 /// what goes with it (shared by `rectify` and `rpc-grid`).
 #[derive(Args, Debug)]
 pub struct SensorArgs {
-    /// The scan or image (TIFF or BigTIFF).
+    /// The scan or image: TIFF or BigTIFF (any layout), JPEG, PNG or JPEG 2000.
     #[arg(long)]
     pub image: PathBuf,
     /// The camera file: ours (TOML; a frame camera, or model = "rpc", which
     /// rpc-grid needs), Orthority's interior parameters (YAML), an OpenSfM /
     /// OpenDroneMap reconstruction.json or a Metashape camera export (XML)
-    /// (lenses and poses), or "exif": the image's own EXIF/XMP tags.
+    /// (lenses and poses), or "exif": the image's own EXIF/XMP tags. A
+    /// satellite image gives its RPC with --rpc instead.
     #[arg(long, required_unless_present = "rpc", conflicts_with = "rpc")]
     pub camera: Option<PathBuf>,
     /// The exterior orientations of many images (Orthority's CSV or
@@ -595,8 +596,9 @@ pub struct RectifyArgs {
     /// it the fit is refused.
     #[arg(long, default_value_t = 2.0, requires = "gcps")]
     pub gcp_max_residual: f64,
-    /// DEM (GeoTIFF or SRTM .hgt), in the orthophoto's CRS or any other
-    /// (it is then reprojected on the fly).
+    /// DEM: a GeoTIFF, an SRTM .hgt, a GDAL VRT, or a folder or list of
+    /// tiles; in the orthophoto's CRS or any other (it is then reprojected
+    /// on the fly).
     #[arg(long, conflicts_with = "height")]
     pub dem: Option<PathBuf>,
     /// A constant terrain height instead of a DEM, metres.

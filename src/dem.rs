@@ -568,7 +568,14 @@ impl Dem {
                 }
                 Some(r)
             }
-            _ => None,
+            Some(_) => None,
+            None => {
+                warnings.push(format!(
+                    "{}: the DEM has no CRS; it is taken to be in the ground CRS ({ground}) — if it is not, heights are looked up in the wrong place",
+                    path.display()
+                ));
+                None
+            }
         };
         let mut dem = Dem::grid(g, path);
         dem.to_dem = to_dem;

@@ -297,6 +297,10 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     let o = run(&["assemble", "-o", s(&d.join("gap.tif")), s(&pieces[0]), s(&pieces[1])]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("no piece covers tile"));
+    // A piece given twice: both named, exit 2 as for the gap.
+    let o = run(&["assemble", "-o", s(&d.join("twice.tif")), s(&pieces[0]), s(&pieces[0]), s(&pieces[1])]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("both cover tile"));
     // Float pieces (NaN their nodata value, which is not equal to
     // itself) assemble as well: a coordinate image in two pieces.
     let src = gcm_ortho::io::source::SourceImage::open(&sc.scan, 1 << 20).unwrap().info;

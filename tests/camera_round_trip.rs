@@ -120,6 +120,11 @@ fn what_other_forms_cannot_hold_is_refused_by_name() {
     let e = String::from_utf8_lossy(&r.stderr);
     assert!(!r.status.success() && e.contains("refusing to write over an input"), "{e}");
     assert_eq!(std::fs::read(&own).unwrap(), before);
+    // A folder not there yet is made (as the README's example expects).
+    let fresh = dir.path().join("cams/new");
+    let r = run(&["cameras", "--camera", s(&sc.camera), s(&sc.scan), "--out-dir", s(&fresh), "--to", "toml"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(fresh.join("scan.toml").is_file());
 }
 
 #[test]

@@ -285,6 +285,34 @@ fn edited_seamlines_are_honoured() {
     assert_eq!((back.cells_kept, back.cells_overlapping), (0, 0), "every labelled cell, edge cells too, is in the file it wrote");
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("e.json")).unwrap()).unwrap();
     assert_eq!(report["edited_seams"]["cells_given"].as_u64().unwrap() as usize, edited.cells_given);
+    // The same cut saved as GIS tools save GeoJSON (RFC 7946: longitude
+    // and latitude, no crs member) gives the same partition.
+    let ground = gcm_ortho::geodesy::GroundCrs::new(&plan.crs).unwrap();
+    let ll = |x: f64, y: f64| {
+        let (lon, lat) = ground.to_lonlat(x, y).unwrap();
+        serde_json::json!([lon, lat])
+    };
+    // Each side in steps, so that its line stays the projected one.
+    let ring = |x0: f64, x1: f64| {
+        let side = |(ax, ay): (f64, f64), (bx, by): (f64, f64)| (0..64).map(move |k| (ax + (bx - ax) * k as f64 / 64.0, ay + (by - ay) * k as f64 / 64.0));
+        let pts: Vec<serde_json::Value> = side((x0, south), (x1, south))
+            .chain(side((x1, south), (x1, north)))
+            .chain(side((x1, north), (x0, north)))
+            .chain(side((x0, north), (x0, south)))
+            .chain([(x0, south)])
+            .map(|(x, y)| ll(x, y))
+            .collect();
+        serde_json::json!([pts])
+    };
+    let degrees = serde_json::json!({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"image": a}, "geometry": {"type": "Polygon", "coordinates": ring(west, xm)}},
+        {"type": "Feature", "properties": {"index": 2}, "geometry": {"type": "Polygon", "coordinates": ring(xm, east)}},
+    ]});
+    let lonlat = d.join("lonlat.geojson");
+    std::fs::write(&lonlat, degrees.to_string()).unwrap();
+    let mut in_degrees = make();
+    gcm_ortho::mosaic::seamlines::read(&mut in_degrees, &lonlat).unwrap();
+    assert_eq!(in_degrees.label, plan.label, "the cut in degrees without a crs member");
     // Polygons in another CRS are refused by name.
     let other = doc.to_string().replacen('{', r#"{"crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::32632"}},"#, 1);
     std::fs::write(&file, other).unwrap();

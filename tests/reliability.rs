@@ -547,3 +547,52 @@ fn a_chunk_whose_window_is_empty_neither_panics_nor_hangs() {
     }
     assert!(outputs[0] == outputs[1], "the same pixels at 24M and 1G");
 }
+
+#[test]
+fn doubtful_inputs_are_warned_about_even_when_quiet() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    let warned = |args: &[&str], words: &[&str]| {
+        let r = run(args);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.success(), "{args:?}: {err}");
+        for w in words {
+            assert!(err.contains("warning") && err.contains(w), "{args:?}: '{w}' not in: {err}");
+        }
+    };
+    let out = d.join("o.tif");
+    // A DEM without a CRS: taken to be in the ground's, said so.
+    let g = gcm_ortho::dem::GridDem::read(&dem).unwrap();
+    let bare = d.join("bare.tif");
+    let t = g.transform;
+    f32_raster_with_keys(&bare, (g.width as u32, g.height as u32), (t[0], t[3], t[1]), Default::default(), |c, r| g.sample(c as usize, r as usize));
+    warned(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&bare), "--quiet", "-o", s(&out)], &["has no CRS"]);
+    // A camera for another scan: its principal point far off this one's
+    // centre (the marks 60 px to the right).
+    let text = std::fs::read_to_string(&camera).unwrap();
+    let (head, tail) = text.split_once("fiducials_px = [").unwrap();
+    let (marks, rest) = tail.split_once("]]").unwrap();
+    let moved: Vec<String> = marks
+        .split("], [")
+        .map(|p| {
+            let v: Vec<f64> = p.trim_matches(|c| c == '[' || c == ']').split(',').map(|x| x.trim().parse().unwrap()).collect();
+            format!("[{}, {}]", v[0] + 60.0, v[1])
+        })
+        .collect();
+    let other = d.join("other.toml");
+    std::fs::write(&other, format!("{head}fiducials_px = [{}]{rest}", moved.join(", "))).unwrap();
+    std::fs::remove_file(&out).unwrap();
+    warned(&["rectify", "--image", s(&scan), "--camera", s(&other), "--dem", s(&dem), "--quiet", "-o", s(&out)], &["principal point", "this image's camera"]);
+    // An RPC with SRTM's .hgt (heights above EGM96) and no --geoid; and
+    // an image placed beyond the scene the RPC was fitted over.
+    let v = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/ventoux");
+    let hgt = d.join("N44E005.hgt");
+    std::fs::write(&hgt, 1000i16.to_be_bytes().repeat(1201 * 1201)).unwrap();
+    let (image, geom) = (v.join("left_image.tif"), v.join("left_image.geom"));
+    let rpc = ["rectify", "--image", s(&image), "--rpc", s(&geom), "--dem", s(&hgt), "--quiet"];
+    let rpc_out = d.join("rpc.tif");
+    warned(&[&rpc[..], &["--rpc-offset", "5000,5000", "-o", s(&rpc_out)]].concat(), &["EGM96", "--geoid"]);
+    std::fs::remove_file(&rpc_out).unwrap();
+    warned(&[&rpc[..], &["--rpc-offset", "50000,50000", "-o", s(&rpc_out)]].concat(), &["extrapolated"]);
+}

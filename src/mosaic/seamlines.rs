@@ -179,16 +179,34 @@ pub struct EditedSeams {
     pub cells_overlapping: usize,
 }
 
+/// The first position of the features' geometries.
+fn first_position(features: &[serde_json::Value]) -> Option<[f64; 2]> {
+    fn dig(v: &serde_json::Value) -> Option<[f64; 2]> {
+        let a = v.as_array()?;
+        match (a.first().and_then(|x| x.as_f64()), a.get(1).and_then(|y| y.as_f64())) {
+            (Some(x), Some(y)) => Some([x, y]),
+            _ => a.iter().find_map(dig),
+        }
+    }
+    features.iter().find_map(|f| dig(f.pointer("/geometry/coordinates")?))
+}
+
 /// Edited seamlines (as [`write`] writes them, moved about in a GIS):
 /// each feature's polygons, in the mosaic's CRS (or WGS 84 longitude and
-/// latitude where the file's `crs` says EPSG:4326 or CRS84), give their
+/// latitude where the file's `crs` says EPSG:4326 or CRS84, or where it
+/// has no `crs` and its numbers are degrees), give their
 /// cells to the image its `image` (else `index`, 1-based) names.
 pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
     let text = crate::io::bounded_read::read_text_bounded(path, "a seamlines file", crate::io::bounded_read::LIST)?;
     let doc: serde_json::Value = serde_json::from_str(&text).map_err(|e| Error::format(path, format!("JSON: {e}")))?;
     let features = doc.get("features").and_then(|f| f.as_array()).ok_or_else(|| Error::config(path, "features", "missing: not a GeoJSON FeatureCollection"))?;
     let named = doc.pointer("/crs/properties/name").and_then(|n| n.as_str()).unwrap_or("");
-    let lonlat = named.ends_with("EPSG::4326") || named.ends_with("CRS84") || named == "EPSG:4326";
+    // Without a `crs` member, GeoJSON (RFC 7946) is WGS 84 longitude and
+    // latitude, as GIS tools save it; an older file without one in the
+    // mosaic's own projected CRS is told by its numbers.
+    let unnamed_lonlat =
+        doc.get("crs").is_none() && !plan.crs.is_geographic() && first_position(features).is_some_and(|[x, y]| x.abs() <= 180.0 && y.abs() <= 90.0);
+    let lonlat = named.ends_with("EPSG::4326") || named.ends_with("CRS84") || named == "EPSG:4326" || unnamed_lonlat;
     let to_plan = match (lonlat, named.rsplit(':').next().and_then(|c| c.parse::<u32>().ok())) {
         (true, _) => Some(crate::geodesy::GroundCrs::new(&plan.crs).map_err(|m| Error::format(path, m))?),
         (false, Some(code)) if plan.crs.epsg() != Some(code) => {

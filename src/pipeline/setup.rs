@@ -167,6 +167,27 @@ impl RunPlan {
                 ));
             }
         }
+        if let Some(r) = match &camera.sensor {
+            Sensor::Rpc(r) => Some(&r.rpc),
+            _ => None,
+        } {
+            // The image within the scene the RPC was fitted over (an RPC
+            // extrapolated beyond it bends fast): its corners at most a
+            // tenth of the scene beyond.
+            let norm = |v: f64, off: f64, scale: f64| ((v - off) / scale).abs();
+            let out = [0.0, sw as f64]
+                .iter()
+                .map(|&c| norm(c, r.samp_off, r.samp_scale))
+                .chain([0.0, sh as f64].iter().map(|&l| norm(l, r.line_off, r.line_scale)))
+                .fold(0.0, f64::max);
+            if !(out <= 1.1) {
+                progress.warn(&format!(
+                    "{}: the image ({sw}×{sh}) reaches {:.1} times the half-size of the scene its RPC was fitted over: beyond it the RPC is extrapolated; check the crop's offset (--rpc-offset, rpc.offset_px)",
+                    opts.image.display(),
+                    out
+                ));
+            }
+        }
         if let Some((f, centre)) = frame {
             // The ground under the camera where the DEM has it, else its mean.
             let below = match centre.map(|(x, y)| dem.height(x, y)) {
@@ -174,6 +195,18 @@ impl RunPlan {
                 _ => z_guess,
             };
             f.check_sees_ground(sw, sh, below, &opts.camera)?;
+            // A camera made for another image (another size, another scan)
+            // puts its principal point far from this one's centre.
+            let (pc, pr) = f.interior.mm_to_px(0.0, 0.0);
+            let off = (pc / sw as f64 - 0.5).abs().max((pr / sh as f64 - 0.5).abs());
+            if !(off <= PRINCIPAL_POINT_OFF_CENTRE) {
+                progress.warn(&format!(
+                    "{}: the camera puts the principal point at ({pc:.0}, {pr:.0}) px, {:.0} % of the image off the centre of {} ({sw}×{sh}): is it this image's camera?",
+                    opts.camera.display(),
+                    off * 100.0,
+                    opts.image.display()
+                ));
+            }
             // A drone that says how high it flew over its take-off point:
             // a camera placed far from that over the DEM is on another
             // height datum (geoid vs ellipsoid) or mistagged.
@@ -418,6 +451,11 @@ fn check_denominators(r: &crate::camera::RpcCamera, grid: &OutputGrid, dem: &Dem
     Ok(())
 }
 
+/// Farther off the image's centre than this share of its size, a frame
+/// camera's principal point is warned about: real lenses' lie within a few
+/// per cent, a film frame within its scan's margins.
+const PRINCIPAL_POINT_OFF_CENTRE: f64 = 0.15;
+
 /// The geoid an RPC camera needs when the DEM's CRS (else the given
 /// `--crs`) says its heights are above one: the grid PROJ uses for that
 /// height, found where PROJ keeps its grids. Named but not found is an
@@ -431,7 +469,17 @@ fn geoid_of_heights(dem: &Dem, crs: Option<&Crs>, progress: &dyn Progress) -> Re
     let (vertical, whose) = match (from_dem, crs.and_then(|c| c.vertical())) {
         (Some(v), _) => (v, format!("the DEM {}", dem.path.display())),
         (None, Some(v)) => (v, "--crs".to_string()),
-        (None, None) => return Ok(None),
+        (None, None) => {
+            // SRTM's tiles hold heights above EGM96 and say nothing of it.
+            let hgt = |p: &std::path::Path| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("hgt"));
+            if hgt(&dem.path) || Dem::tile_files(&dem.path).iter().any(|t| hgt(t)) {
+                progress.warn(&format!(
+                    "{}: SRTM .hgt heights are above the EGM96 geoid, an RPC's above the ellipsoid: without --geoid (EGM96's grid, e.g. egm96_15.gtx) they are taken as ellipsoidal, the geoid's undulation (tens of metres) off",
+                    dem.path.display()
+                ));
+            }
+            return Ok(None);
+        }
     };
     if vertical.grids.is_empty() {
         progress.warn(&format!(

@@ -131,7 +131,7 @@ pub fn convert(o: &ConvertOptions) -> Result<Converted> {
 }
 
 fn write(entries: &[Entry], dir: &Path, o: &ConvertOptions) -> Result<Vec<PathBuf>> {
-    if !dir.is_dir() {
+    if dir.exists() && !dir.is_dir() {
         return Err(Error::Usage(format!("--out-dir {}: not a folder", dir.display())));
     }
     let files: Vec<(PathBuf, String)> = match o.target {
@@ -177,7 +177,17 @@ fn write(entries: &[Entry], dir: &Path, o: &ConvertOptions) -> Result<Vec<PathBu
     }
     inputs.extend(o.images.iter().map(|i| Role::new("image", i)));
     let outputs: Vec<Role> = files.iter().map(|(p, _)| Role::new("output", p)).collect();
-    check_outputs(&inputs, &outputs)?;
+    // A folder not there yet is made (and removed again if refused).
+    let made = !dir.exists();
+    if made {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    if let Err(e) = check_outputs(&inputs, &outputs) {
+        if made {
+            let _ = std::fs::remove_dir(dir);
+        }
+        return Err(e);
+    }
     for (path, text) in &files {
         write_file(path, text.as_bytes())?;
     }
