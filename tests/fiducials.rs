@@ -212,7 +212,11 @@ fn a_film_rectified_without_measured_marks_finds_them_and_matches_the_true_marks
     let (a, b) = (dir.path().join("true.tif"), dir.path().join("found.tif"));
     for (cam, out) in [(&rep.camera, &a), (&bare, &b)] {
         let r = run(&["rectify", "--image", s(&rep.scan), "--camera", s(cam), "--dem", s(&rep.dem), "-o", s(out), "--quiet"]);
-        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.success(), "{err}");
+        // Four like marks cannot tell a film scanned turned: the run says
+        // it took the scan as it lies (measured marks say nothing).
+        assert_eq!(err.contains("look the same turned"), cam == &bare, "{err}");
     }
     let (pa, _) = common::whole_image(&a);
     let (pb, _) = common::whole_image(&b);

@@ -143,7 +143,14 @@ pub fn measured(file: CameraFile, camera_path: &Path, image: &Path) -> Result<(C
     // The camera file is named first: its marks are what is missing.
     let det = detect_for(&file, camera_path, &src, &Overrides::default())
         .map_err(|e| Error::config(camera_path, "interior.fiducials_px", format!("not given, and not found in the scan: {e}")))?;
-    let notes: Vec<String> = det.warnings.iter().map(|w| format!("{}: {w}", image.display())).collect();
+    let mut notes: Vec<String> = det.warnings.iter().map(|w| format!("{}: {w}", image.display())).collect();
+    if det.turn_ambiguous {
+        // Identical marks cannot tell a film scanned turned: said, not guessed.
+        notes.push(format!(
+            "{}: the fiducial marks look the same turned, so the scan is taken as it lies; if the film was scanned turned, the orthophoto is turned too: measure the marks with `gcm-ortho fiducials --turn 90|180|270 --write CAMERA` and rectify with that camera file",
+            image.display()
+        ));
+    }
     Ok((with_marks(file, &det)?, notes))
 }
 
