@@ -96,6 +96,15 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
         if !same {
             return Err(Error::format(p, format!("is not a piece of the same orthophoto as {}", pieces[0].display())));
         }
+        // Made from the same image, camera, DEM and settings (a piece of
+        // another run on the same grid would join without a seam to see).
+        if g.source != geo0.source {
+            return Err(Error::Usage(format!(
+                "{} was made from other inputs or settings than {} (image, camera, DEM, resampling…): not pieces of one orthophoto",
+                p.display(),
+                pieces[0].display()
+            )));
+        }
         x_min = x_min.min(g.transform[0]);
         y_max = y_max.max(g.transform[3]);
     }
@@ -261,7 +270,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
             }
         }
     }
-    writer.finish(statistics.gdal_metadata()).map_err(tw)?;
+    writer.finish(statistics.gdal_metadata(geo0.source.as_deref())).map_err(tw)?;
     verify(pending.path(), &spec)?;
     pending.publish_synced(opts.sync)
 }

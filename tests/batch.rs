@@ -297,6 +297,19 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     let o = run(&["assemble", "-o", s(&d.join("gap.tif")), s(&pieces[0]), s(&pieces[1])]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("no piece covers tile"));
+    // A piece of another orthophoto on the same grid (here resampled
+    // otherwise) is refused by name, nothing written.
+    let cubic = d.join("cubic.tif");
+    let w = windows[3];
+    let win = format!("{},{},{},{}", w[0], w[1], w[2], w[3]);
+    let o = run(&[&["rectify"][..], &base, &["--window", &win, "--resample", "cubic", "-o", s(&cubic)]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mixed = d.join("mixed.tif");
+    let o = run(&["assemble", "-o", s(&mixed), s(&pieces[0]), s(&pieces[1]), s(&pieces[2]), s(&cubic)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("cubic.tif") && err.contains("other inputs or settings"), "{err}");
+    assert!(!mixed.exists());
     // A piece given twice: both named, exit 2 as for the gap.
     let o = run(&["assemble", "-o", s(&d.join("twice.tif")), s(&pieces[0]), s(&pieces[0]), s(&pieces[1])]);
     assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));

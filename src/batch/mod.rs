@@ -108,6 +108,25 @@ pub fn job_key(c: &RectifyOptions) -> String {
     format!("{h:016x}")
 }
 
+/// What an orthophoto is made from, the same for each of its pieces and
+/// whatever layout they are put together in: [`job_key`] without the
+/// piece (window), the file's name and layout (overviews, Cloud-Optimized,
+/// BigTIFF, band order) and how the run was resourced.
+pub fn source_key(c: &RectifyOptions) -> String {
+    let mut whole = c.clone();
+    whole.output = std::path::PathBuf::new();
+    whole.window = None;
+    whole.overviews = crate::options::Overviews::Auto;
+    whole.overview_level = None;
+    whole.overview_resampling = crate::overview::OverviewResampling::Average;
+    whole.cog = false;
+    whole.bigtiff = crate::options::BigTiff::Auto;
+    whole.band_order = crate::options::BandOrder::Auto;
+    whole.max_output_pixels = None;
+    whole.sync = true;
+    job_key(&whole)
+}
+
 /// The record of a finished output.
 pub fn sidecar(output: &Path) -> PathBuf {
     let mut s = output.as_os_str().to_owned();

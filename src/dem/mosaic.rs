@@ -358,7 +358,7 @@ fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::No
 
 /// The mosaic's grid, checked as a DEM's is.
 pub(super) fn check(path: &Path, g: &MosaicGrid) -> Result<()> {
-    let geo = crate::io::geotiff::GeoRef { transform: g.transform, keys: Default::default(), nodata: None, scale_offset: None };
+    let geo = crate::io::geotiff::GeoRef { transform: g.transform, keys: Default::default(), nodata: None, scale_offset: None, source: None };
     check_north_up(&geo, path)?;
     if g.width < 2 || g.height < 2 {
         return Err(Error::format(path, format!("a DEM mosaic of {}×{} posts", g.width, g.height)));

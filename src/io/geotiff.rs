@@ -85,6 +85,20 @@ pub struct GeoRef {
     /// The first band's scale and offset from GDAL's metadata (value =
     /// stored · scale + offset), where they are other than 1 and 0.
     pub scale_offset: Option<(f64, f64)>,
+    /// What the file was made from, where gcm-ortho made it (GDAL metadata
+    /// item [`SOURCE_ITEM`]): pieces of one orthophoto share it.
+    pub source: Option<String>,
+}
+
+/// The GDAL metadata item naming an orthophoto's inputs and settings (a
+/// hash; not its window): `assemble` joins only pieces that agree on it.
+pub const SOURCE_ITEM: &str = "GCM_ORTHO_SOURCE";
+
+/// The dataset item `name` of GDAL's metadata XML.
+fn dataset_item(xml: &str, name: &str) -> Option<String> {
+    let doc = roxmltree::Document::parse(xml.trim_matches(char::from(0))).ok()?;
+    let item = doc.descendants().find(|n| n.has_tag_name("Item") && n.attribute("name") == Some(name) && n.attribute("sample").is_none())?;
+    Some(item.text().unwrap_or("").trim().to_string())
 }
 
 /// Any numeric tag value (or list of them) as f64s.
@@ -154,9 +168,11 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
         }
         _ => None,
     };
-    let scale_offset = match dec.find_tag(Tag::Unknown(GDAL_METADATA)).map_err(tf)? {
-        Some(Value::Ascii(xml)) => band_scale_offset(&xml).map_err(|m| Error::format(path, format!("its GDAL metadata: {m}")))?,
-        _ => None,
+    let (scale_offset, source) = match dec.find_tag(Tag::Unknown(GDAL_METADATA)).map_err(tf)? {
+        Some(Value::Ascii(xml)) => {
+            (band_scale_offset(&xml).map_err(|m| Error::format(path, format!("its GDAL metadata: {m}")))?, dataset_item(&xml, SOURCE_ITEM))
+        }
+        _ => (None, None),
     };
     let keys = geo_keys(&directory, &doubles, &ascii);
     let pixel_is_point = keys.short(GT_RASTER_TYPE) == Some(RASTER_PIXEL_IS_POINT);
@@ -179,7 +195,7 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
     if gt.iter().any(|v| !v.is_finite()) {
         return Err(Error::format(path, "geotransform has non-finite values"));
     }
-    Ok(Some(GeoRef { transform: gt, keys, nodata, scale_offset }))
+    Ok(Some(GeoRef { transform: gt, keys, nodata, scale_offset, source }))
 }
 
 /// The keys of a GeoKeyDirectory (header of four SHORTs, then four a

@@ -193,6 +193,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     check_outputs(&ins, &outs)?;
     // A rerun (a restarted shard) leaves a current output as it is.
     let key = run_key(o, &jobs);
+    let source = source_key(o, &jobs);
     if let (Some(out), None, false) = (&o.output, &o.plan_out, o.force) {
         if crate::batch::output_is_current(out, &key) {
             return Ok(MosaicReport::skipped(out));
@@ -309,7 +310,8 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             unseen: Default::default(),
             covered: Default::default(),
         };
-        let pieces = PieceRender { plan: &plan, compose: &compose, works: &works, threads, pool: &pool, fill, first: &first, progress, cancel };
+        let pieces =
+            PieceRender { plan: &plan, compose: &compose, works: &works, threads, pool: &pool, fill, first: &first, progress, cancel, source: &source };
         match render::budget(&plan, &works, &spec, (tr0, trh), o.memory) {
             Ok(fit) => {
                 pieces.render(window, &spec, fit, (out, pending, o.sync), &mut hidden)?;
@@ -533,6 +535,8 @@ struct PieceRender<'a> {
     first: &'a RectifyOptions,
     progress: &'a dyn Progress,
     cancel: &'a Cancel,
+    /// What the mosaic is made from ([`source_key`]).
+    source: &'a str,
 }
 
 impl PieceRender<'_> {
@@ -555,8 +559,17 @@ impl PieceRender<'_> {
         }
         let (cancel, progress) = (self.cancel, self.progress);
         progress.start(&Task { name: "mosaic", units: tx as u64 * ty as u64, lines: spec.height as u64, line_name: "rows", input_bytes: 0 });
-        let writing =
-            BandWriting { spec, path, threads: self.threads, overview_resampling: self.first.overview_resampling, fill: self.fill, sync, progress, cancel };
+        let writing = BandWriting {
+            spec,
+            path,
+            threads: self.threads,
+            overview_resampling: self.first.overview_resampling,
+            fill: self.fill,
+            sync,
+            progress,
+            cancel,
+            source: Some(self.source),
+        };
         let sample = self.plan.images[0].sample;
         let written = std::thread::scope(|s| {
             let mut feeds = render::Feeds::new(s, works.len(), at_once);
@@ -584,6 +597,15 @@ impl PieceRender<'_> {
 /// The key of a run: the manifest's jobs (their inputs and settings), the
 /// files it takes (plan, seamlines) and every setting that changes the
 /// output.
+/// What a mosaic is made from, the same for each of its pieces and strips
+/// and whatever layout they are put together in: [`run_key`] without the
+/// piece (window), the layout (overviews, Cloud-Optimized), and the plan
+/// and edited seamlines (a single run makes the plan its shards read,
+/// seams included).
+fn source_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
+    run_key(&MosaicOptions { window: None, cog: None, overviews: None, plan_in: None, seamlines_in: None, ..o.clone() }, jobs)
+}
+
 fn run_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
     let settings = format!(
         "{:?} {:?} {:?} {:?} {} {} {:?} {:?} {:?} {:?}",

@@ -118,14 +118,16 @@ impl Statistics {
 
     /// GDAL's metadata XML (its TIFF tag 42112) with each band's minimum,
     /// maximum, mean, standard deviation (of the population, as GDAL's)
-    /// and the share of pixels with a value, in per cent. `None` when no
-    /// pixel has a value.
-    pub fn gdal_metadata(&self) -> Option<String> {
+    /// and the share of pixels with a value, in per cent (none where a
+    /// band has no pixel with a value); and `source`, what the file was
+    /// made from. `None` when it would hold nothing.
+    pub fn gdal_metadata(&self, source: Option<&str>) -> Option<String> {
         let mut xml = String::from("<GDALMetadata>\n");
-        for (k, b) in self.bands.iter().enumerate() {
-            if b.count == 0 {
-                return None;
-            }
+        if let Some(s) = source {
+            xml += &format!("  <Item name=\"{}\">{s}</Item>\n", crate::io::geotiff::SOURCE_ITEM);
+        }
+        let counted = self.bands.iter().all(|b| b.count > 0);
+        for (k, b) in self.bands.iter().enumerate().filter(|_| counted) {
             let n = b.count as f64;
             let (sum, sum_sq) = b.sums();
             let mean = sum / n;
@@ -135,7 +137,7 @@ impl Statistics {
                 xml += &format!("  <Item name=\"STATISTICS_{name}\" sample=\"{k}\">{v}</Item>\n");
             }
         }
-        Some(xml + "</GDALMetadata>")
+        (source.is_some() || counted).then(|| xml + "</GDALMetadata>")
     }
 }
 
@@ -250,7 +252,7 @@ mod tests {
         all.add(&b);
         // Values 1, 2, 3, 6, 8 of 6 image pixels.
         assert_eq!(all.bands[0], BandStats { count: 5, int_sum: 20, int_sum_sq: 114, min: 1.0, max: 8.0, ..Default::default() });
-        let xml = all.gdal_metadata().unwrap();
+        let xml = all.gdal_metadata(None).unwrap();
         assert!(xml.contains("<Item name=\"STATISTICS_MEAN\" sample=\"0\">4</Item>"), "{xml}");
         assert!(xml.contains("<Item name=\"STATISTICS_STDDEV\" sample=\"0\">2.6076809620810595</Item>"), "{xml}");
         assert!(xml.contains("STATISTICS_VALID_PERCENT\" sample=\"0\">83.33333333333333<"), "{xml}");

@@ -81,6 +81,8 @@ pub fn render_bands<T>(
         .build()
         .map_err(|e| Error::setting("threads", format!("cannot start {} threads: {e}", opts.threads)))?;
     let mut run = Run {
+        // Into memory, not a file: nothing to name.
+        source: None,
         inputs: Inputs {
             gcm: &gcm,
             src: &setup.src,

@@ -29,6 +29,8 @@ pub struct BandWriting<'a> {
     pub sync: bool,
     pub progress: &'a dyn Progress,
     pub cancel: &'a Cancel,
+    /// What the output is made from, the same for every piece of it.
+    pub source: Option<&'a str>,
 }
 
 /// What writing `spec` a band at a time holds at most, bytes: a band in
@@ -71,6 +73,7 @@ pub fn write_bands(w: &BandWriting, pending: PendingFile, mut make_band: impl Fn
         pyramid: pyramid.as_ref(),
         valid_by,
         statistics: &statistics,
+        source: w.source,
     };
     let out_file = pending.file()?;
     let flush_file = out_file.try_clone().map_err(|e| Error::io(pending.path(), e))?;

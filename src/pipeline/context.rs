@@ -151,6 +151,8 @@ pub struct Output<'a> {
     pub pyramid: Option<&'a Mutex<crate::overview::Pyramid>>,
     pub valid_by: crate::overview::ValidBy,
     pub statistics: &'a Mutex<crate::overview::Statistics>,
+    /// What the output is made from (its metadata's source item).
+    pub source: Option<&'a str>,
 }
 
 /// Everything one run's stages share.
@@ -175,6 +177,8 @@ pub struct Run<'a> {
     pub valid_by: crate::overview::ValidBy,
     /// The full level's band statistics, tile by tile (the encoder's).
     pub statistics: Mutex<crate::overview::Statistics>,
+    /// What the output is made from, the same for every piece of it.
+    pub source: Option<String>,
 }
 
 impl Run<'_> {
@@ -192,6 +196,7 @@ impl Run<'_> {
             pyramid: self.pyramid.as_ref(),
             valid_by: self.valid_by,
             statistics: &self.statistics,
+            source: self.source.as_deref(),
         }
     }
 }
