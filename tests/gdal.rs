@@ -128,7 +128,7 @@ fn planar_input_made_by_gdal_gives_the_same_orthophoto() {
         let out = dir.path().join(format!("ortho_{name}.tif"));
         let r = run(&["rectify", "--image", s(img), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&out), "--quiet"]);
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-        outs.push(std::fs::read(&out).unwrap());
+        outs.push(content(&out));
     }
     assert!(outs[0] == outs[1]);
 }
@@ -146,11 +146,12 @@ fn gdal_copy(src: &std::path::Path, dst: &std::path::Path, opts: &[&str]) -> boo
     r.status.success()
 }
 
-/// The orthophoto of a scene with this scan and DEM, as bytes.
-fn ortho(sc: &gcm_ortho::synth::SynthReport, scan: &std::path::Path, dem: &std::path::Path, out: &std::path::Path) -> Vec<u8> {
+/// The orthophoto of a scene with this scan and DEM: what it shows (its
+/// metadata names the files it was made from).
+fn ortho(sc: &gcm_ortho::synth::SynthReport, scan: &std::path::Path, dem: &std::path::Path, out: &std::path::Path) -> Content {
     let r = run(&["rectify", "--image", s(scan), "--camera", s(&sc.camera), "--dem", s(dem), "-o", s(out), "--quiet", "--compress", "none"]);
     assert!(r.status.success(), "{}: {}", s(scan), String::from_utf8_lossy(&r.stderr));
-    std::fs::read(out).unwrap()
+    content(out)
 }
 
 #[test]
@@ -255,13 +256,8 @@ fn a_jpeg_compressed_rgb_scan_gives_the_orthophoto_within_jpeg_loss() {
     let sc = scene(&dir.path().join("scene"), 400, |_| {});
     let jpeg = dir.path().join("jpeg.tif");
     assert!(gdal_copy(&sc.scan, &jpeg, &["COMPRESS=JPEG", "PHOTOMETRIC=RGB", "JPEG_QUALITY=90", "TILED=YES"]));
-    let pixels = |bytes: Vec<u8>, name: &str| {
-        let p = dir.path().join(name);
-        std::fs::write(&p, bytes).unwrap();
-        whole_image(&p).0
-    };
-    let want = pixels(ortho(&sc, &sc.scan, &sc.dem, &dir.path().join("a.tif")), "plain-copy.tif");
-    let got = pixels(ortho(&sc, &jpeg, &sc.dem, &dir.path().join("b.tif")), "jpeg-copy.tif");
+    let want = ortho(&sc, &sc.scan, &sc.dem, &dir.path().join("a.tif")).0;
+    let got = ortho(&sc, &jpeg, &sc.dem, &dir.path().join("b.tif")).0;
     assert_eq!(got.len(), want.len());
     let mean = got.iter().zip(&want).map(|(&a, &b)| (a as f64 - b as f64).abs()).sum::<f64>() / got.len() as f64;
     // JPEG at quality 90 moves a level or two on average; a band dropped,
@@ -273,8 +269,8 @@ fn a_jpeg_compressed_rgb_scan_gives_the_orthophoto_within_jpeg_loss() {
     assert!(gdal_copy(&sc.scan, &ycbcr, &["COMPRESS=JPEG", "PHOTOMETRIC=YCBCR", "TILED=YES"]));
     let by_gdal = dir.path().join("ycbcr-decoded-by-gdal.tif");
     assert!(Command::new("gdal_translate").args(["-q", s(&ycbcr), s(&by_gdal)]).status().unwrap().success());
-    let want = pixels(ortho(&sc, &by_gdal, &sc.dem, &dir.path().join("c.tif")), "c-copy.tif");
-    let got = pixels(ortho(&sc, &ycbcr, &sc.dem, &dir.path().join("d.tif")), "d-copy.tif");
+    let want = ortho(&sc, &by_gdal, &sc.dem, &dir.path().join("c.tif")).0;
+    let got = ortho(&sc, &ycbcr, &sc.dem, &dir.path().join("d.tif")).0;
     let diff: Vec<f64> = got.iter().zip(&want).map(|(&a, &b)| (a as f64 - b as f64).abs()).collect();
     let (mean, max) = (diff.iter().sum::<f64>() / diff.len() as f64, diff.iter().cloned().fold(0.0, f64::max));
     assert!(mean < 0.5 && max <= 10.0, "YCbCr: mean difference {mean}, largest {max} levels");

@@ -132,6 +132,15 @@ pub fn whole_image(path: &Path) -> (Vec<u8>, gcm_ortho::io::source::SourceInfo) 
     (win.bytes().to_vec(), img.info.clone())
 }
 
+/// What an orthophoto shows: its pixels, size, grid and whether it has a
+/// mask; not its metadata (which names the files it was made from).
+pub type Content = (Vec<u8>, u32, u32, Option<[f64; 6]>, bool);
+
+pub fn content(path: &Path) -> Content {
+    let (pixels, info) = whole_image(path);
+    (pixels, info.width, info.height, info.georef.map(|g| g.transform), info.mask.is_some())
+}
+
 /// Per-pixel differences between two coordinate-image orthophotos where
 /// both are valid and away from the scan's edge (where bilinear
 /// resampling differs by design).
