@@ -598,12 +598,25 @@ impl PieceRender<'_> {
 /// files it takes (plan, seamlines) and every setting that changes the
 /// output.
 /// What a mosaic is made from, the same for each of its pieces and strips
-/// and whatever layout they are put together in: [`run_key`] without the
-/// piece (window), the layout (overviews, Cloud-Optimized), and the plan
-/// and edited seamlines (a single run makes the plan its shards read,
-/// seams included).
+/// and whatever layout they are put together in: its images and their
+/// settings, blend and occlusion ([`run_key`] without the piece, the
+/// layout, and what a plan fixes — grid, seams, balance — which shards
+/// read from the plan file a single run makes for itself).
 fn source_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
-    run_key(&MosaicOptions { window: None, cog: None, overviews: None, plan_in: None, seamlines_in: None, ..o.clone() }, jobs)
+    let whole = MosaicOptions {
+        window: None,
+        cog: None,
+        overviews: None,
+        plan_in: None,
+        seamlines_in: None,
+        gsd: None,
+        bounds: None,
+        crs: None,
+        balance: Balance::None,
+        least_cost: true,
+        ..o.clone()
+    };
+    run_key(&whole, jobs)
 }
 
 fn run_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
