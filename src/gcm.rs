@@ -37,9 +37,12 @@
 //! Everything is computed a band of rows at a time (`prepare`), so a caller
 //! never holds the whole matrix.
 
+mod quadtree;
+
 use crate::dem::{Height, Lookup};
 use crate::geom::Span;
 use crate::transform::{Approx, Mapped, Transform};
+use quadtree::{Frame, Node};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -84,7 +87,8 @@ pub struct NodeHeights {
     pub lonlat: Option<Vec<Option<(f64, f64)>>>,
 }
 
-/// The quadtree of one refined cell.
+/// A piece of a cell being refined, with what the refinement weighs
+/// (kept as [`Node`]s: where pieces meet, the leaves' corrections).
 #[derive(Clone, Debug)]
 struct Quad {
     u0: f64,
@@ -93,11 +97,6 @@ struct Quad {
     dv: f64,
     /// Corrections (dc, dr) at the corners (u0,v0), (u0+du,v0), (u0,v0+dv), (u0+du,v0+dv).
     corners: [[f64; 2]; 4],
-    /// Where the children meet (a DEM line, or the middle).
-    split: (f64, f64),
-    kids: Option<Box<[Quad; 4]>>,
-    /// Too fine to split further and still over the bound: use `T` itself.
-    exact: bool,
     /// The estimated interpolation error of the corrections' smooth part
     /// over this cell, scan pixels.
     smooth: f64,
@@ -139,8 +138,10 @@ pub struct BandGcm {
     first_j: i64,
     rows: Vec<NodeRow>,
     /// `cells[n][i]`: the refinement of the cell between node rows n, n+1
-    /// and node columns i, i+1 (index from the first node).
-    cells: Vec<Vec<Option<Box<Quad>>>>,
+    /// and node columns i, i+1 (index from the first node): its root in
+    /// `quads`.
+    cells: Vec<Vec<Option<u32>>>,
+    quads: Vec<Node>,
     pub stats: GcmStats,
     /// The first DEM miss met under the `error` policy.
     pub miss: Option<(f64, f64, Lookup)>,
@@ -307,6 +308,14 @@ impl<'a> Gcm<'a> {
         self.ys[(j - self.first_node) as usize]
     }
 
+    /// The box of the cell between node rows `a`, `b` (the next) and node
+    /// columns `i`, `i + 1` (from the first node).
+    #[inline]
+    fn cell_frame(&self, a: i64, b: i64, i: usize) -> Frame {
+        let (v0, v1) = (self.node_v(a), self.node_v(b));
+        Frame { u0: self.xs[i], v0, du: self.xs[i + 1] - self.xs[i], dv: v1 - v0 }
+    }
+
     /// Correction `T − A` at (u, v), NaN where either has no value.
     #[inline]
     fn correction(&self, u: f64, v: f64, miss: &mut Option<(f64, f64, Lookup)>) -> [f64; 2] {
@@ -471,11 +480,12 @@ impl<'a> Gcm<'a> {
     pub fn finish_band(&self, first_j: i64, rows: Vec<NodeRow>, mut miss: Option<(f64, f64, Lookup)>) -> BandGcm {
         let mut stats = GcmStats { nodes: (rows.len() * self.nodes_x) as u64, ..Default::default() };
         let mut cells = Vec::new();
+        let mut quads = Vec::new();
         if let (Some(bound), CorrectionMode::Bilinear) = (self.spec.max_error, self.spec.mode) {
             let curvature = self.smooth_curvature(&rows);
             if self.band_within(&rows, &curvature, bound) {
                 stats.cells = (rows.len().saturating_sub(1) * (self.nodes_x - 1)) as u64;
-                return BandGcm { first_j, rows, cells, stats, miss, seen: None };
+                return BandGcm { first_j, rows, cells, quads, stats, miss, seen: None };
             }
             for n in 0..rows.len().saturating_sub(1) {
                 let (a, b) = (&rows[n], &rows[n + 1]);
@@ -486,8 +496,7 @@ impl<'a> Gcm<'a> {
                         if corners.iter().flatten().any(|v| v.is_nan()) {
                             return None;
                         }
-                        let (v0, v1) = (self.node_v(a.j), self.node_v(b.j));
-                        let (du, dv) = (self.xs[i + 1] - self.xs[i], v1 - v0);
+                        let Frame { u0, v0, du, dv } = self.cell_frame(a.j, b.j, i);
                         let smooth = self.smooth_error(&curvature, n, i, du, dv);
                         let z = [a.z[i], a.z[i + 1], b.z[i], b.z[i + 1]];
                         // The image moves with height about alike at the four
@@ -499,20 +508,23 @@ impl<'a> Gcm<'a> {
                             * 1.25;
                         let dp = |row: &NodeRow, m: usize| row.dp.get(m).copied().unwrap_or([f64::NAN; 2]);
                         let dp = [dp(a, i), dp(a, i + 1), dp(b, i), dp(b, i + 1)];
-                        let mut q = Quad { u0: self.xs[i], v0, du, dv, corners, split: (0.0, 0.0), kids: None, exact: false, smooth, z, rate, dp };
-                        let refined = self.refine(&mut q, bound, &mut stats, &mut miss);
-                        if refined {
-                            stats.refined_cells += 1;
-                            Some(Box::new(q))
-                        } else {
-                            None
+                        let q = Quad { u0, v0, du, dv, corners, smooth, z, rate, dp };
+                        match self.refine(&q, bound, &mut stats, &mut miss, &mut quads) {
+                            Node::Leaf(_) => None,
+                            root => {
+                                stats.refined_cells += 1;
+                                quads.push(root);
+                                Some((quads.len() - 1) as u32)
+                            }
                         }
                     })
                     .collect();
                 cells.push(row_cells);
             }
         }
-        BandGcm { first_j, rows, cells, stats, miss, seen: None }
+        // Held while the band's rows are made: not twice what it needs.
+        quads.shrink_to_fit();
+        BandGcm { first_j, rows, cells, quads, stats, miss, seen: None }
     }
 
     /// Whether every cell of the band is within `bound` without a look at
@@ -827,16 +839,17 @@ impl<'a> Gcm<'a> {
     }
 
     /// Holds `q` to `bound` at every pixel: splits it where its smooth or
-    /// its terrain error may miss it. Returns whether it had to be refined.
-    fn refine(&self, q: &mut Quad, bound: f64, stats: &mut GcmStats, miss: &mut Option<(f64, f64, Lookup)>) -> bool {
+    /// its terrain error may miss it. Returns its node: a leaf where it is
+    /// within the bound, else a split (its pieces put into `quads`) or
+    /// exact.
+    fn refine(&self, q: &Quad, bound: f64, stats: &mut GcmStats, miss: &mut Option<(f64, f64, Lookup)>, quads: &mut Vec<Node>) -> Node {
         if q.smooth + self.terrain_error(q) <= bound {
-            return false;
+            return Node::Leaf(q.corners);
         }
         // Splitting costs 5 exact evaluations and the pieces' checks; below
         // about 52 pixels, computing every pixel exactly is cheaper (and exact).
         if q.du * q.dv <= 52.0 {
-            q.exact = true;
-            return true;
+            return Node::Exact;
         }
         // Split at the DEM's lines where they cross the cell (the pieces are
         // then smooth), else in the middle. New corners: four edge points and
@@ -860,24 +873,23 @@ impl<'a> Gcm<'a> {
         // A piece's smooth error shrinks with the square of its size.
         let mk = |u0: f64, v0: f64, du: f64, dv: f64, corners: [[f64; 2]; 4], z: [f64; 4], dp: [[f64; 2]; 4]| {
             let shrink = (du / q.du).max(dv / q.dv);
-            Quad { u0, v0, du, dv, corners, split: (0.0, 0.0), kids: None, exact: false, smooth: q.smooth * shrink * shrink, z, rate: q.rate, dp }
+            Quad { u0, v0, du, dv, corners, smooth: q.smooth * shrink * shrink, z, rate: q.rate, dp }
         };
-        let mut kids = Box::new([
+        let kids = [
             mk(q.u0, q.v0, su - q.u0, sv - q.v0, [c00, top, left, centre], [z00, zt, zl, zc], [p00, pt, pl, pc]),
             mk(su, q.v0, u1 - su, sv - q.v0, [top, c10, centre, right], [zt, z10, zc, zr], [pt, p10, pc, pr]),
             mk(q.u0, sv, su - q.u0, v1 - sv, [left, centre, c01, bottom], [zl, zc, z01, zb], [pl, pc, p01, pb]),
             mk(su, sv, u1 - su, v1 - sv, [centre, right, bottom, c11], [zc, zr, zb, z11], [pc, pr, pb, p11]),
-        ]);
-        for kid in kids.iter_mut() {
-            if kid.corners.iter().flatten().any(|v| v.is_nan()) {
-                kid.exact = true;
-                continue;
+        ];
+        // The four children side by side, theirs after them.
+        let first = quads.len();
+        quads.extend(std::iter::repeat_n(Node::Exact, 4));
+        for (k, kid) in kids.iter().enumerate() {
+            if !kid.corners.iter().flatten().any(|v| v.is_nan()) {
+                quads[first + k] = self.refine(kid, bound, stats, miss, quads);
             }
-            self.refine(kid, bound, stats, miss);
         }
-        q.split = (su, sv);
-        q.kids = Some(kids);
-        true
+        Node::Split { at: (su, sv), first: first as u32 }
     }
 
     /// The node columns (indices from the first node, inclusive) that output
@@ -989,7 +1001,7 @@ impl<'a> Gcm<'a> {
                 // Within what the fixed point's conversion holds exactly
                 // (positions ·2³² below 2⁵¹: a scan of 2¹⁸ pixels a side).
                 const FIXED: f64 = (1u64 << 18) as f64;
-                let leaves = refined.and_then(|q| q[g].as_ref());
+                let leaves = refined.and_then(|q| q[g]);
                 let fits = |c: f64, r: f64, d: [f64; 4]| c.abs() < FIXED && r.abs() < FIXED && d.iter().all(|d| d.abs() * 1024.0 < FIXED);
                 let stepped = |c: f64, r: f64, d: [f64; 4]| leaves.is_none() && fits(c, r, d);
                 if let (Some(q), true, true) = (leaves, end > x, cuts == 1) {
@@ -1002,21 +1014,21 @@ impl<'a> Gcm<'a> {
                     let v = y as f64 + 0.5;
                     let (gap_first, gap_end) = (first_px[g], first_px[g + 1].max(end));
                     leaf_runs.clear();
-                    quad_runs(q, v, gap_first, gap_end, &mut leaf_runs);
+                    quadtree::runs(&band.quads, q, self.cell_frame(j0, j1, lo + g), v, gap_first, gap_end, &mut leaf_runs);
                     for &(l0, l1, leaf) in &leaf_runs {
                         let (first, stop) = (l0.max(x), l1.min(end));
                         if first >= stop {
                             continue;
                         }
-                        if leaf.exact {
+                        let Some(leaf) = leaf else {
                             spans.push(Span { stepped: false, first, end: stop, anchor: l0, c: 0.0, r: 0.0, dc: 0.0, dr: 0.0, ddc: 0.0, ddr: 0.0 });
                             continue;
-                        }
-                        let fv = (v - leaf.v0) / leaf.dv;
+                        };
+                        let fv = leaf.fv(v);
                         let at = |px: usize| {
                             let u = px as f64 + 0.5;
                             let (ac, ar) = ra.at(u);
-                            let [dc, dr] = bilerp(&leaf.corners, (u - leaf.u0) / leaf.du, fv);
+                            let [dc, dr] = leaf.at(u, fv);
                             (ac + dc, ar + dr)
                         };
                         let (c, r) = at(l0);
@@ -1159,9 +1171,9 @@ impl<'a> Gcm<'a> {
             let refined = cells.and_then(|c| c.get(i)).is_some_and(|q| q.is_some());
             let (oc, or) = (&mut cols[p..seg_end - x0 as usize], &mut rows[p..seg_end - x0 as usize]);
             if refined {
-                let q = cells.and_then(|c| c[i].as_ref()).expect("refined cell");
+                let q = cells.and_then(|c| c[i]).expect("refined cell");
                 // The corrections leaf by leaf along the row, then A.
-                quad_row(q, v, x, oc, or);
+                quadtree::row(&band.quads, q, self.cell_frame(j0, j1, i), v, x, oc, or);
                 for (m, (oc, or)) in oc.iter_mut().zip(or.iter_mut()).enumerate() {
                     let (ac, ar) = ra.at((x + m) as f64 + 0.5);
                     *oc += ac;
@@ -1234,58 +1246,6 @@ fn with_dem_lines(uniform: Vec<f64>, a: f64, b: f64, k: f64) -> Vec<f64> {
     lines.sort_by(f64::total_cmp);
     lines.dedup();
     lines
-}
-
-#[inline]
-fn bilerp(c: &[[f64; 2]; 4], fu: f64, fv: f64) -> [f64; 2] {
-    let w = [(1.0 - fu) * (1.0 - fv), fu * (1.0 - fv), (1.0 - fu) * fv, fu * fv];
-    [c[0][0] * w[0] + c[1][0] * w[1] + c[2][0] * w[2] + c[3][0] * w[3], c[0][1] * w[0] + c[1][1] * w[1] + c[2][1] * w[2] + c[3][1] * w[3]]
-}
-
-/// The corrections of `q` along row `v` at pixels `x0, x0 + 1, …` (their
-/// centres half a pixel on), as many as `dc` holds: each leaf's run of
-/// pixels interpolated between its corners, NaN on a leaf marked exact
-/// (one descent a run of pixels, not one a pixel).
-fn quad_row(q: &Quad, v: f64, x0: usize, dc: &mut [f64], dr: &mut [f64]) {
-    if q.exact {
-        dc.fill(f64::NAN);
-        dr.fill(f64::NAN);
-        return;
-    }
-    match &q.kids {
-        None => {
-            let fv = (v - q.v0) / q.dv;
-            for (m, (dc, dr)) in dc.iter_mut().zip(dr.iter_mut()).enumerate() {
-                [*dc, *dr] = bilerp(&q.corners, ((x0 + m) as f64 + 0.5 - q.u0) / q.du, fv);
-            }
-        }
-        Some(k) => {
-            let first = 2 * usize::from(v >= q.split.1);
-            // Pixels whose centre is at or past the split take the right kid.
-            let right = ((q.split.0 - 0.5).ceil() - x0 as f64).clamp(0.0, dc.len() as f64) as usize;
-            let ((lc, rc), (lr, rr)) = (dc.split_at_mut(right), dr.split_at_mut(right));
-            quad_row(&k[first], v, x0, lc, lr);
-            quad_row(&k[first + 1], v, x0 + right, rc, rr);
-        }
-    }
-}
-
-/// The leaves of `q` along row `v` over pixels `[x0, x1)`, in order: each
-/// leaf's run of the pixels whose centres it holds (split as [`quad_row`]
-/// splits them).
-fn quad_runs<'q>(q: &'q Quad, v: f64, x0: usize, x1: usize, out: &mut Vec<(usize, usize, &'q Quad)>) {
-    if x0 >= x1 {
-        return;
-    }
-    match &q.kids {
-        Some(k) if !q.exact => {
-            let first = 2 * usize::from(v >= q.split.1);
-            let right = x0 + ((q.split.0 - 0.5).ceil() - x0 as f64).clamp(0.0, (x1 - x0) as f64) as usize;
-            quad_runs(&k[first], v, x0, right, out);
-            quad_runs(&k[first + 1], v, right, x1, out);
-        }
-        _ => out.push((x0, x1, q)),
-    }
 }
 
 /// Over `t`'s grid where it images the scan, with half again as margin:
