@@ -116,6 +116,9 @@ impl GridDem {
 
     /// Every `step`-th sample, row-major (for summaries: mean height).
     pub fn samples(&self, step: usize) -> Vec<f32> {
+        if let Samples::Memory(v) = &self.data {
+            return v.iter().step_by(step.max(1)).copied().collect();
+        }
         let n = self.width * self.height;
         (0..n).step_by(step.max(1)).map(|k| self.sample(k % self.width, k / self.width)).collect()
     }
@@ -604,7 +607,10 @@ impl Dem {
             HeightModel::Flat(z) => Some((*z, *z)),
             HeightModel::Grid(g) => {
                 let step = (g.width * g.height / 4_000_000).max(1);
-                g.samples(step).iter().filter(|&&v| !g.is_nodata(v)).map(|&v| (f64::from(v), f64::from(v))).reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
+                // In f32, as stored, folded without a branch (vectorised).
+                let heights = g.samples(step);
+                let (lo, hi) = heights.iter().filter(|&&v| !g.is_nodata(v)).fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+                (lo <= hi).then(|| (f64::from(lo), f64::from(hi)))
             }
         })
     }

@@ -149,18 +149,25 @@ impl ChunkedRaster {
         Ok(self.sample.to_f32(&bytes))
     }
 
-    /// The whole raster, row-major.
+    /// The whole raster, row-major: each row of chunks read and decoded
+    /// on its own (on the current rayon pool).
     pub fn read_all(&self) -> Result<Vec<f32>> {
+        use rayon::prelude::*;
         let (cw, ch) = self.chunk;
+        let across = self.across();
         let mut all = vec![0f32; self.width * self.height];
-        for k in 0..self.offsets.len() {
-            let (x0, y0) = (k % self.across() * cw, k / self.across() * ch);
-            let c = self.chunk(k)?;
-            let w = cw.min(self.width - x0);
-            for (r, row) in c.chunks_exact(cw).enumerate().take(self.height - y0) {
-                all[(y0 + r) * self.width + x0..][..w].copy_from_slice(&row[..w]);
+        all.par_chunks_mut(self.width * ch).enumerate().try_for_each(|(cy, rows)| {
+            for cx in 0..across {
+                let c = self.chunk(cy * across + cx)?;
+                let x0 = cx * cw;
+                let w = cw.min(self.width - x0);
+                // (A last strip or row of tiles: as many rows as the raster has.)
+                for (from, to) in c.chunks_exact(cw).zip(rows.chunks_exact_mut(self.width)) {
+                    to[x0..x0 + w].copy_from_slice(&from[..w]);
+                }
             }
-        }
+            Ok::<(), crate::error::Error>(())
+        })?;
         Ok(all)
     }
 }

@@ -30,7 +30,16 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     if cancel.is_cancelled() {
         return Err(Error::Cancelled);
     }
-    let plan = RunPlan::new(opts, progress)?;
+    // One thread: the steps one after the other (resampling and encoding
+    // on the pool's one worker, while this thread waits), so that one
+    // thread keeps one processor busy, not one and a half.
+    let sequential = opts.threads == 1;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(opts.threads)
+        .build()
+        .map_err(|e| Error::setting("threads", format!("cannot start {} threads: {e}", opts.threads)))?;
+    // The set-up's parallel parts (reading the DEM) on the run's own workers too.
+    let plan = pool.install(|| RunPlan::new(opts, progress))?;
     if cancel.is_cancelled() {
         return Err(Error::Cancelled);
     }
@@ -52,14 +61,6 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     let (wc0, wc1, wr0, wr1) = if columns { (tr0, tr1, tc0, tc1) } else { (tc0, tc1, tr0, tr1) };
     let walk = Walk { grid: t.grid, tile: opts.tile, bands: (wr0, wr1), cols: (wc0, wc1), columns, piece: (tc0, tr0, tcw) };
 
-    // One thread: the steps one after the other (resampling and encoding
-    // on the pool's one worker, while this thread waits), so that one
-    // thread keeps one processor busy, not one and a half.
-    let sequential = opts.threads == 1;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(opts.threads)
-        .build()
-        .map_err(|e| Error::setting("threads", format!("cannot start {} threads: {e}", opts.threads)))?;
     let mut times = StageTimes { setup: wall.elapsed().as_secs_f64(), ..Default::default() };
     let (lines, line_name) = if columns { (spec.width, "columns") } else { (spec.height, "rows") };
     let units = spec.tiles_across() as u64 * spec.tiles_down() as u64;
