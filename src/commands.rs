@@ -225,6 +225,9 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         Some(dir) => gcm_ortho::mosaic::resume::resumable(&o, dir, &Bar::new(a.quiet), &signals.cancel)?,
         None => mosaic(&o, &Bar::new(a.quiet), &signals.cancel)?,
     };
+    if let Some(w) = past_budget(&a.memory, memory) {
+        eprintln!("gcm-ortho: warning: {w}");
+    }
     if let Some(j) = &a.json {
         write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
     }
@@ -340,6 +343,9 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
             count(Status::Cancelled)
         );
     }
+    if let Some(w) = past_budget(&a.memory, memory) {
+        eprintln!("gcm-ortho: warning: {w}");
+    }
     if signals.exit_code().is_some() {
         return Err(anyhow::Error::new(gcm_ortho::Error::Cancelled));
     }
@@ -440,11 +446,31 @@ fn print_report(r: &Report) {
     }
 }
 
+/// Where this process's peak resident memory passed `--memory` (`given`,
+/// `budget` bytes): what to say. A job limit set from `--memory` (Slurm's
+/// `--mem`, a pod's limit) would have killed the run; the budget holds
+/// what the run plans, not the program itself or, where a DSM asks for
+/// much refinement, the GCM's refined cells.
+fn past_budget(given: &str, budget: u64) -> Option<String> {
+    let peak = gcm_ortho::pipeline::peak_rss_mib()?;
+    let mib = budget as f64 / f64::from(1 << 20);
+    (peak > mib).then(|| {
+        format!(
+            "the peak memory, {peak:.0} MiB, passed --memory {given} ({mib:.0} MiB): a job limit for such runs needs about {}M; a larger --memory lets the run plan for it",
+            (peak * 1.1).ceil()
+        )
+    })
+}
+
 fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
     let opts = a.options()?;
     let json: Vec<Role> = a.json.iter().map(|j| Role::new("report", j)).collect();
     opts.check_outputs(&json)?;
-    let report = rectify(&opts, &Bar::new(a.quiet), &signals.cancel)?;
+    let mut report = rectify(&opts, &Bar::new(a.quiet), &signals.cancel)?;
+    if let Some(w) = past_budget(&a.memory, opts.memory) {
+        eprintln!("gcm-ortho: warning: {w}");
+        report.warnings.push(w);
+    }
     if let Some(j) = &a.json {
         write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
     }

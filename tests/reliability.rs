@@ -596,3 +596,34 @@ fn doubtful_inputs_are_warned_about_even_when_quiet() {
     std::fs::remove_file(&rpc_out).unwrap();
     warned(&[&rpc[..], &["--rpc-offset", "50000,50000", "-o", s(&rpc_out)]].concat(), &["extrapolated"]);
 }
+
+/// A run whose peak passes its `--memory` says so, even when quiet, with
+/// the figure a job limit needs (a Slurm `--mem` set from `--memory` would
+/// have killed it); within the budget it says nothing of the kind. 16M,
+/// the least `--memory` taken, is less than the program itself holds
+/// with a drone frame over buildings in hand (about 21 MiB).
+#[test]
+fn a_peak_past_the_memory_budget_is_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = drone_scene(d, (1200, 900), 12_000.0);
+    let (out, json) = (d.join("o.tif"), d.join("o.json"));
+    let args = |memory: &'static str| {
+        let mut a =
+            vec!["rectify", "--image", s(&scene.scan), "--camera", s(&scene.camera), "--dem", s(&scene.dem), "--quiet", "-o", s(&out), "--json", s(&json)];
+        a.extend(["--memory", memory]);
+        a
+    };
+    let r = run(&args("16M"));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("warning: the peak memory") && err.contains("passed --memory 16M"), "{err}");
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let peak = report["peak_rss_mib"].as_f64().unwrap();
+    assert!(peak > 16.0, "{peak}");
+    assert!(report["warnings"].as_array().unwrap().iter().any(|w| w.as_str().unwrap().contains("passed --memory 16M")), "{report}");
+    std::fs::remove_file(&out).unwrap();
+    let r = run(&args("256M"));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success() && !err.contains("peak memory"), "{err}");
+}
