@@ -100,6 +100,9 @@ pub struct Counters {
     /// Chunks read in place from the mapped scan.
     pub chunks_in_place: AtomicU64,
     pub gcm: Mutex<GcmStats>,
+    /// Output pixels whose positions were worked out by `T` itself (the
+    /// refinement's exact leaves, nodes without a value).
+    pub exact_pixels: AtomicU64,
     /// Under `--occlusion`: output pixels the scan images, and of them those
     /// the sensor does not see.
     pub imaged: AtomicU64,

@@ -7,7 +7,7 @@ use super::sequential::run_sequential;
 use super::setup::RunPlan;
 use super::threaded::run_threaded;
 use crate::error::{Error, Result};
-use crate::gcm::Gcm;
+use crate::gcm::{Gcm, GcmStats};
 use crate::io::tiff_out::{page_padding, reserve, verify, Compression, PendingFile};
 use crate::options::{Occlusion, RectifyOptions};
 use crate::overview::{Pyramid, ValidBy};
@@ -117,7 +117,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         // Where the largest error is, on the output grid.
         estimate.argmax.swap(0, 1);
     }
-    let gcm_stats = *run.counters.gcm.lock().expect("stats");
+    let gcm_stats = GcmStats { exact_pixels: run.counters.exact_pixels.load(Ordering::Relaxed), ..*run.counters.gcm.lock().expect("stats") };
     let error_bound = plan.gcm.max_error;
     // The bound holds by construction at every pixel; the sample checks it.
     let error_within = estimate.max <= error_bound.map_or(UNBOUNDED_WARNING_PX, |b| b * 1.000_001);

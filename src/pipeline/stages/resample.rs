@@ -11,7 +11,7 @@ use crate::pipeline::context::{PixelOptions, Run};
 use crate::resample::area::{area_pixel, footprint_window, pixel_quad, AreaKind, AreaScratch, Covered};
 use crate::resample::{resample_row, resample_spans, span_bounds, span_position, Kernel, Sample, SpanOutcome, View};
 use rayon::prelude::*;
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// A resampled chunk's tiles on their way to the encoder: band `band`,
 /// walked tile columns from `first_col`.
@@ -44,10 +44,11 @@ pub fn resample(run: &Run, msg: &ReadMsg, spare: Option<Raw>) -> std::result::Re
     let (y0, y1) = run.walk.band_rows(msg.band);
     let (gcm, src, opts) = (run.inputs.gcm, run.inputs.src, run.inputs.pixels);
     let spare = (spare, run.spare_masks.1.try_recv().ok());
+    let exact = &run.counters.exact_pixels;
     match src.info.sample {
-        SampleType::U8 => resample_chunk::<u8>(gcm, src, msg, y0, y1, opts, spare).map(|(p, v)| (Raw::U8(p), v)),
-        SampleType::U16 => resample_chunk::<u16>(gcm, src, msg, y0, y1, opts, spare).map(|(p, v)| (Raw::U16(p), v)),
-        SampleType::F32 => resample_chunk::<f32>(gcm, src, msg, y0, y1, opts, spare).map(|(p, v)| (Raw::F32(p), v)),
+        SampleType::U8 => resample_chunk::<u8>(gcm, src, msg, y0, y1, opts, spare, exact).map(|(p, v)| (Raw::U8(p), v)),
+        SampleType::U16 => resample_chunk::<u16>(gcm, src, msg, y0, y1, opts, spare, exact).map(|(p, v)| (Raw::U16(p), v)),
+        SampleType::F32 => resample_chunk::<f32>(gcm, src, msg, y0, y1, opts, spare, exact).map(|(p, v)| (Raw::F32(p), v)),
     }
 }
 
@@ -128,6 +129,7 @@ fn column_group(tile: usize) -> usize {
 /// have a value, 1 a byte, laid out as the pixels); returns a DEM miss
 /// under the `error` policy.
 #[allow(clippy::type_complexity)] // the pixels and their validity
+#[allow(clippy::too_many_arguments)] // the chunk, its options and buffers, and the count of exact pixels
 pub fn resample_chunk<T: Sample + Recycle>(
     gcm: &Gcm<'_>,
     src: &SourceImage,
@@ -136,6 +138,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
     y1: u32,
     opts: PixelOptions,
     (spare, spare_mask): (Option<Raw>, Option<Vec<u8>>),
+    exact: &AtomicU64,
 ) -> std::result::Result<(Vec<T>, Option<Vec<u8>>), Failed> {
     let info = &src.info;
     let bands_in = info.bands as usize;
@@ -261,7 +264,8 @@ pub fn resample_chunk<T: Sample + Recycle>(
                         resample_spans(&view, run, out, valid, fill)
                     } else {
                         positions(cols, rws);
-                        gcm.fill_exact(&msg.gcm, y, first as u32, &mut cols[a..b], &mut rws[a..b], miss);
+                        let n = gcm.fill_exact(&msg.gcm, y, first as u32, &mut cols[a..b], &mut rws[a..b], miss);
+                        exact.fetch_add(n, Ordering::Relaxed);
                         SpanOutcome::Checked { clamped: resample_row(opts.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill) }
                     };
                     if outcome == SpanOutcome::Inside && (!direct || opts.mask) {
@@ -286,7 +290,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
                 }
             } else if let Some(kind) = opts.kernel.area() {
                 positions(cols, rws);
-                gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, miss);
+                exact.fetch_add(gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, miss), Ordering::Relaxed);
                 feet.corners(gcm, &msg.gcm, y, x0, w, miss);
                 for (i, p) in px.chunks_exact_mut(bands_in).enumerate() {
                     valid[i] = view.has_value(cols[i], rws[i]) && {
@@ -304,7 +308,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
                 }
             } else {
                 positions(cols, rws);
-                gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, miss);
+                exact.fetch_add(gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, miss), Ordering::Relaxed);
                 if resample_row(opts.kernel, &view, cols, rws, px, valid, fill) {
                     for (i, p) in px.chunks_exact_mut(bands_in).enumerate().filter(|(i, _)| valid[*i]) {
                         reread((cols[i], rws[i]), p);
