@@ -36,18 +36,27 @@ impl Sample {
 
     /// Native-endian samples to heights.
     fn to_f32(self, bytes: &[u8]) -> Vec<f32> {
-        fn each<const N: usize>(bytes: &[u8], f: impl Fn([u8; N]) -> f32) -> Vec<f32> {
-            bytes.chunks_exact(N).map(|c| f(c.try_into().expect("N bytes"))).collect()
+        let mut out = vec![0f32; bytes.len() / self.bytes()];
+        self.to_f32_into(bytes, &mut out);
+        out
+    }
+
+    /// The first `out.len()` native-endian samples of `bytes` to heights, into `out`.
+    fn to_f32_into(self, bytes: &[u8], out: &mut [f32]) {
+        fn each<const N: usize>(bytes: &[u8], out: &mut [f32], f: impl Fn([u8; N]) -> f32) {
+            for (o, c) in out.iter_mut().zip(bytes.chunks_exact(N)) {
+                *o = f(c.try_into().expect("N bytes"));
+            }
         }
         match self {
-            Sample::U8 => bytes.iter().map(|&b| f32::from(b)).collect(),
-            Sample::I8 => bytes.iter().map(|&b| f32::from(b as i8)).collect(),
-            Sample::U16 => each(bytes, |b| f32::from(u16::from_ne_bytes(b))),
-            Sample::I16 => each(bytes, |b| f32::from(i16::from_ne_bytes(b))),
-            Sample::U32 => each(bytes, |b| u32::from_ne_bytes(b) as f32),
-            Sample::I32 => each(bytes, |b| i32::from_ne_bytes(b) as f32),
-            Sample::F32 => each(bytes, f32::from_ne_bytes),
-            Sample::F64 => each(bytes, |b| f64::from_ne_bytes(b) as f32),
+            Sample::U8 => each(bytes, out, |[b]| f32::from(b)),
+            Sample::I8 => each(bytes, out, |[b]| f32::from(b as i8)),
+            Sample::U16 => each(bytes, out, |b| f32::from(u16::from_ne_bytes(b))),
+            Sample::I16 => each(bytes, out, |b| f32::from(i16::from_ne_bytes(b))),
+            Sample::U32 => each(bytes, out, |b| u32::from_ne_bytes(b) as f32),
+            Sample::I32 => each(bytes, out, |b| i32::from_ne_bytes(b) as f32),
+            Sample::F32 => each(bytes, out, f32::from_ne_bytes),
+            Sample::F64 => each(bytes, out, |b| f64::from_ne_bytes(b) as f32),
         }
     }
 }
@@ -143,10 +152,14 @@ impl ChunkedRaster {
     /// Chunk `k`'s heights, row-major with the chunk's full width as the
     /// stride (edge tiles are stored whole); a last strip has fewer rows.
     pub fn chunk(&self, k: usize) -> Result<Vec<f32>> {
+        Ok(self.sample.to_f32(&self.chunk_bytes(k)?))
+    }
+
+    /// Chunk `k` as stored, decoded (native-endian samples).
+    fn chunk_bytes(&self, k: usize) -> Result<Vec<u8>> {
         let (cw, ch) = self.chunk;
         let rows = if self.tiled { ch } else { ch.min(self.height - k * ch) };
-        let bytes = self.codec.read_chunk(&self.file, &self.path, k, (self.offsets[k], self.counts[k]), cw, rows, ch)?;
-        Ok(self.sample.to_f32(&bytes))
+        self.codec.read_chunk(&self.file, &self.path, k, (self.offsets[k], self.counts[k]), cw, rows, ch)
     }
 
     /// The whole raster, row-major: each row of chunks read and decoded
@@ -158,12 +171,13 @@ impl ChunkedRaster {
         let mut all = vec![0f32; self.width * self.height];
         all.par_chunks_mut(self.width * ch).enumerate().try_for_each(|(cy, rows)| {
             for cx in 0..across {
-                let c = self.chunk(cy * across + cx)?;
+                // Converted straight into place, row by row.
+                let bytes = self.chunk_bytes(cy * across + cx)?;
                 let x0 = cx * cw;
                 let w = cw.min(self.width - x0);
                 // (A last strip or row of tiles: as many rows as the raster has.)
-                for (from, to) in c.chunks_exact(cw).zip(rows.chunks_exact_mut(self.width)) {
-                    to[x0..x0 + w].copy_from_slice(&from[..w]);
+                for (from, to) in bytes.chunks_exact(cw * self.sample.bytes()).zip(rows.chunks_exact_mut(self.width)) {
+                    self.sample.to_f32_into(from, &mut to[x0..x0 + w]);
                 }
             }
             Ok::<(), crate::error::Error>(())

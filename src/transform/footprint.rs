@@ -18,27 +18,34 @@ const EDGE_STEP_PX: f64 = 4.0;
 /// Ground bounds `[minx, miny, maxx, maxy]` of a `w × h` scan on the DEM:
 /// of the part of it that holds the image, where the model says so (a
 /// film's format).
-pub fn footprint(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64) -> Result<[f64; 4]> {
-    let mut caster = RayCaster::new(model, dem);
+pub fn footprint(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32, z_guess: f64) -> Result<[f64; 4]> {
+    use rayon::prelude::*;
     let outline = image_outline(model.image_area(), w as f64, h as f64);
-    let mut b = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
-    let mut take = |p: [f64; 3]| b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
     let range = dem.height_range();
-    let mut hits = 0;
-    for &(c, r) in &outline {
-        if let Some(p) = caster.cast(c, r, None, z_guess, 1e-3) {
-            take(p);
-            hits += 1;
-            // Down to the lowest height and up to the highest: where the
-            // camera's nadir lies outside the image (an oblique frame), an
-            // edge's rays rise outward.
-            for end in range.map_or(vec![], |(lo, hi)| vec![lo, hi]) {
-                for q in other_crossings(&mut caster, (c, r), p, end) {
-                    take(q);
+    let joined = |a: [f64; 4], b: [f64; 4]| [a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])];
+    let none = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+    // The outline's points on the pool (thousands of rays on a large
+    // frame, walked through a DSM): the bounds of each point's ground
+    // points, and whether its ray met the DEM.
+    let (b, hits) = outline
+        .par_iter()
+        .map_init(
+            || RayCaster::new(model, dem),
+            |caster, &(c, r)| {
+                let Some(p) = caster.cast(c, r, None, z_guess, 1e-3) else { return (none, 0) };
+                let mut b = [p[0], p[1], p[0], p[1]];
+                // Down to the lowest height and up to the highest: where the
+                // camera's nadir lies outside the image (an oblique frame), an
+                // edge's rays rise outward.
+                for end in range.map_or(vec![], |(lo, hi)| vec![lo, hi]) {
+                    for q in other_crossings(caster, (c, r), p, end) {
+                        b = joined(b, [q[0], q[1], q[0], q[1]]);
+                    }
                 }
-            }
-        }
-    }
+                (b, 1)
+            },
+        )
+        .reduce(|| (none, 0), |(a, m), (b, n)| (joined(a, b), m + n));
     if hits < 4 {
         return Err(Error::Geometry(format!("only {hits} of {} points on the image's edges meet the DEM: does the DEM cover the scan?", outline.len())));
     }
@@ -51,7 +58,7 @@ pub fn footprint(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f6
 /// every ground point on it is imaged at `(c, r)` (hidden or not). The
 /// ray is walked at half the DEM's posting; each crossing is polished by
 /// the caster.
-fn other_crossings(caster: &mut RayCaster<'_, dyn SensorModel + '_>, (c, r): (f64, f64), hit: [f64; 3], low: f64) -> Vec<[f64; 3]> {
+fn other_crossings<M: SensorModel + ?Sized>(caster: &mut RayCaster<'_, M>, (c, r): (f64, f64), hit: [f64; 3], low: f64) -> Vec<[f64; 3]> {
     let mut found = Vec::new();
     if hit[2] == low || !low.is_finite() {
         return found;
