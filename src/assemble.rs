@@ -38,6 +38,11 @@ pub struct AssembleOptions {
     pub fill: Option<f64>,
     /// Sync the file before it takes its name.
     pub sync: bool,
+    /// The pieces may make up part of the whole their source names (a
+    /// mosaic piece's strips): not refused for it, and the file keeps
+    /// their source. Otherwise they must make up that whole, and the file
+    /// is the whole's.
+    pub partial: bool,
 }
 
 impl Default for AssembleOptions {
@@ -52,6 +57,7 @@ impl Default for AssembleOptions {
             bigtiff: None,
             fill: None,
             sync: true,
+            partial: false,
         }
     }
 }
@@ -153,6 +159,26 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
     if let Some(missing) = owner.iter().position(Option::is_none) {
         return Err(Error::Usage(format!("no piece covers tile ({}, {}) of the whole", missing as u32 % ta, missing as u32 / ta)));
     }
+    // Pieces name the whole they are pieces of: a set that leaves out its
+    // edge (a last shard that failed) would make a smaller file, not a gap.
+    let (key, whole) = match geo0.source.as_deref() {
+        Some(s) => crate::io::geotiff::whole_of(s),
+        None => ("", None),
+    };
+    if let (Some((ww, wh, wx0, wy0)), false) = (whole, opts.partial) {
+        let at_origin = (x_min - wx0).abs() <= 1e-6 * gsd.x && (y_max - wy0).abs() <= 1e-6 * gsd.y;
+        if !at_origin || (w, h) != (ww, wh) {
+            let (c0, r0) = (((x_min - wx0) / tile_m.x).round() as i64, ((wy0 - y_max) / tile_m.y).round() as i64);
+            return Err(Error::Usage(format!(
+                "the pieces make tiles {c0}..{} across and {r0}..{} down of a whole of {} × {} tiles ({ww} × {wh} px): pieces at its edges are missing",
+                c0 + ta as i64,
+                r0 + td as i64,
+                ww.div_ceil(tile),
+                wh.div_ceil(tile)
+            )));
+        }
+    }
+    let source = if opts.partial || whole.is_none() { geo0.source.clone() } else { Some(key.to_string()) };
     let compression = match first.compression {
         1 => Compression::None,
         5 => Compression::Lzw,
@@ -270,7 +296,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
             }
         }
     }
-    writer.finish(statistics.gdal_metadata(geo0.source.as_deref())).map_err(tw)?;
+    writer.finish(statistics.gdal_metadata(source.as_deref())).map_err(tw)?;
     verify(pending.path(), &spec)?;
     pending.publish_synced(opts.sync)
 }

@@ -297,6 +297,18 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     let o = run(&["assemble", "-o", s(&d.join("gap.tif")), s(&pieces[0]), s(&pieces[1])]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("no piece covers tile"));
+    // Pieces that leave out an edge of the whole (a last shard that
+    // failed) make no smaller file: refused, naming what is missing.
+    for (set, missing) in [(vec![&pieces[0]], "0..2 across"), (vec![&pieces[1], &pieces[2], &pieces[3]], "2..")] {
+        let edge = d.join("edge.tif");
+        let mut a = vec!["assemble", "-o", s(&edge)];
+        a.extend(set.iter().map(|p| s(p)));
+        let o = run(&a);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains("pieces at its edges are missing") && err.contains(missing), "{err}");
+        assert!(!edge.exists());
+    }
     // A piece of another orthophoto on the same grid (here resampled
     // otherwise) is refused by name, nothing written.
     let cubic = d.join("cubic.tif");

@@ -94,6 +94,29 @@ pub struct GeoRef {
 /// hash; not its window): `assemble` joins only pieces that agree on it.
 pub const SOURCE_ITEM: &str = "GCM_ORTHO_SOURCE";
 
+/// A piece's source: its orthophoto's, and the whole grid it is a piece of
+/// (its size and top-left corner), so that `assemble` can refuse a set of
+/// pieces that leaves out an edge of the whole.
+pub fn piece_source(source: &str, whole: &crate::geom::OutputGrid) -> String {
+    format!("{source}{WHOLE}{}x{} at {},{}", whole.width, whole.height, whole.x0, whole.y0)
+}
+
+/// What joins a piece's source to its whole.
+const WHOLE: &str = " whole ";
+
+/// A source's orthophoto part and, for a piece ([`piece_source`]), the
+/// whole's width, height and top-left corner.
+pub fn whole_of(source: &str) -> (&str, Option<(u32, u32, f64, f64)>) {
+    let Some((key, whole)) = source.split_once(WHOLE) else { return (source, None) };
+    let parsed = (|| {
+        let (size, at) = whole.split_once(" at ")?;
+        let (w, h) = size.split_once('x')?;
+        let (x0, y0) = at.split_once(',')?;
+        Some((w.parse().ok()?, h.parse().ok()?, x0.parse().ok()?, y0.parse().ok()?))
+    })();
+    (key, parsed)
+}
+
 /// The dataset item `name` of GDAL's metadata XML.
 fn dataset_item(xml: &str, name: &str) -> Option<String> {
     let doc = roxmltree::Document::parse(xml.trim_matches(char::from(0))).ok()?;

@@ -310,8 +310,10 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             unseen: Default::default(),
             covered: Default::default(),
         };
+        // A piece also names the whole it is a piece of.
+        let piece_source = if o.window.is_some() { crate::io::geotiff::piece_source(&source, &plan.grid) } else { source.clone() };
         let pieces =
-            PieceRender { plan: &plan, compose: &compose, works: &works, threads, pool: &pool, fill, first: &first, progress, cancel, source: &source };
+            PieceRender { plan: &plan, compose: &compose, works: &works, threads, pool: &pool, fill, first: &first, progress, cancel, source: &piece_source };
         match render::budget(&plan, &works, &spec, (tr0, trh), o.memory) {
             Ok(fit) => {
                 pieces.render(window, &spec, fit, (out, pending, o.sync), &mut hidden)?;
@@ -332,7 +334,8 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
                     pieces.render(strip, &spec, fit, (&path, PendingFile::create(&path)?, false), &mut hidden)?;
                     paths.push(path);
                 }
-                crate::assemble::assemble(&paths, out, &assembly(layout, &first, fill, o.sync), cancel)?;
+                // (Strips of a piece are a part of the whole their source names.)
+                crate::assemble::assemble(&paths, out, &AssembleOptions { partial: true, ..assembly(layout, &first, fill, o.sync) }, cancel)?;
             }
         }
         crate::batch::write_sidecar(out, &key)?;
@@ -448,6 +451,7 @@ fn fill_of(sample: crate::io::source::SampleType) -> f64 {
 /// single run writes: its layout, its codec levels, its `fill`.
 fn assembly(layout: (Overviews, bool), first: &RectifyOptions, fill: f64, sync: bool) -> AssembleOptions {
     AssembleOptions {
+        partial: false,
         fill: Some(fill),
         sync,
         overviews: layout.0,

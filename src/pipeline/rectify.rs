@@ -89,7 +89,11 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         pyramid: Pyramid::new(spec, opts.overview_resampling, ValidBy::of(spec), plan.pixels.fill).map(std::sync::Mutex::new),
         valid_by: ValidBy::of(spec),
         statistics: Default::default(),
-        source: Some(crate::batch::source_key(opts)),
+        // A piece also names the whole it is a piece of.
+        source: Some(match opts.window {
+            Some(_) => crate::io::geotiff::piece_source(&crate::batch::source_key(opts), &plan.grid),
+            None => crate::batch::source_key(opts),
+        }),
     };
     let result = if sequential { run_sequential(&run, out_file, flush_file) } else { run_threaded(&run, out_file, flush_file) };
     progress.finish();
