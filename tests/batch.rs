@@ -399,3 +399,21 @@ fn nodata_in_a_manifest() {
     assert_eq!(r.status.code(), Some(3), "{err}");
     assert!(err.contains("line") && err.contains("nodata") && err.contains("neither auto, mask nor a number"), "{err}");
 }
+
+/// The same image in two jobs, however spelt, is refused naming both lines
+/// (before, a second was taken under a longer name and rectified twice;
+/// a third was refused naming itself as the second).
+#[test]
+fn the_same_image_twice_is_refused_naming_both_jobs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    block(d, 1);
+    let job = |image: &str| format!("[[job]]\nimage = \"{image}\"\ncamera = \"scene/camera.toml\"\n");
+    let text = format!("[defaults]\ndem = \"scene/dem.tif\"\n\n{}{}{}", job("scans/s00.tif"), job("./scans/s00.tif"), job("scans/../scans/s00.tif"));
+    std::fs::write(d.join("manifest.toml"), text).unwrap();
+    let o = batch(d, &["--dry-run"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains("line 7: a second job for the image") && err.contains("./scans/s00.tif (the first at line 4)"), "{err}");
+    assert!(err.contains("line 10: a second job for the image") && err.contains("scans/../scans/s00.tif (the first at line 4)"), "{err}");
+}

@@ -246,7 +246,15 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         errors.push(format!("{}: no [[job]] and no [block]", path.display()));
     }
     let mut names = std::collections::HashSet::new();
+    // Each image's first job's line: the same image twice is a mistake,
+    // however spelt (two images of one name in two folders are not).
+    let mut seen: std::collections::HashMap<PathBuf, usize> = std::collections::HashMap::new();
     for Entry { image, camera, inline, output, options: opts, line } in entries {
+        let first = *seen.entry(std::fs::canonicalize(&image).unwrap_or_else(|_| image.clone())).or_insert(line);
+        if first != line {
+            errors.push(format!("{}: a second job for the image {} (the first at line {first})", at(line), image.display()));
+            continue;
+        }
         // The image's name; where two images share it (scan.tif in two
         // folders), its path from the manifest's folder.
         let stem = image.file_stem().and_then(|s| s.to_str()).unwrap_or("job").to_string();
