@@ -90,9 +90,9 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         valid_by: ValidBy::of(spec),
         statistics: Default::default(),
         // A piece also names the whole it is a piece of.
-        source: Some(match opts.window {
-            Some(_) => crate::io::geotiff::piece_source(&crate::batch::source_key(opts), &plan.grid),
-            None => crate::batch::source_key(opts),
+        source: Some(match (opts.window, crate::batch::source_key(opts)) {
+            (Some(_), key) => crate::io::geotiff::piece_source(&key, &plan.grid),
+            (None, key) => key,
         }),
     };
     let result = if sequential { run_sequential(&run, out_file, flush_file) } else { run_threaded(&run, out_file, flush_file) };
