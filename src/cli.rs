@@ -26,6 +26,14 @@ fn choice<T: Choice>() -> impl TypedValueParser<Value = T> {
     PossibleValuesParser::new(T::NAMES).map(|s| T::from_name(&s).expect("a listed name"))
 }
 
+/// A count of 1 or more.
+fn at_least_one(s: &str) -> std::result::Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!("'{s}' is not a whole number from 1 up")),
+    }
+}
+
 /// The flag of a setting named by its key (`dem_hole` → `--dem-hole`).
 pub fn flag(setting: &str) -> String {
     format!("--{}", setting.replace('_', "-"))
@@ -274,7 +282,8 @@ pub struct AssembleArgs {
 #[derive(Args, Debug)]
 pub struct LayoutArgs {
     /// Internal overviews: auto (2×, 4×, … until one tile holds the
-    /// level), none, or the factors 2,4,…,2ⁿ. Made while the tiles stream.
+    /// level; one at least on an image over 512 px), none (or 0), or the
+    /// factors 2,4,…,2ⁿ. Made while the tiles stream.
     #[arg(long, default_value = "auto")]
     pub overviews: String,
     /// How an overview pixel is made of the four below it: average (of
@@ -317,8 +326,8 @@ impl LayoutArgs {
 pub struct BatchArgs {
     /// The manifest (TOML).
     pub manifest: PathBuf,
-    /// Jobs to run at a time, sharing --memory.
-    #[arg(long, default_value_t = 1)]
+    /// Jobs to run at a time (1 or more), sharing --memory.
+    #[arg(long, default_value_t = 1, value_parser = at_least_one)]
     pub jobs: usize,
     /// Memory budget of the whole batch.
     #[arg(long, default_value = "256M")]

@@ -99,7 +99,7 @@ fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {
                 "90" => 1,
                 "180" => 2,
                 "270" => 3,
-                _ => return Err(anyhow!("--turn: '{t}' is not 0, 90, 180 or 270 (with m after it for a mirrored scan)")),
+                _ => return Err(gcm_ortho::Error::setting("turn", format!("'{t}' is not 0, 90, 180 or 270 (with m after it for a mirrored scan)")).into()),
             };
             Some(Turn { quarters, mirrored })
         }
@@ -213,7 +213,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         plan_in: a.plan.clone(),
         window,
         memory,
-        threads: a.threads,
+        threads: threads_within_cores(a.threads, 1).0,
         cog: a.cog.then_some(true),
         overviews: None,
         force: a.force,
@@ -290,7 +290,8 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
             a.jobs
         );
     }
-    let o = BatchOptions { manifest: a.manifest.clone(), jobs: at_once, memory, force: a.force, report: a.report.clone(), shard, threads: a.threads };
+    let threads = threads_within_cores(a.threads, at_once).0;
+    let o = BatchOptions { manifest: a.manifest.clone(), jobs: at_once, memory, force: a.force, report: a.report.clone(), shard, threads };
     if a.dry_run {
         let mine: Vec<_> = jobs.iter().enumerate().filter(|(i, _)| i % shard.1 == shard.0).collect();
         for (i, j) in &mine {
@@ -462,11 +463,30 @@ fn past_budget(given: &str, budget: u64) -> Option<String> {
     })
 }
 
+/// `--threads` within this machine's cores (`at_once` jobs sharing them):
+/// more threads than cores only cut the memory budget into slivers and
+/// slow every step. Said on stderr, even with --quiet; 0 (every core) stays.
+fn threads_within_cores(asked: usize, at_once: usize) -> (usize, Option<String>) {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    // Past the most taken it is refused by name when the options are checked.
+    if asked * at_once <= cores || asked > RectifyOptions::MAX_THREADS {
+        return (asked, None);
+    }
+    let fit = (cores / at_once).max(1);
+    let jobs = if at_once > 1 { format!(" for each of {at_once} jobs at once") } else { String::new() };
+    let w = format!("--threads {asked}{jobs} is more than the {cores} cores here: running {fit} a job");
+    eprintln!("gcm-ortho: warning: {w}");
+    (fit, Some(w))
+}
+
 fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
-    let opts = a.options()?;
+    let mut opts = a.options()?;
     let json: Vec<Role> = a.json.iter().map(|j| Role::new("report", j)).collect();
     opts.check_outputs(&json)?;
+    let too_many;
+    (opts.threads, too_many) = threads_within_cores(opts.threads, 1);
     let mut report = rectify(&opts, &Bar::new(a.quiet), &signals.cancel)?;
+    report.warnings.extend(too_many);
     if let Some(w) = past_budget(&a.memory, opts.memory) {
         eprintln!("gcm-ortho: warning: {w}");
         report.warnings.push(w);

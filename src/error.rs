@@ -59,6 +59,16 @@ impl Error {
     pub fn config(path: impl AsRef<Path>, field: impl Into<String>, msg: impl Into<String>) -> Self {
         Error::Config { path: path.as_ref().to_path_buf(), field: field.into(), msg: msg.into() }
     }
+    /// A problem at `origin` (a file and line, an image) of the file
+    /// `path`: the file named once, also where `origin` names it already.
+    pub fn at(path: impl AsRef<Path>, origin: &str, msg: impl std::fmt::Display) -> Self {
+        let path = path.as_ref();
+        if origin.starts_with(&*path.to_string_lossy()) {
+            Error::Named(format!("{origin}: {msg}"))
+        } else {
+            Error::format(path, format!("{origin}: {msg}"))
+        }
+    }
     pub fn setting(setting: &'static str, msg: impl Into<String>) -> Self {
         Error::Setting { setting, msg: msg.into() }
     }

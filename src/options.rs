@@ -128,6 +128,7 @@ pub fn parse_bytes(setting: &'static str, s: &str) -> Result<u64> {
         Some('K' | 'k') => (&t[..t.len() - 1], 1u64 << 10),
         Some('M' | 'm') => (&t[..t.len() - 1], 1 << 20),
         Some('G' | 'g') => (&t[..t.len() - 1], 1 << 30),
+        Some('T' | 't') => (&t[..t.len() - 1], 1 << 40),
         _ => (t, 1),
     };
     let v: f64 = num.parse().map_err(|_| Error::setting(setting, format!("'{s}' is not a size like 128M")))?;
@@ -510,6 +511,12 @@ impl RectifyOptions {
         if let Nodata::Value(v) = self.nodata {
             if !v.is_finite() && !v.is_nan() {
                 return Err(Error::setting("nodata", format!("{v} is not a number a raster can hold")));
+            }
+        }
+        if let DemSource::Height(h) = self.dem {
+            // The deepest trench to the highest peak, with a margin.
+            if !(h.abs() <= 12_000.0) {
+                return Err(Error::setting("height", format!("{h} m is not a height of the earth's surface (−12 000 to 12 000 m)")));
             }
         }
         if self.max_output_pixels == Some(0) {

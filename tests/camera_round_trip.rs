@@ -111,6 +111,23 @@ fn what_other_forms_cannot_hold_is_refused_by_name() {
         assert!(!r.status.success() && e.contains("interior") && e.contains("fiducial"), "{target}: {e}");
         assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "{target}: nothing written");
     }
+    // Refraction and the earth's curvature: neither form models them, so
+    // they are refused by name, not dropped.
+    let dr = drone(&dir.path().join("drone"));
+    let text = std::fs::read_to_string(&dr.camera).unwrap();
+    let (head, _) = text.split_once("[corrections]").expect("the synthetic camera has corrections");
+    for (corrections, word) in [("refraction = \"auto\"\n", "refraction = \"auto\""), ("earth_curvature = true\n", "earth_curvature = true")] {
+        let cam = dir.path().join("corrected.toml");
+        std::fs::write(&cam, format!("{head}[corrections]\n{corrections}")).unwrap();
+        for target in ["orthority", "opensfm"] {
+            let out = dir.path().join(format!("c-{target}"));
+            let r = run(&["cameras", "--camera", s(&cam), s(&dr.scan), "--out-dir", s(&out), "--to", target]);
+            let e = String::from_utf8_lossy(&r.stderr);
+            assert_eq!(r.status.code(), Some(1), "{target}: {e}");
+            assert!(e.contains("[corrections]") && e.contains(word) && e.contains("corrected.toml"), "{target}: {e}");
+            assert!(!out.exists() || std::fs::read_dir(&out).unwrap().count() == 0, "{target}: nothing written");
+        }
+    }
     // Never over an input: the camera file is scan.toml, where the
     // image's camera would be written.
     let own = sc.scan.with_extension("toml");

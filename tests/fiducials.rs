@@ -189,16 +189,22 @@ fn the_command_writes_the_camera_file_a_sheet_and_json_and_never_over_its_inputs
     assert_eq!(r.status.code(), Some(2), "{}", String::from_utf8_lossy(&r.stderr));
     assert_eq!(std::fs::read_to_string(&camera).unwrap(), text);
     // Absurd numbers: refused by the option's name, nothing written.
-    for (flag, value) in [("--max-residual-px", "nan"), ("--scan-pixel-mm", "0"), ("--size-mm", "1e9")] {
+    for (flag, value) in [("--max-residual-px", "nan"), ("--scan-pixel-mm", "0"), ("--size-mm", "1e9"), ("--turn", "45"), ("--shape", "blob")] {
         let r = run(&["fiducials", "--image", s(&scan), "--camera", s(&camera), flag, value, "--write", s(&dir.path().join("no.toml"))]);
         let err = String::from_utf8_lossy(&r.stderr);
         assert!(r.status.code() == Some(2) && err.contains(flag) && err.lines().count() == 1, "{flag} {value}: {err}");
         assert!(!dir.path().join("no.toml").exists());
     }
-    // A shape it does not know: one line naming it.
+    // A shape it does not know: named, with the shapes it knows, and not
+    // the camera file, which is not at fault.
     let r = run(&["fiducials", "--image", s(&scan), "--camera", s(&camera), "--shape", "star"]);
     let err = String::from_utf8_lossy(&r.stderr);
-    assert!(!r.status.success() && err.contains("unknown mark shape 'star'") && err.lines().count() == 1, "{err}");
+    assert!(err.contains("--shape: unknown mark shape 'star'") && err.contains("cross-dot") && !err.contains("template"), "{err}");
+    assert!(!err.contains(&*camera.to_string_lossy()), "{err}");
+    // A folder that is not there: named as given, not as its temporary.
+    let r = run(&["fiducials", "--image", s(&scan), "--camera", s(&camera), "--write", s(&dir.path().join("gone/m.toml"))]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.code() == Some(1) && err.contains("gone/m.toml") && !err.contains("partial") && err.lines().count() == 1, "{err}");
 }
 
 #[test]

@@ -155,6 +155,7 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     let err = String::from_utf8_lossy(&out.stderr);
     assert_ne!(out.status.code(), Some(0));
     assert!(err.contains("003.tif") && err.trim().lines().count() == 1, "{err}");
+    assert_eq!(err.matches("manifest.toml").count(), 1, "the manifest named once: {err}");
     assert!(!d.join("out.tif").exists());
     assert!(common::files_containing(d, "out.tif").is_empty(), "a temporary was left");
     // A blend that is not a width.
@@ -162,6 +163,20 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     let out = std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "out.tif", "--blend", "-3", "--quiet"]).output().unwrap();
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--blend"));
+    // Bounds no image sees, or a GSD that leaves no cell any image sees:
+    // refused naming the option and where the images are, not a mosaic of
+    // nothing with exit 0.
+    for (args, flag) in [(&["--bounds", "0,0,1000,1000"][..], "--bounds"), (&["--gsd", "1e5"][..], "--gsd")] {
+        let out = std::process::Command::new(bin())
+            .current_dir(d)
+            .args([&["mosaic", "manifest.toml", "-o", "out.tif", "--quiet"][..], args].concat())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(flag) && err.contains("no image sees") && err.trim().lines().count() == 1, "{err}");
+        assert!(!d.join("out.tif").exists());
+    }
     // Too little memory for the render: refused in one line with the
     // figure that would do, nothing left behind; that figure runs.
     let out =
@@ -318,6 +333,10 @@ fn edited_seamlines_are_honoured() {
     std::fs::write(&file, other).unwrap();
     let e = gcm_ortho::mosaic::seamlines::read(&mut make(), &file).unwrap_err().to_string();
     assert!(e.contains("edited.geojson") && e.contains("EPSG:32632"), "{e}");
+    // A geometry that is not an area: its type named as the file has it.
+    std::fs::write(&file, doc.to_string().replacen(r#""type":"Polygon""#, r#""type":"Point""#, 1)).unwrap();
+    let e = gcm_ortho::mosaic::seamlines::read(&mut make(), &file).unwrap_err().to_string();
+    assert!(e.contains("'Point': expected Polygon or MultiPolygon") && !e.contains("Some("), "{e}");
 }
 
 #[test]

@@ -235,6 +235,11 @@ fn absurd_settings_are_refused_before_any_work_with_their_flag() {
         assert!(t.elapsed().as_secs() < 10, "{extra:?} took {:?}", t.elapsed());
         assert!(files_containing(d, "partial").is_empty());
     }
+    // A constant height no ground has.
+    refused(d, &["rectify", "--image", s(&scan), "--camera", s(&camera), "--height=-1e30", "--quiet", "-o", s(&out)], &["--height", "earth's surface"]);
+    // A GSD past the footprint is said to be that, not too many pixels.
+    refused(d, &[&base[..], &["--gsd", "1e30"]].concat(), &["--gsd", "less than one pixel"]);
+    refused(d, &[&base[..], &["--gsd", "1e-30"]].concat(), &["--gsd", "more pixels a side than a raster holds"]);
     // The limit is the user's to set, down or up.
     refused(d, &[&base[..], &["--max-output-pixels", "1k"]].concat(), &["--max-output-pixels", "0.00 Gpx allowed"]);
     let r = run(&[&base[..], &["--max-output-pixels", "1G"]].concat());
@@ -568,6 +573,15 @@ fn doubtful_inputs_are_warned_about_even_when_quiet() {
     let t = g.transform;
     f32_raster_with_keys(&bare, (g.width as u32, g.height as u32), (t[0], t[3], t[1]), Default::default(), |c, r| g.sample(c as usize, r as usize));
     warned(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&bare), "--quiet", "-o", s(&out)], &["has no CRS"]);
+    // More threads than cores: fewer taken, said so; a GSD so coarse the
+    // output is one pixel: its aliasing said (a whole pixel from the grid's
+    // centre lies past the horizon there).
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let many = (cores + 1).to_string();
+    for (extra, words) in [(["--threads", &many], &["--threads", "more than the"]), (["--gsd", "1e5"], &["scan pixels", "aliases"])] {
+        std::fs::remove_file(&out).unwrap();
+        warned(&[&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&out)][..], &extra].concat(), words);
+    }
     // A camera for another scan: its principal point far off this one's
     // centre (the marks 60 px to the right).
     let text = std::fs::read_to_string(&camera).unwrap();

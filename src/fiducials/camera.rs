@@ -64,7 +64,10 @@ pub fn detect_for(file: &CameraFile, camera_path: &Path, src: &SourceImage, over
             let mut shapes = Vec::new();
             for name in &names {
                 let look = MarkLook { shape: name.clone(), size_mm: over.size_mm.or(setting.size_mm), line_mm: setting.line_mm, dot_mm: setting.dot_mm };
-                shapes.push(Shape::from_look(&look).map_err(|m| err("fiducial_mark", m))?);
+                shapes.push(Shape::from_look(&look).map_err(|m| match over.shape {
+                    Some(_) => Error::setting("shape", m),
+                    None => err("fiducial_mark", format!("{m}; or a template image: template = \"FILE\" with template_pixel_mm")),
+                })?);
             }
             let index = names.iter().map(|n| distinct.iter().position(|d| d == n).expect("listed")).collect();
             (shapes, index)

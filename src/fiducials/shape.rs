@@ -141,7 +141,7 @@ impl Shape {
             "cross-dot" => (2.0, 0.08, 0.12),
             "corner-dot" => (2.0, 0.0, 0.15),
             "wings" => (2.0, 0.0, 0.12),
-            other => return Err(format!("unknown mark shape '{other}' (one of {}, or a template image)", SHAPE_NAMES.join(", "))),
+            other => return Err(format!("unknown mark shape '{other}' (one of {})", SHAPE_NAMES.join(", "))),
         };
         let size = look.size_mm.unwrap_or(size0);
         let line = look.line_mm.unwrap_or(line0);

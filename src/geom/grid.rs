@@ -202,6 +202,18 @@ impl OutputGrid {
         Some(OutputGrid { x0, y0, gsd, width: w as u32, height: h as u32 })
     }
 
+    /// Why `from_bounds` gave no grid, for a message after "BOUNDS at GSD G".
+    pub fn no_grid_because([minx, miny, maxx, maxy]: [f64; 4], gsd: Gsd) -> &'static str {
+        let (w, h) = ((maxx - minx) / gsd.x, (maxy - miny) / gsd.y);
+        if !(w > 0.0 && h > 0.0) {
+            "is empty"
+        } else if w.max(h) > u32::MAX as f64 {
+            "is more pixels a side than a raster holds"
+        } else {
+            "is less than one pixel a side"
+        }
+    }
+
     /// GDAL geotransform `[x0, gsd.x, 0, y0, 0, −gsd.y]`.
     #[must_use]
     pub fn geotransform(&self) -> [f64; 6] {

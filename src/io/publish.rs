@@ -116,7 +116,12 @@ fn temporary_beside(target: &Path) -> (PathBuf, String) {
 impl PendingFile {
     pub fn create(target: &Path) -> Result<PendingFile> {
         let (dir, prefix) = temporary_beside(target);
-        let tmp = tempfile::Builder::new().prefix(&prefix).suffix(SUFFIX).tempfile_in(&dir).map_err(|e| Error::io(&dir, e))?;
+        // Named by the file asked for: tempfile's own error names its
+        // temporary, which the user never gave.
+        let tmp = tempfile::Builder::new().prefix(&prefix).suffix(SUFFIX).tempfile_in(&dir).map_err(|e| {
+            let bare = e.raw_os_error().map_or_else(|| std::io::Error::from(e.kind()), std::io::Error::from_raw_os_error);
+            Error::io(target, bare)
+        })?;
         crate::io::mmap_guard::register_cleanup(tmp.path());
         Ok(PendingFile { tmp: Some(tmp), target: target.to_path_buf() })
     }

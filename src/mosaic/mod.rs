@@ -166,7 +166,8 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     }
     let jobs = crate::batch::manifest::load(&o.manifest).map_err(|e| e.into_error())?;
     if let Some(bad) = jobs.iter().find_map(|j| j.problem.clone()) {
-        return Err(Error::format(&o.manifest, bad));
+        // It names the manifest and line already.
+        return Err(Error::Named(bad));
     }
     // Nothing the mosaic writes may be anything it reads.
     let (inputs, _) = crate::batch::manifest::files(&jobs);

@@ -246,17 +246,21 @@ impl Plan {
             g.sort_by(f64::total_cmp);
             Gsd::square(g[g.len() / 2])
         });
-        let bounds = s.bounds.unwrap_or_else(|| {
-            images.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, (_, f)| {
-                [b[0].min(f[0]), b[1].min(f[1]), b[2].max(f[2]), b[3].max(f[3])]
-            })
+        let union = images.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, (_, f)| {
+            [b[0].min(f[0]), b[1].min(f[1]), b[2].max(f[2]), b[3].max(f[3])]
         });
+        let bounds = s.bounds.unwrap_or(union);
         if !gsd.is_valid() {
             return Err(Error::setting("gsd", format!("{gsd} is not a pixel size")));
         }
         let grid = match s.grid {
             Some(g) => g,
-            None => OutputGrid::from_bounds(bounds, gsd, Snap::Tap).ok_or_else(|| Error::setting("bounds", format!("{bounds:?} at GSD {gsd} is empty")))?,
+            None => OutputGrid::from_bounds(bounds, gsd, Snap::Tap).ok_or_else(|| {
+                Error::setting(
+                    if s.bounds.is_some() { "bounds" } else { "gsd" },
+                    format!("{bounds:?} at GSD {gsd} {}", OutputGrid::no_grid_because(bounds, gsd)),
+                )
+            })?,
         };
         // A GSD or bounds typo makes a mosaic of days: refused before any
         // work, as rectify refuses one (16 times the scans' pixels at most).
@@ -320,6 +324,19 @@ impl Plan {
             plan.images.push(im);
         }
         progress.finish();
+        // A mosaic no image sees is a mistake in the bounds or the GSD,
+        // never a result.
+        if plan.label.iter().all(|&l| l == NONE) {
+            let [x0, y0, x1, y1] = union;
+            let what = format!(
+                "no image sees any of the mosaic's {}×{} px at GSD {gsd}; the images cover [{x0:.0}, {y0:.0}, {x1:.0}, {y1:.0}]",
+                plan.grid.width, plan.grid.height
+            );
+            return Err(match s.bounds {
+                Some(b) => Error::setting("bounds", format!("{b:?}: {what}")),
+                None => Error::setting("gsd", what),
+            });
+        }
         Ok(plan)
     }
 }

@@ -236,7 +236,8 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
         let polygons: Vec<&serde_json::Value> = match geometry.get("type").and_then(|t| t.as_str()) {
             Some("Polygon") => vec![coords],
             Some("MultiPolygon") => coords.as_array().map(|a| a.iter().collect()).unwrap_or_default(),
-            other => return Err(Error::config(path, field("geometry.type"), format!("{other:?}: expected Polygon or MultiPolygon"))),
+            Some(other) => return Err(Error::config(path, field("geometry.type"), format!("'{other}': expected Polygon or MultiPolygon"))),
+            None => return Err(Error::config(path, field("geometry.type"), "missing: expected Polygon or MultiPolygon")),
         };
         let mut parts = Vec::new();
         for poly in polygons {

@@ -234,7 +234,7 @@ impl RunPlan {
                 };
                 match opts.bounds {
                     Some(b) => OutputGrid::from_bounds(b, gsd, opts.snap)
-                        .ok_or_else(|| Error::setting("bounds", format!("{b:?} at GSD {gsd} is empty, or more pixels a side than a raster holds")))?,
+                        .ok_or_else(|| Error::setting("bounds", format!("{b:?} at GSD {gsd} {}", OutputGrid::no_grid_because(b, gsd))))?,
                     None => auto_grid(model, &dem, sw, sh, z_guess, gsd).map_err(on_dem)?,
                 }
             }
@@ -378,7 +378,7 @@ impl RunPlan {
         let footprint = if opts.kernel.area().is_some() { footprint_reach(&approx, &grid) } else { 0 };
         // A point kernel on output pixels several scan pixels wide reads a
         // few of the pixels under each: the texture aliases.
-        if let (None, Some(e)) = (opts.kernel.area(), pixel_extent(&approx, grid.width as f64 / 2.0, grid.height as f64 / 2.0)) {
+        if let (None, Some(e)) = (opts.kernel.area(), pixel_extent(&approx, grid.width as f64 / 2.0, grid.height as f64 / 2.0, 1.0 / 64.0)) {
             if e >= ALIASING_EXTENT {
                 progress.warn(&format!(
                     "output pixels span about {e:.0} scan pixels: --resample {} reads a few of them under each, so fine texture aliases; --resample average takes them all",
@@ -534,7 +534,7 @@ fn footprint_reach(a: &Approx, g: &OutputGrid) -> u32 {
     let mut most = 0f64;
     for i in 0..=8 {
         for j in 0..=8 {
-            if let Some(e) = pixel_extent(a, g.width as f64 * i as f64 / 8.0, g.height as f64 * j as f64 / 8.0) {
+            if let Some(e) = pixel_extent(a, g.width as f64 * i as f64 / 8.0, g.height as f64 * j as f64 / 8.0, 1.0) {
                 most = most.max(e);
             }
         }
@@ -543,10 +543,11 @@ fn footprint_reach(a: &Approx, g: &OutputGrid) -> u32 {
 }
 
 /// The extent in scan pixels, along the scan's wider axis, of the output
-/// pixel at (u, v), by `A`.
-fn pixel_extent(a: &Approx, u: f64, v: f64) -> Option<f64> {
-    let (p, pu, pv) = (a.at(u, v)?, a.at(u + 1.0, v)?, a.at(u, v + 1.0)?);
-    let extent = ((pu.0 - p.0).abs() + (pv.0 - p.0).abs()).max((pu.1 - p.1).abs() + (pv.1 - p.1).abs());
+/// pixel at (u, v), by `A` over a step of `d` px scaled up (a whole pixel
+/// on from the centre of a coarse grid may lie past the horizon).
+fn pixel_extent(a: &Approx, u: f64, v: f64, d: f64) -> Option<f64> {
+    let (p, pu, pv) = (a.at(u, v)?, a.at(u + d, v)?, a.at(u, v + d)?);
+    let extent = ((pu.0 - p.0).abs() + (pv.0 - p.0).abs()).max((pu.1 - p.1).abs() + (pv.1 - p.1).abs()) / d;
     extent.is_finite().then_some(extent)
 }
 

@@ -162,8 +162,7 @@ pub fn mean_gsd(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64
 /// The default grid: footprint snapped to `gsd`.
 pub fn auto_grid(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64, gsd: crate::geom::Gsd) -> Result<OutputGrid> {
     let b = footprint(model, dem, w, h, z_guess)?;
-    // The footprint has area: no grid means more pixels a side than a raster holds.
     OutputGrid::snapped(b[0], b[1], b[2], b[3], gsd).ok_or_else(|| {
-        Error::setting("gsd", format!("{gsd} makes the footprint {:.0} × {:.0} m more pixels a side than a raster holds", b[2] - b[0], b[3] - b[1]))
+        Error::setting("gsd", format!("the footprint of {:.0} × {:.0} m at GSD {gsd} {}", b[2] - b[0], b[3] - b[1], OutputGrid::no_grid_because(b, gsd)))
     })
 }

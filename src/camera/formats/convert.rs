@@ -4,6 +4,7 @@
 //! fixed before a night's run, and a block can go back to those tools.
 
 use super::{distinct_lenses, opensfm, orthority, Lens, Pose};
+use crate::camera::atmosphere::Refraction;
 use crate::camera::file::CameraFile;
 use crate::camera::rotation::AngleConvention;
 use crate::error::{Error, Result};
@@ -102,9 +103,7 @@ pub fn convert(o: &ConvertOptions) -> Result<Converted> {
         if e.file.crs.trim().is_empty() {
             match &o.crs {
                 Some(c) => e.file.crs = c.epsg().map_or_else(|| c.proj4().to_string(), |n| format!("EPSG:{n}")),
-                None => {
-                    return Err(Error::format(&o.camera, format!("{}: the CRS of the positions is not given: a .prj beside the poses, or --crs", e.origin)))
-                }
+                None => return Err(Error::at(&o.camera, &e.origin, "the CRS of the positions is not given: a .prj beside the poses, or --crs")),
             }
         }
         let interior = e.file.interior.get_or_insert_with(Default::default);
@@ -198,8 +197,22 @@ fn lenses_and_poses(entries: &[Entry], source: &Path) -> Result<(Vec<Lens>, Vec<
     let mut lenses = Vec::new();
     let mut poses = Vec::new();
     for e in entries {
-        let size = e.size.ok_or_else(|| Error::format(source, format!("{}: the image size is not known: name the images on the command line", e.origin)))?;
+        let size = e.size.ok_or_else(|| Error::at(source, &e.origin, "the image size is not known: name the images on the command line"))?;
         lenses.push(Lens::of(&e.file, source, size)?);
+        // Orthority and OpenSfM model neither; dropped, the cameras would
+        // rectify differently there.
+        let c = &e.file.corrections;
+        if c.refraction != Refraction::None || c.earth_curvature {
+            let refraction = format!("{:?}", c.refraction).to_lowercase();
+            return Err(Error::at(
+                source,
+                &e.origin,
+                format!(
+                    "[corrections] (refraction = \"{refraction}\", earth_curvature = {}) has no form in Orthority's or OpenSfM's files; set them to \"none\" and false to convert without them",
+                    c.earth_curvature
+                ),
+            ));
+        }
         poses.push(Pose::of(&e.name, &e.file, source)?);
     }
     Ok((lenses, poses))

@@ -440,12 +440,12 @@ impl Imported {
         match &p.camera {
             Some(id) => self.lenses.iter().find(|(k, _)| k == id).map(|(_, l)| l).ok_or_else(|| {
                 let known: Vec<&str> = self.lenses.iter().map(|(k, _)| k.as_str()).collect();
-                Error::format(source, format!("{}: camera '{id}' is not among the interior parameters ({})", p.origin, known.join(", ")))
+                Error::at(source, &p.origin, format!("camera '{id}' is not among the interior parameters ({})", known.join(", ")))
             }),
             None => match self.lenses.as_slice() {
                 [(_, one)] => Ok(one),
-                [] => Err(Error::format(source, format!("{}: no interior parameters: give them with --camera", p.origin))),
-                _ => Err(Error::format(source, format!("{}: names no camera, and there are {} interior parameter sets", p.origin, self.lenses.len()))),
+                [] => Err(Error::at(source, &p.origin, "no interior parameters: give them with --camera")),
+                _ => Err(Error::at(source, &p.origin, format!("names no camera, and there are {} interior parameter sets", self.lenses.len()))),
             },
         }
     }

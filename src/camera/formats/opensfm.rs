@@ -180,7 +180,7 @@ pub fn write(lenses: &[(String, Lens)], poses: &[Pose], cameras: &[String], crs:
     let frame = Frame { lon, lat, alt: 0.0, ground: crs, geocoded: false };
     let mut shots = Map::new();
     for (p, id) in poses.iter().zip(cameras) {
-        let (c, r_local) = frame.local(p.position, p.r).ok_or_else(|| Error::format(path, format!("{}: outside the CRS", p.origin)))?;
+        let (c, r_local) = frame.local(p.position, p.r).ok_or_else(|| Error::at(path, &p.origin, "outside the CRS"))?;
         // OpenCV's camera axes are ours with y and z turned.
         let w2c = Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0)) * r_local.transpose();
         let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(w2c));

@@ -225,13 +225,19 @@ impl OutputSpec {
     }
     /// Levels to make for an output of `width`×`height` in `tile`-pixel
     /// tiles: halved until one tile holds the level (GDAL's default for
-    /// COGs and `gdaladdo`).
+    /// COGs and `gdaladdo`); one level at least on an image over 512 px (a
+    /// larger image without overviews is what GDAL's COG validator warns
+    /// of; tiles that large hold a whole small image).
     pub fn auto_overviews(width: u32, height: u32, tile: u32) -> u32 {
         let mut l = 0;
         while width.div_ceil(1 << l) > tile || height.div_ceil(1 << l) > tile {
             l += 1;
         }
-        l
+        if l == 0 && width.max(height) > 512 {
+            1
+        } else {
+            l
+        }
     }
     /// Uncompressed bytes of a full chunk.
     pub fn tile_bytes(&self) -> usize {
