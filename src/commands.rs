@@ -449,9 +449,9 @@ fn print_report(r: &Report) {
 
 /// Where this process's peak resident memory passed `--memory` (`given`,
 /// `budget` bytes): what to say. A job limit set from `--memory` (Slurm's
-/// `--mem`, a pod's limit) would have killed the run; the budget holds
-/// what the run plans, not the program itself or, where a DSM asks for
-/// much refinement, the GCM's refined cells.
+/// `--mem`, a pod's limit) may have had to take pages from the run; the
+/// budget holds what the run allocates, not the program's code nor the
+/// input pages it maps (resident too, 10–25 MiB on a drone frame).
 fn past_budget(given: &str, budget: u64) -> Option<String> {
     let peak = gcm_ortho::pipeline::peak_rss_mib()?;
     let mib = budget as f64 / f64::from(1 << 20);
