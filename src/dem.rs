@@ -36,7 +36,7 @@ pub enum Miss {
 /// into a bounded cache (large DEMs: a 1 m DEM of 20×20 km is 1.6 GB).
 enum Samples {
     Memory(Vec<f32>),
-    Chunked(CachedRaster),
+    Chunked(Box<CachedRaster>),
     /// Tiles of a VRT or a folder, each read as a DEM of its own.
     Mosaic(mosaic::Mosaic),
     /// An SRTM `.hgt` tile: big-endian Int16 in the mapped file, so that
@@ -352,7 +352,7 @@ impl GridDem {
             let g = GridDem {
                 width: w as usize,
                 height: h as usize,
-                data: Samples::Chunked(chunked),
+                data: Samples::Chunked(Box::new(chunked)),
                 transform: gt,
                 nodata,
                 crs,

@@ -12,6 +12,8 @@ use std::sync::Arc;
 pub struct CachedRaster {
     raster: ChunkedRaster,
     cache: std::sync::Mutex<ChunkCache<f32>>,
+    /// Buffers of a chunk's bytes as stored, used again by the reads.
+    bytes: std::sync::Mutex<Vec<Vec<u8>>>,
     rescale: Option<Rescale>,
     /// Its own number, for the threads' last looks ([`LAST`]).
     id: u64,
@@ -51,7 +53,13 @@ impl CachedRaster {
     /// `raster`'s samples through a cache of about `cache_bytes`, each
     /// chunk rescaled as it is decoded.
     pub fn new(raster: ChunkedRaster, cache_bytes: usize, rescale: Option<Rescale>) -> CachedRaster {
-        CachedRaster { raster, cache: std::sync::Mutex::new(ChunkCache::new(cache_bytes)), rescale, id: NEXT_ID.fetch_add(1, Ordering::Relaxed) }
+        CachedRaster {
+            raster,
+            cache: std::sync::Mutex::new(ChunkCache::new(cache_bytes)),
+            bytes: Default::default(),
+            rescale,
+            id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
+        }
     }
 
     /// The most its cache holds, bytes.
@@ -68,7 +76,15 @@ impl CachedRaster {
         if let Some(c) = self.cache.lock().ok()?.get(k) {
             return Some(c);
         }
-        let mut v = self.raster.chunk(k).ok()?;
+        // Read into an evicted chunk's room through a buffer used before:
+        // a DEM larger than its cache is read strip by strip many times,
+        // and fresh memory for each strip cost page faults and left the
+        // allocator holding freed pieces.
+        let mut v = self.cache.lock().ok()?.spare();
+        let mut bytes = self.bytes.lock().ok()?.pop().unwrap_or_default();
+        let read = self.raster.chunk_into(k, &mut bytes, &mut v);
+        self.bytes.lock().ok()?.push(bytes);
+        read.ok()?;
         if let Some(r) = self.rescale {
             r.apply(&mut v);
         }

@@ -12,11 +12,24 @@ pub struct ChunkCache<T> {
     bytes: usize,
     budget: usize,
     tick: u64,
+    /// Chunks put out that nothing else held, for the next to be read into
+    /// ([`SPARES`] at most).
+    spares: Vec<Vec<T>>,
 }
+
+/// Evicted chunks kept to be read into again: each miss puts one out as
+/// it puts one in.
+const SPARES: usize = 2;
 
 impl<T> ChunkCache<T> {
     pub fn new(budget: usize) -> ChunkCache<T> {
-        ChunkCache { map: HashMap::new(), bytes: 0, budget, tick: 0 }
+        ChunkCache { map: HashMap::new(), bytes: 0, budget, tick: 0, spares: Vec::new() }
+    }
+
+    /// An evicted chunk's room to read the next into (its contents are
+    /// stale), or an empty vector.
+    pub fn spare(&mut self) -> Vec<T> {
+        self.spares.pop().unwrap_or_default()
     }
 
     /// The most it holds, bytes.
@@ -43,6 +56,10 @@ impl<T> ChunkCache<T> {
             let (&oldest, _) = self.map.iter().min_by_key(|(_, e)| e.1).expect("non-empty");
             let (v, _) = self.map.remove(&oldest).expect("present");
             self.bytes -= std::mem::size_of_val(v.as_slice());
+            // Still looked at by a thread, it goes when that thread lets go.
+            if let (Ok(v), true) = (Arc::try_unwrap(v), self.spares.len() < SPARES) {
+                self.spares.push(v);
+            }
         }
     }
 }

@@ -62,19 +62,47 @@ impl ChunkCodec {
         file: &File,
         path: &Path,
         k: usize,
-        (offset, count): (u64, u64),
+        stored: (u64, u64),
         width: usize,
         rows: usize,
         full_rows: usize,
     ) -> crate::error::Result<Vec<u8>> {
+        let mut out = Vec::new();
+        self.read_chunk_into(file, path, k, stored, (width, rows, full_rows), &mut out)?;
+        Ok(out)
+    }
+
+    /// [`read_chunk`](Self::read_chunk) into `out`, whose room is used
+    /// again: a DEM read a strip at a time over and over allocates (and
+    /// faults in) no new memory for each.
+    pub fn read_chunk_into(
+        &self,
+        file: &File,
+        path: &Path,
+        k: usize,
+        (offset, count): (u64, u64),
+        (width, rows, full_rows): (usize, usize, usize),
+        out: &mut Vec<u8>,
+    ) -> crate::error::Result<()> {
         use crate::error::Error;
         use std::os::unix::fs::FileExt;
         if count > crate::io::format::decoder_limits().intermediate_buffer_size as u64 {
             return Err(Error::limits(path, format!("chunk {k} holds {count} compressed bytes")));
         }
-        let mut coded = vec![0u8; count as usize];
-        file.read_exact_at(&mut coded, offset).map_err(|e| Error::io(path, e))?;
-        self.decode(&coded, width, rows, full_rows).map_err(|e| Error::format(path, format!("chunk {k}: {e}")))
+        let in_chunk = |e: String| Error::format(path, format!("chunk {k}: {e}"));
+        let row_bytes = width * self.samples * self.sample_bytes;
+        if self.compression == 1 {
+            // Stored as is: read into place, with no buffer of the coded
+            // bytes to allocate, copy and free for every chunk.
+            out.clear();
+            out.resize((row_bytes * rows).min(count as usize), 0);
+            file.read_exact_at(out, offset).map_err(|e| Error::io(path, e))?;
+        } else {
+            let mut coded = vec![0u8; count as usize];
+            file.read_exact_at(&mut coded, offset).map_err(|e| Error::io(path, e))?;
+            self.decompress(&coded, row_bytes * rows, row_bytes * full_rows.max(rows), out).map_err(in_chunk)?;
+        }
+        self.finish(out, row_bytes, rows, full_rows).map_err(in_chunk)
     }
 
     /// The chunk's pixels: `rows` rows of `width` pixels, native-endian.
@@ -85,7 +113,18 @@ impl ChunkCodec {
         let row_bytes = width * self.samples * self.sample_bytes;
         let want = row_bytes * rows;
         let allowed = row_bytes * full_rows.max(rows);
-        let mut out = self.decompress(coded, want, allowed)?;
+        let mut out = Vec::new();
+        self.decompress(coded, want, allowed, &mut out)?;
+        self.finish(&mut out, row_bytes, rows, full_rows)?;
+        Ok(out)
+    }
+
+    /// Decompressed bytes `out` checked against the chunk's size (`rows`
+    /// of `row_bytes`, up to `full_rows` allowed), cut to its rows and
+    /// unpredicted.
+    fn finish(&self, out: &mut Vec<u8>, row_bytes: usize, rows: usize, full_rows: usize) -> Result<(), String> {
+        let want = row_bytes * rows;
+        let allowed = row_bytes * full_rows.max(rows);
         if out.len() > allowed {
             return Err(format!("the stream runs on past the chunk's {allowed} bytes"));
         }
@@ -99,18 +138,19 @@ impl ChunkCodec {
                 self.unpredict_row(row, &mut scratch);
             }
         }
-        Ok(out)
+        Ok(())
     }
 
     /// The decompressed bytes: at least `want` of them unless the data ends
     /// first, and one more than `allowed` where it runs on past them (the
     /// caller reports either).
-    fn decompress(&self, coded: &[u8], want: usize, allowed: usize) -> Result<Vec<u8>, String> {
-        let mut out = Vec::with_capacity(want);
+    fn decompress(&self, coded: &[u8], want: usize, allowed: usize, out: &mut Vec<u8>) -> Result<(), String> {
+        out.clear();
+        out.reserve(want);
         match self.compression {
             1 => out.extend_from_slice(&coded[..want.min(coded.len())]),
-            8 | 32946 => read_up_to(flate2::read::ZlibDecoder::new(coded), want, allowed, &mut out, "deflate")?,
-            50000 => read_up_to(zstd::stream::read::Decoder::new(coded).map_err(|e| format!("zstd: {e}"))?, want, allowed, &mut out, "zstd")?,
+            8 | 32946 => read_up_to(flate2::read::ZlibDecoder::new(coded), want, allowed, out, "deflate")?,
+            50000 => read_up_to(zstd::stream::read::Decoder::new(coded).map_err(|e| format!("zstd: {e}"))?, want, allowed, out, "zstd")?,
             5 => {
                 // Decoded into a buffer one byte past what the chunk may
                 // hold: a stream that fills it runs on (corrupt or hostile)
@@ -135,10 +175,10 @@ impl ChunkCodec {
                 // code, junk after it) has given all we need.
                 out.truncate(written);
             }
-            32773 => unpack_bits(coded, allowed + 1, &mut out),
+            32773 => unpack_bits(coded, allowed + 1, out),
             c => return Err(format!("TIFF compression {c}")),
         }
-        Ok(out)
+        Ok(())
     }
 
     /// One row from the file's coding to native-endian samples.

@@ -34,13 +34,6 @@ impl Sample {
         }
     }
 
-    /// Native-endian samples to heights.
-    fn to_f32(self, bytes: &[u8]) -> Vec<f32> {
-        let mut out = vec![0f32; bytes.len() / self.bytes()];
-        self.to_f32_into(bytes, &mut out);
-        out
-    }
-
     /// The first `out.len()` native-endian samples of `bytes` to heights, into `out`.
     fn to_f32_into(self, bytes: &[u8], out: &mut [f32]) {
         fn each<const N: usize>(bytes: &[u8], out: &mut [f32], f: impl Fn([u8; N]) -> f32) {
@@ -152,14 +145,32 @@ impl ChunkedRaster {
     /// Chunk `k`'s heights, row-major with the chunk's full width as the
     /// stride (edge tiles are stored whole); a last strip has fewer rows.
     pub fn chunk(&self, k: usize) -> Result<Vec<f32>> {
-        Ok(self.sample.to_f32(&self.chunk_bytes(k)?))
+        let (mut bytes, mut out) = (Vec::new(), Vec::new());
+        self.chunk_into(k, &mut bytes, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`chunk`](Self::chunk) into `out`, through `bytes`: the room of
+    /// both used again.
+    pub fn chunk_into(&self, k: usize, bytes: &mut Vec<u8>, out: &mut Vec<f32>) -> Result<()> {
+        self.chunk_bytes_into(k, bytes)?;
+        out.clear();
+        out.resize(bytes.len() / self.sample.bytes(), 0.0);
+        self.sample.to_f32_into(bytes, out);
+        Ok(())
     }
 
     /// Chunk `k` as stored, decoded (native-endian samples).
     fn chunk_bytes(&self, k: usize) -> Result<Vec<u8>> {
+        let mut bytes = Vec::new();
+        self.chunk_bytes_into(k, &mut bytes)?;
+        Ok(bytes)
+    }
+
+    fn chunk_bytes_into(&self, k: usize, bytes: &mut Vec<u8>) -> Result<()> {
         let (cw, ch) = self.chunk;
         let rows = if self.tiled { ch } else { ch.min(self.height - k * ch) };
-        self.codec.read_chunk(&self.file, &self.path, k, (self.offsets[k], self.counts[k]), cw, rows, ch)
+        self.codec.read_chunk_into(&self.file, &self.path, k, (self.offsets[k], self.counts[k]), (cw, rows, ch), bytes)
     }
 
     /// The whole raster, row-major: each row of chunks read and decoded
