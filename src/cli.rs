@@ -345,7 +345,8 @@ pub struct BatchArgs {
     #[arg(long)]
     pub shard_count: Option<usize>,
     /// Worker threads per job (0: the cores shared among the jobs; a job of
-    /// one thread runs its steps one after the other, one processor busy).
+    /// one thread runs its steps one after the other, one processor busy;
+    /// more than the cores are cut to them, with a warning).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
     /// Only validate the manifest and list the jobs of this shard.
@@ -432,7 +433,8 @@ pub struct MosaicArgs {
     /// Memory budget
     #[arg(long, default_value = "256M")]
     pub memory: String,
-    /// Worker threads (0: all cores)
+    /// Worker threads (0: all cores; more than the cores are cut to them,
+    /// with a warning)
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
     /// Write the report (JSON) here
@@ -690,7 +692,8 @@ pub struct RectifyArgs {
     #[arg(long, default_value = "none", value_parser = choice::<Occlusion>())]
     pub occlusion: Occlusion,
     /// Worker threads (0: all cores; 1: every step one after the other,
-    /// one processor busy).
+    /// one processor busy; more than the cores are cut to them, with a
+    /// warning).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
     /// Memory budget, e.g. 128M or 1G.
