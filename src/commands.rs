@@ -81,6 +81,7 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Cameras(a) => run_cameras(&a).map(|()| 0),
         Command::Fiducials(a) => run_fiducials(&a).map(|()| 0),
         Command::Assemble(a) => {
+            warn_if_not_tiff(&a.output);
             gcm_ortho::assemble::assemble(&a.pieces, &a.output, &a.layout.options()?, &signals.cancel)?;
             Ok(0)
         }
@@ -187,6 +188,9 @@ fn run_cameras(a: &crate::cli::CamerasArgs) -> Result<()> {
 
 fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
     use gcm_ortho::mosaic::{mosaic, MosaicOptions};
+    if let Some(o) = &a.output {
+        warn_if_not_tiff(o);
+    }
     let memory = parse_bytes("memory", &a.memory)?;
     let bounds = match &a.bounds {
         Some(b) => gcm_ortho::options::parse_bounds("bounds", b)?,
@@ -463,6 +467,19 @@ fn past_budget(given: &str, budget: u64) -> Option<String> {
     })
 }
 
+/// Every output is a GeoTIFF: a name that says another format (`.png`,
+/// `.jpg`, `.vrt`) would mislead whoever opens it by its name. Said on
+/// stderr, even with --quiet.
+fn warn_if_not_tiff(output: &Path) -> Option<String> {
+    let ext = output.extension()?.to_string_lossy().to_lowercase();
+    if matches!(ext.as_str(), "tif" | "tiff" | "gtiff" | "gtif") {
+        return None;
+    }
+    let w = format!("{}: the output is a GeoTIFF, whatever its name's .{ext} says", output.display());
+    eprintln!("gcm-ortho: warning: {w}");
+    Some(w)
+}
+
 /// `--threads` within this machine's cores (`at_once` jobs sharing them):
 /// more threads than cores only cut the memory budget into slivers and
 /// slow every step. Said on stderr, even with --quiet; 0 (every core) stays.
@@ -483,10 +500,15 @@ fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
     let mut opts = a.options()?;
     let json: Vec<Role> = a.json.iter().map(|j| Role::new("report", j)).collect();
     opts.check_outputs(&json)?;
+    for j in &json {
+        check_writable(*j)?;
+    }
     let too_many;
     (opts.threads, too_many) = threads_within_cores(opts.threads, 1);
+    let not_tiff = warn_if_not_tiff(&opts.output);
     let mut report = rectify(&opts, &Bar::new(a.quiet), &signals.cancel)?;
     report.warnings.extend(too_many);
+    report.warnings.extend(not_tiff);
     if let Some(w) = past_budget(&a.memory, opts.memory) {
         eprintln!("gcm-ortho: warning: {w}");
         report.warnings.push(w);
@@ -513,6 +535,23 @@ fn scene_inputs(a: &AccuracyArgs) -> Result<(PathBuf, PathBuf, PathBuf)> {
 }
 
 fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
+    use gcm_ortho::Error::Setting;
+    let max_k = RectifyOptions::MAX_SPARSITY;
+    if let Some(k) = a.sparsity.iter().find(|&&k| k == 0 || k > max_k) {
+        return Err(Setting { setting: "sparsity", msg: format!("{k} is not 1 to {max_k}") }.into());
+    }
+    if a.map_sparsity == 0 || a.map_sparsity > max_k {
+        return Err(Setting { setting: "map_sparsity", msg: format!("{} is not 1 to {max_k}", a.map_sparsity) }.into());
+    }
+    if a.step == 0 {
+        return Err(Setting { setting: "step", msg: "0 is not a step: 1 evaluates every pixel".into() }.into());
+    }
+    if let Some(e) = a.max_error.iter().find(|e| !(**e > 0.0 && e.is_finite())) {
+        return Err(Setting { setting: "max_error", msg: format!("{e} must be a positive number") }.into());
+    }
+    if let Some(m) = a.max_slope.filter(|m| !(0.0..=90.0).contains(m)) {
+        return Err(Setting { setting: "max_slope", msg: format!("{m} is not a slope from 0 to 90°") }.into());
+    }
     let (image, camera, dem_path) = scene_inputs(a)?;
     {
         let checkpoints = a.scene.as_ref().map(|d| d.join("checkpoints.csv"));
@@ -600,6 +639,17 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
             ev.fill.as_secs_f64(),
             refined
         );
+        // Cells the GCM cannot span (a spacing past the grid, A behind the
+        // camera) are worked out exactly: there the table compares the
+        // exact model with itself, which it must say.
+        if ev.gcm.exact_pixels > 0 {
+            let share = 100.0 * ev.gcm.exact_pixels as f64 / (grid.width as f64 * grid.height as f64);
+            say!(
+                "     k = {k} {}: {} pixels ({share:.1} % of the grid) by the exact model itself, counted as no error",
+                format!("{mode:?}").to_lowercase(),
+                ev.gcm.exact_pixels
+            );
+        }
         rows.push(serde_json::json!({"k": k, "mode": mode, "max_error": bound, "errors": e, "gcm": ev.gcm,
             "prepare_s": ev.prepare.as_secs_f64(), "fill_s": ev.fill.as_secs_f64()}));
     }

@@ -329,3 +329,28 @@ fn a_frame_cameras_interior_is_recovered_with_its_pose() {
     let e = refine(&mut off, &flat, BiasModel::Interior, 1.0, &flat_file).unwrap_err().to_string();
     assert!(e.contains("flat.csv") && e.contains("focal length"), "{e}");
 }
+
+/// A film camera refined by GCPs keeps its calibrated format on the scan:
+/// the scanner's margins and the fiducial marks stay out of the
+/// orthophoto, which covers what the run without GCPs covers.
+#[test]
+fn a_film_camera_refined_by_gcps_keeps_its_format() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = common::scene(&d.join("film"), 600, |_| {});
+    // The scene's checkpoints (id, X, Y, Z, col, row) are exact GCPs.
+    let gcps = d.join("gcps.csv");
+    std::fs::copy(sc.scan.parent().unwrap().join("checkpoints.csv"), &gcps).unwrap();
+    let crs = gcm_ortho::geodesy::Crs::parse("EPSG:32631", Path::new("")).unwrap();
+    std::fs::write(gcps.with_extension("prj"), crs.proj4()).unwrap();
+    let ortho = |extra: &[&str], out: &Path| {
+        let r = run(&[&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "-o", s(out)][..], extra].concat());
+        assert!(r.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&r.stderr));
+        let (bytes, info) = common::whole_image(out);
+        ((info.width, info.height), bytes.iter().filter(|&&v| v != 0).count())
+    };
+    let (plain, with) = (ortho(&[], &d.join("plain.tif")), ortho(&["--gcps", s(&gcps)], &d.join("gcps.tif")));
+    assert_eq!(with.0, plain.0, "the grid of the footprint within the format");
+    let (a, b) = (plain.1 as f64, with.1 as f64);
+    assert!((b - a).abs() < 0.005 * a, "pixels with a value: {b} with GCPs, {a} without");
+}

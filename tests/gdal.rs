@@ -374,3 +374,31 @@ fn the_default_output_masks_where_there_is_no_image_and_keeps_black_pixels() {
         assert!(j["black_with_value"].as_u64().unwrap() > 2000 && j["without_value"].as_u64().unwrap() > 2000, "{bits}-bit {compress}: {j}");
     }
 }
+
+/// A DEM whose heights are in feet (its band's unit, as `gdal_edit.py
+/// -units ft` sets it) gives the orthophoto of the same DEM in metres,
+/// and says it took them into metres.
+#[test]
+fn heights_in_feet_are_taken_into_metres() {
+    let Some(python) = python_with("osgeo", "python3-gdal") else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 500, |_| {});
+    let feet = dir.path().join("dem_ft.tif");
+    let convert = "from osgeo import gdal; import sys\n\
+                   d = gdal.Translate(sys.argv[2], sys.argv[1], outputType=gdal.GDT_Float32)\n\
+                   b = d.GetRasterBand(1); b.WriteArray(b.ReadAsArray() / 0.3048); b.SetUnitType('ft'); d = None";
+    let r = Command::new(python).args(["-c", convert, s(&sc.dem), s(&feet)]).output().unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let ortho = |dem: &std::path::Path, name: &str| {
+        let out = dir.path().join(name);
+        let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(dem), "--quiet", "-o", s(&out)]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        (whole_image(&out), String::from_utf8_lossy(&r.stderr).into_owned())
+    };
+    let (((metres, mi), _), ((ft, fi), said)) = (ortho(&sc.dem, "m.tif"), ortho(&feet, "ft.tif"));
+    assert!(said.contains("warning") && said.contains("feet") && said.contains("metres"), "{said}");
+    assert_eq!((fi.width, fi.height), (mi.width, mi.height));
+    // Heights through feet and back differ by float rounding only.
+    let worst = metres.iter().zip(&ft).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+    assert!(worst <= 2, "{worst} DN apart");
+}

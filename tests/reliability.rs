@@ -235,6 +235,21 @@ fn absurd_settings_are_refused_before_any_work_with_their_flag() {
         assert!(t.elapsed().as_secs() < 10, "{extra:?} took {:?}", t.elapsed());
         assert!(files_containing(d, "partial").is_empty());
     }
+    // accuracy's own options, by name, never a panic.
+    for (extra, flag) in [
+        (&["--sparsity", "0"][..], "--sparsity"),
+        (&["--step", "0"], "--step"),
+        (&["--max-error=-1"], "--max-error"),
+        (&["--map-sparsity", "0"], "--map-sparsity"),
+    ] {
+        refused(d, &[&["accuracy", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem)][..], extra].concat(), &[flag]);
+    }
+    // A report that cannot be written is found before the work: nothing
+    // is left at the output path.
+    let r = run(&[&base[..], &["--json", "/proc/gcm-ortho-report.json"]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains("/proc/gcm-ortho-report.json") && err.trim_end().lines().count() == 1, "{err}");
+    assert!(!out.exists(), "{err}");
     // A constant height no ground has.
     refused(d, &["rectify", "--image", s(&scan), "--camera", s(&camera), "--height=-1e30", "--quiet", "-o", s(&out)], &["--height", "earth's surface"]);
     // A GSD past the footprint is said to be that, not too many pixels.
@@ -582,6 +597,9 @@ fn doubtful_inputs_are_warned_about_even_when_quiet() {
         std::fs::remove_file(&out).unwrap();
         warned(&[&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&out)][..], &extra].concat(), words);
     }
+    // An output named as another format is still a GeoTIFF: said.
+    let png = d.join("o.png");
+    warned(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&png)], &["GeoTIFF", ".png"]);
     // A camera for another scan: its principal point far off this one's
     // centre (the marks 60 px to the right).
     let text = std::fs::read_to_string(&camera).unwrap();

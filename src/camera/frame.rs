@@ -63,6 +63,12 @@ impl FrameCamera {
         Some(self)
     }
 
+    /// This camera limited to `other`'s format on the scan, if it has one.
+    pub fn with_area_of(mut self, other: &FrameCamera) -> Self {
+        self.area = other.area;
+        self
+    }
+
     /// Checks, before any footprint is sought, that this camera can see
     /// the ground of an image of `w`×`h` pixels at height `ground_z`: its
     /// principal point in the image, a focal length that gives a field of

@@ -272,7 +272,11 @@ fn resection(f: &FrameCamera, gcps: &[Gcp], crs: &Crs, interior: bool, source: &
         focal: f64,
         pp: [f64; 2],
     }
-    let camera_at = |s: &State| FrameCamera::new(s.focal, s.c, s.r, f.interior.with_principal_point_moved(s.pp), f.distortion, f.refraction, f.earth_curvature);
+    // The film's calibrated format stays where the marks put it on the
+    // scan: the margins outside it stay out of the orthophoto.
+    let camera_at = |s: &State| {
+        FrameCamera::new(s.focal, s.c, s.r, f.interior.with_principal_point_moved(s.pp), f.distortion, f.refraction, f.earth_curvature).with_area_of(f)
+    };
     let residuals = |cam: &FrameCamera| -> Option<Vec<[f64; 2]>> {
         points.iter().zip(gcps).map(|(p, g)| cam.project(p.x, p.y, p.z).map(|(c, r)| [g.col - c, g.row - r])).collect()
     };

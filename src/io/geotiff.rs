@@ -153,6 +153,8 @@ const GDAL_METADATA: u16 = 42112;
 /// The first band's `role="scale"` and `role="offset"` items of GDAL's
 /// metadata XML (`gdal_translate -a_scale/-a_offset`, PROJ's packed grids):
 /// `None` where they leave values as stored.
+/// Heights in feet (the band's unit, `gdal_edit.py -units ft`) come out
+/// in metres: the scale and offset take the foot's length.
 fn band_scale_offset(xml: &str) -> std::result::Result<Option<(f64, f64)>, String> {
     let doc = roxmltree::Document::parse(xml.trim_matches(char::from(0))).map_err(|e| e.to_string())?;
     let (mut scale, mut offset) = (1.0, 0.0);
@@ -165,10 +167,39 @@ fn band_scale_offset(xml: &str) -> std::result::Result<Option<(f64, f64)>, Strin
             _ => {}
         }
     }
+    if let Some((_, metres)) = band_unit(&doc) {
+        (scale, offset) = (scale * metres, offset * metres);
+    }
     if !(scale.is_finite() && offset.is_finite()) {
         return Err(format!("band scale {scale} and offset {offset}"));
     }
     Ok((scale != 1.0 || offset != 0.0).then_some((scale, offset)))
+}
+
+/// The first band's unit where it is a foot: its name and its length in
+/// metres.
+fn band_unit(doc: &roxmltree::Document) -> Option<(&'static str, f64)> {
+    let unit = doc
+        .descendants()
+        .find(|n| n.has_tag_name("Item") && n.attribute("sample") == Some("0") && n.attribute("role") == Some("unittype"))?
+        .text()?
+        .trim()
+        .to_ascii_lowercase();
+    match unit.as_str() {
+        "ft" | "foot" | "feet" | "international foot" | "ft_intl" => Some(("feet", 0.3048)),
+        "us-ft" | "ftus" | "ft_us" | "us survey foot" | "us_survey_foot" | "foot_us" | "us-foot" => Some(("US survey feet", 1200.0 / 3937.0)),
+        _ => None,
+    }
+}
+
+/// The unit of a GeoTIFF's first band where it is not metres and is taken
+/// into metres when read (feet): its name, for a warning.
+pub fn foot_unit_of(path: &Path) -> Option<&'static str> {
+    let file = std::fs::File::open(path).ok()?;
+    let mut dec = Decoder::new(std::io::BufReader::new(file)).ok()?;
+    let Ok(Some(Value::Ascii(xml))) = dec.find_tag(Tag::Unknown(GDAL_METADATA)) else { return None };
+    let doc = roxmltree::Document::parse(xml.trim_matches(char::from(0))).ok()?;
+    band_unit(&doc).map(|(name, _)| name)
 }
 
 /// Reads the georeferencing of the current image of `dec`. `None` if the

@@ -101,6 +101,12 @@ pub fn check_writable(out: Role) -> Result<()> {
     if !dir.is_dir() {
         return Err(Error::Usage(format!("the {} {}: the folder {} does not exist", out.what, out.path.display(), dir.display())));
     }
+    // A file made and removed there: permissions, a read-only or immutable
+    // folder, a file system that takes no files, found before the work.
+    if let Err(e) = tempfile::Builder::new().prefix(".gcm-ortho-probe").tempfile_in(dir) {
+        let bare = e.raw_os_error().map_or_else(|| std::io::Error::from(e.kind()), std::io::Error::from_raw_os_error);
+        return Err(Error::io(out.path, bare));
+    }
     Ok(())
 }
 
