@@ -32,6 +32,43 @@ pub trait Progress: Sync {
     fn warn(&self, _message: &str) {}
 }
 
+/// Passes progress on and keeps every warning: what a run said on its way
+/// is what its report lists (a batch job's and a mosaic image's too, whose
+/// progress nobody watches).
+pub struct Recording<'a> {
+    inner: &'a dyn Progress,
+    said: std::sync::Mutex<Vec<String>>,
+}
+
+impl<'a> Recording<'a> {
+    pub fn new(inner: &'a dyn Progress) -> Recording<'a> {
+        Recording { inner, said: Default::default() }
+    }
+
+    /// The warnings said so far, in order.
+    pub fn said(&self) -> Vec<String> {
+        self.said.lock().map(|s| s.clone()).unwrap_or_default()
+    }
+}
+
+impl Progress for Recording<'_> {
+    fn start(&self, task: &Task) {
+        self.inner.start(task);
+    }
+    fn advance(&self, units: u64) {
+        self.inner.advance(units);
+    }
+    fn finish(&self) {
+        self.inner.finish();
+    }
+    fn warn(&self, message: &str) {
+        self.inner.warn(message);
+        if let Ok(mut s) = self.said.lock() {
+            s.push(message.to_string());
+        }
+    }
+}
+
 /// Progress nobody watches.
 pub struct NoProgress;
 

@@ -597,6 +597,10 @@ fn doubtful_inputs_are_warned_about_even_when_quiet() {
         std::fs::remove_file(&out).unwrap();
         warned(&[&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&out)][..], &extra].concat(), words);
     }
+    // What was said is in the report too.
+    std::fs::remove_file(&out).unwrap();
+    let report = report_of(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&out), "--gsd", "1e5"], d);
+    assert!(report["warnings"].as_array().unwrap().iter().any(|w| w.as_str().unwrap().contains("aliases")), "{report}");
     // An output named as another format is still a GeoTIFF: said.
     let png = d.join("o.png");
     warned(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&png)], &["GeoTIFF", ".png"]);

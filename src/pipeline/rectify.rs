@@ -23,6 +23,8 @@ use std::time::Instant;
 /// handler) to stop the run; the output is then not created.
 pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) -> Result<Report> {
     let wall = Instant::now();
+    let recording = crate::progress::Recording::new(progress);
+    let progress: &dyn Progress = &recording;
     opts.validate()?;
     opts.check_outputs(&[])?;
     // The output folder must take a file before any work starts.
@@ -125,7 +127,6 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     let error_bound = plan.gcm.max_error;
     // The bound holds by construction at every pixel; the sample checks it.
     let error_within = estimate.max <= error_bound.map_or(UNBOUNDED_WARNING_PX, |b| b * 1.000_001);
-    let mut warnings = plan.dem.warnings.clone();
     if !error_within {
         let w = match error_bound {
             Some(b) => format!("the GCM missed its bound of {b} px: {:.3} px at output pixel {:?} (please report it)", estimate.max, estimate.argmax),
@@ -135,8 +136,9 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
             ),
         };
         progress.warn(&w);
-        warnings.push(w);
     }
+    // Everything the run warned of, the DEM's doubts among them.
+    let warnings = recording.said();
     Ok(Report {
         config: RectifyOptions { gcm: plan.gcm, auto_sparsity: false, band_order: plan.band_order, ..opts.clone() },
         grid: plan.grid,
