@@ -535,22 +535,22 @@ fn scene_inputs(a: &AccuracyArgs) -> Result<(PathBuf, PathBuf, PathBuf)> {
 }
 
 fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
-    use gcm_ortho::Error::Setting;
+    use gcm_ortho::Error;
     let max_k = RectifyOptions::MAX_SPARSITY;
     if let Some(k) = a.sparsity.iter().find(|&&k| k == 0 || k > max_k) {
-        return Err(Setting { setting: "sparsity", msg: format!("{k} is not 1 to {max_k}") }.into());
+        return Err(Error::setting("sparsity", format!("{k} is not 1 to {max_k}")).into());
     }
     if a.map_sparsity == 0 || a.map_sparsity > max_k {
-        return Err(Setting { setting: "map_sparsity", msg: format!("{} is not 1 to {max_k}", a.map_sparsity) }.into());
+        return Err(Error::setting("map_sparsity", format!("{} is not 1 to {max_k}", a.map_sparsity)).into());
     }
     if a.step == 0 {
-        return Err(Setting { setting: "step", msg: "0 is not a step: 1 evaluates every pixel".into() }.into());
+        return Err(Error::setting("step", "0 is not a step: 1 evaluates every pixel").into());
     }
     if let Some(e) = a.max_error.iter().find(|e| !(**e > 0.0 && e.is_finite())) {
-        return Err(Setting { setting: "max_error", msg: format!("{e} must be a positive number") }.into());
+        return Err(Error::setting("max_error", format!("{e} must be a positive number")).into());
     }
     if let Some(m) = a.max_slope.filter(|m| !(0.0..=90.0).contains(m)) {
-        return Err(Setting { setting: "max_slope", msg: format!("{m} is not a slope from 0 to 90°") }.into());
+        return Err(Error::setting("max_slope", format!("{m} is not a slope from 0 to 90°")).into());
     }
     let (image, camera, dem_path) = scene_inputs(a)?;
     {

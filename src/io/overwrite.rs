@@ -104,8 +104,7 @@ pub fn check_writable(out: Role) -> Result<()> {
     // A file made and removed there: permissions, a read-only or immutable
     // folder, a file system that takes no files, found before the work.
     if let Err(e) = tempfile::Builder::new().prefix(".gcm-ortho-probe").tempfile_in(dir) {
-        let bare = e.raw_os_error().map_or_else(|| std::io::Error::from(e.kind()), std::io::Error::from_raw_os_error);
-        return Err(Error::io(out.path, bare));
+        return Err(Error::io(out.path, crate::io::publish::without_path(&e)));
     }
     Ok(())
 }

@@ -118,10 +118,7 @@ impl PendingFile {
         let (dir, prefix) = temporary_beside(target);
         // Named by the file asked for: tempfile's own error names its
         // temporary, which the user never gave.
-        let tmp = tempfile::Builder::new().prefix(&prefix).suffix(SUFFIX).tempfile_in(&dir).map_err(|e| {
-            let bare = e.raw_os_error().map_or_else(|| std::io::Error::from(e.kind()), std::io::Error::from_raw_os_error);
-            Error::io(target, bare)
-        })?;
+        let tmp = tempfile::Builder::new().prefix(&prefix).suffix(SUFFIX).tempfile_in(&dir).map_err(|e| Error::io(target, without_path(&e)))?;
         crate::io::mmap_guard::register_cleanup(tmp.path());
         Ok(PendingFile { tmp: Some(tmp), target: target.to_path_buf() })
     }
@@ -164,6 +161,12 @@ impl PendingFile {
 
 /// Writes `bytes` to `path` as every output is written: a temporary file
 /// beside it, synced, renamed into place.
+/// `e` without the path `tempfile` puts in its message (a temporary's,
+/// which the user never named): the system's error alone.
+pub fn without_path(e: &std::io::Error) -> std::io::Error {
+    e.raw_os_error().map_or_else(|| std::io::Error::from(e.kind()), std::io::Error::from_raw_os_error)
+}
+
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
     let pending = PendingFile::create(path)?;
