@@ -402,3 +402,99 @@ fn heights_in_feet_are_taken_into_metres() {
     let worst = metres.iter().zip(&ft).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
     assert!(worst <= 2, "{worst} DN apart");
 }
+
+/// The scan's own marks of pixels without image — an alpha band, a nodata
+/// value, GDAL's internal mask — make holes in the orthophoto exactly where
+/// the kernel would read such a pixel, and change no other pixel. Checked
+/// over every pixel with coordinate images: each output pixel of the plain
+/// run holds the scan position it sampled, so which scan pixels its kernel
+/// read is known.
+#[test]
+fn the_scans_own_holes_become_holes_exactly_where_the_kernel_reads_them() {
+    let Some(python) = python_with("osgeo", "python3-gdal") else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 500, |o| o.kappa_deg = 25.0);
+    let (sw, sh) = (500, 500);
+    let coords = dir.path().join("coords.tif");
+    coordinate_image(&coords, sw, sh);
+    // The hole: scan columns 150..260, rows 180..300.
+    let (hc, hr) = (150..260i64, 180..300i64);
+    const MARK: &str = r#"
+import sys
+import numpy as np
+from osgeo import gdal
+gdal.UseExceptions()
+src, kind, out = sys.argv[1], sys.argv[2], sys.argv[3]
+a = gdal.Open(src).ReadAsArray()
+b, h, w = a.shape
+hole = np.zeros((h, w), bool); hole[180:300, 150:260] = True
+d = gdal.GetDriverByName("GTiff")
+if kind == "alpha":
+    o = d.Create(out, w, h, 3, gdal.GDT_Float32, ["ALPHA=YES"])
+    for i in range(2): o.GetRasterBand(i + 1).WriteArray(a[i])
+    o.GetRasterBand(3).WriteArray(np.where(hole, 0, 1).astype(np.float32))
+elif kind == "nodata":
+    o = d.Create(out, w, h, 2, gdal.GDT_Float32, ["TILED=YES", "COMPRESS=DEFLATE"])
+    for i in range(2):
+        o.GetRasterBand(i + 1).WriteArray(np.where(hole, -1, a[i]))
+        o.GetRasterBand(i + 1).SetNoDataValue(-1)
+else:
+    gdal.SetConfigOption("GDAL_TIFF_INTERNAL_MASK", "YES")
+    o = d.Create(out, w, h, 2, gdal.GDT_Float32, ["TILED=YES", "COMPRESS=DEFLATE", "BLOCKXSIZE=128", "BLOCKYSIZE=64"])
+    for i in range(2): o.GetRasterBand(i + 1).WriteArray(a[i])
+    o.CreateMaskBand(gdal.GMF_PER_DATASET)
+    o.GetRasterBand(1).GetMaskBand().WriteArray(np.where(hole, 0, 255).astype(np.uint8))
+o = None
+"#;
+    let ortho = |scan: &std::path::Path, name: &str, kernel: &str| {
+        let out = dir.path().join(name);
+        let r = run(&["rectify", "--image", s(scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--resample", kernel, "--quiet", "-o", s(&out)]);
+        assert!(r.status.success(), "{name}: {}", String::from_utf8_lossy(&r.stderr));
+        read_f32(&out)
+    };
+    for kernel in ["bilinear", "nearest"] {
+        let (w, h, b, base) = ortho(&coords, &format!("base-{kernel}.tif"), kernel);
+        for kind in ["alpha", "nodata", "mask"] {
+            let marked = dir.path().join(format!("{kind}.tif"));
+            let r = Command::new(python).args(["-c", MARK, s(&coords), kind, s(&marked)]).output().unwrap();
+            assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+            let (w2, h2, b2, got) = ortho(&marked, &format!("{kind}-{kernel}.tif"), kernel);
+            assert_eq!((w2, h2), (w, h), "{kind}");
+            let (mut holes, mut kept) = (0, 0);
+            for p in 0..(w * h) as usize {
+                let (c, r) = (base[p * b as usize] as f64, base[p * b as usize + 1] as f64);
+                let (gc, gr) = (got[p * b2 as usize], got[p * b2 as usize + 1]);
+                if c.is_nan() {
+                    assert!(gc.is_nan(), "{kind} {kernel}: pixel {p} has a value the plain run has not");
+                    continue;
+                }
+                // The scan pixels the kernel reads (clamped at the scan's edge).
+                let (cols, rows) = if kernel == "nearest" {
+                    let (i, j) = (c.floor() as i64, r.floor() as i64);
+                    (i..=i, j..=j)
+                } else {
+                    let (i, j) = ((c - 0.5).floor() as i64, (r - 0.5).floor() as i64);
+                    (i.max(0)..=(i + 1).min(sw as i64 - 1), j.max(0)..=(j + 1).min(sh as i64 - 1))
+                };
+                // A position a hair from a pixel edge: the float copy of it
+                // may fall either side.
+                let edge = |v: f64| {
+                    let f = if kernel == "nearest" { v.fract() } else { (v - 0.5).fract() };
+                    !(1e-3..=1.0 - 1e-3).contains(&f)
+                };
+                if edge(c) || edge(r) {
+                    continue;
+                }
+                let reads_hole = cols.clone().any(|i| hc.contains(&i)) && rows.clone().any(|j| hr.contains(&j));
+                if reads_hole {
+                    assert!(gc.is_nan() && gr.is_nan(), "{kind} {kernel}: pixel {p} reads the hole at ({c}, {r}) but holds ({gc}, {gr})");
+                    holes += 1;
+                } else {
+                    assert!(gc == c as f32 && gr == r as f32, "{kind} {kernel}: pixel {p} ({c}, {r}) became ({gc}, {gr})");
+                    kept += 1;
+                }
+            }
+            assert!(holes > 5000 && kept > 100_000, "{kind} {kernel}: {holes} holes, {kept} kept");
+        }
+    }
+}

@@ -202,6 +202,17 @@ pub fn foot_unit_of(path: &Path) -> Option<&'static str> {
     band_unit(&doc).map(|(name, _)| name)
 }
 
+/// The current image's GDAL_NODATA value, if it has one.
+pub fn read_nodata<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<Option<f64>> {
+    Ok(match dec.find_tag(Tag::GdalNodata).map_err(|e| Error::from_tiff(path, e))? {
+        Some(Value::Ascii(s)) => {
+            let s = s.trim_matches(char::from(0)).trim();
+            Some(s.parse::<f64>().map_err(|_| Error::format(path, format!("GDAL_NODATA '{s}' is not a number")))?)
+        }
+        _ => None,
+    })
+}
+
 /// Reads the georeferencing of the current image of `dec`. `None` if the
 /// file has no geotransform at all.
 pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<Option<GeoRef>> {
@@ -215,13 +226,7 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
         Some(Value::Ascii(s)) => s,
         _ => String::new(),
     };
-    let nodata = match dec.find_tag(Tag::GdalNodata).map_err(tf)? {
-        Some(Value::Ascii(s)) => {
-            let s = s.trim_matches(char::from(0)).trim();
-            Some(s.parse::<f64>().map_err(|_| Error::format(path, format!("GDAL_NODATA '{s}' is not a number")))?)
-        }
-        _ => None,
-    };
+    let nodata = read_nodata(dec, path)?;
     let (scale_offset, source) = match dec.find_tag(Tag::Unknown(GDAL_METADATA)).map_err(tf)? {
         Some(Value::Ascii(xml)) => {
             (band_scale_offset(&xml).map_err(|m| Error::format(path, format!("its GDAL metadata: {m}")))?, dataset_item(&xml, SOURCE_ITEM))

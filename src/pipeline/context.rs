@@ -36,6 +36,8 @@ pub struct PixelOptions {
     /// Under an area kernel: how far, scan pixels, an output pixel's
     /// footprint reaches from its centre (0 for the point kernels).
     pub footprint: u32,
+    /// How the scan marks pixels without image, if it does.
+    pub holes: Option<crate::io::source::HoleMark>,
 }
 
 /// The run's inputs, ready.

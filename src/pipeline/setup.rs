@@ -396,6 +396,7 @@ impl RunPlan {
             mask,
             occlusion: opts.occlusion,
             footprint,
+            holes: src.hole_mark()?,
         };
         Ok(RunPlan { camera, src, dem, grid, approx, band_order, gcm, piece: [tc0, tr0, tcw, trh], spec, pixels, budget, gcp_fit })
     }

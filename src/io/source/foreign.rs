@@ -81,6 +81,7 @@ pub(super) fn plain_info(width: u32, height: u32, bands: u32, sample: SampleType
         photometric: if bands >= 3 { 2 } else { 1 },
         has_alpha,
         predictor: 1,
+        nodata: None,
         georef: None,
         offsets: vec![0],
         byte_counts: vec![bytes],

@@ -3,7 +3,7 @@
 
 use super::{decoder_limits, SampleType};
 use crate::error::{Error, Result};
-use crate::io::geotiff::{read_georef, GeoRef};
+use crate::io::geotiff::{read_georef, read_nodata, GeoRef};
 use std::fs::File;
 use std::io::BufReader;
 use std::path::Path;
@@ -25,6 +25,8 @@ pub struct SourceInfo {
     pub photometric: u16,
     /// An alpha channel among the bands (ExtraSamples = associated/unassociated alpha).
     pub has_alpha: bool,
+    /// The value of pixels without image (GDAL_NODATA), if the file says one.
+    pub nodata: Option<f64>,
     /// Predictor of compressed data (1 none, 2 horizontal, 3 floating point).
     pub predictor: u16,
     pub georef: Option<GeoRef>,
@@ -149,6 +151,7 @@ pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_le
         compression,
         photometric,
         has_alpha,
+        nodata: read_nodata(dec, path)?,
         predictor,
         georef,
         offsets,

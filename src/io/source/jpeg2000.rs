@@ -140,6 +140,7 @@ pub(super) fn info(path: &Path, siz: &Siz) -> Result<SourceInfo> {
         photometric: if bands >= 3 { 2 } else { 1 },
         has_alpha: false,
         predictor: 1,
+        nodata: None,
         georef: None,
         offsets: vec![0; n],
         byte_counts: vec![0; n],

@@ -10,6 +10,7 @@
 mod coded;
 mod foreign;
 mod header;
+mod holes;
 mod jpeg;
 mod jpeg2000;
 mod mapped;
@@ -18,6 +19,7 @@ mod window;
 pub use crate::io::format::{decoder_limits, SampleType};
 pub use foreign::ImageFormat;
 pub use header::SourceInfo;
+pub use holes::{HoleMark, MaskRuns};
 pub use window::Window;
 
 use crate::error::{Error, Result};
@@ -43,6 +45,8 @@ pub struct SourceImage {
     pub path: PathBuf,
     pub info: SourceInfo,
     backend: Backend,
+    /// The internal mask as runs, read on first need.
+    mask_runs: std::sync::OnceLock<MaskRuns>,
 }
 
 impl SourceImage {
@@ -70,11 +74,16 @@ impl SourceImage {
                 // the cache's share goes to decoding them instead (OpenJPEG
                 // holds several times a chunk's samples while it decodes).
                 let cache = cache_bytes.min(2 * info.chunk_plane_bytes() as usize);
-                return Ok(SourceImage { path: path.to_path_buf(), info, backend: Backend::Coded { coder, cache: Mutex::new(ChunkCache::new(cache)) } });
+                return Ok(SourceImage {
+                    path: path.to_path_buf(),
+                    info,
+                    backend: Backend::Coded { coder, cache: Mutex::new(ChunkCache::new(cache)) },
+                    mask_runs: Default::default(),
+                });
             }
         };
         let file = file.expect("decoded pixels");
-        Ok(SourceImage { path: path.to_path_buf(), info, backend: Self::mapped(path, file) })
+        Ok(SourceImage { path: path.to_path_buf(), info, backend: Self::mapped(path, file), mask_runs: Default::default() })
     }
 
     /// The header of the scan at `path`, without decoding its pixels.
@@ -162,7 +171,7 @@ impl SourceImage {
             };
             Backend::Coded { coder, cache }
         };
-        Ok(SourceImage { path: path.to_path_buf(), info, backend })
+        Ok(SourceImage { path: path.to_path_buf(), info, backend, mask_runs: Default::default() })
     }
 
     /// What decoding chunks holds at once on `threads` threads beyond the
@@ -178,6 +187,21 @@ impl SourceImage {
             }
             _ => 0,
         }
+    }
+
+    /// How the scan marks pixels without image, its internal mask read
+    /// (once) where that is how.
+    pub fn hole_mark(&self) -> Result<Option<HoleMark>> {
+        let mark = HoleMark::of(&self.info);
+        if mark == Some(HoleMark::Mask) && self.mask_runs.get().is_none() {
+            let _ = self.mask_runs.set(MaskRuns::read(self)?);
+        }
+        Ok(mark)
+    }
+
+    /// The internal mask's runs, once [`SourceImage::hole_mark`] has read them.
+    pub fn mask_runs(&self) -> Option<&MaskRuns> {
+        self.mask_runs.get()
     }
 
     pub fn is_mapped(&self) -> bool {

@@ -13,6 +13,7 @@
 pub mod dem;
 pub mod encode;
 pub mod gcm;
+mod holes;
 pub mod read;
 pub mod resample;
 mod transpose;

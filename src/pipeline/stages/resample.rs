@@ -1,6 +1,7 @@
 //! Stage 4, resample: a chunk's output pixels, row by row across the
 //! chunk, written tile by tile into one buffer (in parallel on the pool).
 
+use super::holes::ScanHoles;
 use super::read::ReadMsg;
 use crate::dem::Lookup;
 use crate::error::Result;
@@ -190,6 +191,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
         mask_pieces[k % groups].push(piece);
     }
     let direct = bo == bands_in;
+    let holes = ScanHoles::of(src, opts.holes, opts.kernel);
     // Row `r` of the chunk into `px` (and `valid`, where the alpha band
     // needs it); scan positions (`cols`, `rws`) only where a row is not all
     // stepped spans: made on first need, not zeroed for every split of the
@@ -250,7 +252,8 @@ pub fn resample_chunk<T: Sample + Recycle>(
                 }
             };
             let x0 = x0 as usize;
-            if opts.kernel == Kernel::Bilinear && !view.is_empty() && gcm.row_spans(&msg.gcm, y, x0 as u32, w, spans) {
+            let by_spans = opts.kernel == Kernel::Bilinear && !view.is_empty() && gcm.row_spans(&msg.gcm, y, x0 as u32, w, spans);
+            if by_spans {
                 // Stepped spans: positions step in fixed point, runs
                 // of them in one call; the rest (refined cells) pixel
                 // by pixel.
@@ -268,7 +271,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
                         exact.fetch_add(n, Ordering::Relaxed);
                         SpanOutcome::Checked { clamped: resample_row(opts.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill) }
                     };
-                    if outcome == SpanOutcome::Inside && (!direct || opts.mask) {
+                    if outcome == SpanOutcome::Inside && (!direct || opts.mask || holes.is_some()) {
                         // The alpha band or the mask below reads it.
                         valid.fill(true);
                     }
@@ -295,12 +298,13 @@ pub fn resample_chunk<T: Sample + Recycle>(
                 for (i, p) in px.chunks_exact_mut(bands_in).enumerate() {
                     valid[i] = view.has_value(cols[i], rws[i]) && {
                         let quad = pixel_quad((&feet.top.0, &feet.top.1), (&feet.bottom.0, &feet.bottom.1), i);
-                        match area_pixel(kind, &view, &quad, p, &mut feet.scratch) {
+                        let covered = match area_pixel(kind, &view, &quad, p, &mut feet.scratch) {
                             Covered::Value => true,
                             Covered::LeavesWindow => single_footprint(src, kind, &quad, opts.area, p, &mut feet.scratch, (cols[i], rws[i])),
                             // No area (a degenerate corner): the scan at the centre.
                             Covered::Nothing => nearest_at(&view, (cols[i], rws[i]), p, fill),
-                        }
+                        };
+                        covered && holes.as_ref().is_none_or(|h| h.clear_quad(&view, &quad))
                     };
                     if !valid[i] {
                         p.fill(fill);
@@ -313,6 +317,24 @@ pub fn resample_chunk<T: Sample + Recycle>(
                     for (i, p) in px.chunks_exact_mut(bands_in).enumerate().filter(|(i, _)| valid[*i]) {
                         reread((cols[i], rws[i]), p);
                     }
+                }
+            }
+            if let (Some(h), None) = (&holes, opts.kernel.area()) {
+                // Pixels whose kernel reads the scan's holes: none.
+                let mut clear = |i: usize, at: (f64, f64)| {
+                    if valid[i] && !h.clear_at(&view, at) {
+                        valid[i] = false;
+                        px[i * bands_in..(i + 1) * bands_in].fill(fill);
+                    }
+                };
+                if by_spans {
+                    for s in spans.iter() {
+                        for x in s.first..s.end {
+                            clear(x - x0, if s.stepped { span_position(s, x) } else { (cols[x - x0], rws[x - x0]) });
+                        }
+                    }
+                } else {
+                    (0..w).for_each(|i| clear(i, (cols[i], rws[i])));
                 }
             }
             if let Some(seen) = &msg.gcm.seen {
