@@ -85,6 +85,17 @@ fn a_jpeg_2000_scan_gives_the_tiffs_orthophoto_when_lossless_and_gdals_when_loss
         gdal_translate(&args);
         let want = rectified(sc, &sc.scan, &d.join(format!("{name}-tif.tif")));
         assert!(rectified(sc, &jp2, &d.join(format!("{name}-jp2.tif"))) == want, "{name}: a lossless JPEG 2000 gives the TIFF's orthophoto");
+        if name == "one-tile" {
+            // On a small budget its one 800×600 chunk is decoded on one
+            // thread at a time rather than refused.
+            let out = d.join("one-tile-small.tif");
+            let r = rectify(sc, &jp2, &out, &["--memory", "40M"]);
+            assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+            assert!(whole_image(&out).0 == want, "one decoder at a time gives the same orthophoto");
+            let r = rectify(sc, &jp2, &out, &["--memory", "20M"]);
+            let e = String::from_utf8_lossy(&r.stderr);
+            assert!(r.status.code() == Some(2) && e.contains("--memory") && e.contains("800×600 chunks") && e.contains("give 44M"), "{e}");
+        }
     }
     // Lossy: the same as the orthophoto of GDAL's decoding of it.
     let jp2 = d.join("lossy.jp2");

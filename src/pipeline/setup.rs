@@ -98,20 +98,27 @@ impl RunPlan {
             0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
             n => n,
         };
-        let decoding = src.decoding_bytes(threads);
-        if decoding > 0 {
-            if 2 * decoding > budget.total() {
+        // Chunks are decoded on as many threads as half the budget holds
+        // (the reads wait their turn), and on one at least.
+        let one = src.decoding_bytes();
+        let mut decoding = 0;
+        if one > 0 {
+            if 2 * one > budget.total() {
                 return Err(Error::setting(
                     "memory",
                     format!(
-                        "{}: decoding its chunks holds about {} MiB on {} threads, more than half the memory budget: give {}M or more, or fewer threads",
+                        "{}: decoding one of its {}×{} chunks holds about {} MiB, more than half the memory budget: give {}M or more",
                         opts.image.display(),
-                        decoding.div_ceil(1 << 20),
-                        threads,
-                        (4 * decoding).div_ceil(1 << 20)
+                        src.info.chunk.0,
+                        src.info.chunk.1,
+                        one.div_ceil(1 << 20),
+                        (4 * one).div_ceil(1 << 20)
                     ),
                 ));
             }
+            let decoders = (threads as u64).min(budget.total() / 2 / one).max(1);
+            src.limit_decoders(decoders as usize);
+            decoding = decoders * one;
             budget = MemoryBudget::new(budget.total() - decoding);
         }
         let shared = shared.filter(|(d, ground)| {

@@ -158,13 +158,41 @@ pub(super) struct Spill {
     /// Per chunk: decoded and written (`true`); held while it is decoded,
     /// so that two readers never decode the same chunk.
     done: Vec<std::sync::Mutex<bool>>,
+    /// Decodes running, and how many may run at once (each holds several
+    /// times a chunk: the memory plan sets the limit).
+    running: (std::sync::Mutex<usize>, std::sync::Condvar),
+    limit: std::sync::atomic::AtomicUsize,
 }
 
 impl Spill {
     pub fn new(path: &Path, info: &SourceInfo) -> Result<Spill> {
         let file = tempfile::tempfile().map_err(|e| Error::format(path, format!("no temporary file for its decoded chunks: {e}")))?;
         let chunk_bytes = info.chunk.0 as u64 * info.chunk.1 as u64 * info.pixel_bytes() as u64;
-        Ok(Spill { file, chunk_bytes, done: (0..info.offsets.len()).map(|_| std::sync::Mutex::new(false)).collect() })
+        Ok(Spill {
+            file,
+            chunk_bytes,
+            done: (0..info.offsets.len()).map(|_| std::sync::Mutex::new(false)).collect(),
+            running: Default::default(),
+            limit: usize::MAX.into(),
+        })
+    }
+
+    /// At most `n` (at least one) chunks decoded at once.
+    pub fn limit_decoders(&self, n: usize) {
+        self.limit.store(n.max(1), std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// `decode`, once a decoder is free.
+    fn decode_in_turn(&self, decode: impl FnOnce() -> Result<Vec<u8>>) -> Result<Vec<u8>> {
+        let (count, free) = (&self.running.0, &self.running.1);
+        let limit = self.limit.load(std::sync::atomic::Ordering::Relaxed);
+        let mut n = free.wait_while(count.lock().unwrap_or_else(|e| e.into_inner()), |n| *n >= limit).unwrap_or_else(|e| e.into_inner());
+        *n += 1;
+        drop(n);
+        let v = decode();
+        *count.lock().unwrap_or_else(|e| e.into_inner()) -= 1;
+        free.notify_one();
+        v
     }
 
     /// Chunk `k`: read back, or decoded by `decode` and kept.
@@ -178,7 +206,7 @@ impl Spill {
             self.file.read_exact_at(&mut v, at).map_err(io)?;
             return Ok(v);
         }
-        let v = decode()?;
+        let v = self.decode_in_turn(decode)?;
         self.file.write_all_at(&v, at).map_err(io)?;
         *done = true;
         Ok(v)

@@ -174,18 +174,25 @@ impl SourceImage {
         Ok(SourceImage { path: path.to_path_buf(), info, backend, mask_runs: Default::default() })
     }
 
-    /// What decoding chunks holds at once on `threads` threads beyond the
-    /// chunks themselves: OpenJPEG keeps about eight times a chunk's
-    /// samples while it decodes one (measured: 25 MB over the same run on
-    /// an uncompressed scan, two threads, 1024² 16-bit chunks); 0 for the
-    /// other formats, whose decoders hold little.
-    pub fn decoding_bytes(&self, threads: usize) -> u64 {
+    /// What decoding one chunk holds beyond the chunk itself: OpenJPEG
+    /// keeps its samples as 32-bit integers, in the image and the tile
+    /// being decoded, and code-block buffers (about eight bytes a sample);
+    /// 0 for the other formats, whose decoders hold little.
+    pub fn decoding_bytes(&self) -> u64 {
         match &self.backend {
             Backend::Coded { coder: Coder::Jpeg2000 { .. }, .. } => {
                 let (w, h) = self.info.chunk;
-                threads as u64 * 8 * w as u64 * h as u64 * self.info.bands as u64 * 2
+                8 * w as u64 * h as u64 * self.info.bands as u64
             }
             _ => 0,
+        }
+    }
+
+    /// At most `n` chunks decoded at once (JPEG 2000; the others decode
+    /// on every thread that reads).
+    pub fn limit_decoders(&self, n: usize) {
+        if let Backend::Coded { coder: Coder::Jpeg2000 { spill, .. }, .. } = &self.backend {
+            spill.limit_decoders(n);
         }
     }
 
