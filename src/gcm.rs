@@ -316,13 +316,25 @@ impl<'a> Gcm<'a> {
         Frame { u0: self.xs[i], v0, du: self.xs[i + 1] - self.xs[i], dv: v1 - v0 }
     }
 
+    /// Whether (u, v) lies among the grid's pixel centres. Only there is a
+    /// height the DEM lacks an error (under that policy): the nodes past
+    /// them (half a spacing beyond the edge) make no pixel, and without a
+    /// value their cells are filled by the exact model, pixel by pixel.
+    #[inline]
+    fn among_pixels(&self, u: f64, v: f64) -> bool {
+        let (w, h) = (self.t.grid.width as f64, self.t.grid.height as f64);
+        (0.5..=w - 0.5).contains(&u) && (0.5..=h - 0.5).contains(&v)
+    }
+
     /// Correction `T − A` at (u, v), NaN where either has no value.
     #[inline]
     fn correction(&self, u: f64, v: f64, miss: &mut Option<(f64, f64, Lookup)>) -> [f64; 2] {
         match (self.t.exact(u, v), self.a.at(u, v)) {
             (Mapped::Px(c, r), Some((ac, ar))) => [c - ac, r - ar],
             (Mapped::DemMiss(x, y, l), _) => {
-                miss.get_or_insert((x, y, l));
+                if self.among_pixels(u, v) {
+                    miss.get_or_insert((x, y, l));
+                }
                 [f64::NAN; 2]
             }
             _ => [f64::NAN; 2],
@@ -380,7 +392,9 @@ impl<'a> Gcm<'a> {
                 }
                 Height::Nodata => {}
                 Height::Missing(l) => {
-                    miss.get_or_insert((x, y, l));
+                    if self.among_pixels(self.xs[i], v) {
+                        miss.get_or_insert((x, y, l));
+                    }
                 }
             }
         }

@@ -198,3 +198,53 @@ fn a_mosaic_lands_on_a_reference_grid() {
     let r = run(&["mosaic", s(&manifest), "-o", s(&d.join("x.tif")), "--like", s(&like), "--gsd", "2"]);
     assert_eq!(r.status.code(), Some(2), "{}", String::from_utf8_lossy(&r.stderr));
 }
+
+/// The default grid follows what `--dem-outside` says of the ground past
+/// the DEM: cut to the DEM (`nodata`); the whole footprint, past the DEM
+/// on the plane at the given height (`HEIGHT`); within the DEM's edge, so
+/// that no pixel centre of the snapped grid falls past it (`error`).
+#[test]
+fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 400, |_| {});
+    // The DEM's middle half each way: the scan sees past it on every side.
+    let g = gcm_ortho::dem::GridDem::read(&sc.dem).unwrap();
+    let keys = gcm_ortho::io::source::SourceImage::info_of(&sc.dem).unwrap().georef.unwrap().keys;
+    let (i0, j0, w, h) = (g.width / 4, g.height / 4, g.width / 2, g.height / 2);
+    let gt = g.transform;
+    let mid = g.sample(g.width / 2, g.height / 2);
+    let cropped = dir.path().join("dem_middle.tif");
+    f32_raster_with_keys(&cropped, (w as u32, h as u32), (gt[0] + i0 as f64 * gt[1], gt[3] + j0 as f64 * gt[5], gt[1]), keys, |c, r| {
+        g.sample(i0 + c as usize, j0 + r as usize)
+    });
+    let dem_box = gcm_ortho::dem::GridDem::read(&cropped).unwrap().bounds();
+    let ortho_on = |dem: &Path, name: &str, outside: &str| {
+        let out = dir.path().join(name);
+        let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(dem), "--dem-outside", outside, "--quiet", "-o", s(&out)]);
+        assert!(r.status.success(), "--dem-outside {outside}: {}", String::from_utf8_lossy(&r.stderr));
+        let (gt, w, h) = grid_of(&out);
+        let (bytes, info) = whole_image(&out);
+        let valid = bytes.chunks_exact(info.pixel_bytes()).filter(|p| p.iter().any(|&v| v != 0)).count();
+        ([gt[0], gt[3] + gt[5] * h as f64, gt[0] + gt[1] * w as f64, gt[3]], gt[1], valid)
+    };
+    let ortho = |name: &str, outside: &str| ortho_on(&cropped, name, outside);
+    let (whole, _, whole_valid) = ortho_on(&sc.dem, "whole.tif", "nodata");
+    let (cut, gsd, cut_valid) = ortho("nodata.tif", "nodata");
+    let (wide, _, wide_valid) = ortho("height.tif", &format!("{mid}"));
+    let (inside, _, _) = ortho("error.tif", "error");
+    let area = |b: [f64; 4]| (b[2] - b[0]) * (b[3] - b[1]);
+    assert!(area(whole) > 1.3 * area(cut) && whole_valid as f64 > 1.05 * cut_valid as f64, "the DEM's middle cuts the footprint");
+    // Past the DEM on the plane: the footprint is the scan's whole one
+    // (on the whole DEM, within the plane's relief displacement), and it
+    // holds image.
+    for k in 0..4 {
+        assert!((wide[k] - whole[k]).abs() <= 10.0 * gsd, "{wide:?} vs the whole DEM's {whole:?}");
+    }
+    assert!((wide_valid as f64 - whole_valid as f64).abs() < 0.02 * whole_valid as f64, "{wide_valid} vs {whole_valid} pixels");
+    // Snapped outward, the cut grid reaches up to a pixel past the DEM;
+    // under `error` its pixel centres stay on it.
+    for k in 0..2 {
+        assert!(inside[k] + gsd / 2.0 >= dem_box[k] && inside[k + 2] - gsd / 2.0 <= dem_box[k + 2], "{inside:?} within {dem_box:?}");
+        assert!((inside[k] - cut[k]).abs() <= gsd && (inside[k + 2] - cut[k + 2]).abs() <= gsd, "{inside:?} ≈ {cut:?}");
+    }
+}

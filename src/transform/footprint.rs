@@ -5,7 +5,7 @@
 
 use super::inverse::RayCaster;
 use crate::camera::SensorModel;
-use crate::dem::Dem;
+use crate::dem::{Dem, HeightModel, Miss};
 use crate::error::{Error, Result};
 use crate::geom::{ImageArea, OutputGrid};
 
@@ -24,15 +24,26 @@ pub fn footprint(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32, z_
     let range = dem.height_range();
     let joined = |a: [f64; 4], b: [f64; 4]| [a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])];
     let none = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+    // Past the DEM, where a height is given for it, the image reaches the
+    // plane at that height.
+    let beyond = match dem.on_outside {
+        Miss::Height(z) => Some(Dem::flat(z)),
+        _ => None,
+    };
     // The outline's points on the pool (thousands of rays on a large
     // frame, walked through a DSM): the bounds of each point's ground
     // points, and whether its ray met the DEM.
     let (b, hits) = outline
         .par_iter()
         .map_init(
-            || RayCaster::new(model, dem),
-            |caster, &(c, r)| {
-                let Some(p) = caster.cast(c, r, None, z_guess, 1e-3) else { return (none, 0) };
+            || (RayCaster::new(model, dem), beyond.as_ref().map(|flat| RayCaster::new(model, flat))),
+            |(caster, flat), &(c, r)| {
+                let Some(p) = caster.cast(c, r, None, z_guess, 1e-3) else {
+                    return match flat.as_mut().and_then(|f| f.cast(c, r, None, z_guess, 1e-3)) {
+                        Some(p) => ([p[0], p[1], p[0], p[1]], 1),
+                        None => (none, 0),
+                    };
+                };
                 let mut b = [p[0], p[1], p[0], p[1]];
                 // Down to the lowest height and up to the highest: where the
                 // camera's nadir lies outside the image (an oblique frame), an
@@ -159,9 +170,17 @@ pub fn mean_gsd(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64
     Ok(format!("{gsd:.3e}").parse().expect("a formatted float parses"))
 }
 
-/// The default grid: footprint snapped to `gsd`.
+/// The default grid: footprint snapped to `gsd`. Where heights outside
+/// the DEM are an error, the grid stays within the DEM's edge: snapped
+/// outward, the footprint's last pixel centres would fall up to half a
+/// pixel past it.
 pub fn auto_grid(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64, gsd: crate::geom::Gsd) -> Result<OutputGrid> {
-    let b = footprint(model, dem, w, h, z_guess)?;
+    let mut b = footprint(model, dem, w, h, z_guess)?;
+    if let (Miss::Error, HeightModel::Grid(g), None) = (dem.on_outside, &dem.model, &dem.to_dem) {
+        let e = g.bounds();
+        let (hx, hy) = (gsd.x * 0.5001, gsd.y * 0.5001);
+        b = [b[0].max(e[0] + hx), b[1].max(e[1] + hy), b[2].min(e[2] - hx), b[3].min(e[3] - hy)];
+    }
     OutputGrid::snapped(b[0], b[1], b[2], b[3], gsd).ok_or_else(|| {
         Error::setting("gsd", format!("the footprint of {:.0} × {:.0} m at GSD {gsd} {}", b[2] - b[0], b[3] - b[1], OutputGrid::no_grid_because(b, gsd)))
     })
