@@ -700,7 +700,7 @@ pub struct RectifyArgs {
     #[arg(long, default_value = "128M")]
     pub memory: String,
     /// The most output pixels, e.g. 20G (default: 16 times the scan's,
-    /// which only a GSD or bounds typo passes).
+    /// and 256M at least; only a GSD or bounds typo passes it).
     #[arg(long)]
     pub max_output_pixels: Option<String>,
     /// No progress bar (there is none anyway when stderr is not a terminal)

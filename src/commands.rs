@@ -498,6 +498,18 @@ fn threads_within_cores(asked: usize, at_once: usize) -> (usize, Option<String>)
 
 fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
     let mut opts = a.options()?;
+    let dem = match &opts.dem {
+        DemSource::File(p) => Some(p.as_path()),
+        _ => None,
+    };
+    inputs_exist(&[
+        ("--image", Some(opts.image.as_path())),
+        (if a.sensor.rpc.is_some() { "--rpc" } else { "--camera" }, Some(opts.camera.as_path()).filter(|c| *c != Path::new("exif"))),
+        ("--exterior", a.sensor.exterior.as_deref()),
+        ("--dem", dem),
+        ("--like", opts.like.as_deref()),
+        ("--gcps", opts.gcps.as_ref().map(|g| g.file.as_path())),
+    ])?;
     let json: Vec<Role> = a.json.iter().map(|j| Role::new("report", j)).collect();
     opts.check_outputs(&json)?;
     for j in &json {
@@ -518,6 +530,17 @@ fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
     }
     if !a.quiet {
         print_report(&report);
+    }
+    Ok(())
+}
+
+/// An input that is not there, named with the option that gives it
+/// (reading it would name the file alone).
+fn inputs_exist(inputs: &[(&str, Option<&Path>)]) -> Result<()> {
+    for (flag, path) in inputs {
+        if let Some(p) = path.filter(|p| std::fs::symlink_metadata(p).is_err()) {
+            return Err(gcm_ortho::Error::Named(format!("{flag} {}: no such file or folder", p.display())).into());
+        }
     }
     Ok(())
 }

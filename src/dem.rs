@@ -11,6 +11,7 @@ use crate::io::geotiff::{read_georef, GeoRef};
 use std::path::{Path, PathBuf};
 
 mod mosaic;
+pub use mosaic::{is_vrt, vrt_grid};
 
 /// What a raw lookup found.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -25,11 +25,46 @@ fn few_malloc_arenas() {
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
 fn few_malloc_arenas() {}
 
+/// A usage error in one line, as every other error (clap's own layout is
+/// five: the error, a tip, the usage, a pointer to --help); help and
+/// version as clap prints them.
+fn usage_error(e: clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand) {
+        e.exit();
+    }
+    let text = e.to_string();
+    let mut said = String::new();
+    let mut tips = Vec::new();
+    for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        if line.starts_with("Usage:") || line.starts_with("For more information") {
+            continue;
+        }
+        if let Some(tip) = line.strip_prefix("tip:") {
+            tips.push(tip.trim().to_string());
+        } else if let Some(first) = line.strip_prefix("error:") {
+            said.push_str(first.trim());
+        } else {
+            // The list under the first line (missing arguments, values).
+            said.push_str(if said.ends_with(':') || line.starts_with('[') { " " } else { ", " });
+            said.push_str(line);
+        }
+    }
+    for tip in tips {
+        said.push_str(&format!(" ({tip})"));
+    }
+    eprintln!("gcm-ortho: error: {said}; see --help");
+    ExitCode::from(2)
+}
+
 /// Exit codes: 0 success, 1 bad input or failure, 2 usage, 3 a batch in
 /// which some jobs failed, 130 SIGINT, 143 SIGTERM.
 fn main() -> ExitCode {
     few_malloc_arenas();
-    let cli = cli::Cli::parse();
+    let cli = match cli::Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return usage_error(e),
+    };
     let polls = matches!(cli.command, cli::Command::Rectify(_) | cli::Command::Batch(_) | cli::Command::Demo(_) | cli::Command::Mosaic(_));
     let signals = match commands::Signals::install(polls) {
         Ok(s) => s,

@@ -540,6 +540,9 @@ impl RectifyOptions {
         if self.like.is_some() && (self.gsd.is_some() || self.bounds.is_some()) {
             return Err(Error::setting("like", "gives the grid: drop the GSD and bounds"));
         }
+        if self.like.is_some() && self.snap != Snap::Tap {
+            return Err(Error::setting("snap", "places bounds on the GSD; the reference grid (--like) is taken as it is"));
+        }
         self.codec_level()?;
         self.overview_codec_level()?;
         if self.occlusion != Occlusion::None && !matches!(self.dem, DemSource::File(_)) {

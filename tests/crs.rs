@@ -317,6 +317,18 @@ fn a_frame_camera_orthorectifies_into_a_national_transverse_mercator() {
             assert!(v[0] < 0.15 && v[1] < 0.03, "{name}: {got}");
         }
     }
+    // A manifest's `crs` (in [defaults]) is --crs: the same orthophoto.
+    let m = dir.path().join("block.toml");
+    std::fs::write(
+        &m,
+        format!(
+            "[defaults]\ncrs = \"{tm}\"\ndem = \"s/dem.tif\"\nnodata = -1\ncompress = \"none\"\n\n[[job]]\nimage = \"coords.tif\"\ncamera = \"s/camera.toml\"\noutput = \"tm-batch.tif\"\n"
+        ),
+    )
+    .unwrap();
+    let r = run(&["batch", s(&m), "--quiet"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(content(&dir.path().join("tm-batch.tif")) == content(&dir.path().join("tm.tif")), "the manifest's crs is --crs");
     // The same DEM warped by GDAL into the national grid (user-defined
     // GeoTIFF keys, as an NGI block's DEM comes) gives the orthophoto of
     // the UTM DEM, within what resampling the DEM twice changes.

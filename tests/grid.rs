@@ -85,6 +85,30 @@ fn like_takes_a_reference_rasters_grid_pixel_for_pixel() {
     assert!(err.contains("--crs") && err.contains("other.tif") && err.contains("EPSG:32632"), "{err}");
     let r = run(&[&base[..], &["--like", s(&like), "--gsd", "2"]].concat());
     assert_eq!(r.status.code(), Some(2));
+    // --snap places bounds; with a reference grid it is refused, not ignored.
+    let r = run(&[&base[..], &["--like", s(&like), "--snap", "none"]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.code() == Some(2) && err.contains("--snap"), "{err}");
+    // A GDAL VRT as the reference (its sources are not needed): the same grid.
+    let vrt = d.join("ref.vrt");
+    let wkt = r#"PROJCS["WGS 84 / UTM zone 31N",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],PARAMETER["latitude_of_origin",0],PARAMETER["central_meridian",3],PARAMETER["scale_factor",0.9996],PARAMETER["false_easting",500000],PARAMETER["false_northing",0],UNIT["metre",1],AUTHORITY["EPSG","32631"]]"#;
+    std::fs::write(
+        &vrt,
+        format!(
+            "<VRTDataset rasterXSize=\"517\" rasterYSize=\"389\">\n  <SRS dataAxisToSRSAxisMapping=\"1,2\">{}</SRS>\n  <GeoTransform> {}, {}, 0.0, {}, 0.0, {}</GeoTransform>\n  <VRTRasterBand dataType=\"Float32\" band=\"1\"><SimpleSource><SourceFilename relativeToVRT=\"1\">gone.tif</SourceFilename></SimpleSource></VRTRasterBand>\n</VRTDataset>\n",
+            wkt.replace('"', "&quot;"),
+            gt[0],
+            gt[1],
+            gt[3],
+            gt[5]
+        ),
+    )
+    .unwrap();
+    let out_vrt = d.join("o_vrt.tif");
+    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "-o", s(&out_vrt), "--like", s(&vrt)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(grid_of(&out_vrt), (gt, 517, 389));
+    assert!(whole_image(&out_vrt).0 == whole_image(&out).0, "the VRT's grid gives the TIFF's orthophoto");
     // The same in a batch manifest, relative to it.
     let m = d.join("block.toml");
     let job = "[[job]]\nimage = \"scene/scan.tif\"\ncamera = \"scene/camera.toml\"\ndem = \"scene/dem.tif\"\nlike = \"ref.tif\"\noutput = \"b.tif\"\n";

@@ -255,6 +255,18 @@ fn absurd_settings_are_refused_before_any_work_with_their_flag() {
     // A GSD past the footprint is said to be that, not too many pixels.
     refused(d, &[&base[..], &["--gsd", "1e30"]].concat(), &["--gsd", "less than one pixel"]);
     refused(d, &[&base[..], &["--gsd", "1e-30"]].concat(), &["--gsd", "more pixels a side than a raster holds"]);
+    // An input that is not there is named with its option.
+    for (flag, with) in [("--image", vec!["--camera", s(&camera), "--dem", s(&dem)]), ("--dem", vec!["--image", s(&scan), "--camera", s(&camera)])] {
+        let r = run(&[&["rectify", flag, "gone.tif", "--quiet", "-o", s(&out)][..], &with].concat());
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.code() == Some(1) && err.contains(&format!("{flag} gone.tif")) && err.trim_end().lines().count() == 1, "{err}");
+    }
+    // Metres meant, in a CRS of degrees: refused, not a one-pixel orthophoto.
+    refused(d, &[&base[..], &["--crs", "EPSG:4326", "--gsd", "0.5"]].concat(), &["--gsd", "degrees"]);
+    // Usage errors in one line with the program's prefix, the argument named.
+    refused(d, &[&base[..], &["--bogus"]].concat(), &["gcm-ortho: error:", "'--bogus'", "--bounds"]);
+    refused(d, &["rectify", "--quiet"], &["gcm-ortho: error:", "--image", "--camera"]);
+    refused(d, &[&base[..], &["--resample", "sinc"]].concat(), &["gcm-ortho: error:", "'sinc'", "--resample", "lanczos3"]);
     // The limit is the user's to set, down or up.
     refused(d, &[&base[..], &["--max-output-pixels", "1k"]].concat(), &["--max-output-pixels", "0.00 Gpx allowed"]);
     let r = run(&[&base[..], &["--max-output-pixels", "1G"]].concat());

@@ -43,6 +43,8 @@ pub struct Options {
     pub snap: Option<String>,
     /// A raster whose grid the orthophoto takes (relative to the manifest).
     pub like: Option<String>,
+    /// The orthophoto's CRS, as `--crs` takes it (a `.prj` relative to the manifest).
+    pub crs: Option<String>,
     pub sparsity: Option<u32>,
     pub max_error: Option<MaxError>,
     pub corrections: Option<String>,
@@ -84,6 +86,7 @@ impl Options {
             bounds,
             snap,
             like,
+            crs,
             sparsity,
             max_error,
             corrections,
@@ -385,6 +388,9 @@ fn config(
             c.snap = parse_choice("snap", s)?;
         }
         c.like = o.like.as_deref().map(rel);
+        if let Some(t) = &o.crs {
+            c.crs = Some(crate::geodesy::Crs::parse(t, &rel(".")).map_err(|m| Error::setting("crs", m))?);
+        }
         if let Some(g) = &o.gcps {
             use crate::camera::gcp::BiasModel;
             let model = match o.gcp_refine.as_deref().unwrap_or("auto") {

@@ -244,12 +244,14 @@ fn same(a: f64, b: f64) -> bool {
 /// A GDAL VRT: its first band's simple and complex sources, each a tile
 /// placed by its source and destination windows (of one size: no
 /// resampling). What else a VRT may hold is refused by name.
-fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
-    let text = crate::io::bounded_read::read_text_bounded(path, "VRT", 64 << 20)?;
-    let doc = roxmltree::Document::parse(&text).map_err(|e| Error::format(path, format!("VRT: {e}")))?;
-    let root = doc.root_element();
+/// Whether `path` is a GDAL VRT (told from its first bytes).
+pub fn is_vrt(path: &Path) -> bool {
+    matches!(kind_of(path), Some(Kind::Vrt))
+}
+
+/// A VRT's size and geotransform, as its `VRTDataset` says them.
+fn vrt_size_and_transform(path: &Path, root: roxmltree::Node) -> Result<(usize, usize, [f64; 6])> {
     let bad = |m: String| Error::format(path, format!("VRT: {m}"));
-    let unsupported = |m: String| Error::unsupported(path, format!("VRT: {m}"));
     let size =
         |name: &str| -> Result<usize> { root.attribute(name).and_then(|v| v.trim().parse().ok()).ok_or_else(|| bad(format!("no {name} on VRTDataset"))) };
     let (width, height) = (size("rasterXSize")?, size("rasterYSize")?);
@@ -258,6 +260,31 @@ fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
         .map(|t| t.split(',').filter_map(|v| v.trim().parse().ok()).collect())
         .ok_or_else(|| bad("no GeoTransform".into()))?;
     let transform: [f64; 6] = gt.try_into().map_err(|_| bad("a GeoTransform of other than six numbers".into()))?;
+    Ok((width, height, transform))
+}
+
+/// A VRT's grid: its size, geotransform and SRS (for a reference grid;
+/// its sources are not opened).
+pub fn vrt_grid(path: &Path) -> Result<(usize, usize, [f64; 6], Option<crate::geodesy::Crs>)> {
+    let text = crate::io::bounded_read::read_text_bounded(path, "VRT", 64 << 20)?;
+    let doc = roxmltree::Document::parse(&text).map_err(|e| Error::format(path, format!("VRT: {e}")))?;
+    let root = doc.root_element();
+    let (width, height, transform) = vrt_size_and_transform(path, root)?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let crs = match child(root, "SRS").and_then(|n| n.text()).map(str::trim).filter(|t| !t.is_empty()) {
+        Some(srs) => Some(crate::geodesy::Crs::parse(srs, dir).map_err(|m| Error::format(path, format!("VRT: its SRS: {m}")))?),
+        None => None,
+    };
+    Ok((width, height, transform, crs))
+}
+
+fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
+    let text = crate::io::bounded_read::read_text_bounded(path, "VRT", 64 << 20)?;
+    let doc = roxmltree::Document::parse(&text).map_err(|e| Error::format(path, format!("VRT: {e}")))?;
+    let root = doc.root_element();
+    let bad = |m: String| Error::format(path, format!("VRT: {m}"));
+    let unsupported = |m: String| Error::unsupported(path, format!("VRT: {m}"));
+    let (width, height, transform) = vrt_size_and_transform(path, root)?;
     let bands: Vec<_> = root.children().filter(|n| n.has_tag_name("VRTRasterBand")).collect();
     let band = bands.first().ok_or_else(|| bad("no VRTRasterBand".into()))?;
     if let Some(sub) = band.attribute("subClass") {
@@ -298,7 +325,7 @@ fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
                 }
             }
         }
-        let grid = GridDem::read_within(&tile_path, share)?;
+        let grid = GridDem::read_within(&tile_path, share).map_err(|e| bad(format!("its source: {e}")))?;
         let rect = |tag: &str, default: [f64; 4]| -> Result<[f64; 4]> {
             let Some(r) = child(s, tag) else { return Ok(default) };
             let a = |k: &str| r.attribute(k).and_then(|v| v.trim().parse::<f64>().ok()).ok_or_else(|| bad(format!("{tag} of {name} without {k}")));

@@ -247,6 +247,20 @@ impl RunPlan {
             }
         };
         let gsd = grid.gsd;
+        // Metres given for a CRS in degrees: pixels tens of kilometres wide.
+        if let (Some(g), true) = (opts.gsd, camera.crs.is_geographic()) {
+            if g.max() > MAX_GSD_DEGREES {
+                return Err(Error::setting(
+                    "gsd",
+                    format!(
+                        "{g} is in degrees in {} (pixels of about {:.0} km); give the GSD in degrees (about {:.1e} for 0.5 m)",
+                        camera.crs,
+                        g.max() * 111.32,
+                        0.5 / 111_320.0
+                    ),
+                ));
+            }
+        }
         if grid.width > MAX_SIDE || grid.height > MAX_SIDE {
             return Err(Error::setting(
                 "gsd",
@@ -559,18 +573,26 @@ fn pixel_extent(a: &Approx, u: f64, v: f64, d: f64) -> Option<f64> {
     extent.is_finite().then_some(extent)
 }
 
+/// The coarsest GSD taken in a CRS in degrees (about 11 km).
+const MAX_GSD_DEGREES: f64 = 0.1;
+
 /// Output pixels this many scan pixels across are warned about under a
 /// point kernel (bilinear reads 4 of the 9 pixels under one at 3×).
 const ALIASING_EXTENT: f64 = 3.0;
 
 /// The grid of a reference raster (north-up) and its CRS.
 pub fn reference_grid(path: &std::path::Path) -> Result<(OutputGrid, Crs)> {
-    let info = SourceImage::info_of(path)?;
-    let g = info.georef.ok_or_else(|| Error::format(path, "has no georeferencing to take the grid from"))?;
-    let t = g.transform;
-    let crs = crate::geodesy::geokeys::crs_of(&g.keys)
-        .map_err(|m| Error::format(path, format!("its GeoTIFF keys: {m}")))?
-        .ok_or_else(|| Error::format(path, "names no CRS to take the grid from"))?;
+    let (width, height, t, crs) = if crate::dem::is_vrt(path) {
+        let (w, h, t, crs) = crate::dem::vrt_grid(path)?;
+        let side = |n: usize| u32::try_from(n).map_err(|_| Error::format(path, format!("VRT: {n} pixels a side")));
+        (side(w)?, side(h)?, t, crs)
+    } else {
+        let info = SourceImage::info_of(path)?;
+        let g = info.georef.ok_or_else(|| Error::format(path, "has no georeferencing to take the grid from"))?;
+        let crs = crate::geodesy::geokeys::crs_of(&g.keys).map_err(|m| Error::format(path, format!("its GeoTIFF keys: {m}")))?;
+        (info.width, info.height, g.transform, crs)
+    };
+    let crs = crs.ok_or_else(|| Error::format(path, "names no CRS to take the grid from"))?;
     if t[2] != 0.0 || t[4] != 0.0 {
         return Err(Error::unsupported(path, "a turned grid (the orthophoto is north-up)"));
     }
@@ -579,7 +601,7 @@ pub fn reference_grid(path: &std::path::Path) -> Result<(OutputGrid, Crs)> {
     }
     // Square within a writer's rounding stays square.
     let gsd = if (t[1] + t[5]).abs() <= 1e-9 * t[1] { Gsd::square(t[1]) } else { Gsd { x: t[1], y: -t[5] } };
-    Ok((OutputGrid { x0: t[0], y0: t[3], gsd, width: info.width, height: info.height }, crs))
+    Ok((OutputGrid { x0: t[0], y0: t[3], gsd, width, height }, crs))
 }
 
 /// What `auto` means for these samples: NaN (outside any data) for
