@@ -20,7 +20,7 @@ use gcm_ortho::io::overwrite::{check_outputs, check_writable, Role};
 use gcm_ortho::io::publish::write_file;
 use gcm_ortho::io::source::SourceImage;
 use gcm_ortho::options::{parse_bytes, parse_size, DemSource, RectifyOptions};
-use gcm_ortho::study::accuracy::evaluate;
+use gcm_ortho::study::accuracy::evaluate_where;
 use gcm_ortho::study::compare::{compare, read_grey};
 use gcm_ortho::synth::{synth, SynthOptions};
 use gcm_ortho::transform::footprint::{auto_grid, mean_gsd};
@@ -439,7 +439,7 @@ fn print_report(r: &Report) {
     say!("  stages (busy s): setup {:.2}, dem {:.2}, gcm {:.2}, read {:.2}, resample {:.2}, encode {:.2}", s.setup, s.dem, s.gcm, s.read, s.resample, s.encode);
     let e = &r.accuracy_estimate;
     let bound = r.error_bound.map(|b| format!(", bound {b} px {}", if r.error_within { "held" } else { "MISSED" })).unwrap_or_default();
-    say!("  GCM vs exact model (sampled): RMS {:.4} px, max {:.4} px over {} pixels{bound}", e.rms, e.max, e.count);
+    say!("  GCM (node spacing {} px) vs exact model (sampled): RMS {:.4} px, max {:.4} px over {} pixels{bound}", r.config.gcm.k, e.rms, e.max, e.count);
     if let Some(h) = &r.occlusion {
         say!("  occlusion: {} of {} imaged pixels hidden from the sensor ({:.2} %)", h.hidden_px, h.imaged_px, 100.0 * h.share);
     }
@@ -643,7 +643,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     }
     for (k, mode, bound) in cases {
         let gcm = Gcm::new(&t, approx, GcmSpec { k, mode, max_error: bound });
-        let ev = gcm_ortho::study::accuracy::evaluate_where(&gcm, a.step, a.max_slope, Some((w, h)), None);
+        let ev = evaluate_where(&gcm, a.step, a.max_slope, Some((w, h)), None);
         let e = &ev.errors;
         let refined = 100.0 * ev.gcm.refined_cells as f64 / ev.gcm.cells.max(1) as f64;
         say!(
@@ -697,7 +697,8 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     if a.error_map.is_some() || a.png.is_some() {
         let gcm = Gcm::new(&t, approx, GcmSpec { k: a.map_sparsity, mode: CorrectionMode::Bilinear, max_error: None });
         let mut map = Vec::new();
-        evaluate(&gcm, a.step, Some(&mut map));
+        // Only where the scan is (NaN, the map's nodata, elsewhere).
+        evaluate_where(&gcm, a.step, None, Some((w, h)), Some(&mut map));
         let (mw, mh) = (grid.width.div_ceil(a.step), grid.height.div_ceil(a.step));
         if let Some(p) = &a.error_map {
             gcm_ortho::study::maps::write_error_map(p, &map, mw, mh, &grid, a.step, &cam.crs)?;

@@ -65,8 +65,18 @@ fn checkpoints_agree_to_a_quarter_pixel_at_k16() {
     let dir = tempfile::tempdir().unwrap();
     let sc = scene(&dir.path().join("scene"), 1200, |o| o.kappa_deg = 31.0);
     let json = dir.path().join("accuracy.json");
-    let r = run(&["accuracy", "--scene", s(&dir.path().join("scene")), "--sparsity", "16", "--step", "4", "--json", s(&json)]);
+    let map = dir.path().join("error.tif");
+    let r = run(&["accuracy", "--scene", s(&dir.path().join("scene")), "--sparsity", "16", "--step", "4", "--json", s(&json), "--error-map", s(&map)]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    // The error map has values where the scan is, NaN (its nodata) past it:
+    // a frame swung 31° leaves the grid's corners empty.
+    let (mw, mh, _, errors) = read_f32(&map);
+    let info = gcm_ortho::io::source::SourceImage::info_of(&map).unwrap();
+    assert!(info.georef.unwrap().nodata.is_some_and(|v| v.is_nan()));
+    let corner = |x: u32, y: u32| errors[(y * mw + x) as usize];
+    assert!(corner(0, 0).is_nan() && corner(mw - 1, mh - 1).is_nan() && !corner(mw / 2, mh / 2).is_nan());
+    let valid = errors.iter().filter(|e| !e.is_nan()).count();
+    assert!(valid > errors.len() / 2 && valid < errors.len() * 95 / 100, "{valid} of {}", errors.len());
     let table: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let row = table["rows"].as_array().unwrap().iter().find(|r| r.get("checkpoints").is_some()).expect("a checkpoint row");
     let written = std::fs::read_to_string(&sc.checkpoints).unwrap().lines().filter(|l| l.starts_with(|c: char| c.is_ascii_digit())).count();

@@ -9,7 +9,7 @@ use crate::io::source::SampleType;
 use crate::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
 use std::path::Path;
 
-/// Float32 GeoTIFF of the sampled error (NaN where not evaluated).
+/// Float32 GeoTIFF of the sampled error (NaN, its nodata, where not evaluated).
 pub fn write_error_map(path: &Path, map: &[f32], w: u32, h: u32, grid: &OutputGrid, step: u32, crs: &crate::geodesy::Crs) -> Result<()> {
     let spec = OutputSpec {
         overviews: 0,
@@ -31,7 +31,7 @@ pub fn write_error_map(path: &Path, map: &[f32], w: u32, h: u32, grid: &OutputGr
             y0: grid.y0,
             gsd: grid.gsd.scaled(step as f64),
             keys: crate::geodesy::geokeys::keys_of(crs).map_err(Error::Geometry)?,
-            nodata: None,
+            nodata: Some(f64::NAN),
         }),
     };
     write_raster(path, &spec, |y0, y1, buf| {
