@@ -188,6 +188,14 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     let enough = err.split("give --memory ").nth(1).and_then(|t| t.split_whitespace().next()).expect("a figure").to_string();
     mosaic(d, &["-o", "out.tif", "--memory", &enough]);
     assert!(d.join("out.tif").exists());
+    // Each image's set-up warnings are said, naming it, also under --quiet
+    // (a GSD three scan pixels wide: bilinear aliases).
+    let out =
+        std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "coarse.tif", "--gsd", "1.5", "--quiet"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let aliasing: Vec<&str> = err.lines().filter(|l| l.contains("warning") && l.contains("aliases")).collect();
+    assert!(aliasing.len() == 6 && aliasing.iter().all(|l| l.contains("scans/")), "{err}");
 }
 
 /// A mosaic whose bands the memory cannot hold across its width is made

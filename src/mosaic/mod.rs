@@ -580,7 +580,7 @@ impl PieceRender<'_> {
             let mut feeds = render::Feeds::new(s, works.len(), at_once);
             write_bands(&writing, pending, |b| {
                 // The piece's band b is the mosaic's tr0 + b.
-                let got = feeds.band(&works, tr0 + b, cancel)?;
+                let got = feeds.band(&works, tr0 + b, cancel, progress)?;
                 for (k, band) in &got {
                     if let Some(s) = &band.seen {
                         hidden[works[*k].image].0 += s.imaged;

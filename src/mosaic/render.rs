@@ -16,7 +16,7 @@ use crate::io::tiff_out::OutputSpec;
 use crate::options::RectifyOptions;
 use crate::pipeline::band_render::{render_bands, BandPixels, BandRequest};
 use crate::pipeline::{Made, Raw};
-use crate::progress::Cancel;
+use crate::progress::{Cancel, Progress};
 use crossbeam_channel::{bounded, Receiver};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -624,7 +624,7 @@ impl<'scope, 'env> Feeds<'scope, 'env> {
     /// The bands of band `b` from the images that have it (starting those
     /// whose first band is `b` or the next, and letting the next band's
     /// be made meanwhile).
-    pub fn band(&mut self, works: &'env [ImageWork], b: u32, cancel: &'env Cancel) -> Result<Vec<(usize, BandPixels)>> {
+    pub fn band(&mut self, works: &'env [ImageWork], b: u32, cancel: &'env Cancel, warn: &'env dyn Progress) -> Result<Vec<(usize, BandPixels)>> {
         for (k, w) in works.iter().enumerate() {
             let first = *w.bands.keys().next().unwrap_or(&u32::MAX);
             if !self.started[k] && first <= b + 1 {
@@ -636,7 +636,7 @@ impl<'scope, 'env> Feeds<'scope, 'env> {
                     let requests = w.requests();
                     let (x0, y0) = w.origin;
                     let turn = |&(band, cols): &BandRequest| turns.wait((band + y0, cols.0 + x0, k));
-                    let r = render_bands(&w.opts, w.dem.clone(), &requests, cancel, turn, |band| tx.send(band).is_ok());
+                    let r = render_bands(&w.opts, w.dem.clone(), &requests, cancel, warn, turn, |band| tx.send(band).is_ok());
                     if let Err(e) = r {
                         let _ = tx.send(Err(e));
                     }

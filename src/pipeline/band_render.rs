@@ -21,7 +21,7 @@ use crate::gcm::Gcm;
 use crate::io::source::Window;
 use crate::options::{BandOrder, Nodata, Occlusion, Overviews, RectifyOptions};
 use crate::overview::ValidBy;
-use crate::progress::{Cancel, NoProgress};
+use crate::progress::{Cancel, NoProgress, Progress, Task};
 use crate::transform::visibility::Visibility;
 use crate::transform::Transform;
 use std::sync::Arc;
@@ -50,21 +50,43 @@ pub fn in_memory(opts: &RectifyOptions) -> RectifyOptions {
     RectifyOptions { band_order: BandOrder::Rows, nodata: Nodata::Mask, alpha: false, window: None, cog: false, overviews: Overviews::None, ..opts.clone() }
 }
 
+/// An image's set-up warnings (aliasing, a datum, the camera), said to
+/// `to` with the image named: nobody watches an image's own progress.
+struct ImageWarnings<'a> {
+    to: &'a dyn Progress,
+    image: &'a std::path::Path,
+}
+
+impl Progress for ImageWarnings<'_> {
+    fn start(&self, _: &Task) {}
+    fn advance(&self, _: u64) {}
+    fn finish(&self) {}
+    fn warn(&self, message: &str) {
+        let name = self.image.display().to_string();
+        if message.contains(&name) {
+            self.to.warn(message);
+        } else {
+            self.to.warn(&format!("{name}: {message}"));
+        }
+    }
+}
+
 /// Makes the bands `requests` names (in increasing order) of the image of
 /// `opts` (see [`in_memory`]), handing each to `sink`. Each band waits for
 /// `turn`, whose answer is held while the band is made; stops early when
 /// `turn` gives none, `sink` says so (its reader went away) or `cancel` is
-/// set.
+/// set. The set-up's warnings go to `warn`.
 pub fn render_bands<T>(
     opts: &RectifyOptions,
     dem: SharedDem,
     requests: &[BandRequest],
     cancel: &Cancel,
+    warn: &dyn Progress,
     mut turn: impl FnMut(&BandRequest) -> Option<T>,
     mut sink: impl FnMut(Result<BandPixels>) -> bool,
 ) -> Result<()> {
     let opts = in_memory(opts);
-    let setup = match RunPlan::with_dem(&opts, &NoProgress, dem) {
+    let setup = match RunPlan::with_dem(&opts, &ImageWarnings { to: warn, image: &opts.image }, dem) {
         Ok(p) => p,
         Err(e) => {
             sink(Err(e));
