@@ -345,3 +345,31 @@ fn a_dem_in_tiles_as_a_vrt_a_folder_or_a_list_gives_the_merged_dems_orthophoto()
         assert!(!out.exists());
     }
 }
+
+/// A 12-bit image (GDAL's NBITS=12, as raw satellite products come: bits
+/// packed, striped or tiled and deflated, or 11-bit) is read as 16-bit
+/// samples: the orthophoto is the 16-bit file's, pixel for pixel.
+#[test]
+fn packed_twelve_bit_images_give_the_sixteen_bit_orthophoto() {
+    if !have("gdal_translate") {
+        assert!(std::env::var_os("CI").is_none(), "CI must compare with GDAL (install gdal-bin)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = drone(&d.join("rgb"), 3, 8);
+    let wide = d.join("u16.tif");
+    gdal_translate(&["-ot", "UInt16", "-scale", "0", "255", "0", "2047", s(&sc.scan), s(&wide)]);
+    let want = rectified(&sc, &wide, &d.join("u16-ortho.tif"));
+    for (name, options) in [
+        ("12-striped", &["-co", "NBITS=12"][..]),
+        ("12-tiled-deflate", &["-co", "NBITS=12", "-co", "TILED=YES", "-co", "COMPRESS=DEFLATE"]),
+        ("11-band-planar", &["-co", "NBITS=11", "-co", "INTERLEAVE=BAND", "-co", "COMPRESS=LZW"]),
+    ] {
+        let packed = d.join(format!("{name}.tif"));
+        gdal_translate(&[&options[..], &[s(&wide), s(&packed)]].concat());
+        let info = gcm_ortho::io::source::SourceImage::info_of(&packed).unwrap();
+        assert!(info.packed_bits == 12 || info.packed_bits == 11, "{name}: {}", info.packed_bits);
+        assert!(rectified(&sc, &packed, &d.join(format!("{name}-ortho.tif"))) == want, "{name}");
+    }
+}

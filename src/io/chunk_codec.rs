@@ -31,6 +31,9 @@ pub struct ChunkCodec {
     pub samples: usize,
     /// The file is big-endian ("MM").
     pub big_endian: bool,
+    /// Bits a sample where they are packed (9 to 15: a 12-bit satellite
+    /// image), widened here to 16-bit samples; 0 for whole bytes.
+    pub packed_bits: u16,
 }
 
 impl ChunkCodec {
@@ -90,7 +93,7 @@ impl ChunkCodec {
             return Err(Error::limits(path, format!("chunk {k} holds {count} compressed bytes")));
         }
         let in_chunk = |e: String| Error::format(path, format!("chunk {k}: {e}"));
-        let row_bytes = width * self.samples * self.sample_bytes;
+        let row_bytes = self.stored_row_bytes(width);
         if self.compression == 1 {
             // Stored as is: read into place, with no buffer of the coded
             // bytes to allocate, copy and free for every chunk.
@@ -102,7 +105,42 @@ impl ChunkCodec {
             file.read_exact_at(&mut coded, offset).map_err(|e| Error::io(path, e))?;
             self.decompress(&coded, row_bytes * rows, row_bytes * full_rows.max(rows), out).map_err(in_chunk)?;
         }
-        self.finish(out, row_bytes, rows, full_rows).map_err(in_chunk)
+        self.finish(out, row_bytes, rows, full_rows).map_err(in_chunk)?;
+        if self.packed_bits != 0 {
+            *out = self.widened(out, width, rows);
+        }
+        Ok(())
+    }
+
+    /// Bytes of a row as stored: whole samples, or packed bits padded to a
+    /// byte.
+    pub fn stored_row_bytes(&self, width: usize) -> usize {
+        match self.packed_bits {
+            0 => width * self.samples * self.sample_bytes,
+            b => (width * self.samples * b as usize).div_ceil(8),
+        }
+    }
+
+    /// Packed rows (most significant bit first, each row from a byte's
+    /// start) as native-endian 16-bit samples.
+    fn widened(&self, packed: &[u8], width: usize, rows: usize) -> Vec<u8> {
+        let (bits, n) = (self.packed_bits as usize, width * self.samples);
+        let stored = self.stored_row_bytes(width);
+        let mut out = Vec::with_capacity(rows * n * 2);
+        for row in packed.chunks_exact(stored).take(rows) {
+            let (mut acc, mut held) = (0u32, 0usize);
+            let mut bytes = row.iter();
+            for _ in 0..n {
+                while held < bits {
+                    acc = (acc << 8) | u32::from(*bytes.next().unwrap_or(&0));
+                    held += 8;
+                }
+                held -= bits;
+                let v = ((acc >> held) & ((1 << bits) - 1)) as u16;
+                out.extend_from_slice(&v.to_ne_bytes());
+            }
+        }
+        out
     }
 
     /// The chunk's pixels: `rows` rows of `width` pixels, native-endian.
@@ -110,13 +148,13 @@ impl ChunkCodec {
     /// up to `full_rows` rows (a last strip written at full height), and a
     /// stream that runs on past them, or ends before `rows`, is an error.
     pub fn decode(&self, coded: &[u8], width: usize, rows: usize, full_rows: usize) -> Result<Vec<u8>, String> {
-        let row_bytes = width * self.samples * self.sample_bytes;
+        let row_bytes = self.stored_row_bytes(width);
         let want = row_bytes * rows;
         let allowed = row_bytes * full_rows.max(rows);
         let mut out = Vec::new();
         self.decompress(coded, want, allowed, &mut out)?;
         self.finish(&mut out, row_bytes, rows, full_rows)?;
-        Ok(out)
+        Ok(if self.packed_bits != 0 { self.widened(&out, width, rows) } else { out })
     }
 
     /// Decompressed bytes `out` checked against the chunk's size (`rows`
@@ -287,6 +325,18 @@ mod tests {
     use super::*;
 
     #[test]
+    fn twelve_bit_rows_widen_to_their_samples() {
+        // Two rows of three 12-bit samples: 0xABC 0x123 0xFFF (4.5 bytes,
+        // padded to 5), then 0x001 0x800 0x7FF.
+        let packed = [0xAB, 0xC1, 0x23, 0xFF, 0xF0, 0x00, 0x18, 0x00, 0x7F, 0xF0];
+        let mut c = codec(1, 1, 2, 1, false);
+        c.packed_bits = 12;
+        let got = c.decode(&packed, 3, 2, 2).unwrap();
+        let v: Vec<u16> = got.chunks_exact(2).map(|b| u16::from_ne_bytes([b[0], b[1]])).collect();
+        assert_eq!(v, [0xABC, 0x123, 0xFFF, 0x001, 0x800, 0x7FF]);
+    }
+
+    #[test]
     fn packbits_decodes_the_tiff_specification_example() {
         // TIFF 6.0, section 9: the packed bytes and what they unpack to.
         let packed = [0xFE, 0xAA, 0x02, 0x80, 0x00, 0x2A, 0xFD, 0xAA, 0x03, 0x80, 0x00, 0x2A, 0x22, 0xF7, 0xAA];
@@ -305,7 +355,7 @@ mod tests {
     }
 
     fn codec(compression: u16, predictor: u16, sample_bytes: usize, samples: usize, big_endian: bool) -> ChunkCodec {
-        ChunkCodec { compression, predictor, sample_bytes, float: sample_bytes >= 4, samples, big_endian }
+        ChunkCodec { compression, predictor, sample_bytes, float: sample_bytes >= 4, samples, big_endian, packed_bits: 0 }
     }
 
     #[test]
@@ -370,7 +420,7 @@ mod tests {
                         let mask = if sb == 8 { u64::MAX } else { (1u64 << (8 * sb)) - 1 };
                         let values: Vec<u64> = (0..7 * n as u64).map(|i| i.wrapping_mul(0x9E37_79B9_7F4A_7C15).rotate_left(17) & mask).collect();
                         let mut row = predicted(&values, sb, n, predictor, big_endian);
-                        let c = ChunkCodec { compression: 1, predictor, sample_bytes: sb, float: true, samples: n, big_endian };
+                        let c = ChunkCodec { compression: 1, predictor, sample_bytes: sb, float: true, samples: n, big_endian, packed_bits: 0 };
                         c.check().unwrap();
                         c.unpredict_row(&mut row, &mut Vec::new());
                         // Native-endian samples of `sb` bytes, read back.
@@ -397,7 +447,7 @@ mod tests {
             which in 0usize..6, predictor in 1u16..4, sb in 0usize..4, n in 1usize..5, width in 0usize..40, rows in 0usize..9,
         ) {
             let compression = [1, 5, 8, 32946, 32773, 50000][which];
-            let c = ChunkCodec { compression, predictor, sample_bytes: 1 << sb, float: true, samples: n, big_endian: width % 2 == 0 };
+            let c = ChunkCodec { compression, predictor, sample_bytes: 1 << sb, float: true, samples: n, big_endian: width % 2 == 0, packed_bits: 0 };
             if c.check().is_ok() {
                 if let Ok(v) = c.decode(&coded, width, rows, rows) {
                     proptest::prop_assert_eq!(v.len(), width * rows * n * (1 << sb));

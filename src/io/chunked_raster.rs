@@ -132,6 +132,7 @@ impl ChunkedRaster {
             float: matches!(sample, Sample::F32 | Sample::F64),
             samples: 1,
             big_endian: file_is_big_endian(&file).map_err(|e| Error::io(path, e))?,
+            packed_bits: 0,
         };
         codec.check().map_err(|what| Error::unsupported(path, what))?;
         Ok(ChunkedRaster { path: path.to_path_buf(), file, width, height, chunk, tiled, offsets, counts, codec, sample })

@@ -82,6 +82,7 @@ pub(super) fn plain_info(width: u32, height: u32, bands: u32, sample: SampleType
         has_alpha,
         predictor: 1,
         nodata: None,
+        packed_bits: 0,
         georef: None,
         offsets: vec![0],
         byte_counts: vec![bytes],

@@ -27,6 +27,9 @@ pub struct SourceInfo {
     pub has_alpha: bool,
     /// The value of pixels without image (GDAL_NODATA), if the file says one.
     pub nodata: Option<f64>,
+    /// Bits a sample where they are packed (9 to 15), widened to 16-bit
+    /// samples when read; 0 for whole bytes.
+    pub packed_bits: u16,
     /// Predictor of compressed data (1 none, 2 horizontal, 3 floating point).
     pub predictor: u16,
     pub georef: Option<GeoRef>,
@@ -101,7 +104,8 @@ pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_le
     let format = dec.find_tag_unsigned_vec::<u16>(Tag::SampleFormat).map_err(tf)?.unwrap_or_else(|| vec![1]);
     let sample = match (bits[0], format[0]) {
         (8, 1) => SampleType::U8,
-        (16, 1) => SampleType::U16,
+        // 9 to 15 bits (a 12-bit satellite image) are widened to 16.
+        (9..=16, 1) => SampleType::U16,
         (32, 3) => SampleType::F32,
         (b, f) => {
             let kind = match f {
@@ -152,6 +156,7 @@ pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_le
         photometric,
         has_alpha,
         nodata: read_nodata(dec, path)?,
+        packed_bits: if bits[0] % 8 != 0 { bits[0] } else { 0 },
         predictor,
         georef,
         offsets,
@@ -177,11 +182,15 @@ pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_le
         }
     }
     // A compressed chunk is decoded whole into memory.
-    if compression != 1 && info.chunk_plane_bytes() > decoder_limits().decoding_buffer_size as u64 {
+    if (compression != 1 || info.packed_bits != 0) && info.chunk_plane_bytes() > decoder_limits().decoding_buffer_size as u64 {
         let (cw, ch) = info.chunk;
         return Err(Error::limits(path, format!("compressed chunks of {cw}×{ch} pixels are too large to decode (re-tile the file)")));
     }
-    if compression == 1 {
+    if info.packed_bits != 0 {
+        if info.predictor != 1 || compression == 7 {
+            return Err(Error::unsupported(path, format!("{}-bit samples with a predictor or JPEG", info.packed_bits)));
+        }
+    } else if compression == 1 {
         for (k, &n) in info.byte_counts.iter().enumerate() {
             if n < info.chunk_data_bytes(k as u32) {
                 return Err(Error::format(path, format!("chunk {k} has {n} bytes, fewer than its pixels need")));

@@ -141,6 +141,7 @@ pub(super) fn info(path: &Path, siz: &Siz) -> Result<SourceInfo> {
         has_alpha: false,
         predictor: 1,
         nodata: None,
+        packed_bits: 0,
         georef: None,
         offsets: vec![0; n],
         byte_counts: vec![0; n],

@@ -132,7 +132,8 @@ impl SourceImage {
                 info.mask_compression = compression;
             }
         }
-        let backend = if info.compression == 1 {
+        // Packed samples are widened chunk by chunk, as if compressed.
+        let backend = if info.compression == 1 && info.packed_bits == 0 {
             Self::mapped(path, file)
         } else {
             let cache = Mutex::new(ChunkCache::new(cache_bytes));
@@ -165,6 +166,7 @@ impl SourceImage {
                     float: info.sample == SampleType::F32,
                     samples: if info.planar { 1 } else { info.bands as usize },
                     big_endian: file_is_big_endian(&file).map_err(|e| Error::io(path, e))?,
+                    packed_bits: info.packed_bits,
                 };
                 codec.check().map_err(|what| Error::unsupported(path, what))?;
                 Coder::Own(codec, file)
