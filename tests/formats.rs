@@ -367,7 +367,7 @@ fn packed_twelve_bit_images_give_the_sixteen_bit_orthophoto() {
         ("11-band-planar", &["-co", "NBITS=11", "-co", "INTERLEAVE=BAND", "-co", "COMPRESS=LZW"]),
     ] {
         let packed = d.join(format!("{name}.tif"));
-        gdal_translate(&[&options[..], &[s(&wide), s(&packed)]].concat());
+        gdal_translate(&[options, &[s(&wide), s(&packed)]].concat());
         let info = gcm_ortho::io::source::SourceImage::info_of(&packed).unwrap();
         assert!(info.packed_bits == 12 || info.packed_bits == 11, "{name}: {}", info.packed_bits);
         assert!(rectified(&sc, &packed, &d.join(format!("{name}-ortho.tif"))) == want, "{name}");
