@@ -553,7 +553,7 @@ impl Dem {
         let mut g = GridDem::read_within(path, max_bytes)?;
         let mut warnings: Vec<String> = tag_untagged_voids(&mut g, path).into_iter().collect();
         if let Some(unit) = crate::io::geotiff::foot_unit_of(path) {
-            warnings.push(format!("{}: heights in {unit} (the band's unit): taken into metres", path.display()));
+            warnings.push(format!("{}: heights in {unit} (as the file says): taken into metres", path.display()));
         }
         let [bx0, by0, bx1, by1] = g.bounds();
         let centre = (0.5 * (bx0 + bx1), 0.5 * (by0 + by1));

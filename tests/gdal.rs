@@ -395,12 +395,23 @@ fn heights_in_feet_are_taken_into_metres() {
         assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
         (whole_image(&out), String::from_utf8_lossy(&r.stderr).into_owned())
     };
-    let (((metres, mi), _), ((ft, fi), said)) = (ortho(&sc.dem, "m.tif"), ortho(&feet, "ft.tif"));
-    assert!(said.contains("warning") && said.contains("feet") && said.contains("metres"), "{said}");
-    assert_eq!((fi.width, fi.height), (mi.width, mi.height));
-    // Heights through feet and back differ by float rounding only.
-    let worst = metres.iter().zip(&ft).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
-    assert!(worst <= 2, "{worst} DN apart");
+    // The same in US survey feet, said by a vertical CRS in feet alone
+    // (GDAL writes `EPSG:32631+6360` as its code, no unit key).
+    let us_feet = dir.path().join("dem_ftus.tif");
+    let convert = "from osgeo import gdal; import sys\n\
+                   d = gdal.Translate(sys.argv[2], sys.argv[1], outputType=gdal.GDT_Float32, outputSRS='EPSG:32631+6360')\n\
+                   b = d.GetRasterBand(1); b.WriteArray(b.ReadAsArray() * 3937 / 1200); d = None";
+    let r = Command::new(python).args(["-c", convert, s(&sc.dem), s(&us_feet)]).output().unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let ((metres, mi), _) = ortho(&sc.dem, "m.tif");
+    for (dem, name) in [(&feet, "ft.tif"), (&us_feet, "ftus.tif")] {
+        let ((ft, fi), said) = ortho(dem, name);
+        assert!(said.contains("warning") && said.contains("feet") && said.contains("metres"), "{name}: {said}");
+        assert_eq!((fi.width, fi.height), (mi.width, mi.height), "{name}");
+        // Heights through feet and back differ by float rounding only.
+        let worst = metres.iter().zip(&ft).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+        assert!(worst <= 2, "{name}: {worst} DN apart");
+    }
 }
 
 /// The scan's own marks of pixels without image — an alpha band, a nodata

@@ -155,7 +155,7 @@ const GDAL_METADATA: u16 = 42112;
 /// `None` where they leave values as stored.
 /// Heights in feet (the band's unit, `gdal_edit.py -units ft`) come out
 /// in metres: the scale and offset take the foot's length.
-fn band_scale_offset(xml: &str) -> std::result::Result<Option<(f64, f64)>, String> {
+fn band_scale_offset(xml: &str) -> std::result::Result<(Option<(f64, f64)>, bool), String> {
     let doc = roxmltree::Document::parse(xml.trim_matches(char::from(0))).map_err(|e| e.to_string())?;
     let (mut scale, mut offset) = (1.0, 0.0);
     for item in doc.descendants().filter(|n| n.has_tag_name("Item") && n.attribute("sample") == Some("0")) {
@@ -167,13 +167,39 @@ fn band_scale_offset(xml: &str) -> std::result::Result<Option<(f64, f64)>, Strin
             _ => {}
         }
     }
-    if let Some((_, metres)) = band_unit(&doc) {
+    let unit = band_unit(&doc);
+    if let Some((_, metres)) = unit {
         (scale, offset) = (scale * metres, offset * metres);
     }
     if !(scale.is_finite() && offset.is_finite()) {
         return Err(format!("band scale {scale} and offset {offset}"));
     }
-    Ok((scale != 1.0 || offset != 0.0).then_some((scale, offset)))
+    Ok(((scale != 1.0 || offset != 0.0).then_some((scale, offset)), unit.is_some()))
+}
+
+/// GeoTIFF's VerticalCSTypeGeoKey and VerticalUnitsGeoKey.
+const VERTICAL_CS: u16 = 4096;
+const VERTICAL_UNITS: u16 = 4099;
+
+/// Vertical CRSs of heights in feet (EPSG), by the foot they count in:
+/// NGVD29, NAVD88 and MSL heights in US survey feet; NAVD88 and MSL
+/// heights in international feet.
+const US_FOOT_HEIGHTS: [u16; 3] = [5702, 6360, 8050];
+const FOOT_HEIGHTS: [u16; 2] = [8228, 8052];
+
+/// The heights' unit from the GeoTIFF keys where it is a foot: the units
+/// key (EPSG 9002, 9003), else a vertical CRS in feet (GDAL writes only
+/// the CRS for `EPSG:xxxx+6360`). Its name and length in metres.
+fn vertical_foot(keys: &GeoKeys) -> Option<(&'static str, f64)> {
+    let (foot, us_foot) = (("feet", 0.3048), ("US survey feet", 1200.0 / 3937.0));
+    match (keys.short(VERTICAL_UNITS), keys.short(VERTICAL_CS)) {
+        (Some(9002), _) => Some(foot),
+        (Some(9003), _) => Some(us_foot),
+        (Some(_), _) => None,
+        (None, Some(c)) if US_FOOT_HEIGHTS.contains(&c) => Some(us_foot),
+        (None, Some(c)) if FOOT_HEIGHTS.contains(&c) => Some(foot),
+        _ => None,
+    }
 }
 
 /// The first band's unit where it is a foot: its name and its length in
@@ -197,9 +223,13 @@ fn band_unit(doc: &roxmltree::Document) -> Option<(&'static str, f64)> {
 pub fn foot_unit_of(path: &Path) -> Option<&'static str> {
     let file = std::fs::File::open(path).ok()?;
     let mut dec = Decoder::new(std::io::BufReader::new(file)).ok()?;
-    let Ok(Some(Value::Ascii(xml))) = dec.find_tag(Tag::Unknown(GDAL_METADATA)) else { return None };
-    let doc = roxmltree::Document::parse(xml.trim_matches(char::from(0))).ok()?;
-    band_unit(&doc).map(|(name, _)| name)
+    if let Ok(Some(Value::Ascii(xml))) = dec.find_tag(Tag::Unknown(GDAL_METADATA)) {
+        let doc = roxmltree::Document::parse(xml.trim_matches(char::from(0))).ok()?;
+        if let Some((name, _)) = band_unit(&doc) {
+            return Some(name);
+        }
+    }
+    read_georef(&mut dec, path).ok().flatten().and_then(|g| vertical_foot(&g.keys)).map(|(name, _)| name)
 }
 
 /// The current image's GDAL_NODATA value, if it has one.
@@ -227,13 +257,18 @@ pub fn read_georef<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<
         _ => String::new(),
     };
     let nodata = read_nodata(dec, path)?;
-    let (scale_offset, source) = match dec.find_tag(Tag::Unknown(GDAL_METADATA)).map_err(tf)? {
+    let ((mut scale_offset, band_has_unit), source) = match dec.find_tag(Tag::Unknown(GDAL_METADATA)).map_err(tf)? {
         Some(Value::Ascii(xml)) => {
             (band_scale_offset(&xml).map_err(|m| Error::format(path, format!("its GDAL metadata: {m}")))?, dataset_item(&xml, SOURCE_ITEM))
         }
-        _ => (None, None),
+        _ => ((None, false), None),
     };
     let keys = geo_keys(&directory, &doubles, &ascii);
+    // Heights in feet by the keys (the band's own unit, if any, rules).
+    if let (false, Some((_, metres))) = (band_has_unit, vertical_foot(&keys)) {
+        let (s, o) = scale_offset.unwrap_or((1.0, 0.0));
+        scale_offset = Some((s * metres, o * metres));
+    }
     let pixel_is_point = keys.short(GT_RASTER_TYPE) == Some(RASTER_PIXEL_IS_POINT);
     let mut gt = if let Some(m) = matrix.filter(|m| m.len() >= 16) {
         [m[3], m[0], m[1], m[7], m[4], m[5]]
