@@ -631,8 +631,9 @@ pub struct RectifyArgs {
     /// How bounds become the grid: tap (edges on multiples of the GSD,
     /// outward), outward (the origin as given, whole pixels outward), none
     /// (the origin as given, the nearest whole number of pixels).
-    #[arg(long, default_value = "tap", value_parser = choice::<Snap>())]
-    pub snap: Snap,
+    /// [default: tap]
+    #[arg(long, value_parser = choice::<Snap>())]
+    pub snap: Option<Snap>,
     /// The grid of this raster (CRS, origin, pixel size and size), so the
     /// orthophoto lands pixel for pixel on it; instead of --gsd and --bounds.
     #[arg(long, conflicts_with_all = ["gsd", "bounds"])]
@@ -754,7 +755,10 @@ impl RectifyArgs {
         o.dem_outside = parse_miss("dem_outside", &self.dem_outside)?;
         o.gsd = self.gsd;
         o.bounds = parse_bounds("bounds", &self.bounds)?;
-        o.snap = self.snap;
+        if self.like.is_some() && self.snap.is_some() {
+            return Err(gcm_ortho::Error::setting("snap", "places bounds on the GSD; the reference grid (--like) is taken as it is"));
+        }
+        o.snap = self.snap.unwrap_or(Snap::Tap);
         o.like = self.like.clone();
         o.crs = crs;
         o.window = self.window.as_deref().map(|w| parse_window("window", w)).transpose()?;

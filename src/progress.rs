@@ -32,6 +32,36 @@ pub trait Progress: Sync {
     fn warn(&self, _message: &str) {}
 }
 
+/// Passes progress on, each distinct warning once (a mosaic's images and
+/// strips meet the same camera or DEM again and again).
+pub struct SaidOnce<'a> {
+    inner: &'a dyn Progress,
+    said: std::sync::Mutex<std::collections::HashSet<String>>,
+}
+
+impl<'a> SaidOnce<'a> {
+    pub fn new(inner: &'a dyn Progress) -> SaidOnce<'a> {
+        SaidOnce { inner, said: Default::default() }
+    }
+}
+
+impl Progress for SaidOnce<'_> {
+    fn start(&self, task: &Task) {
+        self.inner.start(task);
+    }
+    fn advance(&self, units: u64) {
+        self.inner.advance(units);
+    }
+    fn finish(&self) {
+        self.inner.finish();
+    }
+    fn warn(&self, message: &str) {
+        if self.said.lock().map(|mut s| s.insert(message.to_string())).unwrap_or(true) {
+            self.inner.warn(message);
+        }
+    }
+}
+
 /// Passes progress on and keeps every warning: what a run said on its way
 /// is what its report lists (a batch job's and a mosaic image's too, whose
 /// progress nobody watches).

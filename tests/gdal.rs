@@ -444,6 +444,14 @@ if kind == "alpha":
     o = d.Create(out, w, h, 3, gdal.GDT_Float32, ["ALPHA=YES"])
     for i in range(2): o.GetRasterBand(i + 1).WriteArray(a[i])
     o.GetRasterBand(3).WriteArray(np.where(hole, 0, 1).astype(np.float32))
+elif kind == "alpha+nodata":
+    # A nodata value no pixel holds, and the alpha band: the alpha marks the hole.
+    o = d.Create(out, w, h, 3, gdal.GDT_Float32, ["ALPHA=YES", "TILED=YES"])
+    for i in range(2):
+        o.GetRasterBand(i + 1).WriteArray(a[i])
+        o.GetRasterBand(i + 1).SetNoDataValue(-1)
+    o.GetRasterBand(3).WriteArray(np.where(hole, 0, 1).astype(np.float32))
+    o.GetRasterBand(3).SetNoDataValue(-1)
 elif kind == "nodata":
     o = d.Create(out, w, h, 2, gdal.GDT_Float32, ["TILED=YES", "COMPRESS=DEFLATE"])
     for i in range(2):
@@ -465,7 +473,7 @@ o = None
     };
     for kernel in ["bilinear", "nearest"] {
         let (w, h, b, base) = ortho(&coords, &format!("base-{kernel}.tif"), kernel);
-        for kind in ["alpha", "nodata", "mask"] {
+        for kind in ["alpha", "nodata", "mask", "alpha+nodata"] {
             let marked = dir.path().join(format!("{kind}.tif"));
             let r = Command::new(python).args(["-c", MARK, s(&coords), kind, s(&marked)]).output().unwrap();
             assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));

@@ -86,9 +86,11 @@ fn like_takes_a_reference_rasters_grid_pixel_for_pixel() {
     let r = run(&[&base[..], &["--like", s(&like), "--gsd", "2"]].concat());
     assert_eq!(r.status.code(), Some(2));
     // --snap places bounds; with a reference grid it is refused, not ignored.
-    let r = run(&[&base[..], &["--like", s(&like), "--snap", "none"]].concat());
-    let err = String::from_utf8_lossy(&r.stderr);
-    assert!(r.status.code() == Some(2) && err.contains("--snap"), "{err}");
+    for snap in ["none", "tap"] {
+        let r = run(&[&base[..], &["--like", s(&like), "--snap", snap]].concat());
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.code() == Some(2) && err.contains("--snap"), "{snap}: {err}");
+    }
     // A GDAL VRT as the reference (its sources are not needed): the same grid.
     let vrt = d.join("ref.vrt");
     let wkt = r#"PROJCS["WGS 84 / UTM zone 31N",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563]],PRIMEM["Greenwich",0],UNIT["degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],PARAMETER["latitude_of_origin",0],PARAMETER["central_meridian",3],PARAMETER["scale_factor",0.9996],PARAMETER["false_easting",500000],PARAMETER["false_northing",0],UNIT["metre",1],AUTHORITY["EPSG","32631"]]"#;
@@ -242,6 +244,29 @@ fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
         g.sample(i0 + c as usize, j0 + r as usize)
     });
     let dem_box = gcm_ortho::dem::GridDem::read(&cropped).unwrap().bounds();
+    // A DEM 100 km away meets no edge of the scan: refused, a height for
+    // outside it or not (the plane does not stand in for a wrong DEM).
+    let far = dir.path().join("dem_far.tif");
+    let keys = gcm_ortho::io::source::SourceImage::info_of(&sc.dem).unwrap().georef.unwrap().keys;
+    f32_raster_with_keys(&far, (w as u32, h as u32), (gt[0] + 1e5, gt[3], gt[1]), keys, |_, _| mid);
+    for outside in ["nodata", "300"] {
+        let r = run(&[
+            "rectify",
+            "--image",
+            s(&sc.scan),
+            "--camera",
+            s(&sc.camera),
+            "--dem",
+            s(&far),
+            "--dem-outside",
+            outside,
+            "--quiet",
+            "-o",
+            s(&dir.path().join("far.tif")),
+        ]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.code() == Some(1) && err.contains("does the DEM cover the scan"), "--dem-outside {outside}: {err}");
+    }
     let ortho_on = |dem: &Path, name: &str, outside: &str| {
         let out = dir.path().join(name);
         let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(dem), "--dem-outside", outside, "--quiet", "-o", s(&out)]);

@@ -385,6 +385,9 @@ fn config(
         c.gsd = o.gsd;
         c.bounds = o.bounds;
         if let Some(s) = &o.snap {
+            if o.like.is_some() {
+                return Err(Error::setting("snap", "places bounds on the GSD; the reference grid (like) is taken as it is"));
+            }
             c.snap = parse_choice("snap", s)?;
         }
         c.like = o.like.as_deref().map(rel);

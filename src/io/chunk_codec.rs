@@ -170,7 +170,8 @@ impl ChunkCodec {
             return Err(format!("decodes to {} bytes, its pixels need {want}", out.len()));
         }
         out.truncate(want);
-        if row_bytes > 0 {
+        // Packed bits have no byte order (and no predictor): widened later.
+        if row_bytes > 0 && self.packed_bits == 0 {
             let mut scratch = Vec::new();
             for row in out.chunks_exact_mut(row_bytes) {
                 self.unpredict_row(row, &mut scratch);
@@ -329,11 +330,14 @@ mod tests {
         // Two rows of three 12-bit samples: 0xABC 0x123 0xFFF (4.5 bytes,
         // padded to 5), then 0x001 0x800 0x7FF.
         let packed = [0xAB, 0xC1, 0x23, 0xFF, 0xF0, 0x00, 0x18, 0x00, 0x7F, 0xF0];
-        let mut c = codec(1, 1, 2, 1, false);
-        c.packed_bits = 12;
-        let got = c.decode(&packed, 3, 2, 2).unwrap();
-        let v: Vec<u16> = got.chunks_exact(2).map(|b| u16::from_ne_bytes([b[0], b[1]])).collect();
-        assert_eq!(v, [0xABC, 0x123, 0xFFF, 0x001, 0x800, 0x7FF]);
+        // The same from a big-endian file: bits have no byte order.
+        for big_endian in [false, true] {
+            let mut c = codec(1, 1, 2, 1, big_endian);
+            c.packed_bits = 12;
+            let got = c.decode(&packed, 3, 2, 2).unwrap();
+            let v: Vec<u16> = got.chunks_exact(2).map(|b| u16::from_ne_bytes([b[0], b[1]])).collect();
+            assert_eq!(v, [0xABC, 0x123, 0xFFF, 0x001, 0x800, 0x7FF], "big-endian: {big_endian}");
+        }
     }
 
     #[test]

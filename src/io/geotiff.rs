@@ -184,8 +184,8 @@ const VERTICAL_UNITS: u16 = 4099;
 /// Vertical CRSs of heights in feet (EPSG), by the foot they count in:
 /// NGVD29, NAVD88 and MSL heights in US survey feet; NAVD88 and MSL
 /// heights in international feet.
-const US_FOOT_HEIGHTS: [u16; 3] = [5702, 6360, 8050];
-const FOOT_HEIGHTS: [u16; 2] = [8228, 8052];
+const US_FOOT_HEIGHTS: [u16; 3] = [5702, 6360, 8052];
+const FOOT_HEIGHTS: [u16; 2] = [8228, 8050];
 
 /// The heights' unit from the GeoTIFF keys where it is a foot: the units
 /// key (EPSG 9002, 9003), else a vertical CRS in feet (GDAL writes only

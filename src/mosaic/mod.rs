@@ -160,6 +160,10 @@ pub struct MosaicReport {
 
 /// Makes the mosaic of the manifest's images (see the module doc).
 pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Result<MosaicReport> {
+    // The plan and each image's set-up (per strip, too) meet the same
+    // cameras and DEMs: each warning said once.
+    let once = crate::progress::SaidOnce::new(progress);
+    let progress: &dyn Progress = &once;
     let wall = Instant::now();
     if !(o.blend >= 0.0 && o.blend.is_finite()) {
         return Err(Error::setting("blend", format!("{} is not a width in pixels (0 or more)", o.blend)));

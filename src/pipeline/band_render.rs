@@ -51,10 +51,12 @@ pub fn in_memory(opts: &RectifyOptions) -> RectifyOptions {
 }
 
 /// An image's set-up warnings (aliasing, a datum, the camera), said to
-/// `to` with the image named: nobody watches an image's own progress.
+/// `to` with the image named where they name no file of it: nobody
+/// watches an image's own progress.
 struct ImageWarnings<'a> {
     to: &'a dyn Progress,
     image: &'a std::path::Path,
+    camera: &'a std::path::Path,
 }
 
 impl Progress for ImageWarnings<'_> {
@@ -63,7 +65,7 @@ impl Progress for ImageWarnings<'_> {
     fn finish(&self) {}
     fn warn(&self, message: &str) {
         let name = self.image.display().to_string();
-        if message.contains(&name) {
+        if message.contains(&name) || message.contains(&self.camera.display().to_string()) {
             self.to.warn(message);
         } else {
             self.to.warn(&format!("{name}: {message}"));
@@ -86,7 +88,7 @@ pub fn render_bands<T>(
     mut sink: impl FnMut(Result<BandPixels>) -> bool,
 ) -> Result<()> {
     let opts = in_memory(opts);
-    let setup = match RunPlan::with_dem(&opts, &ImageWarnings { to: warn, image: &opts.image }, dem) {
+    let setup = match RunPlan::with_dem(&opts, &ImageWarnings { to: warn, image: &opts.image, camera: &opts.camera }, dem) {
         Ok(p) => p,
         Err(e) => {
             sink(Err(e));

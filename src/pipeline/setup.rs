@@ -573,8 +573,8 @@ fn pixel_extent(a: &Approx, u: f64, v: f64, d: f64) -> Option<f64> {
     extent.is_finite().then_some(extent)
 }
 
-/// The coarsest GSD taken in a CRS in degrees (about 11 km).
-const MAX_GSD_DEGREES: f64 = 0.1;
+/// The coarsest GSD taken in a CRS in degrees (about 1 km).
+const MAX_GSD_DEGREES: f64 = 0.01;
 
 /// Output pixels this many scan pixels across are warned about under a
 /// point kernel (bilinear reads 4 of the 9 pixels under one at 3×).

@@ -38,9 +38,10 @@ pub fn footprint(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32, z_
         .map_init(
             || (RayCaster::new(model, dem), beyond.as_ref().map(|flat| RayCaster::new(model, flat))),
             |(caster, flat), &(c, r)| {
+                // (Points on the plane count as none: the DEM must meet the scan.)
                 let Some(p) = caster.cast(c, r, None, z_guess, 1e-3) else {
                     return match flat.as_mut().and_then(|f| f.cast(c, r, None, z_guess, 1e-3)) {
-                        Some(p) => ([p[0], p[1], p[0], p[1]], 1),
+                        Some(p) => ([p[0], p[1], p[0], p[1]], 0),
                         None => (none, 0),
                     };
                 };

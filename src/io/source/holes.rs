@@ -7,8 +7,7 @@
 
 use super::{SourceImage, SourceInfo};
 use crate::error::{Error, Result};
-use crate::io::tiff_out::decode_mask;
-use std::os::unix::fs::FileExt;
+use crate::io::chunk_codec::ChunkCodec;
 
 /// How the scan marks its pixels without image.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -17,6 +16,9 @@ pub enum HoleMark {
     Alpha(u32),
     /// A pixel whose every band holds this value (NaN: is NaN) is a hole.
     Value(f64),
+    /// With an alpha band (this one): its zero, or every other band at
+    /// the value.
+    ValueOrAlpha(f64, u32),
     /// The internal mask's clear bits ([`MaskRuns`]).
     Mask,
 }
@@ -28,7 +30,7 @@ impl HoleMark {
         if info.mask.is_some() {
             Some(HoleMark::Mask)
         } else if let Some(v) = info.nodata {
-            Some(HoleMark::Value(v))
+            Some(if info.has_alpha { HoleMark::ValueOrAlpha(v, info.bands - 1) } else { HoleMark::Value(v) })
         } else {
             info.has_alpha.then(|| HoleMark::Alpha(info.bands - 1))
         }
@@ -38,10 +40,11 @@ impl HoleMark {
     /// band or a nodata value (never by the mask, which is not in them).
     #[inline]
     pub fn is_hole(self, px: impl Fn(usize) -> f32, bands: usize) -> bool {
+        let all_at = |v: f64, n: usize| if v.is_nan() { (0..n).all(|b| px(b).is_nan()) } else { (0..n).all(|b| px(b) == v as f32) };
         match self {
             HoleMark::Alpha(b) => px(b as usize) == 0.0,
-            HoleMark::Value(v) if v.is_nan() => (0..bands).all(|b| px(b).is_nan()),
-            HoleMark::Value(v) => (0..bands).all(|b| px(b) == v as f32),
+            HoleMark::Value(v) => all_at(v, bands),
+            HoleMark::ValueOrAlpha(v, a) => px(a as usize) == 0.0 || all_at(v, a as usize),
             HoleMark::Mask => false,
         }
     }
@@ -62,30 +65,53 @@ pub struct MaskRuns {
 }
 
 impl MaskRuns {
-    /// Reads `src`'s internal mask a row of chunks at a time.
+    /// Reads `src`'s internal mask a row of chunks at a time, as bits (in
+    /// any compression the scan's chunks may have).
     pub fn read(src: &SourceImage) -> Result<MaskRuns> {
         let info = &src.info;
         let Some((offsets, counts)) = &info.mask else { return Ok(MaskRuns::default()) };
-        let file = std::fs::File::open(&src.path).map_err(|e| Error::io(&src.path, e))?;
+        let path = &src.path;
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let codec =
+            ChunkCodec { compression: info.mask_compression, predictor: 1, sample_bytes: 1, float: false, samples: 1, big_endian: false, packed_bits: 0 };
+        codec.check().map_err(|what| Error::unsupported(path, format!("its internal mask: {what}")))?;
         let (cw, ch) = (info.chunk.0 as usize, info.chunk.1 as usize);
+        let row_bytes = cw.div_ceil(8);
         let across = info.width.div_ceil(info.chunk.0) as usize;
         let mut out = MaskRuns { first: Vec::with_capacity(info.height as usize + 1), runs: Vec::new() };
         let mut chunks: Vec<Vec<u8>> = Vec::with_capacity(across);
         for cy in 0..info.height.div_ceil(info.chunk.1) as usize {
             chunks.clear();
-            // A last strip may be short; tiles are whole.
+            // A last strip may be short (or written at full height); tiles are whole.
             let rows = if info.tiled { ch } else { ch.min(info.height as usize - cy * ch) };
             for cx in 0..across {
                 let k = cy * across + cx;
-                let mut bytes = vec![0u8; counts[k] as usize];
-                file.read_exact_at(&mut bytes, offsets[k]).map_err(|e| Error::io(&src.path, e))?;
-                chunks.push(decode_mask(&bytes, info.mask_compression, cw, rows).map_err(|m| Error::format(&src.path, format!("its internal mask: {m}")))?);
+                let bits = codec
+                    .read_chunk(&file, path, k, (offsets[k], counts[k]), row_bytes, rows, ch)
+                    .map_err(|e| Error::Named(format!("{e} (of its internal mask)")))?;
+                chunks.push(bits);
             }
             for y in 0..rows.min(info.height as usize - cy * ch) {
                 out.first.push(out.runs.len() as u32);
                 let mut open: Option<u32> = None;
-                for x in 0..info.width as usize {
-                    let set = chunks[x / cw][y * cw + x % cw] != 0;
+                let mut x = 0usize;
+                while x < info.width as usize {
+                    let (chunk, cx) = (&chunks[x / cw], x % cw);
+                    let byte = chunk[y * row_bytes + cx / 8];
+                    // Whole bytes of one kind, eight pixels a step.
+                    if cx % 8 == 0 && cx + 8 <= cw && x + 8 <= info.width as usize && (byte == 0 || byte == 0xFF) {
+                        match (byte == 0xFF, open) {
+                            (true, None) => open = Some(x as u32),
+                            (false, Some(s)) => {
+                                out.runs.push([s, x as u32]);
+                                open = None;
+                            }
+                            _ => {}
+                        }
+                        x += 8;
+                        continue;
+                    }
+                    let set = (byte >> (7 - cx % 8)) & 1 != 0;
                     match (set, open) {
                         (true, None) => open = Some(x as u32),
                         (false, Some(s)) => {
@@ -94,13 +120,14 @@ impl MaskRuns {
                         }
                         _ => {}
                     }
+                    x += 1;
                 }
                 if let Some(s) = open {
                     out.runs.push([s, info.width]);
                 }
                 if out.runs.len() > MAX_RUNS {
                     return Err(Error::limits(
-                        &src.path,
+                        path,
                         format!("its internal mask breaks into more than {MAX_RUNS} runs of image pixels; flatten it (gdal_translate -b mask) or drop it"),
                     ));
                 }
@@ -157,5 +184,9 @@ mod tests {
         assert!(HoleMark::Value(f64::NAN).is_hole(px([f32::NAN; 3]), 3));
         assert!(!HoleMark::Value(f64::NAN).is_hole(px([f32::NAN, 1.0, f32::NAN]), 3));
         assert!(!HoleMark::Mask.is_hole(px([0.0; 3]), 3));
+        // Grey and alpha with a nodata value: either marks a hole (the
+        // alpha band is not compared with the value).
+        let both = HoleMark::ValueOrAlpha(0.0, 1);
+        assert!(both.is_hole(px([5.0, 0.0, 9.0]), 2) && both.is_hole(px([0.0, 255.0, 9.0]), 2) && !both.is_hole(px([5.0, 255.0, 9.0]), 2));
     }
 }

@@ -190,10 +190,16 @@ impl Spill {
         let mut n = free.wait_while(count.lock().unwrap_or_else(|e| e.into_inner()), |n| *n >= limit).unwrap_or_else(|e| e.into_inner());
         *n += 1;
         drop(n);
-        let v = decode();
-        *count.lock().unwrap_or_else(|e| e.into_inner()) -= 1;
-        free.notify_one();
-        v
+        // Freed however the decode ends (a panic too: the others would wait).
+        struct Turn<'a>(&'a Spill);
+        impl Drop for Turn<'_> {
+            fn drop(&mut self) {
+                *self.0.running.0.lock().unwrap_or_else(|e| e.into_inner()) -= 1;
+                self.0.running.1.notify_one();
+            }
+        }
+        let _turn = Turn(self);
+        decode()
     }
 
     /// Chunk `k`: read back, or decoded by `decode` and kept.

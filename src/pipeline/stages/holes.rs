@@ -31,11 +31,16 @@ impl<'a> ScanHoles<'a> {
     #[inline]
     pub fn clear_at<T: Sample>(&self, view: &View<T>, (c, r): (f64, f64)) -> bool {
         if self.nearest {
-            let (i, j) = (c.floor() as i64, r.floor() as i64);
-            return self.clear_box(view, [i, j, i, j]);
+            return self.clear_pixel(view, (c, r));
         }
         let (i, j) = ((c - 0.5).floor() as i64, (r - 0.5).floor() as i64);
         self.clear_box(view, [i - self.before, j - self.before, i + self.after, j + self.after])
+    }
+
+    /// Whether the scan pixel holding position `at` is image.
+    pub fn clear_pixel<T: Sample>(&self, view: &View<T>, (c, r): (f64, f64)) -> bool {
+        let (i, j) = (c.floor() as i64, r.floor() as i64);
+        self.clear_box(view, [i, j, i, j])
     }
 
     /// Whether an area kernel's footprint `quad` covers only image (its

@@ -298,13 +298,18 @@ pub fn resample_chunk<T: Sample + Recycle>(
                 for (i, p) in px.chunks_exact_mut(bands_in).enumerate() {
                     valid[i] = view.has_value(cols[i], rws[i]) && {
                         let quad = pixel_quad((&feet.top.0, &feet.top.1), (&feet.bottom.0, &feet.bottom.1), i);
-                        let covered = match area_pixel(kind, &view, &quad, p, &mut feet.scratch) {
-                            Covered::Value => true,
-                            Covered::LeavesWindow => single_footprint(src, kind, &quad, opts.area, p, &mut feet.scratch, (cols[i], rws[i])),
+                        let at = (cols[i], rws[i]);
+                        let (covered, read) = match area_pixel(kind, &view, &quad, p, &mut feet.scratch) {
+                            Covered::Value => (true, Some(&quad)),
+                            Covered::LeavesWindow => (single_footprint(src, kind, &quad, opts.area, p, &mut feet.scratch, at), Some(&quad)),
                             // No area (a degenerate corner): the scan at the centre.
-                            Covered::Nothing => nearest_at(&view, (cols[i], rws[i]), p, fill),
+                            Covered::Nothing => (nearest_at(&view, at, p, fill), None),
                         };
-                        covered && holes.as_ref().is_none_or(|h| h.clear_quad(&view, &quad))
+                        covered
+                            && holes.as_ref().is_none_or(|h| match read {
+                                Some(quad) => h.clear_quad(&view, quad),
+                                None => h.clear_pixel(&view, at),
+                            })
                     };
                     if !valid[i] {
                         p.fill(fill);
