@@ -10,7 +10,7 @@ use crate::dem::{Dem, Height};
 use crate::error::{Error, Result};
 use crate::geodesy::Crs;
 use crate::geom::{Gsd, OutputGrid, Snap};
-use crate::io::source::{SampleType, SourceImage, Window};
+use crate::io::source::{HoleMark, SampleType, SourceImage, Window};
 use crate::options::{DemSource, RectifyOptions};
 use crate::progress::{Progress, Task};
 use crate::transform::footprint::{footprint, mean_gsd};
@@ -351,18 +351,36 @@ fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64, thumbnails: bool) 
     let f = ((plan.cell_metres() / im.gsd).floor() as usize).clamp(1, w.min(h));
     let (tw, th) = if thumbnails { (w.div_ceil(f), h.div_ceil(f)) } else { (1, 1) };
     let mut thumb = vec![0f32; tw * th * nb];
+    // Thumbnail pixels mostly of the scan's own holes (its mask, nodata
+    // value or alpha): the image does not see the cells there, so that
+    // another image's pixels fill them.
+    let mut holed = vec![false; tw * th];
     let mut win = Window::default();
     let src = if thumbnails { Some(SourceImage::open_within(&im.opts.image, (memory / 8) as usize, memory)?) } else { None };
+    let mark = src.as_ref().map(|s| s.hole_mark()).transpose()?.flatten();
     for tr in 0..th * usize::from(src.is_some()) {
         let Some(src) = &src else { break };
         let row = (tr * f + f / 2).min(h - 1);
         src.read_window(0, row as u32, w as u32, 1, &mut win)?;
         let line = as_f32(win.bytes(), im.sample);
+        let hole = |c: usize| match (mark, src.mask_runs()) {
+            (Some(HoleMark::Mask), Some(runs)) => !runs.all_set(row as u32, c as u32, c as u32),
+            (Some(m), _) => m.is_hole(|band| line[c * nb + band], nb),
+            (None, _) => false,
+        };
+        let mut image = Vec::with_capacity(f);
         for tc in 0..tw {
             let (a, b) = (tc * f, ((tc + 1) * f).min(w));
+            // The mean of the image's pixels (of all, where none is).
+            image.clear();
+            image.extend((a..b).filter(|&c| !hole(c)));
+            holed[tr * tw + tc] = 2 * image.len() < b - a;
+            if image.is_empty() {
+                image.extend(a..b);
+            }
             for band in 0..nb {
-                let sum: f32 = (a..b).map(|c| line[c * nb + band]).sum();
-                thumb[(tr * tw + tc) * nb + band] = sum / (b - a) as f32;
+                let sum: f32 = image.iter().map(|&c| line[c * nb + band]).sum();
+                thumb[(tr * tw + tc) * nb + band] = sum / image.len() as f32;
             }
         }
     }
@@ -380,6 +398,10 @@ fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64, thumbnails: bool) 
             let Height::Value(z) = dem.height(gx, gy) else { continue };
             let Some((c, r)) = model.project(gx, gy, z) else { continue };
             if !(c >= 0.0 && r >= 0.0 && c < w as f64 && r < h as f64) || area.is_some_and(|a| !a.contains(c, r)) {
+                continue;
+            }
+            let nearest = ((r / f as f64) as usize).min(th - 1) * tw + ((c / f as f64) as usize).min(tw - 1);
+            if holed.get(nearest).copied().unwrap_or(false) {
                 continue;
             }
             dist[i] = ((c - w as f64 / 2.0).hypot(r - h as f64 / 2.0) / side) as f32;
