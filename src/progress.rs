@@ -32,47 +32,25 @@ pub trait Progress: Sync {
     fn warn(&self, _message: &str) {}
 }
 
-/// Passes progress on, each distinct warning once (a mosaic's images and
-/// strips meet the same camera or DEM again and again).
-pub struct SaidOnce<'a> {
-    inner: &'a dyn Progress,
-    said: std::sync::Mutex<std::collections::HashSet<String>>,
-}
-
-impl<'a> SaidOnce<'a> {
-    pub fn new(inner: &'a dyn Progress) -> SaidOnce<'a> {
-        SaidOnce { inner, said: Default::default() }
-    }
-}
-
-impl Progress for SaidOnce<'_> {
-    fn start(&self, task: &Task) {
-        self.inner.start(task);
-    }
-    fn advance(&self, units: u64) {
-        self.inner.advance(units);
-    }
-    fn finish(&self) {
-        self.inner.finish();
-    }
-    fn warn(&self, message: &str) {
-        if self.said.lock().map(|mut s| s.insert(message.to_string())).unwrap_or(true) {
-            self.inner.warn(message);
-        }
-    }
-}
-
 /// Passes progress on and keeps every warning: what a run said on its way
 /// is what its report lists (a batch job's and a mosaic image's too, whose
 /// progress nobody watches).
 pub struct Recording<'a> {
     inner: &'a dyn Progress,
     said: std::sync::Mutex<Vec<String>>,
+    /// Each distinct warning passed on once only.
+    once: bool,
 }
 
 impl<'a> Recording<'a> {
     pub fn new(inner: &'a dyn Progress) -> Recording<'a> {
-        Recording { inner, said: Default::default() }
+        Recording { inner, said: Default::default(), once: false }
+    }
+
+    /// As `new`, passing each distinct warning on once (a mosaic's images
+    /// and strips meet the same camera or DEM again and again).
+    pub fn once(inner: &'a dyn Progress) -> Recording<'a> {
+        Recording { once: true, ..Recording::new(inner) }
     }
 
     /// The warnings said so far, in order.
@@ -92,10 +70,13 @@ impl Progress for Recording<'_> {
         self.inner.finish();
     }
     fn warn(&self, message: &str) {
-        self.inner.warn(message);
         if let Ok(mut s) = self.said.lock() {
+            if self.once && s.iter().any(|m| m == message) {
+                return;
+            }
             s.push(message.to_string());
         }
+        self.inner.warn(message);
     }
 }
 

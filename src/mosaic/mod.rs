@@ -162,7 +162,7 @@ pub struct MosaicReport {
 pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Result<MosaicReport> {
     // The plan and each image's set-up (per strip, too) meet the same
     // cameras and DEMs: each warning said once.
-    let once = crate::progress::SaidOnce::new(progress);
+    let once = crate::progress::Recording::once(progress);
     let progress: &dyn Progress = &once;
     let wall = Instant::now();
     if !(o.blend >= 0.0 && o.blend.is_finite()) {

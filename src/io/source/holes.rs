@@ -98,20 +98,9 @@ impl MaskRuns {
                 while x < info.width as usize {
                     let (chunk, cx) = (&chunks[x / cw], x % cw);
                     let byte = chunk[y * row_bytes + cx / 8];
-                    // Whole bytes of one kind, eight pixels a step.
-                    if cx % 8 == 0 && cx + 8 <= cw && x + 8 <= info.width as usize && (byte == 0 || byte == 0xFF) {
-                        match (byte == 0xFF, open) {
-                            (true, None) => open = Some(x as u32),
-                            (false, Some(s)) => {
-                                out.runs.push([s, x as u32]);
-                                open = None;
-                            }
-                            _ => {}
-                        }
-                        x += 8;
-                        continue;
-                    }
-                    let set = (byte >> (7 - cx % 8)) & 1 != 0;
+                    // Whole bytes of one kind eight pixels a step, else a bit.
+                    let whole = cx % 8 == 0 && cx + 8 <= cw && x + 8 <= info.width as usize && (byte == 0 || byte == 0xFF);
+                    let (set, step) = if whole { (byte == 0xFF, 8) } else { ((byte >> (7 - cx % 8)) & 1 != 0, 1) };
                     match (set, open) {
                         (true, None) => open = Some(x as u32),
                         (false, Some(s)) => {
@@ -120,7 +109,7 @@ impl MaskRuns {
                         }
                         _ => {}
                     }
-                    x += 1;
+                    x += step;
                 }
                 if let Some(s) = open {
                     out.runs.push([s, info.width]);
