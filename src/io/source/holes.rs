@@ -51,9 +51,9 @@ impl HoleMark {
 }
 
 /// Runs of set bits a row make a mask small whatever the scan's size
-/// (a collar or a cut-out: a few runs a row); past this many, the mask is
-/// refused rather than held.
-const MAX_RUNS: usize = 4 << 20;
+/// (a collar or a cut-out: a few runs a row); past this many (8 MB of
+/// them), the mask is refused rather than held outside the budget.
+const MAX_RUNS: usize = 1 << 20;
 
 /// An internal mask as runs of image pixels, row by row.
 #[derive(Debug, Default)]
