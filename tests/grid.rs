@@ -240,36 +240,26 @@ fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
     let gt = g.transform;
     let mid = g.sample(g.width / 2, g.height / 2);
     let cropped = dir.path().join("dem_middle.tif");
-    f32_raster_with_keys(&cropped, (w as u32, h as u32), (gt[0] + i0 as f64 * gt[1], gt[3] + j0 as f64 * gt[5], gt[1]), keys, |c, r| {
+    f32_raster_with_keys(&cropped, (w as u32, h as u32), (gt[0] + i0 as f64 * gt[1], gt[3] + j0 as f64 * gt[5], gt[1]), keys.clone(), |c, r| {
         g.sample(i0 + c as usize, j0 + r as usize)
     });
     let dem_box = gcm_ortho::dem::GridDem::read(&cropped).unwrap().bounds();
+    // Rectified on `dem` under `--dem-outside outside` into `name`.
+    let rectify_on = |dem: &Path, name: &str, outside: &str| {
+        let out = dir.path().join(name);
+        (run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(dem), "--dem-outside", outside, "--quiet", "-o", s(&out)]), out)
+    };
     // A DEM 100 km away meets no edge of the scan: refused, a height for
     // outside it or not (the plane does not stand in for a wrong DEM).
     let far = dir.path().join("dem_far.tif");
-    let keys = gcm_ortho::io::source::SourceImage::info_of(&sc.dem).unwrap().georef.unwrap().keys;
     f32_raster_with_keys(&far, (w as u32, h as u32), (gt[0] + 1e5, gt[3], gt[1]), keys, |_, _| mid);
     for outside in ["nodata", "300"] {
-        let r = run(&[
-            "rectify",
-            "--image",
-            s(&sc.scan),
-            "--camera",
-            s(&sc.camera),
-            "--dem",
-            s(&far),
-            "--dem-outside",
-            outside,
-            "--quiet",
-            "-o",
-            s(&dir.path().join("far.tif")),
-        ]);
+        let (r, _) = rectify_on(&far, "far.tif", outside);
         let err = String::from_utf8_lossy(&r.stderr);
         assert!(r.status.code() == Some(1) && err.contains("does the DEM cover the scan"), "--dem-outside {outside}: {err}");
     }
     let ortho_on = |dem: &Path, name: &str, outside: &str| {
-        let out = dir.path().join(name);
-        let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(dem), "--dem-outside", outside, "--quiet", "-o", s(&out)]);
+        let (r, out) = rectify_on(dem, name, outside);
         assert!(r.status.success(), "--dem-outside {outside}: {}", String::from_utf8_lossy(&r.stderr));
         let (gt, w, h) = grid_of(&out);
         let (bytes, info) = whole_image(&out);
