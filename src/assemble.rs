@@ -13,7 +13,7 @@ use crate::io::tiff_out::{
     decode_mask, encode_mask, encode_tile, folder_of, tiff_write_error, verify, Chunking, Compression, GeoTags, OutputSpec, PendingFile, TileWriter,
 };
 use crate::options::{codec_level, overview_codec_level, Overviews};
-use crate::overview::{OverviewResampling, Pyramid, Quarter, Statistics, TileLayout, ValidBy};
+use crate::overview::{ByTileRow, OverviewResampling, Pyramid, Quarter, Statistics, TileLayout, ValidBy};
 use crate::progress::Cancel;
 use rayon::prelude::*;
 use std::os::unix::fs::FileExt;
@@ -234,7 +234,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
     }
     let tw = |e| tiff_write_error(pending.path(), e);
     let mask_compression = |k: usize| srcs[k].info.mask_compression;
-    let mut statistics = Statistics::default();
+    let mut statistics = ByTileRow::default();
     // A row of tiles at a time: each tile's stored bytes (and its mask's)
     // read, and under overviews its pixels decoded and reduced, in parallel.
     for row in 0..td {
@@ -271,7 +271,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
         let mut finished = Vec::new();
         for (col, t) in tiles.into_iter().enumerate() {
             let (image, mask, quarter, stats) = t?;
-            statistics.add(&stats);
+            statistics.add(row as usize, &stats);
             let k = (row * ta) as usize + col;
             writer.put(k, &image).map_err(tw)?;
             if let Some(m) = mask {
@@ -296,7 +296,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
             }
         }
     }
-    writer.finish(statistics.gdal_metadata(source.as_deref())).map_err(tw)?;
+    writer.finish(statistics.total().gdal_metadata(source.as_deref())).map_err(tw)?;
     verify(pending.path(), &spec)?;
     pending.publish_synced(opts.sync)
 }

@@ -199,10 +199,10 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
 }
 
 /// A mosaic whose bands the memory cannot hold across its width is made
-/// in strips of tile columns and assembled: byte for byte the file of a
-/// run with room for the whole width (the same plan, so the same cells),
-/// in plain and Cloud-Optimized layouts and as a true orthomosaic, the
-/// strips' folder removed.
+/// in strips of tile columns, one after the other: byte for byte the file
+/// of a run with room for the whole width (the same plan, so the same
+/// cells), in plain and Cloud-Optimized layouts and as a true
+/// orthomosaic, nothing left beside it.
 #[test]
 fn a_mosaic_too_wide_for_the_memory_is_made_in_strips_with_the_same_bytes() {
     let tmp = tempfile::tempdir().unwrap();

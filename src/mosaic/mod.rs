@@ -319,30 +319,12 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         let piece_source = if o.window.is_some() { crate::io::geotiff::piece_source(&source, &plan.grid) } else { source.clone() };
         let pieces =
             PieceRender { plan: &plan, compose: &compose, works: &works, threads, pool: &pool, fill, first: &first, progress, cancel, source: &piece_source };
-        match render::budget(&plan, &works, &spec, (tr0, trh), o.memory) {
-            Ok(fit) => {
-                pieces.render(window, &spec, fit, (out, pending, o.sync), &mut hidden)?;
-                strips_made = 1;
-            }
-            // Too wide for the memory: strips of tile columns, each made
-            // alone into a folder beside the output, then assembled
-            // (overviews and the layout made there), the same bytes.
-            Err(refusal) => {
-                drop(pending);
-                let strips = if tcw > 1 { column_strips(&plan, &works, &first, window, o.memory)? } else { return Err(refusal.into()) };
-                strips_made = strips.len();
-                let dir = crate::io::publish::pending_dir(out)?;
-                let mut paths = Vec::new();
-                for (k, (strip, spec, fit)) in strips.into_iter().enumerate() {
-                    let path = dir.path().join(format!("strip-{k:04}.tif"));
-                    // Throwaway files: not synced.
-                    pieces.render(strip, &spec, fit, (&path, PendingFile::create(&path)?, false), &mut hidden)?;
-                    paths.push(path);
-                }
-                // (Strips of a piece are a part of the whole their source names.)
-                crate::assemble::assemble(&paths, out, &AssembleOptions { partial: true, ..assembly(layout, &first, fill, o.sync) }, cancel)?;
-            }
-        }
+        // Strips of tile columns, as wide as the memory holds (one, the
+        // whole width, where it holds that), each band of each made in turn
+        // into the one file, laid out as a band-by-band run's.
+        let strips = column_strips(&plan, &works, &spec, window, o.memory)?;
+        strips_made = strips.len();
+        pieces.render(window, &strips, &spec, (out, pending, o.sync), &mut hidden)?;
         crate::batch::write_sidecar(out, &key)?;
         if true_ortho {
             use std::sync::atomic::Ordering;
@@ -495,41 +477,44 @@ fn within(works: &[render::ImageWork], window: [u32; 4]) -> Vec<render::ImageWor
 /// Tiles of the mosaic: first column, first row, columns, rows.
 type Strip = [u32; 4];
 
-/// A strip, its file's layout and how its render fits the memory.
-type StripPlan = (Strip, OutputSpec, render::Fit);
+/// A strip and how its render fits the memory.
+type StripPlan = (Strip, render::Fit);
 
 /// `window` cut into strips of tile columns whose renders each fit
-/// `memory` (strips hold no overviews: the assembly makes them), as wide
-/// as halving the width between one column and the whole finds (the
-/// whole is known not to fit). When strips a tile column wide do not fit
-/// either, the refusal of the one that needs the most (its figure is the
-/// least that runs).
-fn column_strips(plan: &Plan, works: &[render::ImageWork], first: &RectifyOptions, window: Strip, memory: u64) -> Result<Vec<StripPlan>> {
+/// `memory`: the whole where it fits, else the widest power of two that
+/// does (strips start at multiples of it, the last what is left; overview
+/// tiles then rarely wait for the next strip). When strips a tile column wide
+/// do not fit either, the refusal of the one that needs the most (its
+/// figure is the least that runs).
+fn column_strips(plan: &Plan, works: &[render::ImageWork], spec: &OutputSpec, window: Strip, memory: u64) -> Result<Vec<StripPlan>> {
     let [tc0, tr0, tcw, trh] = window;
     // Strips `wide` columns wide (the last what is left), or the most
     // that one of them lacks.
-    let cut = |wide: u32| -> Result<std::result::Result<Vec<StripPlan>, render::Short>> {
+    let cut = |wide: u32| -> std::result::Result<Vec<StripPlan>, render::Short> {
         let (mut fits, mut worst) = (Vec::new(), None::<render::Short>);
         for c0 in (tc0..tc0 + tcw).step_by(wide as usize) {
             let strip = [c0, tr0, wide.min(tc0 + tcw - c0), trh];
-            let spec = piece_spec(plan, first, strip, (Overviews::None, false))?;
-            match render::budget(plan, &within(works, strip), &spec, (tr0, trh), memory) {
-                Ok(fit) => fits.push((strip, spec, fit)),
+            match render::budget(plan, &within(works, strip), spec, strip[2], (tr0, trh), memory) {
+                Ok(fit) => fits.push((strip, fit)),
                 Err(short) => worst = Some(worst.filter(|w| w.enough >= short.enough).unwrap_or(short)),
             }
         }
-        Ok(worst.map_or(Ok(fits), Err))
+        worst.map_or(Ok(fits), Err)
     };
-    let mut best = cut(1)?.map_err(Error::from)?;
-    let (mut lo, mut hi) = (1, tcw);
-    while hi - lo > 1 {
-        let mid = lo + (hi - lo) / 2;
-        match cut(mid)? {
-            Ok(fits) => (lo, best) = (mid, fits),
-            Err(_) => hi = mid,
+    match cut(tcw) {
+        Ok(whole) => return Ok(whole),
+        Err(short) if tcw == 1 => return Err(short.into()),
+        Err(_) => {}
+    }
+    // The widest power of two under the whole width.
+    let mut wide = 1 << (31 - (tcw - 1).leading_zeros());
+    loop {
+        match cut(wide) {
+            Ok(fits) => return Ok(fits),
+            Err(short) if wide == 1 => return Err(short.into()),
+            Err(_) => wide /= 2,
         }
     }
-    Ok(best)
 }
 
 /// What renders any window of the mosaic: the plan, the compositor, every
@@ -550,24 +535,37 @@ struct PieceRender<'a> {
 
 impl PieceRender<'_> {
     /// The mosaic's tiles `window` into `path` (through `pending`, synced
-    /// or not) as `spec` says, with `fit`'s renders at once and memory
-    /// each; each image's pixels imaged and hidden added to `hidden`.
+    /// or not) as `spec` says, strip after strip of `strips`, each with its
+    /// fit's renders at once and memory each; each image's pixels imaged
+    /// and hidden added to `hidden`.
     fn render(
         &self,
         window: Strip,
+        strips: &[StripPlan],
         spec: &OutputSpec,
-        fit: render::Fit,
         (path, pending, sync): (&Path, PendingFile, bool),
         hidden: &mut [(u64, u64)],
     ) -> Result<()> {
         let [tc0, tr0, tx, ty] = window;
-        let (at_once, share) = fit;
-        let mut works = within(self.works, window);
-        for w in &mut works {
-            w.opts.memory = share;
-        }
+        let works: Vec<Vec<render::ImageWork>> = strips
+            .iter()
+            .map(|&(strip, (_, share))| {
+                let mut works = within(self.works, strip);
+                for w in &mut works {
+                    w.opts.memory = share;
+                }
+                works
+            })
+            .collect();
+        let columns: Vec<(u32, u32)> = strips.iter().map(|(s, _)| (s[0] - tc0, s[0] - tc0 + s[2])).collect();
         let (cancel, progress) = (self.cancel, self.progress);
-        progress.start(&Task { name: "mosaic", units: tx as u64 * ty as u64, lines: spec.height as u64, line_name: "rows", input_bytes: 0 });
+        progress.start(&Task {
+            name: "mosaic",
+            units: tx as u64 * ty as u64,
+            lines: spec.height as u64 * strips.len() as u64,
+            line_name: "rows",
+            input_bytes: 0,
+        });
         let writing = BandWriting {
             spec,
             path,
@@ -581,18 +579,26 @@ impl PieceRender<'_> {
         };
         let sample = self.plan.images[0].sample;
         let written = std::thread::scope(|s| {
-            let mut feeds = render::Feeds::new(s, works.len(), at_once);
-            write_bands(&writing, pending, |b| {
+            let mut feeds: Option<(usize, render::Feeds)> = None;
+            write_bands(&writing, pending, &columns, |k, b| {
+                if feeds.as_ref().is_none_or(|(j, _)| *j != k) {
+                    // The strip before is done: its images' threads have ended.
+                    feeds = None;
+                    feeds = Some((k, render::Feeds::new(s, works[k].len(), strips[k].1 .0)));
+                }
+                let feeds = &mut feeds.as_mut().expect("just made").1;
+                let works = &works[k];
                 // The piece's band b is the mosaic's tr0 + b.
-                let got = feeds.band(&works, tr0 + b, cancel, progress)?;
-                for (k, band) in &got {
+                let got = feeds.band(works, tr0 + b, cancel, progress)?;
+                for (j, band) in &got {
                     if let Some(s) = &band.seen {
-                        hidden[works[*k].image].0 += s.imaged;
-                        hidden[works[*k].image].1 += s.hidden;
+                        hidden[works[*j].image].0 += s.imaged;
+                        hidden[works[*j].image].1 += s.hidden;
                     }
                 }
-                let got: Vec<_> = got.iter().map(|(k, band)| (&works[*k], band)).collect();
-                Ok(self.compose.make_band(tr0 + b, (tc0, tc0 + tx), &got, self.pool, sample))
+                let got: Vec<_> = got.iter().map(|(j, band)| (&works[*j], band)).collect();
+                let strip = strips[k].0;
+                Ok(self.compose.make_band(tr0 + b, (strip[0], strip[0] + strip[2]), &got, self.pool, sample))
             })
         });
         progress.finish();

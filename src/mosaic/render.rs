@@ -183,17 +183,18 @@ const MIN_SHARE: u64 = 24 << 20;
 /// its threads' stacks (about 1 MiB measured on 2000² frames).
 const IDLE_IMAGE: u64 = 1 << 20;
 
-/// The render's memory for the mosaic bands `b0..b0 + n` of `spec`: the
-/// writer's bands in flight and unfinished overview tiles; the plan's arrays and DEMs; the images'
+/// The render's memory for the mosaic bands `b0..b0 + n` of `spec`, in a
+/// strip `across` tile columns wide: the writer's bands in flight and
+/// unfinished overview tiles; the plan's arrays and DEMs; the images'
 /// bands in hand, of a band of the mosaic and the next (see [`Turns`]), a
 /// tile and its mask for each of their tile columns; the images alive
 /// between turns. What is left goes to the renders that run at once, as
 /// many as it holds at [`MIN_SHARE`] each, up to all the images those two
 /// bands need (more at once keep the cores busy through each one's serial
 /// stages). Returns how many at once, and each one's memory.
-pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, (b0, n): (u32, u32), memory: u64) -> std::result::Result<Fit, Short> {
+pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, across: u32, (b0, n): (u32, u32), memory: u64) -> std::result::Result<Fit, Short> {
     let tile = spec.chunk().0 as u64;
-    let band_bytes = crate::pipeline::band_writer::held_bytes(spec);
+    let band_bytes = crate::pipeline::band_writer::held_bytes(spec, across);
     let dems = plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>();
     let arrays = plan.images.iter().map(|i| i.radius.len() as u64 * 4).sum::<u64>() + plan.label.len() as u64 * 16;
     let plan_bytes = arrays + dems;

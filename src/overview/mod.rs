@@ -12,7 +12,7 @@ mod reduce;
 mod statistics;
 
 pub use reduce::{fill_pixel, reduce, OverviewResampling, Quarter, TileLayout, ValidBy};
-pub use statistics::{BandStats, Statistics};
+pub use statistics::{BandStats, ByTileRow, Statistics};
 
 use crate::io::tiff_out::OutputSpec;
 use std::collections::HashMap;
@@ -152,6 +152,46 @@ impl Pyramid {
         }
     }
 
+    /// The order a file of `spec` written a band (a row of full-resolution
+    /// tiles) at a time gets its chunks in: each band's tiles (each with its
+    /// mask's), then the overview tiles that band finishes, as
+    /// [`Pyramid::place`] and [`Pyramid::cascade`] finish them. A run that
+    /// makes its tiles in another order lays them out in this one, so that
+    /// its file is a band-by-band run's, byte for byte.
+    pub fn band_order(spec: &OutputSpec) -> Vec<usize> {
+        let mut order = Vec::with_capacity(spec.chunk_count());
+        let mut put = |l: u32, k: usize| {
+            order.push(spec.chunk_index(l, k, false));
+            if spec.mask {
+                order.push(spec.chunk_index(l, k, true));
+            }
+        };
+        let mut pyramid = Pyramid::new(spec, OverviewResampling::Nearest, ValidBy::Mask, 0.0);
+        let quarter = || Quarter { pixels: Vec::new(), valid: Vec::new() };
+        let across = spec.tiles_across() as usize;
+        for b in 0..spec.tiles_down() as usize {
+            let mut finished = Vec::new();
+            for k in b * across..(b + 1) * across {
+                put(0, k);
+                if let Some(p) = pyramid.as_mut() {
+                    finished.extend(p.place(0, k, quarter()));
+                }
+            }
+            let Some(p) = pyramid.as_mut() else { continue };
+            while !finished.is_empty() {
+                let mut next = Vec::new();
+                for r in finished {
+                    put(r.level, r.k);
+                    if r.level < p.top() {
+                        next.extend(p.place(r.level, r.k, quarter()));
+                    }
+                }
+                finished = next;
+            }
+        }
+        order
+    }
+
     /// Have all tiles been finished? (Every tile below came.)
     pub fn is_complete(&self) -> bool {
         self.pending.iter().all(HashMap::is_empty)
@@ -191,6 +231,33 @@ mod tests {
             geo: None,
             overviews: OutputSpec::auto_overviews(width, height, 4),
             cog: false,
+        }
+    }
+
+    /// A band-by-band run's order: every chunk once; each band's tiles,
+    /// each followed by its mask's, before the overview tiles it finishes,
+    /// and every overview tile after the four below it.
+    #[test]
+    fn the_band_order_has_every_chunk_once_each_after_what_it_is_made_of() {
+        let s = spec(17, 9);
+        let order = Pyramid::band_order(&s);
+        let mut seen = vec![usize::MAX; s.chunk_count()];
+        for (i, &k) in order.iter().enumerate() {
+            assert_eq!(seen[k], usize::MAX, "chunk {k} twice");
+            seen[k] = i;
+        }
+        assert!(seen.iter().all(|&i| i != usize::MAX), "a chunk left out");
+        assert_eq!(&order[..4], &[s.chunk_index(0, 0, false), s.chunk_index(0, 0, true), s.chunk_index(0, 1, false), s.chunk_index(0, 1, true)]);
+        for l in 1..=s.overviews {
+            let (a, d) = s.level_tiles(l);
+            let below = s.level_tiles(l - 1).0 as usize;
+            for k in 0..(a * d) as usize {
+                let (x, y) = (k % a as usize, k / a as usize);
+                let at = seen[s.chunk_index(l, k, false)];
+                assert_eq!(seen[s.chunk_index(l, k, true)], at + 1, "its mask right after it");
+                let under = seen[s.chunk_index(l - 1, 2 * y * below + 2 * x, false)];
+                assert!(under < at, "level {l} tile {k} before the tiles it is made of");
+            }
         }
     }
 

@@ -33,6 +33,29 @@ impl BandStats {
     }
 }
 
+/// Tiles' statistics summed a row of tiles at a time (each row's tiles as
+/// they come: in column order, whether the file is made in bands of rows,
+/// of columns or in strips, or assembled from pieces), then row after row:
+/// floating-point sums that do not depend on how the file was made.
+#[derive(Debug, Default)]
+pub struct ByTileRow {
+    rows: std::collections::BTreeMap<usize, Statistics>,
+}
+
+impl ByTileRow {
+    pub fn add(&mut self, row: usize, s: &Statistics) {
+        self.rows.entry(row).or_default().add(s);
+    }
+
+    pub fn total(&self) -> Statistics {
+        let mut total = Statistics::default();
+        for s in self.rows.values() {
+            total.add(s);
+        }
+        total
+    }
+}
+
 /// The statistics of every band, and of how many pixels the image has.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Statistics {

@@ -33,19 +33,29 @@ pub struct BandWriting<'a> {
     pub source: Option<&'a str>,
 }
 
-/// What writing `spec` a band at a time holds at most, bytes: a band in
-/// flight three times (made, being encoded, being written) and the
-/// overview tiles not yet finished.
-pub fn held_bytes(spec: &OutputSpec) -> u64 {
-    let across = spec.tiles_across();
-    3 * across as u64 * spec.tile_bytes() as u64 + Pyramid::held_bytes(spec, across)
+/// What writing `spec` in strips `across` tile columns wide holds at most,
+/// bytes: a strip's band in flight three times (made, being encoded, being
+/// written) and the overview tiles not yet finished: a band of them, and
+/// in strips those waiting at a strip's edge for the next strip (a column
+/// a level, down the whole height, from the level where the strip is a
+/// tile wide).
+pub fn held_bytes(spec: &OutputSpec, across: u32) -> u64 {
+    let edge = if across < spec.tiles_across() { Pyramid::held_bytes(spec, spec.tiles_down().div_ceil(across)) } else { 0 };
+    3 * across as u64 * spec.tile_bytes() as u64 + Pyramid::held_bytes(spec, across) + edge
 }
 
-/// Writes `w.path` from the bands `make_band` makes, in order: each band's
-/// tiles one after the other from tile column 0, padded to whole tiles,
-/// and (under a mask) a byte a pixel saying which have a value. Returns the
-/// encoder's busy time.
-pub fn write_bands(w: &BandWriting, pending: PendingFile, mut make_band: impl FnMut(u32) -> Result<(Raw, Option<Vec<u8>>)>) -> Result<Duration> {
+/// Writes `w.path` from the bands `make_band(s, b)` makes: strip after strip
+/// of `strips` (tile columns `[c0, c1)`, from left to right, together the
+/// whole width), in each band after band from the top. A strip's band is
+/// its tiles one after the other, padded to whole tiles, and (under a
+/// mask) a byte a pixel saying which have a value. The file's bytes do not
+/// depend on the strips. Returns the encoder's busy time.
+pub fn write_bands(
+    w: &BandWriting,
+    pending: PendingFile,
+    strips: &[(u32, u32)],
+    mut make_band: impl FnMut(usize, u32) -> Result<(Raw, Option<Vec<u8>>)>,
+) -> Result<Duration> {
     let spec = w.spec;
     let tile = spec.chunk().0;
     let (tx, ty) = (spec.tiles_across(), spec.tiles_down());
@@ -74,13 +84,14 @@ pub fn write_bands(w: &BandWriting, pending: PendingFile, mut make_band: impl Fn
         valid_by,
         statistics: &statistics,
         source: w.source,
+        in_strips: strips.len() > 1,
     };
     let out_file = pending.file()?;
     let flush_file = out_file.try_clone().map_err(|e| Error::io(pending.path(), e))?;
     let (free, _freed) = crossbeam_channel::bounded::<Raw>(1);
     let mut busy = Duration::ZERO;
     let mut ready = VecDeque::new();
-    let mut bands = 0..ty;
+    let mut bands = strips.iter().enumerate().flat_map(|(s, &(c0, _))| (0..ty).map(move |b| (s, c0, b)));
     write(&out, out_file, flush_file, || loop {
         if let Some(t) = ready.pop_front() {
             return Ok(Some(t));
@@ -88,9 +99,9 @@ pub fn write_bands(w: &BandWriting, pending: PendingFile, mut make_band: impl Fn
         if stop.now() {
             return Err(Error::Cancelled);
         }
-        let Some(b) = bands.next() else { return Ok(None) };
-        let (raw, valid) = make_band(b).map_err(|e| stop.fail(e))?;
-        for t in tiles(&out, Made { band: b, first_col: 0, raw, valid }, &free, &mut busy) {
+        let Some((s, c0, b)) = bands.next() else { return Ok(None) };
+        let (raw, valid) = make_band(s, b).map_err(|e| stop.fail(e))?;
+        for t in tiles(&out, Made { band: b, first_col: c0, raw, valid }, &free, &mut busy) {
             ready.push_back(t?);
         }
     })?;

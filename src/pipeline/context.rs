@@ -155,9 +155,12 @@ pub struct Output<'a> {
     pub spare_masks: &'a crossbeam_channel::Sender<Vec<u8>>,
     pub pyramid: Option<&'a Mutex<crate::overview::Pyramid>>,
     pub valid_by: crate::overview::ValidBy,
-    pub statistics: &'a Mutex<crate::overview::Statistics>,
+    pub statistics: &'a Mutex<crate::overview::ByTileRow>,
     /// What the output is made from (its metadata's source item).
     pub source: Option<&'a str>,
+    /// Its tiles come in strips of tile columns, not band by band: the
+    /// file is laid out as a band-by-band run's at the end.
+    pub in_strips: bool,
 }
 
 /// Everything one run's stages share.
@@ -181,7 +184,7 @@ pub struct Run<'a> {
     /// the overviews.
     pub valid_by: crate::overview::ValidBy,
     /// The full level's band statistics, tile by tile (the encoder's).
-    pub statistics: Mutex<crate::overview::Statistics>,
+    pub statistics: Mutex<crate::overview::ByTileRow>,
     /// What the output is made from, the same for every piece of it.
     pub source: Option<String>,
 }
@@ -202,6 +205,7 @@ impl Run<'_> {
             valid_by: self.valid_by,
             statistics: &self.statistics,
             source: self.source.as_deref(),
+            in_strips: false,
         }
     }
 }

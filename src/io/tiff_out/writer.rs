@@ -70,7 +70,9 @@ impl<E> From<std::io::Error> for WriteError<E> {
 /// unnamed temporary file in the target's folder) and the file is laid out
 /// at the end: directories, then the levels smallest first, each copied
 /// whole where its chunks came in row-major order (the kernel copies it,
-/// `copy_file_range`), else chunk by chunk.
+/// `copy_file_range`), else chunk by chunk. Replayed, chunks that come in
+/// another order than a streamed run's go to a spool, and are appended at
+/// the end in that run's order: the same bytes.
 pub struct TileWriter {
     out: std::fs::File,
     spec: OutputSpec,
@@ -93,8 +95,17 @@ struct JpegTables {
 }
 
 enum Body {
-    Streamed { pos: u64, paged: bool },
+    Streamed {
+        pos: u64,
+        paged: bool,
+    },
     Cog(Vec<Spool>),
+    /// The chunks as they came, and the order to write them in.
+    Replayed {
+        spool: std::io::BufWriter<std::fs::File>,
+        len: u64,
+        order: Vec<usize>,
+    },
 }
 
 /// One level's chunks waiting for their place in a Cloud-Optimized file,
@@ -113,7 +124,13 @@ fn misplaced(k: usize, n: usize) -> tiff::TiffError {
 }
 
 impl TileWriter {
-    pub fn new(mut out: std::fs::File, spec: &OutputSpec, spool_dir: &Path) -> std::io::Result<TileWriter> {
+    pub fn new(out: std::fs::File, spec: &OutputSpec, spool_dir: &Path) -> std::io::Result<TileWriter> {
+        TileWriter::new_in_order(out, spec, spool_dir, None)
+    }
+
+    /// As [`TileWriter::new`]; a streamed file's chunks are laid out in
+    /// `order` (every chunk's number once), whatever order they come in.
+    pub fn new_in_order(mut out: std::fs::File, spec: &OutputSpec, spool_dir: &Path, order: Option<Vec<usize>>) -> std::io::Result<TileWriter> {
         let body = if spec.cog {
             let spools = (0..=spec.overviews)
                 .map(|_| {
@@ -122,6 +139,12 @@ impl TileWriter {
                 })
                 .collect::<std::io::Result<_>>()?;
             Body::Cog(spools)
+        } else if let Some(order) = order {
+            if order.len() != spec.chunk_count() {
+                return Err(std::io::Error::other(format!("{} chunks to lay out in an order of {}", spec.chunk_count(), order.len())));
+            }
+            let file = tempfile::tempfile_in(spool_dir)?;
+            Body::Replayed { spool: std::io::BufWriter::with_capacity(256 << 10, file), len: 0, order }
         } else {
             out.write_all(&header(0, spec.bigtiff))?;
             Body::Streamed { pos: header_len(spec.bigtiff), paged: page_padding(spec).is_some() }
@@ -152,19 +175,11 @@ impl TileWriter {
         }
         let (l, j, of_mask) = self.spec.locate(k);
         match &mut self.body {
-            Body::Streamed { pos, paged } => {
-                if *paged && !of_mask && *pos % PAGE != 0 {
-                    // Unreferenced bytes (TIFF allows them) so that every
-                    // tile of an uncompressed output starts on a page of the
-                    // file: the page cache then takes whole pages, without
-                    // zeroing and merging the pages two tiles share.
-                    let pad = (PAGE - *pos % PAGE) as usize;
-                    self.out.write_all(&vec![0u8; pad])?;
-                    *pos += pad as u64;
-                }
-                self.out.write_all(chunk)?;
-                self.places[k] = (*pos, chunk.len() as u64);
-                *pos += chunk.len() as u64;
+            Body::Streamed { pos, paged } => self.places[k] = append(&mut self.out, pos, *paged && !of_mask, chunk)?,
+            Body::Replayed { spool, len, .. } => {
+                spool.write_all(chunk)?;
+                self.places[k] = (*len, chunk.len() as u64);
+                *len += chunk.len() as u64;
             }
             Body::Cog(spools) => {
                 let s = &mut spools[l as usize];
@@ -199,7 +214,12 @@ impl TileWriter {
             return Err(misplaced(self.written, n));
         }
         let big = self.spec.bigtiff;
-        match std::mem::replace(&mut self.body, Body::Streamed { pos: 0, paged: false }) {
+        let body = match std::mem::replace(&mut self.body, Body::Streamed { pos: 0, paged: false }) {
+            Body::Replayed { spool, order, .. } => self.replay(spool, &order)?,
+            body => body,
+        };
+        match body {
+            Body::Replayed { .. } => unreachable!("replayed above"),
             Body::Streamed { mut pos, .. } => {
                 if pos % 2 == 1 {
                     self.out.write_all(&[0])?;
@@ -214,6 +234,25 @@ impl TileWriter {
             Body::Cog(spools) => self.lay_out_cog(spools, gdal_metadata)?,
         }
         Ok(self.out)
+    }
+
+    /// Appends the spooled chunks to the file in `order`, as a streamed
+    /// run would have: the body it leaves.
+    fn replay(&mut self, spool: std::io::BufWriter<std::fs::File>, order: &[usize]) -> std::io::Result<Body> {
+        let spool = spool.into_inner().map_err(|e| e.into_error())?;
+        self.out.write_all(&header(0, self.spec.bigtiff))?;
+        let mut pos = header_len(self.spec.bigtiff);
+        let paged = page_padding(&self.spec).is_some();
+        let mut out = std::io::BufWriter::with_capacity(1 << 20, &self.out);
+        let mut buf = Vec::new();
+        for &k in order {
+            let (o, len) = self.places[k];
+            buf.resize(len as usize, 0);
+            spool.read_exact_at(&mut buf, o)?;
+            self.places[k] = append(&mut out, &mut pos, paged && !self.spec.locate(k).2, &buf)?;
+        }
+        out.flush()?;
+        Ok(Body::Streamed { pos, paged })
     }
 
     fn lay_out_cog(&mut self, spools: Vec<Spool>, gdal_metadata: Option<String>) -> std::result::Result<(), tiff::TiffError> {
@@ -267,6 +306,23 @@ impl TileWriter {
         }
         Ok(())
     }
+}
+
+/// Appends `chunk` at `pos` (first to a page, `paged`): its place.
+fn append(out: &mut impl Write, pos: &mut u64, paged: bool, chunk: &[u8]) -> std::io::Result<(u64, u64)> {
+    if paged && *pos % PAGE != 0 {
+        // Unreferenced bytes (TIFF allows them) so that every tile of an
+        // uncompressed output starts on a page of the file: the page cache
+        // then takes whole pages, without zeroing and merging the pages two
+        // tiles share.
+        let pad = (PAGE - *pos % PAGE) as usize;
+        out.write_all(&vec![0u8; pad])?;
+        *pos += pad as u64;
+    }
+    out.write_all(chunk)?;
+    let place = (*pos, chunk.len() as u64);
+    *pos += chunk.len() as u64;
+    Ok(place)
 }
 
 /// GDAL's structural metadata, right after the header of a Cloud-Optimized

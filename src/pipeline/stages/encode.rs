@@ -97,7 +97,7 @@ pub fn tiles(run: &Output, made: Made, free: &crossbeam_channel::Sender<Raw>, bu
     let mut pyramid = pyramid;
     let mut statistics = run.statistics.lock().expect("the encoder's alone");
     for (k, (tile, mask, (q, stats))) in done.into_iter().enumerate() {
-        statistics.add(&stats);
+        statistics.add(at(k) / spec.tiles_across() as usize, &stats);
         out.push(tile.map(|t| (at(k), t)).map_err(|e| run.stop.fail(e)));
         if let Some(mask) = mask {
             out.push(mask.map(|m| (spec.mask_tile(at(k)), m)).map_err(|e| run.stop.fail(e)));

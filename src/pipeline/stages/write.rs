@@ -29,7 +29,8 @@ pub fn write(run: &Output, out_file: std::fs::File, flush_file: std::fs::File, m
         let mut unsynced = 0usize;
         let spec = run.spec;
         let tw = |e| run.stop.fail(tiff_write_error(run.path, e));
-        let mut writer = TileWriter::new(out_file, spec, &folder_of(run.path)).map_err(|e| tw(e.into()))?;
+        let order = (run.in_strips && !spec.cog).then(|| crate::overview::Pyramid::band_order(spec));
+        let mut writer = TileWriter::new_in_order(out_file, spec, &folder_of(run.path), order).map_err(|e| tw(e.into()))?;
         let written = (|| -> Result<()> {
             loop {
                 if run.stop.cancelled() {
@@ -49,7 +50,7 @@ pub fn write(run: &Output, out_file: std::fs::File, flush_file: std::fs::File, m
                 }
             }
             // The statistics are complete: the encoder has sent its last tile.
-            let metadata = run.statistics.lock().ok().and_then(|s| s.gdal_metadata(run.source));
+            let metadata = run.statistics.lock().ok().and_then(|s| s.total().gdal_metadata(run.source));
             writer.finish(metadata).map_err(tw)?;
             Ok(())
         })();
