@@ -264,8 +264,10 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     if let Some(path) = &o.plan_out {
         plan_file::write(&plan, &corrections, path)?;
     }
-    let weights = weights::Weights::new(&plan, o.blend, &edges);
+    // The thumbnails are done with (balance and seams): dropped before the
+    // weights are worked out, so that the two are never held together.
     plan.images.iter_mut().for_each(PlanImage::forget_values);
+    let weights = weights::Weights::new(&plan, o.blend, &edges);
     let grid = plan.grid;
     let (tx_all, ty_all) = (grid.width.div_ceil(first.tile), grid.height.div_ceil(first.tile));
     let window = o.window.unwrap_or([0, 0, tx_all, ty_all]);
