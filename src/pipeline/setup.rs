@@ -402,7 +402,7 @@ impl RunPlan {
         if let (None, Some(e)) = (opts.kernel.area(), pixel_extent(&approx, grid.width as f64 / 2.0, grid.height as f64 / 2.0, 1.0 / 64.0)) {
             if e >= ALIASING_EXTENT {
                 progress.warn(&format!(
-                    "output pixels span about {e:.0} scan pixels: --resample {} reads a few of them under each, so fine texture aliases; --resample average takes them all",
+                    "output pixels span about {e:.0} scan pixels: --resample {} reads a few of them under each, so fine texture aliases; --resample average (in a manifest, resample = \"average\") takes them all",
                     format!("{:?}", opts.kernel).to_lowercase()
                 ));
             }
