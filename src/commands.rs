@@ -600,7 +600,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     let dem = Dem::open(&dem_path, &cam.crs)?;
     let z0 = dem.mean_height().unwrap_or_else(|| cam.height_hint());
     let gsd = mean_gsd(cam.model(), &dem, w, h, z0)?;
-    let grid = auto_grid(cam.model(), &dem, w, h, z0, gcm_ortho::geom::Gsd::square(gsd))?;
+    let (grid, _) = auto_grid(cam.model(), &dem, w, h, z0, gcm_ortho::geom::Gsd::square(gsd))?;
     let area = grid.bounds();
     let plane =
         if a.trend == Trend::Mean { dem.mean_plane(area) } else { dem.trend_plane(area) }.ok_or_else(|| anyhow!("no DEM heights in the output area"))?;

@@ -638,6 +638,15 @@ impl Dem {
         }
     }
 
+    /// What a lookup at ground (X, Y) finds, before the hole/outside
+    /// policy.
+    pub fn lookup(&self, x: f64, y: f64) -> Lookup {
+        match &self.model {
+            HeightModel::Flat(z) => Lookup::Height(*z),
+            HeightModel::Grid(g) => self.in_grid_crs(x, y).map_or(Lookup::Outside, |(gx, gy)| g.lookup(gx, gy)),
+        }
+    }
+
     #[inline]
     pub fn height(&self, x: f64, y: f64) -> Height {
         let found = match &self.model {

@@ -7,7 +7,7 @@
 //! seams cross far fewer height edges than the first partition's.
 
 mod common;
-use common::{bin, python_with, run, s};
+use common::{bin, have, python_with, run, s};
 use std::path::Path;
 
 fn block(dir: &Path) {
@@ -571,4 +571,54 @@ fn a_scans_own_holes_are_filled_from_the_images_around_it() {
     let (whole, holed) = (empty("whole.tif"), empty("holed.tif"));
     // The hole is about 600×400 scan pixels; a few at its edge may stay.
     assert!(holed <= whole + 500, "{holed} empty pixels with the hole, {whole} without");
+}
+
+/// An image the mosaic takes nothing of is said, naming it and why: a DEM
+/// that stops short of it (an error where the manifest says heights past
+/// the DEM are one), and the same scan listed twice under another name.
+#[test]
+fn images_the_mosaic_takes_nothing_of_are_named() {
+    if !have("gdal_translate") {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    let cut = std::process::Command::new("gdal_translate").current_dir(d).args(["-q", "-srcwin", "0", "0", "550", "1100", "dem.tif", "left.tif"]).status();
+    assert!(cut.unwrap().success());
+    let manifest = std::fs::read_to_string(d.join("manifest.toml")).unwrap();
+    let mosaic_of = |name: &str, text: &str| {
+        std::fs::write(d.join(name), text).unwrap();
+        std::process::Command::new(bin()).current_dir(d).args(["mosaic", name, "-o", "out.tif", "--force", "--quiet"]).output().unwrap()
+    };
+    // The whole block: no warning of either kind.
+    let out = mosaic_of("whole.toml", &manifest);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && !err.contains("warning"), "{err}");
+    // The DEM cut to its left part: the right column's frames give
+    // nothing, each named with the DEM; those it covers in part warned.
+    let out = mosaic_of("left.toml", &manifest.replace("dem.tif", "left.tif"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let nothing: Vec<&str> = err.lines().filter(|l| l.contains("takes nothing of it")).collect();
+    assert!(!nothing.is_empty() && nothing.iter().all(|l| l.contains("003.tif") || l.contains("006.tif")), "{err}");
+    assert!(nothing.iter().all(|l| l.contains("left.tif")), "the DEM named: {err}");
+    assert!(err.contains("covers only part of the image"), "{err}");
+    // Under dem_outside = "error": refused in one line, nothing written.
+    for done in ["out.tif", "out.tif.done"] {
+        std::fs::remove_file(d.join(done)).unwrap();
+    }
+    let strict = manifest.replace("dem = \"dem.tif\"", "dem = \"left.tif\"\ndem_outside = \"error\"");
+    let out = mosaic_of("strict.toml", &strict);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.lines().filter(|l| l.contains("error")).count() == 1 && err.contains("003.tif"), "{err}");
+    assert!(!d.join("out.tif").exists() && common::files_containing(d, "out.tif").is_empty());
+    // A scan listed twice, under another name.
+    std::fs::copy(d.join("scans/002.tif"), d.join("scans/copy.tif")).unwrap();
+    let out = mosaic_of("twice.toml", &format!("{manifest}\n[[job]]\nimage = \"scans/copy.tif\"\ncamera = \"scans/002.toml\"\n"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let nothing: Vec<&str> = err.lines().filter(|l| l.contains("takes nothing of it")).collect();
+    assert!(nothing.len() == 1 && nothing[0].contains("copy.tif") && nothing[0].contains("002.tif") && nothing[0].contains("twice"), "{err}");
 }

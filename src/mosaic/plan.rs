@@ -13,7 +13,7 @@ use crate::geom::{Gsd, OutputGrid, Snap};
 use crate::io::source::{HoleMark, SampleType, SourceImage, Window};
 use crate::options::{DemSource, RectifyOptions};
 use crate::progress::{Progress, Task};
-use crate::transform::footprint::{footprint, mean_gsd};
+use crate::transform::footprint::{footprint_on, mean_gsd};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -167,6 +167,8 @@ impl Plan {
         let mut dems: Vec<std::sync::Arc<Dem>> = Vec::new();
         let mut dem_of: HashMap<PathBuf, usize> = HashMap::new();
         let mut images = Vec::new();
+        // Images whose edge leaves their DEM (said already).
+        let mut partial_dem = Vec::new();
         let mut crs = s.crs.clone();
         for (name, opts) in jobs {
             let camera = opts.model.load(&opts.image, &opts.camera, s.crs.as_ref())?;
@@ -206,8 +208,18 @@ impl Plan {
                 Error::Geometry(m) => Error::format(&opts.image, m),
                 e => e,
             };
-            let gsd = mean_gsd(camera.model(), d, info.width, info.height, z).map_err(on_dem)?;
-            let fp = footprint(camera.model(), d, info.width, info.height, z).map_err(on_dem)?;
+            // An image wholly off its DEM gives nothing (said once the plan
+            // is made), unless the manifest makes that an error.
+            let (fp, gsd) = match footprint_on(camera.model(), d, info.width, info.height, z) {
+                Err(Error::Geometry(_)) if opts.dem_outside != crate::dem::Miss::Error => (None, f64::NAN),
+                fp => {
+                    let fp = fp.map_err(on_dem)?;
+                    if let Some(w) = fp.partial_warning(&opts.image, d) {
+                        progress.warn(&w);
+                    }
+                    (Some(fp), mean_gsd(camera.model(), d, info.width, info.height, z).map_err(on_dem)?)
+                }
+            };
             images.push((
                 PlanImage {
                     name,
@@ -224,8 +236,9 @@ impl Plan {
                     values: Vec::new(),
                     radius: Vec::new(),
                 },
-                fp,
+                fp.map(|f| f.bounds),
             ));
+            partial_dem.push(fp.is_none_or(|f| f.past_edge > 0));
         }
         let crs = crs.ok_or_else(|| Error::setting("manifest", "no image".to_string()))?;
         if let Some(first) = images.first().map(|(i, _)| (i.bands, i.sample, i.name.clone())) {
@@ -241,12 +254,15 @@ impl Plan {
                 }
             }
         }
+        if let Some((im, _)) = images.first().filter(|_| images.iter().all(|(_, f)| f.is_none())) {
+            return Err(Error::format(&dems[im.dem].path, "none of the mosaic's images meets this DEM: does it cover the block?"));
+        }
         let gsd = s.gsd.unwrap_or_else(|| {
-            let mut g: Vec<f64> = images.iter().map(|(i, _)| i.gsd).collect();
+            let mut g: Vec<f64> = images.iter().map(|(i, _)| i.gsd).filter(|g| g.is_finite()).collect();
             g.sort_by(f64::total_cmp);
             Gsd::square(g[g.len() / 2])
         });
-        let union = images.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, (_, f)| {
+        let union = images.iter().filter_map(|(_, f)| f.as_ref()).fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, f| {
             [b[0].min(f[0]), b[1].min(f[1]), b[2].max(f[2]), b[3].max(f[3])]
         });
         let bounds = s.bounds.unwrap_or(union);
@@ -298,6 +314,10 @@ impl Plan {
         let sampled: Vec<PlanImage> = images
             .into_par_iter()
             .map(|(mut im, fp)| {
+                let Some(fp) = fp else {
+                    progress.advance(1);
+                    return Ok(im);
+                };
                 let (u0, v0) = plan.grid.pixel(fp[0], fp[3]);
                 let (u1, v1) = plan.grid.pixel(fp[2], fp[1]);
                 let c = plan.cell as f64;
@@ -337,7 +357,52 @@ impl Plan {
                 None => Error::setting("gsd", what),
             });
         }
+        plan.check_each_image_gives(&partial_dem, s.bounds.is_some(), progress)?;
         Ok(plan)
+    }
+}
+
+impl Plan {
+    /// An image the mosaic takes nothing of is a mistake to say: outside
+    /// its DEM (an error under `--dem-outside error`) or the bounds, or
+    /// seen nearer its centre everywhere by another image — the same
+    /// image twice, or another's camera.
+    fn check_each_image_gives(&self, partial_dem: &[bool], bounded: bool, progress: &dyn Progress) -> Result<()> {
+        let mut taken = vec![0usize; self.images.len()];
+        for &l in self.label.iter().filter(|&&l| l != NONE) {
+            taken[l as usize] += 1;
+        }
+        for (k, im) in self.images.iter().enumerate() {
+            if taken[k] > 0 {
+                continue;
+            }
+            let [x0, y0, x1, _] = im.cells;
+            let bw = (x1 - x0).max(1);
+            // The image that took most of what it sees.
+            let mut by = vec![0usize; self.images.len()];
+            for j in (0..im.radius.len()).filter(|&j| im.radius[j].is_finite()) {
+                if let Some(&l) = self.label.get((y0 + j / bw) * self.cw + x0 + j % bw).filter(|&&l| l != NONE) {
+                    by[l as usize] += 1;
+                }
+            }
+            let other = (0..by.len()).filter(|&j| by[j] > 0).max_by_key(|&j| by[j]).map(|j| self.images[j].opts.image.display().to_string());
+            let dem = self.dems[im.dem].path.display();
+            let why = match (other, partial_dem[k]) {
+                (None, true) => format!("it sees none of the mosaic's ground on the DEM {dem}"),
+                (None, false) if bounded => "it sees none of the mosaic's ground within the bounds".to_string(),
+                (None, false) => "it sees none of the mosaic's ground (its own holes, or the DEM's)".to_string(),
+                (Some(o), true) => format!("what of it lies on the DEM {dem} is seen nearer their centres by other images (most by {o})"),
+                (Some(o), false) => {
+                    format!("all it sees is seen nearer their centres by other images (most by {o}): the same image twice, or another image's camera?")
+                }
+            };
+            let what = format!("the mosaic takes nothing of it: {why}");
+            if partial_dem[k] && im.opts.dem_outside == crate::dem::Miss::Error {
+                return Err(Error::format(&im.opts.image, format!("{what} (dem_outside = \"error\")")));
+            }
+            progress.warn(&format!("{}: {what}", im.opts.image.display()));
+        }
+        Ok(())
     }
 }
 

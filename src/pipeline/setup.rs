@@ -242,7 +242,13 @@ impl RunPlan {
                 match opts.bounds {
                     Some(b) => OutputGrid::from_bounds(b, gsd, opts.snap)
                         .ok_or_else(|| Error::setting("bounds", format!("{b:?} at GSD {gsd} {}", OutputGrid::no_grid_because(b, gsd))))?,
-                    None => auto_grid(model, &dem, sw, sh, z_guess, gsd).map_err(on_dem)?,
+                    None => {
+                        let (grid, fp) = auto_grid(model, &dem, sw, sh, z_guess, gsd).map_err(on_dem)?;
+                        if let Some(w) = fp.partial_warning(&opts.image, &dem) {
+                            progress.warn(&w);
+                        }
+                        grid
+                    }
                 }
             }
         };

@@ -528,7 +528,7 @@ pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
         render_scan(o, &scene, &scan_spec, &scan_path, progress)?;
     }
     // The truth orthophoto on the grid rectify chooses by default.
-    let grid = auto_grid(cam, &dem, o.width, o.height, mid_z, crate::geom::Gsd::square(gsd))?;
+    let (grid, _) = auto_grid(cam, &dem, o.width, o.height, mid_z, crate::geom::Gsd::square(gsd))?;
     let measures = Measures { gsd, flying_height: flying, relief_range: [zlo, zhi], max_slope_deg: slope };
     finish(o, &scene.as_dyn(), &scan_spec, &grid, measures)
 }

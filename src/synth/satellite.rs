@@ -163,7 +163,7 @@ pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progre
     let model = RpcCamera::new(rpc, utm, None);
     let dem = Dem::open(&dem_path, &crate::geodesy::Crs::from_epsg(EPSG).map_err(Error::Geometry)?)?;
     let gsd = mean_gsd(&model, &dem, o.width, o.height, mid_z)?;
-    let grid = auto_grid(&model, &dem, o.width, o.height, mid_z, crate::geom::Gsd::square(gsd))?;
+    let (grid, _) = auto_grid(&model, &dem, o.width, o.height, mid_z, crate::geom::Gsd::square(gsd))?;
     let colour = |x: f64, y: f64| match model.crs.to_lonlat(x, y) {
         Some((lon, lat)) => colour_geo(lon, lat),
         None => [0.0; 3],

@@ -5,7 +5,7 @@
 
 use super::inverse::RayCaster;
 use crate::camera::SensorModel;
-use crate::dem::{Dem, HeightModel, Miss};
+use crate::dem::{Dem, HeightModel, Lookup, Miss};
 use crate::error::{Error, Result};
 use crate::geom::{ImageArea, OutputGrid};
 
@@ -19,6 +19,39 @@ const EDGE_STEP_PX: f64 = 4.0;
 /// of the part of it that holds the image, where the model says so (a
 /// film's format).
 pub fn footprint(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32, z_guess: f64) -> Result<[f64; 4]> {
+    footprint_on(model, dem, w, h, z_guess).map(|f| f.bounds)
+}
+
+/// A scan's footprint and how much of its edge meets the DEM.
+#[derive(Clone, Copy, Debug)]
+pub struct Footprint {
+    /// Ground bounds `[minx, miny, maxx, maxy]`.
+    pub bounds: [f64; 4],
+    /// Points of the scan's outline whose rays pass the DEM's edge (met
+    /// by no height, or by the plane `--dem-outside HEIGHT` puts past
+    /// it), of `edge_points`.
+    pub past_edge: usize,
+    pub edge_points: usize,
+}
+
+impl Footprint {
+    /// The warning for a DEM that covers only part of the scan, where the
+    /// orthophoto stops at the DEM's edge (not where a height past it is
+    /// given).
+    pub fn partial_warning(&self, image: &std::path::Path, dem: &Dem) -> Option<String> {
+        (self.past_edge > 0 && !matches!(dem.on_outside, Miss::Height(_))).then(|| {
+            format!(
+                "{}: the DEM {} covers only part of the image ({} % of its edge meets it): the orthophoto stops at the DEM's edge (--dem-outside HEIGHT goes on at that height)",
+                image.display(),
+                dem.path.display(),
+                (100 * (self.edge_points - self.past_edge) / self.edge_points.max(1)),
+            )
+        })
+    }
+}
+
+/// [`footprint`] with how much of the scan's edge meets the DEM.
+pub fn footprint_on(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32, z_guess: f64) -> Result<Footprint> {
     use rayon::prelude::*;
     let outline = image_outline(model.image_area(), w as f64, h as f64);
     let range = dem.height_range();
@@ -33,16 +66,20 @@ pub fn footprint(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32, z_
     // The outline's points on the pool (thousands of rays on a large
     // frame, walked through a DSM): the bounds of each point's ground
     // points, and whether its ray met the DEM.
-    let (b, hits) = outline
+    // A ray that misses the DEM is past its edge where it meets the plane
+    // at the guessed height outside the grid (not one lost on a wall).
+    let past_edge = |c: f64, r: f64| model.locate_approx(c, r, z_guess).is_some_and(|(x, y)| dem.lookup(x, y) == Lookup::Outside);
+    let (b, hits, past) = outline
         .par_iter()
         .map_init(
             || (RayCaster::new(model, dem), beyond.as_ref().map(|flat| RayCaster::new(model, flat))),
             |(caster, flat), &(c, r)| {
                 // (Points on the plane count as none: the DEM must meet the scan.)
                 let Some(p) = caster.cast(c, r, None, z_guess, 1e-3) else {
+                    let past = usize::from(past_edge(c, r));
                     return match flat.as_mut().and_then(|f| f.cast(c, r, None, z_guess, 1e-3)) {
-                        Some(p) => ([p[0], p[1], p[0], p[1]], 0),
-                        None => (none, 0),
+                        Some(p) => ([p[0], p[1], p[0], p[1]], 0, past),
+                        None => (none, 0, past),
                     };
                 };
                 let mut b = [p[0], p[1], p[0], p[1]];
@@ -54,14 +91,14 @@ pub fn footprint(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32, z_
                         b = joined(b, [q[0], q[1], q[0], q[1]]);
                     }
                 }
-                (b, 1)
+                (b, 1, 0)
             },
         )
-        .reduce(|| (none, 0), |(a, m), (b, n)| (joined(a, b), m + n));
+        .reduce(|| (none, 0, 0), |(a, m, p), (b, n, q)| (joined(a, b), m + n, p + q));
     if hits < 4 {
         return Err(Error::Geometry(format!("only {hits} of {} points on the image's edges meet the DEM: does the DEM cover the scan?", outline.len())));
     }
-    Ok(b)
+    Ok(Footprint { bounds: b, past_edge: past, edge_points: outline.len() })
 }
 
 /// Where the ray of scan point `(c, r)`, beyond its ground point `hit`,
@@ -175,14 +212,16 @@ pub fn mean_gsd(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64
 /// the DEM are an error, the grid stays within the DEM's edge: snapped
 /// outward, the footprint's last pixel centres would fall up to half a
 /// pixel past it.
-pub fn auto_grid(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64, gsd: crate::geom::Gsd) -> Result<OutputGrid> {
-    let mut b = footprint(model, dem, w, h, z_guess)?;
+pub fn auto_grid(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32, z_guess: f64, gsd: crate::geom::Gsd) -> Result<(OutputGrid, Footprint)> {
+    let fp = footprint_on(model, dem, w, h, z_guess)?;
+    let mut b = fp.bounds;
     if let (Miss::Error, HeightModel::Grid(g), None) = (dem.on_outside, &dem.model, &dem.to_dem) {
         let e = g.bounds();
         let (hx, hy) = (gsd.x * 0.5001, gsd.y * 0.5001);
         b = [b[0].max(e[0] + hx), b[1].max(e[1] + hy), b[2].min(e[2] - hx), b[3].min(e[3] - hy)];
     }
-    OutputGrid::snapped(b[0], b[1], b[2], b[3], gsd).ok_or_else(|| {
+    let grid = OutputGrid::snapped(b[0], b[1], b[2], b[3], gsd).ok_or_else(|| {
         Error::setting("gsd", format!("the footprint of {:.0} × {:.0} m at GSD {gsd} {}", b[2] - b[0], b[3] - b[1], OutputGrid::no_grid_because(b, gsd)))
-    })
+    })?;
+    Ok((grid, fp))
 }
