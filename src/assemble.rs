@@ -13,7 +13,7 @@ use crate::io::tiff_out::{
     decode_mask, encode_mask, encode_tile, folder_of, tiff_write_error, verify, Chunking, Compression, GeoTags, OutputSpec, PendingFile, TileWriter,
 };
 use crate::options::{codec_level, overview_codec_level, Overviews};
-use crate::overview::{ByTileRow, OverviewResampling, Pyramid, Quarter, Statistics, TileLayout, ValidBy};
+use crate::overview::{ByTileRow, OverviewResampling, Pyramid, Quarter, Statistics, ValidBy};
 use crate::progress::Cancel;
 use rayon::prelude::*;
 use std::os::unix::fs::FileExt;
@@ -262,8 +262,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
                     None => None,
                 };
                 let pixels = tile_pixels(&srcs[k], &spec, t)?;
-                let lay = TileLayout { tile: tile as usize, bands: spec.bands as usize, sample: spec.sample };
-                let stats = Statistics::of_tile(lay, by, &pixels, valid.as_deref(), spec.tile_extent(0, (row * ta + col) as usize));
+                let stats = Statistics::of_output_tile(&spec, by, &pixels, valid.as_deref(), spec.tile_extent(0, (row * ta + col) as usize));
                 let quarter = pyramid.as_ref().map(|p| p.reduce(0, (row * ta + col) as usize, &pixels, valid.as_deref()));
                 Ok((image, mask, quarter, stats))
             })
@@ -296,7 +295,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
             }
         }
     }
-    writer.finish(statistics.total().gdal_metadata(source.as_deref())).map_err(tw)?;
+    writer.finish(statistics.total().gdal_metadata(source.as_deref(), spec.compression.is_lossy())).map_err(tw)?;
     verify(pending.path(), &spec)?;
     pending.publish_synced(opts.sync)
 }

@@ -122,6 +122,40 @@ impl Statistics {
         Statistics { bands, pixels: (extent.0 * extent.1) as u64 }
     }
 
+    /// The statistics of one tile of a file written to `spec` (see
+    /// [`Statistics::of_tile`]). An alpha band's are of every pixel, as GDAL
+    /// counts them (an alpha band is all valid: 0 where the others have no
+    /// value).
+    pub fn of_output_tile(spec: &crate::io::tiff_out::OutputSpec, by: ValidBy, pixels: &[u8], valid: Option<&[u8]>, extent: (usize, usize)) -> Statistics {
+        let lay = TileLayout { tile: spec.chunk().0 as usize, bands: spec.bands as usize, sample: spec.sample };
+        let mut stats = Statistics::of_tile(lay, by, pixels, valid, extent);
+        if let (true, Some(alpha)) = (spec.alpha, stats.bands.last_mut()) {
+            let (b, bytes) = (lay.bands, lay.sample.bytes());
+            *alpha = BandStats::default();
+            for y in 0..extent.1 {
+                for x in 0..extent.0 {
+                    let at = ((y * lay.tile + x) * b + b - 1) * bytes;
+                    let s = match lay.sample {
+                        SampleType::U8 => pixels[at] as f64,
+                        SampleType::U16 => u16::from_ne_bytes([pixels[at], pixels[at + 1]]) as f64,
+                        SampleType::F32 => f32::from_ne_bytes(pixels[at..at + 4].try_into().expect("4 bytes")) as f64,
+                    };
+                    alpha.count += 1;
+                    if lay.sample == SampleType::F32 {
+                        alpha.float_sum += s;
+                        alpha.float_sum_sq += s * s;
+                    } else {
+                        alpha.int_sum += s as u128;
+                        alpha.int_sum_sq += (s as u128) * (s as u128);
+                    }
+                    alpha.min = alpha.min.min(s);
+                    alpha.max = alpha.max.max(s);
+                }
+            }
+        }
+        stats
+    }
+
     /// Adds another tile's.
     pub fn add(&mut self, other: &Statistics) {
         if self.bands.is_empty() {
@@ -143,8 +177,12 @@ impl Statistics {
     /// maximum, mean, standard deviation (of the population, as GDAL's)
     /// and the share of pixels with a value, in per cent (none where a
     /// band has no pixel with a value); and `source`, what the file was
-    /// made from. `None` when it would hold nothing.
-    pub fn gdal_metadata(&self, source: Option<&str>) -> Option<String> {
+    /// made from. `None` when it would hold nothing. Statistics of pixels
+    /// before a lossy codec are marked approximate (GDAL's
+    /// `STATISTICS_APPROXIMATE`): the decoded pixels differ by a few
+    /// levels, and GDAL recomputes such statistics when asked for exact
+    /// ones.
+    pub fn gdal_metadata(&self, source: Option<&str>, lossy: bool) -> Option<String> {
         let mut xml = String::from("<GDALMetadata>\n");
         if let Some(s) = source {
             xml += &format!("  <Item name=\"{}\">{s}</Item>\n", crate::io::geotiff::SOURCE_ITEM);
@@ -158,6 +196,9 @@ impl Statistics {
             let valid = 100.0 * n / self.pixels.max(1) as f64;
             for (name, v) in [("MAXIMUM", b.max), ("MEAN", mean), ("MINIMUM", b.min), ("STDDEV", std), ("VALID_PERCENT", valid)] {
                 xml += &format!("  <Item name=\"STATISTICS_{name}\" sample=\"{k}\">{v}</Item>\n");
+            }
+            if lossy {
+                xml += &format!("  <Item name=\"STATISTICS_APPROXIMATE\" sample=\"{k}\">YES</Item>\n");
             }
         }
         (source.is_some() || counted).then(|| xml + "</GDALMetadata>")
@@ -275,7 +316,7 @@ mod tests {
         all.add(&b);
         // Values 1, 2, 3, 6, 8 of 6 image pixels.
         assert_eq!(all.bands[0], BandStats { count: 5, int_sum: 20, int_sum_sq: 114, min: 1.0, max: 8.0, ..Default::default() });
-        let xml = all.gdal_metadata(None).unwrap();
+        let xml = all.gdal_metadata(None, false).unwrap();
         assert!(xml.contains("<Item name=\"STATISTICS_MEAN\" sample=\"0\">4</Item>"), "{xml}");
         assert!(xml.contains("<Item name=\"STATISTICS_STDDEV\" sample=\"0\">2.6076809620810595</Item>"), "{xml}");
         assert!(xml.contains("STATISTICS_VALID_PERCENT\" sample=\"0\">83.33333333333333<"), "{xml}");

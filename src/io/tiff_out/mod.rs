@@ -35,6 +35,11 @@ pub enum Compression {
 }
 
 impl Compression {
+    /// Whether the file's pixels differ from those given to the coder.
+    pub fn is_lossy(self) -> bool {
+        self == Compression::Jpeg
+    }
+
     /// The levels a codec takes and the one it gets by default; `None` for
     /// a codec without levels. The defaults are the fastest levels: higher
     /// ones cost far more time than they save space (docs/BENCHMARKS.md).

@@ -5,7 +5,7 @@ use super::resample::{Made, Raw};
 use super::timed;
 use crate::error::Result;
 use crate::io::tiff_out::{encode_mask, encode_tile, Compression};
-use crate::overview::{Pyramid, Quarter, Ready, Statistics, TileLayout};
+use crate::overview::{Pyramid, Quarter, Ready, Statistics};
 use crate::pipeline::context::Output;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -58,11 +58,10 @@ pub fn tiles(run: &Output, made: Made, free: &crossbeam_channel::Sender<Raw>, bu
     let valid_of = |k: usize| valid.as_ref().map(|v| &v[k * px..(k + 1) * px]);
     let mask = |k: usize| valid_of(k).map(|v| encode_mask(spec, v).map(Tile::Owned));
     let pyramid = run.pyramid.map(|p| p.lock().expect("the encoder's alone"));
-    let lay = TileLayout { tile: spec.chunk().0 as usize, bands: spec.bands as usize, sample: spec.sample };
     // The tile's quarter for the overview, and its statistics.
     let summary = |k: usize, bytes: &[u8]| {
         let tile = &bytes[k * tb..(k + 1) * tb];
-        let stats = Statistics::of_tile(lay, run.valid_by, tile, valid_of(k), spec.tile_extent(0, at(k)));
+        let stats = Statistics::of_output_tile(spec, run.valid_by, tile, valid_of(k), spec.tile_extent(0, at(k)));
         (pyramid.as_ref().map(|p| p.reduce(0, at(k), tile, valid_of(k))), stats)
     };
     // A tile's quarter for the overview and its statistics.
