@@ -522,6 +522,25 @@ fn a_tile_whose_window_passes_the_budget_is_made_strip_by_strip_with_the_same_pi
     }
 }
 
+#[test]
+fn a_tile_too_large_for_the_budget_is_refused_with_what_it_takes_and_that_holds() {
+    // 4096² RGB tiles and their mask: 64 MiB each, two of them in hand
+    // (the one tile, and its encoding): past half of the default 128M.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene(&d.join("scene"), 1200, |_| {});
+    let out = d.join("o.tif");
+    let base = ["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "-o", s(&out), "--tile", "4096"];
+    refused(d, &base, &["--tile", "4096", "give --memory", "smaller --tile"]);
+    let r = run(&base);
+    let err = String::from_utf8_lossy(&r.stderr);
+    let need = err.split("--memory ").nth(1).and_then(|t| t.split_whitespace().next()).expect("the memory it takes").to_string();
+    // With it, the run stays within it.
+    let report = report_of(&[&base[..], &["--memory", &need]].concat(), d);
+    let mib: f64 = need.trim_end_matches('M').parse().unwrap();
+    assert!(report["peak_rss_mib"].as_f64().unwrap() < mib, "{} MiB at --memory {need}", report["peak_rss_mib"]);
+}
+
 /// `gcm-ortho rectify … | head -1`: the report meets a closed pipe. The
 /// orthophoto is made, nothing panics, the exit is 0.
 #[test]

@@ -18,6 +18,11 @@ use crate::progress::Progress;
 use crate::transform::footprint::{auto_grid, mean_gsd};
 use crate::transform::{Approx, Trend};
 
+/// Output tiles a run holds at a time, at most (chunks of one tile being
+/// made, queued, encoded, and the buffers handed back; of an output of
+/// fewer tiles, one more than it has), measured.
+const TILES_HELD: u64 = 6;
+
 /// Outputs beyond this many pixels a side are refused.
 const MAX_SIDE: u32 = 1 << 21;
 
@@ -393,6 +398,21 @@ impl RunPlan {
                     held >> 20,
                     band_tiles,
                     (held * 6 + decoding).div_ceil(1 << 20)
+                ),
+            ));
+        }
+        // The chunks in flight hold a tile each at least (about six, with
+        // the encoder's and the overviews'): a tile too large for that in
+        // half the budget passes it, whatever else is planned.
+        let tile_bytes = tile as u64 * tile as u64 * (spec.bands as u64 * spec.sample.bytes() as u64 + u64::from(spec.mask));
+        let held = TILES_HELD.min(tcw as u64 * trh as u64 + 1);
+        if 2 * held * tile_bytes > budget.total() {
+            return Err(Error::setting(
+                "tile",
+                format!(
+                    "{tile} makes tiles of {} MiB, and a run holds about {held} of them at a time, more than half the memory budget: give --memory {}M or more, or a smaller --tile",
+                    tile_bytes.div_ceil(1 << 20),
+                    (2 * held * tile_bytes + decoding).div_ceil(1 << 20)
                 ),
             ));
         }

@@ -238,6 +238,12 @@ pub fn plan_band(
     for c in chunks.iter_mut().filter(|c| c.x1 - c.x0 <= tile && area(&c.win) > budget_px) {
         let (chunk_w, band_rows) = (c.x1 - c.x0, y1 - y0);
         let mut per = ((band_rows as u64 * budget_px / area(&c.win).max(1)) as u32).clamp(1, band_rows);
+        // In whole groups of 16 rows where a strip holds more (the
+        // resampler then makes a transposed chunk's rows 16 a task, not
+        // one: a piece of every pixel of a large tile is tens of MB).
+        if per >= 16 {
+            per -= per % 16;
+        }
         let mut across = tile;
         c.strips = loop {
             let mut strips = Vec::new();

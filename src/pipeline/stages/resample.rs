@@ -173,7 +173,18 @@ pub fn resample_chunk<T: Sample + Recycle>(
     // A chunk made strip by strip (its window would pass the budget) takes
     // its rows one a task, so that a strip's rows are its tasks'.
     let by_strips = !msg.chunk.strips.is_empty();
-    let group = if transposed && !by_strips { column_group(t) } else { 1 };
+    let group = match (transposed, by_strips) {
+        (false, _) => 1,
+        (true, false) => column_group(t),
+        // As many as every strip's rows are a whole number of.
+        (true, true) => {
+            let mut g = column_group(t);
+            while g > 1 && msg.chunk.strips.iter().any(|s| s.rows.0 as usize % g != 0 || (s.rows.1 as usize % g != 0 && s.rows.1 as usize != rows)) {
+                g /= 2;
+            }
+            g
+        }
+    };
     let piece_len = if transposed { group * bo } else { t * bo };
     let groups = t / group;
     // A task's rows (of `w` pixels) lie `stride` pixels apart.
