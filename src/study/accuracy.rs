@@ -209,7 +209,10 @@ pub fn sample_band(gcm: &Gcm<'_>, band: &crate::gcm::BandGcm, rows: std::ops::Ra
         for x in (x0..cols.end).step_by(col_step as usize) {
             let i = (x - x0) as usize;
             if let Mapped::Px(c, r) = gcm.t.exact(x as f64 + 0.5, y as f64 + 0.5) {
-                if !at_c[i].is_nan() {
+                // Only pixels of the image: the bound is not kept (nor
+                // needed) where the ground falls outside the scan.
+                let in_scan = gcm.t.scan.is_none_or(|(w, h)| c >= 0.0 && r >= 0.0 && c <= w && r <= h);
+                if !at_c[i].is_nan() && in_scan {
                     acc.push((c - at_c[i]).hypot(r - at_r[i]), x, y);
                 }
             }
