@@ -293,6 +293,42 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     let o = run(&a);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(std::fs::read(&whole).unwrap() == std::fs::read(&joined).unwrap(), "assembled file differs from the single run");
+    // A piece made on a node that staged the inputs elsewhere (copies:
+    // other paths, other times) joins the others as theirs.
+    let node = d.join("node");
+    std::fs::create_dir(&node).unwrap();
+    let staged: Vec<std::path::PathBuf> = [&sc.scan, &sc.camera, &sc.dem]
+        .iter()
+        .map(|f| {
+            let to = node.join(f.file_name().unwrap());
+            std::fs::copy(f, &to).unwrap();
+            to
+        })
+        .collect();
+    let w = windows[3];
+    let win = format!("{},{},{},{}", w[0], w[1], w[2], w[3]);
+    let elsewhere = d.join("elsewhere.tif");
+    let o = run(&[
+        "rectify",
+        "--image",
+        s(&staged[0]),
+        "--camera",
+        s(&staged[1]),
+        "--dem",
+        s(&staged[2]),
+        "--quiet",
+        "--tile",
+        "128",
+        "--window",
+        &win,
+        "-o",
+        s(&elsewhere),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rejoined = d.join("rejoined.tif");
+    let o = run(&["assemble", "--cog", "-o", s(&rejoined), s(&pieces[0]), s(&pieces[1]), s(&pieces[2]), s(&elsewhere)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::read(&whole).unwrap() == std::fs::read(&rejoined).unwrap(), "pieces of staged inputs differ from the single run");
     // A missing piece is an error naming the gap.
     let o = run(&["assemble", "-o", s(&d.join("gap.tif")), s(&pieces[0]), s(&pieces[1])]);
     assert_eq!(o.status.code(), Some(2));

@@ -108,12 +108,57 @@ pub fn job_key(c: &RectifyOptions) -> String {
     format!("{h:016x}")
 }
 
+/// A file as its contents tell it: its size and three samples of
+/// [`CONTENT_SAMPLE`] bytes (start, middle, end), so that a copy, a moved
+/// or touched file, or one reached by another path matches, and another
+/// image, DEM or camera does not.
+fn content_stamp(h: &mut u64, p: &Path) {
+    use std::io::{Read, Seek, SeekFrom};
+    let Ok(mut f) = std::fs::File::open(p) else { return fnv(h, p.as_os_str().as_encoded_bytes()) };
+    let len = f.metadata().map_or(0, |m| m.len());
+    fnv(h, &len.to_le_bytes());
+    let n = CONTENT_SAMPLE.min(len);
+    let mut buf = vec![0u8; n as usize];
+    for at in [0, (len - n) / 2, len - n] {
+        if f.seek(SeekFrom::Start(at)).is_ok() && f.read_exact(&mut buf).is_ok() {
+            fnv(h, &buf);
+        }
+    }
+}
+
+/// Bytes of each of a file's samples in [`content_stamp`].
+const CONTENT_SAMPLE: u64 = 64 << 10;
+
 /// What an orthophoto is made from, the same for each of its pieces and
-/// whatever layout they are put together in: [`job_key`] without the
-/// piece (window), the file's name and layout (overviews, Cloud-Optimized,
+/// whatever layout they are put together in: its inputs by their contents
+/// (not their paths or times: pieces made on nodes that staged the inputs
+/// elsewhere join), and every setting of [`job_key`] but the piece
+/// (window), the file's name and layout (overviews, Cloud-Optimized,
 /// BigTIFF, band order) and how the run was resourced.
 pub fn source_key(c: &RectifyOptions) -> String {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
     let mut whole = c.clone();
+    for (_, input) in c.inputs() {
+        content_stamp(&mut h, &input);
+    }
+    if let Some(f) = c.model.inline() {
+        fnv(&mut h, f.to_toml().as_bytes());
+    }
+    // The inputs' paths out of the settings.
+    whole.image = PathBuf::new();
+    whole.camera = PathBuf::new();
+    whole.like = None;
+    if let DemSource::File(p) = &mut whole.dem {
+        *p = PathBuf::new();
+    }
+    if let Some(g) = &mut whole.gcps {
+        g.file = PathBuf::new();
+    }
+    match &mut whole.model {
+        crate::options::ModelSource::WithPoses(p) => *p = PathBuf::new(),
+        crate::options::ModelSource::Rpc { geoid: Some(g), .. } => *g = PathBuf::new(),
+        _ => {}
+    }
     whole.output = std::path::PathBuf::new();
     whole.window = None;
     whole.overviews = crate::options::Overviews::Auto;
@@ -124,7 +169,10 @@ pub fn source_key(c: &RectifyOptions) -> String {
     whole.band_order = crate::options::BandOrder::Auto;
     whole.max_output_pixels = None;
     whole.sync = true;
-    job_key(&whole)
+    whole.threads = 0;
+    whole.memory = 0;
+    fnv(&mut h, serde_json::to_string(&whole).unwrap_or_default().as_bytes());
+    format!("{h:016x}")
 }
 
 /// The record of a finished output.
@@ -155,13 +203,23 @@ pub fn output_is_current(output: &Path, key: &str) -> bool {
 
 /// A key over byte strings and files (path, size, modification time).
 pub fn key_of(bytes: &[&[u8]], files: &[&Path]) -> String {
+    keyed(bytes, files, file_stamp)
+}
+
+/// [`key_of`] with the files told by their contents, not their paths or
+/// times (see [`source_key`]).
+pub fn content_key_of(bytes: &[&[u8]], files: &[&Path]) -> String {
+    keyed(bytes, files, content_stamp)
+}
+
+fn keyed(bytes: &[&[u8]], files: &[&Path], stamp: fn(&mut u64, &Path)) -> String {
     let mut h = 0xcbf2_9ce4_8422_2325u64;
     for b in bytes {
         fnv(&mut h, &(b.len() as u64).to_le_bytes());
         fnv(&mut h, b);
     }
     for f in files {
-        file_stamp(&mut h, f);
+        stamp(&mut h, f);
     }
     format!("{h:016x}")
 }

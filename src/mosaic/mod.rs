@@ -611,31 +611,24 @@ impl PieceRender<'_> {
     }
 }
 
+/// What a mosaic is made from, the same for each of its pieces and strips
+/// and whatever layout they are put together in: its images and their
+/// settings (by their contents), blend and occlusion: not the piece, the
+/// layout, nor what a plan fixes — grid, seams, balance — which shards
+/// read from the plan file a single run makes for itself.
+fn source_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
+    // What the pixels depend on beyond the plan the pieces share: the
+    // blend, the occlusion, each image by its contents (see
+    // `batch::source_key`).
+    let settings = format!("{} {:?}", o.blend, o.occlusion);
+    let job_keys: Vec<String> = jobs.iter().map(|j| format!("{}={}", j.name, crate::batch::source_key(&j.config))).collect();
+    let like: Vec<&std::path::Path> = o.like.iter().map(PathBuf::as_path).collect();
+    crate::batch::content_key_of(&[settings.as_bytes(), job_keys.join(";").as_bytes()], &like)
+}
+
 /// The key of a run: the manifest's jobs (their inputs and settings), the
 /// files it takes (plan, seamlines) and every setting that changes the
 /// output.
-/// What a mosaic is made from, the same for each of its pieces and strips
-/// and whatever layout they are put together in: its images and their
-/// settings, blend and occlusion ([`run_key`] without the piece, the
-/// layout, and what a plan fixes — grid, seams, balance — which shards
-/// read from the plan file a single run makes for itself).
-fn source_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
-    let whole = MosaicOptions {
-        window: None,
-        cog: None,
-        overviews: None,
-        plan_in: None,
-        seamlines_in: None,
-        gsd: None,
-        bounds: None,
-        crs: None,
-        balance: Balance::None,
-        least_cost: true,
-        ..o.clone()
-    };
-    run_key(&whole, jobs)
-}
-
 fn run_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
     let settings = format!(
         "{:?} {:?} {:?} {:?} {} {} {:?} {:?} {:?} {:?}",
