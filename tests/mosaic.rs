@@ -516,11 +516,16 @@ fn a_stopped_mosaic_run_again_keeps_its_finished_pieces() {
     std::process::Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
     assert!(!child.wait().unwrap().success());
     let kept = finished();
+    // What a run killed outright (SIGKILL) leaves: a piece's temporary,
+    // under a process that is gone (pid 0 is no process's) of this host.
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap().trim().to_string();
+    std::fs::write(d.join(format!("work/.gcm-ortho-mosaic-piece-000009.tif~0@{host}~abcdef.gcm-partial")), [0u8; 64]).unwrap();
     let plain: Vec<&str> = again.iter().copied().filter(|a| *a != "--cog").collect();
     let out = std::process::Command::new(bin()).current_dir(d).args(&plain).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
     assert_eq!(report["pieces_reused"][0].as_u64().unwrap() as usize, kept, "{}", report["pieces_reused"]);
+    assert!(!d.join("work").exists(), "the resume folder is left: {:?}", common::files_containing(&d.join("work"), ""));
     // A folder that is the output, or a file: refused by the option's name,
     // nothing made.
     for dir in ["r2.tif", "manifest.toml"] {

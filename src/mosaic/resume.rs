@@ -38,6 +38,8 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
         return Err(Error::setting("resume_dir", format!("{} is a file, not a folder", dir.display())));
     }
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    // What a killed run left half-made (its pieces' temporaries).
+    crate::io::publish::remove_dead_temporaries(dir);
 
     // The plan, once: kept while its record says it was made for these
     // images and settings (remaking it would change the pieces' inputs).
@@ -87,6 +89,7 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
         let _ = std::fs::remove_file(crate::batch::sidecar(p));
         let _ = std::fs::remove_file(p);
     }
+    crate::io::publish::remove_dead_temporaries(dir);
     let _ = std::fs::remove_dir(dir);
     Ok(joined(reports, &out, [0, 0, across, down], grid))
 }
