@@ -29,7 +29,11 @@ pub struct AssembleOptions {
     /// copied as they are), unless `overview_level` is given.
     pub level: Option<u8>,
     pub overview_level: Option<u8>,
-    /// The JPEG quality of the overview tiles, for JPEG pieces.
+    /// Code the full-resolution tiles anew in this codec (`None`, or the
+    /// pieces' own: their tiles are copied as they are). From lossless
+    /// pieces, the bytes of a single run in that codec.
+    pub compress: Option<Compression>,
+    /// The JPEG quality of the overview tiles, for JPEG pieces (of every tile, coded anew).
     pub quality: Option<u8>,
     /// BigTIFF or not (`None`: as the size needs).
     pub bigtiff: Option<bool>,
@@ -54,6 +58,7 @@ impl Default for AssembleOptions {
             level: None,
             overview_level: None,
             quality: None,
+            compress: None,
             bigtiff: None,
             fill: None,
             sync: true,
@@ -187,12 +192,15 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
         7 => Compression::Jpeg,
         c => return Err(Error::unsupported(&pieces[0], format!("compression {c} in pieces"))),
     };
+    let pieces_codec = compression;
+    let compression = opts.compress.unwrap_or(compression);
+    let recode = compression != pieces_codec;
     let mut level = codec_level(compression, opts.level, opts.quality)?;
     // JPEG pieces' chunks are abbreviated streams: they keep their pieces'
     // tables (all alike), and the overviews are coded at the pieces'
     // quality unless another is asked for.
     let tables = match compression {
-        Compression::Jpeg => {
+        Compression::Jpeg if !recode => {
             let t = first.jpeg_tables.clone().ok_or_else(|| Error::format(&pieces[0], "JPEG chunks without their JPEGTables"))?;
             if let Some(k) = srcs.iter().position(|s| s.info.jpeg_tables.as_ref() != Some(&t)) {
                 return Err(Error::format(&pieces[k], format!("is coded with other JPEG tables (another quality) than {}", pieces[0].display())));
@@ -221,6 +229,9 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
     if let (Some(t), None) = (&tables, level) {
         level = crate::io::tiff_out::jpeg_quality_of(&spec, t);
         spec.level = level;
+    }
+    if recode {
+        spec.check_codec().map_err(|m| Error::Usage(format!("--compress: {m}")))?;
     }
     spec.overviews = opts.overviews.levels(w, h, tile);
     spec.bigtiff = opts.bigtiff.unwrap_or_else(|| spec.needs_bigtiff());
@@ -262,6 +273,11 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
                     None => None,
                 };
                 let pixels = tile_pixels(&srcs[k], &spec, t)?;
+                // Coded anew: as a run writing this codec codes them.
+                let (image, mask) = match (recode, &valid) {
+                    (false, _) => (image, mask),
+                    (true, v) => (encode_tile(&spec, 0, pixels.clone(), v.as_deref())?, v.as_deref().map(|v| encode_mask(&spec, v)).transpose()?),
+                };
                 let stats = Statistics::of_output_tile(&spec, by, &pixels, valid.as_deref(), spec.tile_extent(0, (row * ta + col) as usize));
                 let quarter = pyramid.as_ref().map(|p| p.reduce(0, (row * ta + col) as usize, &pixels, valid.as_deref()));
                 Ok((image, mask, quarter, stats))

@@ -274,6 +274,11 @@ pub struct AssembleArgs {
     /// The assembled orthophoto (its overviews made anew)
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
+    /// Code the tiles anew in this codec (default: the pieces' own, whose
+    /// tiles are copied as they are). Lossless pieces assembled into jpeg
+    /// give the bytes of a single run in jpeg, overviews included.
+    #[arg(long, value_parser = choice::<Compression>())]
+    pub compress: Option<Compression>,
     #[command(flatten)]
     pub layout: LayoutArgs,
 }

@@ -82,7 +82,8 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Fiducials(a) => run_fiducials(&a).map(|()| 0),
         Command::Assemble(a) => {
             warn_if_not_tiff(&a.output);
-            gcm_ortho::assemble::assemble(&a.pieces, &a.output, &a.layout.options()?, &signals.cancel)?;
+            let opts = gcm_ortho::assemble::AssembleOptions { compress: a.compress, ..a.layout.options()? };
+            gcm_ortho::assemble::assemble(&a.pieces, &a.output, &opts, &signals.cancel)?;
             Ok(0)
         }
     }
@@ -220,6 +221,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         threads: threads_within_cores(a.threads, 1).0,
         cog: a.cog.then_some(true),
         overviews: None,
+        compress: None,
         force: a.force,
         occlusion: a.occlusion,
         sync: true,

@@ -255,6 +255,11 @@ fn sigterm_mid_batch_keeps_finished_jobs_and_a_rerun_finishes() {
     assert_eq!(st.iter().filter(|l| l["status"] == "done").count(), 4 - done.len());
 }
 
+/// `rectify` with `base` and then `more`.
+fn a_whole_with<'a>(base: &[&'a str], more: &[&'a str]) -> Vec<&'a str> {
+    [&["rectify"][..], base, more].concat()
+}
+
 #[test]
 fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     // Cloud-Optimized, so that the file's order is the layout's, not the
@@ -293,6 +298,16 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     let o = run(&a);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(std::fs::read(&whole).unwrap() == std::fs::read(&joined).unwrap(), "assembled file differs from the single run");
+    // Lossless pieces coded anew in JPEG: the single JPEG run's bytes,
+    // its overviews made from the same pixels.
+    let jpeg = d.join("jpeg.tif");
+    assert!(run(&[&a_whole_with(&base, &["-o", s(&jpeg), "--cog", "--compress", "jpeg"])[..]].concat()).status.success());
+    let recoded = d.join("recoded.tif");
+    let mut a = vec!["assemble", "--cog", "--compress", "jpeg", "-o", s(&recoded)];
+    a.extend(pieces.iter().map(|p| s(p)));
+    let o = run(&a);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::read(&jpeg).unwrap() == std::fs::read(&recoded).unwrap(), "recoded pieces differ from the single JPEG run");
     // A piece made on a node that staged the inputs elsewhere (copies:
     // other paths, other times) joins the others as theirs.
     let node = d.join("node");
@@ -381,6 +396,11 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     let o = run(&["assemble", "--cog", "-o", s(&joined), s(&p0), s(&p1)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(std::fs::read(&whole).unwrap() == std::fs::read(&joined).unwrap(), "assembled float file differs from the single run");
+    // Nor JPEG of floats: refused by the option, nothing written.
+    let o = run(&["assemble", "--compress", "jpeg", "-o", s(&d.join("fjpeg.tif")), s(&p0), s(&p1)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("--compress") && !d.join("fjpeg.tif").exists(), "{err}");
 }
 
 /// The manifest takes the error bound as the CLI does: 0.1 by default,

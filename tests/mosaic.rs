@@ -627,3 +627,21 @@ fn images_the_mosaic_takes_nothing_of_are_named() {
     let nothing: Vec<&str> = err.lines().filter(|l| l.contains("takes nothing of it")).collect();
     assert!(nothing.len() == 1 && nothing[0].contains("copy.tif") && nothing[0].contains("002.tif") && nothing[0].contains("twice"), "{err}");
 }
+
+/// A JPEG mosaic made by pieces (`--resume-dir`) is the single run's file
+/// byte for byte, overviews included: the pieces are coded losslessly and
+/// the mosaic once, at the assembly, from the same pixels.
+#[test]
+fn a_jpeg_mosaic_made_by_pieces_is_the_single_runs_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    let manifest = std::fs::read_to_string(d.join("manifest.toml")).unwrap();
+    let jpeg = manifest.replace("[defaults]\n", "[defaults]\ncompress = \"jpeg\"\noverviews = \"2,4\"\n");
+    assert_ne!(jpeg, manifest);
+    std::fs::write(d.join("manifest.toml"), jpeg).unwrap();
+    mosaic(d, &["-o", "single.tif", "--cog"]);
+    mosaic(d, &["-o", "pieces.tif", "--cog", "--resume-dir", "work"]);
+    assert!(std::fs::read(d.join("single.tif")).unwrap() == std::fs::read(d.join("pieces.tif")).unwrap(), "the pieces' JPEG mosaic differs");
+    assert!(!d.join("work").exists());
+}

@@ -133,8 +133,8 @@ const CONTENT_SAMPLE: u64 = 64 << 10;
 /// whatever layout they are put together in: its inputs by their contents
 /// (not their paths or times: pieces made on nodes that staged the inputs
 /// elsewhere join), and every setting of [`job_key`] but the piece
-/// (window), the file's name and layout (overviews, Cloud-Optimized,
-/// BigTIFF, band order) and how the run was resourced.
+/// (window), the file's name and layout (codec, overviews,
+/// Cloud-Optimized, BigTIFF, band order) and how the run was resourced.
 pub fn source_key(c: &RectifyOptions) -> String {
     let mut h = 0xcbf2_9ce4_8422_2325u64;
     let mut whole = c.clone();
@@ -163,6 +163,11 @@ pub fn source_key(c: &RectifyOptions) -> String {
     whole.window = None;
     whole.overviews = crate::options::Overviews::Auto;
     whole.overview_level = None;
+    // The codec is the file's, not what its pixels are made from: lossless
+    // pieces coded anew by `assemble --compress` make the single run's file.
+    whole.compress = crate::io::tiff_out::Compression::Deflate;
+    whole.level = None;
+    whole.quality = None;
     whole.overview_resampling = crate::overview::OverviewResampling::Average;
     whole.cog = false;
     whole.bigtiff = crate::options::BigTiff::Auto;

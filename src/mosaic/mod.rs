@@ -22,7 +22,7 @@ use crate::error::{Error, Result};
 use crate::geodesy::Crs;
 use crate::geom::Gsd;
 use crate::io::overwrite::{check_outputs, Role};
-use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec, PendingFile};
+use crate::io::tiff_out::{Chunking, Compression, GeoTags, OutputSpec, PendingFile};
 use crate::options::{BigTiff, Occlusion, Overviews, RectifyOptions};
 use crate::pipeline::band_writer::{write_bands, BandWriting};
 use crate::progress::{Cancel, Progress, Task};
@@ -65,6 +65,10 @@ pub struct MosaicOptions {
     pub cog: Option<bool>,
     /// Overviews (else as the manifest says).
     pub overviews: Option<crate::options::Overviews>,
+    /// The tiles' codec (else as the manifest says): `--resume-dir`'s
+    /// pieces of a lossy mosaic are coded losslessly, then coded once in
+    /// the end.
+    pub compress: Option<crate::io::tiff_out::Compression>,
     /// Remake an output whose record says it is current.
     pub force: bool,
     /// Occluded ground (a true orthomosaic), for every image (else as
@@ -279,7 +283,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     // The output: the first job's format settings, the plan's grid.
     let tile = first.tile;
     let layout = (o.overviews.unwrap_or(first.overviews), o.cog.unwrap_or(first.cog));
-    let spec = piece_spec(&plan, &first, window, layout)?;
+    let spec = piece_spec(&plan, &first, window, layout, o.compress)?;
 
     // The render (none when only the plan is asked for).
     let mut works: Vec<render::ImageWork> = Vec::new();
@@ -388,7 +392,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
 /// row, columns, rows): the first job's format settings, the plan's grid
 /// clipped to those tiles, with `layout`'s overviews and Cloud-Optimized
 /// layout.
-fn piece_spec(plan: &Plan, first: &RectifyOptions, window: [u32; 4], layout: (Overviews, bool)) -> Result<OutputSpec> {
+fn piece_spec(plan: &Plan, first: &RectifyOptions, window: [u32; 4], layout: (Overviews, bool), compress: Option<Compression>) -> Result<OutputSpec> {
     let [tc0, tr0, tcw, trh] = window;
     let (grid, tile, im0) = (plan.grid, first.tile, &plan.images[0]);
     let (x0, y0) = grid.ground((tc0 * tile) as f64, (tr0 * tile) as f64);
@@ -401,8 +405,11 @@ fn piece_spec(plan: &Plan, first: &RectifyOptions, window: [u32; 4], layout: (Ov
         bands: im0.bands,
         sample: im0.sample,
         chunking: Chunking::Tiles(tile),
-        compression: first.compress,
-        level: first.codec_level()?,
+        compression: compress.unwrap_or(first.compress),
+        level: match compress {
+            Some(c) if c != first.compress => crate::options::codec_level(c, None, None)?,
+            _ => first.codec_level()?,
+        },
         overview_level: first.overview_codec_level()?,
         bigtiff: false,
         photometric: if im0.photometric == 2 && im0.bands >= 3 { 2 } else { 1 },
@@ -440,6 +447,7 @@ fn fill_of(sample: crate::io::source::SampleType) -> f64 {
 /// single run writes: its layout, its codec levels, its `fill`.
 fn assembly(layout: (Overviews, bool), first: &RectifyOptions, fill: f64, sync: bool) -> AssembleOptions {
     AssembleOptions {
+        compress: Some(first.compress),
         partial: false,
         fill: Some(fill),
         sync,
@@ -631,7 +639,7 @@ fn source_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String
 /// output.
 fn run_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
     let settings = format!(
-        "{:?} {:?} {:?} {:?} {} {} {:?} {:?} {:?} {:?}",
+        "{:?} {:?} {:?} {:?} {} {} {:?} {:?} {:?} {:?} {:?}",
         o.gsd,
         o.bounds,
         o.crs.as_ref().map(ToString::to_string),
@@ -641,7 +649,8 @@ fn run_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
         o.window,
         o.cog,
         o.occlusion,
-        o.overviews
+        o.overviews,
+        o.compress
     );
     let job_keys: Vec<String> = jobs.iter().map(|j| format!("{}={}", j.name, crate::batch::job_key(&j.config))).collect();
     let joined = job_keys.join(";");

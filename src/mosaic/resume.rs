@@ -9,6 +9,7 @@
 use super::{mosaic, plan_file, run_key, MosaicOptions, MosaicReport, Unseen};
 use crate::assemble::assemble;
 use crate::error::{Error, Result};
+use crate::io::tiff_out::Compression;
 use crate::options::Overviews;
 use crate::progress::{Cancel, Progress};
 use std::path::{Path, PathBuf};
@@ -74,6 +75,9 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
             seamlines_out: None,
             cog: Some(false),
             overviews: Some(Overviews::None),
+            // A lossy mosaic's pieces losslessly: coded once, at the
+            // assembly, from the pixels a single run codes.
+            compress: first.compress.is_lossy().then_some(Compression::Deflate),
             force: false,
             ..o.clone()
         };
