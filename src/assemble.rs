@@ -22,9 +22,12 @@ use std::path::{Path, PathBuf};
 /// How the whole is written.
 #[derive(Clone, Copy, Debug)]
 pub struct AssembleOptions {
-    pub overviews: Overviews,
-    pub overview_resampling: OverviewResampling,
-    pub cog: bool,
+    /// Overviews, their resampling and the Cloud-Optimized layout; `None`:
+    /// as the pieces record their whole's (see [`layout_record`]), else
+    /// auto, average, plain.
+    pub overviews: Option<Overviews>,
+    pub overview_resampling: Option<OverviewResampling>,
+    pub cog: Option<bool>,
     /// The codec level of the overview tiles (the pieces' own tiles are
     /// copied as they are), unless `overview_level` is given.
     pub level: Option<u8>,
@@ -52,9 +55,9 @@ pub struct AssembleOptions {
 impl Default for AssembleOptions {
     fn default() -> Self {
         AssembleOptions {
-            overviews: Overviews::Auto,
-            overview_resampling: OverviewResampling::Average,
-            cog: false,
+            overviews: None,
+            overview_resampling: None,
+            cog: None,
             level: None,
             overview_level: None,
             quality: None,
@@ -65,6 +68,38 @@ impl Default for AssembleOptions {
             partial: false,
         }
     }
+}
+
+/// The record of the layout a whole is to have that its pieces carry (in
+/// their source): what `assemble` makes unless told otherwise.
+pub fn layout_record(overviews: Overviews, resampling: OverviewResampling, cog: bool) -> String {
+    let o = match overviews {
+        Overviews::Auto => "auto".to_string(),
+        Overviews::None => "none".to_string(),
+        Overviews::Levels(n) => n.to_string(),
+    };
+    format!("overviews={o} resampling={} cog={cog}", format!("{resampling:?}").to_lowercase())
+}
+
+/// What a [`layout_record`] says (each part that it says legibly).
+fn read_layout(record: &str) -> (Option<Overviews>, Option<OverviewResampling>, Option<bool>) {
+    use crate::options::Choice;
+    let mut out = (None, None, None);
+    for (k, v) in record.split_whitespace().filter_map(|kv| kv.split_once('=')) {
+        match k {
+            "overviews" => {
+                out.0 = match v {
+                    "auto" => Some(Overviews::Auto),
+                    "none" => Some(Overviews::None),
+                    n => n.parse().ok().map(Overviews::Levels),
+                }
+            }
+            "resampling" => out.1 = OverviewResampling::from_name(v),
+            "cog" => out.2 = v.parse().ok(),
+            _ => {}
+        }
+    }
+    out
 }
 
 /// Assembles `pieces` into `out`. Every tile of the union must come from
@@ -109,7 +144,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
         }
         // Made from the same image, camera, DEM and settings (a piece of
         // another run on the same grid would join without a seam to see).
-        if g.source != geo0.source {
+        if g.source.as_deref().map(crate::io::geotiff::without_layout) != geo0.source.as_deref().map(crate::io::geotiff::without_layout) {
             return Err(Error::Usage(format!(
                 "{} was made from other inputs or settings than {} (image, camera, DEM, resampling…): not pieces of one orthophoto",
                 p.display(),
@@ -224,7 +259,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
         mask: first.mask.is_some(),
         geo: Some(GeoTags { x0: x_min, y0: y_max, gsd, keys: geo0.keys.clone(), nodata: geo0.nodata }),
         overviews: 0,
-        cog: opts.cog,
+        cog: false,
     };
     if let (Some(t), None) = (&tables, level) {
         level = crate::io::tiff_out::jpeg_quality_of(&spec, t);
@@ -233,10 +268,14 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
     if recode {
         spec.check_codec().map_err(|m| Error::Usage(format!("--compress: {m}")))?;
     }
-    spec.overviews = opts.overviews.levels(w, h, tile);
+    // What the user does not say, as the pieces' run had it.
+    let (o, r, c) = geo0.source.as_deref().and_then(crate::io::geotiff::whole_layout).map_or((None, None, None), read_layout);
+    let (overviews, resampling) = (opts.overviews.or(o).unwrap_or_default(), opts.overview_resampling.or(r).unwrap_or_default());
+    spec.cog = opts.cog.or(c).unwrap_or(false);
+    spec.overviews = overviews.levels(w, h, tile);
     spec.bigtiff = opts.bigtiff.unwrap_or_else(|| spec.needs_bigtiff());
     let by = ValidBy::of(&spec);
-    let mut pyramid = Pyramid::new(&spec, opts.overview_resampling, by, opts.fill.or(geo0.nodata).unwrap_or(0.0));
+    let mut pyramid = Pyramid::new(&spec, resampling, by, opts.fill.or(geo0.nodata).unwrap_or(0.0));
     let files: Vec<std::fs::File> = pieces.iter().map(|p| std::fs::File::open(p).map_err(|e| Error::io(p, e))).collect::<Result<_>>()?;
     let pending = PendingFile::create(out)?;
     let mut writer = TileWriter::new(pending.file()?, &spec, &folder_of(out)).map_err(|e| Error::io(pending.path(), e))?;

@@ -288,16 +288,19 @@ pub struct AssembleArgs {
 pub struct LayoutArgs {
     /// Internal overviews: auto (2×, 4×, … until one tile holds the
     /// level; one at least on an image over 512 px), none (or 0), or the
-    /// factors 2,4,…,2ⁿ. Made while the tiles stream.
-    #[arg(long, default_value = "auto")]
-    pub overviews: String,
+    /// factors 2,4,…,2ⁿ. Made while the tiles stream. Default: auto
+    /// (assemble: as the pieces' run had them)
+    #[arg(long)]
+    pub overviews: Option<String>,
     /// How an overview pixel is made of the four below it: average (of
     /// those with a value), nearest (the top-left one) or mode (the most
-    /// frequent), the last two for classified data.
-    #[arg(long, default_value = "average", value_parser = choice::<OverviewResampling>())]
-    pub overview_resampling: OverviewResampling,
+    /// frequent), the last two for classified data. Default: average
+    /// (assemble: as the pieces' run)
+    #[arg(long, value_parser = choice::<OverviewResampling>())]
+    pub overview_resampling: Option<OverviewResampling>,
     /// Cloud-Optimized GeoTIFF (GDAL's COG layout: directories first,
-    /// overviews before the full resolution).
+    /// overviews before the full resolution; assemble: also where the
+    /// pieces' run was)
     #[arg(long)]
     pub cog: bool,
     /// The compression level: deflate 0–12, zstd 1–22 (default 1; higher
@@ -316,9 +319,9 @@ pub struct LayoutArgs {
 impl LayoutArgs {
     pub fn options(&self) -> Result<gcm_ortho::assemble::AssembleOptions> {
         Ok(gcm_ortho::assemble::AssembleOptions {
-            overviews: parse_overviews("overviews", &self.overviews)?,
+            overviews: self.overviews.as_deref().map(|o| parse_overviews("overviews", o)).transpose()?,
             overview_resampling: self.overview_resampling,
-            cog: self.cog,
+            cog: self.cog.then_some(true),
             level: self.level,
             overview_level: self.overview_level,
             quality: self.quality,
@@ -780,9 +783,9 @@ impl RectifyArgs {
         o.compress = self.compress;
         o.bigtiff = self.bigtiff;
         let layout = self.layout.options()?;
-        o.overviews = layout.overviews;
-        o.overview_resampling = layout.overview_resampling;
-        o.cog = layout.cog;
+        o.overviews = layout.overviews.unwrap_or_default();
+        o.overview_resampling = layout.overview_resampling.unwrap_or_default();
+        o.cog = layout.cog.unwrap_or(false);
         o.level = layout.level;
         o.overview_level = layout.overview_level;
         o.quality = layout.quality;

@@ -220,10 +220,11 @@ pub fn overview_codec_level(compression: Compression, level: Option<u8>) -> Resu
 }
 
 /// Which overview levels a tiled output gets.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Overviews {
     /// 2×, 4×, … until one tile holds the level (GDAL's rule).
+    #[default]
     Auto,
     None,
     /// 2×, 4×, … 2ⁿ×: this many levels.

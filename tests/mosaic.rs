@@ -352,9 +352,16 @@ fn shards_of_one_plan_assemble_into_the_single_run_byte_for_byte() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     block(d);
-    // The single run, Cloud-Optimized (the file's order is the layout's),
-    // balanced with each frame's falloff (the plan carries its terms).
-    mosaic(d, &["-o", "whole.tif", "--cog", "--json", "whole.json", "--balance", "gain-offset-vignetting"]);
+    // The manifest's layout: Cloud-Optimized (the file's order is the
+    // layout's), one overview level by the nearest pixel. `assemble`
+    // takes it from the pieces' record, unasked.
+    let manifest = std::fs::read_to_string(d.join("manifest.toml")).unwrap();
+    let laid_out = manifest.replace("[defaults]\n", "[defaults]\ncog = true\noverviews = \"2\"\noverview_resampling = \"nearest\"\n");
+    assert_ne!(laid_out, manifest);
+    std::fs::write(d.join("manifest.toml"), laid_out).unwrap();
+    // The single run, balanced with each frame's falloff (the plan
+    // carries its terms).
+    mosaic(d, &["-o", "whole.tif", "--json", "whole.json", "--balance", "gain-offset-vignetting"]);
     // The plan once; pieces of it on "other machines".
     mosaic(d, &["--plan-out", "plan.json", "--balance", "gain-offset-vignetting"]);
     assert!(std::fs::read_to_string(d.join("plan.json")).unwrap().contains("\"radial\""));
@@ -364,7 +371,7 @@ fn shards_of_one_plan_assemble_into_the_single_run_byte_for_byte() {
     let r = td / 2;
     // A band of rows, and the rest split unevenly in columns.
     let windows = [[0, 0, ta, r], [0, r, 1, td - r], [1, r, ta - 1, td - r]];
-    let mut a = vec!["assemble".to_string(), "--cog".into(), "-o".into(), "joined.tif".into()];
+    let mut a = vec!["assemble".to_string(), "-o".into(), "joined.tif".into()];
     for (k, w) in windows.iter().enumerate() {
         let name = format!("piece{k}.tif");
         let win = format!("{},{},{},{}", w[0], w[1], w[2], w[3]);

@@ -97,17 +97,32 @@ pub const SOURCE_ITEM: &str = "GCM_ORTHO_SOURCE";
 /// A piece's source: its orthophoto's, and the whole grid it is a piece of
 /// (its size and top-left corner), so that `assemble` can refuse a set of
 /// pieces that leaves out an edge of the whole.
-pub fn piece_source(source: &str, whole: &crate::geom::OutputGrid) -> String {
-    format!("{source}{WHOLE}{}x{} at {},{}", whole.width, whole.height, whole.x0, whole.y0)
+pub fn piece_source(source: &str, whole: &crate::geom::OutputGrid, layout: &str) -> String {
+    format!("{source}{WHOLE}{}x{} at {},{}{LAYOUT}{layout}", whole.width, whole.height, whole.x0, whole.y0)
 }
 
-/// What joins a piece's source to its whole.
+/// What joins a piece's source to its whole, and that to the whole's
+/// layout (overviews, Cloud-Optimized: what `assemble` takes unless told).
 const WHOLE: &str = " whole ";
+const LAYOUT: &str = " layout ";
+
+/// A piece's record of the layout its whole is to have (see
+/// [`piece_source`]).
+pub fn whole_layout(source: &str) -> Option<&str> {
+    source.split_once(WHOLE)?.1.split_once(LAYOUT).map(|(_, l)| l)
+}
+
+/// A source without a piece's record of its whole's layout (pieces of one
+/// whole made with other layouts are still its pieces).
+pub fn without_layout(source: &str) -> &str {
+    source.split_once(LAYOUT).map_or(source, |(s, _)| s)
+}
 
 /// A source's orthophoto part and, for a piece ([`piece_source`]), the
 /// whole's width, height and top-left corner.
 pub fn whole_of(source: &str) -> (&str, Option<(u32, u32, f64, f64)>) {
     let Some((key, whole)) = source.split_once(WHOLE) else { return (source, None) };
+    let whole = whole.split_once(LAYOUT).map_or(whole, |(w, _)| w);
     let parsed = (|| {
         let (size, at) = whole.split_once(" at ")?;
         let (w, h) = size.split_once('x')?;

@@ -322,7 +322,10 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             covered: Default::default(),
         };
         // A piece also names the whole it is a piece of.
-        let piece_source = if o.window.is_some() { crate::io::geotiff::piece_source(&source, &plan.grid) } else { source.clone() };
+        let piece_source = match o.window {
+            Some(_) => crate::io::geotiff::piece_source(&source, &plan.grid, &crate::assemble::layout_record(layout.0, first.overview_resampling, layout.1)),
+            None => source.clone(),
+        };
         let pieces =
             PieceRender { plan: &plan, compose: &compose, works: &works, threads, pool: &pool, fill, first: &first, progress, cancel, source: &piece_source };
         // Strips of tile columns, as wide as the memory holds (one, the
@@ -451,9 +454,9 @@ fn assembly(layout: (Overviews, bool), first: &RectifyOptions, fill: f64, sync: 
         partial: false,
         fill: Some(fill),
         sync,
-        overviews: layout.0,
-        overview_resampling: first.overview_resampling,
-        cog: layout.1,
+        overviews: Some(layout.0),
+        overview_resampling: Some(first.overview_resampling),
+        cog: Some(layout.1),
         level: first.level,
         overview_level: first.overview_level,
         quality: first.quality,

@@ -4,11 +4,12 @@
 use crate::io::format::SampleType;
 
 /// How an overview pixel is made of the four below it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum OverviewResampling {
     /// The mean of those that have a value (rounded to the nearest integer
     /// for integer samples): imagery.
+    #[default]
     Average,
     /// The top-left one, value or not: classified data, exact values.
     Nearest,

@@ -93,7 +93,9 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         statistics: Default::default(),
         // A piece also names the whole it is a piece of.
         source: Some(match (opts.window, crate::batch::source_key(opts)) {
-            (Some(_), key) => crate::io::geotiff::piece_source(&key, &plan.grid),
+            (Some(_), key) => {
+                crate::io::geotiff::piece_source(&key, &plan.grid, &crate::assemble::layout_record(opts.overviews, opts.overview_resampling, opts.cog))
+            }
             (None, key) => key,
         }),
     };
