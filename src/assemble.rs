@@ -238,7 +238,12 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
         Compression::Jpeg if !recode => {
             let t = first.jpeg_tables.clone().ok_or_else(|| Error::format(&pieces[0], "JPEG chunks without their JPEGTables"))?;
             if let Some(k) = srcs.iter().position(|s| s.info.jpeg_tables.as_ref() != Some(&t)) {
-                return Err(Error::format(&pieces[k], format!("is coded with other JPEG tables (another quality) than {}", pieces[0].display())));
+                // Like other settings, a fault of the pieces given.
+                return Err(Error::Usage(format!(
+                    "{} is coded with other JPEG tables (another quality) than {}: not pieces of one file",
+                    pieces[k].display(),
+                    pieces[0].display()
+                )));
             }
             Some(t)
         }
