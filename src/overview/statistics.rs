@@ -27,7 +27,32 @@ impl Default for BandStats {
     }
 }
 
+/// The sample of type `sample` at the start of `bytes`.
+#[inline]
+fn sample_at(bytes: &[u8], sample: SampleType) -> f64 {
+    match sample {
+        SampleType::U8 => bytes[0] as f64,
+        SampleType::U16 => u16::from_ne_bytes([bytes[0], bytes[1]]) as f64,
+        SampleType::F32 => f32::from_ne_bytes(bytes[..4].try_into().expect("4 bytes")) as f64,
+    }
+}
+
 impl BandStats {
+    /// Counts one sample (integers summed exactly).
+    #[inline]
+    fn push(&mut self, s: f64, sample: SampleType) {
+        self.count += 1;
+        if sample == SampleType::F32 {
+            self.float_sum += s;
+            self.float_sum_sq += s * s;
+        } else {
+            self.int_sum += s as u128;
+            self.int_sum_sq += (s as u128) * (s as u128);
+        }
+        self.min = self.min.min(s);
+        self.max = self.max.max(s);
+    }
+
     fn sums(&self) -> (f64, f64) {
         (self.int_sum as f64 + self.float_sum, self.int_sum_sq as f64 + self.float_sum_sq)
     }
@@ -95,26 +120,13 @@ impl Statistics {
                 let i = y * lay.tile + x;
                 let p = &pixels[i * px..(i + 1) * px];
                 for (k, s) in sample.iter_mut().enumerate() {
-                    *s = match lay.sample {
-                        SampleType::U8 => p[k] as f64,
-                        SampleType::U16 => u16::from_ne_bytes([p[2 * k], p[2 * k + 1]]) as f64,
-                        SampleType::F32 => f32::from_ne_bytes(p[4 * k..4 * k + 4].try_into().expect("4 bytes")) as f64,
-                    };
+                    *s = sample_at(&p[k * lay.sample.bytes()..], lay.sample);
                 }
                 if !by.has_value(sample.iter().copied(), valid.map(|v| v[i])) {
                     continue;
                 }
                 for (st, &s) in bands.iter_mut().zip(&sample) {
-                    st.count += 1;
-                    if lay.sample == SampleType::F32 {
-                        st.float_sum += s;
-                        st.float_sum_sq += s * s;
-                    } else {
-                        st.int_sum += s as u128;
-                        st.int_sum_sq += (s as u128) * (s as u128);
-                    }
-                    st.min = st.min.min(s);
-                    st.max = st.max.max(s);
+                    st.push(s, lay.sample);
                 }
             }
         }
@@ -135,21 +147,7 @@ impl Statistics {
             for y in 0..extent.1 {
                 for x in 0..extent.0 {
                     let at = ((y * lay.tile + x) * b + b - 1) * bytes;
-                    let s = match lay.sample {
-                        SampleType::U8 => pixels[at] as f64,
-                        SampleType::U16 => u16::from_ne_bytes([pixels[at], pixels[at + 1]]) as f64,
-                        SampleType::F32 => f32::from_ne_bytes(pixels[at..at + 4].try_into().expect("4 bytes")) as f64,
-                    };
-                    alpha.count += 1;
-                    if lay.sample == SampleType::F32 {
-                        alpha.float_sum += s;
-                        alpha.float_sum_sq += s * s;
-                    } else {
-                        alpha.int_sum += s as u128;
-                        alpha.int_sum_sq += (s as u128) * (s as u128);
-                    }
-                    alpha.min = alpha.min.min(s);
-                    alpha.max = alpha.max.max(s);
+                    alpha.push(sample_at(&pixels[at..], lay.sample), lay.sample);
                 }
             }
         }
