@@ -147,6 +147,22 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
         assert_eq!(out.status.code(), Some(2), "{target}: {}", String::from_utf8_lossy(&out.stderr));
         assert!(!d.join("r.tif").exists());
     }
+    // Nor the record of a finished output (beside it, `.done`) over
+    // another of its files, nor over an input.
+    std::fs::write(d.join("kept.tif.done"), b"a file of the user's").unwrap();
+    for args in [
+        &["-o", "out.tif", "--plan-out", "out.tif.done"][..],
+        &["-o", "out.tif", "--seamlines-out", "out.tif.done"],
+        &["-o", "out.tif", "--json", "out.tif.done"],
+        &["-o", "kept.tif", "--seamlines", "kept.tif.done"],
+    ] {
+        let out = std::process::Command::new(bin()).current_dir(d).args([&["mosaic", "manifest.toml", "--quiet"][..], args].concat()).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(".done") && err.trim().lines().count() == 1, "{args:?}: {err}");
+        assert!(!d.join("out.tif").exists() && !d.join("kept.tif").exists());
+    }
+    assert_eq!(std::fs::read(d.join("kept.tif.done")).unwrap(), b"a file of the user's");
     assert_eq!(std::fs::read(d.join("scans/002.tif")).unwrap(), before);
     assert_eq!(std::fs::read(d.join("scans/001.toml")).unwrap(), camera);
     // A missing scan: one line naming it, nothing at the output path.

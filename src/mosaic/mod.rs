@@ -162,6 +162,34 @@ pub struct MosaicReport {
     pub strips: usize,
 }
 
+/// Refuses a run that would write over anything it reads, or write two of
+/// its files (records of finished outputs included) to one path.
+pub(crate) fn check_mosaic_outputs(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> Result<()> {
+    let (inputs, _) = crate::batch::manifest::files(jobs);
+    let mut ins: Vec<Role> = vec![Role::new("manifest", &o.manifest)];
+    if let Some(s) = &o.seamlines_in {
+        ins.push(Role::new("seamlines", s));
+    }
+    ins.extend(inputs.iter().map(|(w, p)| Role::new(w, p)));
+    if let Some(p) = &o.plan_in {
+        ins.push(Role::new("plan", p));
+    }
+    if let Some(p) = &o.like {
+        ins.push(Role::new("reference grid", p));
+    }
+    // A finished output and a plan each get a record beside them.
+    let records: Vec<std::path::PathBuf> = o.output.iter().chain(&o.plan_out).map(|p| crate::batch::sidecar(p)).collect();
+    let mut outs: Vec<Role> = o.output.iter().map(|p| Role::new("output", p)).collect();
+    for (what, path) in [("seamlines", &o.seamlines_out), ("plan", &o.plan_out), ("report", &o.report)] {
+        if let Some(p) = path {
+            outs.push(Role::new(what, p));
+        }
+    }
+    outs.extend(records.iter().map(|p| Role::new("record of a finished output", p)));
+    check_outputs(&ins, &outs)
+}
+
+
 /// Makes the mosaic of the manifest's images (see the module doc).
 pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Result<MosaicReport> {
     // The plan and each image's set-up (per strip, too) meet the same
@@ -177,29 +205,10 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         // It names the manifest and line already.
         return Err(Error::Named(bad));
     }
-    // Nothing the mosaic writes may be anything it reads.
-    let (inputs, _) = crate::batch::manifest::files(&jobs);
-    let mut ins: Vec<Role> = vec![Role::new("manifest", &o.manifest)];
-    if let Some(s) = &o.seamlines_in {
-        ins.push(Role::new("seamlines", s));
-    }
-    ins.extend(inputs.iter().map(|(w, p)| Role::new(w, p)));
-    if let Some(p) = &o.plan_in {
-        ins.push(Role::new("plan", p));
-    }
-    if let Some(p) = &o.like {
-        ins.push(Role::new("reference grid", p));
-    }
-    let mut outs: Vec<Role> = o.output.iter().map(|p| Role::new("output", p)).collect();
-    for (what, path) in [("seamlines", &o.seamlines_out), ("plan", &o.plan_out), ("report", &o.report)] {
-        if let Some(p) = path {
-            outs.push(Role::new(what, p));
-        }
-    }
     if o.output.is_none() && o.plan_out.is_none() {
         return Err(Error::Usage("mosaic: give -o (the mosaic or a piece) or --plan-out (the plan)".into()));
     }
-    check_outputs(&ins, &outs)?;
+    check_mosaic_outputs(o, &jobs)?;
     // A rerun (a restarted shard) leaves a current output as it is.
     let key = run_key(o, &jobs);
     let source = source_key(o, &jobs);

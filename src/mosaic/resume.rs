@@ -27,6 +27,7 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
     }
     let jobs = crate::batch::manifest::load(&o.manifest).map_err(|e| e.into_error())?;
     let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;
+    super::check_mosaic_outputs(o, &jobs)?;
     let key = run_key(o, &jobs);
     if !o.force && crate::batch::output_is_current(&out, &key) {
         return Ok(MosaicReport::skipped(&out));
