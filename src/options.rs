@@ -12,6 +12,7 @@ use crate::error::{Error, Result};
 use crate::gcm::{CorrectionMode, GcmSpec};
 use crate::geom::Snap;
 use crate::io::overwrite::{check_outputs, check_writable, Role};
+use crate::io::source::SampleType;
 use crate::io::tiff_out::Compression;
 use crate::overview::OverviewResampling;
 use crate::resample::Kernel;
@@ -82,6 +83,39 @@ pub enum Nodata {
     /// This value, tagged as the nodata value (pixels of the image that
     /// hold it read as holes).
     Value(f64),
+}
+
+impl Nodata {
+    /// What `auto` means for these samples: NaN (outside any data) for
+    /// floating point; for integers, whose every value may be data, the mask.
+    pub fn resolved(self, sample: SampleType) -> Nodata {
+        match (self, sample) {
+            (Nodata::Auto, SampleType::F32) => Nodata::Value(f64::NAN),
+            (Nodata::Auto, _) => Nodata::Mask,
+            (n, _) => n,
+        }
+    }
+
+    /// Refuses a nodata value the output's samples cannot hold (they take
+    /// the scan's type): it would be written as another value than the tag
+    /// says.
+    pub fn check_value(nodata: f64, sample: SampleType) -> Result<()> {
+        let (lo, hi, what) = match sample {
+            SampleType::U8 => (0.0, 255.0, "8-bit samples (0 to 255)"),
+            SampleType::U16 => (0.0, 65535.0, "16-bit samples (0 to 65535)"),
+            SampleType::F32 => {
+                if nodata.is_nan() || (nodata as f32).is_finite() {
+                    return Ok(());
+                }
+                return Err(Error::setting("nodata", format!("{nodata} is beyond 32-bit floating-point samples")));
+            }
+        };
+        if nodata.fract() == 0.0 && (lo..=hi).contains(&nodata) {
+            Ok(())
+        } else {
+            Err(Error::setting("nodata", format!("{nodata} is not a value of the output's {what}, which are the scan's")))
+        }
+    }
 }
 
 /// `auto`, `mask` or a number.

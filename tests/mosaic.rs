@@ -265,6 +265,59 @@ fn a_float_mosaic_made_in_strips_is_the_single_runs_file() {
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join("strips.json")).unwrap()).unwrap();
     assert!(report["strips"].as_u64().unwrap() > 1, "made at once in 64 MiB: the test no longer makes strips");
     assert!(std::fs::read(d.join("whole.tif")).unwrap() == std::fs::read(d.join("strips.tif")).unwrap(), "the float mosaic's strips differ from the whole");
+    // NaN is tagged as the nodata value, as `rectify` tags it.
+    let tag = "from osgeo import gdal\nd = gdal.Open('whole.tif'); b = d.GetRasterBand(1)\nprint(b.GetNoDataValue(), b.GetMaskFlags())\n";
+    let out = std::process::Command::new(python).current_dir(d).args(["-c", tag]).output().unwrap();
+    assert_eq!(String::from_utf8_lossy(&out.stdout).trim(), "nan 8", "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// The manifest's `[defaults]` of the output grid (`gsd`, `bounds`) and
+/// `nodata` are the mosaic's, as the command line's are; what a mosaic
+/// cannot honour (`alpha`, images of different grids) is refused naming
+/// the key, never ignored.
+#[test]
+fn the_manifests_grid_and_nodata_are_the_mosaics() {
+    let Some(python) = python_with("osgeo.gdal", "python3-gdal") else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    let manifest = std::fs::read_to_string(d.join("manifest.toml")).unwrap();
+    let with = |name: &str, line: &str| std::fs::write(d.join(name), manifest.replacen("[defaults]\n", &format!("[defaults]\n{line}\n"), 1)).unwrap();
+    mosaic(d, &["-o", "plain.tif"]);
+    let corner = "from osgeo import gdal\nt = gdal.Open('plain.tif').GetGeoTransform()\nprint(t[0], t[3])\n";
+    let out = std::process::Command::new(python).current_dir(d).args(["-c", corner]).output().unwrap();
+    let xy: Vec<f64> = String::from_utf8_lossy(&out.stdout).split_whitespace().map(|v| v.parse().unwrap()).collect();
+    let bounds = [xy[0] + 40.0, xy[1] - 240.0, xy[0] + 300.0, xy[1] - 40.0];
+    let b = format!("{},{},{},{}", bounds[0], bounds[1], bounds[2], bounds[3]);
+    with("grid.toml", &format!("gsd = 0.5\nbounds = [{b}]"));
+    let run_with =
+        |m: &str, args: &[&str]| std::process::Command::new(bin()).current_dir(d).args([&["mosaic", m, "--quiet"][..], args].concat()).output().unwrap();
+    let out = run_with("grid.toml", &["-o", "grid.tif"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // Images beside a box give nothing, as expected: not a warning.
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("takes nothing"), "{}", String::from_utf8_lossy(&out.stderr));
+    mosaic(d, &["-o", "flags.tif", "--gsd", "0.5", "--bounds", &b]);
+    assert!(std::fs::read(d.join("grid.tif")).unwrap() == std::fs::read(d.join("flags.tif")).unwrap(), "the manifest's gsd and bounds are not the flags'");
+    // nodata = 7: the empty pixels hold 7, tagged, no mask; the rest as the
+    // masked mosaic's.
+    with("seven.toml", "nodata = 7");
+    let out = run_with("seven.toml", &["-o", "seven.tif"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let compare = "from osgeo import gdal\nimport numpy as np\np = gdal.Open('plain.tif'); q = gdal.Open('seven.tif')\na = p.ReadAsArray(); m = p.GetRasterBand(1).GetMaskBand().ReadAsArray() > 0; b = q.ReadAsArray()\nprint(q.GetRasterBand(1).GetNoDataValue(), q.GetRasterBand(1).GetMaskFlags(), int((~m).sum() > 0), int((a[:, m] == b[:, m]).all()), int((b[:, ~m] == 7).all()))\n";
+    let out = std::process::Command::new(python).current_dir(d).args(["-c", compare]).output().unwrap();
+    assert_eq!(String::from_utf8_lossy(&out.stdout).trim(), "7.0 8 1 1 1", "{}", String::from_utf8_lossy(&out.stderr));
+    // Refused in one line naming the manifest and the key, nothing written.
+    with("alpha.toml", "alpha = true");
+    let differing = manifest.replacen("camera = \"scans/002.toml\"", "camera = \"scans/002.toml\"\ngsd = 0.3", 1);
+    assert_ne!(differing, manifest);
+    std::fs::write(d.join("differ.toml"), differing).unwrap();
+    for (m, key) in [("alpha.toml", "alpha"), ("differ.toml", "gsd")] {
+        let out = run_with(m, &["-o", "refused.tif"]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_ne!(out.status.code(), Some(0), "{m}");
+        assert!(err.contains(m) && err.contains(&format!("{key}:")) && err.trim().lines().count() == 1, "{err}");
+        assert!(!d.join("refused.tif").exists());
+    }
 }
 
 #[test]

@@ -23,7 +23,7 @@ use crate::geodesy::Crs;
 use crate::geom::Gsd;
 use crate::io::overwrite::{check_outputs, Role};
 use crate::io::tiff_out::{Chunking, Compression, GeoTags, OutputSpec, PendingFile};
-use crate::options::{BigTiff, Occlusion, Overviews, RectifyOptions};
+use crate::options::{BigTiff, Nodata, Occlusion, Overviews, RectifyOptions};
 use crate::pipeline::band_writer::{write_bands, BandWriting};
 use crate::progress::{Cancel, Progress, Task};
 use balance::{Balance, Correction};
@@ -162,6 +162,42 @@ pub struct MosaicReport {
     pub strips: usize,
 }
 
+/// `o` with the grid the manifest gives (`gsd`, `bounds`, `crs`, `like`)
+/// where the command line gives none: one grid for all the images, so
+/// jobs that differ are refused. An alpha band is refused (a mosaic
+/// marks its empty pixels with a mask, or `nodata = V`).
+pub(crate) fn with_manifest_settings(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> Result<MosaicOptions> {
+    fn one<T: PartialEq + Clone>(o: &MosaicOptions, key: &str, mut each: impl Iterator<Item = T>) -> Result<T> {
+        let first = each.next().ok_or_else(|| Error::format(&o.manifest, "no image"))?;
+        match each.all(|v| v == first) {
+            true => Ok(first),
+            false => Err(Error::config(&o.manifest, key, format!("differs between images; a mosaic has one {key}: give it in [defaults] or with --{key}"))),
+        }
+    }
+    if let Some(j) = jobs.iter().find(|j| j.config.alpha) {
+        return Err(Error::config(
+            &o.manifest,
+            "alpha",
+            format!("job {}: a mosaic marks pixels without a value with an internal mask (or nodata = V); drop alpha", j.name),
+        ));
+    }
+    one(o, "nodata", jobs.iter().map(|j| j.config.nodata))?;
+    let mut o = o.clone();
+    if o.gsd.is_none() && o.like.is_none() {
+        o.gsd = one(&o, "gsd", jobs.iter().map(|j| j.config.gsd))?;
+    }
+    if o.bounds.is_none() && o.like.is_none() {
+        o.bounds = one(&o, "bounds", jobs.iter().map(|j| j.config.bounds))?;
+    }
+    if o.crs.is_none() {
+        o.crs = one(&o, "crs", jobs.iter().map(|j| j.config.crs.clone()))?;
+    }
+    if o.like.is_none() && o.gsd.is_none() && o.bounds.is_none() {
+        o.like = one(&o, "like", jobs.iter().map(|j| j.config.like.clone()))?;
+    }
+    Ok(o)
+}
+
 /// Refuses a run that would write over anything it reads, or write two of
 /// its files (records of finished outputs included) to one path.
 pub(crate) fn check_mosaic_outputs(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> Result<()> {
@@ -189,7 +225,6 @@ pub(crate) fn check_mosaic_outputs(o: &MosaicOptions, jobs: &[crate::batch::mani
     check_outputs(&ins, &outs)
 }
 
-
 /// Makes the mosaic of the manifest's images (see the module doc).
 pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Result<MosaicReport> {
     // The plan and each image's set-up (per strip, too) meet the same
@@ -208,6 +243,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     if o.output.is_none() && o.plan_out.is_none() {
         return Err(Error::Usage("mosaic: give -o (the mosaic or a piece) or --plan-out (the plan)".into()));
     }
+    let o = &with_manifest_settings(o, &jobs)?;
     check_mosaic_outputs(o, &jobs)?;
     // A rerun (a restarted shard) leaves a current output as it is.
     let key = run_key(o, &jobs);
@@ -318,7 +354,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         works = within(&render::work(&plan, &weights, tile, prone.as_deref(), opts_of), window);
 
         let t = Instant::now();
-        let fill = fill_of(plan.images[0].sample);
+        let (fill, _) = fill_of(plan.images[0].sample, first.nodata)?;
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| Error::setting("threads", e.to_string()))?;
         let compose = render::Compose {
             plan: &plan,
@@ -407,6 +443,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
 fn piece_spec(plan: &Plan, first: &RectifyOptions, window: [u32; 4], layout: (Overviews, bool), compress: Option<Compression>) -> Result<OutputSpec> {
     let [tc0, tr0, tcw, trh] = window;
     let (grid, tile, im0) = (plan.grid, first.tile, &plan.images[0]);
+    let (fill, mask) = fill_of(im0.sample, first.nodata)?;
     let (x0, y0) = grid.ground((tc0 * tile) as f64, (tr0 * tile) as f64);
     let (width, height) = (((tc0 + tcw) * tile).min(grid.width) - tc0 * tile, ((tr0 + trh) * tile).min(grid.height) - tr0 * tile);
     let mut spec = OutputSpec {
@@ -426,8 +463,14 @@ fn piece_spec(plan: &Plan, first: &RectifyOptions, window: [u32; 4], layout: (Ov
         bigtiff: false,
         photometric: if im0.photometric == 2 && im0.bands >= 3 { 2 } else { 1 },
         alpha: false,
-        mask: true,
-        geo: Some(GeoTags { x0, y0, gsd: grid.gsd, keys: crate::geodesy::geokeys::keys_of(&plan.crs).map_err(|m| Error::setting("crs", m))?, nodata: None }),
+        mask,
+        geo: Some(GeoTags {
+            x0,
+            y0,
+            gsd: grid.gsd,
+            keys: crate::geodesy::geokeys::keys_of(&plan.crs).map_err(|m| Error::setting("crs", m))?,
+            nodata: (!mask).then_some(fill),
+        }),
     };
     spec.check_codec().map_err(|m| Error::setting("compress", m))?;
     spec.overviews = layout.0.levels(width, height, tile);
@@ -445,13 +488,13 @@ fn bigtiff(b: BigTiff) -> Option<bool> {
     }
 }
 
-/// What a mosaic's pixels without a value hold: masked, and NaN where
-/// samples can hold it.
-fn fill_of(sample: crate::io::source::SampleType) -> f64 {
-    if sample == crate::io::source::SampleType::F32 {
-        f64::NAN
-    } else {
-        0.0
+/// What a mosaic's pixels without a value hold, and whether a mask says
+/// which they are: as `rectify` writes them (NaN for floating point, else
+/// a mask over zeros), or the value the manifest's `nodata` gives.
+fn fill_of(sample: crate::io::source::SampleType, nodata: Nodata) -> Result<(f64, bool)> {
+    match nodata.resolved(sample) {
+        Nodata::Value(v) => Nodata::check_value(v, sample).map(|()| (v, false)),
+        _ => Ok((0.0, true)),
     }
 }
 
@@ -640,8 +683,15 @@ fn source_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String
     // What the pixels depend on beyond the plan the pieces share: the
     // blend, the occlusion, each image by its contents (see
     // `batch::source_key`).
-    let settings = format!("{} {:?}", o.blend, o.occlusion);
-    let job_keys: Vec<String> = jobs.iter().map(|j| format!("{}={}", j.name, crate::batch::source_key(&j.config))).collect();
+    // The grid is the mosaic's, whether the manifest or the flags give it.
+    let settings = format!("{} {:?} {:?} {:?} {:?}", o.blend, o.occlusion, o.gsd, o.bounds, o.crs.as_ref().map(ToString::to_string));
+    let job_keys: Vec<String> = jobs
+        .iter()
+        .map(|j| {
+            let config = RectifyOptions { gsd: None, bounds: None, crs: None, like: None, ..j.config.clone() };
+            format!("{}={}", j.name, crate::batch::source_key(&config))
+        })
+        .collect();
     let like: Vec<&std::path::Path> = o.like.iter().map(PathBuf::as_path).collect();
     crate::batch::content_key_of(&[settings.as_bytes(), job_keys.join(";").as_bytes()], &like)
 }

@@ -357,23 +357,26 @@ impl Plan {
                 None => Error::setting("gsd", what),
             });
         }
-        plan.check_each_image_gives(&partial_dem, s.bounds.is_some(), progress)?;
+        plan.check_each_image_gives(&partial_dem, s.bounds.is_some() || s.grid.is_some(), progress)?;
         Ok(plan)
     }
 }
 
 impl Plan {
     /// An image the mosaic takes nothing of is a mistake to say: outside
-    /// its DEM (an error under `--dem-outside error`) or the bounds, or
-    /// seen nearer its centre everywhere by another image — the same
-    /// image twice, or another's camera.
+    /// its DEM (an error under `--dem-outside error`), or seen nearer its
+    /// centre everywhere by another image — the same image twice, or
+    /// another's camera. (`bounded`: the grid is a box of the block's.)
     fn check_each_image_gives(&self, partial_dem: &[bool], bounded: bool, progress: &dyn Progress) -> Result<()> {
         let mut taken = vec![0usize; self.images.len()];
         for &l in self.label.iter().filter(|&&l| l != NONE) {
             taken[l as usize] += 1;
         }
         for (k, im) in self.images.iter().enumerate() {
-            if taken[k] > 0 {
+            // Within bounds, images beside the box are expected to give
+            // nothing (where one image hides another is judged on the
+            // whole block, not a box of it).
+            if taken[k] > 0 || (bounded && !partial_dem[k]) {
                 continue;
             }
             let [x0, y0, x1, _] = im.cells;
@@ -389,7 +392,6 @@ impl Plan {
             let dem = self.dems[im.dem].path.display();
             let why = match (other, partial_dem[k]) {
                 (None, true) => format!("it sees none of the mosaic's ground on the DEM {dem}"),
-                (None, false) if bounded => "it sees none of the mosaic's ground within the bounds".to_string(),
                 (None, false) => "it sees none of the mosaic's ground (its own holes, or the DEM's)".to_string(),
                 (Some(o), true) => format!("what of it lies on the DEM {dem} is seen nearer their centres by other images (most by {o})"),
                 (Some(o), false) => {

@@ -27,6 +27,7 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
     }
     let jobs = crate::batch::manifest::load(&o.manifest).map_err(|e| e.into_error())?;
     let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;
+    let o = &super::with_manifest_settings(o, &jobs)?;
     super::check_mosaic_outputs(o, &jobs)?;
     let key = run_key(o, &jobs);
     if !o.force && crate::batch::output_is_current(&out, &key) {
@@ -86,7 +87,7 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
         pieces.push(piece);
     }
 
-    let fill = super::fill_of(crate::io::source::SourceImage::open(&pieces[0], 1 << 20)?.info.sample);
+    let (fill, _) = super::fill_of(crate::io::source::SourceImage::open(&pieces[0], 1 << 20)?.info.sample, first.nodata)?;
     let layout = super::assembly((o.overviews.unwrap_or(first.overviews), o.cog.unwrap_or(first.cog)), &first, fill, o.sync);
     assemble(&pieces, &out, &layout, cancel)?;
     crate::batch::write_sidecar(&out, &key)?;

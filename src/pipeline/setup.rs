@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::gcm::GcmSpec;
 use crate::geodesy::{Crs, GroundCrs};
 use crate::geom::{Gsd, OutputGrid};
-use crate::io::source::{SampleType, SourceImage};
+use crate::io::source::SourceImage;
 use crate::io::tiff_out::{Chunking, GeoTags, OutputSpec};
 use crate::options::{BandOrder, BigTiff, DemSource, Nodata, Occlusion, RectifyOptions};
 use crate::overview::Pyramid;
@@ -349,10 +349,10 @@ impl RunPlan {
         // have a value, and the encoder makes the mask's tiles of it.
         // Hidden pixels that keep their values need the mask to say so.
         let asked = if opts.occlusion == Occlusion::Mask && opts.nodata == Nodata::Auto { Nodata::Mask } else { opts.nodata };
-        let (nodata, mask) = match (opts.alpha, resolve_nodata(asked, src.info.sample)) {
+        let (nodata, mask) = match (opts.alpha, asked.resolved(src.info.sample)) {
             (true, _) => (None, false),
             (false, Nodata::Value(v)) => {
-                check_nodata(v, src.info.sample)?;
+                Nodata::check_value(v, src.info.sample)?;
                 (Some(v), false)
             }
             (false, _) => (None, true),
@@ -629,37 +629,6 @@ pub fn reference_grid(path: &std::path::Path) -> Result<(OutputGrid, Crs)> {
     let gsd = if (t[1] + t[5]).abs() <= 1e-9 * t[1] { Gsd::square(t[1]) } else { Gsd { x: t[1], y: -t[5] } };
     Ok((OutputGrid { x0: t[0], y0: t[3], gsd, width, height }, crs))
 }
-
-/// What `auto` means for these samples: NaN (outside any data) for
-/// floating point; for integers, whose every value may be data, the mask.
-fn resolve_nodata(nodata: Nodata, sample: SampleType) -> Nodata {
-    match (nodata, sample) {
-        (Nodata::Auto, SampleType::F32) => Nodata::Value(f64::NAN),
-        (Nodata::Auto, _) => Nodata::Mask,
-        (n, _) => n,
-    }
-}
-
-/// Refuses a nodata value the output's samples cannot hold (they take the
-/// scan's type): it would be written as another value than the tag says.
-fn check_nodata(nodata: f64, sample: SampleType) -> Result<()> {
-    let (lo, hi, what) = match sample {
-        SampleType::U8 => (0.0, 255.0, "8-bit samples (0 to 255)"),
-        SampleType::U16 => (0.0, 65535.0, "16-bit samples (0 to 65535)"),
-        SampleType::F32 => {
-            if nodata.is_nan() || (nodata as f32).is_finite() {
-                return Ok(());
-            }
-            return Err(Error::setting("nodata", format!("{nodata} is beyond 32-bit floating-point samples")));
-        }
-    };
-    if nodata.fract() == 0.0 && (lo..=hi).contains(&nodata) {
-        Ok(())
-    } else {
-        Err(Error::setting("nodata", format!("{nodata} is not a value of the output's {what}, which are the scan's")))
-    }
-}
-
 /// The band order that crosses fewer scan rows a band (rows on a tie): a
 /// band of tile rows crosses the scan rows that `A` meets along the grid's
 /// width and down a tile; a band of tile columns, down the grid's height and

@@ -56,7 +56,9 @@ pub fn tiles(run: &Output, made: Made, free: &crossbeam_channel::Sender<Raw>, bu
     // and its quarter for the overview: one parallel pass.
     let px = valid.as_ref().map_or(0, |v| v.len() / n.max(1));
     let valid_of = |k: usize| valid.as_ref().map(|v| &v[k * px..(k + 1) * px]);
-    let mask = |k: usize| valid_of(k).map(|v| encode_mask(spec, v).map(Tile::Owned));
+    // (A mosaic says which pixels have a value also where a nodata value
+    // marks the others.)
+    let mask = |k: usize| valid_of(k).filter(|_| spec.mask).map(|v| encode_mask(spec, v).map(Tile::Owned));
     let pyramid = run.pyramid.map(|p| p.lock().expect("the encoder's alone"));
     // The tile's quarter for the overview, and its statistics.
     let summary = |k: usize, bytes: &[u8]| {
