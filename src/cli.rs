@@ -39,6 +39,20 @@ pub fn flag(setting: &str) -> String {
     format!("--{}", setting.replace('_', "-"))
 }
 
+/// A setting as the user of `command` gives it: its flag, or (`batch`,
+/// `mosaic`: settings only a manifest gives) its manifest key.
+pub fn flag_of(command: &str, setting: &str) -> String {
+    use clap::CommandFactory;
+    let long = setting.replace('_', "-");
+    let cli = Cli::command();
+    match cli.find_subcommand(command) {
+        Some(sub) if !sub.get_arguments().any(|a| a.get_long() == Some(long.as_str())) && matches!(command, "batch" | "mosaic") => {
+            format!("{setting} (in the manifest)")
+        }
+        _ => flag(setting),
+    }
+}
+
 #[derive(Parser, Debug)]
 #[command(name = "gcm-ortho", version, about = "Orthorectification of huge scans on small machines by the generalized correction matrix")]
 pub struct Cli {
@@ -847,4 +861,21 @@ pub struct AccuracyArgs {
     /// Write the table here as JSON
     #[arg(long)]
     pub json: Option<PathBuf>,
+}
+
+#[cfg(test)]
+mod flag_tests {
+    use super::flag_of;
+
+    /// A setting is named as its user gives it: the flag where the command
+    /// has one, else the manifest's key.
+    #[test]
+    fn settings_are_named_by_the_flag_or_the_manifest_key() {
+        assert_eq!(flag_of("rectify", "tile"), "--tile");
+        assert_eq!(flag_of("rectify", "dem_outside"), "--dem-outside");
+        assert_eq!(flag_of("mosaic", "tile"), "tile (in the manifest)");
+        assert_eq!(flag_of("mosaic", "compress"), "compress (in the manifest)");
+        assert_eq!(flag_of("mosaic", "memory"), "--memory");
+        assert_eq!(flag_of("batch", "dem_outside"), "dem_outside (in the manifest)");
+    }
 }

@@ -65,6 +65,8 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(e) => return usage_error(e),
     };
+    // Which subcommand ran, to name a setting by its flag where it has one.
+    let command = std::env::args().nth(1).unwrap_or_default();
     let polls = matches!(cli.command, cli::Command::Rectify(_) | cli::Command::Batch(_) | cli::Command::Demo(_) | cli::Command::Mosaic(_));
     let signals = match commands::Signals::install(polls) {
         Ok(s) => s,
@@ -88,7 +90,7 @@ fn main() -> ExitCode {
             let mut parts: Vec<String> = Vec::new();
             for c in e.chain() {
                 let part = match c.downcast_ref::<gcm_ortho::Error>() {
-                    Some(gcm_ortho::Error::Setting { setting, msg }) => format!("{}: {msg}", cli::flag(setting)),
+                    Some(gcm_ortho::Error::Setting { setting, msg }) => format!("{}: {msg}", cli::flag_of(&command, setting)),
                     _ => c.to_string(),
                 };
                 // A cause its error already quotes is said once.

@@ -204,6 +204,19 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     let enough = err.split("give --memory ").nth(1).and_then(|t| t.split_whitespace().next()).expect("a figure").to_string();
     mosaic(d, &["-o", "out.tif", "--memory", &enough]);
     assert!(d.join("out.tif").exists());
+    // Large tiles (the manifest's): each image's render holds its own, so
+    // the mosaic's figure is what they take; it runs, without another
+    // refusal from an image's own set-up.
+    let manifest = std::fs::read_to_string(d.join("manifest.toml")).unwrap();
+    std::fs::write(d.join("large.toml"), manifest.replacen("[defaults]\n", "[defaults]\ntile = 2048\n", 1)).unwrap();
+    let out = std::process::Command::new(bin()).current_dir(d).args(["mosaic", "large.toml", "-o", "large.tif", "--quiet"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("--memory") && !err.contains("tile") && err.trim().lines().count() == 1, "{err}");
+    let enough = err.split("give --memory ").nth(1).and_then(|t| t.split_whitespace().next()).expect("a figure").to_string();
+    let out =
+        std::process::Command::new(bin()).current_dir(d).args(["mosaic", "large.toml", "-o", "large.tif", "--quiet", "--memory", &enough]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     // Each image's set-up warnings are said, naming it, also under --quiet
     // (a GSD three scan pixels wide: bilinear aliases).
     let out =

@@ -21,12 +21,22 @@ pub enum MaxError {
     Word(String),
 }
 
-/// `nodata`: a number, or `"auto"` / `"mask"`.
+/// A number, or a word: `nodata` (`"auto"` / `"mask"`), `dem_hole` and
+/// `dem_outside` (a height, or `"error"` / `"nodata"`).
 #[derive(Clone, Debug, Deserialize)]
 #[serde(untagged)]
-pub enum NodataSetting {
+pub enum NumberOrWord {
     Value(f64),
     Word(String),
+}
+
+impl NumberOrWord {
+    fn text(&self) -> String {
+        match self {
+            NumberOrWord::Value(v) => v.to_string(),
+            NumberOrWord::Word(w) => w.clone(),
+        }
+    }
 }
 
 /// Every rectify option a manifest may set, in `[defaults]` or per job.
@@ -35,8 +45,8 @@ pub enum NodataSetting {
 pub struct Options {
     pub dem: Option<String>,
     pub height: Option<f64>,
-    pub dem_hole: Option<String>,
-    pub dem_outside: Option<String>,
+    pub dem_hole: Option<NumberOrWord>,
+    pub dem_outside: Option<NumberOrWord>,
     /// A number, or `[x, y]` for non-square pixels.
     pub gsd: Option<crate::geom::Gsd>,
     pub bounds: Option<[f64; 4]>,
@@ -62,7 +72,7 @@ pub struct Options {
     pub overviews: Option<String>,
     pub overview_resampling: Option<String>,
     pub cog: Option<bool>,
-    pub nodata: Option<NodataSetting>,
+    pub nodata: Option<NumberOrWord>,
     pub alpha: Option<bool>,
     /// `none`, `nodata` or `mask` (a true orthophoto).
     pub occlusion: Option<String>,
@@ -377,10 +387,10 @@ fn config(
     c.model = inline.map_or(ModelSource::CameraFile, ModelSource::Inline);
     let mut settings = || -> crate::Result<()> {
         if let Some(v) = &o.dem_hole {
-            c.dem_hole = parse_miss("dem_hole", v)?;
+            c.dem_hole = parse_miss("dem_hole", &v.text())?;
         }
         if let Some(v) = &o.dem_outside {
-            c.dem_outside = parse_miss("dem_outside", v)?;
+            c.dem_outside = parse_miss("dem_outside", &v.text())?;
         }
         c.gsd = o.gsd;
         c.bounds = o.bounds;
@@ -454,8 +464,8 @@ fn config(
         }
         c.cog = o.cog.unwrap_or(false);
         match &o.nodata {
-            Some(NodataSetting::Value(v)) => c.nodata = Nodata::Value(*v),
-            Some(NodataSetting::Word(w)) => c.nodata = parse_nodata("nodata", w)?,
+            Some(NumberOrWord::Value(v)) => c.nodata = Nodata::Value(*v),
+            Some(NumberOrWord::Word(w)) => c.nodata = parse_nodata("nodata", w)?,
             None => {}
         }
         c.alpha = o.alpha.unwrap_or(false);
@@ -483,4 +493,32 @@ fn image_of(template: &str, name: &str) -> String {
         _ => name,
     };
     template.replace("{name}", stem)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dem::Miss;
+
+    /// A height for the DEM's misses is taken as a number or as text, as
+    /// the flag takes it; a word it does not know is refused naming the key.
+    #[test]
+    fn a_height_for_the_dems_misses_is_a_number_or_text() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = dir.path().join("m.toml");
+        let mini = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini");
+        for f in ["scan.tif", "camera.toml", "dem.tif"] {
+            std::fs::copy(mini.join(f), dir.path().join(f)).unwrap();
+        }
+        for (value, want) in [("110", Miss::Height(110.0)), ("110.5", Miss::Height(110.5)), ("\"110\"", Miss::Height(110.0)), ("\"nodata\"", Miss::Nodata)] {
+            let text =
+                format!("[defaults]\ndem = \"dem.tif\"\ndem_outside = {value}\ndem_hole = {value}\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\n");
+            std::fs::write(&m, text).unwrap();
+            let jobs = load(&m).unwrap_or_else(|e| panic!("{value}: {:?}", e.problems));
+            assert_eq!((jobs[0].config.dem_outside, jobs[0].config.dem_hole), (want, want), "{value}: {:?}", jobs[0].problem);
+        }
+        std::fs::write(&m, "[defaults]\ndem = \"dem.tif\"\ndem_outside = \"zero\"\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\n").unwrap();
+        let problem = load(&m).unwrap()[0].problem.clone().unwrap_or_default();
+        assert!(problem.contains("dem_outside"), "{problem}");
+    }
 }

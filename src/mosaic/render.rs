@@ -155,6 +155,8 @@ pub fn work(plan: &Plan, weights: &Weights, tile: u32, prone: Option<&[bool]>, o
 #[derive(Clone, Copy, Debug)]
 pub struct Short {
     pub fixed: u64,
+    /// What a render needs (more with large tiles).
+    pub share: u64,
     pub enough: u64,
 }
 
@@ -165,7 +167,7 @@ impl From<Short> for Error {
             format!(
                 "the mosaic's bands, its plan and the images at work take {} MiB, and a render needs {} MiB more: give --memory {}M or more",
                 s.fixed.div_ceil(1 << 20),
-                MIN_SHARE >> 20,
+                s.share.div_ceil(1 << 20),
                 s.enough.div_ceil(1 << 20)
             ),
         )
@@ -205,7 +207,10 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, across: u32, 
     let most = (b0..b0 + n).map(alive).max().unwrap_or(1).max(1);
     let fixed = band_bytes + plan_bytes + held + most as u64 * IDLE_IMAGE;
     let room = memory.saturating_sub(fixed);
-    if room < MIN_SHARE {
+    // An image's render holds its tiles in flight as `rectify` does (the
+    // manifest's `tile` may be large).
+    let min_share = MIN_SHARE.max(crate::pipeline::tiles_memory(image_tile, u64::MAX));
+    if room < min_share {
         // The figure that does: more memory lets the plan hold more of its
         // DEMs (a share of the budget each, up to the whole) and take
         // more cells.
@@ -219,21 +224,21 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, across: u32, 
         // in whole MiB, as the figure is given (a figure rounded up may
         // be the one that doubles them).
         let mib = |b: u64| b.next_multiple_of(1 << 20);
-        let mut enough = mib(fixed + MIN_SHARE);
+        let mut enough = mib(fixed + min_share);
         for _ in 0..16 {
             let side = super::plan::cell_side(px, enough) as u64;
             let arrays_then = arrays * (px / (side * side)).max(cells) / cells;
             let dems_then = plan.dems.iter().map(|d| d.whole_bytes().min(enough / super::plan::DEM_SHARE).max(d.held_bytes())).sum::<u64>();
-            let need = other + MIN_SHARE + arrays_then + dems_then;
+            let need = other + min_share + arrays_then + dems_then;
             let need = need + need / 16;
             if need <= enough {
                 break;
             }
             enough = mib(need);
         }
-        return Err(Short { fixed, enough });
+        return Err(Short { fixed, share: min_share, enough });
     }
-    let at_once = (room / MIN_SHARE).clamp(1, most as u64);
+    let at_once = (room / min_share).clamp(1, most as u64);
     Ok((at_once as usize, room / at_once))
 }
 

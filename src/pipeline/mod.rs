@@ -33,5 +33,5 @@ mod threaded;
 pub use budget::MemoryBudget;
 pub use rectify::rectify;
 pub use report::{peak_rss_mib, Hidden, Report, StageTimes};
-pub use setup::RunPlan;
+pub use setup::{tiles_memory, RunPlan};
 pub use stages::resample::{Made, Raw};

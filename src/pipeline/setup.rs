@@ -19,9 +19,17 @@ use crate::transform::footprint::{auto_grid, mean_gsd};
 use crate::transform::{Approx, Trend};
 
 /// Output tiles a run holds at a time, at most (chunks of one tile being
-/// made, queued, encoded, and the buffers handed back; of an output of
-/// fewer tiles, one more than it has), measured.
-const TILES_HELD: u64 = 6;
+/// made, queued, encoded, their overview quarters, and the buffers handed
+/// back; of an output of fewer tiles, one more than it has), measured:
+/// the peak with 1024² RGB tiles is the same at any budget.
+const TILES_HELD: u64 = 10;
+
+/// The memory a run needs for output tiles of `tile_bytes` (their mask
+/// included) on an output of `tiles`: those it holds at a time take at
+/// most half of it.
+pub fn tiles_memory(tile_bytes: u64, tiles: u64) -> u64 {
+    2 * TILES_HELD.min(tiles.saturating_add(1)) * tile_bytes
+}
 
 /// Outputs beyond this many pixels a side are refused.
 const MAX_SIDE: u32 = 1 << 21;
@@ -390,31 +398,38 @@ impl RunPlan {
         // level, within four shares of the budget.
         let band_tiles = if band_order == BandOrder::Columns { trh } else { tcw };
         let held = Pyramid::held_bytes(&spec, band_tiles);
+        // The chunks in flight hold a tile each at least: a tile too large
+        // for its share passes the budget, whatever else is planned.
+        let tile_bytes = tile as u64 * tile as u64 * (spec.bands as u64 * spec.sample.bytes() as u64 + u64::from(spec.mask));
+        let tiles_need = tiles_memory(tile_bytes, tcw as u64 * trh as u64);
+        // Each check short of memory, with the figure that holds it; the
+        // refusal gives the largest, so that the figure given runs.
+        let mut short: Vec<(&'static str, String, u64)> = Vec::new();
         if held > 4 * budget.share() {
-            return Err(Error::setting(
+            short.push((
                 "overviews",
                 format!(
-                    "made while the tiles stream, they hold about {} MB of a {}-tile-wide output at a time, more than the memory budget allows them: give --memory {}M or more, or --overviews none",
-                    held >> 20,
-                    band_tiles,
-                    (held * 6 + decoding).div_ceil(1 << 20)
+                    "made while the tiles stream, they hold about {} MB of a {band_tiles}-tile-wide output at a time, more than the memory budget allows them",
+                    held >> 20
                 ),
+                held * 6,
             ));
         }
-        // The chunks in flight hold a tile each at least (about six, with
-        // the encoder's and the overviews'): a tile too large for that in
-        // half the budget passes it, whatever else is planned.
-        let tile_bytes = tile as u64 * tile as u64 * (spec.bands as u64 * spec.sample.bytes() as u64 + u64::from(spec.mask));
-        let held = TILES_HELD.min(tcw as u64 * trh as u64 + 1);
-        if 2 * held * tile_bytes > budget.total() {
-            return Err(Error::setting(
+        if tiles_need > budget.total() {
+            short.push((
                 "tile",
                 format!(
-                    "{tile} makes tiles of {} MiB, and a run holds about {held} of them at a time, more than half the memory budget: give --memory {}M or more, or a smaller --tile",
+                    "{tile} makes tiles of {} MiB, and a run holds about {} of them at a time, more than half the memory budget",
                     tile_bytes.div_ceil(1 << 20),
-                    (2 * held * tile_bytes + decoding).div_ceil(1 << 20)
+                    tiles_need / (2 * tile_bytes)
                 ),
+                tiles_need,
             ));
+        }
+        if let Some((setting, what, _)) = short.first() {
+            let need = short.iter().map(|s| s.2).max().unwrap_or(0) + decoding;
+            let instead = if *setting == "tile" { "a smaller tile" } else { "no overviews" };
+            return Err(Error::setting(setting, format!("{what}: give --memory {}M or more, or {instead}", need.div_ceil(1 << 20))));
         }
         spec.bigtiff = match opts.bigtiff {
             BigTiff::Yes => true,

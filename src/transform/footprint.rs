@@ -41,7 +41,7 @@ impl Footprint {
     pub fn partial_warning(&self, image: &std::path::Path, dem: &Dem) -> Option<String> {
         (self.past_edge > 0 && !matches!(dem.on_outside, Miss::Height(_))).then(|| {
             format!(
-                "{}: the DEM {} covers only part of the image ({} % of its edge meets it): the orthophoto stops at the DEM's edge (--dem-outside HEIGHT goes on at that height)",
+                "{}: the DEM {} covers only part of the image ({} % of its edge meets it): the orthophoto stops at the DEM's edge (--dem-outside HEIGHT, in a manifest dem_outside = HEIGHT, goes on at that height)",
                 image.display(),
                 dem.path.display(),
                 (100 * (self.edge_points - self.past_edge) / self.edge_points.max(1)),
