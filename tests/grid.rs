@@ -291,4 +291,31 @@ fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
         assert!(inside[k] + gsd / 2.0 >= dem_box[k] && inside[k + 2] - gsd / 2.0 <= dem_box[k + 2], "{inside:?} within {dem_box:?}");
         assert!((inside[k] - cut[k]).abs() <= gsd && (inside[k + 2] - cut[k + 2]).abs() <= gsd, "{inside:?} ≈ {cut:?}");
     }
+    // The same middle as heights in a DEM of the whole extent, nodata
+    // around it (a collar): said too, as holes under the image; the
+    // orthophoto stops where the middle does.
+    let collar = dir.path().join("dem_collar.tif");
+    f32_raster_with_keys(&collar, (g.width as u32, g.height as u32), (gt[0], gt[3], gt[1]), keys_of(&sc.dem), |c, r| {
+        let (c, r) = (c as usize, r as usize);
+        if (i0..i0 + w).contains(&c) && (j0..j0 + h).contains(&r) {
+            g.sample(c, r)
+        } else {
+            f32::NAN
+        }
+    });
+    let out = dir.path().join("collar.tif");
+    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&collar), "--dem-hole", "nodata", "--quiet", "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success() && err.contains("has no heights (nodata) under part of the image") && err.contains("dem_collar.tif"), "{err}");
+    let (gt_c, wc, hc) = grid_of(&out);
+    let on_collar = [gt_c[0], gt_c[3] + gt_c[5] * hc as f64, gt_c[0] + gt_c[1] * wc as f64, gt_c[3]];
+    // (Within a few DEM posts: a point half a post from a hole has no
+    // height to interpolate.)
+    for k in 0..4 {
+        assert!((on_collar[k] - cut[k]).abs() <= 4.0 * gt[1], "{on_collar:?} ≈ {cut:?}");
+    }
+}
+
+fn keys_of(raster: &Path) -> gcm_ortho::io::geotiff::GeoKeys {
+    gcm_ortho::io::source::SourceImage::info_of(raster).unwrap().georef.unwrap().keys
 }

@@ -238,7 +238,7 @@ impl Plan {
                 },
                 fp.map(|f| f.bounds),
             ));
-            partial_dem.push(fp.is_none_or(|f| f.past_edge > 0));
+            partial_dem.push(fp.is_none_or(|f| f.past_edge + f.on_holes > 0));
         }
         let crs = crs.ok_or_else(|| Error::setting("manifest", "no image".to_string()))?;
         if let Some(first) = images.first().map(|(i, _)| (i.bands, i.sample, i.name.clone())) {

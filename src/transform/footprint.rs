@@ -31,22 +31,32 @@ pub struct Footprint {
     /// by no height, or by the plane `--dem-outside HEIGHT` puts past
     /// it), of `edge_points`.
     pub past_edge: usize,
+    /// Points whose rays meet no height where the DEM has none (its
+    /// nodata collar).
+    pub on_holes: usize,
     pub edge_points: usize,
 }
 
 impl Footprint {
     /// The warning for a DEM that covers only part of the scan, where the
-    /// orthophoto stops at the DEM's edge (not where a height past it is
-    /// given).
+    /// orthophoto stops at the DEM's edge or its nodata (not where a
+    /// height past it is given).
     pub fn partial_warning(&self, image: &std::path::Path, dem: &Dem) -> Option<String> {
-        (self.past_edge > 0 && !matches!(dem.on_outside, Miss::Height(_))).then(|| {
-            format!(
-                "{}: the DEM {} covers only part of the image ({} % of its edge meets it): the orthophoto stops at the DEM's edge (--dem-outside HEIGHT, in a manifest dem_outside = HEIGHT, goes on at that height)",
-                image.display(),
-                dem.path.display(),
-                (100 * (self.edge_points - self.past_edge) / self.edge_points.max(1)),
-            )
-        })
+        let share = |n: usize| 100 * (self.edge_points - n) / self.edge_points.max(1);
+        let outside = self.past_edge > 0 && !matches!(dem.on_outside, Miss::Height(_));
+        let holes = self.on_holes > 0 && !matches!(dem.on_hole, Miss::Height(_));
+        let (image, path) = (image.display(), dem.path.display());
+        match (outside, holes) {
+            (true, _) => Some(format!(
+                "{image}: the DEM {path} covers only part of the image ({} % of its edge meets it): the orthophoto stops at the DEM's edge (--dem-outside HEIGHT, in a manifest dem_outside = HEIGHT, goes on at that height)",
+                share(self.past_edge + self.on_holes)
+            )),
+            (false, true) => Some(format!(
+                "{image}: the DEM {path} has no heights (nodata) under part of the image ({} % of its edge meets heights): the orthophoto stops there (--dem-hole HEIGHT, in a manifest dem_hole = HEIGHT, goes on at that height)",
+                share(self.on_holes)
+            )),
+            (false, false) => None,
+        }
     }
 }
 
@@ -68,7 +78,12 @@ pub fn footprint_on(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32,
     // points, and whether its ray met the DEM.
     // A ray that misses the DEM is past its edge where it meets the plane
     // at the guessed height outside the grid (not one lost on a wall).
-    let past_edge = |c: f64, r: f64| model.locate_approx(c, r, z_guess).is_some_and(|(x, y)| dem.lookup(x, y) == Lookup::Outside);
+    // Where it lands on the DEM's nodata instead, it is on a hole.
+    let past_edge = |c: f64, r: f64| match model.locate_approx(c, r, z_guess).map(|(x, y)| dem.lookup(x, y)) {
+        Some(Lookup::Outside) => (1, 0),
+        Some(Lookup::Hole) => (0, 1),
+        _ => (0, 0),
+    };
     let (b, hits, past) = outline
         .par_iter()
         .map_init(
@@ -76,7 +91,7 @@ pub fn footprint_on(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32,
             |(caster, flat), &(c, r)| {
                 // (Points on the plane count as none: the DEM must meet the scan.)
                 let Some(p) = caster.cast(c, r, None, z_guess, 1e-3) else {
-                    let past = usize::from(past_edge(c, r));
+                    let past = past_edge(c, r);
                     return match flat.as_mut().and_then(|f| f.cast(c, r, None, z_guess, 1e-3)) {
                         Some(p) => ([p[0], p[1], p[0], p[1]], 0, past),
                         None => (none, 0, past),
@@ -91,14 +106,14 @@ pub fn footprint_on(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32,
                         b = joined(b, [q[0], q[1], q[0], q[1]]);
                     }
                 }
-                (b, 1, 0)
+                (b, 1, (0, 0))
             },
         )
-        .reduce(|| (none, 0, 0), |(a, m, p), (b, n, q)| (joined(a, b), m + n, p + q));
+        .reduce(|| (none, 0, (0, 0)), |(a, m, p), (b, n, q)| (joined(a, b), m + n, (p.0 + q.0, p.1 + q.1)));
     if hits < 4 {
         return Err(Error::Geometry(format!("only {hits} of {} points on the image's edges meet the DEM: does the DEM cover the scan?", outline.len())));
     }
-    Ok(Footprint { bounds: b, past_edge: past, edge_points: outline.len() })
+    Ok(Footprint { bounds: b, past_edge: past.0, on_holes: past.1, edge_points: outline.len() })
 }
 
 /// Where the ray of scan point `(c, r)`, beyond its ground point `hit`,
