@@ -303,12 +303,18 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
         for (i, j) in &mine {
             say!("{i:>5}  {}  {} -> {}", j.name, j.config.image.display(), j.config.output.display());
         }
-        // A job that would fail is said now, and the check fails (exit 3).
-        let failing: Vec<_> = mine.iter().filter(|(_, j)| j.problem.is_some()).collect();
-        for (_, j) in &failing {
-            eprintln!("gcm-ortho: job {} will fail: {}", j.name, j.problem.as_deref().unwrap_or_default());
+        // A job that would fail is said now, and the check fails (exit 3):
+        // its files as the manifest names them, and each image's header
+        // (a truncated or foreign file).
+        let mut failing = 0;
+        for (_, j) in &mine {
+            let problem = j.problem.clone().or_else(|| gcm_ortho::io::source::SourceImage::info_of(&j.config.image).err().map(|e| e.to_string()));
+            if let Some(p) = problem {
+                eprintln!("gcm-ortho: job {} will fail: {p}", j.name);
+                failing += 1;
+            }
         }
-        return Ok(if failing.is_empty() { 0 } else { 3 });
+        return Ok(if failing == 0 { 0 } else { 3 });
     }
     for j in jobs.iter().filter(|j| j.problem.is_some()) {
         eprintln!("gcm-ortho: job {} will fail: {}", j.name, j.problem.as_deref().unwrap_or_default());

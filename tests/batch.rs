@@ -207,6 +207,17 @@ fn block_of_exterior_orientations() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(3), "{err}");
     assert!(err.contains("s99") && err.contains("does not exist"), "{err}");
+    // An image cut short, or not an image at all: said by the dry run too.
+    std::fs::write(d.join("eo.csv"), &csv).unwrap();
+    let whole = std::fs::read(d.join("scans/s01.tif")).unwrap();
+    for (bytes, says) in [(&whole[..whole.len() / 3], "truncated"), (&b"not a TIFF at all, nor any image"[..], "not an image")] {
+        std::fs::write(d.join("scans/s01.tif"), bytes).unwrap();
+        let o = batch(d, &["--dry-run"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(3), "{err}");
+        assert!(err.contains("s01") && err.contains(says) && err.trim().lines().count() == 1, "{err}");
+    }
+    std::fs::write(d.join("scans/s01.tif"), whole).unwrap();
 }
 
 #[test]
