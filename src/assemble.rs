@@ -126,21 +126,40 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
     for (s, p) in srcs.iter().zip(pieces) {
         let i = &s.info;
         let g = i.georef.as_ref().ok_or_else(|| Error::format(p, "has no georeferencing"))?;
-        let same = i.tiled
-            && i.chunk == first.chunk
-            && i.bands == first.bands
-            && i.sample == first.sample
-            && i.compression == first.compression
-            && i.predictor == first.predictor
-            && i.photometric == first.photometric
-            && i.has_alpha == first.has_alpha
-            && i.mask.is_some() == first.mask.is_some()
-            && (g.transform[1] - gsd.x).abs() < 1e-12 * gsd.x
-            && (-g.transform[5] - gsd.y).abs() < 1e-12 * gsd.y
-            && g.keys == geo0.keys
-            && same_nodata(g.nodata, geo0.nodata);
-        if !same {
-            return Err(Error::format(p, format!("is not a piece of the same orthophoto as {}", pieces[0].display())));
+        // The first way it differs from the first piece, said.
+        let codec = |c: u16| match c {
+            1 => "none".to_string(),
+            5 => "lzw".into(),
+            7 => "jpeg".into(),
+            8 | 32946 => "deflate".into(),
+            50000 => "zstd".into(),
+            c => format!("code {c}"),
+        };
+        let yes_no = |b: bool| if b { "one" } else { "none" };
+        let differs = [
+            (i.tiled, "is not tiled".to_string()),
+            (i.chunk == first.chunk, format!("tiles of {}×{}, the first piece's {}×{}", i.chunk.0, i.chunk.1, first.chunk.0, first.chunk.1)),
+            (i.bands == first.bands, format!("{} bands, the first piece {}", i.bands, first.bands)),
+            (i.sample == first.sample, format!("{:?} samples, the first piece's {:?}", i.sample, first.sample)),
+            (i.compression == first.compression, format!("compression {}, the first piece's {}", codec(i.compression), codec(first.compression))),
+            (i.predictor == first.predictor, format!("predictor {}, the first piece's {}", i.predictor, first.predictor)),
+            (i.photometric == first.photometric, format!("photometric {}, the first piece's {}", i.photometric, first.photometric)),
+            (i.has_alpha == first.has_alpha, format!("an alpha band: {}, the first piece {}", yes_no(i.has_alpha), yes_no(first.has_alpha))),
+            (
+                i.mask.is_some() == first.mask.is_some(),
+                format!("an internal mask: {}, the first piece {}", yes_no(i.mask.is_some()), yes_no(first.mask.is_some())),
+            ),
+            (
+                (g.transform[1] - gsd.x).abs() < 1e-12 * gsd.x && (-g.transform[5] - gsd.y).abs() < 1e-12 * gsd.y,
+                format!("pixels of {}×{}, the first piece's {}×{}", g.transform[1], -g.transform[5], gsd.x, gsd.y),
+            ),
+            (g.keys == geo0.keys, "another CRS than the first piece's".to_string()),
+            (same_nodata(g.nodata, geo0.nodata), format!("nodata {:?}, the first piece's {:?}", g.nodata, geo0.nodata)),
+        ]
+        .into_iter()
+        .find(|(same, _)| !same);
+        if let Some((_, how)) = differs {
+            return Err(Error::format(p, format!("is not a piece of the same orthophoto as {}: {how}", pieces[0].display())));
         }
         // Made from the same image, camera, DEM and settings (a piece of
         // another run on the same grid would join without a seam to see).

@@ -384,6 +384,15 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("cubic.tif") && err.contains("other inputs or settings"), "{err}");
     assert!(!mixed.exists());
+    // A piece coded otherwise: the refusal says how (the codecs).
+    let zstd = d.join("zstd.tif");
+    let o = run(&[&["rectify"][..], &base, &["--window", &win, "--compress", "zstd", "-o", s(&zstd)]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = run(&["assemble", "-o", s(&mixed), s(&pieces[0]), s(&pieces[1]), s(&pieces[2]), s(&zstd)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_ne!(o.status.code(), Some(0), "{err}");
+    assert!(err.contains("zstd.tif") && err.contains("compression zstd, the first piece's deflate"), "{err}");
+    assert!(!mixed.exists());
     // A piece given twice: both named, exit 2 as for the gap.
     let o = run(&["assemble", "-o", s(&d.join("twice.tif")), s(&pieces[0]), s(&pieces[0]), s(&pieces[1])]);
     assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
