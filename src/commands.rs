@@ -245,13 +245,17 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
     }
     if !a.quiet {
         eprintln!(
-            "{}: {}×{} px at {} from {} images; {:.0} % covered; seams {:.0} m; plan {:.1} s, seams {:.1} s, render {:.1} s",
+            "{}: {}×{} px at {} from {} images; {}; seams {:.0} m; plan {:.1} s, seams {:.1} s, render {:.1} s",
             report.output.as_deref().or(a.plan_out.as_deref()).unwrap_or(Path::new("")).display(),
             report.width,
             report.height,
             report.gsd,
             report.images.len(),
-            report.coverage * 100.0,
+            // What GDAL's VALID_PERCENT says, where the pixels were made.
+            match report.pixels_with_value {
+                Some([v, n]) => format!("{:.1} % of its pixels have a value", 100.0 * v as f64 / n.max(1) as f64),
+                None => format!("{:.0} % of it seen by some image", report.coverage * 100.0),
+            },
             report.seam_length,
             report.seconds.plan,
             report.seconds.seams,

@@ -296,7 +296,8 @@ fn the_manifests_grid_and_nodata_are_the_mosaics() {
     block(d);
     let manifest = std::fs::read_to_string(d.join("manifest.toml")).unwrap();
     let with = |name: &str, line: &str| std::fs::write(d.join(name), manifest.replacen("[defaults]\n", &format!("[defaults]\n{line}\n"), 1)).unwrap();
-    mosaic(d, &["-o", "plain.tif"]);
+    mosaic(d, &["-o", "plain.tif", "--json", "plain.json"]);
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join("plain.json")).unwrap()).unwrap();
     let corner = "from osgeo import gdal\nt = gdal.Open('plain.tif').GetGeoTransform()\nprint(t[0], t[3])\n";
     let out = std::process::Command::new(python).current_dir(d).args(["-c", corner]).output().unwrap();
     let xy: Vec<f64> = String::from_utf8_lossy(&out.stdout).split_whitespace().map(|v| v.parse().unwrap()).collect();
@@ -316,9 +317,12 @@ fn the_manifests_grid_and_nodata_are_the_mosaics() {
     with("seven.toml", "nodata = 7");
     let out = run_with("seven.toml", &["-o", "seven.tif"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let compare = "from osgeo import gdal\nimport numpy as np\np = gdal.Open('plain.tif'); q = gdal.Open('seven.tif')\na = p.ReadAsArray(); m = p.GetRasterBand(1).GetMaskBand().ReadAsArray() > 0; b = q.ReadAsArray()\nprint(q.GetRasterBand(1).GetNoDataValue(), q.GetRasterBand(1).GetMaskFlags(), int((~m).sum() > 0), int((a[:, m] == b[:, m]).all()), int((b[:, ~m] == 7).all()))\n";
+    let compare = "from osgeo import gdal\nimport numpy as np\np = gdal.Open('plain.tif'); q = gdal.Open('seven.tif')\na = p.ReadAsArray(); m = p.GetRasterBand(1).GetMaskBand().ReadAsArray() > 0; b = q.ReadAsArray()\nprint(q.GetRasterBand(1).GetNoDataValue(), q.GetRasterBand(1).GetMaskFlags(), int((~m).sum() > 0), int((a[:, m] == b[:, m]).all()), int((b[:, ~m] == 7).all()), int(m.sum()), m.size)\n";
     let out = std::process::Command::new(python).current_dir(d).args(["-c", compare]).output().unwrap();
-    assert_eq!(String::from_utf8_lossy(&out.stdout).trim(), "7.0 8 1 1 1", "{}", String::from_utf8_lossy(&out.stderr));
+    let said = String::from_utf8_lossy(&out.stdout).trim().to_string();
+    // The report's pixels with a value are those GDAL's mask says.
+    let counts = report["pixels_with_value"].as_array().expect("counted").iter().map(|v| v.as_u64().unwrap().to_string()).collect::<Vec<_>>().join(" ");
+    assert_eq!(said, format!("7.0 8 1 1 1 {counts}"), "{}", String::from_utf8_lossy(&out.stderr));
     // Refused in one line naming the manifest and the key, nothing written.
     with("alpha.toml", "alpha = true");
     let differing = manifest.replacen("camera = \"scans/002.toml\"", "camera = \"scans/002.toml\"\ngsd = 0.3", 1);

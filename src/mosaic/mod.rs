@@ -136,8 +136,12 @@ pub struct MosaicReport {
     pub crs: String,
     /// The plan's cell side, output pixels.
     pub cell_px: u32,
-    /// Share of the mosaic's area some image sees.
+    /// Share of the mosaic's area some image sees (of the plan's cells).
     pub coverage: f64,
+    /// Of the pixels written, how many have a value (GDAL's
+    /// `STATISTICS_VALID_PERCENT`), and of how many; none where nothing
+    /// was rendered (or pieces were taken as they were).
+    pub pixels_with_value: Option<[u64; 2]>,
     pub balance: Balance,
     pub blend_px: f64,
     pub seams: seams::SeamStats,
@@ -334,6 +338,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     let mut works: Vec<render::ImageWork> = Vec::new();
     let mut t_render = 0.0;
     let mut strips_made = 0;
+    let mut pixels_with_value = None;
     // Under occlusion: each image's pixels imaged and hidden, and the
     // mosaic's pixels no image sees.
     let mut hidden = vec![(0u64, 0u64); plan.images.len()];
@@ -378,7 +383,8 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         // into the one file, laid out as a band-by-band run's.
         let strips = column_strips(&plan, &works, &spec, window, o.memory)?;
         strips_made = strips.len();
-        pieces.render(window, &strips, &spec, (out, pending, o.sync), &mut hidden)?;
+        let stats = pieces.render(window, &strips, &spec, (out, pending, o.sync), &mut hidden)?;
+        pixels_with_value = stats.bands.first().map(|b| [b.count, stats.pixels]);
         crate::batch::write_sidecar(out, &key)?;
         if true_ortho {
             use std::sync::atomic::Ordering;
@@ -420,6 +426,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         crs: plan.crs.to_string(),
         cell_px: plan.cell,
         coverage: covered as f64 / (plan.cw * plan.ch) as f64,
+        pixels_with_value,
         balance: o.balance,
         blend_px: o.blend,
         seams: seam_stats,
@@ -602,7 +609,7 @@ impl PieceRender<'_> {
     /// The mosaic's tiles `window` into `path` (through `pending`, synced
     /// or not) as `spec` says, strip after strip of `strips`, each with its
     /// fit's renders at once and memory each; each image's pixels imaged
-    /// and hidden added to `hidden`.
+    /// and hidden added to `hidden`. Returns the statistics of its pixels.
     fn render(
         &self,
         window: Strip,
@@ -610,7 +617,7 @@ impl PieceRender<'_> {
         spec: &OutputSpec,
         (path, pending, sync): (&Path, PendingFile, bool),
         hidden: &mut [(u64, u64)],
-    ) -> Result<()> {
+    ) -> Result<crate::overview::Statistics> {
         let [tc0, tr0, tx, ty] = window;
         let works: Vec<Vec<render::ImageWork>> = strips
             .iter()
@@ -670,7 +677,7 @@ impl PieceRender<'_> {
         if cancel.is_cancelled() {
             return Err(Error::Cancelled);
         }
-        written.map(|_| ())
+        written.map(|(_, stats)| stats)
     }
 }
 
@@ -734,6 +741,7 @@ impl MosaicReport {
             crs: String::new(),
             cell_px: 0,
             coverage: 0.0,
+            pixels_with_value: None,
             balance: Balance::None,
             blend_px: 0.0,
             seams: seams::SeamStats::default(),

@@ -116,6 +116,11 @@ fn joined(reports: Vec<MosaicReport>, out: &Path, window: [u32; 4], grid: crate:
     whole.output_bytes = std::fs::metadata(out).map_or(0, |m| m.len());
     whole.pieces_reused = Some(reused);
     whole.strips = rendered.iter().map(|r| r.strips).max().unwrap_or(0);
+    // (Known where every piece was made now.)
+    whole.pixels_with_value = match reused[0] {
+        0 => rendered.iter().map(|r| r.pixels_with_value).try_fold([0, 0], |[v, n], p| p.map(|[pv, pn]| [v + pv, n + pn])),
+        _ => None,
+    };
     let unseen: Vec<Unseen> = rendered.iter().filter_map(|r| r.unseen).collect();
     whole.unseen = (!unseen.is_empty()).then(|| {
         let (c, u) = unseen.iter().fold((0, 0), |(c, u), s| (c + s.covered_px, u + s.unseen_px));

@@ -49,13 +49,14 @@ pub fn held_bytes(spec: &OutputSpec, across: u32) -> u64 {
 /// whole width), in each band after band from the top. A strip's band is
 /// its tiles one after the other, padded to whole tiles, and (under a
 /// mask) a byte a pixel saying which have a value. The file's bytes do not
-/// depend on the strips. Returns the encoder's busy time.
+/// depend on the strips. Returns the encoder's busy time and the full
+/// level's statistics.
 pub fn write_bands(
     w: &BandWriting,
     pending: PendingFile,
     strips: &[(u32, u32)],
     mut make_band: impl FnMut(usize, u32) -> Result<(Raw, Option<Vec<u8>>)>,
-) -> Result<Duration> {
+) -> Result<(Duration, crate::overview::Statistics)> {
     let spec = w.spec;
     let tile = spec.chunk().0;
     let (tx, ty) = (spec.tiles_across(), spec.tiles_down());
@@ -110,5 +111,6 @@ pub fn write_bands(
     }
     verify(pending.path(), spec)?;
     pending.publish_synced(w.sync)?;
-    Ok(busy)
+    let statistics = statistics.lock().map(|s| s.total()).unwrap_or_default();
+    Ok((busy, statistics))
 }
