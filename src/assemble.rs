@@ -374,7 +374,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
             }
         }
     }
-    writer.finish(statistics.total().gdal_metadata(source.as_deref(), spec.compression.is_lossy())).map_err(tw)?;
+    writer.finish(statistics.total().gdal_metadata(source.as_deref())).map_err(tw)?;
     verify(pending.path(), &spec)?;
     pending.publish_synced(opts.sync)
 }

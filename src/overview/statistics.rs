@@ -175,12 +175,12 @@ impl Statistics {
     /// maximum, mean, standard deviation (of the population, as GDAL's)
     /// and the share of pixels with a value, in per cent (none where a
     /// band has no pixel with a value); and `source`, what the file was
-    /// made from. `None` when it would hold nothing. Statistics of pixels
-    /// before a lossy codec are marked approximate (GDAL's
-    /// `STATISTICS_APPROXIMATE`): the decoded pixels differ by a few
-    /// levels, and GDAL recomputes such statistics when asked for exact
-    /// ones.
-    pub fn gdal_metadata(&self, source: Option<&str>, lossy: bool) -> Option<String> {
+    /// made from. `None` when it would hold nothing. Of a lossy codec's
+    /// output they are the pixels' before coding (a mean within a fraction
+    /// of a level of the decoded pixels'), not marked approximate: GDAL
+    /// (3.6) recomputes approximate ones when asked for exact ones, over
+    /// every pixel, the masked ones too.
+    pub fn gdal_metadata(&self, source: Option<&str>) -> Option<String> {
         let mut xml = String::from("<GDALMetadata>\n");
         if let Some(s) = source {
             xml += &format!("  <Item name=\"{}\">{s}</Item>\n", crate::io::geotiff::SOURCE_ITEM);
@@ -194,9 +194,6 @@ impl Statistics {
             let valid = 100.0 * n / self.pixels.max(1) as f64;
             for (name, v) in [("MAXIMUM", b.max), ("MEAN", mean), ("MINIMUM", b.min), ("STDDEV", std), ("VALID_PERCENT", valid)] {
                 xml += &format!("  <Item name=\"STATISTICS_{name}\" sample=\"{k}\">{v}</Item>\n");
-            }
-            if lossy {
-                xml += &format!("  <Item name=\"STATISTICS_APPROXIMATE\" sample=\"{k}\">YES</Item>\n");
             }
         }
         (source.is_some() || counted).then(|| xml + "</GDALMetadata>")
@@ -314,7 +311,7 @@ mod tests {
         all.add(&b);
         // Values 1, 2, 3, 6, 8 of 6 image pixels.
         assert_eq!(all.bands[0], BandStats { count: 5, int_sum: 20, int_sum_sq: 114, min: 1.0, max: 8.0, ..Default::default() });
-        let xml = all.gdal_metadata(None, false).unwrap();
+        let xml = all.gdal_metadata(None).unwrap();
         assert!(xml.contains("<Item name=\"STATISTICS_MEAN\" sample=\"0\">4</Item>"), "{xml}");
         assert!(xml.contains("<Item name=\"STATISTICS_STDDEV\" sample=\"0\">2.6076809620810595</Item>"), "{xml}");
         assert!(xml.contains("STATISTICS_VALID_PERCENT\" sample=\"0\">83.33333333333333<"), "{xml}");

@@ -50,7 +50,7 @@ pub fn write(run: &Output, out_file: std::fs::File, flush_file: std::fs::File, m
                 }
             }
             // The statistics are complete: the encoder has sent its last tile.
-            let metadata = run.statistics.lock().ok().and_then(|s| s.total().gdal_metadata(run.source, spec.compression.is_lossy()));
+            let metadata = run.statistics.lock().ok().and_then(|s| s.total().gdal_metadata(run.source));
             writer.finish(metadata).map_err(tw)?;
             Ok(())
         })();
