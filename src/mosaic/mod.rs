@@ -171,11 +171,12 @@ pub struct MosaicReport {
 /// jobs that differ are refused. An alpha band is refused (a mosaic
 /// marks its empty pixels with a mask, or `nodata = V`).
 pub(crate) fn with_manifest_settings(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> Result<MosaicOptions> {
-    fn one<T: PartialEq + Clone>(o: &MosaicOptions, key: &str, mut each: impl Iterator<Item = T>) -> Result<T> {
+    // (Compared as written: a NaN nodata is one value.)
+    fn one<T: std::fmt::Debug>(o: &MosaicOptions, key: &str, mut each: impl Iterator<Item = T>) -> Result<T> {
         let first = each.next().ok_or_else(|| Error::format(&o.manifest, "no image"))?;
-        match each.all(|v| v == first) {
+        match each.all(|v| format!("{v:?}") == format!("{first:?}")) {
             true => Ok(first),
-            false => Err(Error::config(&o.manifest, key, format!("differs between images; a mosaic has one {key}: give it in [defaults] or with --{key}"))),
+            false => Err(Error::config(&o.manifest, key, format!("differs between images; a mosaic has one {key}: give it once, in [defaults]"))),
         }
     }
     if let Some(j) = jobs.iter().find(|j| j.config.alpha) {
