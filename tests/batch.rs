@@ -220,6 +220,31 @@ fn block_of_exterior_orientations() {
     std::fs::write(d.join("scans/s01.tif"), whole).unwrap();
 }
 
+/// Two jobs that would write one file (an output, or one's record beside
+/// it) are refused before any work also where their folder is still to
+/// be made, as a first run's is.
+#[test]
+fn jobs_writing_one_file_are_refused_before_their_folder_exists() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    block(d, 2);
+    for (a, b) in [("new/x.tif", "new/x.tif"), ("new/y.tif", "new/y.tif.done"), ("new/s00.tif", "new/deeper/../s00.tif")] {
+        let jobs: String = [a, b]
+            .iter()
+            .enumerate()
+            .map(|(i, out)| format!("[[job]]\nimage = \"scans/s{i:02}.tif\"\ncamera = \"scene/camera.toml\"\noutput = \"{out}\"\n\n"))
+            .collect();
+        std::fs::write(d.join("manifest.toml"), format!("[defaults]\ndem = \"scene/dem.tif\"\n\n{jobs}")).unwrap();
+        for args in [&["--dry-run"][..], &[]] {
+            let o = batch(d, args);
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(2), "{a} {b} {args:?}: {err}");
+            assert!(err.contains("are one file"), "{err}");
+            assert!(!d.join("new").exists(), "{a} {b}: work was done");
+        }
+    }
+}
+
 #[test]
 fn a_broken_manifest_lists_every_problem_with_lines() {
     let dir = tempfile::tempdir().unwrap();

@@ -35,12 +35,23 @@ fn identity(path: &Path) -> Option<Identity> {
     if let Ok(m) = std::fs::metadata(path) {
         return Some(Identity::Inode(m.dev(), m.ino()));
     }
-    let name = path.file_name()?;
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    Some(Identity::Planned(std::fs::canonicalize(dir).ok()?.join(name)))
+    path.file_name()?;
+    // The nearest folder that exists, by its real path, and the rest as
+    // spelt (folders a batch makes on its way: `out/x.tif` twice is one
+    // file before `out` exists too).
+    let abs = std::path::absolute(path).ok()?;
+    let base = abs.ancestors().skip(1).find(|a| a.is_dir())?;
+    let mut planned = std::fs::canonicalize(base).ok()?;
+    for part in abs.strip_prefix(base).ok()?.components() {
+        match part {
+            std::path::Component::ParentDir => {
+                planned.pop();
+            }
+            std::path::Component::Normal(p) => planned.push(p),
+            _ => {}
+        }
+    }
+    Some(Identity::Planned(planned))
 }
 
 /// The real path of the folder `path` is in.
@@ -132,6 +143,23 @@ mod tests {
         check_outputs(&inputs, &[Role::new("output", &a)]).unwrap();
         let e = check_outputs(&inputs, &[Role::new("output", &a), Role::new("report", &b)]).unwrap_err().to_string();
         assert!(e.contains("are one file"), "{e}");
+    }
+
+    /// Outputs in folders still to be made (a batch's `output_dir`) are
+    /// told apart by their paths from the nearest folder that exists.
+    #[test]
+    fn outputs_in_folders_still_to_be_made_are_compared_too() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let inputs: [Role; 0] = [];
+        for (a, b) in [("out/x.tif", "out/x.tif"), ("out/x.tif", "out/deeper/../x.tif"), ("a/b/x.tif", "a/./b/x.tif")] {
+            let (a, b) = (d.join(a), d.join(b));
+            let e = check_outputs(&inputs, &[Role::new("output", &a), Role::new("output", &b)]).unwrap_err().to_string();
+            assert!(e.contains("are one file"), "{e}");
+        }
+        check_outputs(&inputs, &[Role::new("output", &d.join("out/x.tif")), Role::new("output", &d.join("out/y.tif"))]).unwrap();
+        check_outputs(&inputs, &[Role::new("output", &d.join("out/x.tif")), Role::new("output", &d.join("other/x.tif"))]).unwrap();
+        assert!(!d.join("out").exists(), "the check made a folder");
     }
 
     #[test]
