@@ -485,6 +485,11 @@ pub struct RectifyOptions {
     pub threads: usize,
     /// Memory budget, bytes.
     pub memory: u64,
+    /// The budget the geometry's choices are made for, where not `memory`
+    /// (a mosaic's images get shares that differ from window to window;
+    /// their node spacing must not, or pieces would differ from the whole).
+    #[serde(skip)]
+    pub geometry_memory: Option<u64>,
     /// The most output pixels the run may make; `None`: 16 times the
     /// scan's pixels (at least 2²⁸), which a GSD or bounds typo passes.
     pub max_output_pixels: Option<u64>,
@@ -686,6 +691,7 @@ impl RectifyOptions {
             alpha: false,
             threads: 0,
             memory: 128 << 20,
+            geometry_memory: None,
             max_output_pixels: None,
             sync: true,
         }

@@ -485,6 +485,33 @@ fn shards_of_one_plan_assemble_into_the_single_run_byte_for_byte() {
     assert!(!d.join("x.tif").exists());
 }
 
+/// Output pixels finer than the scans': the images' outputs are larger
+/// than their shares of the memory plan nodes for at every spacing, and
+/// the shares differ from window to window; the node spacing does not,
+/// so pieces and a resumed run are still the single run's bytes.
+#[test]
+fn a_mosaic_finer_than_its_scans_by_pieces_is_the_single_runs_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    mosaic(d, &["-o", "whole.tif", "--gsd", "0.2"]);
+    mosaic(d, &["-o", "resumed.tif", "--gsd", "0.2", "--resume-dir", "rd"]);
+    assert!(std::fs::read(d.join("whole.tif")).unwrap() == std::fs::read(d.join("resumed.tif")).unwrap(), "the resumed mosaic differs from the single run");
+    mosaic(d, &["--plan-out", "plan.json", "--gsd", "0.2"]);
+    let info = gcm_ortho::io::source::SourceImage::open(&d.join("whole.tif"), 1 << 20).unwrap().info;
+    let t = info.chunk.0;
+    let (ta, td) = (info.width.div_ceil(t), info.height.div_ceil(t));
+    let mut a = vec!["assemble".to_string(), "-o".into(), "joined.tif".into()];
+    for (k, r0) in (0..td).step_by(3).enumerate() {
+        let name = format!("piece{k}.tif");
+        mosaic(d, &["--plan", "plan.json", "--gsd", "0.2", "--window", &format!("0,{r0},{ta},{}", 3.min(td - r0)), "-o", &name]);
+        a.push(name);
+    }
+    let out = std::process::Command::new(bin()).current_dir(d).args(&a).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(std::fs::read(d.join("whole.tif")).unwrap() == std::fs::read(d.join("joined.tif")).unwrap(), "the assembled pieces differ from the single run");
+}
+
 #[test]
 fn a_restarted_shard_leaves_its_finished_piece_and_redoes_a_changed_one() {
     let tmp = tempfile::tempdir().unwrap();

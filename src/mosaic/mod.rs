@@ -626,6 +626,7 @@ impl PieceRender<'_> {
                 let mut works = within(self.works, strip);
                 for w in &mut works {
                     w.opts.memory = share;
+                    w.opts.geometry_memory = Some(render::least_share(spec));
                 }
                 works
             })

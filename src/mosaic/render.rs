@@ -185,6 +185,15 @@ const MIN_SHARE: u64 = 24 << 20;
 /// its threads' stacks (about 1 MiB measured on 2000² frames).
 const IDLE_IMAGE: u64 = 1 << 20;
 
+/// The least memory an image's render is given: [`MIN_SHARE`], or what
+/// its tiles in flight take as `rectify`'s do (the manifest's `tile` may
+/// be large). Its geometry is planned for this much whatever it gets, so
+/// that every window and strip makes the same choices.
+pub fn least_share(spec: &OutputSpec) -> u64 {
+    let tile = spec.chunk().0 as u64;
+    MIN_SHARE.max(crate::pipeline::tiles_memory(spec.tile_bytes() as u64 + tile * tile, u64::MAX))
+}
+
 /// The render's memory for the mosaic bands `b0..b0 + n` of `spec`, in a
 /// strip `across` tile columns wide: the writer's bands in flight and
 /// unfinished overview tiles; the plan's arrays and DEMs; the images'
@@ -207,9 +216,7 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, across: u32, 
     let most = (b0..b0 + n).map(alive).max().unwrap_or(1).max(1);
     let fixed = band_bytes + plan_bytes + held + most as u64 * IDLE_IMAGE;
     let room = memory.saturating_sub(fixed);
-    // An image's render holds its tiles in flight as `rectify` does (the
-    // manifest's `tile` may be large).
-    let min_share = MIN_SHARE.max(crate::pipeline::tiles_memory(image_tile, u64::MAX));
+    let min_share = least_share(spec);
     if room < min_share {
         // The figure that does: more memory lets the plan hold more of its
         // DEMs (a share of the budget each, up to the whole) and take

@@ -321,7 +321,8 @@ impl RunPlan {
             // Fine node spacing on a wide output: the node rows of the bands
             // in flight would outgrow their share of the budget; the error
             // bound's refinement then does the DEM lines' work instead.
-            if budget.node_rows(gcm.k, opts.tile, grid.width.max(grid.height), 100) > budget.node_share() {
+            let geometry = opts.geometry_memory.map_or(budget, MemoryBudget::new);
+            if geometry.node_rows(gcm.k, opts.tile, grid.width.max(grid.height), 100) > geometry.node_share() {
                 gcm.k = 16;
             }
         }
