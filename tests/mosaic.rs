@@ -163,6 +163,14 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
         assert!(!d.join("out.tif").exists() && !d.join("kept.tif").exists());
     }
     assert_eq!(std::fs::read(d.join("kept.tif.done")).unwrap(), b"a file of the user's");
+    // Into a folder that is not there: one line naming it, exit 2.
+    for args in [&["-o", "nowhere/out.tif"][..], &["-o", "out.tif", "--seamlines-out", "nowhere/s.geojson"], &["--plan-out", "nowhere/p.json"]] {
+        let out = std::process::Command::new(bin()).current_dir(d).args([&["mosaic", "manifest.toml", "--quiet"][..], args].concat()).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("the folder nowhere does not exist") && err.trim().lines().count() == 1, "{args:?}: {err}");
+        assert!(!d.join("out.tif").exists());
+    }
     assert_eq!(std::fs::read(d.join("scans/002.tif")).unwrap(), before);
     assert_eq!(std::fs::read(d.join("scans/001.toml")).unwrap(), camera);
     // A missing scan: one line naming it, nothing at the output path.
@@ -317,7 +325,7 @@ fn the_manifests_grid_and_nodata_are_the_mosaics() {
     with("seven.toml", "nodata = 7");
     let out = run_with("seven.toml", &["-o", "seven.tif"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let compare = "from osgeo import gdal\nimport numpy as np\np = gdal.Open('plain.tif'); q = gdal.Open('seven.tif')\na = p.ReadAsArray(); m = p.GetRasterBand(1).GetMaskBand().ReadAsArray() > 0; b = q.ReadAsArray()\nprint(q.GetRasterBand(1).GetNoDataValue(), q.GetRasterBand(1).GetMaskFlags(), int((~m).sum() > 0), int((a[:, m] == b[:, m]).all()), int((b[:, ~m] == 7).all()), int(m.sum()), m.size)\n";
+    let compare = "from osgeo import gdal\nimport numpy as np\np = gdal.Open('plain.tif'); q = gdal.Open('seven.tif')\na = p.ReadAsArray(); m = p.GetRasterBand(1).GetMaskBand().ReadAsArray() > 0; b = q.ReadAsArray()\nfor k in range(3):\n    band = q.GetRasterBand(k + 1); v = b[k][band.GetMaskBand().ReadAsArray() > 0]; md = band.GetMetadata()\n    assert abs(float(md['STATISTICS_VALID_PERCENT']) - 100.0 * v.size / b[k].size) < 1e-9 and float(md['STATISTICS_MINIMUM']) == v.min(), (k, md, v.size, v.min())\nprint(q.GetRasterBand(1).GetNoDataValue(), q.GetRasterBand(1).GetMaskFlags(), int((~m).sum() > 0), int((a[:, m] == b[:, m]).all()), int((b[:, ~m] == 7).all()), int(m.sum()), m.size)\n";
     let out = std::process::Command::new(python).current_dir(d).args(["-c", compare]).output().unwrap();
     let said = String::from_utf8_lossy(&out.stdout).trim().to_string();
     // The report's pixels with a value are those GDAL's mask says.

@@ -21,7 +21,7 @@ use crate::assemble::AssembleOptions;
 use crate::error::{Error, Result};
 use crate::geodesy::Crs;
 use crate::geom::Gsd;
-use crate::io::overwrite::{check_outputs, Role};
+use crate::io::overwrite::{check_outputs, check_writable, Role};
 use crate::io::tiff_out::{Chunking, Compression, GeoTags, OutputSpec, PendingFile};
 use crate::options::{BigTiff, Nodata, Occlusion, Overviews, RectifyOptions};
 use crate::pipeline::band_writer::{write_bands, BandWriting};
@@ -225,6 +225,9 @@ pub(crate) fn check_mosaic_outputs(o: &MosaicOptions, jobs: &[crate::batch::mani
         if let Some(p) = path {
             outs.push(Role::new(what, p));
         }
+    }
+    for out in &outs {
+        check_writable(*out)?;
     }
     outs.extend(records.iter().map(|p| Role::new("record of a finished output", p)));
     check_outputs(&ins, &outs)

@@ -122,6 +122,21 @@ impl Statistics {
                 for (k, s) in sample.iter_mut().enumerate() {
                     *s = sample_at(&p[k * lay.sample.bytes()..], lay.sample);
                 }
+                // A nodata value is each band's own, as GDAL reads it: a
+                // band's sample that holds it is not counted in that band.
+                let own = match by {
+                    ValidBy::Nodata(v) => Some(v),
+                    ValidBy::Nan => Some(f64::NAN),
+                    _ => None,
+                };
+                if let Some(v) = own {
+                    for (st, &s) in bands.iter_mut().zip(&sample) {
+                        if s != v && !s.is_nan() {
+                            st.push(s, lay.sample);
+                        }
+                    }
+                    continue;
+                }
                 if !by.has_value(sample.iter().copied(), valid.map(|v| v[i])) {
                     continue;
                 }

@@ -61,10 +61,13 @@ pub fn tiles(run: &Output, made: Made, free: &crossbeam_channel::Sender<Raw>, bu
     let mask = |k: usize| valid_of(k).filter(|_| spec.mask).map(|v| encode_mask(spec, v).map(Tile::Owned));
     let pyramid = run.pyramid.map(|p| p.lock().expect("the encoder's alone"));
     // The tile's quarter for the overview, and its statistics.
+    // Without a mask, a pixel has a value as GDAL reads it: by the nodata
+    // value (an image's own pixel of that value is a hole to GDAL too).
+    let read_as = |k: usize| valid_of(k).filter(|_| spec.mask);
     let summary = |k: usize, bytes: &[u8]| {
         let tile = &bytes[k * tb..(k + 1) * tb];
-        let stats = Statistics::of_output_tile(spec, run.valid_by, tile, valid_of(k), spec.tile_extent(0, at(k)));
-        (pyramid.as_ref().map(|p| p.reduce(0, at(k), tile, valid_of(k))), stats)
+        let stats = Statistics::of_output_tile(spec, run.valid_by, tile, read_as(k), spec.tile_extent(0, at(k)));
+        (pyramid.as_ref().map(|p| p.reduce(0, at(k), tile, read_as(k))), stats)
     };
     // A tile's quarter for the overview and its statistics.
     type Summary = (Option<Quarter>, Statistics);
