@@ -245,7 +245,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
     }
     if !a.quiet {
         eprintln!(
-            "{}: {}×{} px at {} from {} images; {}; seams {:.0} m; plan {:.1} s, seams {:.1} s, render {:.1} s",
+            "{}: {}×{} px at {} from {} images; {}; seams {} px long; plan {:.1} s, seams {:.1} s, render {:.1} s",
             report.output.as_deref().or(a.plan_out.as_deref()).unwrap_or(Path::new("")).display(),
             report.width,
             report.height,
@@ -256,7 +256,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
                 Some([v, n]) => format!("{:.1} % of its pixels have a value", 100.0 * v as f64 / n.max(1) as f64),
                 None => format!("{:.0} % of it seen by some image", report.coverage * 100.0),
             },
-            report.seam_length,
+            report.seam_length_px,
             report.seconds.plan,
             report.seconds.seams,
             report.seconds.render

@@ -145,8 +145,11 @@ pub struct MosaicReport {
     pub balance: Balance,
     pub blend_px: f64,
     pub seams: seams::SeamStats,
-    /// Total length of the seamlines, ground units.
+    /// Total length of the seamlines, ground units (of the CRS: degrees
+    /// in a geographic one).
     pub seam_length: f64,
+    /// The same in output pixels, whatever the CRS.
+    pub seam_length_px: u64,
     /// What honouring edited seamlines (`--seamlines`) changed, where given.
     pub edited_seams: Option<seamlines::EditedSeams>,
     pub images: Vec<ImageReport>,
@@ -435,6 +438,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         blend_px: o.blend,
         seams: seam_stats,
         seam_length: seam_cells as f64 * plan.cell_metres(),
+        seam_length_px: seam_cells as u64 * plan.cell as u64,
         edited_seams,
         images,
         unseen,
@@ -751,6 +755,7 @@ impl MosaicReport {
             blend_px: 0.0,
             seams: seams::SeamStats::default(),
             seam_length: 0.0,
+            seam_length_px: 0,
             edited_seams: None,
             images: Vec::new(),
             unseen: None,
