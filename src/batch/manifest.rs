@@ -294,7 +294,7 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
             Ok(c) => c,
             Err(e) => {
                 problems.push(e);
-                RectifyOptions::new(image, camera, DemSource::Height(0.0), PathBuf::from(format!("{name}.tif")))
+                RectifyOptions::new(image, camera, DemSource::Height(0.0), output_of(&name, output.clone(), &opts, &rel))
             }
         };
         let problem = (!problems.is_empty()).then(|| format!("{}: {}", at(line), problems.join("; ")));
@@ -356,6 +356,17 @@ struct Entry {
     line: usize,
 }
 
+/// Where a job's orthophoto goes: as the job says, or named after the
+/// image in `output_dir` or the manifest's folder.
+fn output_of(name: &str, output: Option<PathBuf>, o: &Options, rel: &dyn Fn(&str) -> PathBuf) -> PathBuf {
+    match (output, &o.output_dir) {
+        (Some(p), _) => p,
+        // A name with folders (two images of one name) as one file name.
+        (None, Some(dir)) => rel(dir).join(format!("{}.tif", name.replace('/', "_"))),
+        (None, None) => rel(&format!("{}.ortho.tif", name.replace('/', "_"))),
+    }
+}
+
 fn config(
     name: &str,
     image: PathBuf,
@@ -377,12 +388,7 @@ fn config(
         (Some(_), Some(_)) => return Err("give dem or height, not both".into()),
         _ => return Err("no dem and no height".into()),
     };
-    let output = match (output, &o.output_dir) {
-        (Some(p), _) => p,
-        // A name with folders (two images of one name) as one file name.
-        (None, Some(dir)) => rel(dir).join(format!("{}.tif", name.replace('/', "_"))),
-        (None, None) => rel(&format!("{}.ortho.tif", name.replace('/', "_"))),
-    };
+    let output = output_of(name, output, o, rel);
     let mut c = RectifyOptions::new(image, camera, dem, output);
     c.model = inline.map_or(ModelSource::CameraFile, ModelSource::Inline);
     let mut settings = || -> crate::Result<()> {

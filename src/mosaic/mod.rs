@@ -182,11 +182,13 @@ pub(crate) fn with_manifest_settings(o: &MosaicOptions, jobs: &[crate::batch::ma
             false => Err(Error::config(&o.manifest, key, format!("differs between images; a mosaic has one {key}: give it once, in [defaults]"))),
         }
     }
-    if let Some(j) = jobs.iter().find(|j| j.config.alpha) {
+    let alpha: Vec<&str> = jobs.iter().filter(|j| j.config.alpha).map(|j| j.name.as_str()).collect();
+    if !alpha.is_empty() {
+        let whose = if alpha.len() == jobs.len() { "every job (in [defaults]?)".to_string() } else { format!("job {}", alpha.join(", ")) };
         return Err(Error::config(
             &o.manifest,
             "alpha",
-            format!("job {}: a mosaic marks pixels without a value with an internal mask (or nodata = V); drop alpha", j.name),
+            format!("{whose}: a mosaic marks pixels without a value with an internal mask (or nodata = V); drop alpha"),
         ));
     }
     one(o, "nodata", jobs.iter().map(|j| j.config.nodata))?;
