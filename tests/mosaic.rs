@@ -336,11 +336,12 @@ fn the_manifests_grid_and_nodata_are_the_mosaics() {
     let differing = manifest.replacen("camera = \"scans/002.toml\"", "camera = \"scans/002.toml\"\ngsd = 0.3", 1);
     assert_ne!(differing, manifest);
     std::fs::write(d.join("differ.toml"), differing).unwrap();
-    for (m, key) in [("alpha.toml", "alpha"), ("differ.toml", "gsd")] {
+    with("nowhere.toml", "bounds = [0, 0, 100, 100]");
+    for (m, key) in [("alpha.toml", "alpha"), ("differ.toml", "gsd"), ("nowhere.toml", "bounds")] {
         let out = run_with(m, &["-o", "refused.tif"]);
         let err = String::from_utf8_lossy(&out.stderr);
         assert_ne!(out.status.code(), Some(0), "{m}");
-        assert!(err.contains(m) && err.contains(&format!("{key}:")) && err.trim().lines().count() == 1, "{err}");
+        assert!(err.contains(m) && err.contains(&format!("{key}:")) && !err.contains("--") && err.trim().lines().count() == 1, "{err}");
         assert!(!d.join("refused.tif").exists());
     }
 }

@@ -256,201 +256,233 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     if o.output.is_none() && o.plan_out.is_none() {
         return Err(Error::Usage("mosaic: give -o (the mosaic or a piece) or --plan-out (the plan)".into()));
     }
+    let given = o;
     let o = &with_manifest_settings(o, &jobs)?;
-    check_mosaic_outputs(o, &jobs)?;
-    // A rerun (a restarted shard) leaves a current output as it is.
-    let key = run_key(o, &jobs);
-    let source = source_key(o, &jobs);
-    if let (Some(out), None, false) = (&o.output, &o.plan_out, o.force) {
-        if crate::batch::output_is_current(out, &key) {
-            return Ok(MosaicReport::skipped(out));
+    // Errors of a setting the manifest gave name it there, not as a flag.
+    let from_manifest = |e: Error| match e {
+        Error::Setting { setting, msg } if manifest_gave(given, o, setting) => Error::config(&o.manifest, setting, msg),
+        e => e,
+    };
+    (|| -> Result<MosaicReport> {
+        check_mosaic_outputs(o, &jobs)?;
+        // A rerun (a restarted shard) leaves a current output as it is.
+        let key = run_key(o, &jobs);
+        let source = source_key(o, &jobs);
+        if let (Some(out), None, false) = (&o.output, &o.plan_out, o.force) {
+            if crate::batch::output_is_current(out, &key) {
+                return Ok(MosaicReport::skipped(out));
+            }
         }
-    }
-    let pending = o.output.as_deref().map(PendingFile::create).transpose()?;
-    let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;
+        let pending = o.output.as_deref().map(PendingFile::create).transpose()?;
+        let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;
 
-    // A shard that takes a plan needs only where each image sees.
-    let like = o.like.as_deref().map(crate::pipeline::reference_grid).transpose()?;
-    let crs = match (&o.crs, &like) {
-        (Some(c), Some((_, l))) if c != l => {
-            let path = o.like.as_deref().unwrap_or(Path::new("")).display();
-            return Err(Error::setting("crs", format!("{c}, but the reference grid {path} is in {l}: give one of the two")));
+        // A shard that takes a plan needs only where each image sees.
+        let like = o.like.as_deref().map(crate::pipeline::reference_grid).transpose()?;
+        let crs = match (&o.crs, &like) {
+            (Some(c), Some((_, l))) if c != l => {
+                let path = o.like.as_deref().unwrap_or(Path::new("")).display();
+                return Err(Error::setting("crs", format!("{c}, but the reference grid {path} is in {l}: give one of the two")));
+            }
+            (Some(c), _) => Some(c.clone()),
+            (None, l) => l.as_ref().map(|(_, c)| c.clone()),
+        };
+        let cell = o.plan_in.as_deref().map(plan_file::cell_of).transpose()?;
+        let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs, grid: like.map(|(g, _)| g), memory: o.memory, cell, thumbnails: o.plan_in.is_none() };
+        let mut plan = Plan::make(jobs.into_iter().map(|j| (j.name, j.config)).collect(), &settings, progress)?;
+        let t_plan = wall.elapsed().as_secs_f64();
+        if cancel.is_cancelled() {
+            return Err(Error::Cancelled);
         }
-        (Some(c), _) => Some(c.clone()),
-        (None, l) => l.as_ref().map(|(_, c)| c.clone()),
-    };
-    let cell = o.plan_in.as_deref().map(plan_file::cell_of).transpose()?;
-    let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs, grid: like.map(|(g, _)| g), memory: o.memory, cell, thumbnails: o.plan_in.is_none() };
-    let mut plan = Plan::make(jobs.into_iter().map(|j| (j.name, j.config)).collect(), &settings, progress)?;
-    let t_plan = wall.elapsed().as_secs_f64();
-    if cancel.is_cancelled() {
-        return Err(Error::Cancelled);
-    }
-    let t = Instant::now();
-    let from_plan = o.plan_in.as_deref().map(|p| plan_file::read(&mut plan, p)).transpose()?;
-    let corrections = match &from_plan {
-        Some(c) => c.clone(),
-        None => balance::solve(&plan, o.balance),
-    };
-    let t_balance = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let edges = seams::height_edges(&plan);
-    // The corridor: a sixth of the images' median footprint side.
-    let corridor = {
-        let mut sides: Vec<usize> = plan.images.iter().map(|i| (i.cells[2] - i.cells[0]).min(i.cells[3] - i.cells[1])).collect();
-        sides.sort_unstable();
-        (sides[sides.len() / 2] / 6).clamp(4, 256)
-    };
-    let (seam_stats, edited_seams) = match &o.seamlines_in {
-        // The plan's seams are taken as they are.
-        _ if from_plan.is_some() => (seams::SeamStats::default(), None),
-        Some(path) => {
-            let edited = seamlines::read(&mut plan, path)?;
-            if edited.cells_kept > 0 || edited.cells_overlapping > 0 {
-                progress.warn(&format!(
+        let t = Instant::now();
+        let from_plan = o.plan_in.as_deref().map(|p| plan_file::read(&mut plan, p)).transpose()?;
+        let corrections = match &from_plan {
+            Some(c) => c.clone(),
+            None => balance::solve(&plan, o.balance),
+        };
+        let t_balance = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let edges = seams::height_edges(&plan);
+        // The corridor: a sixth of the images' median footprint side.
+        let corridor = {
+            let mut sides: Vec<usize> = plan.images.iter().map(|i| (i.cells[2] - i.cells[0]).min(i.cells[3] - i.cells[1])).collect();
+            sides.sort_unstable();
+            (sides[sides.len() / 2] / 6).clamp(4, 256)
+        };
+        let (seam_stats, edited_seams) = match &o.seamlines_in {
+            // The plan's seams are taken as they are.
+            _ if from_plan.is_some() => (seams::SeamStats::default(), None),
+            Some(path) => {
+                let edited = seamlines::read(&mut plan, path)?;
+                if edited.cells_kept > 0 || edited.cells_overlapping > 0 {
+                    progress.warn(&format!(
                     "{}: {} cells kept their planned image (given to an image that does not see them, or to none), {} lay in two features (the first one's)",
                     path.display(),
                     edited.cells_kept,
                     edited.cells_overlapping
                 ));
+                }
+                (seams::SeamStats::default(), Some(edited))
             }
-            (seams::SeamStats::default(), Some(edited))
+            None if o.least_cost => (seams::refine(&mut plan, &corrections, corridor, &edges), None),
+            None => (seams::SeamStats::default(), None),
+        };
+        let t_seams = t.elapsed().as_secs_f64();
+        if let Some(path) = &o.seamlines_out {
+            seamlines::write(&plan, path)?;
         }
-        None if o.least_cost => (seams::refine(&mut plan, &corrections, corridor, &edges), None),
-        None => (seams::SeamStats::default(), None),
-    };
-    let t_seams = t.elapsed().as_secs_f64();
-    if let Some(path) = &o.seamlines_out {
-        seamlines::write(&plan, path)?;
-    }
-    if let Some(path) = &o.plan_out {
-        plan_file::write(&plan, &corrections, path)?;
-    }
-    // The thumbnails are done with (balance and seams): dropped before the
-    // weights are worked out, so that the two are never held together.
-    plan.images.iter_mut().for_each(PlanImage::forget_values);
-    let weights = weights::Weights::new(&plan, o.blend, &edges);
-    let grid = plan.grid;
-    let (tx_all, ty_all) = (grid.width.div_ceil(first.tile), grid.height.div_ceil(first.tile));
-    let window = o.window.unwrap_or([0, 0, tx_all, ty_all]);
-    let [tc0, tr0, tcw, trh] = window;
-    if tcw == 0 || trh == 0 || tc0 + tcw > tx_all || tr0 + trh > ty_all {
-        return Err(Error::setting("window", format!("{tc0},{tr0},{tcw},{trh} is not inside the mosaic's {tx_all}×{ty_all} tiles")));
-    }
-
-    // The output: the first job's format settings, the plan's grid.
-    let tile = first.tile;
-    let layout = (o.overviews.unwrap_or(first.overviews), o.cog.unwrap_or(first.cog));
-    let spec = piece_spec(&plan, &first, window, layout, o.compress)?;
-
-    // The render (none when only the plan is asked for).
-    let mut works: Vec<render::ImageWork> = Vec::new();
-    let mut t_render = 0.0;
-    let mut strips_made = 0;
-    let mut pixels_with_value = None;
-    // Under occlusion: each image's pixels imaged and hidden, and the
-    // mosaic's pixels no image sees.
-    let mut hidden = vec![(0u64, 0u64); plan.images.len()];
-    let mut unseen = None;
-    if let (Some(out), Some(pending)) = (o.output.as_deref(), pending) {
-        let threads = match o.threads {
-            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
-            n => n,
-        };
-        let opts_of = |i: usize| {
-            let own = &plan.images[i].opts;
-            RectifyOptions { threads, sync: false, occlusion: o.occlusion.unwrap_or(own.occlusion), ..own.clone() }
-        };
-        let true_ortho = (0..plan.images.len()).any(|i| opts_of(i).occlusion != Occlusion::None);
-        // Where an image may not see the ground, every image that sees the
-        // cell is made there, so that another can fill what it hides.
-        let prone = true_ortho.then(|| render::occlusion_prone(&plan));
-        works = within(&render::work(&plan, &weights, tile, prone.as_deref(), opts_of), window);
-
-        let t = Instant::now();
-        let (fill, _) = fill_of(plan.images[0].sample, first.nodata)?;
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| Error::setting("threads", e.to_string()))?;
-        let compose = render::Compose {
-            plan: &plan,
-            weights: &weights,
-            corrections: &corrections,
-            tile,
-            bands: plan.images[0].bands as usize,
-            fill,
-            unseen: Default::default(),
-            covered: Default::default(),
-        };
-        // A piece also names the whole it is a piece of.
-        let piece_source = match o.window {
-            Some(_) => crate::io::geotiff::piece_source(&source, &plan.grid, &crate::assemble::layout_record(layout.0, first.overview_resampling, layout.1)),
-            None => source.clone(),
-        };
-        let pieces =
-            PieceRender { plan: &plan, compose: &compose, works: &works, threads, pool: &pool, fill, first: &first, progress, cancel, source: &piece_source };
-        // Strips of tile columns, as wide as the memory holds (one, the
-        // whole width, where it holds that), each band of each made in turn
-        // into the one file, laid out as a band-by-band run's.
-        let strips = column_strips(&plan, &works, &spec, window, o.memory)?;
-        strips_made = strips.len();
-        let stats = pieces.render(window, &strips, &spec, (out, pending, o.sync), &mut hidden)?;
-        pixels_with_value = stats.bands.first().map(|b| [b.count, stats.pixels]);
-        crate::batch::write_sidecar(out, &key)?;
-        if true_ortho {
-            use std::sync::atomic::Ordering;
-            unseen = Some(Unseen::new(compose.covered.load(Ordering::Relaxed), compose.unseen.load(Ordering::Relaxed), grid.gsd));
+        if let Some(path) = &o.plan_out {
+            plan_file::write(&plan, &corrections, path)?;
         }
-        t_render = t.elapsed().as_secs_f64();
+        // The thumbnails are done with (balance and seams): dropped before the
+        // weights are worked out, so that the two are never held together.
+        plan.images.iter_mut().for_each(PlanImage::forget_values);
+        let weights = weights::Weights::new(&plan, o.blend, &edges);
+        let grid = plan.grid;
+        let (tx_all, ty_all) = (grid.width.div_ceil(first.tile), grid.height.div_ceil(first.tile));
+        let window = o.window.unwrap_or([0, 0, tx_all, ty_all]);
+        let [tc0, tr0, tcw, trh] = window;
+        if tcw == 0 || trh == 0 || tc0 + tcw > tx_all || tr0 + trh > ty_all {
+            return Err(Error::setting("window", format!("{tc0},{tr0},{tcw},{trh} is not inside the mosaic's {tx_all}×{ty_all} tiles")));
+        }
+
+        // The output: the first job's format settings, the plan's grid.
+        let tile = first.tile;
+        let layout = (o.overviews.unwrap_or(first.overviews), o.cog.unwrap_or(first.cog));
+        let spec = piece_spec(&plan, &first, window, layout, o.compress)?;
+
+        // The render (none when only the plan is asked for).
+        let mut works: Vec<render::ImageWork> = Vec::new();
+        let mut t_render = 0.0;
+        let mut strips_made = 0;
+        let mut pixels_with_value = None;
+        // Under occlusion: each image's pixels imaged and hidden, and the
+        // mosaic's pixels no image sees.
+        let mut hidden = vec![(0u64, 0u64); plan.images.len()];
+        let mut unseen = None;
+        if let (Some(out), Some(pending)) = (o.output.as_deref(), pending) {
+            let threads = match o.threads {
+                0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+                n => n,
+            };
+            let opts_of = |i: usize| {
+                let own = &plan.images[i].opts;
+                RectifyOptions { threads, sync: false, occlusion: o.occlusion.unwrap_or(own.occlusion), ..own.clone() }
+            };
+            let true_ortho = (0..plan.images.len()).any(|i| opts_of(i).occlusion != Occlusion::None);
+            // Where an image may not see the ground, every image that sees the
+            // cell is made there, so that another can fill what it hides.
+            let prone = true_ortho.then(|| render::occlusion_prone(&plan));
+            works = within(&render::work(&plan, &weights, tile, prone.as_deref(), opts_of), window);
+
+            let t = Instant::now();
+            let (fill, _) = fill_of(plan.images[0].sample, first.nodata)?;
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| Error::setting("threads", e.to_string()))?;
+            let compose = render::Compose {
+                plan: &plan,
+                weights: &weights,
+                corrections: &corrections,
+                tile,
+                bands: plan.images[0].bands as usize,
+                fill,
+                unseen: Default::default(),
+                covered: Default::default(),
+            };
+            // A piece also names the whole it is a piece of.
+            let piece_source = match o.window {
+                Some(_) => {
+                    crate::io::geotiff::piece_source(&source, &plan.grid, &crate::assemble::layout_record(layout.0, first.overview_resampling, layout.1))
+                }
+                None => source.clone(),
+            };
+            let pieces = PieceRender {
+                plan: &plan,
+                compose: &compose,
+                works: &works,
+                threads,
+                pool: &pool,
+                fill,
+                first: &first,
+                progress,
+                cancel,
+                source: &piece_source,
+            };
+            // Strips of tile columns, as wide as the memory holds (one, the
+            // whole width, where it holds that), each band of each made in turn
+            // into the one file, laid out as a band-by-band run's.
+            let strips = column_strips(&plan, &works, &spec, window, o.memory)?;
+            strips_made = strips.len();
+            let stats = pieces.render(window, &strips, &spec, (out, pending, o.sync), &mut hidden)?;
+            pixels_with_value = stats.bands.first().map(|b| [b.count, stats.pixels]);
+            crate::batch::write_sidecar(out, &key)?;
+            if true_ortho {
+                use std::sync::atomic::Ordering;
+                unseen = Some(Unseen::new(compose.covered.load(Ordering::Relaxed), compose.unseen.load(Ordering::Relaxed), grid.gsd));
+            }
+            t_render = t.elapsed().as_secs_f64();
+        }
+        // The report.
+        let covered = plan.label.iter().filter(|&&l| l != NONE).count();
+        let images = plan
+            .images
+            .iter()
+            .enumerate()
+            .map(|(k, im)| ImageReport {
+                name: im.name.clone(),
+                image: im.opts.image.clone(),
+                share: plan.label.iter().filter(|&&l| l == k as u16).count() as f64 / covered.max(1) as f64,
+                correction: corrections[k].clone(),
+                grid: works.iter().find(|w| w.image == k).map(|w| w.grid),
+                hidden_share: unseen.is_some().then(|| hidden[k].1 as f64 / hidden[k].0.max(1) as f64),
+            })
+            .collect();
+        let seam_cells = (0..plan.cw * plan.ch)
+            .map(|k| {
+                let (x, y) = (k % plan.cw, k / plan.cw);
+                let l = plan.label[k];
+                let right = x + 1 < plan.cw && l != NONE && plan.label[k + 1] != NONE && plan.label[k + 1] != l;
+                let down = y + 1 < plan.ch && l != NONE && plan.label[k + plan.cw] != NONE && plan.label[k + plan.cw] != l;
+                usize::from(right) + usize::from(down)
+            })
+            .sum::<usize>();
+        Ok(MosaicReport {
+            output: o.output.clone(),
+            skipped: false,
+            window,
+            width: grid.width,
+            height: grid.height,
+            gsd: grid.gsd,
+            crs: plan.crs.to_string(),
+            cell_px: plan.cell,
+            coverage: covered as f64 / (plan.cw * plan.ch) as f64,
+            pixels_with_value,
+            balance: o.balance,
+            blend_px: o.blend,
+            seams: seam_stats,
+            seam_length: seam_cells as f64 * plan.cell_metres(),
+            seam_length_px: seam_cells as u64 * plan.cell as u64,
+            edited_seams,
+            images,
+            unseen,
+            seconds: PhaseSeconds { plan: t_plan, balance: t_balance, seams: t_seams, render: t_render },
+            wall_seconds: wall.elapsed().as_secs_f64(),
+            peak_rss_mib: crate::pipeline::peak_rss_mib(),
+            output_bytes: o.output.as_deref().and_then(|p| std::fs::metadata(p).ok()).map_or(0, |m| m.len()),
+            pieces_reused: None,
+            strips: strips_made,
+        })
+    })()
+    .map_err(from_manifest)
+}
+
+/// Whether the manifest gave `setting` (the command line did not).
+fn manifest_gave(given: &MosaicOptions, taken: &MosaicOptions, setting: &str) -> bool {
+    match setting {
+        "gsd" => given.gsd.is_none() && taken.gsd.is_some(),
+        "bounds" => given.bounds.is_none() && taken.bounds.is_some(),
+        "crs" => given.crs.is_none() && taken.crs.is_some(),
+        "like" => given.like.is_none() && taken.like.is_some(),
+        _ => false,
     }
-    // The report.
-    let covered = plan.label.iter().filter(|&&l| l != NONE).count();
-    let images = plan
-        .images
-        .iter()
-        .enumerate()
-        .map(|(k, im)| ImageReport {
-            name: im.name.clone(),
-            image: im.opts.image.clone(),
-            share: plan.label.iter().filter(|&&l| l == k as u16).count() as f64 / covered.max(1) as f64,
-            correction: corrections[k].clone(),
-            grid: works.iter().find(|w| w.image == k).map(|w| w.grid),
-            hidden_share: unseen.is_some().then(|| hidden[k].1 as f64 / hidden[k].0.max(1) as f64),
-        })
-        .collect();
-    let seam_cells = (0..plan.cw * plan.ch)
-        .map(|k| {
-            let (x, y) = (k % plan.cw, k / plan.cw);
-            let l = plan.label[k];
-            let right = x + 1 < plan.cw && l != NONE && plan.label[k + 1] != NONE && plan.label[k + 1] != l;
-            let down = y + 1 < plan.ch && l != NONE && plan.label[k + plan.cw] != NONE && plan.label[k + plan.cw] != l;
-            usize::from(right) + usize::from(down)
-        })
-        .sum::<usize>();
-    Ok(MosaicReport {
-        output: o.output.clone(),
-        skipped: false,
-        window,
-        width: grid.width,
-        height: grid.height,
-        gsd: grid.gsd,
-        crs: plan.crs.to_string(),
-        cell_px: plan.cell,
-        coverage: covered as f64 / (plan.cw * plan.ch) as f64,
-        pixels_with_value,
-        balance: o.balance,
-        blend_px: o.blend,
-        seams: seam_stats,
-        seam_length: seam_cells as f64 * plan.cell_metres(),
-        seam_length_px: seam_cells as u64 * plan.cell as u64,
-        edited_seams,
-        images,
-        unseen,
-        seconds: PhaseSeconds { plan: t_plan, balance: t_balance, seams: t_seams, render: t_render },
-        wall_seconds: wall.elapsed().as_secs_f64(),
-        peak_rss_mib: crate::pipeline::peak_rss_mib(),
-        output_bytes: o.output.as_deref().and_then(|p| std::fs::metadata(p).ok()).map_or(0, |m| m.len()),
-        pieces_reused: None,
-        strips: strips_made,
-    })
 }
 
 /// The output file of the mosaic's tiles `window` (first column, first

@@ -27,9 +27,11 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
     }
     let jobs = crate::batch::manifest::load(&o.manifest).map_err(|e| e.into_error())?;
     let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;
-    let o = &super::with_manifest_settings(o, &jobs)?;
-    super::check_mosaic_outputs(o, &jobs)?;
-    let key = run_key(o, &jobs);
+    // (The plan and the pieces take the manifest's settings themselves,
+    // and name them as the manifest's.)
+    let filled = super::with_manifest_settings(o, &jobs)?;
+    super::check_mosaic_outputs(&filled, &jobs)?;
+    let key = run_key(&filled, &jobs);
     if !o.force && crate::batch::output_is_current(&out, &key) {
         return Ok(MosaicReport::skipped(&out));
     }
