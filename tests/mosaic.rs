@@ -337,6 +337,10 @@ fn the_manifests_grid_and_nodata_are_the_mosaics() {
     assert_ne!(differing, manifest);
     std::fs::write(d.join("differ.toml"), differing).unwrap();
     with("nowhere.toml", "bounds = [0, 0, 100, 100]");
+    // Refused under --resume-dir too, the folder it made not left behind.
+    let out = run_with("nowhere.toml", &["-o", "refused.tif", "--resume-dir", "rd"]);
+    assert_eq!(out.status.code(), Some(1), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(!d.join("rd").exists() && !d.join("refused.tif").exists());
     for (m, key) in [("alpha.toml", "alpha"), ("differ.toml", "gsd"), ("nowhere.toml", "bounds")] {
         let out = run_with(m, &["-o", "refused.tif"]);
         let err = String::from_utf8_lossy(&out.stderr);

@@ -42,6 +42,7 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
     if dir.exists() && !dir.is_dir() {
         return Err(Error::setting("resume_dir", format!("{} is a file, not a folder", dir.display())));
     }
+    let made_here = !dir.exists();
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     // What a killed run left half-made (its pieces' temporaries).
     crate::io::publish::remove_dead_temporaries(dir);
@@ -55,7 +56,13 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
     // rerun that changes them keeps the plan (and the pieces, --cog).
     let plan_key = run_key(&MosaicOptions { cog: None, blend: 0.0, ..planning.clone() }, &jobs);
     if o.force || !crate::batch::output_is_current(&plan, &plan_key) {
-        mosaic(&planning, progress, cancel)?;
+        if let Err(e) = mosaic(&planning, progress, cancel) {
+            // A folder of nothing yet (a plan refused): not left behind.
+            if made_here {
+                let _ = std::fs::remove_dir(dir);
+            }
+            return Err(e);
+        }
         crate::batch::write_sidecar(&plan, &plan_key)?;
     }
     let grid = plan_file::grid_of(&plan)?;
