@@ -75,6 +75,39 @@ fn rectify_never_writes_over_an_input_under_any_name() {
     }
 }
 
+/// A pipe or device named as the orthophoto is refused (a file renamed
+/// over `/dev/null` would replace it for every process after); a report
+/// goes straight into one (`--json /dev/stdout`); a symbolic link to a
+/// file is written through, the link kept; one to nothing is refused.
+#[test]
+fn outputs_that_are_not_files_are_refused_or_written_through() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    let fifo = d.join("fifo");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    std::os::unix::fs::symlink("nowhere.tif", d.join("dangling.tif")).unwrap();
+    let base = ["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet"];
+    refused(d, &[&base[..], &["-o", s(&fifo)]].concat(), &["fifo", "is a named pipe, not a file"]);
+    refused(d, &[&base[..], &["-o", s(&d.join("dangling.tif"))]].concat(), &["dangling.tif", "symbolic link to nowhere.tif"]);
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo(), "the pipe is a pipe still");
+    // A report into stdout, and into a device, as they are.
+    let r = run(&[&base[..], &["-o", s(&d.join("a.tif")), "--json", "/dev/stdout"]].concat());
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&r.stdout).expect("the report on stdout");
+    assert!(report["output_bytes"].as_u64().unwrap() > 0, "{report}");
+    let r = run(&[&base[..], &["-o", s(&d.join("b.tif")), "--json", "/dev/null"]].concat());
+    assert!(r.status.success() && std::fs::metadata("/dev/null").unwrap().file_type().is_char_device());
+    // Through a link: the file it names becomes the orthophoto.
+    std::fs::write(d.join("old.tif"), b"old").unwrap();
+    std::os::unix::fs::symlink("old.tif", d.join("link.tif")).unwrap();
+    let r = run(&[&base[..], &["-o", s(&d.join("link.tif"))]].concat());
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(std::fs::symlink_metadata(d.join("link.tif")).unwrap().file_type().is_symlink(), "the link stays");
+    assert_eq!(std::fs::read(d.join("old.tif")).unwrap(), std::fs::read(d.join("a.tif")).unwrap(), "the file it names is the orthophoto");
+}
+
 #[test]
 fn files_an_input_names_are_inputs_too() {
     // A DEM folder's, list's or VRT's tiles, and the RPC file a camera

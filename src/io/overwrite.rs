@@ -99,13 +99,61 @@ pub fn check_outputs(inputs: &[Role], outputs: &[Role]) -> Result<()> {
     Ok(())
 }
 
-/// Refuses an output path that cannot become a file: a folder, or a path
-/// whose folder does not exist.
+/// What an existing output path is, where it is not a plain file (a
+/// symbolic link followed): `/dev/null`, a named pipe.
+pub fn special_kind(path: &Path) -> Option<&'static str> {
+    use std::os::unix::fs::FileTypeExt;
+    let t = std::fs::metadata(path).ok()?.file_type();
+    Some(if t.is_char_device() {
+        "a character device"
+    } else if t.is_block_device() {
+        "a block device"
+    } else if t.is_fifo() {
+        "a named pipe"
+    } else if t.is_socket() {
+        "a socket"
+    } else {
+        return None;
+    })
+}
+
+/// Whether an output of this kind may be a stream (`--json /dev/stdout`):
+/// reports are written straight into a device or pipe; every other output
+/// is a file made beside its target and renamed onto it, which would put a
+/// file in the place of the device.
+pub fn streams(what: &str) -> bool {
+    matches!(what, "report" | "table")
+}
+
+/// Refuses an output path that cannot become a file: a folder, a path
+/// whose folder does not exist, a device or pipe (but for reports), a
+/// symbolic link to nothing. A link to a file is written through: the
+/// file it names is replaced, as GDAL does.
 pub fn check_writable(out: Role) -> Result<()> {
     if out.path.is_dir() {
         return Err(Error::Usage(format!("the {} {} is a folder, not a file", out.what, out.path.display())));
     }
-    let dir = match out.path.parent() {
+    if let Some(kind) = special_kind(out.path) {
+        if streams(out.what) {
+            return Ok(());
+        }
+        return Err(Error::Usage(format!("the {} {} is {kind}, not a file: give the path of a file to write", out.what, out.path.display())));
+    }
+    let linked;
+    let path = match std::fs::symlink_metadata(out.path) {
+        Ok(m) if m.file_type().is_symlink() => match std::fs::canonicalize(out.path) {
+            Ok(p) => {
+                linked = p;
+                linked.as_path()
+            }
+            Err(_) => {
+                let to = std::fs::read_link(out.path).map(|t| t.display().to_string()).unwrap_or_default();
+                return Err(Error::Usage(format!("the {} {} is a symbolic link to {to}, which does not exist", out.what, out.path.display())));
+            }
+        },
+        _ => out.path,
+    };
+    let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };

@@ -115,6 +115,18 @@ fn temporary_beside(target: &Path) -> (PathBuf, String) {
 
 impl PendingFile {
     pub fn create(target: &Path) -> Result<PendingFile> {
+        // Never a file renamed over a device or a pipe (`-o /dev/null`
+        // would put a file in its place for every process after).
+        if let Some(kind) = crate::io::overwrite::special_kind(target) {
+            return Err(Error::Usage(format!("the output {} is {kind}, not a file: give the path of a file to write", target.display())));
+        }
+        // A symbolic link is written through: the file it names is the
+        // one replaced, the link stays.
+        let resolved = match std::fs::symlink_metadata(target) {
+            Ok(m) if m.file_type().is_symlink() => std::fs::canonicalize(target).map_err(|e| Error::io(target, e))?,
+            _ => target.to_path_buf(),
+        };
+        let target = resolved.as_path();
         let (dir, prefix) = temporary_beside(target);
         // Named by the file asked for: tempfile's own error names its
         // temporary, which the user never gave.
@@ -169,6 +181,21 @@ pub fn without_path(e: &std::io::Error) -> std::io::Error {
 
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
+    // A report into a stream (`--json /dev/stdout`, a pipe, the file the
+    // shell opened for it): written into it, after what the run printed.
+    let std_stream = |names: [&str; 3]| names.iter().any(|n| path == Path::new(n));
+    if std_stream(["/dev/stdout", "/dev/fd/1", "/proc/self/fd/1"]) {
+        let mut out = std::io::stdout().lock();
+        return out.write_all(bytes).and_then(|()| out.flush()).map_err(|e| Error::io(path, e));
+    }
+    if std_stream(["/dev/stderr", "/dev/fd/2", "/proc/self/fd/2"]) {
+        return std::io::stderr().lock().write_all(bytes).map_err(|e| Error::io(path, e));
+    }
+    let descriptor = ["/dev/fd", "/proc/self/fd"].iter().any(|d| path.starts_with(d));
+    if descriptor || crate::io::overwrite::special_kind(path).is_some() {
+        let mut f = std::fs::OpenOptions::new().append(true).open(path).map_err(|e| Error::io(path, e))?;
+        return f.write_all(bytes).map_err(|e| Error::io(path, e));
+    }
     let pending = PendingFile::create(path)?;
     pending.file()?.write_all(bytes).map_err(|e| Error::io(path, e))?;
     pending.publish()
