@@ -550,6 +550,12 @@ impl<'a> Gcm<'a> {
         if !(flat || self.dem_aligned_lines()) || rows.len() < 2 {
             return false;
         }
+        // A height a policy gives meets the DEM's own in a step off its
+        // post lines (its edge is half a posting past them): each cell is
+        // looked at.
+        if !flat && self.policy_heights() {
+            return false;
+        }
         let n = self.nodes_x;
         // The first and last node columns have no second difference.
         let most = |g: &Vec<Vec<f64>>| -> f64 {
@@ -762,6 +768,18 @@ impl<'a> Gcm<'a> {
         }
     }
 
+    /// Whether the DEM's hole or outside policy gives heights of its own.
+    fn policy_heights(&self) -> bool {
+        [self.t.dem.on_hole, self.t.dem.on_outside].iter().any(|m| matches!(m, crate::dem::Miss::Height(_)))
+    }
+
+    /// Whether the DEM has a height of its own under output position
+    /// (u, v), not one its hole or outside policy gives.
+    fn own_height(&self, u: f64, v: f64) -> bool {
+        let (x, y) = self.t.ground(u, v);
+        matches!(self.t.dem.lookup(x, y), Lookup::Height(_))
+    }
+
     /// The terrain's part of `q`'s interpolation error, scan pixels. The
     /// DEM departs from the plane through the heights at the cell's corners
     /// at most where it bends: at its posts inside the cell and where its
@@ -821,11 +839,25 @@ impl<'a> Gcm<'a> {
             },
             _ => (none, none),
         };
+        // A height the hole or outside policy gives meets the DEM's own
+        // in a step (at the DEM's edge, half a posting past its last
+        // posts, or around a hole), which no plane holds: a cell with
+        // both, at its corners or where it is looked at, is not proved.
+        let policy_heights = self.policy_heights();
+        let mut kinds = [false; 2];
+        if policy_heights {
+            for (u, v) in [(q.u0, q.v0), (u1, q.v0), (q.u0, v1), (u1, v1)] {
+                kinds[usize::from(self.own_height(u, v))] = true;
+            }
+        }
         let mut look = |u: f64, v: f64| {
             let z = self.height_at(u, v);
             let d = (z - plane(u, v)).abs();
             off_plane = if d.is_nan() { f64::INFINITY } else { off_plane.max(d) };
             (lo, hi) = (lo.min(z), hi.max(z));
+            if policy_heights {
+                kinds[usize::from(self.own_height(u, v))] = true;
+            }
         };
         // Inside one piece of the DEM it is bilinear, reproduced exactly:
         // only where its lines cross the cell can it depart from the plane.
@@ -842,6 +874,9 @@ impl<'a> Gcm<'a> {
             let v = at(vs, j);
             look(q.u0, v);
             look(u1, v);
+        }
+        if kinds == [true, true] {
+            return f64::INFINITY;
         }
         let h = (hi - lo) / 2.0;
         let e = off_plane * rate + 0.5 * bend * h * h;
