@@ -356,3 +356,45 @@ fn overview_tiles_are_coded_at_their_own_level_with_the_same_pixels() {
         assert!(!out.exists());
     }
 }
+
+/// A Float32 scan's holes (NaN) have no value under an internal mask, as
+/// under NaN as nodata: the statistics GDAL reads are of the pixels with a
+/// value, never NaN. A float alpha band, which GDAL does not take for a
+/// mask, is refused.
+#[test]
+fn a_float_scans_holes_are_out_of_the_mask_and_its_statistics() {
+    if gdal_python_missing() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene(&d.join("scene"), 500, |o| o.kappa_deg = 10.0);
+    let scan = d.join("float.tif");
+    let hole = |c: u32, r: u32| (200..260).contains(&c) && (150..190).contains(&r);
+    f32_raster(&scan, (500, 500), (0.0, 0.0, 1.0, 32631), |c, r| if hole(c, r) { f32::NAN } else { (c as f32 - 250.0) / 37.0 });
+    let (masked, by_nan) = (d.join("masked.tif"), d.join("nan.tif"));
+    rectify(&sc, &scan, &masked, &["--nodata", "mask"]);
+    rectify(&sc, &scan, &by_nan, &[]);
+    let script = r#"
+import sys, math
+from osgeo import gdal
+import numpy as np
+ds = gdal.Open(sys.argv[1]); b = ds.GetRasterBand(1)
+v = b.ReadAsArray(); md = b.GetMetadata()
+if b.GetNoDataValue() is None:
+    m = b.GetMaskBand().ReadAsArray() > 0
+    assert b.GetMaskFlags() == gdal.GMF_PER_DATASET, b.GetMaskFlags()
+    assert not np.isnan(v[m]).any(), "%d NaN pixels in the mask" % np.isnan(v[m]).sum()
+else:
+    m = ~np.isnan(v)
+mean = float(md["STATISTICS_MEAN"])
+assert math.isfinite(mean) and abs(mean - v[m].mean()) < 1e-4, (mean, v[m].mean())
+print("%.6f %.6f" % (float(md["STATISTICS_VALID_PERCENT"]), mean))
+"#;
+    let (a, b) = (python(script, &[s(&masked)]), python(script, &[s(&by_nan)]));
+    assert_eq!(a, b, "the mask and NaN as nodata say the same");
+    let r = rectify_run(&sc, &scan, &d.join("alpha.tif"), &["--alpha"]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("--alpha: a Float32 orthophoto"), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(!d.join("alpha.tif").exists());
+}

@@ -358,6 +358,14 @@ impl RunPlan {
         // have a value, and the encoder makes the mask's tiles of it.
         // Hidden pixels that keep their values need the mask to say so.
         let asked = if opts.occlusion == Occlusion::Mask && opts.nodata == Nodata::Auto { Nodata::Mask } else { opts.nodata };
+        if opts.alpha && src.info.sample == crate::io::source::SampleType::F32 {
+            // GDAL takes an alpha band for a mask only of 8 or 16 bits: of
+            // floats its 0s would read as values.
+            return Err(Error::setting(
+                "alpha",
+                "a Float32 orthophoto marks pixels without a value with NaN, its nodata (GDAL reads an alpha band as a mask only of 8 or 16 bits): leave out --alpha, or give --nodata mask for an internal mask",
+            ));
+        }
         let (nodata, mask) = match (opts.alpha, asked.resolved(src.info.sample)) {
             (true, _) => (None, false),
             (false, Nodata::Value(v)) => {

@@ -49,7 +49,19 @@ pub fn resample(run: &Run, msg: &ReadMsg, spare: Option<Raw>) -> std::result::Re
     match src.info.sample {
         SampleType::U8 => resample_chunk::<u8>(gcm, src, msg, y0, y1, opts, spare, exact).map(|(p, v)| (Raw::U8(p), v)),
         SampleType::U16 => resample_chunk::<u16>(gcm, src, msg, y0, y1, opts, spare, exact).map(|(p, v)| (Raw::U16(p), v)),
-        SampleType::F32 => resample_chunk::<f32>(gcm, src, msg, y0, y1, opts, spare, exact).map(|(p, v)| (Raw::F32(p), v)),
+        SampleType::F32 => resample_chunk::<f32>(gcm, src, msg, y0, y1, opts, spare, exact).map(|(p, mut v)| {
+            // A float scan's NaN (its holes) has no value under the mask
+            // either, as it has none under NaN as nodata.
+            if let Some(v) = v.as_mut() {
+                let b = src.info.bands as usize;
+                for (ok, px) in v.iter_mut().zip(p.chunks_exact(b)) {
+                    if px.iter().any(|s| s.is_nan()) {
+                        *ok = 0;
+                    }
+                }
+            }
+            (Raw::F32(p), v)
+        }),
     }
 }
 
