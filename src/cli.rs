@@ -412,7 +412,7 @@ pub struct MosaicArgs {
     pub resume_dir: Option<PathBuf>,
     /// Pixel size of the mosaic: X, or X,Y for non-square pixels (default:
     /// the images' median, square)
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub gsd: Option<gcm_ortho::geom::Gsd>,
     /// The mosaic's extent: minx,miny,maxx,maxy (default: all footprints)
     #[arg(long, allow_hyphen_values = true)]
@@ -638,14 +638,14 @@ pub struct RectifyArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub height: Option<f64>,
     /// What to do in DEM holes: error, nodata, or a height.
-    #[arg(long, default_value = "error")]
+    #[arg(long, default_value = "error", allow_negative_numbers = true)]
     pub dem_hole: String,
     /// What to do outside the DEM: error, nodata, or a height.
-    #[arg(long, default_value = "nodata")]
+    #[arg(long, default_value = "nodata", allow_negative_numbers = true)]
     pub dem_outside: String,
     /// Output pixel size in ground units: X, or X,Y for pixels X wide and
     /// Y tall (default: the scan's mean GSD, square).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub gsd: Option<gcm_ortho::geom::Gsd>,
     /// minx,miny,maxx,maxy or auto (the scan's footprint on the DEM).
     #[arg(long, default_value = "auto", allow_hyphen_values = true)]
@@ -670,7 +670,7 @@ pub struct RectifyArgs {
     /// The most the GCM may be off the exact model at any output pixel,
     /// scan pixels, or `none` (default: 0.1, or none with a given
     /// --sparsity or --corrections cell; the error is reported either way).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub max_error: Option<String>,
     /// How the corrections between GCM nodes are found: interpolated
     /// bilinearly from the four nodes around, or one per cell (as in Beloshapkin's thesis)

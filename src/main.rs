@@ -53,6 +53,10 @@ fn usage_error(e: clap::Error) -> ExitCode {
     for tip in tips {
         said.push_str(&format!(" ({tip})"));
     }
+    // A satellite image needs no camera file: its RPC does instead.
+    if e.kind() == ErrorKind::MissingRequiredArgument && said.contains("--camera <CAMERA>") {
+        said = said.replace("--camera <CAMERA>", "--camera <CAMERA> (or --rpc <RPC> for a satellite image)");
+    }
     eprintln!("gcm-ortho: error: {said}; see --help");
     ExitCode::from(2)
 }

@@ -299,6 +299,21 @@ fn absurd_settings_are_refused_before_any_work_with_their_flag() {
     // Usage errors in one line with the program's prefix, the argument named.
     refused(d, &[&base[..], &["--bogus"]].concat(), &["gcm-ortho: error:", "'--bogus'", "--bounds"]);
     refused(d, &["rectify", "--quiet"], &["gcm-ortho: error:", "--image", "--camera"]);
+    // A satellite image has no camera file: its RPC is named beside it.
+    refused(d, &["rectify", "--image", s(&scan), "--height", "100", "--quiet", "-o", s(&out)], &["--camera <CAMERA> (or --rpc <RPC>"]);
+    // Negative numbers are values, refused as such (not taken for flags).
+    refused(d, &[&base[..], &["--gsd", "-0.5"]].concat(), &["--gsd", "-0.5 must be positive"]);
+    refused(d, &[&base[..], &["--max-error", "-1"]].concat(), &["--max-error", "'-1'"]);
+    // Bounds in degrees under a CRS in metres: said so.
+    let r = run(&[&base[..], &["--bounds", "5.29,44.14,5.31,44.16"]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.code() == Some(1) && err.contains("--bounds look like degrees") && err.trim_end().lines().count() == 1, "{err}");
+    assert!(!out.exists());
+    // A COG without overviews is warned of, even when quiet.
+    let r = run(&[&base[..], &["--cog", "--overviews", "none"]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success() && err.contains("--cog with --overviews none"), "{err}");
+    std::fs::remove_file(&out).unwrap();
     refused(d, &[&base[..], &["--resample", "sinc"]].concat(), &["gcm-ortho: error:", "'sinc'", "--resample", "lanczos3"]);
     // The limit is the user's to set, down or up.
     refused(d, &[&base[..], &["--max-output-pixels", "1k"]].concat(), &["--max-output-pixels", "0.00 Gpx allowed"]);

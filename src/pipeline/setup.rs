@@ -309,7 +309,14 @@ impl RunPlan {
             Trend::Plane => dem.trend_plane(area),
             Trend::Mean => dem.mean_plane(area),
         }
-        .ok_or_else(|| Error::format(&dem.path, "no height anywhere inside the output area"))?;
+        .ok_or_else(|| {
+            // Bounds in degrees under a CRS in metres land near its origin.
+            let degrees = opts.bounds.is_some_and(|[x0, y0, x1, y1]| {
+                !camera.crs.is_geographic() && [x0, x1].iter().all(|x| x.abs() <= 180.0) && [y0, y1].iter().all(|y| y.abs() <= 90.0)
+            });
+            let hint = if degrees { format!(" (--bounds look like degrees; the output's CRS, {}, is in its own units)", camera.crs) } else { String::new() };
+            Error::format(&dem.path, format!("no height anywhere inside the output area{hint}"))
+        })?;
         let approx = Approx::new(model, &grid, plane).ok_or_else(|| Error::Geometry("the terrain plane is not in front of the camera".into()))?;
         let band_order = match opts.band_order {
             BandOrder::Auto => fewer_scan_rows(&approx, &grid, opts.tile),
@@ -403,6 +410,9 @@ impl RunPlan {
         spec.check_codec().map_err(|m| Error::setting("compress", m))?;
         spec.overviews = opts.overviews.levels(piece_w, piece_h, tile);
         spec.cog = opts.cog;
+        if opts.cog && opts.overviews == crate::options::Overviews::None && opts.window.is_none() {
+            progress.warn("--cog with --overviews none: a Cloud-Optimized GeoTIFF without overviews is read whole to be seen whole (GDAL's validator warns of it); leave out --overviews none");
+        }
         // The quarters of unfinished overview tiles: a band of them at each
         // level, within four shares of the budget.
         let band_tiles = if band_order == BandOrder::Columns { trh } else { tcw };
