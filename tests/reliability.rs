@@ -441,6 +441,18 @@ fn a_batch_rerun_redoes_an_output_damaged_since() {
     std::fs::write(&out, &good[..good.len() / 2]).unwrap();
     assert_eq!(status(), "done");
     assert!(std::fs::read(&out).unwrap() == good);
+    // A changed camera that fails: the earlier output is no longer marked
+    // finished, and the job's error says it is left from an earlier run.
+    let camera = std::fs::read_to_string(d.join("camera.toml")).unwrap();
+    let broken = camera.replace("focal_length_mm", "focal_length_mm = -1\nold_focal");
+    assert_ne!(broken, camera);
+    std::fs::write(d.join("camera.toml"), broken).unwrap();
+    let r = run(&["batch", s(&manifest), "--quiet", "--report", s(&report)]);
+    assert_eq!(r.status.code(), Some(3), "{}", String::from_utf8_lossy(&r.stderr));
+    let line: serde_json::Value = serde_json::from_str(std::fs::read_to_string(&report).unwrap().lines().next().unwrap()).unwrap();
+    assert_eq!(line["status"], "failed");
+    assert!(line["error"].as_str().unwrap().contains("left from an earlier run"), "{line}");
+    assert!(!d.join("out/scan.tif.done").exists(), "the stale output's record is gone");
 }
 
 #[test]

@@ -288,9 +288,21 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
     if cancel.is_cancelled() {
         return res;
     }
-    if let Some(p) = &job.problem {
+    // A job that fails leaves no output of an earlier run marked finished
+    // (its record no longer says what it is made of), and says it is there.
+    let earlier = job.config.output.exists();
+    let failed = |res: &mut JobResult, e: String| {
         res.status = Status::Failed;
-        res.error = Some(p.clone());
+        let _ = std::fs::remove_file(sidecar(&job.config.output));
+        let stale = if earlier && job.config.output.exists() {
+            format!(" ({} is left from an earlier run, not made from these inputs; its .done record is removed)", job.config.output.display())
+        } else {
+            String::new()
+        };
+        res.error = Some(format!("{e}{stale}"));
+    };
+    if let Some(p) = &job.problem {
+        failed(&mut res, p.clone());
         return res;
     }
     let key = job_key(&job.config);
@@ -298,6 +310,9 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
         res.status = Status::Skipped;
         return res;
     }
+    // The earlier record goes before the work: a run killed meanwhile
+    // leaves no output marked finished for inputs it was not made from.
+    let _ = std::fs::remove_file(sidecar(&job.config.output));
     let mut cfg = job.config.clone();
     cfg.memory = memory;
     cfg.threads = threads;
@@ -326,10 +341,7 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
             }
         }
         Err(crate::Error::Cancelled) => res.status = Status::Cancelled,
-        Err(e) => {
-            res.status = Status::Failed;
-            res.error = Some(e.to_string());
-        }
+        Err(e) => failed(&mut res, e.to_string()),
     }
     res.seconds = t.elapsed().as_secs_f64();
     res
