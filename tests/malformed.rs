@@ -466,6 +466,7 @@ fn each_cause_has_its_own_message() {
     for (what, name, cause) in [
         ("camera", "looks_up.toml", "above the horizon"),
         ("camera", "focal_in_micrometres.toml", "field of view"),
+        ("camera", "pixel_size_in_micrometres.toml", "pixel_size_mm is in millimetres"),
         ("camera", "principal_point_outside.toml", "principal point"),
         ("camera", "misplaced_mark.toml", "placed wrong"),
         ("dem", "one_post.tif", "at least 2×2"),
