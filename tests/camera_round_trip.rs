@@ -25,7 +25,8 @@ fn convert(camera: &Path, image: &Path, out: &Path, target: &str) -> Vec<String>
     assert!(r.status.success(), "{target}: {}", String::from_utf8_lossy(&r.stderr));
     let table = String::from_utf8_lossy(&r.stdout);
     let name = image.file_name().unwrap().to_string_lossy();
-    assert!(table.contains(&*name) && table.contains(&format!("{W}x{H}")) && table.contains("brown"), "{table}");
+    let info = gcm_ortho::io::source::SourceImage::open(image, 1 << 20).unwrap().info;
+    assert!(table.contains(&*name) && table.contains(&format!("{}x{}", info.width, info.height)) && table.contains("brown"), "{table}");
     let p = |n: &str| out.join(n).to_string_lossy().into_owned();
     match target {
         "toml" => vec!["--camera".into(), p("scan.toml")],
@@ -323,5 +324,29 @@ fn metashape_exports_we_cannot_use_are_refused_by_name() {
         std::fs::write(&xml, text).unwrap();
         let e = gcm_ortho::camera::formats::read(&xml, None, None).map(|_| ()).err().unwrap_or_else(|| panic!("{name}: read")).to_string();
         assert!(e.contains(&format!("{name}.xml")) && e.contains(want), "{name}: {e}");
+    }
+}
+
+/// Lenses in pixel units (OpenSfM's, Orthority's without a sensor size:
+/// pixel_size_mm = 1) over 1000 px across: their "mm" are pixels, not a
+/// pixel size in the wrong unit, and the frame is rectified as our own
+/// camera file has it.
+#[test]
+fn a_lens_in_pixel_units_on_a_large_frame_is_taken() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = common::drone_scene(dir.path(), (1200, 1000), 12_000.0);
+    let rectify = |camera_args: &[String], out: &Path| {
+        let mut a: Vec<String> = ["rectify", "--image", s(&sc.scan), "--dem", s(&sc.dem), "--quiet", "-o", s(out)].iter().map(|x| x.to_string()).collect();
+        a.extend(camera_args.iter().cloned());
+        let refs: Vec<&str> = a.iter().map(String::as_str).collect();
+        let r = run(&refs);
+        assert!(r.status.success(), "{a:?}: {}", String::from_utf8_lossy(&r.stderr));
+        gcm_ortho::io::source::SourceImage::open(out, 1 << 20).unwrap().info
+    };
+    let ours = rectify(&["--camera".to_string(), s(&sc.camera).to_string()], &dir.path().join("ours.tif"));
+    for target in ["opensfm", "orthority"] {
+        let args = convert(&sc.camera, &sc.scan, &dir.path().join(target), target);
+        let got = rectify(&args, &dir.path().join(format!("{target}.tif")));
+        assert_eq!((got.width, got.height), (ours.width, ours.height), "{target}");
     }
 }

@@ -84,17 +84,23 @@ impl FrameCamera {
         let (x0, y0) = self.interior.px_to_mm(0.0, 0.0);
         let (x1, y1) = self.interior.px_to_mm(w, h);
         let diagonal = (x1 - x0).hypot(y1 - y0);
-        // The largest film frame is 230 mm a side: a metre across is a
-        // pixel size in the wrong unit (µm given as mm), not a lens.
-        if diagonal > 1000.0 {
-            return Err(Error::config(
-                path,
-                "interior",
-                format!("the {w}×{h} image is {:.1} m across at this pixel size, which no sensor or film is: pixel_size_mm is in millimetres (a 32 µm pixel is 0.032)", diagonal / 1000.0),
-            ));
-        }
         let fov = 2.0 * (diagonal / 2.0 / self.focal_mm).atan().to_degrees();
         if !(self.focal_mm > 0.0 && (0.2..=175.0).contains(&fov)) {
+            // No field of view, and an image a metre across (the largest
+            // film frame is 230 mm a side): a pixel size in the wrong unit
+            // (µm given as mm), not a lens. (Lenses in pixel units, whose
+            // "mm" are pixels, have a field of view and never come here.)
+            if diagonal > 1000.0 {
+                return Err(Error::config(
+                    path,
+                    "interior",
+                    format!(
+                        "the {w}×{h} image is {:.1} m across at this pixel size, a field of view of {fov:.2}° with a {} mm lens: pixel_size_mm is in millimetres (a 32 µm pixel is 0.032)",
+                        diagonal / 1000.0,
+                        self.focal_mm
+                    ),
+                ));
+            }
             return Err(Error::config(
                 path,
                 "camera.focal_length_mm",
