@@ -525,6 +525,33 @@ fn a_mosaic_finer_than_its_scans_by_pieces_is_the_single_runs_file() {
     assert!(std::fs::read(d.join("whole.tif")).unwrap() == std::fs::read(d.join("joined.tif")).unwrap(), "the assembled pieces differ from the single run");
 }
 
+/// Pieces made without a shared plan, one balanced and one not (or with
+/// other seams), would meet in a step: `assemble` refuses them by name;
+/// pieces of the same settings join into the single run's file.
+#[test]
+fn pieces_of_other_balance_or_seams_are_not_joined() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    mosaic(d, &["-o", "whole.tif"]);
+    let info = gcm_ortho::io::source::SourceImage::open(&d.join("whole.tif"), 1 << 20).unwrap().info;
+    let t = info.chunk.0;
+    let (ta, td) = (info.width.div_ceil(t), info.height.div_ceil(t));
+    let (left, right) = (format!("0,0,{},{td}", ta / 2), format!("{},0,{},{td}", ta / 2, ta - ta / 2));
+    mosaic(d, &["--window", &left, "-o", "left.tif"]);
+    mosaic(d, &["--window", &right, "-o", "right.tif"]);
+    for (name, extra) in [("unbalanced.tif", "--balance=none"), ("voronoi.tif", "--seams=voronoi")] {
+        mosaic(d, &["--window", &right, extra, "-o", name]);
+        let out = std::process::Command::new(bin()).current_dir(d).args(["assemble", "-o", "bad.tif", "left.tif", name]).output().unwrap();
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.code() == Some(2) && e.contains(name) && e.contains("other inputs or settings"), "{extra}: {e}");
+        assert!(!d.join("bad.tif").exists());
+    }
+    let out = std::process::Command::new(bin()).current_dir(d).args(["assemble", "-o", "joined.tif", "left.tif", "right.tif"]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(std::fs::read(d.join("whole.tif")).unwrap() == std::fs::read(d.join("joined.tif")).unwrap(), "the pieces differ from the single run");
+}
+
 #[test]
 fn a_restarted_shard_leaves_its_finished_piece_and_redoes_a_changed_one() {
     let tmp = tempfile::tempdir().unwrap();

@@ -333,6 +333,10 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         if let Some(path) = &o.plan_out {
             plan_file::write(&plan, &corrections, path)?;
         }
+        // Pieces join only where their seams and balance are one: made with
+        // another --balance, seam method, edited seams or plan, their
+        // images would meet in a step at the join.
+        let source = plan_source(&source, &plan, &corrections);
         // The thumbnails are done with (balance and seams): dropped before the
         // weights are worked out, so that the two are never held together.
         plan.images.iter_mut().for_each(PlanImage::forget_values);
@@ -744,6 +748,14 @@ fn source_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String
         .collect();
     let like: Vec<&std::path::Path> = o.like.iter().map(PathBuf::as_path).collect();
     crate::batch::content_key_of(&[settings.as_bytes(), job_keys.join(";").as_bytes()], &like)
+}
+
+/// `source` with what the plan gives every pixel: its cells' labels (the
+/// seams) and each image's correction (the balance).
+fn plan_source(source: &str, plan: &Plan, corrections: &[balance::Correction]) -> String {
+    let gains = serde_json::to_vec(corrections).unwrap_or_default();
+    let cells = format!("{} {}x{}", plan.cell, plan.cw, plan.ch);
+    crate::batch::content_key_of(&[source.as_bytes(), cells.as_bytes(), bytemuck::cast_slice(&plan.label), &gains], &[])
 }
 
 /// The key of a run: the manifest's jobs (their inputs and settings), the
