@@ -78,10 +78,13 @@ pub fn correlate(g: &Gray, t: &Template, (i0, j0, i1, j1): (usize, usize, usize,
         for i in 0..width {
             let (pi, pj) = (i0 + i, j0 + j);
             let base = &g.data[pj * g.width + pi..];
-            let dot: f32 = taps.iter().map(|&(o, tone)| base[o] * tone).sum();
+            // In f64: 16-bit tones over a template's thousands of taps
+            // reach 1e8, where f32's sum is off by more than the
+            // difference from `mean·s` the coefficient is made of.
+            let dot: f64 = taps.iter().map(|&(o, tone)| base[o] as f64 * tone as f64).sum();
             let (s, ss) = ints.square(pi, pj, n);
             let var = ss - s * s / count;
-            r[j * width + i] = if var > 1e-9 * count { ((dot as f64 - t.mean as f64 * s) / (t.norm as f64 * var.sqrt())) as f32 } else { 0.0 };
+            r[j * width + i] = if var > 1e-9 * count { ((dot - t.mean as f64 * s) / (t.norm as f64 * var.sqrt())) as f32 } else { 0.0 };
         }
     }
     Surface { i0, j0, width, height, r }
