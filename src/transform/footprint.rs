@@ -46,13 +46,20 @@ impl Footprint {
         let outside = self.past_edge > 0 && !matches!(dem.on_outside, Miss::Height(_));
         let holes = self.on_holes > 0 && !matches!(dem.on_hole, Miss::Height(_));
         let (image, path) = (image.display(), dem.path.display());
+        // What the policy does there: under `error` the run stops at the
+        // first output pixel that needs such a height.
+        let (edge, hole) = match (dem.on_outside, dem.on_hole) {
+            (Miss::Error, _) if outside => ("the orthophoto stops at the DEM's edge, and where its extent reaches past it (given --bounds) the run stops with an error", ""),
+            (_, Miss::Error) if holes && !outside => ("", "the orthophoto stops there, and where its extent still meets them (a gap between tiles, given --bounds) the run stops with an error (--dem-hole nodata leaves them empty; "),
+            _ => ("the orthophoto stops at the DEM's edge", "the orthophoto stops there ("),
+        };
         match (outside, holes) {
             (true, _) => Some(format!(
-                "{image}: the DEM {path} covers only part of the image ({} % of its edge meets it): the orthophoto stops at the DEM's edge (--dem-outside HEIGHT, in a manifest dem_outside = HEIGHT, goes on at that height)",
+                "{image}: the DEM {path} covers only part of the image ({} % of its edge meets it): {edge} (--dem-outside HEIGHT, in a manifest dem_outside = HEIGHT, goes on at that height)",
                 share(self.past_edge + self.on_holes)
             )),
             (false, true) => Some(format!(
-                "{image}: the DEM {path} has no heights (nodata) under part of the image ({} % of its edge meets heights): the orthophoto stops there (--dem-hole HEIGHT, in a manifest dem_hole = HEIGHT, goes on at that height)",
+                "{image}: the DEM {path} has no heights (nodata) under part of the image ({} % of its edge meets heights): {hole}--dem-hole HEIGHT, in a manifest dem_hole = HEIGHT, goes on at that height)",
                 share(self.on_holes)
             )),
             (false, false) => None,
