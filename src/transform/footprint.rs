@@ -49,8 +49,8 @@ impl Footprint {
         // What the policy does there: under `error` the run stops at the
         // first output pixel that needs such a height.
         let (edge, hole) = match (dem.on_outside, dem.on_hole) {
-            (Miss::Error, _) if outside => ("the orthophoto stops at the DEM's edge, and where its extent reaches past it (given --bounds) the run stops with an error", ""),
-            (_, Miss::Error) if holes && !outside => ("", "the orthophoto stops there, and where its extent still meets them (a gap between tiles, given --bounds) the run stops with an error (--dem-hole nodata leaves them empty; "),
+            (Miss::Error, _) if outside => ("the orthophoto stops at the DEM's edge, and where its extent reaches past it (given --bounds) the run fails", ""),
+            (_, Miss::Error) if holes && !outside => ("", "the orthophoto stops there, and where its extent still meets them (a gap between tiles, given --bounds) the run fails (--dem-hole nodata leaves them empty; "),
             _ => ("the orthophoto stops at the DEM's edge", "the orthophoto stops there ("),
         };
         match (outside, holes) {
