@@ -117,6 +117,11 @@ pub fn special_kind(path: &Path) -> Option<&'static str> {
     })
 }
 
+/// The refusal of an output that is a device or pipe (`kind`).
+pub fn not_a_file(out: Role, kind: &str) -> Error {
+    Error::Usage(format!("the {} {} is {kind}, not a file: give the path of a file to write", out.what, out.path.display()))
+}
+
 /// Whether an output of this kind may be a stream (`--json /dev/stdout`):
 /// reports are written straight into a device or pipe; every other output
 /// is a file made beside its target and renamed onto it, which would put a
@@ -137,7 +142,7 @@ pub fn check_writable(out: Role) -> Result<()> {
         if streams(out.what) {
             return Ok(());
         }
-        return Err(Error::Usage(format!("the {} {} is {kind}, not a file: give the path of a file to write", out.what, out.path.display())));
+        return Err(not_a_file(out, kind));
     }
     let linked;
     let path = match std::fs::symlink_metadata(out.path) {

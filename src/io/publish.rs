@@ -118,7 +118,7 @@ impl PendingFile {
         // Never a file renamed over a device or a pipe (`-o /dev/null`
         // would put a file in its place for every process after).
         if let Some(kind) = crate::io::overwrite::special_kind(target) {
-            return Err(Error::Usage(format!("the output {} is {kind}, not a file: give the path of a file to write", target.display())));
+            return Err(crate::io::overwrite::not_a_file(crate::io::overwrite::Role::new("output", target), kind));
         }
         // A symbolic link is written through: the file it names is the
         // one replaced, the link stays.
