@@ -395,3 +395,50 @@ fn write_blank_tiff(path: &Path, w: u32, h: u32) {
     let mut enc = tiff::encoder::TiffEncoder::new(f).unwrap().with_compression(tiff::encoder::Compression::Deflate(tiff::encoder::DeflateLevel::Fast));
     enc.write_image::<tiff::encoder::colortype::Gray8>(w, h, &vec![0u8; (w * h) as usize]).unwrap();
 }
+
+/// The tags as GDAL writes them: its JPEG driver ends the EXIF directories
+/// with a next-directory pointer that is not zero (a strict reader gives up
+/// on the whole block), and `gdal_translate` to a TIFF keeps a JPEG's EXIF
+/// as `EXIF_*` items of its own metadata (tag 42112). Both are read as the
+/// tags they hold; and a camera is made from them with DJI's attitude in
+/// the TIFF's XMP.
+#[test]
+fn exif_tags_as_gdal_writes_them_are_read() {
+    let Some(py) = common::python_with("osgeo.gdal", "python3-gdal") else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let script = r#"
+import sys
+import numpy as np
+from osgeo import gdal
+d = sys.argv[1]
+ds = gdal.GetDriverByName('MEM').Create('', 120, 90, 3)
+for b in range(3):
+    ds.GetRasterBand(b + 1).WriteArray((np.arange(120 * 90).reshape(90, 120) % 251).astype('uint8'))
+ds.SetMetadata({'EXIF_Make': 'DJI', 'EXIF_Model': 'FC6310', 'EXIF_FocalLength': '(8.8)', 'EXIF_FocalLengthIn35mmFilm': '24',
+                'EXIF_GPSLatitude': '(45) (30) (36)', 'EXIF_GPSLatitudeRef': 'N', 'EXIF_GPSLongitude': '(5) (15) (0)',
+                'EXIF_GPSLongitudeRef': 'W', 'EXIF_GPSAltitude': '(512.5)', 'EXIF_GPSAltitudeRef': '0x00'})
+xmp = ('<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">'
+       '<rdf:Description xmlns:drone-dji="http://www.dji.com/drone-dji/1.0/" drone-dji:GimbalYawDegree="30.0" '
+       'drone-dji:GimbalPitchDegree="-90.0" drone-dji:GimbalRollDegree="0.0"/></rdf:RDF></x:xmpmeta>')
+ds.SetMetadata([xmp], 'xml:XMP')
+gdal.GetDriverByName('JPEG').CreateCopy(d + '/gdal.jpg', ds)
+gdal.GetDriverByName('GTiff').CreateCopy(d + '/gdal.tif', ds)
+"#;
+    let out = std::process::Command::new(py).args(["-c", script, common::s(dir.path())]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for name in ["gdal.jpg", "gdal.tif"] {
+        let tags = formats::exif::Tags::read(&dir.path().join(name)).unwrap();
+        assert_eq!((tags.make.as_deref(), tags.model.as_deref()), (Some("DJI"), Some("FC6310")), "{name}");
+        // (8.8 is a rational of GDAL's choosing in the JPEG.)
+        assert!(tags.focal_mm.is_some_and(|f| (f - 8.8).abs() < 1e-6) && tags.focal_35mm == Some(24.0), "{name}: {:?} {:?}", tags.focal_mm, tags.focal_35mm);
+        let [lat, lon, alt] = tags.gps.unwrap_or_else(|| panic!("{name}: no position"));
+        assert!((lat - 45.51).abs() < 1e-12 && (lon + 5.25).abs() < 1e-12 && (alt - 512.5).abs() < 1e-3, "{name}: {:?}", tags.gps);
+        assert!(tags.unreadable.is_none(), "{name}: {:?}", tags.unreadable);
+    }
+    // The TIFF keeps the XMP (tag 700): a whole camera, nadir, at the tags' place.
+    let set = formats::read_for(&dir.path().join("gdal.tif"), Path::new("exif"), None, None).unwrap();
+    let pose = &set.poses[0];
+    assert!((pose.position[2] - 512.5).abs() < 1e-3, "{:?}", pose.position);
+    let f = set.lenses[0].1.focal_px[0];
+    assert!((f - 24.0 * 150.0 / 36f64.hypot(24.0)).abs() < 1e-9, "{f}");
+}

@@ -42,6 +42,9 @@ pub struct Tags {
     pub gps: Option<[f64; 3]>,
     /// XMP properties by namespace and name.
     pub xmp: HashMap<(String, String), String>,
+    /// Why its EXIF block, or part of it, could not be read (the tags
+    /// read are kept): said with the camera made, and where none can be.
+    pub unreadable: Option<String>,
 }
 
 impl Tags {
@@ -49,12 +52,36 @@ impl Tags {
     pub fn read(path: &Path) -> Result<Tags> {
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
         let mut tags = Tags::default();
-        if let Ok(exif) = exif::Reader::new().read_from_container(&mut BufReader::new(file)) {
-            tags.exif(&exif);
-            // A TIFF's XMP packet is its tag 700.
-            if let Some(f) = exif.get_field(Tag(exif::Context::Tiff, 700), In::PRIMARY) {
-                if let Value::Byte(b) | Value::Undefined(b, _) = &f.value {
-                    tags.xmp_packet(&String::from_utf8_lossy(b));
+        // GDAL, for one, ends its EXIF directories with a pointer to the
+        // next one that is not zero: the reader's strict mode would give
+        // up on the whole block for that.
+        let mut reader = exif::Reader::new();
+        reader.continue_on_error(true);
+        let read = reader.read_from_container(&mut BufReader::new(file)).or_else(|e| {
+            e.distill_partial_result(|errors| {
+                // A block that merely ends oddly loses no tag: not worth a word.
+                let lost: Vec<String> =
+                    errors.iter().filter(|e| !matches!(e, exif::Error::InvalidFormat("Unexpected next IFD"))).map(ToString::to_string).collect();
+                if !lost.is_empty() {
+                    tags.unreadable = Some(format!("part of its EXIF block cannot be read ({})", lost.join("; ")));
+                }
+            })
+        });
+        match read {
+            Err(exif::Error::NotFound(_)) => {}
+            Err(e) => tags.unreadable = Some(format!("its EXIF block cannot be read ({e})")),
+            Ok(exif) => {
+                tags.exif(&exif);
+                // A TIFF's XMP packet is its tag 700.
+                if let Some(f) = exif.get_field(Tag(exif::Context::Tiff, 700), In::PRIMARY) {
+                    if let Value::Byte(b) | Value::Undefined(b, _) = &f.value {
+                        tags.xmp_packet(&String::from_utf8_lossy(b));
+                    }
+                }
+                if let Some(f) = exif.get_field(Tag(exif::Context::Tiff, 42112), In::PRIMARY) {
+                    if let Value::Ascii(lines) = &f.value {
+                        tags.gdal_items(&lines.iter().map(|l| String::from_utf8_lossy(l)).collect::<String>());
+                    }
                 }
             }
         }
@@ -66,20 +93,53 @@ impl Tags {
 
     fn exif(&mut self, e: &exif::Exif) {
         let text = |t: Tag| e.get_field(t, In::PRIMARY).map(|f| f.display_value().to_string().trim_matches('"').trim().to_string());
-        let num = |t: Tag| -> Option<f64> {
-            match &e.get_field(t, In::PRIMARY)?.value {
-                Value::Rational(r) => r.first().filter(|r| r.denom != 0).map(|r| r.to_f64()),
-                Value::SRational(r) => r.first().filter(|r| r.denom != 0).map(|r| r.to_f64()),
-                v => v.get_uint(0).map(f64::from),
-            }
+        let nums = |t: Tag| -> Option<Vec<f64>> {
+            let v: Vec<f64> = match &e.get_field(t, In::PRIMARY)?.value {
+                Value::Rational(r) => r.iter().map(|r| if r.denom == 0 { f64::NAN } else { r.to_f64() }).collect(),
+                Value::SRational(r) => r.iter().map(|r| if r.denom == 0 { f64::NAN } else { r.to_f64() }).collect(),
+                v => v.iter_uint()?.map(f64::from).collect(),
+            };
+            Some(v)
         };
-        self.make = text(Tag::Make);
-        self.model = text(Tag::Model);
-        self.focal_mm = num(Tag::FocalLength).filter(|f| *f > 0.0);
-        self.focal_35mm = num(Tag::FocalLengthIn35mmFilm).filter(|f| *f > 0.0);
-        self.orientation = e.get_field(Tag::Orientation, In::PRIMARY).and_then(|f| f.value.get_uint(0));
+        self.fill(&text, &nums);
+    }
+
+    /// The EXIF tags GDAL keeps as `EXIF_*` items of its metadata (tag
+    /// 42112), as `gdal_translate` writes a JPEG's EXIF into a TIFF:
+    /// rationals in parentheses, `(45) (30) (0)`.
+    fn gdal_items(&mut self, xml: &str) {
+        let Ok(doc) = roxmltree::Document::parse(xml.trim_matches(char::from(0))) else { return };
+        let items: HashMap<String, String> = doc
+            .descendants()
+            .filter(|n| n.has_tag_name("Item") && n.attribute("domain").is_none() && n.attribute("band").is_none())
+            .filter_map(|n| Some((n.attribute("name")?.strip_prefix("EXIF_")?.to_string(), n.text().unwrap_or("").trim().to_string())))
+            .collect();
+        if items.is_empty() {
+            return;
+        }
+        let text = |t: Tag| items.get(&t.to_string()).cloned();
+        let nums = |t: Tag| -> Option<Vec<f64>> {
+            let v = items.get(&t.to_string())?;
+            let parse = |x: &str| match x.strip_prefix("0x") {
+                Some(h) => u64::from_str_radix(h, 16).map(|n| n as f64).ok(),
+                None => x.parse::<f64>().ok(),
+            };
+            v.split(|c: char| c.is_whitespace() || c == '(' || c == ')').filter(|x| !x.is_empty()).map(parse).collect()
+        };
+        self.fill(&text, &nums);
+    }
+
+    /// The camera's tags from `text` and `nums` (every value of a tag, as
+    /// numbers), each as EXIF names it; tags read before are kept.
+    fn fill(&mut self, text: &dyn Fn(Tag) -> Option<String>, nums: &dyn Fn(Tag) -> Option<Vec<f64>>) {
+        let num = |t: Tag| nums(t).and_then(|v| v.first().copied()).filter(|v| v.is_finite());
+        self.make = self.make.take().or_else(|| text(Tag::Make));
+        self.model = self.model.take().or_else(|| text(Tag::Model));
+        self.focal_mm = self.focal_mm.or_else(|| num(Tag::FocalLength).filter(|f| *f > 0.0));
+        self.focal_35mm = self.focal_35mm.or_else(|| num(Tag::FocalLengthIn35mmFilm).filter(|f| *f > 0.0));
+        self.orientation = self.orientation.or_else(|| num(Tag::Orientation).map(|o| o as u32));
         let (w, h) = (num(Tag::PixelXDimension), num(Tag::PixelYDimension));
-        if let (Some(w), Some(h)) = (w.filter(|w| *w >= 1.0), h.filter(|h| *h >= 1.0)) {
+        if let (None, Some(w), Some(h)) = (self.tag_size, w.filter(|w| *w >= 1.0), h.filter(|h| *h >= 1.0)) {
             self.tag_size = Some([w as u32, h as u32]);
         }
         // mm per focal-plane resolution unit: inch, cm, mm, µm.
@@ -90,20 +150,19 @@ impl Tags {
             5 => Some(0.001),
             _ => None,
         });
-        if let (Some(mm), Some(xr), Some(yr), Some([w, h])) = (unit, num(Tag::FocalPlaneXResolution), num(Tag::FocalPlaneYResolution), self.tag_size) {
+        let resolution = (num(Tag::FocalPlaneXResolution), num(Tag::FocalPlaneYResolution));
+        if let (None, Some(mm), (Some(xr), Some(yr)), Some([w, h])) = (self.sensor_mm, unit, resolution, self.tag_size) {
             if xr > 0.0 && yr > 0.0 {
                 self.sensor_mm = Some([mm * f64::from(w) / xr, mm * f64::from(h) / yr]);
             }
         }
         let dms = |t: Tag| -> Option<f64> {
-            match &e.get_field(t, In::PRIMARY)?.value {
-                Value::Rational(r) if r.len() == 3 && r.iter().all(|x| x.denom != 0) => Some(r[0].to_f64() + r[1].to_f64() / 60.0 + r[2].to_f64() / 3600.0),
-                _ => None,
-            }
+            let v = nums(t)?;
+            (v.len() == 3 && v.iter().all(|x| x.is_finite())).then(|| v[0] + v[1] / 60.0 + v[2] / 3600.0)
         };
         let sign = |t: Tag, negative: &str| if text(t).is_some_and(|s| s.starts_with(negative)) { -1.0 } else { 1.0 };
-        if let (Some(lat), Some(lon)) = (dms(Tag::GPSLatitude), dms(Tag::GPSLongitude)) {
-            let below = e.get_field(Tag::GPSAltitudeRef, In::PRIMARY).and_then(|f| f.value.get_uint(0)) == Some(1);
+        if let (None, Some(lat), Some(lon)) = (self.gps, dms(Tag::GPSLatitude), dms(Tag::GPSLongitude)) {
+            let below = num(Tag::GPSAltitudeRef) == Some(1.0);
             let alt = num(Tag::GPSAltitude).unwrap_or(0.0) * if below { -1.0 } else { 1.0 };
             self.gps = Some([lat * sign(Tag::GPSLatitudeRef, "S"), lon * sign(Tag::GPSLongitudeRef, "W"), alt]);
         }
@@ -183,6 +242,7 @@ pub fn read(image: &Path, crs: Option<&Crs>) -> Result<Imported> {
     let id = tags.camera_id();
     let (lens, warning) = lens(image, &tags, size)?;
     set.warnings.extend(warning);
+    set.warnings.extend(tags.unreadable.as_ref().map(|u| format!("{}: {u}; the tags read are used", image.display())));
     set.lenses.push((id.clone(), lens));
 
     // Position: DJI's XMP (more digits), else EXIF GPS.
@@ -192,7 +252,10 @@ pub fn read(image: &Path, crs: Option<&Crs>) -> Result<Imported> {
     let [lat, lon, alt] = match (lat, lon, alt, tags.gps) {
         (Some(a), Some(b), Some(c), _) => [a, b, c],
         (_, _, _, Some(g)) => g,
-        _ => return Err(Error::format(image, "no GPS position in its EXIF or XMP tags: give a camera file")),
+        _ => {
+            let why = tags.unreadable.as_ref().map_or(String::new(), |u| format!(" ({u})"));
+            return Err(Error::format(image, format!("no GPS position in its EXIF or XMP tags{why}: give a camera file")));
+        }
     };
     let crs = crs.cloned().unwrap_or_else(|| utm_zone(lon, lat));
     let ground = GroundCrs::new(&crs).map_err(|m| Error::format(image, m))?;
@@ -240,7 +303,11 @@ fn lens(image: &Path, tags: &Tags, size: [u32; 2]) -> Result<(Lens, Option<Strin
         );
         return Ok((Lens::from_opencv(size, [f, f], centre, Default::default()), Some(warning)));
     }
-    Err(Error::format(image, "no focal length with a sensor size (focal-plane resolution), no 35 mm equivalent and no DJI DewarpData: give a camera file"))
+    let why = tags.unreadable.as_ref().map_or(String::new(), |u| format!(" ({u})"));
+    Err(Error::format(
+        image,
+        format!("no focal length with a sensor size (focal-plane resolution), no 35 mm equivalent and no DJI DewarpData{why}: give a camera file"),
+    ))
 }
 
 /// The camera's rotation (photo → `ground`) from the vendor's attitude tags.
