@@ -805,3 +805,28 @@ fn a_jpeg_mosaic_made_by_pieces_is_the_single_runs_file() {
     assert!(std::fs::read(d.join("single.tif")).unwrap() == std::fs::read(d.join("pieces.tif")).unwrap(), "the pieces' JPEG mosaic differs");
     assert!(!d.join("work").exists());
 }
+
+/// An image given a wrong camera (its heading turned half round, or its
+/// position 40 m off) still makes a plausible mosaic with its ground in
+/// the wrong place: it is named, even with `--quiet`, and the images
+/// around it are not. (The whole block draws no warning: the test above.)
+#[test]
+fn an_image_with_a_wrong_camera_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    let camera = std::fs::read_to_string(d.join("scans/002.toml")).unwrap();
+    let line = |key: &str| camera.lines().find(|l| l.starts_with(key)).unwrap().to_string();
+    let numbers = |l: &str| -> Vec<f64> { l[l.find('[').unwrap() + 1..l.find(']').unwrap()].split(',').map(|v| v.trim().parse().unwrap()).collect() };
+    let (angles, position) = (numbers(&line("angles_deg")), numbers(&line("position")));
+    let turned = format!("angles_deg = [{}, {}, {}]", angles[0], angles[1], angles[2] + 180.0);
+    let moved = format!("position = [{}, {}, {}]", position[0] + 40.0, position[1], position[2]);
+    for wrong in [camera.replace(&line("angles_deg"), &turned), camera.replace(&line("position"), &moved)] {
+        std::fs::write(d.join("scans/002.toml"), &wrong).unwrap();
+        let out = std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "m.tif", "--force", "--quiet"]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        let doubted: Vec<&str> = err.lines().filter(|l| l.contains("wrong camera or pose")).collect();
+        assert!(doubted.len() == 1 && doubted[0].contains("002.tif"), "{err}");
+    }
+}

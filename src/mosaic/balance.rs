@@ -69,16 +69,31 @@ impl Correction {
 }
 
 /// Sums over the cells two images both see, per band.
-#[derive(Clone, Default)]
-struct Sums {
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Sums {
     n: f64,
     a: f64,
     b: f64,
     aa: f64,
     bb: f64,
+    ab: f64,
 }
 
+/// Two images (by index) and their overlap's sums, per band.
+pub type Pair = (usize, usize, Vec<Sums>);
+
 impl Sums {
+    /// The two images' correlation over the overlap's cells, where both
+    /// vary by more than `least` (a flat overlap says nothing).
+    pub fn correlation(&self, least: f64) -> Option<f64> {
+        let ((ma, sa), (mb, sb)) = self.mean_sd();
+        (sa > least && sb > least).then(|| ((self.ab / self.n - ma * mb) / (sa * sb)).clamp(-1.0, 1.0))
+    }
+
+    pub fn cells(&self) -> f64 {
+        self.n
+    }
+
     fn mean_sd(&self) -> ((f64, f64), (f64, f64)) {
         let (ma, mb) = (self.a / self.n, self.b / self.n);
         let sd = |ss: f64, m: f64| (ss / self.n - m * m).max(0.0).sqrt();
@@ -91,16 +106,12 @@ const MIN_CELLS: f64 = 16.0;
 /// Weight of each image's pull towards no correction, against one overlap's.
 const PRIOR: f64 = 0.01;
 
-/// The corrections of `mode` for every image of the plan.
-pub fn solve(plan: &Plan, mode: Balance) -> Vec<Correction> {
+/// Every pair of images that overlap on enough cells, with the sums of
+/// their thumbnails there (none without thumbnails: a plan read back).
+pub fn overlaps(plan: &Plan) -> Vec<Pair> {
     let nb = plan.images.first().map_or(1, |i| i.bands as usize);
     let n = plan.images.len();
-    let mut out: Vec<Correction> = (0..n).map(|_| Correction::identity(nb)).collect();
-    if mode == Balance::None || n < 2 {
-        return out;
-    }
-    // Each pair's sums, per band.
-    let mut pairs: Vec<(usize, usize, Vec<Sums>)> = Vec::new();
+    let mut pairs: Vec<Pair> = Vec::new();
     for i in 0..n {
         for j in i + 1..n {
             let (a, b) = (&plan.images[i], &plan.images[j]);
@@ -119,6 +130,7 @@ pub fn solve(plan: &Plan, mode: Balance) -> Vec<Correction> {
                             s.b += q;
                             s.aa += p * p;
                             s.bb += q * q;
+                            s.ab += p * q;
                         }
                     }
                 }
@@ -128,19 +140,28 @@ pub fn solve(plan: &Plan, mode: Balance) -> Vec<Correction> {
             }
         }
     }
-    if pairs.is_empty() {
+    pairs
+}
+
+/// The corrections of `mode` for every image of the plan, from its
+/// `pairs` ([`overlaps`]).
+pub fn solve(plan: &Plan, mode: Balance, pairs: &[Pair]) -> Vec<Correction> {
+    let nb = plan.images.first().map_or(1, |i| i.bands as usize);
+    let n = plan.images.len();
+    let mut out: Vec<Correction> = (0..n).map(|_| Correction::identity(nb)).collect();
+    if mode == Balance::None || n < 2 || pairs.is_empty() {
         return out;
     }
     if mode == Balance::GainOffsetVignetting {
-        return solve_radial(plan, &pairs, out);
+        return solve_radial(plan, pairs, out);
     }
     let offsets = mode == Balance::GainOffset;
     let per = if offsets { 2 } else { 1 };
     for band in 0..nb {
-        let (scale, total) = level_and_cells(&pairs, band);
+        let (scale, total) = level_and_cells(pairs, band);
         let mut normal = Normal::new(per * n);
         let mut add = |row: &[(usize, f64)], rhs: f64, w: f64| normal.add(row, rhs, w);
-        for (i, j, s) in &pairs {
+        for (i, j, s) in pairs {
             let ((ma, sa), (mb, sb)) = s[band].mean_sd();
             let w = s[band].n / total;
             let (ma, sa, mb, sb) = (ma / scale, sa / scale, mb / scale, sb / scale);
@@ -172,7 +193,7 @@ pub fn solve(plan: &Plan, mode: Balance) -> Vec<Correction> {
 /// The block's mean level of `band` over the overlaps (values are solved
 /// in its units, so that gains and offsets weigh alike) and the overlaps'
 /// cells in all.
-fn level_and_cells(pairs: &[(usize, usize, Vec<Sums>)], band: usize) -> (f64, f64) {
+fn level_and_cells(pairs: &[Pair], band: usize) -> (f64, f64) {
     let level = pairs.iter().map(|(_, _, s)| s[band].a + s[band].b).sum::<f64>() / pairs.iter().map(|(_, _, s)| 2.0 * s[band].n).sum::<f64>();
     let scale = if level.abs() > 1e-12 { level.abs() } else { 1.0 };
     (scale, pairs.iter().map(|(_, _, s)| s[band].n).sum())
@@ -181,7 +202,7 @@ fn level_and_cells(pairs: &[(usize, usize, Vec<Sums>)], band: usize) -> (f64, f6
 /// Gains, offsets and radial terms from every cell two images both see:
 /// each such cell asks that the two corrected values agree. Weakly pulled
 /// towards no correction; anchored as [`solve`]'s.
-fn solve_radial(plan: &Plan, pairs: &[(usize, usize, Vec<Sums>)], mut out: Vec<Correction>) -> Vec<Correction> {
+fn solve_radial(plan: &Plan, pairs: &[Pair], mut out: Vec<Correction>) -> Vec<Correction> {
     let nb = out.first().map_or(1, |c| c.gain.len());
     let n = plan.images.len();
     const PER: usize = 4;

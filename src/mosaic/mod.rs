@@ -6,6 +6,7 @@
 //! the scans through `rectify`'s own stages (`render.rs`). The seamlines
 //! can be written as GeoJSON polygons (`seamlines.rs`).
 
+pub mod agreement;
 pub mod balance;
 pub mod normal;
 pub mod plan;
@@ -295,9 +296,13 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         }
         let t = Instant::now();
         let from_plan = o.plan_in.as_deref().map(|p| plan_file::read(&mut plan, p)).transpose()?;
+        let pairs = balance::overlaps(&plan);
+        for doubt in agreement::doubted(&plan, &pairs) {
+            progress.warn(&doubt);
+        }
         let corrections = match &from_plan {
             Some(c) => c.clone(),
-            None => balance::solve(&plan, o.balance),
+            None => balance::solve(&plan, o.balance, &pairs),
         };
         let t_balance = t.elapsed().as_secs_f64();
         let t = Instant::now();
