@@ -245,12 +245,12 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
     }
     if !a.quiet {
         eprintln!(
-            "{}: {}×{} px at {} from {} images; {}; seams {} px long; plan {:.1} s, seams {:.1} s, render {:.1} s",
+            "{}: {}×{} px at {} from {}; {}; seams {} px long; plan {:.1} s, seams {:.1} s, render {:.1} s",
             report.output.as_deref().or(a.plan_out.as_deref()).unwrap_or(Path::new("")).display(),
             report.width,
             report.height,
             report.gsd,
-            report.images.len(),
+            taken_of(&report.images),
             // What GDAL's VALID_PERCENT says, where the pixels were made.
             match report.pixels_with_value {
                 Some([v, n]) => format!("{:.1} % of its pixels have a value", 100.0 * v as f64 / n.max(1) as f64),
@@ -844,4 +844,14 @@ fn run_demo(a: &DemoArgs, signals: &Signals) -> Result<()> {
     );
     say!("  files: {}", if a.keep.is_some() { dir.display().to_string() } else { "(temporary, removed; use --keep DIR)".into() });
     Ok(())
+}
+
+/// "N images", or "N of M images" where the mosaic takes nothing of some.
+fn taken_of(images: &[gcm_ortho::mosaic::ImageReport]) -> String {
+    let taken = images.iter().filter(|i| i.share > 0.0).count();
+    if taken == images.len() {
+        format!("{taken} images")
+    } else {
+        format!("{taken} of {} images", images.len())
+    }
 }

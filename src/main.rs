@@ -1,6 +1,16 @@
 //! The binary's edge: parse arguments, run, print one readable error line,
 //! map errors to exit codes. `anyhow` lives only here.
 
+/// `eprintln!` that never panics: where stderr is gone (a closed pipe, as
+/// under `2>&1 | head -1`) the line is dropped and the run goes on, so
+/// that a reader going away never fails the work (std's panics, exit 101).
+macro_rules! eprintln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr().lock(), $($t)*);
+    }};
+}
+
 mod cli;
 mod commands;
 mod progress_bar;

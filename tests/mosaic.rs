@@ -830,3 +830,42 @@ fn an_image_with_a_wrong_camera_is_named() {
         assert!(doubted.len() == 1 && doubted[0].contains("002.tif"), "{err}");
     }
 }
+
+/// Slips of editing seamlines in a GIS are said, naming the feature: an
+/// outline that crosses itself (a bow-tie), a ring of no area, a polygon
+/// outside the mosaic; the rest of the file is honoured.
+#[test]
+fn slips_in_edited_seamlines_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    mosaic(d, &["-o", "m.tif", "--seamlines-out", "seams.geojson"]);
+    let mut doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("seams.geojson")).unwrap()).unwrap();
+    let features = doc["features"].as_array_mut().unwrap();
+    // Feature 0's box, from its first polygon's outer ring.
+    let ring = features[0]["geometry"]["coordinates"][0][0].as_array().unwrap().clone();
+    let xy: Vec<[f64; 2]> = ring.iter().map(|p| [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()]).collect();
+    let (x0, x1) = (xy.iter().map(|p| p[0]).fold(f64::INFINITY, f64::min), xy.iter().map(|p| p[0]).fold(f64::NEG_INFINITY, f64::max));
+    let (y0, y1) = (xy.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min), xy.iter().map(|p| p[1]).fold(f64::NEG_INFINITY, f64::max));
+    let polygon = |pts: &[[f64; 2]]| serde_json::json!({ "type": "Polygon", "coordinates": [pts] });
+    features[0]["geometry"] = polygon(&[[x0, y0], [x1, y1], [x1, y0], [x0, y1], [x0, y0]]);
+    let image1 = features[1]["properties"].clone();
+    let image2 = features[2]["properties"].clone();
+    features.push(serde_json::json!({ "type": "Feature", "properties": image1, "geometry": polygon(&[[x0, y0], [x1, y1], [x0, y0]]) }));
+    let far = [[x0 + 1e5, y0], [x1 + 1e5, y0], [x1 + 1e5, y1], [x0 + 1e5, y1], [x0 + 1e5, y0]];
+    features.push(serde_json::json!({ "type": "Feature", "properties": image2, "geometry": polygon(&far) }));
+    std::fs::write(d.join("edited.geojson"), serde_json::to_string(&doc).unwrap()).unwrap();
+    let out = std::process::Command::new(bin())
+        .current_dir(d)
+        .args(["mosaic", "manifest.toml", "-o", "e.tif", "--seamlines", "edited.geojson", "--quiet"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let said =
+        |what: &str, feature: usize| err.lines().any(|l| l.contains("edited.geojson") && l.contains(&format!("features[{feature}]")) && l.contains(what));
+    let n = doc["features"].as_array().unwrap().len();
+    assert!(said("crosses itself", 0), "{err}");
+    assert!(said("no area", n - 2), "{err}");
+    assert!(said("holds no cell of the mosaic", n - 1), "{err}");
+}

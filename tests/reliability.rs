@@ -108,6 +108,29 @@ fn outputs_that_are_not_files_are_refused_or_written_through() {
     assert_eq!(std::fs::read(d.join("old.tif")).unwrap(), std::fs::read(d.join("a.tif")).unwrap(), "the file it names is the orthophoto");
 }
 
+/// A reader of the messages that goes away (`2>&1 | head -1`) never fails
+/// the work: the run that warns into a closed pipe ends as it would have,
+/// its output made (std's printing would panic, exit 101).
+#[test]
+fn a_closed_pipe_for_messages_does_not_fail_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    let out = d.join("o.tif");
+    // `--cog --overviews none` is warned of, even with --quiet.
+    let mut child = std::process::Command::new(common::bin())
+        .args(["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "--cog", "--overviews", "none", "-o", s(&out)])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stderr.take());
+    drop(child.stdout.take());
+    let status = child.wait().unwrap();
+    assert!(status.success(), "{status:?}");
+    assert!(std::fs::metadata(&out).unwrap().len() > 0);
+}
+
 #[test]
 fn files_an_input_names_are_inputs_too() {
     // A DEM folder's, list's or VRT's tiles, and the RPC file a camera

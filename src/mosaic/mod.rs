@@ -318,6 +318,9 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             _ if from_plan.is_some() => (seams::SeamStats::default(), None),
             Some(path) => {
                 let edited = seamlines::read(&mut plan, path)?;
+                for doubt in &edited.doubts {
+                    progress.warn(&format!("{}: {doubt}", path.display()));
+                }
                 if edited.cells_kept > 0 || edited.cells_overlapping > 0 {
                     progress.warn(&format!(
                     "{}: {} cells kept their planned image (given to an image that does not see them, or to none), {} lay in two features (the first one's)",

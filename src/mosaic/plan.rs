@@ -390,7 +390,13 @@ impl Plan {
             }
             let other = (0..by.len()).filter(|&j| by[j] > 0).max_by_key(|&j| by[j]).map(|j| self.images[j].opts.image.display().to_string());
             let dem = self.dems[im.dem].path.display();
+            // An image a cell or two across at this GSD: the grid is coarse
+            // for it, whatever else is true.
+            let (across, down) = (x1 - x0, im.cells[3] - im.cells[1]);
             let why = match (other, partial_dem[k]) {
+                _ if across.min(down) <= 2 => {
+                    format!("at GSD {} it spans only {across}×{down} of the plan's cells ({} px each): the grid is coarse for it", self.grid.gsd, self.cell)
+                }
                 (None, true) => format!("it sees none of the mosaic's ground on the DEM {dem}"),
                 (None, false) => "it sees none of the mosaic's ground (its own holes, or the DEM's)".to_string(),
                 (Some(o), true) => format!("what of it lies on the DEM {dem} is seen nearer their centres by other images (most by {o})"),

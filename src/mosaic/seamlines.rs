@@ -177,6 +177,11 @@ pub struct EditedSeams {
     pub cells_kept: usize,
     /// Cells inside two features: the first one's.
     pub cells_overlapping: usize,
+    /// What in the file looks like a slip of the editing (a ring of no
+    /// area, an outline that crosses itself, a feature outside the
+    /// mosaic): said as warnings.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub doubts: Vec<String>,
 }
 
 /// The first position of the features' geometries.
@@ -218,6 +223,9 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
     let (g, c) = (plan.grid, plan.cell as f64);
     // Each feature's polygons, each a ring list (outer and holes).
     let mut shapes: Vec<(u16, Vec<Rings>)> = Vec::new();
+    // Each shape's feature, named as a warning names it.
+    let mut feature_of: Vec<String> = Vec::new();
+    let mut doubts = Vec::new();
     for (k, f) in features.iter().enumerate() {
         let field = |n: &str| format!("features[{k}].{n}");
         let props = f.get("properties").cloned().unwrap_or_default();
@@ -255,14 +263,27 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
                     };
                     pts.push(((x - g.x0) / g.gsd.x / c, (g.y0 - y) / g.gsd.y / c));
                 }
-                if pts.len() >= 3 {
-                    rings.push(pts);
+                let what = format!("features[{k}] (image {})", plan.images[image].name);
+                let mut distinct = pts.clone();
+                distinct.dedup();
+                if distinct.len() > 1 && distinct.first() == distinct.last() {
+                    distinct.pop();
                 }
+                if distinct.len() < 3 {
+                    doubts.push(format!("{what}: a ring of {} point(s), no area: left out", distinct.len()));
+                    continue;
+                }
+                if crosses_itself(&distinct) {
+                    doubts.push(format!("{what}: its outline crosses itself; cells are filled by the even-odd rule (where it loops over itself, left out)"));
+                }
+                rings.push(pts);
             }
             parts.push(rings);
         }
         shapes.push((image as u16, parts));
+        feature_of.push(format!("features[{k}] (image {})", plan.images[image].name));
     }
+    let mut filled = vec![0usize; shapes.len()];
     // Cell centres, row by row: where a polygon's rings cross the row, the
     // even-odd rule fills between the crossings; a feature is the union of
     // its polygons. A cell cut by the grid's edge has its centre in the
@@ -273,7 +294,7 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
     let mut report = EditedSeams::default();
     for y in 0..plan.ch {
         let yc = centre(y, hc);
-        for (image, parts) in &shapes {
+        for (n, (image, parts)) in shapes.iter().enumerate() {
             for rings in parts {
                 let mut xs: Vec<f64> = Vec::new();
                 for r in rings {
@@ -294,6 +315,7 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
                         if !(xc >= pair[0] && xc < pair[1]) {
                             continue;
                         }
+                        filled[n] += 1;
                         let cell = &mut given[y * plan.cw + x];
                         if *cell == NONE_GIVEN {
                             *cell = *image;
@@ -323,7 +345,27 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
     if report.cells_given == 0 {
         return Err(Error::format(path, "its polygons give no cell of the mosaic to an image that sees it: are they in the mosaic's CRS?"));
     }
+    for (what, _) in feature_of.iter().zip(&filled).filter(|(_, &n)| n == 0) {
+        doubts.push(format!("{what}: holds no cell of the mosaic (outside it, or too thin to hold a cell's centre)"));
+    }
+    report.doubts = doubts;
     Ok(report)
+}
+
+/// Does the closed ring `pts` (no point repeated at its end) cross itself:
+/// two edges that are not neighbours meet? (Edges a pair at a time: rings
+/// as a GIS edits them hold hundreds of points, not millions.)
+fn crosses_itself(pts: &[(f64, f64)]) -> bool {
+    let n = pts.len();
+    let edge = |i: usize| (pts[i], pts[(i + 1) % n]);
+    let side = |a: (f64, f64), b: (f64, f64), p: (f64, f64)| ((b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0)).signum();
+    (0..n).any(|i| {
+        let (a, b) = edge(i);
+        (i + 2..n).filter(|&j| !(i == 0 && j == n - 1)).any(|j| {
+            let (c, d) = edge(j);
+            side(a, b, c) * side(a, b, d) < 0.0 && side(c, d, a) * side(c, d, b) < 0.0
+        })
+    })
 }
 
 /// Closed rings in cell coordinates.
