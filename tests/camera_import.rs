@@ -442,3 +442,65 @@ gdal.GetDriverByName('GTiff').CreateCopy(d + '/gdal.tif', ds)
     let f = set.lenses[0].1.focal_px[0];
     assert!((f - 24.0 * 150.0 / 36f64.hypot(24.0)).abs() < 1e-9, "{f}");
 }
+
+/// Files of another tool's form that lack a field are read as that form
+/// and say which field; text of no form read here says so, not a TOML
+/// error alone.
+#[test]
+fn incomplete_files_name_what_they_lack() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let no_size = write("i.yaml", "cam1:\n  type: brown\n  focal_len: 2.08\n  cx: 0\n  cy: 0\n");
+    let e = formats::read(&no_size, None, None).unwrap_err().to_string();
+    assert!(e.contains("i.yaml") && e.contains("cam1.im_size"), "{e}");
+    let no_z = write("e.csv", "filename,x,y,omega,phi,kappa\nimg1,500000,4100000,0,0,0\n");
+    let e = formats::read(&fixture("orthority/int_param.yaml"), Some(&no_z), None).unwrap_err().to_string();
+    assert!(e.contains("e.csv") && e.contains("x, y, z"), "{e}");
+    let junk = write("junk.yaml", "hello: [\n");
+    let e = formats::read(&junk, None, None).unwrap_err().to_string();
+    assert!(e.contains("junk.yaml") && e.contains("not a camera file of a form read here") && e.contains("line 1"), "{e}");
+}
+
+/// Numbers in another unit than the form's are read as the form says, and
+/// warned of: a focal length in mm where Orthority wants a fraction of the
+/// image (a lens seeing a tenth of a degree), angles in degrees where
+/// Orthority's GeoJSON and OpenSfM want radians, a CSV angle past a turn.
+#[test]
+fn numbers_in_the_wrong_unit_are_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let said = |set: &formats::Imported, words: &[&str]| set.warnings.iter().any(|w| words.iter().all(|x| w.contains(x)));
+    let mm = write("mm.yaml", "cam1:\n  type: pinhole\n  im_size: [1000, 800]\n  focal_len: 100.0\n");
+    let set = formats::read(&mm, None, None).unwrap();
+    assert!(said(&set, &["mm.yaml", "cam1", "wrong unit"]), "{:?}", set.warnings);
+    // The fixtures themselves draw no such warning.
+    let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&fixture("orthority/ext_param.geojson")), None).unwrap();
+    assert!(!said(&set, &["wrong unit"]) && !said(&set, &["degrees?"]), "{:?}", set.warnings);
+
+    let geojson = std::fs::read_to_string(fixture("orthority/ext_param.geojson")).unwrap();
+    let degrees = write("deg.geojson", &geojson.replace("0.5235987755982988", "30.0"));
+    let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&degrees), None).unwrap();
+    assert!(said(&set, &["deg.geojson", "opk", "2π", "degrees?"]), "{:?}", set.warnings);
+
+    let turn = write("turn.csv", "filename,x,y,z,omega,phi,kappa\nimg1,500000,4100000,600,0,0,400\n");
+    std::fs::copy(fixture("orthority/ext_param.prj"), dir.path().join("turn.prj")).unwrap();
+    let set = formats::read(&fixture("orthority/int_param.yaml"), Some(&turn), None).unwrap();
+    assert!(said(&set, &["turn.csv", "line 2", "past 360°"]), "{:?}", set.warnings);
+
+    let recon = std::fs::read_to_string(fixture("opensfm/reconstruction.json")).unwrap();
+    let set = formats::read(&fixture("opensfm/reconstruction.json"), None, None).unwrap();
+    assert!(!said(&set, &["degrees?"]), "{:?}", set.warnings);
+    let (from, to) = ("     3.1,\n     0.05,\n     -0.02", "     177.6,\n     2.9,\n     -1.1");
+    assert!(recon.contains(from));
+    let turned = write("reconstruction.json", &recon.replacen(from, to, 1));
+    let set = formats::read(&turned, None, None).unwrap();
+    assert!(said(&set, &["reconstruction.json", "img_o.jpg", "rotation", "degrees?"]), "{:?}", set.warnings);
+}

@@ -394,7 +394,7 @@ impl Plan {
             // for it, whatever else is true.
             let (across, down) = (x1 - x0, im.cells[3] - im.cells[1]);
             let why = match (other, partial_dem[k]) {
-                _ if across.min(down) <= 2 => {
+                _ if (1..=2).contains(&across.min(down)) => {
                     format!("at GSD {} it spans only {across}×{down} of the plan's cells ({} px each): the grid is coarse for it", self.grid.gsd, self.cell)
                 }
                 (None, true) => format!("it sees none of the mosaic's ground on the DEM {dem}"),

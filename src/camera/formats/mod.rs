@@ -266,8 +266,22 @@ pub fn detect(path: &Path, text: &str) -> Result<Kind> {
     if orthority::looks_like_csv(t) {
         return Ok(Kind::OrthorityCsv);
     }
-    // Most likely our own file with a mistake: its parser says where.
-    Ok(Kind::Ours)
+    // Our own file with a mistake (its parser says what), or no form read.
+    let named_toml = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    match toml::from_str::<toml::Table>(t) {
+        Err(e) if !named_toml => {
+            let line =
+                e.span().map_or(String::new(), |s| format!("line {}: ", text[..(text.len() - t.len() + s.start).min(text.len())].matches('\n').count() + 1));
+            Err(Error::format(
+                path,
+                format!(
+                    "not a camera file of a form read here (ours in TOML; Orthority's YAML, CSV or GeoJSON; OpenSfM's JSON; Metashape's XML; Pix4D's): as TOML, {line}{}",
+                    e.message().replace('\n', " ")
+                ),
+            ))
+        }
+        _ => Ok(Kind::Ours),
+    }
 }
 
 fn detect_json(path: &Path, v: &serde_json::Value) -> Result<Kind> {
@@ -355,8 +369,31 @@ fn read_one(path: &Path, for_lenses: bool, image: Option<&Path>) -> Result<Impor
             pix4d::read_cam(path, text, [info.width, info.height])?
         }
     };
+    for (id, lens) in &set.lenses {
+        set.warnings.extend(narrow_lens(path, id, lens));
+    }
     set.files.push(path.to_path_buf());
     Ok(set)
+}
+
+/// Narrower than this across its diagonal, a lens is doubted: mapping
+/// cameras see 20° and more (a 600 mm telephoto on full frame 4°), frame
+/// cameras see less than a degree only on satellites, and a focal length
+/// in the wrong unit (mm where a form wants pixels or a fraction of the
+/// image's side) gives tenths of one or less.
+const NARROWEST_DEG: f64 = 1.0;
+
+/// A warning where `lens` sees less than [`NARROWEST_DEG`] across.
+fn narrow_lens(path: &Path, id: &str, lens: &Lens) -> Option<String> {
+    let [w, h] = lens.size.map(f64::from);
+    let f = lens.focal_px[0].max(lens.focal_px[1]);
+    let fov = 2.0 * (w.hypot(h) / 2.0 / f).atan().to_degrees();
+    (fov < NARROWEST_DEG).then(|| {
+        format!(
+            "{}: camera '{id}': a focal length of {f:.0} px on {w}×{h} px sees only {fov:.3}° across: a focal length in the wrong unit (mm where the form wants pixels, or a fraction of the image's side)?",
+            path.display()
+        )
+    })
 }
 
 impl Imported {

@@ -68,7 +68,16 @@ pub fn read(path: &Path, text: &str) -> Result<Imported> {
                         let v: Option<Vec<f64>> = a.and_then(|a| a.iter().map(|x| x.as_f64().filter(|x| x.is_finite())).collect());
                         v.map(|v| Vector3::new(v[0], v[1], v[2])).ok_or_else(|| Error::config(path, field(f), "expected three numbers"))
                     };
-                    let w2c = Rotation3::new(three("rotation")?).into_inner();
+                    let axis_angle = three("rotation")?;
+                    if axis_angle.norm() > std::f64::consts::PI + 1e-9 {
+                        set.warnings.push(format!(
+                            "{}: {}: turns by {:.0}°: OpenSfM writes angle-axis vectors of π at most (radians); degrees?",
+                            path.display(),
+                            field("rotation"),
+                            axis_angle.norm().to_degrees()
+                        ));
+                    }
+                    let w2c = Rotation3::new(axis_angle).into_inner();
                     let centre = -(w2c.transpose() * three("translation")?);
                     // Photo axes (x right, y up, z back) = OpenCV's with y, z turned.
                     let r_local = w2c.transpose() * Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0));

@@ -34,14 +34,24 @@ use std::path::Path;
 /// `type` and `im_size`, or one such mapping)?
 pub fn looks_like_interior(text: &str) -> bool {
     let Ok(Value::Mapping(root)) = serde_yaml_ng::from_str::<Value>(text) else { return false };
-    let is_camera = |v: &Value| v.get("type").is_some() && v.get("im_size").is_some();
+    // An Orthority camera: a `type` of its own or a `focal_len` (the reader
+    // then names what else is missing).
+    let is_camera = |v: &Value| {
+        v.get("focal_len").is_some() || v.get("type").and_then(Value::as_str).is_some_and(|t| ["pinhole", "brown", "fisheye", "opencv"].contains(&t))
+    };
     is_camera(&Value::Mapping(root.clone())) || (!root.is_empty() && root.values().all(is_camera))
 }
 
 /// Does this text look like a list of exterior orientations?
 pub fn looks_like_csv(text: &str) -> bool {
     let Some(first) = text.lines().find(|l| !l.trim().is_empty()) else { return false };
-    DELIMITERS.iter().any(|&d| fields(first, d).len() >= 7)
+    DELIMITERS.iter().any(|&d| fields(first, d).len() >= 7 || has_file_column(&fields(first, d)))
+}
+
+/// Does a header name the image file (`name`: our block CSV; `imagename`:
+/// Pix4D's) among other columns?
+fn has_file_column(head: &[String]) -> bool {
+    head.len() >= 2 && head.iter().any(|f| matches!(f.to_ascii_lowercase().as_str(), "filename" | "name" | "imagename"))
 }
 
 const DELIMITERS: [u8; 5] = [b',', b';', b'\t', b':', b' '];
@@ -180,6 +190,15 @@ fn lens(path: &Path, id: &str, p: &Value) -> Result<(Lens, Option<String>)> {
     Ok((lens, warning))
 }
 
+/// `angles` as given, with a warning where one passes 2π: radians that
+/// large are degrees written where radians belong.
+pub fn radians(path: &Path, field: &str, angles: [f64; 3], warnings: &mut Vec<String>) -> [f64; 3] {
+    if angles.iter().any(|a| a.abs() > std::f64::consts::TAU) {
+        warnings.push(format!("{}: {field}: {angles:?} holds angles past 2π, read as radians: degrees?", path.display()));
+    }
+    angles
+}
+
 /// The rotation of Orthority's omega, phi, kappa (radians): photo → world.
 #[must_use]
 pub fn opk_rotation(opk: [f64; 3]) -> Matrix3<f64> {
@@ -234,8 +253,10 @@ pub fn read_csv(path: &Path, text: &str) -> Result<Imported> {
     let delimiter = DELIMITERS
         .into_iter()
         .find(|&d| {
-            let n = fields(first, d).len();
-            n >= 7 && lines.iter().take(20).all(|(_, l)| fields(l, d).len() == n)
+            let head = fields(first, d);
+            let n = head.len();
+            // (A header short of a column: the columns' check names it.)
+            (n >= 7 || has_file_column(&head)) && lines.iter().take(20).all(|(_, l)| fields(l, d).len() == n)
         })
         .ok_or_else(|| Error::format(path, "line 1: expected a header (filename, x, y, z, omega, phi, kappa, …) or seven fields, all lines alike"))?;
     let head: Vec<String> = fields(first, delimiter).iter().map(|f| f.to_ascii_lowercase()).collect();
@@ -254,6 +275,7 @@ pub fn read_csv(path: &Path, text: &str) -> Result<Imported> {
     let camera_col = col("camera");
 
     let mut rows = Vec::new();
+    let (mut warnings, mut past_a_turn) = (Vec::new(), false);
     for &(n, line) in lines.iter().skip(usize::from(has_header)) {
         let f = fields(line, delimiter);
         let at = |k: usize| -> Result<f64> {
@@ -263,7 +285,13 @@ pub fn read_csv(path: &Path, text: &str) -> Result<Imported> {
                 .ok_or_else(|| Error::format(path, format!("line {}: {} is not a number", n + 1, names.get(k).map_or("a field", |s| s.as_str()))))
         };
         let p = [at(position[0])?, at(position[1])?, at(position[2])?];
-        let a = [at(angles[0])?.to_radians(), at(angles[1])?.to_radians(), at(angles[2])?.to_radians()];
+        let degrees = [at(angles[0])?, at(angles[1])?, at(angles[2])?];
+        // (Said once a file: every line of a wrong column would say it.)
+        if !past_a_turn && degrees.iter().any(|a| a.abs() > 360.0) {
+            past_a_turn = true;
+            warnings.push(format!("{}: line {}: angles {degrees:?} past 360°: read as degrees, turned into one turn", path.display(), n + 1));
+        }
+        let a = degrees.map(f64::to_radians);
         let camera = camera_col.and_then(|c| f.get(c)).filter(|c| !c.is_empty()).cloned();
         let file = f.get(file_col).ok_or_else(|| Error::format(path, format!("line {}: no filename", n + 1)))?;
         rows.push((n + 1, image_name(file), camera, p, a));
@@ -293,7 +321,7 @@ pub fn read_csv(path: &Path, text: &str) -> Result<Imported> {
         None => None,
     };
     let crs_from = prj.is_file().then(|| prj.clone());
-    let mut set = Imported { crs: crs_text, crs_from, ..Default::default() };
+    let mut set = Imported { crs: crs_text, crs_from, warnings, ..Default::default() };
     for (line, name, camera, p, a) in rows {
         let origin = format!("{}:{line}", path.display());
         let bad = |what: &str| Error::format(path, format!("line {line}: {what}"));
@@ -335,7 +363,7 @@ pub fn read_geojson(path: &Path, text: &str) -> Result<Imported> {
             name: image_name(name),
             camera,
             position: three("xyz")?,
-            r: opk_rotation(three("opk")?),
+            r: opk_rotation(radians(path, &format!("features[{k}].properties.opk"), three("opk")?, &mut set.warnings)),
             origin: format!("{}: feature {k}", path.display()),
         });
     }
