@@ -869,3 +869,23 @@ fn slips_in_edited_seamlines_are_named() {
     assert!(said("no area", n - 2), "{err}");
     assert!(said("holds no cell of the mosaic", n - 1), "{err}");
 }
+
+/// A blend hundreds of pixels wide (a typo, or a misunderstanding of the
+/// option) mixes images over their whole overlaps: warned of, even with
+/// `--quiet`; the default's is not.
+#[test]
+fn a_blend_wider_than_a_seam_needs_is_warned_of() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    for (blend, warned) in [("8", false), ("1e9", true)] {
+        let out = std::process::Command::new(bin())
+            .current_dir(d)
+            .args(["mosaic", "manifest.toml", "-o", "m.tif", "--force", "--quiet", "--blend", blend])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        assert_eq!(err.contains("--blend") && err.contains("whole overlap"), warned, "--blend {blend}: {err}");
+    }
+}

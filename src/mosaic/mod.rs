@@ -239,6 +239,9 @@ pub(crate) fn check_mosaic_outputs(o: &MosaicOptions, jobs: &[crate::batch::mani
     check_outputs(&ins, &outs)
 }
 
+/// Blends wider than this, pixels, are doubted (the default is 8).
+const MOST_BLEND_PX: f64 = 256.0;
+
 /// Makes the mosaic of the manifest's images (see the module doc).
 pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Result<MosaicReport> {
     // The plan and each image's set-up (per strip, too) meet the same
@@ -248,6 +251,12 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     let wall = Instant::now();
     if !(o.blend >= 0.0 && o.blend.is_finite()) {
         return Err(Error::setting("blend", format!("{} is not a width in pixels (0 or more)", o.blend)));
+    }
+    if o.blend > MOST_BLEND_PX {
+        progress.warn(&format!(
+            "--blend {} px: a ramp that wide mixes two images over their whole overlap (anything that moved or stands up shows twice); a few pixels hide a seam",
+            o.blend
+        ));
     }
     let jobs = crate::batch::manifest::load(&o.manifest).map_err(|e| e.into_error())?;
     if let Some(bad) = jobs.iter().find_map(|j| j.problem.clone()) {
