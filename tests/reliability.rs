@@ -131,6 +131,33 @@ fn a_closed_pipe_for_messages_does_not_fail_the_run() {
     assert!(std::fs::metadata(&out).unwrap().len() > 0);
 }
 
+/// An orthophoto without one pixel of image (a grid beside the scan's
+/// ground) is warned of, even with --quiet; a DEM whose holes lie under
+/// the whole scan is named as that, not as a DEM that misses the scan.
+#[test]
+fn an_orthophoto_of_nothing_and_a_void_under_the_scan_are_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    let base = ["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet"];
+    let empty = "no pixel of it has a value";
+    let r = run(&[&base[..], &["-o", s(&d.join("a.tif"))]].concat());
+    assert!(r.status.success() && !String::from_utf8_lossy(&r.stderr).contains(empty), "{}", String::from_utf8_lossy(&r.stderr));
+    let r = run(&[&base[..], &["-o", s(&d.join("b.tif")), "--bounds", "648200,4888700,649000,4889500"]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success() && err.contains("b.tif") && err.contains(empty), "{err}");
+    // The DEM's every post a void but one corner's.
+    let Some(py) = python_with("osgeo.gdal", "python3-gdal") else { return };
+    let script = "import sys\nfrom osgeo import gdal\nds = gdal.Open(sys.argv[1])\na = ds.GetRasterBand(1).ReadAsArray().astype('float32')\na[:, :] = -32768\na[0, 0] = 300\nd = gdal.GetDriverByName('GTiff').CreateCopy(sys.argv[2], ds)\nd.GetRasterBand(1).WriteArray(a)\nd.GetRasterBand(1).SetNoDataValue(-32768)\nd = None\n";
+    let void = d.join("void.tif");
+    assert!(std::process::Command::new(py).args(["-c", script, s(&dem), s(&void)]).status().unwrap().success());
+    let r = run(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&void), "--quiet", "-o", s(&d.join("c.tif"))]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.contains("void.tif") && err.contains("fall in its holes") && !err.contains("does the DEM cover"), "{err}");
+    assert!(!d.join("c.tif").exists());
+}
+
 #[test]
 fn files_an_input_names_are_inputs_too() {
     // A DEM folder's, list's or VRT's tiles, and the RPC file a camera

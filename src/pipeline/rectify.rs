@@ -105,6 +105,15 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         return Err(Error::Cancelled);
     }
     let busy = result?;
+    // An orthophoto without one pixel of image is a mistake to say (a
+    // piece of a window may be empty beside the footprint).
+    let stats = run.statistics.lock().map(|s| s.total()).unwrap_or_default();
+    if opts.window.is_none() && stats.pixels > 0 && !stats.bands.is_empty() && stats.bands.iter().all(|b| b.count == 0) {
+        progress.warn(&format!(
+            "{}: no pixel of it has a value: the scan's ground lies outside the grid, in the DEM's holes or off it (--dem-hole, --dem-outside), or the scan holds no image there",
+            opts.output.display()
+        ));
+    }
     if run.pyramid.as_ref().is_some_and(|p| !p.lock().is_ok_and(|p| p.is_complete())) {
         return Err(Error::Geometry("an overview tile was left unfinished (please report it)".into()));
     }

@@ -118,7 +118,15 @@ pub fn footprint_on(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32,
         )
         .reduce(|| (none, 0, (0, 0)), |(a, m, p), (b, n, q)| (joined(a, b), m + n, (p.0 + q.0, p.1 + q.1)));
     if hits < 4 {
-        return Err(Error::Geometry(format!("only {hits} of {} points on the image's edges meet the DEM: does the DEM cover the scan?", outline.len())));
+        let n = outline.len();
+        // Most of the edge over the DEM's holes: the DEM is there, its
+        // heights are not.
+        let why = if past.1 > past.0 {
+            format!("{} of them fall in its holes (nodata or void values): a void under the scan; --dem-hole HEIGHT goes on at that height", past.1)
+        } else {
+            "does the DEM cover the scan?".to_string()
+        };
+        return Err(Error::Geometry(format!("only {hits} of {n} points on the image's edges meet the DEM: {why}")));
     }
     Ok(Footprint { bounds: b, past_edge: past.0, on_holes: past.1, edge_points: outline.len() })
 }
