@@ -892,3 +892,21 @@ fn an_hgt_tile_reads_as_gdal_reads_it_and_gives_the_crops_orthophoto() {
     assert!(rectify(&hgt, "hgt.tif") == want, "the .hgt tile's orthophoto differs from the crop's");
     assert!(rectify(&tiles, "folder.tif") == want, "the folder of .hgt tiles gives another orthophoto");
 }
+
+/// Ground far outside the heights an RPC was fitted over (HEIGHT_OFF ±
+/// HEIGHT_SCALE) is extrapolated: warned of, even with --quiet; the
+/// Ventoux scene over its own DEM is not.
+#[test]
+fn ground_far_from_the_rpcs_heights_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let said = "its RPC was fitted over heights";
+    let (image, rpc, dem, geoid) = (ventoux("left_image.tif"), ventoux("left_image.geom"), ventoux("srtm_N44E005_crop.tif"), ventoux("egm96_15_ventoux.gtx"));
+    let base = ["rectify", "--image", s(&image), "--rpc", s(&rpc), "--rpc-offset", "5000,5000", "--quiet"];
+    let r = common::run(&[&base[..], &["--dem", s(&dem), "--geoid", s(&geoid), "-o", s(&d.join("a.tif"))]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success() && !err.contains(said), "{err}");
+    let r = common::run(&[&base[..], &["--height", "9000", "-o", s(&d.join("b.tif"))]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success() && err.contains("left_image.tif") && err.contains(said), "{err}");
+}

@@ -207,6 +207,18 @@ impl RunPlan {
                     out
                 ));
             }
+            // The ground's heights within the range the RPC was fitted over
+            // (HEIGHT_OFF ± HEIGHT_SCALE; twice that, and a geoid's
+            // undulation, before it is doubted): far beyond, it is
+            // extrapolated as fast as beyond the scene.
+            if !((z_guess - r.height_off).abs() <= 2.0 * r.height_scale.abs() + 200.0) {
+                progress.warn(&format!(
+                    "{}: the ground is at {z_guess:.0} m, but its RPC was fitted over heights {:.0} ± {:.0} m: far beyond them the RPC is extrapolated; check the DEM (or --height) and that the RPC is this scene's",
+                    opts.image.display(),
+                    r.height_off,
+                    r.height_scale.abs()
+                ));
+            }
         }
         if let Some((f, centre)) = frame {
             // The ground under the camera where the DEM has it, else its mean.
