@@ -182,6 +182,21 @@ fn grain_dust_and_a_scratched_out_mark_give_a_right_fit_or_a_clear_refusal() {
         }
         Err(e) => assert!(e.to_string().contains("scan.tif"), "{e}"),
     }
+    // A mark's coordinate mistyped (117.5 → 171.5): it is not used and
+    // said, or the refusal points at the layout and that mark.
+    let mut file = CameraFile::read(&camera).unwrap();
+    let i = file.interior.as_mut().unwrap();
+    let typo = i.fiducials_mm.as_ref().unwrap()[3];
+    i.fiducials_mm.as_mut().unwrap()[3] = [typo[0] + 54.0 * typo[0].signum(), typo[1]];
+    let typed = dir.path().join("typed.toml");
+    std::fs::write(&typed, file.to_toml()).unwrap();
+    match detect(&scan, &typed, &Overrides::default()) {
+        Ok(det) => assert!(!det.marks[3].used && det.warnings.iter().any(|w| w.contains("mark 4")), "{det:#?}"),
+        Err(e) => {
+            let e = e.to_string();
+            assert!(e.contains("scan.tif") && e.contains("fiducials_mm") && e.contains("4 at"), "{e}");
+        }
+    }
 }
 
 #[test]

@@ -124,6 +124,23 @@ impl Detection {
     }
 }
 
+/// The marks (indices) of a layout that has mirror images about its centre
+/// (every camera's: corners and sides in pairs) but none of their own, to
+/// 1 mm: mistyped coordinates. None where the layout has no such pairs.
+fn lone_marks(marks: &[[f64; 2]]) -> Vec<usize> {
+    let near = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]) <= 1.0;
+    let mirrored = |k: usize| {
+        let [x, y] = marks[k];
+        [[-x, -y], [-x, y], [x, -y]].iter().any(|&m| marks.iter().enumerate().any(|(j, &o)| j != k && near(m, o)))
+    };
+    let lone: Vec<usize> = (0..marks.len()).filter(|&k| !mirrored(k)).collect();
+    if lone.len() * 2 <= marks.len() {
+        lone
+    } else {
+        Vec::new()
+    }
+}
+
 /// Finds the marks in `src`.
 pub fn detect(src: &SourceImage, req: &Request<'_>) -> Result<Detection> {
     let path = &src.path;
@@ -178,10 +195,16 @@ pub fn detect(src: &SourceImage, req: &Request<'_>) -> Result<Detection> {
     let usable: Vec<(usize, [f64; 2], [f64; 2])> = marks.iter().enumerate().filter(|(_, m)| m.used).filter_map(|(k, m)| Some((k, m.mm, m.px?))).collect();
     let list = |marks: &[FoundMark]| marks.iter().map(|m| format!("mark {}: {:.2}", m.mark, m.score)).collect::<Vec<_>>().join(", ");
     if usable.len() < 3 {
-        return Err(Error::format(
-            path,
-            format!("found {} of {n} fiducial marks, 3 at least are needed ({}): is the mark's shape right?", usable.len(), list(&marks)),
-        ));
+        // A calibrated mark typed wrong moves every search window: say so
+        // where the layout shows it.
+        let why = match lone_marks(req.marks_mm).as_slice() {
+            [] => "is the mark's shape right?".to_string(),
+            lone => format!(
+                "calibrated mark(s) {} have no mirror image in the layout about its centre: is fiducials_mm typed right? Else, is the mark's shape right?",
+                lone.iter().map(|&k| format!("{} at {:?} mm", k + 1, req.marks_mm[k])).collect::<Vec<_>>().join(", ")
+            ),
+        };
+        return Err(Error::format(path, format!("found {} of {n} fiducial marks, 3 at least are needed ({}): {why}", usable.len(), list(&marks))));
     }
     let fit = fit::robust_affine(&usable, req.limit_px).ok_or_else(|| Error::format(path, "the marks found lie on one line"))?;
     let inverse = fit.map.inverse().ok_or_else(|| Error::format(path, "the marks found lie on one line"))?;
