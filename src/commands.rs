@@ -824,6 +824,8 @@ fn run_demo(a: &DemoArgs, signals: &Signals) -> Result<()> {
     };
     let (width, height) = parse_size("size", &a.size)?;
     let opts = SynthOptions { out: dir.join("scene"), width, height, kappa_deg: 30.0, ..Default::default() };
+    // Refused before the work is announced.
+    gcm_ortho::synth::check(&opts)?;
     say!("demo: generating a {width}x{height} hilly film scene (swing 30°) in {}", opts.out.display());
     let t = std::time::Instant::now();
     let scene = synth(&opts, &Bar::new(a.quiet))?;

@@ -158,7 +158,8 @@ const BASE_HEIGHT: f64 = 300.0;
 const EPSG: u32 = 32631;
 const ORIGIN: (f64, f64) = (650_000.0, 4_890_000.0);
 
-fn check(o: &SynthOptions) -> Result<()> {
+/// Settings that make no scene, refused by their flag.
+pub fn check(o: &SynthOptions) -> Result<()> {
     let bad = |setting: &'static str, m: String| Err(Error::setting(setting, m));
     if o.width < 64 || o.height < 64 {
         return bad("size", format!("{}x{} is too small (64×64 at least)", o.width, o.height));
