@@ -703,7 +703,8 @@ pub struct RectifyArgs {
     pub layout: LayoutArgs,
     /// Pixels without a value: auto (NaN for floating-point samples, else
     /// the internal mask), mask (a 1-bit internal mask, GDAL's), or a
-    /// nodata value (image pixels holding it become holes).
+    /// nodata value (an image sample holding it is made the next value, as
+    /// GDAL's warper does, and the count said).
     #[arg(long, default_value = "auto", allow_negative_numbers = true, conflicts_with = "alpha")]
     pub nodata: String,
     /// Add an alpha band instead of a nodata value.

@@ -80,8 +80,8 @@ pub enum Nodata {
     Auto,
     /// A 1-bit internal mask (GDAL's `Mask Flags: PER_DATASET`); no nodata value.
     Mask,
-    /// This value, tagged as the nodata value (pixels of the image that
-    /// hold it read as holes).
+    /// This value, tagged as the nodata value (a sample of the image that
+    /// holds it is made the next value, as GDAL's warper does).
     Value(f64),
 }
 

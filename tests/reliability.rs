@@ -158,6 +158,40 @@ fn an_orthophoto_of_nothing_and_a_void_under_the_scan_are_said() {
     assert!(!d.join("c.tif").exists());
 }
 
+/// Under `--nodata 0`, black pixels of the image are not made holes: each
+/// sample of a pixel with a value that holds 0 is made 1 (as GDAL's warper
+/// does), and the count is said; the internal mask keeps them as they are.
+#[test]
+fn black_pixels_under_a_nodata_value_of_0_stay_pixels() {
+    let Some(py) = python_with("osgeo.gdal", "python3-gdal") else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    let black = d.join("black.tif");
+    let script = "import sys\nfrom osgeo import gdal\nd = gdal.GetDriverByName('GTiff').CreateCopy(sys.argv[2], gdal.Open(sys.argv[1]))\nfor b in range(d.RasterCount):\n    a = d.GetRasterBand(b + 1).ReadAsArray()\n    a[100:140, 100:140] = 0\n    d.GetRasterBand(b + 1).WriteArray(a)\nd = None\n";
+    assert!(std::process::Command::new(py).args(["-c", script, s(&scan), s(&black)]).status().unwrap().success());
+    let base = ["rectify", "--image", s(&black), "--camera", s(&camera), "--dem", s(&dem), "--quiet"];
+    let r = run(&[&base[..], &["-o", s(&d.join("m.tif"))]].concat());
+    assert!(r.status.success() && r.stderr.is_empty(), "{}", String::from_utf8_lossy(&r.stderr));
+    let r = run(&[&base[..], &["-o", s(&d.join("n.tif")), "--nodata", "0"]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    let said: u64 = err.split_whitespace().find_map(|w| w.parse().ok()).unwrap_or_else(|| panic!("a count: {err}"));
+    assert!(err.contains("held the nodata value 0 and were made 1"), "{err}");
+    // Pixels all 0 (no value) and pixels with some bands 0 (a band read as a hole).
+    let zeros = |path: &Path| {
+        let (px, info) = common::whole_image(path);
+        let b = info.bands as usize;
+        let all = px.chunks_exact(b).filter(|p| p.iter().all(|&v| v == 0)).count();
+        let some = px.chunks_exact(b).filter(|p| p.iter().any(|&v| v == 0) && p.iter().any(|&v| v != 0)).count();
+        (all, some, b as u64)
+    };
+    let ((all_m, _, _), (all_n, some_n, bands)) = (zeros(&d.join("m.tif")), zeros(&d.join("n.tif")));
+    assert_eq!(some_n, 0, "no pixel with a value has a band read as a hole");
+    let made = (all_m - all_n) as u64;
+    assert!(made > 500 && bands * made <= said, "{made} black pixels kept, {said} samples said");
+}
+
 #[test]
 fn files_an_input_names_are_inputs_too() {
     // A DEM folder's, list's or VRT's tiles, and the RPC file a camera

@@ -38,6 +38,10 @@ pub struct PixelOptions {
     pub footprint: u32,
     /// How the scan marks pixels without image, if it does.
     pub holes: Option<crate::io::source::HoleMark>,
+    /// A nodata value the image's own samples can take (`--nodata V`): a
+    /// sample of a pixel with a value that holds it is moved to the next
+    /// value, as GDAL's warper does, so that it does not read as a hole.
+    pub nudge: bool,
 }
 
 /// The run's inputs, ready.
@@ -105,6 +109,9 @@ pub struct Counters {
     /// Output pixels whose positions were worked out by `T` itself (the
     /// refinement's exact leaves, nodes without a value).
     pub exact_pixels: AtomicU64,
+    /// Samples of pixels with a value that held the nodata value, moved
+    /// off it ([`PixelOptions::nudge`]).
+    pub nudged: AtomicU64,
     /// Under `--occlusion`: output pixels the scan images, and of them those
     /// the sensor does not see.
     pub imaged: AtomicU64,

@@ -105,6 +105,14 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         return Err(Error::Cancelled);
     }
     let busy = result?;
+    let nudged = run.counters.nudged.load(Ordering::Relaxed);
+    if nudged > 0 {
+        let v = plan.pixels.fill;
+        progress.warn(&format!(
+            "{nudged} samples of pixels with a value held the nodata value {v} and were made {} (as GDAL's warper does), so that they do not read as holes; the default internal mask (--nodata auto) keeps every value",
+            super::stages::resample::off_nodata(v, src.info.sample)
+        ));
+    }
     // An orthophoto without one pixel of image is a mistake to say (a
     // piece of a window may be empty beside the footprint).
     let stats = run.statistics.lock().map(|s| s.total()).unwrap_or_default();

@@ -490,6 +490,7 @@ impl RunPlan {
             occlusion: opts.occlusion,
             footprint,
             holes: src.hole_mark()?,
+            nudge: nodata.is_some_and(f64::is_finite),
         };
         Ok(RunPlan { camera, src, dem, grid, approx, band_order, gcm, piece: [tc0, tr0, tcw, trh], spec, pixels, budget, gcp_fit })
     }

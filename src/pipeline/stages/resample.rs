@@ -45,7 +45,7 @@ pub fn resample(run: &Run, msg: &ReadMsg, spare: Option<Raw>) -> std::result::Re
     let (y0, y1) = run.walk.band_rows(msg.band);
     let (gcm, src, opts) = (run.inputs.gcm, run.inputs.src, run.inputs.pixels);
     let spare = (spare, run.spare_masks.1.try_recv().ok());
-    let exact = &run.counters.exact_pixels;
+    let exact = (&run.counters.exact_pixels, &run.counters.nudged);
     match src.info.sample {
         SampleType::U8 => resample_chunk::<u8>(gcm, src, msg, y0, y1, opts, spare, exact).map(|(p, v)| (Raw::U8(p), v)),
         SampleType::U16 => resample_chunk::<u16>(gcm, src, msg, y0, y1, opts, spare, exact).map(|(p, v)| (Raw::U16(p), v)),
@@ -151,7 +151,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
     y1: u32,
     opts: PixelOptions,
     (spare, spare_mask): (Option<Raw>, Option<Vec<u8>>),
-    exact: &AtomicU64,
+    (exact, nudged): (&AtomicU64, &AtomicU64),
 ) -> std::result::Result<(Vec<T>, Option<Vec<u8>>), Failed> {
     let info = &src.info;
     let bands_in = info.bands as usize;
@@ -294,7 +294,7 @@ pub fn resample_chunk<T: Sample + Recycle>(
                         exact.fetch_add(n, Ordering::Relaxed);
                         SpanOutcome::Checked { clamped: resample_row(opts.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill) }
                     };
-                    if outcome == SpanOutcome::Inside && (!direct || opts.mask || holes.is_some()) {
+                    if outcome == SpanOutcome::Inside && (!direct || opts.mask || holes.is_some() || opts.nudge) {
                         // The alpha band or the mask below reads it.
                         valid.fill(true);
                     }
@@ -376,6 +376,19 @@ pub fn resample_chunk<T: Sample + Recycle>(
                             p.fill(fill);
                         }
                     }
+                }
+            }
+            if opts.nudge {
+                let (fill_f32, mut moved) = (fill.to_f32(), 0);
+                let off = T::from_f32(off_nodata(f64::from(fill_f32), T::TYPE) as f32);
+                for (p, _) in px.chunks_exact_mut(bands_in).zip(valid.iter()).filter(|(_, v)| **v) {
+                    for s in p.iter_mut().filter(|s| s.to_f32() == fill_f32) {
+                        *s = off;
+                        moved += 1;
+                    }
+                }
+                if moved > 0 {
+                    nudged.fetch_add(moved, Ordering::Relaxed);
                 }
             }
         };
@@ -476,6 +489,18 @@ pub fn resample_chunk<T: Sample + Recycle>(
         None => Ok((out, opts.mask.then_some(mask))),
     }
 }
+/// The value a sample holding the nodata value `v` is moved to: GDAL's
+/// warper's choice, one up (one down at the top of the type; a float's
+/// next one up).
+pub fn off_nodata(v: f64, sample: SampleType) -> f64 {
+    match sample {
+        SampleType::U8 if v >= 255.0 => 254.0,
+        SampleType::U16 if v >= 65535.0 => 65534.0,
+        SampleType::F32 => f64::from((v as f32).next_up()),
+        _ => v + 1.0,
+    }
+}
+
 /// The corners of a row's output pixels in the scan, along its top and
 /// bottom edges, for the area kernels; and their scratch buffers.
 #[derive(Default)]
