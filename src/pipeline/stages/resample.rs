@@ -496,7 +496,16 @@ pub fn off_nodata(v: f64, sample: SampleType) -> f64 {
     match sample {
         SampleType::U8 if v >= 255.0 => 254.0,
         SampleType::U16 if v >= 65535.0 => 65534.0,
-        SampleType::F32 => f64::from((v as f32).next_up()),
+        SampleType::F32 => {
+            // f32::next_up, newer than the crate's Rust.
+            let x = v as f32;
+            f64::from(match x {
+                _ if x.is_nan() || x == f32::INFINITY => x,
+                0.0 => f32::from_bits(1),
+                _ if x > 0.0 => f32::from_bits(x.to_bits() + 1),
+                _ => f32::from_bits(x.to_bits() - 1),
+            })
+        }
         _ => v + 1.0,
     }
 }
