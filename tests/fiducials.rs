@@ -269,3 +269,35 @@ fn a_film_rectified_without_measured_marks_finds_them_and_matches_the_true_marks
     assert!(diff < 1.5, "mean difference {diff:.2} grey levels");
     assert_ne!(pa, pb, "the marks were measured, not copied");
 }
+
+/// A mark the scan's edge cuts off (a small scan of a film turned a
+/// quarter, its corner mark on the last column) is not found, and the
+/// warning says where the other marks put it and that the edge cut it.
+#[test]
+fn a_mark_cut_off_by_the_scans_edge_is_said_to_be() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = common::run(&[
+        "synth",
+        "--out",
+        common::s(d),
+        "--camera",
+        "film",
+        "--size",
+        "1600x1600",
+        "--bands",
+        "1",
+        "--scan-quarters",
+        "1",
+        "--marks-only",
+        "--quiet",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let camera = std::fs::read_to_string(d.join("camera.toml")).unwrap();
+    let bare: String = camera.lines().filter(|l| !l.starts_with("fiducials_px")).map(|l| format!("{l}\n")).collect();
+    std::fs::write(d.join("bare.toml"), bare).unwrap();
+    let out = common::run(&["fiducials", "--image", common::s(&d.join("scan.tif")), "--camera", common::s(&d.join("bare.toml")), "--turn", "90"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.lines().any(|l| l.contains("mark 1 not found") && l.contains("scan's edge cuts it off")), "{err}");
+}

@@ -249,9 +249,19 @@ pub fn detect(src: &SourceImage, req: &Request<'_>) -> Result<Detection> {
         }
         warnings.push("only 3 fiducial marks found: the interior orientation has no check".into());
     }
+    let (sw, sh) = (src.info.width as f64, src.info.height as f64);
     for m in &marks {
         if m.px.is_none() || (!m.used && m.why.as_deref().is_some_and(|w| w.starts_with("correlation"))) {
-            warnings.push(format!("fiducial mark {} not found ({})", m.mark, m.why.clone().unwrap_or_default()));
+            // Where the others put it: a mark the scan's edge cuts off is
+            // the scan's fault, not the search's.
+            let (c, r) = fit.map.apply(m.mm[0], m.mm[1]);
+            let reach = m.radius_mm * fit.map.m.norm() / std::f64::consts::SQRT_2;
+            let edge = if c < reach || r < reach || c > sw - reach || r > sh - reach {
+                format!("; the others put it at ({c:.0}, {r:.0}), where the scan's edge cuts it off: scan the whole film")
+            } else {
+                String::new()
+            };
+            warnings.push(format!("fiducial mark {} not found ({}){edge}", m.mark, m.why.clone().unwrap_or_default()));
         }
     }
     let turn = Turn::nearest(&fit.map.m);
