@@ -910,3 +910,46 @@ fn ground_far_from_the_rpcs_heights_is_warned_of() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success() && err.contains("left_image.tif") && err.contains(said), "{err}");
 }
+
+/// rpcm's JSON (its names, 20 coefficients a list in the RPC00B order),
+/// nested under "rpc" as the IEEE GRSS data fusion contest's image files
+/// hold it: the IKONOS fixture written so reads as the same model.
+#[test]
+fn rpcm_json_reads_as_the_text_it_was_written_from() {
+    let text = std::fs::read_to_string(fx("rpc_IKONOS.txt")).unwrap();
+    let value = |key: &str| -> f64 {
+        let line = text.lines().find(|l| l.starts_with(&format!("{key}:"))).unwrap_or_else(|| panic!("{key}"));
+        line.split_whitespace().nth(1).unwrap().parse().unwrap()
+    };
+    let coefficients = |base: &str| -> Vec<f64> { (1..=20).map(|i| value(&format!("{base}_{i}"))).collect() };
+    let scalars = [
+        ("row_offset", "LINE_OFF"),
+        ("col_offset", "SAMP_OFF"),
+        ("lat_offset", "LAT_OFF"),
+        ("lon_offset", "LONG_OFF"),
+        ("alt_offset", "HEIGHT_OFF"),
+        ("row_scale", "LINE_SCALE"),
+        ("col_scale", "SAMP_SCALE"),
+        ("lat_scale", "LAT_SCALE"),
+        ("lon_scale", "LONG_SCALE"),
+        ("alt_scale", "HEIGHT_SCALE"),
+    ];
+    let mut rpc = serde_json::Map::new();
+    for (json, key) in scalars {
+        rpc.insert(json.into(), value(key).into());
+    }
+    for (json, key) in [("row_num", "LINE_NUM_COEFF"), ("row_den", "LINE_DEN_COEFF"), ("col_num", "SAMP_NUM_COEFF"), ("col_den", "SAMP_DEN_COEFF")] {
+        rpc.insert(json.into(), coefficients(key).into());
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("image.json");
+    std::fs::write(&json, serde_json::json!({ "img": "image.tif", "rpc": rpc }).to_string()).unwrap();
+    let (a, b) = (Rpc::read(&fx("rpc_IKONOS.txt")).unwrap(), Rpc::read(&json).unwrap());
+    for (lon, lat, h) in [(-56.1722, -34.903, 28.0), (-56.2, -34.88, 60.0), (-56.14, -34.95, 0.0)] {
+        assert_eq!(a.project(lon, lat, h), b.project(lon, lat, h), "({lon}, {lat}, {h})");
+    }
+    // JSON of no RPC is named so.
+    std::fs::write(&json, "{\"img\": \"image.tif\"}").unwrap();
+    let e = Rpc::read(&json).unwrap_err().to_string();
+    assert!(e.contains("image.json") && e.contains("row_offset"), "{e}");
+}

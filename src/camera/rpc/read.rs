@@ -64,6 +64,9 @@ impl Rpc {
         if head.starts_with('<') {
             return Rpc::parse_xml(text, path);
         }
+        if head.starts_with('{') {
+            return Rpc::parse_json(text, path);
+        }
         if text.contains("lineOffset") {
             return Rpc::parse_rpb(text, path);
         }
@@ -85,6 +88,43 @@ impl Rpc {
         let map = keyword_list(text, ':', 1);
         if !map.contains_key("LINE_OFF") {
             return Err(Error::unsupported(path, "not an RPC file (no LINE_OFF)"));
+        }
+        Rpc::from_numbers(&map, path)
+    }
+
+    /// rpcm's JSON (`row_offset`, …, `row_num` of 20 coefficients in the
+    /// RPC00B order), as it stands or under `"rpc"` (the IEEE GRSS data
+    /// fusion contest's image files, SatNeRF's).
+    pub fn parse_json(text: &str, path: &Path) -> Result<Rpc> {
+        let doc: serde_json::Value = serde_json::from_str(text).map_err(|e| Error::format(path, format!("JSON: {e}")))?;
+        let model = if doc.get("row_offset").is_some() { &doc } else { doc.get("rpc").filter(|r| r.get("row_offset").is_some()).unwrap_or(&doc) };
+        if model.get("row_offset").is_none() {
+            return Err(Error::unsupported(path, "JSON without an RPC (rpcm's row_offset, …, row_num, … as they stand or under \"rpc\")"));
+        }
+        const NAMES: [(&str, &str); 14] = [
+            ("row_offset", "LINE_OFF"),
+            ("col_offset", "SAMP_OFF"),
+            ("lat_offset", "LAT_OFF"),
+            ("lon_offset", "LONG_OFF"),
+            ("alt_offset", "HEIGHT_OFF"),
+            ("row_scale", "LINE_SCALE"),
+            ("col_scale", "SAMP_SCALE"),
+            ("lat_scale", "LAT_SCALE"),
+            ("lon_scale", "LONG_SCALE"),
+            ("alt_scale", "HEIGHT_SCALE"),
+            ("row_num", "LINE_NUM_COEFF"),
+            ("row_den", "LINE_DEN_COEFF"),
+            ("col_num", "SAMP_NUM_COEFF"),
+            ("col_den", "SAMP_DEN_COEFF"),
+        ];
+        let mut map = Numbers::new();
+        for (key, name) in NAMES {
+            let numbers = match model.get(key) {
+                Some(serde_json::Value::Array(a)) => a.iter().map(|v| v.as_f64().unwrap_or(f64::NAN)).collect(),
+                Some(v) => vec![v.as_f64().unwrap_or(f64::NAN)],
+                None => continue,
+            };
+            map.insert(name.to_string(), numbers);
         }
         Rpc::from_numbers(&map, path)
     }
