@@ -239,6 +239,9 @@ pub struct CamerasArgs {
     /// (reconstruction.json).
     #[arg(long, value_enum, default_value_t = CameraTarget::Toml, requires = "out_dir")]
     pub to: CameraTarget,
+    /// Print neither the table nor the files written (warnings still show).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]

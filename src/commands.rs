@@ -180,6 +180,9 @@ fn run_cameras(a: &crate::cli::CamerasArgs) -> Result<()> {
     for w in &done.warnings {
         eprintln!("gcm-ortho: warning: {w}");
     }
+    if a.quiet {
+        return Ok(());
+    }
     say!("{}", gcm_ortho::camera::formats::convert::table(&done.entries).trim_end_matches('\n'));
     for p in &done.written {
         say!("wrote {}", p.display());

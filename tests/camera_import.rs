@@ -504,3 +504,26 @@ fn numbers_in_the_wrong_unit_are_warned_about() {
     let set = formats::read(&turned, None, None).unwrap();
     assert!(said(&set, &["reconstruction.json", "img_o.jpg", "rotation", "degrees?"]), "{:?}", set.warnings);
 }
+
+/// `cameras --quiet` prints neither the table nor the files written, as
+/// every command takes --quiet; its warnings still show.
+#[test]
+fn cameras_quiet_keeps_only_the_warnings() {
+    let dir = tempfile::tempdir().unwrap();
+    let mm = dir.path().join("mm.yaml");
+    std::fs::write(&mm, "cam1:\n  type: pinhole\n  im_size: [1000, 800]\n  focal_len: 100.0\n").unwrap();
+    let csv = dir.path().join("e.csv");
+    std::fs::write(&csv, "filename,x,y,z,omega,phi,kappa\nimg1.tif,500000,4100000,600,0,0,0\n").unwrap();
+    std::fs::write(dir.path().join("e.prj"), "EPSG:32633").unwrap();
+    let args = |quiet: bool| {
+        let mut a = vec!["cameras", "--camera", common::s(&mm), "--exterior", common::s(&csv)];
+        if quiet {
+            a.push("--quiet");
+        }
+        common::run(&a)
+    };
+    let (loud, quiet) = (args(false), args(true));
+    assert!(loud.status.success() && quiet.status.success(), "{}", String::from_utf8_lossy(&quiet.stderr));
+    assert!(!loud.stdout.is_empty() && quiet.stdout.is_empty(), "{}", String::from_utf8_lossy(&quiet.stdout));
+    assert!(String::from_utf8_lossy(&quiet.stderr).contains("wrong unit"), "{}", String::from_utf8_lossy(&quiet.stderr));
+}
