@@ -247,6 +247,7 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
             Some(other) => return Err(Error::config(path, field("geometry.type"), format!("'{other}': expected Polygon or MultiPolygon"))),
             None => return Err(Error::config(path, field("geometry.type"), "missing: expected Polygon or MultiPolygon")),
         };
+        let what = format!("features[{k}] (image {})", plan.images[image].name);
         let mut parts = Vec::new();
         for poly in polygons {
             let mut rings = Vec::new();
@@ -263,7 +264,6 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
                     };
                     pts.push(((x - g.x0) / g.gsd.x / c, (g.y0 - y) / g.gsd.y / c));
                 }
-                let what = format!("features[{k}] (image {})", plan.images[image].name);
                 let mut distinct = pts.clone();
                 distinct.dedup();
                 if distinct.len() > 1 && distinct.first() == distinct.last() {
@@ -281,7 +281,7 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
             parts.push(rings);
         }
         shapes.push((image as u16, parts));
-        feature_of.push(format!("features[{k}] (image {})", plan.images[image].name));
+        feature_of.push(what);
     }
     let mut filled = vec![0usize; shapes.len()];
     // Cell centres, row by row: where a polygon's rings cross the row, the

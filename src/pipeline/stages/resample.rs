@@ -45,11 +45,11 @@ pub fn resample(run: &Run, msg: &ReadMsg, spare: Option<Raw>) -> std::result::Re
     let (y0, y1) = run.walk.band_rows(msg.band);
     let (gcm, src, opts) = (run.inputs.gcm, run.inputs.src, run.inputs.pixels);
     let spare = (spare, run.spare_masks.1.try_recv().ok());
-    let exact = (&run.counters.exact_pixels, &run.counters.nudged);
+    let counts = (&run.counters.exact_pixels, &run.counters.nudged);
     match src.info.sample {
-        SampleType::U8 => resample_chunk::<u8>(gcm, src, msg, y0, y1, opts, spare, exact).map(|(p, v)| (Raw::U8(p), v)),
-        SampleType::U16 => resample_chunk::<u16>(gcm, src, msg, y0, y1, opts, spare, exact).map(|(p, v)| (Raw::U16(p), v)),
-        SampleType::F32 => resample_chunk::<f32>(gcm, src, msg, y0, y1, opts, spare, exact).map(|(p, mut v)| {
+        SampleType::U8 => resample_chunk::<u8>(gcm, src, msg, y0, y1, opts, spare, counts).map(|(p, v)| (Raw::U8(p), v)),
+        SampleType::U16 => resample_chunk::<u16>(gcm, src, msg, y0, y1, opts, spare, counts).map(|(p, v)| (Raw::U16(p), v)),
+        SampleType::F32 => resample_chunk::<f32>(gcm, src, msg, y0, y1, opts, spare, counts).map(|(p, mut v)| {
             // A float scan's NaN (its holes) has no value under the mask
             // either, as it has none under NaN as nodata.
             if let Some(v) = v.as_mut() {
