@@ -123,7 +123,7 @@ pub fn overlaps(plan: &Plan) -> Vec<Pair> {
             for y in y0..y1 {
                 for x in x0..x1 {
                     if let (Some(va), Some(vb)) = (a.value(x, y), b.value(x, y)) {
-                        for (s, (&p, &q)) in sums.iter_mut().zip(va.iter().zip(vb)) {
+                        for (s, (p, q)) in sums.iter_mut().zip(va.bands().zip(vb.bands())) {
                             let (p, q) = (p as f64, q as f64);
                             s.n += 1.0;
                             s.a += p;
@@ -228,7 +228,7 @@ fn solve_radial(plan: &Plan, pairs: &[Pair], mut out: Vec<Correction>) -> Vec<Co
             for y in y0..y1 {
                 for x in x0..x1 {
                     let (Some(va), Some(vb), Some(ra), Some(rb)) = (a.value(x, y), b.value(x, y), a.radius(x, y), b.radius(x, y)) else { continue };
-                    let (ta, tb) = (terms(f64::from(va[band]) / scale, ra, 1.0), terms(f64::from(vb[band]) / scale, rb, -1.0));
+                    let (ta, tb) = (terms(f64::from(va.band(band)) / scale, ra, 1.0), terms(f64::from(vb.band(band)) / scale, rb, -1.0));
                     let row: [f64; 2 * PER] = std::array::from_fn(|k| if k < PER { ta[k] } else { tb[k - PER] });
                     for p in 0..2 * PER {
                         for q in 0..2 * PER {
@@ -268,7 +268,7 @@ fn anchor(plan: &Plan, band: usize, offsets: bool, out: &mut [Correction]) {
             let l = plan.label_at(x, y) as usize;
             let Some(im) = plan.images.get(l) else { continue };
             let Some(v) = im.value(x, y) else { continue };
-            let v = v[band] as f64;
+            let v = v.band(band) as f64;
             let rho = im.radius(x, y).unwrap_or(0.0) as f64;
             let w = out[l].apply(band, v, rho * rho);
             n += 1.0;

@@ -394,6 +394,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             // cell is made there, so that another can fill what it hides.
             let prone = true_ortho.then(|| render::occlusion_prone(&plan));
             works = within(&render::work(&plan, &weights, tile, prone.as_deref(), opts_of), window);
+            plan.forget_for_render(&corrections);
 
             let t = Instant::now();
             let (fill, _) = fill_of(plan.images[0].sample, first.nodata)?;

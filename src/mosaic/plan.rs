@@ -24,7 +24,7 @@ pub const NONE: u16 = u16::MAX;
 /// MB whatever the mosaic's size.
 pub const MAX_CELLS: u64 = 2_000_000;
 /// And at most one for this many bytes of the memory budget: a cell costs
-/// about 60 (its label, height and weights, and each image's thumbnail and
+/// about 40 (its label, height and weights, and each image's thumbnail and
 /// distance where its box holds it), so the plan takes under half of it.
 pub const BUDGET_PER_CELL: u64 = 128;
 
@@ -50,9 +50,10 @@ pub struct PlanImage {
     /// The box of cells that may see it: `[x0, y0, x1, y1)`.
     pub cells: [usize; 4],
     /// Its low-resolution orthophoto on the cells of the box, band after
-    /// band inside each cell; NaN where it does not see the cell. Dropped
-    /// once balance and seams are worked out ([`PlanImage::forget_values`]).
-    pub values: Vec<f32>,
+    /// band inside each cell (what it holds where it does not see the cell
+    /// is no value). Dropped once balance and seams are worked out
+    /// ([`PlanImage::forget_values`]).
+    pub values: Thumbnail,
     /// Where in the scan it sees each cell of the box: the distance from
     /// the scan's centre over its half-diagonal (NaN: not seen).
     pub radius: Vec<f32>,
@@ -70,28 +71,119 @@ impl PlanImage {
         self.radius.get(self.at(x, y)?).copied().filter(|r| r.is_finite())
     }
 
-    /// Its low-resolution pixel at cell (x, y), where it sees it.
-    pub fn value(&self, x: usize, y: usize) -> Option<&[f32]> {
+    /// Its low-resolution pixel at cell (x, y), where it sees it (and its
+    /// thumbnail is held).
+    pub fn value(&self, x: usize, y: usize) -> Option<Pixel<'_>> {
+        let k = self.at(x, y)?;
+        if !self.radius.get(k)?.is_finite() {
+            return None;
+        }
         let nb = self.bands as usize;
-        let k = self.at(x, y)? * nb;
-        let v = self.values.get(k..k + nb)?;
-        (!v[0].is_nan()).then_some(v)
-    }
-
-    pub fn sees(&self, x: usize, y: usize) -> bool {
-        // The thumbnail while it is held: the seams read it next to this
-        // (a third faster than a look into `radius` besides).
-        if self.values.is_empty() {
-            self.radius(x, y).is_some()
-        } else {
-            self.value(x, y).is_some()
+        match &self.values {
+            Thumbnail::Levels { v, per_unit } => Some(Pixel::Levels(v.get(k * nb..(k + 1) * nb)?, 1.0 / per_unit)),
+            Thumbnail::Floats(v) => Some(Pixel::Floats(v.get(k * nb..(k + 1) * nb)?)),
         }
     }
 
-    /// Drops the low-resolution orthophoto (three quarters of the plan's
+    pub fn sees(&self, x: usize, y: usize) -> bool {
+        self.radius(x, y).is_some()
+    }
+
+    /// Drops the low-resolution orthophoto (three fifths of the plan's
     /// memory on RGB): the render needs only where the image sees.
     pub fn forget_values(&mut self) {
-        self.values = Vec::new();
+        self.values = Thumbnail::default();
+    }
+}
+
+/// An image's low-resolution orthophoto, at the precision of its samples:
+/// 8- and 16-bit ones as 16-bit levels (a 256th of an 8-bit level, a
+/// 16-bit one's level: finer than balancing and seams can tell), others as
+/// f32 — half the memory of f32 on the common images.
+pub enum Thumbnail {
+    /// Values times `per_unit`, rounded.
+    Levels {
+        v: Vec<u16>,
+        per_unit: f32,
+    },
+    Floats(Vec<f32>),
+}
+
+impl Default for Thumbnail {
+    fn default() -> Thumbnail {
+        Thumbnail::Floats(Vec::new())
+    }
+}
+
+impl Thumbnail {
+    /// Room for `n` values of samples of `sample`.
+    fn new(n: usize, sample: SampleType) -> Thumbnail {
+        match sample {
+            SampleType::U8 => Thumbnail::Levels { v: vec![0; n], per_unit: 256.0 },
+            SampleType::U16 => Thumbnail::Levels { v: vec![0; n], per_unit: 1.0 },
+            SampleType::F32 => Thumbnail::Floats(vec![f32::NAN; n]),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        match self {
+            Thumbnail::Levels { v, .. } => v.len(),
+            Thumbnail::Floats(v) => v.len(),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Rows of `cells` cells of `bands` values, in parallel, with the same
+    /// rows of `per_cell` (one value a cell): `f(row, values, per_cell's
+    /// row)` fills a row's values as f32 (none where the thumbnail is
+    /// empty), stored as the thumbnail keeps them.
+    fn fill_rows(&mut self, per_cell: &mut [f32], cells: usize, bands: usize, f: impl Fn(usize, &mut [f32], &mut [f32]) + Sync) {
+        let (cells, row) = (cells.max(1), (cells * bands).max(1));
+        let rows = per_cell.par_chunks_mut(cells).enumerate();
+        match self {
+            Thumbnail::Levels { v, per_unit } if !v.is_empty() => {
+                let (per_unit, top) = (*per_unit, u16::MAX as f32);
+                rows.zip(v.par_chunks_mut(row)).for_each(|((j, cell), out)| {
+                    let mut vals = vec![f32::NAN; out.len()];
+                    f(j, &mut vals, cell);
+                    for (o, &x) in out.iter_mut().zip(&vals) {
+                        // NaN (not seen, as its `per_cell` says) is 0.
+                        *o = (x * per_unit).round().clamp(0.0, top) as u16;
+                    }
+                })
+            }
+            Thumbnail::Floats(v) if !v.is_empty() => rows.zip(v.par_chunks_mut(row)).for_each(|((j, cell), out)| f(j, out, cell)),
+            _ => rows.for_each(|(j, cell)| f(j, &mut [], cell)),
+        }
+    }
+}
+
+/// An image's thumbnail pixel: its bands' values at one cell.
+#[derive(Clone, Copy)]
+pub enum Pixel<'a> {
+    /// Levels, and a unit a level.
+    Levels(&'a [u16], f32),
+    Floats(&'a [f32]),
+}
+
+impl Pixel<'_> {
+    #[inline]
+    pub fn band(&self, b: usize) -> f32 {
+        match *self {
+            Pixel::Levels(v, unit) => v[b] as f32 * unit,
+            Pixel::Floats(v) => v[b],
+        }
+    }
+
+    pub fn bands(&self) -> impl Iterator<Item = f32> + '_ {
+        let n = match self {
+            Pixel::Levels(v, _) => v.len(),
+            Pixel::Floats(v) => v.len(),
+        };
+        (0..n).map(|b| self.band(b))
     }
 }
 
@@ -148,6 +240,19 @@ impl Plan {
     pub fn cell_centre(&self, x: usize, y: usize) -> (f64, f64) {
         let s = self.cell as f64;
         self.grid.ground((x as f64 + 0.5) * s, (y as f64 + 0.5) * s)
+    }
+
+    /// Drops what the render does not read once the images' works are
+    /// made from it (a fifth of the plan's memory on a large block): the
+    /// cells' heights, and where each image sees each cell unless a
+    /// correction's radial term needs it there.
+    pub fn forget_for_render(&mut self, corrections: &[super::balance::Correction]) {
+        self.heights = Vec::new();
+        for (im, c) in self.images.iter_mut().zip(corrections) {
+            if !c.has_radial() {
+                im.radius = Vec::new();
+            }
+        }
     }
 
     pub fn label_at(&self, x: usize, y: usize) -> u16 {
@@ -233,7 +338,7 @@ impl Plan {
                     photometric: info.photometric,
                     gsd,
                     cells: [0; 4],
-                    values: Vec::new(),
+                    values: Thumbnail::default(),
                     radius: Vec::new(),
                 },
                 fp.map(|f| f.bounds),
@@ -463,9 +568,9 @@ fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64, thumbnails: bool) 
     let dem = &plan.dems[im.dem];
     let bw = x1 - x0;
     let side = (w as f64 / 2.0).hypot(h as f64 / 2.0);
-    let mut values = vec![f32::NAN; bw * (y1 - y0) * nb];
     let mut from_centre = vec![f32::NAN; bw * (y1 - y0)];
-    values.par_chunks_mut((bw * nb).max(1)).zip(from_centre.par_chunks_mut(bw.max(1))).enumerate().for_each(|(j, (out, dist))| {
+    let mut values = Thumbnail::new(if thumbnails { bw * (y1 - y0) * nb } else { 0 }, im.sample);
+    values.fill_rows(&mut from_centre, bw, nb, |j, out, dist| {
         for i in 0..bw {
             let (gx, gy) = plan.cell_centre(x0 + i, y0 + j);
             let Height::Value(z) = dem.height(gx, gy) else { continue };
@@ -478,6 +583,9 @@ fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64, thumbnails: bool) 
                 continue;
             }
             dist[i] = ((c - w as f64 / 2.0).hypot(r - h as f64 / 2.0) / side) as f32;
+            if out.is_empty() {
+                continue;
+            }
             // Bilinear between thumbnail pixel centres.
             let (u, v) = ((c / f as f64 - 0.5).clamp(0.0, (tw - 1) as f64), (r / f as f64 - 0.5).clamp(0.0, (th - 1) as f64));
             let (iu, iv) = ((u as usize).min(tw.saturating_sub(2)), (v as usize).min(th.saturating_sub(2)));
@@ -508,6 +616,44 @@ fn as_f32(bytes: &[u8], sample: SampleType) -> Vec<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A thumbnail of 8-bit samples keeps its values to a 512th of a level
+    /// in half the memory of f32; 16-bit ones to half a level; floats as
+    /// they are. Every row and band lands where it was written.
+    #[test]
+    fn thumbnails_keep_their_values_at_their_samples_precision() {
+        let (cells, bands, rows) = (5, 3, 4);
+        let value = |j: usize, k: usize| ((j * 61 + k * 7) % 250) as f32 * 1.017 + 0.3;
+        for (sample, tolerance) in [(SampleType::U8, 1.0 / 512.0), (SampleType::U16, 0.5), (SampleType::F32, 0.0)] {
+            let mut t = Thumbnail::new(cells * bands * rows, sample);
+            let mut seen = vec![f32::NAN; cells * rows];
+            t.fill_rows(&mut seen, cells, bands, |j, out, dist| {
+                dist.fill(j as f32);
+                for (k, v) in out.iter_mut().enumerate() {
+                    *v = value(j, k);
+                }
+            });
+            assert_eq!(seen, (0..cells * rows).map(|k| (k / cells) as f32).collect::<Vec<_>>());
+            let bytes = match &t {
+                Thumbnail::Levels { v, .. } => v.len() * 2,
+                Thumbnail::Floats(v) => v.len() * 4,
+            };
+            assert_eq!(bytes, cells * bands * rows * if sample == SampleType::F32 { 4 } else { 2 });
+            for j in 0..rows {
+                for c in 0..cells {
+                    let k = (j * cells + c) * bands;
+                    let px = match &t {
+                        Thumbnail::Levels { v, per_unit } => Pixel::Levels(&v[k..k + bands], 1.0 / per_unit),
+                        Thumbnail::Floats(v) => Pixel::Floats(&v[k..k + bands]),
+                    };
+                    for (b, got) in px.bands().enumerate() {
+                        let want = value(j, c * bands + b);
+                        assert!((got - want).abs() <= tolerance * 1.0001, "{sample:?} row {j} cell {c} band {b}: {got} for {want}");
+                    }
+                }
+            }
+        }
+    }
 
     /// The default budget plans on up to MAX_CELLS cells; a small one on
     /// coarser cells, one for each BUDGET_PER_CELL bytes at most.

@@ -207,7 +207,7 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, across: u32, 
     let tile = spec.chunk().0 as u64;
     let band_bytes = crate::pipeline::band_writer::held_bytes(spec, across);
     let dems = plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>();
-    let arrays = plan.images.iter().map(|i| i.radius.len() as u64 * 4).sum::<u64>() + plan.label.len() as u64 * 16;
+    let arrays = plan.images.iter().map(|i| i.radius.len() as u64 * 4).sum::<u64>() + plan.label.len() as u64 * 12 + plan.heights.len() as u64 * 4;
     let plan_bytes = arrays + dems;
     let image_tile = spec.tile_bytes() as u64 + tile * tile;
     let columns = |b: u32| works.iter().filter_map(|w| w.bands.get(&b)).map(|&(c0, c1)| (c1 - c0) as u64).sum::<u64>();

@@ -318,7 +318,7 @@ fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: 
                 (0..nb)
                     .map(|c| {
                         let (ca, cb) = (&corr[i as usize], &corr[j as usize]);
-                        ((ca.gain[c] * p[c] as f64 + ca.offset[c]) - (cb.gain[c] * q[c] as f64 + cb.offset[c])).abs()
+                        ((ca.gain[c] * p.band(c) as f64 + ca.offset[c]) - (cb.gain[c] * q.band(c) as f64 + cb.offset[c])).abs()
                     })
                     .sum::<f64>()
                     / nb as f64
