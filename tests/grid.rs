@@ -227,8 +227,8 @@ fn a_mosaic_lands_on_a_reference_grid() {
 
 /// The default grid follows what `--dem-outside` says of the ground past
 /// the DEM: cut to the DEM (`nodata`); the whole footprint, past the DEM
-/// on the plane at the given height (`HEIGHT`); within the DEM's edge, so
-/// that no pixel centre of the snapped grid falls past it (`error`).
+/// on the plane at the given height (`HEIGHT`); refused, naming the DEM
+/// and the image, nothing written (`error`: heights under all of it).
 #[test]
 fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
     let dir = tempfile::tempdir().unwrap();
@@ -275,7 +275,17 @@ fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
     let (whole, _, whole_valid) = ortho_on(&sc.dem, "whole.tif", "nodata");
     let (cut, gsd, cut_valid) = ortho("nodata.tif", "nodata");
     let (wide, _, wide_valid) = ortho("height.tif", &format!("{mid}"));
-    let (inside, _, _) = ortho("error.tif", "error");
+    let (r, strict) = rectify_on(&cropped, "error.tif", "error");
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.lines().count() == 1 && err.contains("dem_middle.tif") && err.contains("covers only part of") && err.contains("scan.tif"), "{err}");
+    assert!(!strict.exists());
+    // Within bounds on the DEM, `error` runs: it asks for heights where
+    // the orthophoto is, not under the whole scan.
+    let inner = format!("{},{},{},{}", dem_box[0] + 20.0, dem_box[1] + 20.0, dem_box[2] - 20.0, dem_box[3] - 20.0);
+    let out = dir.path().join("error_within.tif");
+    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&cropped), "--dem-outside", "error", "--bounds", &inner, "--quiet", "-o", s(&out)]);
+    assert!(r.status.success() && out.exists(), "{}", String::from_utf8_lossy(&r.stderr));
     let area = |b: [f64; 4]| (b[2] - b[0]) * (b[3] - b[1]);
     assert!(area(whole) > 1.3 * area(cut) && whole_valid as f64 > 1.05 * cut_valid as f64, "the DEM's middle cuts the footprint");
     // Past the DEM on the plane: the footprint is the scan's whole one
@@ -285,11 +295,9 @@ fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
         assert!((wide[k] - whole[k]).abs() <= 10.0 * gsd, "{wide:?} vs the whole DEM's {whole:?}");
     }
     assert!((wide_valid as f64 - whole_valid as f64).abs() < 0.02 * whole_valid as f64, "{wide_valid} vs {whole_valid} pixels");
-    // Snapped outward, the cut grid reaches up to a pixel past the DEM;
-    // under `error` its pixel centres stay on it.
+    // Snapped outward, the cut grid reaches up to a pixel past the DEM.
     for k in 0..2 {
-        assert!(inside[k] + gsd / 2.0 >= dem_box[k] && inside[k + 2] - gsd / 2.0 <= dem_box[k + 2], "{inside:?} within {dem_box:?}");
-        assert!((inside[k] - cut[k]).abs() <= gsd && (inside[k + 2] - cut[k + 2]).abs() <= gsd, "{inside:?} ≈ {cut:?}");
+        assert!(cut[k] + gsd >= dem_box[k] && cut[k + 2] - gsd <= dem_box[k + 2], "{cut:?} within a pixel of {dem_box:?}");
     }
     // The same middle as heights in a DEM of the whole extent, nodata
     // around it (a collar): said too, as holes under the image; the

@@ -319,6 +319,11 @@ impl Plan {
                 Err(Error::Geometry(_)) if opts.dem_outside != crate::dem::Miss::Error => (None, f64::NAN),
                 fp => {
                     let fp = fp.map_err(on_dem)?;
+                    // Within bounds, an image past the DEM may still give
+                    // only ground on it (refused where it does not).
+                    if s.bounds.is_none() && s.grid.is_none() {
+                        fp.check_covered(&opts.image, d)?;
+                    }
                     if let Some(w) = fp.partial_warning(&opts.image, d) {
                         progress.warn(&w);
                     }

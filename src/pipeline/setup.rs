@@ -269,6 +269,7 @@ impl RunPlan {
                         .ok_or_else(|| Error::setting("bounds", format!("{b:?} at GSD {gsd} {}", OutputGrid::no_grid_because(b, gsd))))?,
                     None => {
                         let (grid, fp) = auto_grid(model, &dem, sw, sh, z_guess, gsd).map_err(on_dem)?;
+                        fp.check_covered(&opts.image, &dem)?;
                         if let Some(w) = fp.partial_warning(&opts.image, &dem) {
                             progress.warn(&w);
                         }

@@ -38,6 +38,24 @@ pub struct Footprint {
 }
 
 impl Footprint {
+    /// A DEM that does not reach past the whole scan under `--dem-outside
+    /// error`: an error naming the DEM and the image (else, under
+    /// `nodata` or a height, the orthophoto stops or goes on, as
+    /// [`Footprint::partial_warning`] says).
+    pub fn check_covered(&self, image: &std::path::Path, dem: &Dem) -> Result<()> {
+        if self.past_edge == 0 || dem.on_outside != Miss::Error {
+            return Ok(());
+        }
+        Err(Error::format(
+            &dem.path,
+            format!(
+                "covers only part of {} ({} % of its edge meets it), and --dem-outside error (in a manifest dem_outside = \"error\") asks for heights under all of it: give a DEM that covers it, or --dem-outside nodata to stop the orthophoto at the DEM's edge, or --dem-outside HEIGHT to go on at a height",
+                image.display(),
+                100 * (self.edge_points - self.past_edge - self.on_holes) / self.edge_points.max(1)
+            ),
+        ))
+    }
+
     /// The warning for a DEM that covers only part of the scan, where the
     /// orthophoto stops at the DEM's edge or its nodata (not where a
     /// height past it is given).
