@@ -284,7 +284,22 @@ fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
     // the orthophoto is, not under the whole scan.
     let inner = format!("{},{},{},{}", dem_box[0] + 20.0, dem_box[1] + 20.0, dem_box[2] - 20.0, dem_box[3] - 20.0);
     let out = dir.path().join("error_within.tif");
-    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&cropped), "--dem-outside", "error", "--bounds", &inner, "--quiet", "-o", s(&out)]);
+    let r = run(&[
+        "rectify",
+        "--image",
+        s(&sc.scan),
+        "--camera",
+        s(&sc.camera),
+        "--dem",
+        s(&cropped),
+        "--dem-outside",
+        "error",
+        "--bounds",
+        &inner,
+        "--quiet",
+        "-o",
+        s(&out),
+    ]);
     assert!(r.status.success() && out.exists(), "{}", String::from_utf8_lossy(&r.stderr));
     let area = |b: [f64; 4]| (b[2] - b[0]) * (b[3] - b[1]);
     assert!(area(whole) > 1.3 * area(cut) && whole_valid as f64 > 1.05 * cut_valid as f64, "the DEM's middle cuts the footprint");
