@@ -555,6 +555,12 @@ impl Dem {
         if let Some(unit) = crate::io::geotiff::foot_unit_of(path) {
             warnings.push(format!("{}: heights in {unit} (as the file says): taken into metres", path.display()));
         }
+        if let Some(unit) = crate::io::geotiff::unknown_unit_of(path) {
+            warnings.push(format!(
+                "{}: heights in '{unit}' (as the file says), a unit not read here: taken as metres; if they are not, convert the DEM to metres",
+                path.display()
+            ));
+        }
         let [bx0, by0, bx1, by1] = g.bounds();
         let centre = (0.5 * (bx0 + bx1), 0.5 * (by0 + by1));
         let to_dem = match &g.crs {

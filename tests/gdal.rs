@@ -412,6 +412,17 @@ fn heights_in_feet_are_taken_into_metres() {
         let worst = metres.iter().zip(&ft).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
         assert!(worst <= 2, "{name}: {worst} DN apart");
     }
+    // A unit not read here is warned of (as metres it is taken); metres,
+    // however spelled, are not.
+    for (unit, warned) in [("furlong", true), ("metre", false), ("m", false)] {
+        let dem = dir.path().join(format!("dem_{unit}.tif"));
+        let set = "from osgeo import gdal; import sys\n\
+                   d = gdal.Translate(sys.argv[2], sys.argv[1]); d.GetRasterBand(1).SetUnitType(sys.argv[3]); d = None";
+        assert!(Command::new(python).args(["-c", set, s(&sc.dem), s(&dem), unit]).status().unwrap().success());
+        let (_, said) = ortho(&dem, &format!("{unit}.tif"));
+        let named = said.contains("warning") && said.contains(&format!("heights in '{unit}'")) && said.contains("not read here");
+        assert_eq!(named, warned, "{unit}: {said}");
+    }
 }
 
 /// The scan's own marks of pixels without image — an alpha band, a nodata

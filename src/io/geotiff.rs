@@ -247,6 +247,23 @@ pub fn foot_unit_of(path: &Path) -> Option<&'static str> {
     read_georef(&mut dec, path).ok().flatten().and_then(|g| vertical_foot(&g.keys)).map(|(name, _)| name)
 }
 
+/// The unit of a GeoTIFF's first band where the file names one that is
+/// neither metres nor feet (read into metres): it is read as metres, and
+/// the caller warns of it.
+pub fn unknown_unit_of(path: &Path) -> Option<String> {
+    let file = std::fs::File::open(path).ok()?;
+    let mut dec = Decoder::new(std::io::BufReader::new(file)).ok()?;
+    let Ok(Some(Value::Ascii(xml))) = dec.find_tag(Tag::Unknown(GDAL_METADATA)) else { return None };
+    let doc = roxmltree::Document::parse(xml.trim_matches(char::from(0))).ok()?;
+    if band_unit(&doc).is_some() {
+        return None;
+    }
+    let unit =
+        doc.descendants().find(|n| n.has_tag_name("Item") && n.attribute("sample") == Some("0") && n.attribute("role") == Some("unittype"))?.text()?.trim();
+    let metres = ["", "m", "metre", "metres", "meter", "meters", "metre (m)", "meters (m)"];
+    (!metres.contains(&unit.to_ascii_lowercase().as_str())).then(|| unit.to_string())
+}
+
 /// The current image's GDAL_NODATA value, if it has one.
 pub fn read_nodata<R: Read + Seek>(dec: &mut Decoder<R>, path: &Path) -> Result<Option<f64>> {
     Ok(match dec.find_tag(Tag::GdalNodata).map_err(|e| Error::from_tiff(path, e))? {
