@@ -158,16 +158,29 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
         ]
         .into_iter()
         .find(|(same, _)| !same);
+        // Pieces that are not of one orthophoto are a fault of the set
+        // given (as a gap or an overlap is): one wording, one exit code.
+        let not_one = |how: String| Error::Usage(format!("{} is not a piece of the same orthophoto as {}: {how}", p.display(), pieces[0].display()));
         if let Some((_, how)) = differs {
-            return Err(Error::format(p, format!("is not a piece of the same orthophoto as {}: {how}", pieces[0].display())));
+            return Err(not_one(how));
         }
         // Made from the same image, camera, DEM and settings (a piece of
         // another run on the same grid would join without a seam to see).
         if g.source.as_deref().map(crate::io::geotiff::without_layout) != geo0.source.as_deref().map(crate::io::geotiff::without_layout) {
-            return Err(Error::Usage(format!(
-                "{} was made from other inputs or settings than {} (image, camera, DEM, resampling…): not pieces of one orthophoto",
-                p.display(),
-                pieces[0].display()
+            return Err(not_one("made from other inputs or settings (image, camera, DEM, resampling…)".into()));
+        }
+        // And for a whole of one layout, unless this run says which: else
+        // the first piece named would choose it.
+        let layout = |g: &crate::io::geotiff::GeoRef| g.source.as_deref().and_then(crate::io::geotiff::whole_layout).map_or((None, None, None), read_layout);
+        let ((o, r, c), (o0, r0, c0)) = (layout(g), layout(&geo0));
+        let unsaid = [
+            (opts.overviews.is_none() && o != o0, "overviews"),
+            (opts.overview_resampling.is_none() && r != r0, "overview resampling"),
+            (opts.cog.is_none() && c != c0, "Cloud-Optimized layout"),
+        ];
+        if let Some((_, what)) = unsaid.iter().find(|(differs, _)| *differs) {
+            return Err(not_one(format!(
+                "its run asked for another {what} of the whole; say which to assemble (--cog, --overviews, --overview-resampling), or join pieces made alike"
             )));
         }
         x_min = x_min.min(g.transform[0]);

@@ -415,9 +415,25 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let o = run(&["assemble", "-o", s(&mixed), s(&pieces[0]), s(&pieces[1]), s(&pieces[2]), s(&zstd)]);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert_ne!(o.status.code(), Some(0), "{err}");
+    assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("zstd.tif") && err.contains("compression zstd, the first piece's deflate"), "{err}");
     assert!(!mixed.exists());
+    // A piece whose run asked for another layout of the whole (--cog):
+    // refused unless assemble is told which, whatever the pieces' order
+    // (else the first piece named would choose it).
+    let cog = d.join("cog_piece.tif");
+    let o = run(&[&["rectify"][..], &base, &["--window", &win, "--cog", "-o", s(&cog)]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for set in [[&pieces[0], &pieces[1], &pieces[2], &cog], [&cog, &pieces[0], &pieces[1], &pieces[2]]] {
+        let o = run(&["assemble", "-o", s(&mixed), s(set[0]), s(set[1]), s(set[2]), s(set[3])]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains("is not a piece of the same orthophoto") && err.contains("Cloud-Optimized layout"), "{err}");
+        assert!(!mixed.exists());
+    }
+    let o = run(&["assemble", "--cog", "-o", s(&mixed), s(&cog), s(&pieces[0]), s(&pieces[1]), s(&pieces[2])]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::remove_file(&mixed).unwrap();
     // A piece given twice: both named, exit 2 as for the gap.
     let o = run(&["assemble", "-o", s(&d.join("twice.tif")), s(&pieces[0]), s(&pieces[0]), s(&pieces[1])]);
     assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
