@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// The operating system refused a read or a write.
-    #[error("{path}: {source}")]
+    #[error("{path}: {}", in_words(source))]
     Io {
         path: PathBuf,
         #[source]
@@ -45,6 +45,24 @@ pub enum Error {
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// What the operating system said, as a user reads it: the common kinds
+/// in words of our own, the rest without its "(os error N)".
+fn in_words(e: &std::io::Error) -> String {
+    use std::io::ErrorKind::*;
+    match e.kind() {
+        NotFound => "no such file or folder".into(),
+        PermissionDenied => "permission denied".into(),
+        StorageFull => "no space left on the disk".into(),
+        _ => {
+            let text = e.to_string();
+            match text.rfind(" (os error ") {
+                Some(k) if text.ends_with(')') => text[..k].to_string(),
+                _ => text,
+            }
+        }
+    }
+}
 
 impl Error {
     pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
@@ -87,5 +105,21 @@ impl Error {
             T::IntSizeError => Error::limits(path, "a size does not fit the platform's integers"),
             other => Error::format(path, other.to_string()),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The OS's words are a user's: no "(os error N)".
+    #[test]
+    fn io_errors_read_as_words() {
+        let missing = Error::io("cam.toml", std::io::Error::from_raw_os_error(2)).to_string();
+        assert_eq!(missing, "cam.toml: no such file or folder");
+        let denied = Error::io("out.tif", std::io::Error::from_raw_os_error(13)).to_string();
+        assert_eq!(denied, "out.tif: permission denied");
+        let other = Error::io("x", std::io::Error::from_raw_os_error(21)).to_string();
+        assert!(other.starts_with("x: ") && !other.contains("os error"), "{other}");
     }
 }

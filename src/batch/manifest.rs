@@ -224,6 +224,22 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
     let mut jobs = Vec::new();
     let at = |line: usize| format!("{}: line {line}", path.display());
 
+    // A bad setting in [defaults] is said once, at its line, not as
+    // every job's problem at the job's line.
+    let mut settings = m.defaults.clone();
+    (settings.dem, settings.height) = (None, Some(0.0));
+    if let Err(e) = config("defaults", PathBuf::new(), PathBuf::new(), None, None, &settings, &rel) {
+        // The key's own line where the message starts with it.
+        let lines: Vec<&str> = text.lines().collect();
+        let section = lines.iter().position(|l| l.trim() == "[defaults]").unwrap_or(0);
+        let key = e.split(':').next().unwrap_or("").trim();
+        let own = lines[section + 1..]
+            .iter()
+            .take_while(|l| !l.trim_start().starts_with('['))
+            .position(|l| l.split('=').next().is_some_and(|k| k.trim() == key))
+            .map(|k| section + 1 + k);
+        errors.push(format!("{}: [defaults]: {e}", at(own.unwrap_or(section) + 1)));
+    }
     let mut entries: Vec<Entry> = Vec::new();
     for j in &m.job {
         let line = line_of(&text, j.span().start);
@@ -523,8 +539,13 @@ mod tests {
             let jobs = load(&m).unwrap_or_else(|e| panic!("{value}: {:?}", e.problems));
             assert_eq!((jobs[0].config.dem_outside, jobs[0].config.dem_hole), (want, want), "{value}: {:?}", jobs[0].problem);
         }
+        // A bad value in [defaults]: the manifest refused once, at the key's
+        // own line (not each job's, at the job's line); in a job, that job's.
         std::fs::write(&m, "[defaults]\ndem = \"dem.tif\"\ndem_outside = \"zero\"\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\n").unwrap();
+        let problems = load(&m).err().map(|e| e.problems).unwrap_or_default();
+        assert!(problems.len() == 1 && problems[0].contains("line 3: [defaults]: dem_outside"), "{problems:?}");
+        std::fs::write(&m, "[defaults]\ndem = \"dem.tif\"\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\ndem_outside = \"zero\"\n").unwrap();
         let problem = load(&m).unwrap()[0].problem.clone().unwrap_or_default();
-        assert!(problem.contains("dem_outside"), "{problem}");
+        assert!(problem.contains("line 3") && problem.contains("dem_outside"), "{problem}");
     }
 }
