@@ -846,3 +846,28 @@ fn a_peak_past_the_memory_budget_is_said() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success() && !err.contains("peak memory"), "{err}");
 }
+
+/// A missing input is named with its flag in words (no "os error"); DEM
+/// tiles listed on the command line are told how several tiles are given.
+#[test]
+fn a_missing_input_is_named_in_words_and_listed_tiles_are_told_the_way() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    let out = d.join("o.tif");
+    let tiles = format!("{},{}", dem.display(), dem.display());
+    for (dem, words) in
+        [(tiles.as_str(), &["--dem", "no such file or folder", "a GDAL VRT of them"][..]), ("nowhere.tif", &["--dem nowhere.tif: no such file or folder"][..])]
+    {
+        let r = run(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", dem, "--quiet", "-o", s(&out)]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.code() == Some(1) && err.trim_end().lines().count() == 1 && !err.contains("os error"), "{err}");
+        assert!(words.iter().all(|w| err.contains(w)), "{err}");
+        assert!(!out.exists());
+    }
+    // A camera file missing from a manifest's job: the same words.
+    std::fs::write(d.join("m.toml"), format!("[[job]]\nimage = \"{}\"\ncamera = \"nope.toml\"\ndem = \"{}\"\n", scan.display(), dem.display())).unwrap();
+    let r = run(&["batch", s(&d.join("m.toml")), "--quiet"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(err.contains("nope.toml: no such file or folder") && !err.contains("os error"), "{err}");
+}
