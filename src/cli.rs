@@ -401,7 +401,8 @@ pub struct MosaicArgs {
     #[arg(long, conflicts_with_all = ["seamlines", "seams", "balance"])]
     pub plan: Option<PathBuf>,
     /// Render only these tiles of the mosaic: col,row,width,height (a
-    /// piece; `assemble` joins the pieces into the single run's mosaic)
+    /// piece; `assemble` joins the pieces into the single run's mosaic);
+    /// one reaching past the mosaic's edge is cut at it
     #[arg(long, requires = "output")]
     pub window: Option<String>,
     /// Remake the output even where its record says it is current (a rerun
@@ -663,7 +664,8 @@ pub struct RectifyArgs {
     /// orthophoto lands pixel for pixel on it; instead of --gsd and --bounds.
     #[arg(long, conflicts_with_all = ["gsd", "bounds"])]
     pub like: Option<PathBuf>,
-    /// Only a piece of the output: col,row,width,height in output tiles.
+    /// Only a piece of the output: col,row,width,height in output tiles
+    /// (one reaching past the output's edge is cut at it).
     #[arg(long)]
     pub window: Option<String>,
     /// GCM node spacing k, output pixels (default: 16, or the DEM's posting

@@ -312,9 +312,10 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     assert!(run(&a).status.success());
     let info = gcm_ortho::io::source::SourceImage::open(&whole, 1 << 20).unwrap().info;
     let (ta, td) = (info.width.div_ceil(128), info.height.div_ceil(128));
-    // Four uneven pieces: a column of 2 tiles, and the rest split in three.
+    // Four uneven pieces: a column of 2 tiles, and the rest split in three;
+    // the last asks past both edges (shards of a fixed size), cut at them.
     let (c, r) = (2, td / 2);
-    let windows = [[0, 0, c, td], [c, 0, ta - c, r], [c, r, 1, td - r], [c + 1, r, ta - c - 1, td - r]];
+    let windows = [[0, 0, c, td], [c, 0, ta - c, r], [c, r, 1, td - r], [c + 1, r, 9999, 9999]];
     let mut pieces = Vec::new();
     for (k, w) in windows.iter().enumerate() {
         let p = d.join(format!("piece{k}.tif"));
@@ -326,6 +327,14 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         pieces.push(p);
     }
+    // A window that starts past the edge is refused, with the grid's size.
+    let mut a = vec!["rectify"];
+    a.extend_from_slice(&base);
+    let (past, none) = (format!("0,{td},1,1"), d.join("none.tif"));
+    a.extend_from_slice(&["--window", &past, "-o", s(&none)]);
+    let o = run(&a);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.code() == Some(2) && err.contains(&format!("does not start inside the output's {ta}×{td} tiles")) && !none.exists(), "{err}");
     let joined = d.join("joined.tif");
     let mut a = vec!["assemble", "--cog", "-o", s(&joined)];
     for p in &pieces {

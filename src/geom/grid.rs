@@ -7,6 +7,18 @@
 
 use serde::{Deserialize, Serialize};
 
+/// A window of tiles (first column, first row, columns, rows) cut at the
+/// edge of a grid of `tiles` (across, down): one reaching past the edge is
+/// cut there, so that shards may ask for bands of a fixed height and the
+/// last one gets what is left; one that starts past it, or holds no tile,
+/// is refused (as written, for the message).
+pub fn cut_window([c0, r0, w, h]: [u32; 4], (across, down): (u32, u32)) -> Result<[u32; 4], String> {
+    if w == 0 || h == 0 || c0 >= across || r0 >= down {
+        return Err(format!("{c0},{r0},{w},{h}"));
+    }
+    Ok([c0, r0, w.min(across - c0), h.min(down - r0)])
+}
+
 /// An output pixel's size in ground units: across (X, east) and down
 /// (Y, south), both positive. Written `0.2` when square, `5,6` when not
 /// (gdalwarp's `-tr 5 6`); JSON and manifests: a number or `[x, y]`.

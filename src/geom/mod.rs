@@ -12,7 +12,7 @@ mod span;
 
 pub use affine::Affine2;
 pub use floor::{floor_i64, floor_split};
-pub use grid::{Gsd, OutputGrid, Snap};
+pub use grid::{cut_window, Gsd, OutputGrid, Snap};
 pub use image_area::ImageArea;
 pub use plane::Plane;
 pub use span::Span;

@@ -360,11 +360,8 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         let weights = weights::Weights::new(&plan, o.blend, &edges);
         let grid = plan.grid;
         let (tx_all, ty_all) = (grid.width.div_ceil(first.tile), grid.height.div_ceil(first.tile));
-        let window = o.window.unwrap_or([0, 0, tx_all, ty_all]);
-        let [tc0, tr0, tcw, trh] = window;
-        if tcw == 0 || trh == 0 || tc0 + tcw > tx_all || tr0 + trh > ty_all {
-            return Err(Error::setting("window", format!("{tc0},{tr0},{tcw},{trh} is not inside the mosaic's {tx_all}×{ty_all} tiles")));
-        }
+        let window = crate::geom::cut_window(o.window.unwrap_or([0, 0, tx_all, ty_all]), (tx_all, ty_all))
+            .map_err(|w| Error::setting("window", format!("{w} does not start inside the mosaic's {tx_all}×{ty_all} tiles")))?;
 
         // The output: the first job's format settings, the plan's grid.
         let tile = first.tile;

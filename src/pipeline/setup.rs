@@ -367,10 +367,8 @@ impl RunPlan {
         // All geometry stays that of the whole grid, so pieces equal the whole.
         let tile = opts.tile;
         let (tx_all, ty_all) = (grid.width.div_ceil(tile), grid.height.div_ceil(tile));
-        let [tc0, tr0, tcw, trh] = opts.window.unwrap_or([0, 0, tx_all, ty_all]);
-        if tcw == 0 || trh == 0 || tc0.checked_add(tcw).is_none_or(|e| e > tx_all) || tr0.checked_add(trh).is_none_or(|e| e > ty_all) {
-            return Err(Error::setting("window", format!("{tc0},{tr0},{tcw},{trh} is not inside the output's {tx_all}×{ty_all} tiles")));
-        }
+        let [tc0, tr0, tcw, trh] = crate::geom::cut_window(opts.window.unwrap_or([0, 0, tx_all, ty_all]), (tx_all, ty_all))
+            .map_err(|w| Error::setting("window", format!("{w} does not start inside the output's {tx_all}×{ty_all} tiles")))?;
         let (tc1, tr1) = (tc0 + tcw, tr0 + trh);
         let piece_w = (tc1 * tile).min(grid.width) - tc0 * tile;
         let piece_h = (tr1 * tile).min(grid.height) - tr0 * tile;
