@@ -95,6 +95,10 @@ fn broken_rpc_files_are_clear_errors() {
     let cut: String = text.lines().filter(|l| !l.starts_with("LAT_SCALE")).map(|l| format!("{l}\n")).collect();
     let e = Rpc::parse_text(&cut, Path::new("cut.txt")).unwrap_err().to_string();
     assert!(e.contains("LAT_SCALE missing"), "{e}");
+    // A 21st coefficient: not silently dropped.
+    let extra = format!("{text}\nLINE_NUM_COEFF_21: 0.5\n");
+    let e = Rpc::parse_text(&extra, Path::new("extra.txt")).unwrap_err().to_string();
+    assert!(e.contains("extra.txt") && e.contains("LINE_NUM_COEFF_21") && e.contains("numbered 1 to 20"), "{e}");
 }
 
 fn ventoux(name: &str) -> PathBuf {

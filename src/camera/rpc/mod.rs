@@ -183,7 +183,10 @@ impl Rpc {
             let v = get(k).ok_or_else(|| Error::format(path, format!("RPC: {k} missing")))?;
             let arr: [f64; 20] = v.try_into().map_err(|v: Vec<f64>| Error::format(path, format!("RPC: {k} has {} coefficients, not 20", v.len())))?;
             if let Some(i) = arr.iter().position(|x| !x.is_finite()) {
-                return Err(Error::format(path, format!("RPC: {k}_{} (of 1..20) is missing or not finite", i + 1)));
+                return Err(Error::format(
+                    path,
+                    format!("RPC: {k}_{} (of 1..20; in OSSIM's files, counted from 0, {k}_{}) is missing or not finite", i + 1, i),
+                ));
             }
             Ok(arr)
         };

@@ -85,7 +85,7 @@ impl Rpc {
     /// "KEY: value [unit]" lines (IKONOS rpc.txt, GDAL _RPC.TXT, Planet):
     /// coefficients as LINE_NUM_COEFF_1 … LINE_NUM_COEFF_20.
     pub fn parse_text(text: &str, path: &Path) -> Result<Rpc> {
-        let map = keyword_list(text, ':', 1);
+        let map = keyword_list(text, ':', 1, path)?;
         if !map.contains_key("LINE_OFF") {
             return Err(Error::unsupported(path, "not an RPC file (no LINE_OFF)"));
         }
@@ -139,7 +139,7 @@ impl Rpc {
                 }
             }
         }
-        Rpc::from_numbers(&keyword_list(text, ':', 0), path)
+        Rpc::from_numbers(&keyword_list(text, ':', 0, path)?, path)
     }
 
     /// GDAL / DigitalGlobe `.RPB`: `lineOffset = 1234;`, coefficient lists
@@ -286,7 +286,9 @@ fn numbered(key: &str, first: usize) -> Option<(&str, usize)> {
 
 /// `KEY<sep> value [unit]` lines; keys upper-cased; numbered coefficients
 /// (`LINE_NUM_COEFF_7`, counted from `first`) gathered into lists of 20.
-fn keyword_list(text: &str, sep: char, first: usize) -> Numbers {
+/// A coefficient numbered past the 20 of its kind (`LINE_NUM_COEFF_21`)
+/// is refused: a file of another model, or damaged.
+fn keyword_list(text: &str, sep: char, first: usize, path: &Path) -> Result<Numbers> {
     let mut map = Numbers::new();
     for line in text.lines() {
         let Some((k, v)) = line.split_once(sep) else { continue };
@@ -294,12 +296,18 @@ fn keyword_list(text: &str, sep: char, first: usize) -> Numbers {
         let Some(x) = v.split_whitespace().next().and_then(|s| s.parse::<f64>().ok()) else { continue };
         match numbered(&k, first) {
             Some((base, i)) => map.entry(base.to_string()).or_insert_with(|| vec![f64::NAN; 20])[i] = x,
+            None if k.rsplit_once('_').is_some_and(|(base, n)| SETS.contains(&base) && n.parse::<usize>().is_ok()) => {
+                return Err(Error::format(
+                    path,
+                    format!("RPC: {} has no place among the 20 coefficients of its kind, numbered {first} to {}", k.trim(), first + 19),
+                ));
+            }
             None => {
                 map.insert(k, vec![x]);
             }
         }
     }
-    map
+    Ok(map)
 }
 
 /// DigitalGlobe's names (RPB and XML, lower-cased) → GDAL's.
