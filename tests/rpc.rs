@@ -915,6 +915,24 @@ fn ground_far_from_the_rpcs_heights_is_warned_of() {
     assert!(r.status.success() && err.contains("left_image.tif") && err.contains(said), "{err}");
 }
 
+/// A crop whose GeoTIFF keeps its offset in the scene as a "geotransform"
+/// of pixels (the Ventoux crops: origin 5000, 5000, pixels of 1, no CRS)
+/// is told to give --rpc-offset when it does not (else the orthophoto lands
+/// kilometres off without a word); given, nothing is said.
+#[test]
+fn a_crop_that_keeps_its_offset_is_told_to_give_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (image, rpc, dem, geoid) = (ventoux("left_image.tif"), ventoux("left_image.geom"), ventoux("srtm_N44E005_crop.tif"), ventoux("egm96_15_ventoux.gtx"));
+    let base = ["rectify", "--image", s(&image), "--rpc", s(&rpc), "--dem", s(&dem), "--geoid", s(&geoid), "--quiet"];
+    let r = common::run(&[&base[..], &["-o", s(&d.join("a.tif"))]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(err.contains("left_image.tif") && err.contains("give --rpc-offset 5000,5000"), "{err}");
+    let r = common::run(&[&base[..], &["--rpc-offset", "5000,5000", "-o", s(&d.join("b.tif"))]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success() && !err.contains("--rpc-offset"), "{err}");
+}
+
 /// rpcm's JSON (its names, 20 coefficients a list in the RPC00B order),
 /// nested under "rpc" as the IEEE GRSS data fusion contest's image files
 /// hold it: the IKONOS fixture written so reads as the same model.

@@ -191,6 +191,34 @@ impl RunPlan {
             Sensor::Rpc(r) => Some(&r.rpc),
             _ => None,
         } {
+            // A crop of a scene whose tool kept the crop's place as a
+            // "geotransform" of pixels (origin at its offset, pixels of 1,
+            // no CRS: as the CNES and other crops are): its RPC is the whole
+            // scene's, and without the offset the orthophoto lands a crop's
+            // offset away (kilometres), without another sign.
+            let given = camera.file.rpc.as_ref().and_then(|r| r.offset_px).is_some();
+            if let Some(g) = src.info.georef.as_ref().filter(|_| !given) {
+                let t = g.transform;
+                let whole = |v: f64| v == v.round() && v.abs() < 1e7;
+                if g.keys.0.is_empty()
+                    && t[1].abs() == 1.0
+                    && t[5].abs() == 1.0
+                    && t[2] == 0.0
+                    && t[4] == 0.0
+                    && whole(t[0])
+                    && whole(t[3])
+                    && (t[0], t[3]) != (0.0, 0.0)
+                {
+                    progress.warn(&format!(
+                        "{}: its GeoTIFF origin ({}, {}) in pixels of 1 without a CRS looks like a crop's offset in the scene its RPC was fitted over: if it is, give --rpc-offset {},{} (in a camera file rpc.offset_px), or the orthophoto lands that far off",
+                        opts.image.display(),
+                        t[0],
+                        t[3],
+                        t[0],
+                        t[3].abs()
+                    ));
+                }
+            }
             // The image within the scene the RPC was fitted over (an RPC
             // extrapolated beyond it bends fast): its corners at most a
             // tenth of the scene beyond.
