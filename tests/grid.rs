@@ -256,7 +256,7 @@ fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
     for outside in ["nodata", "300"] {
         let (r, _) = rectify_on(&far, "far.tif", outside);
         let err = String::from_utf8_lossy(&r.stderr);
-        assert!(r.status.code() == Some(1) && err.contains("does the DEM cover the scan"), "--dem-outside {outside}: {err}");
+        assert!(r.status.code() == Some(1) && err.contains("the DEM covers [") && err.contains("of another place?"), "--dem-outside {outside}: {err}");
     }
     let ortho_on = |dem: &Path, name: &str, outside: &str| {
         let (r, out) = rectify_on(dem, name, outside);

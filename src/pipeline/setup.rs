@@ -200,7 +200,12 @@ impl RunPlan {
             if let Some(g) = src.info.georef.as_ref().filter(|_| !given) {
                 let t = g.transform;
                 let whole = |v: f64| v == v.round() && v.abs() < 1e7;
-                if g.keys.0.is_empty()
+                // (And the image at that offset inside the RPC's scene: an
+                // RPC already shifted to the crop puts it outside.)
+                let inside = ((t[0] + sw as f64 / 2.0 - r.samp_off) / r.samp_scale).abs() <= 1.0
+                    && ((t[3].abs() + sh as f64 / 2.0 - r.line_off) / r.line_scale).abs() <= 1.0;
+                if inside
+                    && g.keys.0.is_empty()
                     && t[1].abs() == 1.0
                     && t[5].abs() == 1.0
                     && t[2] == 0.0
@@ -210,7 +215,7 @@ impl RunPlan {
                     && (t[0], t[3]) != (0.0, 0.0)
                 {
                     progress.warn(&format!(
-                        "{}: its GeoTIFF origin ({}, {}) in pixels of 1 without a CRS looks like a crop's offset in the scene its RPC was fitted over: if it is, give --rpc-offset {},{} (in a camera file rpc.offset_px), or the orthophoto lands that far off",
+                        "{}: its GeoTIFF origin ({}, {}) in pixels of 1 without a CRS looks like a crop's offset in the scene its RPC was fitted over: if it is, give --rpc-offset {},{} (in a camera file rpc.offset_px), or the orthophoto lands that far off (an RPC already shifted to the crop: --rpc-offset 0,0 says so)",
                         opts.image.display(),
                         t[0],
                         t[3],

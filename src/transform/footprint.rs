@@ -142,7 +142,26 @@ pub fn footprint_on(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32,
         let why = if past.1 > past.0 {
             format!("{} of them fall in its holes (nodata or void values): a void under the scan; --dem-hole HEIGHT goes on at that height", past.1)
         } else {
-            "does the DEM cover the scan?".to_string()
+            // Both boxes in the DEM's CRS, so that the user sees which of
+            // the two (the DEM, or the scan's camera or RPC) is elsewhere.
+            let in_dem = |(x, y): (f64, f64)| match &dem.to_dem {
+                Some(r) => r.apply(x, y),
+                None => Some((x, y)),
+            };
+            let (sw, sh) = (w as f64, h as f64);
+            let corners: Vec<(f64, f64)> =
+                [(0.0, 0.0), (sw, 0.0), (0.0, sh), (sw, sh)].iter().filter_map(|&(c, r)| model.locate_approx(c, r, z_guess).and_then(in_dem)).collect();
+            let scan = corners.iter().fold(none, |b, &(x, y)| joined(b, [x, y, x, y]));
+            match (&dem.model, corners.len()) {
+                (HeightModel::Grid(g), 4) => {
+                    let d = g.bounds();
+                    format!(
+                        "the scan's corners at {z_guess:.0} m lie in [{:.6}, {:.6}, {:.6}, {:.6}], the DEM covers [{:.6}, {:.6}, {:.6}, {:.6}] (both in the DEM's CRS): is the DEM, or the scan's camera or RPC, of another place?",
+                        scan[0], scan[1], scan[2], scan[3], d[0], d[1], d[2], d[3]
+                    )
+                }
+                _ => "does the DEM cover the scan?".to_string(),
+            }
         };
         return Err(Error::Geometry(format!("only {hits} of {n} points on the image's edges meet the DEM: {why}")));
     }
