@@ -555,9 +555,11 @@ fn inputs_exist(inputs: &[(&str, Option<&Path>)]) -> Result<()> {
     for (flag, path) in inputs {
         if let Some(p) = path.filter(|p| std::fs::symlink_metadata(p).is_err()) {
             // Tiles listed on the command line are a common first guess.
-            let tiles = (*flag == "--dem" && p.to_string_lossy().contains(','))
-                .then_some(" (several tiles are one --dem: a GDAL VRT of them, a folder, or a text file naming one a line)")
-                .unwrap_or_default();
+            let tiles = if *flag == "--dem" && p.to_string_lossy().contains(',') {
+                " (several tiles are one --dem: a GDAL VRT of them, a folder, or a text file naming one a line)"
+            } else {
+                ""
+            };
             return Err(gcm_ortho::Error::Named(format!("{flag} {}: no such file or folder{tiles}", p.display())).into());
         }
     }

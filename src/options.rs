@@ -201,6 +201,9 @@ pub fn parse_bounds(setting: &'static str, s: &str) -> Result<Option<[f64; 4]>> 
     }
     let bad = || Error::setting(setting, format!("'{s}' is not minx,miny,maxx,maxy with min < max"));
     let v: Vec<f64> = s.split(',').map(|p| p.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|_| bad())?;
+    if v.len() != 4 {
+        return Err(Error::setting(setting, format!("'{s}' has {} numbers: minx,miny,maxx,maxy are four", v.len())));
+    }
     match v[..] {
         [x0, y0, x1, y1] if v.iter().all(|x| x.is_finite()) && x1 > x0 && y1 > y0 => Ok(Some([x0, y0, x1, y1])),
         _ => Err(bad()),
@@ -710,6 +713,8 @@ mod tests {
         assert_eq!(parse_count("max_output_pixels", "2G").unwrap(), 2_000_000_000);
         assert_eq!(parse_bounds("bounds", "1,2,3,4").unwrap(), Some([1.0, 2.0, 3.0, 4.0]));
         assert_eq!(parse_bounds("bounds", "auto").unwrap(), None);
+        // Three numbers: said as such, not as a min/max order.
+        assert!(parse_bounds("bounds", "1,2,3").unwrap_err().to_string().contains("has 3 numbers: minx,miny,maxx,maxy are four"));
         assert_eq!(parse_window("window", "0, 1, 2, 3").unwrap(), [0, 1, 2, 3]);
         assert_eq!(parse_choice::<Kernel>("resample", "cubic").unwrap(), Kernel::Cubic);
         assert_eq!(parse_overviews("overviews", "2, 4,8").unwrap(), Overviews::Levels(3));

@@ -153,6 +153,14 @@ fn rpb_sidecar_equals_the_geotiff_tag() {
     for p in [(7.18, 43.68, 670.0), (7.1, 43.65, 300.0)] {
         close(&rpb, p, tag.project(p.0, p.1, p.2).unwrap(), 1e-6, "RPB vs tag");
     }
+    // A GeoTIFF without the tag but with the RPB beside it (as GDAL keeps
+    // it): the error names the sidecar to give.
+    let dir = tempfile::tempdir().unwrap();
+    let bare = dir.path().join("bare.tif");
+    std::fs::copy(Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini/scan.tif"), &bare).unwrap();
+    std::fs::copy(fx("PHR1B_P_201709281038393_SEN_PRG_FC_178609-001.RPB"), dir.path().join("bare.RPB")).unwrap();
+    let e = Rpc::read(&bare).unwrap_err().to_string();
+    assert!(e.contains("no RPC tag") && e.contains("give --rpc") && e.contains("bare.RPB"), "{e}");
 }
 
 /// The NITF RPC00B TRE, against GDAL's RPC transformer on the same file

@@ -18,7 +18,7 @@ use super::Rpc;
 use crate::error::{Error, Result};
 use crate::io::bounded_read::{read_bounded, read_head, read_text_bounded, SMALL};
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 type Numbers = HashMap<String, Vec<f64>>;
 
@@ -237,8 +237,7 @@ impl Rpc {
     pub fn from_geotiff(path: &Path) -> Result<Rpc> {
         let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
         let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(f)).map_err(|e| Error::from_tiff(path, e))?;
-        let v =
-            dec.find_tag(tiff::tags::Tag::Unknown(50844)).map_err(|e| Error::from_tiff(path, e))?.ok_or_else(|| Error::format(path, "no RPC tag (50844)"))?;
+        let v = dec.find_tag(tiff::tags::Tag::Unknown(50844)).map_err(|e| Error::from_tiff(path, e))?.ok_or_else(|| no_tag(path))?;
         let v: Vec<f64> = match v {
             tiff::decoder::ifd::Value::List(items) => items.into_iter().filter_map(|x| x.into_f64().ok()).collect(),
             _ => Vec::new(),
@@ -271,6 +270,21 @@ impl Rpc {
 
     fn from_numbers(map: &Numbers, path: &Path) -> Result<Rpc> {
         Rpc::from_map(&|k| map.get(k).cloned(), path)
+    }
+}
+
+/// No RPC tag in a GeoTIFF: where GDAL would find the RPC beside it (an
+/// `.RPB` or `_RPC.TXT` sidecar), that file is named.
+fn no_tag(path: &Path) -> Error {
+    let stem = path.with_extension("");
+    let beside = ["RPB", "rpb"]
+        .iter()
+        .map(|e| path.with_extension(e))
+        .chain(["_RPC.TXT", "_rpc.txt"].iter().map(|t| PathBuf::from(format!("{}{t}", stem.display()))))
+        .find(|p| p.is_file());
+    match beside {
+        Some(p) => Error::format(path, format!("no RPC tag (50844); its RPC is beside it: give --rpc {}", p.display())),
+        None => Error::format(path, "no RPC tag (50844)"),
     }
 }
 
