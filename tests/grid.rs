@@ -245,10 +245,12 @@ fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
     });
     let dem_box = gcm_ortho::dem::GridDem::read(&cropped).unwrap().bounds();
     // Rectified on `dem` under `--dem-outside outside` into `name`.
-    let rectify_on = |dem: &Path, name: &str, outside: &str| {
+    let rectify_with = |dem: &Path, name: &str, outside: &str, extra: &[&str]| {
         let out = dir.path().join(name);
-        (run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(dem), "--dem-outside", outside, "--quiet", "-o", s(&out)]), out)
+        let args = ["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(dem), "--dem-outside", outside, "--quiet", "-o", s(&out)];
+        (run(&[&args[..], extra].concat()), out)
     };
+    let rectify_on = |dem: &Path, name: &str, outside: &str| rectify_with(dem, name, outside, &[]);
     // A DEM 100 km away meets no edge of the scan: refused, a height for
     // outside it or not (the plane does not stand in for a wrong DEM).
     let far = dir.path().join("dem_far.tif");
@@ -283,23 +285,7 @@ fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
     // Within bounds on the DEM, `error` runs: it asks for heights where
     // the orthophoto is, not under the whole scan.
     let inner = format!("{},{},{},{}", dem_box[0] + 20.0, dem_box[1] + 20.0, dem_box[2] - 20.0, dem_box[3] - 20.0);
-    let out = dir.path().join("error_within.tif");
-    let r = run(&[
-        "rectify",
-        "--image",
-        s(&sc.scan),
-        "--camera",
-        s(&sc.camera),
-        "--dem",
-        s(&cropped),
-        "--dem-outside",
-        "error",
-        "--bounds",
-        &inner,
-        "--quiet",
-        "-o",
-        s(&out),
-    ]);
+    let (r, out) = rectify_with(&cropped, "error_within.tif", "error", &["--bounds", &inner]);
     assert!(r.status.success() && out.exists(), "{}", String::from_utf8_lossy(&r.stderr));
     let area = |b: [f64; 4]| (b[2] - b[0]) * (b[3] - b[1]);
     assert!(area(whole) > 1.3 * area(cut) && whole_valid as f64 > 1.05 * cut_valid as f64, "the DEM's middle cuts the footprint");
