@@ -504,6 +504,10 @@ fn rpc_grid_is_read_by_gdal_and_matches_the_checkpoints() {
         eprintln!("skipped the GDAL part: gdaltransform not installed");
         return;
     }
+    // Three bands of values, not an RGB picture (as QGIS would show it).
+    let info = std::process::Command::new("gdalinfo").arg(&grid).output().unwrap();
+    let info = String::from_utf8_lossy(&info.stdout);
+    assert!(info.contains("ColorInterp=Gray") && !info.contains("ColorInterp=Red") && !info.contains("ColorInterp=Blue"), "{info}");
     let vrt = grid.with_extension("vrt");
     let nodes = [(0usize, 0usize), (10, 20), (75, 75), (40, 3)];
     let input: String = nodes.iter().map(|&(i, j)| format!("{} {}\n", i as f64 * 8.0 + 0.5, j as f64 * 8.0 + 0.5)).collect();

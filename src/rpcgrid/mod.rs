@@ -160,10 +160,28 @@ impl RpcGrid {
     pub fn write(&self, path: &Path) -> Result<()> {
         let pending = crate::io::tiff_out::PendingFile::create(path)?;
         let data: Vec<f64> = (0..self.cols * self.rows).flat_map(|k| [self.lon[k], self.lat[k], self.h[k]]).collect();
-        let mut enc = tiff::encoder::TiffEncoder::new(pending.file()?).map_err(|e| crate::io::tiff_out::tiff_write_error(path, e))?;
-        enc.write_image::<tiff::encoder::colortype::RGB64Float>(self.cols as u32, self.rows as u32, &data)
-            .map_err(|e| crate::io::tiff_out::tiff_write_error(path, e))?;
+        let err = |e| crate::io::tiff_out::tiff_write_error(path, e);
+        let mut enc = tiff::encoder::TiffEncoder::new(pending.file()?).map_err(err)?;
+        let mut image = enc.new_image::<ThreeValues>(self.cols as u32, self.rows as u32).map_err(err)?;
+        // Bands 2 and 3 are values too, not colours.
+        image.encoder().write_tag(tiff::tags::Tag::ExtraSamples, &[0u16, 0][..]).map_err(err)?;
+        image.write_data(&data).map_err(err)?;
         pending.publish()
+    }
+}
+
+/// Three f64 samples a pixel that are values (longitude, latitude,
+/// height), not a colour: grey with two unspecified extra samples, so that
+/// GDAL and QGIS read three bands of data, not an RGB picture.
+struct ThreeValues;
+
+impl tiff::encoder::colortype::ColorType for ThreeValues {
+    type Inner = f64;
+    const TIFF_VALUE: tiff::tags::PhotometricInterpretation = tiff::tags::PhotometricInterpretation::BlackIsZero;
+    const BITS_PER_SAMPLE: &'static [u16] = &[64, 64, 64];
+    const SAMPLE_FORMAT: &'static [tiff::tags::SampleFormat] = &[tiff::tags::SampleFormat::IEEEFP; 3];
+    fn horizontal_predict(_: &[f64], _: &mut Vec<f64>) {
+        unreachable!("written without a predictor")
     }
 }
 

@@ -115,6 +115,7 @@ pub fn read_f64(path: &Path) -> (u32, u32, u32, Vec<f64>) {
     let bands = match dec.colortype().expect("colour type") {
         tiff::ColorType::RGB(_) => 3,
         tiff::ColorType::Gray(_) => 1,
+        tiff::ColorType::Multiband { num_samples, .. } => num_samples as u32,
         c => panic!("unexpected {c:?}"),
     };
     match dec.read_image().expect("pixels") {
