@@ -194,8 +194,12 @@ pub struct RpcGridArgs {
     #[command(flatten)]
     pub sensor: SensorArgs,
     /// DEM (any EPSG CRS; heights above the geoid with --geoid).
-    #[arg(long)]
-    pub dem: PathBuf,
+    #[arg(long, required_unless_present = "height", conflicts_with = "height")]
+    pub dem: Option<PathBuf>,
+    /// A constant height instead of a DEM (metres; with --geoid above the
+    /// geoid): the grid of an RPC without a DEM of its place.
+    #[arg(long, allow_negative_numbers = true)]
+    pub height: Option<f64>,
     /// Grid step, image pixels.
     #[arg(long, default_value_t = 8)]
     pub step: u32,

@@ -746,7 +746,8 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     let (origin, model) = a.sensor.model()?;
     let vrt_path = a.output.with_extension("vrt");
     {
-        let mut ins = vec![Role::new("image", &a.sensor.image), Role::new("sensor model", &origin), Role::new("DEM", &a.dem)];
+        let mut ins = vec![Role::new("image", &a.sensor.image), Role::new("sensor model", &origin)];
+        ins.extend(a.dem.as_deref().map(|d| Role::new("DEM", d)));
         ins.extend(a.sensor.geoid.as_deref().map(|g| Role::new("geoid grid", g)));
         let mut outs = vec![Role::new("grid", &a.output), Role::new("VRT", &vrt_path)];
         outs.extend(a.json.as_deref().map(|j| Role::new("table", j)));
@@ -761,13 +762,17 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
     };
     // The grid is in longitude/latitude: the model and the DEM in EPSG:4326.
     let model = RpcCamera::new(r.rpc.clone(), GroundCrs::from_epsg(4326).map_err(|m| anyhow!(m))?, r.geoid.clone());
-    let dem = Dem::open(&a.dem, &gcm_ortho::geodesy::Crs::wgs84())?;
+    let dem = match (&a.dem, a.height) {
+        (Some(p), _) => Dem::open(p, &gcm_ortho::geodesy::Crs::wgs84())?,
+        (None, Some(h)) if h.is_finite() => Dem::flat(h),
+        _ => return Err(usage("give --dem or a finite --height".to_string())),
+    };
     let info = SourceImage::info_of(&a.sensor.image)?;
     let (w, h) = (info.width, info.height);
     let z0 = dem.mean_height().unwrap_or_else(|| model.height_hint());
-    let on_dem = |e: gcm_ortho::error::Error| match e {
-        gcm_ortho::error::Error::Geometry(m) => gcm_ortho::error::Error::format(&a.dem, m),
-        e => e,
+    let on_dem = |e: gcm_ortho::error::Error| match (e, &a.dem) {
+        (gcm_ortho::error::Error::Geometry(m), Some(d)) => gcm_ortho::error::Error::format(d, m),
+        (e, _) => e,
     };
     let grid = rpcgrid::build(&model, &dem, w, h, a.step, z0).map_err(on_dem)?;
     grid.write(&a.output)?;

@@ -519,6 +519,24 @@ fn rpc_grid_is_read_by_gdal_and_matches_the_checkpoints() {
     }
 }
 
+/// Without a DEM of its place, an RPC's grid at a constant height: every
+/// node at that height, and projected back by the RPC onto its own pixel.
+#[test]
+fn rpc_grid_at_a_constant_height() {
+    let dir = tempfile::tempdir().unwrap();
+    let (tif, grid) = (fx("PHR1B_P_201709281038393_SEN_PRG_FC_178609-001.tif"), dir.path().join("g.tif"));
+    let out = run(&["rpc-grid", "--image", s(&tif), "--rpc", s(&tif), "--height", "300", "--step", "8", "-o", s(&grid)]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (gw, gh, bands, v) = read_f64(&grid);
+    assert_eq!((gw, gh, bands), (17, 17, 3));
+    let rpc = Rpc::read(&tif).unwrap();
+    for (i, j) in [(0usize, 0usize), (16, 3), (8, 16)] {
+        let k = 3 * (j * gw as usize + i);
+        assert_eq!(v[k + 2], 300.0);
+        close(&rpc, (v[k], v[k + 1], 300.0), (i as f64 * 8.0 + 0.5, j as f64 * 8.0 + 0.5), 0.03, "node");
+    }
+}
+
 /// At 35° off-nadir over mountains some nodes fall in dead zones and fail
 /// the back-check; every one of them is replaced (no NaN left).
 #[test]
