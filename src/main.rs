@@ -64,7 +64,12 @@ fn usage_error(e: clap::Error) -> ExitCode {
         said.push_str(&format!(" ({tip})"));
     }
     // A satellite image needs no camera file: its RPC does instead.
-    if e.kind() == ErrorKind::MissingRequiredArgument && said.contains("--camera <CAMERA>") {
+    if e.kind() == ErrorKind::MissingRequiredArgument && said.contains("--rpc <RPC>, --camera <CAMERA>") {
+        said = said.replace(
+            "--rpc <RPC>, --camera <CAMERA>",
+            "--camera <CAMERA> or --rpc <RPC> (a satellite image's RPC file, or the image itself when it carries an RPC tag)",
+        );
+    } else if e.kind() == ErrorKind::MissingRequiredArgument && said.contains("--camera <CAMERA>") {
         said = said.replace("--camera <CAMERA>", "--camera <CAMERA> (or --rpc <RPC> for a satellite image)");
     }
     eprintln!("gcm-ortho: error: {said}; see --help");

@@ -194,6 +194,10 @@ fn unsupported_formats_are_named() {
     assert!(e.contains("a.geom") && e.contains("polynomial_format A"), "{e}");
     let e = Rpc::parse_nitf(b"NITF02.10 no tre here", Path::new("x.ntf")).unwrap_err().to_string();
     assert!(e.contains("x.ntf") && e.contains("RPC00B"), "{e}");
+    // EnMAP's metadata: an RPC for each band, said as such.
+    let enmap = "<level_X><specific><bandCharacterisation/></specific><product><navigation><RPC><bandID number=\"1\"><ROW_OFF>500</ROW_OFF></bandID></RPC></navigation></product></level_X>";
+    let e = Rpc::parse_xml(enmap, Path::new("ENMAP-METADATA.XML")).unwrap_err().to_string();
+    assert!(e.contains("ENMAP-METADATA.XML") && e.contains("per-band RPCs are not read here"), "{e}");
 }
 
 /// The Ventoux output grid: 256×240 px at 0.5 m in UTM 31N inside the crop.

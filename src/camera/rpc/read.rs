@@ -169,6 +169,13 @@ impl Rpc {
             return Rpc::from_digitalglobe(rpb, path);
         }
         let root = doc.root_element().tag_name().name().to_string();
+        // EnMAP's metadata: an RPC for each band, under <RPC><bandID>.
+        if find("RPC").is_some_and(|n| n.descendants().any(|c| c.has_tag_name("bandID"))) {
+            return Err(Error::unsupported(
+                path,
+                format!("XML <{root}> holds an RPC for each band (<RPC><bandID>, as EnMAP's): per-band RPCs are not read here"),
+            ));
+        }
         Err(Error::unsupported(path, format!("XML <{root}> holds no RPC this reader knows (DIMAP <Inverse_Model> or DigitalGlobe <RPB>)")))
     }
 
