@@ -224,22 +224,14 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
     let mut jobs = Vec::new();
     let at = |line: usize| format!("{}: line {line}", path.display());
 
-    // A bad setting in [defaults] is said once, at its line, not as
-    // every job's problem at the job's line.
+    // A bad setting in [defaults] that every job takes is said once, at
+    // its own line (the manifest refused), not as every job's problem at
+    // the job's line; one that holds with a job's own settings (gcp_refine
+    // with each job's gcps) is no fault of [defaults].
     let mut settings = m.defaults.clone();
     (settings.dem, settings.height) = (None, Some(0.0));
-    if let Err(e) = config("defaults", PathBuf::new(), PathBuf::new(), None, None, &settings, &rel) {
-        // The key's own line where the message starts with it.
-        let lines: Vec<&str> = text.lines().collect();
-        let section = lines.iter().position(|l| l.trim() == "[defaults]").unwrap_or(0);
-        let key = e.split(':').next().unwrap_or("").trim();
-        let own = lines[section + 1..]
-            .iter()
-            .take_while(|l| !l.trim_start().starts_with('['))
-            .position(|l| l.split('=').next().is_some_and(|k| k.trim() == key))
-            .map(|k| section + 1 + k);
-        errors.push(format!("{}: [defaults]: {e}", at(own.unwrap_or(section) + 1)));
-    }
+    let defaults_fault = config("defaults", PathBuf::new(), PathBuf::new(), None, None, &settings, &rel).err();
+    let mut config_faults: Vec<Option<String>> = Vec::new();
     let mut entries: Vec<Entry> = Vec::new();
     for j in &m.job {
         let line = line_of(&text, j.span().start);
@@ -306,7 +298,9 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         if let Err(e) = cam {
             problems.push(e.to_string());
         }
-        let cfg = match config(&name, image.clone(), camera.clone(), inline.clone(), output.clone(), &opts, &rel) {
+        let cfg = config(&name, image.clone(), camera.clone(), inline.clone(), output.clone(), &opts, &rel);
+        config_faults.push(cfg.as_ref().err().cloned());
+        let cfg = match cfg {
             Ok(c) => c,
             Err(e) => {
                 problems.push(e);
@@ -315,6 +309,18 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         };
         let problem = (!problems.is_empty()).then(|| format!("{}: {}", at(line), problems.join("; ")));
         jobs.push(Job { name, config: cfg, problem });
+    }
+    if let Some(e) = defaults_fault.filter(|e| !config_faults.is_empty() && config_faults.iter().all(|f| f.as_ref() == Some(e))) {
+        // The key's own line where the message starts with it.
+        let lines: Vec<&str> = text.lines().collect();
+        let section = lines.iter().position(|l| l.trim() == "[defaults]").unwrap_or(0);
+        let key = e.split(':').next().unwrap_or("").trim();
+        let own = lines[section + 1..]
+            .iter()
+            .take_while(|l| !l.trim_start().starts_with('['))
+            .position(|l| l.split('=').next().is_some_and(|k| k.trim() == key))
+            .map(|k| section + 1 + k);
+        errors.push(format!("{}: [defaults]: {e}", at(own.unwrap_or(section) + 1)));
     }
     // No job may write over what any job reads, nor two jobs to one file.
     let mut refusal = false;
@@ -547,5 +553,13 @@ mod tests {
         std::fs::write(&m, "[defaults]\ndem = \"dem.tif\"\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\ndem_outside = \"zero\"\n").unwrap();
         let problem = load(&m).unwrap()[0].problem.clone().unwrap_or_default();
         assert!(problem.contains("line 3") && problem.contains("dem_outside"), "{problem}");
+        // A default that holds with each job's own settings is no fault.
+        std::fs::write(
+            &m,
+            "[defaults]\ndem = \"dem.tif\"\ngcp_refine = \"shift\"\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\ngcps = \"g.csv\"\n",
+        )
+        .unwrap();
+        let jobs = load(&m).unwrap_or_else(|e| panic!("{:?}", e.problems));
+        assert!(jobs[0].problem.is_none(), "{:?}", jobs[0].problem);
     }
 }
