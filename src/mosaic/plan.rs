@@ -125,17 +125,6 @@ impl Thumbnail {
         }
     }
 
-    pub fn len(&self) -> usize {
-        match self {
-            Thumbnail::Levels { v, .. } => v.len(),
-            Thumbnail::Floats(v) => v.len(),
-        }
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
     /// Rows of `cells` cells of `bands` values, in parallel, with the same
     /// rows of `per_cell` (one value a cell): `f(row, values, per_cell's
     /// row)` fills a row's values as f32 (none where the thumbnail is
