@@ -9,7 +9,8 @@
 //! pixel lies between nodes and nothing is extrapolated. Where the DEM is a
 //! grid aligned with the output (same CRS, north-up) and posted at least `k`
 //! output pixels apart, its post lines become node lines too (uniform lines
-//! within k/4 of one give way): a bilinear DEM bends only along those
+//! within k/4 of one give way; all of them where the posts are less than
+//! 1.5 k apart): a bilinear DEM bends only along those
 //! lines, so between nodes the terrain is smooth and so are the
 //! corrections. This halves the worst error on posted DEMs for a few more
 //! nodes.
@@ -32,7 +33,9 @@
 //! A cell over the bound is split as a quadtree — at the DEM's own lines
 //! where one crosses it (the pieces are then smooth), else in the middle —
 //! and pieces that would cost more to split than to compute (≤ 52 px) are
-//! evaluated exactly.
+//! evaluated exactly; inside one DEM column (height linear along a row)
+//! such pieces, and those far over the bound, row by row as quadratics
+//! through the exact model, checked between.
 //!
 //! Everything is computed a band of rows at a time (`prepare`), so a caller
 //! never holds the whole matrix.
@@ -42,7 +45,7 @@ mod quadtree;
 use crate::dem::{Height, Lookup};
 use crate::geom::Span;
 use crate::transform::{Approx, Mapped, Transform};
-use quadtree::{Frame, Node};
+use quadtree::{Frame, Node, Piece};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -181,6 +184,10 @@ pub struct Gcm<'a> {
     relief: (f64, f64),
 }
 
+/// How near (output pixels) a DEM line may be to a cell's edge and be that
+/// edge: node lines are DEM lines, and both are worked out in floating point.
+const EDGE: f64 = 1e-6;
+
 /// How far (in scan pixels) a stepped span (a straight line or a
 /// quadratic) between node columns may stray from `A` itself for
 /// [`Gcm::row_spans`] to stand in for it: a quarter of the 1/1024 pixel
@@ -282,7 +289,8 @@ impl<'a> Gcm<'a> {
     }
 
     /// Where to split `[lo, lo + d]`: the DEM line nearest the middle when
-    /// one crosses it (at least a pixel from either end), else the middle.
+    /// one crosses it (however near an end: the piece past it is then
+    /// inside one DEM column), else the middle.
     fn split_at(&self, lo: f64, d: f64, axis: usize) -> f64 {
         let mid = lo + d / 2.0;
         if let Some(k) = self.kinks {
@@ -292,7 +300,7 @@ impl<'a> Gcm<'a> {
                 let line = a + b * i;
                 let near = [line, line - b, line + b]
                     .into_iter()
-                    .filter(|&x| x > lo + 1.0 && x < lo + d - 1.0)
+                    .filter(|&x| x > lo + EDGE && x < lo + d - EDGE)
                     .min_by(|x, y| (x - mid).abs().total_cmp(&(y - mid).abs()));
                 if let Some(x) = near {
                     return x;
@@ -887,17 +895,64 @@ impl<'a> Gcm<'a> {
         }
     }
 
+    /// Whether `q` lies inside one column of cells of a DEM aligned with
+    /// the output and posted at least a pixel apart (none of its post
+    /// lines across the rows inside): there the height along each output
+    /// row is linear (the DEM is bilinear in each of its cells).
+    fn inside_one_dem_column(&self, q: &Quad) -> bool {
+        let Some([au, bu, _, _]) = self.kinks else { return false };
+        // Node lines are DEM lines: one on an edge is not inside.
+        bu >= 1.0 && !(au + bu * (((q.u0 + EDGE - au) / bu).floor() + 1.0) < q.u0 + q.du - EDGE)
+    }
+
+    /// Row `v`'s run `[l0, l1)` of a [`quadtree::Node::Rows`] piece as a
+    /// quadratic through the exact model at its first, middle and last
+    /// pixels (its first position, column and row, and their forward
+    /// differences, first and second), where it holds
+    /// within half the bound at the pixel a quarter of the way along
+    /// (along a row inside one DEM column the interpolation's error is
+    /// cubic in the pixel: it peaks near a quarter and three quarters of
+    /// the way, alike); `None` where it does not, a point has no value,
+    /// or the run is too short to be worth four evaluations.
+    fn row_quadratic(&self, v: f64, l0: usize, l1: usize) -> Option<[f64; 6]> {
+        const SHORTEST: usize = 6;
+        let bound = self.spec.max_error?;
+        if l1 < l0 + SHORTEST {
+            return None;
+        }
+        let at = |px: usize| match self.t.exact(px as f64 + 0.5, v) {
+            Mapped::Px(c, r) => (c, r),
+            _ => (f64::NAN, f64::NAN),
+        };
+        let f0 = at(l0);
+        let (d, dd) = quadratic_steps(f0, l0, l1, at);
+        let q = (l1 - 1 - l0) / 4;
+        let (t, (ec, er)) = (q as f64, at(l0 + q));
+        let step = |f: f64, d: f64, dd: f64| f + t * d + 0.5 * t * (t - 1.0) * dd;
+        let off = (ec - step(f0.0, d[0], dd[0])).hypot(er - step(f0.1, d[1], dd[1]));
+        (off <= bound / 2.0).then_some([f0.0, f0.1, d[0], d[1], dd[0], dd[1]])
+    }
+
     /// Holds `q` to `bound` at every pixel: splits it where its smooth or
     /// its terrain error may miss it. Returns its node: a leaf where it is
-    /// within the bound, else a split (its pieces put into `quads`) or
-    /// exact.
+    /// within the bound, else a split (its pieces put into `quads`), rows
+    /// (inside one DEM column) or exact.
     fn refine(&self, q: &Quad, bound: f64, stats: &mut GcmStats, miss: &mut Option<(f64, f64, Lookup)>, quads: &mut Vec<Node>) -> Node {
-        if q.smooth + self.terrain_error(q) <= bound {
+        let error = q.smooth + self.terrain_error(q);
+        if error <= bound {
             return Node::Leaf(q.corners);
         }
         // Splitting costs 5 exact evaluations and the pieces' checks; below
         // about 52 pixels, computing every pixel exactly is cheaper (and exact).
-        if q.du * q.dv <= 52.0 {
+        let small = q.du * q.dv <= 52.0;
+        // A split quarters the error at best: a piece far over the bound
+        // would be split down to pieces too small to split. Inside one DEM
+        // column its rows are smooth, each one quadratic (a few exact
+        // evaluations a row, not one a pixel).
+        if error.is_finite() && (small || error > 4.0 * bound) && self.inside_one_dem_column(q) {
+            return Node::Rows;
+        }
+        if small {
             return Node::Exact;
         }
         // Split at the DEM's lines where they cross the cell (the pieces are
@@ -1053,7 +1108,7 @@ impl<'a> Gcm<'a> {
                 let leaves = refined.and_then(|q| q[g]);
                 let fits = |c: f64, r: f64, d: [f64; 4]| c.abs() < FIXED && r.abs() < FIXED && d.iter().all(|d| d.abs() * 1024.0 < FIXED);
                 let stepped = |c: f64, r: f64, d: [f64; 4]| leaves.is_none() && fits(c, r, d);
-                if let (Some(q), true, true) = (leaves, end > x, cuts == 1) {
+                if let (Some(q), true) = (leaves, end > x) {
                     // A refined cell: a span for each leaf's run of
                     // pixels along the row (A and the leaf's correction,
                     // linear along it, as one quadratic: a piece of a gap
@@ -1064,14 +1119,32 @@ impl<'a> Gcm<'a> {
                     let (gap_first, gap_end) = (first_px[g], first_px[g + 1].max(end));
                     leaf_runs.clear();
                     quadtree::runs(&band.quads, q, self.cell_frame(j0, j1, lo + g), v, gap_first, gap_end, &mut leaf_runs);
-                    for &(l0, l1, leaf) in &leaf_runs {
+                    for &(l0, l1, piece) in &leaf_runs {
                         let (first, stop) = (l0.max(x), l1.min(end));
                         if first >= stop {
                             continue;
                         }
-                        let Some(leaf) = leaf else {
-                            spans.push(Span { stepped: false, first, end: stop, anchor: l0, c: 0.0, r: 0.0, dc: 0.0, dr: 0.0, ddc: 0.0, ddr: 0.0 });
-                            continue;
+                        let exact = Span { stepped: false, first, end: stop, anchor: l0, c: 0.0, r: 0.0, dc: 0.0, dr: 0.0, ddc: 0.0, ddr: 0.0 };
+                        let leaf = match piece {
+                            // Where A curves too much along the row for one
+                            // quadratic a leaf, A + c at each pixel.
+                            Piece::Leaf(_) if cuts > 1 => {
+                                spans.push(exact);
+                                continue;
+                            }
+                            Piece::Leaf(leaf) => leaf,
+                            Piece::Rows => {
+                                // Anchored at the run's first pixel, whatever piece of the row is asked for.
+                                spans.push(match self.row_quadratic(v, l0, l1) {
+                                    Some([c, r, dc, dr, ddc, ddr]) => Span { stepped: fits(c, r, [dc, dr, ddc, ddr]), c, r, dc, dr, ddc, ddr, ..exact },
+                                    None => exact,
+                                });
+                                continue;
+                            }
+                            Piece::Exact => {
+                                spans.push(exact);
+                                continue;
+                            }
                         };
                         let fv = leaf.fv(v);
                         let at = |px: usize| {
@@ -1286,9 +1359,12 @@ fn with_dem_lines(uniform: Vec<f64>, a: f64, b: f64, k: f64) -> Vec<f64> {
     let first = ((lo - a) / b).ceil() as i64;
     let last = ((hi - a) / b).floor() as i64;
     let dem: Vec<f64> = (first..=last).map(|i| a + b * i as f64).filter(|&l| l > lo && l < hi).collect();
+    // DEM lines less than 1.5 k apart are node lines enough (the uniform
+    // ones between would halve the gaps and double the spans to step).
+    let only_dem = b < 1.5 * k;
     let near_dem = |u: f64| {
         let i = ((u - a) / b).round();
-        (u - (a + b * i)).abs() < k / 4.0
+        only_dem || (u - (a + b * i)).abs() < k / 4.0
     };
     let mut lines: Vec<f64> = uniform.iter().enumerate().filter(|&(n, &u)| n == 0 || n == uniform.len() - 1 || !near_dem(u)).map(|(_, &u)| u).collect();
     lines.extend(dem);
@@ -1366,6 +1442,22 @@ mod tests {
         let third = 6.0 * e * e * (m * ff - e * n).abs() / dmin.powi(4);
         let worst = (0..17).map(|p| (span.at(p).0 - a(p).0).abs()).fold(0.0, f64::max);
         assert!(worst > 0.0 && worst <= third * 16f64.powi(3) / 48.0, "{worst} {}", third * 16f64.powi(3) / 48.0);
+    }
+
+    #[test]
+    fn dem_lines_less_than_one_and_a_half_spacings_apart_are_the_node_lines() {
+        let uniform = |k: f64, n: usize| (0..n).map(|i| k * (i as f64 - 0.5)).collect::<Vec<_>>();
+        // Posts 11.65 px apart, k = 11: the posts, and the outer lines that
+        // hold every pixel between nodes.
+        let lines = with_dem_lines(uniform(11.0, 12), 3.0, 11.65, 11.0);
+        let (first, last) = (lines[0], lines[lines.len() - 1]);
+        assert_eq!((first, last), (-5.5, 115.5));
+        assert!(lines[1..lines.len() - 1].iter().all(|&u| ((u - 3.0) / 11.65 - ((u - 3.0) / 11.65).round()).abs() < 1e-9), "{lines:?}");
+        assert_eq!(lines.len(), 2 + 10);
+        // Posts 40 px apart, k = 16: uniform lines stay between them,
+        // except those within k/4 of a post.
+        let lines = with_dem_lines(uniform(16.0, 12), 3.0, 40.0, 16.0);
+        assert!(lines.contains(&24.0) && lines.contains(&43.0) && !lines.contains(&40.0), "{lines:?}");
     }
 
     #[test]

@@ -18,6 +18,21 @@ pub(super) enum Node {
     Leaf([[f64; 2]; 4]),
     /// Over the bound and too small to split: the exact model at each pixel.
     Exact,
+    /// Over the bound inside one column of cells of a DEM aligned with the
+    /// output: there the height is linear along each output row, so `T`
+    /// along a row is smooth, and each row's run is the quadratic through the
+    /// exact model at its ends and middle where a check between them
+    /// holds it (else the exact model at each pixel).
+    Rows,
+}
+
+/// What a row meets of a refined cell: a leaf's run of pixels, or one
+/// over the bound ([`Node::Rows`], [`Node::Exact`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Piece<'n> {
+    Leaf(Leaf<'n>),
+    Rows,
+    Exact,
 }
 
 /// A node's box: its top left corner and size, output pixels.
@@ -82,7 +97,7 @@ fn right_of(u: f64, x0: usize, len: usize) -> usize {
 /// pixel).
 pub(super) fn row(nodes: &[Node], root: u32, frame: Frame, v: f64, x0: usize, dc: &mut [f64], dr: &mut [f64]) {
     match &nodes[root as usize] {
-        Node::Exact => {
+        Node::Exact | Node::Rows => {
             dc.fill(f64::NAN);
             dr.fill(f64::NAN);
         }
@@ -105,9 +120,8 @@ pub(super) fn row(nodes: &[Node], root: u32, frame: Frame, v: f64, x0: usize, dc
 
 /// The leaves of the cell rooted at `root` (its box `frame`) along row `v`
 /// over pixels `[x0, x1)`, in order: each leaf's run of the pixels whose
-/// centres it holds (split as [`row`] splits them); `None` for an exact
-/// one.
-pub(super) fn runs<'n>(nodes: &'n [Node], root: u32, frame: Frame, v: f64, x0: usize, x1: usize, out: &mut Vec<(usize, usize, Option<Leaf<'n>>)>) {
+/// centres it holds (split as [`row`] splits them).
+pub(super) fn runs<'n>(nodes: &'n [Node], root: u32, frame: Frame, v: f64, x0: usize, x1: usize, out: &mut Vec<(usize, usize, Piece<'n>)>) {
     if x0 >= x1 {
         return;
     }
@@ -118,8 +132,9 @@ pub(super) fn runs<'n>(nodes: &'n [Node], root: u32, frame: Frame, v: f64, x0: u
             runs(nodes, first + k, frame.child(at, k), v, x0, right, out);
             runs(nodes, first + k + 1, frame.child(at, k + 1), v, right, x1, out);
         }
-        Node::Leaf(corners) => out.push((x0, x1, Some(Leaf { corners, frame }))),
-        Node::Exact => out.push((x0, x1, None)),
+        Node::Leaf(corners) => out.push((x0, x1, Piece::Leaf(Leaf { corners, frame }))),
+        Node::Rows => out.push((x0, x1, Piece::Rows)),
+        Node::Exact => out.push((x0, x1, Piece::Exact)),
     }
 }
 
@@ -163,7 +178,7 @@ mod tests {
         }
         let mut out = Vec::new();
         runs(&nodes, 4, CELL, 2.5, 8, 13, &mut out);
-        assert_eq!(out.iter().map(|r| (r.0, r.1, r.2.is_some())).collect::<Vec<_>>(), vec![(8, 10, false), (10, 13, true)]);
+        assert_eq!(out.iter().map(|r| (r.0, r.1, matches!(r.2, Piece::Leaf(_)))).collect::<Vec<_>>(), vec![(8, 10, false), (10, 13, true)]);
         // Row 7.5 (bottom children), the same columns.
         row(&nodes, 4, CELL, 7.5, 8, &mut dc, &mut dr);
         for (m, d) in dc.iter().enumerate() {

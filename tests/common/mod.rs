@@ -17,12 +17,17 @@ pub fn run(args: &[&str]) -> Output {
 /// The drone over buildings: an oblique frame (25° off nadir) with strong
 /// barrel distortion over a DSM posted at 1 m, `w`×`h` px from `scale`, in
 /// `dir/scene`.
-pub fn drone_scene(dir: &Path, (w, h): (u32, u32), scale: f64) -> SynthReport {
+pub fn drone_scene(dir: &Path, size: (u32, u32), scale: f64) -> SynthReport {
+    drone_scene_posted(dir, size, scale, 1.0)
+}
+
+/// [`drone_scene`] with its DSM posted every `posting` metres.
+pub fn drone_scene_posted(dir: &Path, (w, h): (u32, u32), scale: f64, posting: f64) -> SynthReport {
     scene(&dir.join("scene"), w, |o| {
         o.height = h;
         o.camera = gcm_ortho::synth::CameraKind::Drone;
         o.relief = gcm_ortho::synth::Relief::Urban;
-        o.dem_posting = 1.0;
+        o.dem_posting = posting;
         o.scale = scale;
         o.off_nadir_deg = 25.0;
         o.kappa_deg = 17.0;
