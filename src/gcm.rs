@@ -213,7 +213,12 @@ fn quadratic_steps(f0: (f64, f64), p0: usize, p1: usize, f: impl Fn(usize) -> (f
         return ([fl.0 - f0.0, fl.1 - f0.1], [0.0; 2]);
     }
     let m = l / 2;
-    let fm = f(p0 + m);
+    steps_through(f0, f(p0 + m), fl, m, l)
+}
+
+/// [`quadratic_steps`] from the values `f0`, `fm`, `fl` at pixels 0, `m`
+/// and `l` of the span (0 < m < l).
+fn steps_through(f0: (f64, f64), fm: (f64, f64), fl: (f64, f64), m: usize, l: usize) -> ([f64; 2], [f64; 2]) {
     let (l, m) = (l as f64, m as f64);
     // Divided differences: f = f0 + b·t + q·t², then d = b + q, dd = 2q.
     let one = |f0: f64, fm: f64, fl: f64| {
@@ -920,14 +925,12 @@ impl<'a> Gcm<'a> {
         if l1 < l0 + SHORTEST {
             return None;
         }
-        let at = |px: usize| match self.t.exact(px as f64 + 0.5, v) {
-            Mapped::Px(c, r) => (c, r),
-            _ => (f64::NAN, f64::NAN),
-        };
-        let f0 = at(l0);
-        let (d, dd) = quadratic_steps(f0, l0, l1, at);
-        let q = (l1 - 1 - l0) / 4;
-        let (t, (ec, er)) = (q as f64, at(l0 + q));
+        // The span's last pixel, its middle (as `quadratic_steps` takes
+        // it) and the check a quarter of the way.
+        let (l, q) = (l1 - 1 - l0, (l1 - 1 - l0) / 4);
+        let [f0, (ec, er), fm, fl] = self.t.exact_all(v, [l0, l0 + q, l0 + l / 2, l0 + l])?;
+        let (d, dd) = steps_through(f0, fm, fl, l / 2, l);
+        let t = q as f64;
         let step = |f: f64, d: f64, dd: f64| f + t * d + 0.5 * t * (t - 1.0) * dd;
         let off = (ec - step(f0.0, d[0], dd[0])).hypot(er - step(f0.1, d[1], dd[1]));
         (off <= bound / 2.0).then_some([f0.0, f0.1, d[0], d[1], dd[0], dd[1]])

@@ -88,6 +88,28 @@ impl<'a> Transform<'a> {
         }
     }
 
+    /// `T` at the centres of pixels `px` of row `v`, the projections at
+    /// once ([`SensorModel::project_many`]: the numbers of `exact`);
+    /// `None` where any of them has no value.
+    pub fn exact_all<const N: usize>(&self, v: f64, px: [usize; N]) -> Option<[(f64, f64); N]> {
+        let (mut x, mut y, mut z) = ([0.0; N], [0.0; N], [0.0; N]);
+        for (k, &p) in px.iter().enumerate() {
+            let (gx, gy) = self.ground(p as f64 + 0.5, v);
+            let Height::Value(h) = self.dem.height(gx, gy) else { return None };
+            (x[k], y[k], z[k]) = (gx, gy, h);
+        }
+        let (mut c, mut r) = ([0.0; N], [0.0; N]);
+        self.model.project_many(&x, &y, &z, &mut c, &mut r);
+        let mut out = [(0.0, 0.0); N];
+        for (o, (c, r)) in out.iter_mut().zip(c.into_iter().zip(r)) {
+            if !(c.is_finite() && r.is_finite()) {
+                return None;
+            }
+            *o = (c, r);
+        }
+        Some(out)
+    }
+
     /// `T` at `(u0 + i, v)` for each `i` of `at`, into `cols[i]`/`rows[i]`
     /// (NaN where there is no value), the projections a batch at a time
     /// ([`SensorModel::project_many`]: the same numbers as `exact`, fewer
