@@ -333,8 +333,9 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
         for w in &r.warnings {
             eprintln!("gcm-ortho: warning: job {}: {w}", r.job);
         }
-        // A failed job's error is shown even when quiet: quiet hides progress, not failures.
-        if !quiet || r.status == Status::Failed {
+        // A failed job's error, and a job left to another run, are shown
+        // even when quiet: quiet hides progress, not what was not made.
+        if !quiet || matches!(r.status, Status::Failed | Status::Busy) {
             eprintln!("{:<24} {:?}{}", r.job, r.status, r.error.as_ref().map(|e| format!(": {e}")).unwrap_or_default());
         }
     });
@@ -353,12 +354,13 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
         }
         let count = |s: Status| results.iter().filter(|r| r.status == s).count();
         say!(
-            "shard {}/{}: {} jobs, {} done, {} skipped (current), {} failed, {} cancelled",
+            "shard {}/{}: {} jobs, {} done, {} skipped (current), {} busy (another run's), {} failed, {} cancelled",
             shard.0 + 1,
             shard.1,
             results.len(),
             count(Status::Done),
             count(Status::Skipped),
+            count(Status::Busy),
             count(Status::Failed),
             count(Status::Cancelled)
         );

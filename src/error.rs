@@ -48,7 +48,7 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// What the operating system said, as a user reads it: the common kinds
 /// in words of our own, the rest without its "(os error N)".
-fn in_words(e: &std::io::Error) -> String {
+pub(crate) fn in_words(e: &std::io::Error) -> String {
     use std::io::ErrorKind::*;
     match e.kind() {
         NotFound => "no such file or folder".into(),

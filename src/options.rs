@@ -528,7 +528,7 @@ impl RectifyOptions {
     /// Checks every setting's range and the settings against each other;
     /// the first problem, named by its setting.
     pub fn validate(&self) -> Result<()> {
-        if self.tile == 0 || self.tile % 16 != 0 || self.tile > Self::MAX_TILE {
+        if self.tile == 0 || !self.tile.is_multiple_of(16) || self.tile > Self::MAX_TILE {
             return Err(Error::setting("tile", format!("{} must be a multiple of 16 up to {}", self.tile, Self::MAX_TILE)));
         }
         if self.gcm.k == 0 || self.gcm.k > Self::MAX_SPARSITY {

@@ -90,6 +90,35 @@ fn reruns_skip_finished_jobs_and_redo_changed_ones() {
 }
 
 #[test]
+fn a_job_another_run_is_making_is_left_to_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    block(d, 3);
+    std::fs::write(d.join("manifest.toml"), format!("[defaults]\ndem = \"scene/dem.tif\"\noutput_dir = \"ortho\"\n\n{}", jobs_toml(3))).unwrap();
+    // Another run making the second job holds its lock.
+    std::fs::create_dir_all(d.join("ortho")).unwrap();
+    let held = std::fs::File::create(d.join("ortho/s01.tif.lock")).unwrap();
+    held.lock().unwrap();
+    let rep = d.join("r.jsonl");
+    let r = batch(d, &["--report", s(&rep)]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    let st: Vec<String> = lines(&rep).iter().map(|l| l["status"].as_str().unwrap().to_string()).collect();
+    assert_eq!(st, ["done", "busy", "done"]);
+    // Said even when quiet, naming the lock; the job's output left alone.
+    assert!(err.contains("s01") && err.contains("another run is making it") && err.contains("s01.tif.lock"), "{err}");
+    assert!(!d.join("ortho/s01.tif").exists() && d.join("ortho/s00.tif").is_file());
+    // The other run's own lock stays; the finished jobs' are gone.
+    assert!(d.join("ortho/s01.tif.lock").exists() && !d.join("ortho/s00.tif.lock").exists());
+    // Once it lets go (without making the job), a rerun makes it.
+    drop(held);
+    assert!(batch(d, &["--report", s(&rep)]).status.success());
+    let st: Vec<String> = lines(&rep).iter().map(|l| l["status"].as_str().unwrap().to_string()).collect();
+    assert_eq!(st, ["skipped", "done", "skipped"]);
+    assert!(!d.join("ortho/s01.tif.lock").exists());
+}
+
+#[test]
 fn three_shards_run_every_job_exactly_once() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

@@ -54,7 +54,7 @@ fn u8_scan(path: &Path, geo: Option<[f64; 4]>, value: impl Fn(u32, u32) -> u8 + 
 /// A checkerboard of 3-pixel squares: at 10× reduction a point kernel
 /// samples it at random phases.
 fn checker(c: u32, r: u32) -> u8 {
-    if (c / 3 + r / 3) % 2 == 0 {
+    if (c / 3 + r / 3).is_multiple_of(2) {
         40
     } else {
         220

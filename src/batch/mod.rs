@@ -5,6 +5,7 @@
 //! anything changed); `--shard I/N` (or Slurm / Kubernetes array variables)
 //! takes a deterministic share of the jobs.
 
+pub mod lock;
 pub mod manifest;
 pub mod shard;
 
@@ -38,6 +39,8 @@ pub struct BatchOptions {
 pub enum Status {
     Done,
     Skipped,
+    /// Being made by another run (it holds the job's lock): left to it.
+    Busy,
     Failed,
     Cancelled,
 }
@@ -305,6 +308,28 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
         failed(&mut res, p.clone());
         return res;
     }
+    if let Some(dir) = job.config.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        if let Err(e) = std::fs::create_dir_all(dir) {
+            res.status = Status::Failed;
+            res.error = Some(format!("{}: {}", dir.display(), crate::error::in_words(&e)));
+            return res;
+        }
+    }
+    // Held until the job is made (or not): another run of this manifest
+    // leaves it alone meanwhile.
+    let _lock = match lock::JobLock::take(&job.config.output) {
+        Ok(Some(l)) => l,
+        Ok(None) => {
+            res.status = Status::Busy;
+            res.error = Some(format!("another run is making it (it holds {})", lock::lock_path(&job.config.output).display()));
+            return res;
+        }
+        Err(e) => {
+            res.status = Status::Failed;
+            res.error = Some(format!("{}: {}", lock::lock_path(&job.config.output).display(), crate::error::in_words(&e)));
+            return res;
+        }
+    };
     let key = job_key(&job.config);
     if !force && is_current(&job.config, &key) {
         res.status = Status::Skipped;
@@ -316,13 +341,6 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
     let mut cfg = job.config.clone();
     cfg.memory = memory;
     cfg.threads = threads;
-    if let Some(dir) = cfg.output.parent().filter(|d| !d.as_os_str().is_empty()) {
-        if let Err(e) = std::fs::create_dir_all(dir) {
-            res.status = Status::Failed;
-            res.error = Some(format!("{}: {e}", dir.display()));
-            return res;
-        }
-    }
     match rectify(&cfg, &NoProgress, cancel) {
         Ok(r) => {
             res.status = Status::Done;

@@ -50,7 +50,7 @@ impl Frame {
     pub fn child(self, at: (f64, f64), k: u32) -> Frame {
         let (su, sv) = at;
         let (u1, v1) = (self.u0 + self.du, self.v0 + self.dv);
-        let (u0, du) = if k % 2 == 0 { (self.u0, su - self.u0) } else { (su, u1 - su) };
+        let (u0, du) = if k.is_multiple_of(2) { (self.u0, su - self.u0) } else { (su, u1 - su) };
         let (v0, dv) = if k < 2 { (self.v0, sv - self.v0) } else { (sv, v1 - sv) };
         Frame { u0, v0, du, dv }
     }

@@ -357,7 +357,7 @@ mod tests {
             assert_eq!(fast.bands[0].count, 19 * 17);
             // A mask with holes (runs of every length, rows empty, full and
             // cut): the pixels it leaves out hold a value no other holds.
-            let hole = |i: usize| i % 7 == 3 || (i / 20 % 5 == 0 && i % 20 < 9) || i / 20 == 6 || (i % 20 > 15 && i / 20 % 2 == 1);
+            let hole = |i: usize| i % 7 == 3 || ((i / 20).is_multiple_of(5) && i % 20 < 9) || i / 20 == 6 || (i % 20 > 15 && i / 20 % 2 == 1);
             let valid: Vec<u8> = (0..400).map(|i| u8::from(!hole(i))).collect();
             let top = if sample == SampleType::U8 { 0xff } else { 0xffff };
             let held: Vec<u16> = values.iter().enumerate().map(|(k, &v)| if hole(k / bands) { top } else { v % top }).collect();

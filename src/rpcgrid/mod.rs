@@ -48,8 +48,8 @@ pub fn build(model: &RpcCamera, dem: &Dem, w: u32, h: u32, step: u32, z_guess: f
     if step == 0 {
         return Err(Error::setting("step", "must be at least 1"));
     }
-    let cols = ((w - 1) / step + 1 + u32::from((w - 1) % step != 0)) as usize;
-    let rows = ((h - 1) / step + 1 + u32::from((h - 1) % step != 0)) as usize;
+    let cols = ((w - 1) / step + 1 + u32::from(!(w - 1).is_multiple_of(step))) as usize;
+    let rows = ((h - 1) / step + 1 + u32::from(!(h - 1).is_multiple_of(step))) as usize;
     let at = |i: usize| (i as u32 * step) as f64 + 0.5;
     // Solve each row from its left neighbour.
     let solved: Vec<Vec<Option<[f64; 3]>>> = (0..rows)

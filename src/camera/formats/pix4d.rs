@@ -71,7 +71,7 @@ fn is_header(line: &str) -> bool {
 /// kept local and no offset is needed.
 pub fn read_calibrated(path: &Path, text: &str, lenses_only: bool) -> Result<Imported> {
     let lines: Vec<(usize, &str)> = data_lines(text).collect();
-    if lines.is_empty() || lines.len() % 10 != 0 {
+    if lines.is_empty() || !lines.len().is_multiple_of(10) {
         return Err(Error::format(path, format!("{} lines of numbers: Pix4D's calibrated camera parameters come in blocks of ten", lines.len())));
     }
     let offset = if lenses_only { [0.0; 3] } else { offset_beside(path)? };

@@ -28,7 +28,7 @@ impl SourceImage {
         }
         let start = first + (y0 as usize - k0 * rps) * row_bytes + x0 as usize * pb;
         let end = start + (h as usize - 1) * row_bytes + w as usize * pb;
-        if end > m.len() || start % info.sample.bytes() != 0 {
+        if end > m.len() || !start.is_multiple_of(info.sample.bytes()) {
             return Ok(None);
         }
         Ok(Some((&m[start..end], row_bytes)))

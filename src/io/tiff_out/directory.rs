@@ -89,7 +89,7 @@ impl Ifd {
     /// after its entries; `next` is the next directory's offset (0: none).
     /// Exactly [`Ifd::len`] bytes.
     pub fn encode(&self, at: u64, next: u64, big: bool) -> Vec<u8> {
-        assert!(at % 2 == 0, "directories start on even bytes");
+        assert!(at.is_multiple_of(2), "directories start on even bytes");
         let inline = if big { 8 } else { 4 };
         let mut table = Vec::with_capacity(self.table_len(big) as usize);
         let mut values = Vec::new();

@@ -400,7 +400,7 @@ mod tests {
         // the image's: a pixel has a value where x + y is even and x < 18,
         // and in the last row but one (runs of eight alike).
         let spec = OutputSpec { width: 20, height: 20, compression: Compression::None, photometric: 1, mask: true, ..spec(1, SampleType::U8) };
-        let has = |x: usize, y: usize| ((x + y) % 2 == 0 && x < 18) || y == 18;
+        let has = |x: usize, y: usize| ((x + y).is_multiple_of(2) && x < 18) || y == 18;
         let mut order = Vec::new();
         for k in 0..4 {
             let (tx, ty) = (k % 2 * 16, k / 2 * 16);

@@ -310,7 +310,7 @@ impl TileWriter {
 
 /// Appends `chunk` at `pos` (first to a page, `paged`): its place.
 fn append(out: &mut impl Write, pos: &mut u64, paged: bool, chunk: &[u8]) -> std::io::Result<(u64, u64)> {
-    if paged && *pos % PAGE != 0 {
+    if paged && !(*pos).is_multiple_of(PAGE) {
         // Unreferenced bytes (TIFF allows them) so that every tile of an
         // uncompressed output starts on a page of the file: the page cache
         // then takes whole pages, without zeroing and merging the pages two
@@ -459,7 +459,7 @@ pub(super) const PAGE: u64 = 4096;
 /// whole pages, or the Cloud-Optimized layout (tiles between leaders). (A mask's tiles between them are padded to whole pages.)
 pub fn page_padding(spec: &OutputSpec) -> Option<usize> {
     let header = if spec.bigtiff { 16 } else { 8 };
-    (!spec.cog && spec.compression == Compression::None && spec.tile_bytes() as u64 % PAGE == 0).then_some((PAGE - header) as usize)
+    (!spec.cog && spec.compression == Compression::None && (spec.tile_bytes() as u64).is_multiple_of(PAGE)).then_some((PAGE - header) as usize)
 }
 
 /// Writes a whole raster to `path` (atomically), one row of chunks at a

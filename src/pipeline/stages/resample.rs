@@ -136,7 +136,7 @@ fn view<'v, T: Sample>(msg: &'v ReadMsg, info: &SourceInfo) -> View<'v, T> {
 /// writes its rows across the whole chunk, so fewer, larger tasks sweep it
 /// fewer times; one task a chunk would leave the second worker idle.
 fn column_group(tile: usize) -> usize {
-    [128, 64, 32, 16].into_iter().find(|g| tile % g == 0).unwrap_or(1)
+    [128, 64, 32, 16].into_iter().find(|g| tile.is_multiple_of(*g)).unwrap_or(1)
 }
 /// Resamples the rows of one chunk (and under a mask, says which pixels
 /// have a value, 1 a byte, laid out as the pixels); returns a DEM miss
@@ -191,7 +191,13 @@ pub fn resample_chunk<T: Sample + Recycle>(
         // As many as every strip's rows are a whole number of.
         (true, true) => {
             let mut g = column_group(t);
-            while g > 1 && msg.chunk.strips.iter().any(|s| s.rows.0 as usize % g != 0 || (s.rows.1 as usize % g != 0 && s.rows.1 as usize != rows)) {
+            while g > 1
+                && msg
+                    .chunk
+                    .strips
+                    .iter()
+                    .any(|s| !(s.rows.0 as usize).is_multiple_of(g) || (!(s.rows.1 as usize).is_multiple_of(g) && s.rows.1 as usize != rows))
+            {
                 g /= 2;
             }
             g
