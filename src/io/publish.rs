@@ -77,7 +77,7 @@ pub fn remove_dead_temporaries(dir: &Path) {
     for e in entries.flatten() {
         let name = e.file_name();
         let Some((pid, host)) = name.to_str().and_then(temp_owner) else { continue };
-        if host == me && !Path::new(&format!("/proc/{pid}")).exists() {
+        if host == me && !runs(pid) {
             // A folder of an output's parts (`pending_dir`), or a file.
             let _ = match e.file_type() {
                 Ok(t) if t.is_dir() => std::fs::remove_dir_all(e.path()),
@@ -85,6 +85,16 @@ pub fn remove_dead_temporaries(dir: &Path) {
             };
         }
     }
+}
+
+/// Whether process `pid` of this machine still runs: not gone, and not a
+/// zombie (a process killed with its parent, say by `timeout -s KILL`,
+/// stays one until it is reaped, its temporaries long abandoned).
+fn runs(pid: u32) -> bool {
+    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else { return false };
+    // `pid (command) state …`: the command may hold spaces and parentheses.
+    let state = stat.rsplit_once(')').and_then(|(_, rest)| rest.trim_start().chars().next());
+    !matches!(state, Some('Z' | 'X') | None)
 }
 
 /// The folder a file is (to be) in.
@@ -204,6 +214,27 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_zombies_temporary_is_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        // A child not reaped: once it has ended, a zombie.
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        for _ in 0..500 {
+            if !runs(pid) {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        assert!(!runs(pid) && Path::new(&format!("/proc/{pid}")).exists(), "a zombie keeps its /proc entry");
+        let t = dir.path().join(format!("{}abcdef{SUFFIX}", temp_prefix("x.tif", pid, &host())));
+        std::fs::write(&t, b"").unwrap();
+        remove_dead_temporaries(dir.path());
+        assert!(!t.exists());
+        child.wait().unwrap();
+        assert!(runs(std::process::id()));
+    }
 
     #[test]
     fn temporaries_of_dead_processes_are_found_and_removed() {
