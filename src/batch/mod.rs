@@ -292,20 +292,24 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
         return res;
     }
     // A job that fails leaves no output of an earlier run marked finished
-    // (its record no longer says what it is made of), and says it is there.
+    // (its record no longer says what it is made of), and says it is there
+    // where it was not made from these inputs (`current`: it was, and a
+    // forced run failed to remake it).
     let earlier = job.config.output.exists();
-    let failed = |res: &mut JobResult, e: String| {
+    let failed = |res: &mut JobResult, e: String, current: bool| {
         res.status = Status::Failed;
-        let _ = std::fs::remove_file(sidecar(&job.config.output));
-        let stale = if earlier && job.config.output.exists() {
-            format!(" ({} is left from an earlier run, not made from these inputs; its .done record is removed)", job.config.output.display())
+        let record = sidecar(&job.config.output);
+        let removed = std::fs::remove_file(&record).is_ok() || !record.exists();
+        let stale = if earlier && !current && job.config.output.exists() {
+            let removed = if removed { "; its .done record is removed" } else { "" };
+            format!(" ({} is left from an earlier run, not made from these inputs{removed})", job.config.output.display())
         } else {
             String::new()
         };
         res.error = Some(format!("{e}{stale}"));
     };
     if let Some(p) = &job.problem {
-        failed(&mut res, p.clone());
+        failed(&mut res, p.clone(), false);
         return res;
     }
     if let Some(dir) = job.config.output.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -325,13 +329,16 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
             return res;
         }
         Err(e) => {
+            // Its folder's fault (not writable, say), not the lock's.
+            let dir = crate::io::publish::folder_of(&job.config.output);
             res.status = Status::Failed;
-            res.error = Some(format!("{}: {}", lock::lock_path(&job.config.output).display(), crate::error::in_words(&e)));
+            res.error = Some(format!("{}: {} (the folder of its output, where its lock is written)", dir.display(), crate::error::in_words(&e)));
             return res;
         }
     };
     let key = job_key(&job.config);
-    if !force && is_current(&job.config, &key) {
+    let current = is_current(&job.config, &key);
+    if !force && current {
         res.status = Status::Skipped;
         return res;
     }
@@ -359,7 +366,7 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
             }
         }
         Err(crate::Error::Cancelled) => res.status = Status::Cancelled,
-        Err(e) => failed(&mut res, e.to_string()),
+        Err(e) => failed(&mut res, e.to_string(), current),
     }
     res.seconds = t.elapsed().as_secs_f64();
     res
@@ -384,5 +391,36 @@ impl ReportWriter {
             let _ = writeln!(f, "{}", serde_json::to_string(r).unwrap_or_default());
             let _ = f.flush();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_failed_job_says_an_earlier_output_is_stale_only_where_it_is() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("o.tif");
+        // An image that is not there: the job fails when it runs.
+        let config = RectifyOptions::new(dir.path().join("gone.tif"), dir.path().join("gone.toml"), DemSource::Height(0.0), out.clone());
+        let job = Job { name: "o".into(), config: config.clone(), problem: None };
+        std::fs::write(&out, b"an earlier output").unwrap();
+        // Made from these inputs (its record says so): a forced rerun that
+        // fails leaves it, and says nothing of it being stale.
+        write_sidecar(&out, &job_key(&config)).unwrap();
+        assert_eq!(run_one(&job, false, 1 << 30, 1, &Cancel::default()).status, Status::Skipped);
+        let r = run_one(&job, true, 1 << 30, 1, &Cancel::default());
+        assert_eq!(r.status, Status::Failed);
+        assert!(r.error.as_ref().is_some_and(|e| e.contains("gone") && !e.contains("earlier run")), "{:?}", r.error);
+        // Not made from these inputs (another record): said, record removed.
+        write_sidecar(&out, "0123456789abcdef").unwrap();
+        let r = run_one(&job, false, 1 << 30, 1, &Cancel::default());
+        assert!(
+            r.error.as_ref().is_some_and(|e| e.contains("left from an earlier run, not made from these inputs; its .done record is removed")),
+            "{:?}",
+            r.error
+        );
+        assert!(out.exists() && !sidecar(&out).exists());
     }
 }
