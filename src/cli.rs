@@ -440,7 +440,7 @@ pub struct MosaicArgs {
     /// Seamlines: least-cost (moved onto the cheapest path through the
     /// overlap, around buildings) or voronoi (the first partition, each
     /// ground point from the image that sees it nearest its centre)
-    #[arg(long, default_value = "least-cost", value_parser = ["least-cost", "voronoi"])]
+    #[arg(long, default_value = "least-cost", value_parser = ["least-cost", "voronoi"], conflicts_with = "seamlines")]
     pub seams: String,
     /// Width of the blend across a seam, pixels (0: a sharp cut; never
     /// across a height edge of the DSM)

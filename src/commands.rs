@@ -82,6 +82,7 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Fiducials(a) => run_fiducials(&a).map(|()| 0),
         Command::Assemble(a) => {
             warn_if_not_tiff(&a.output);
+            inputs_exist(&a.pieces.iter().map(|p| ("piece", Some(p.as_path()))).collect::<Vec<_>>())?;
             let opts = gcm_ortho::assemble::AssembleOptions { compress: a.compress, ..a.layout.options()? };
             gcm_ortho::assemble::assemble(&a.pieces, &a.output, &opts, &signals.cancel)?;
             Ok(0)
@@ -195,6 +196,12 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
     if let Some(o) = &a.output {
         warn_if_not_tiff(o);
     }
+    inputs_exist(&[
+        ("manifest", Some(a.manifest.as_path())),
+        ("--seamlines", a.seamlines.as_deref()),
+        ("--plan", a.plan.as_deref()),
+        ("--like", a.like.as_deref()),
+    ])?;
     let memory = parse_bytes("memory", &a.memory)?;
     let bounds = match &a.bounds {
         Some(b) => gcm_ortho::options::parse_bounds("bounds", b)?,

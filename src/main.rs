@@ -107,7 +107,13 @@ fn main() -> ExitCode {
             }
             // A setting named by its key is printed as the flag that sets it.
             let mut parts: Vec<String> = Vec::new();
+            // An I/O error says its cause in words: not again as the OS does.
+            let mut cause_said = false;
             for c in e.chain() {
+                if std::mem::take(&mut cause_said) {
+                    continue;
+                }
+                cause_said = matches!(c.downcast_ref::<gcm_ortho::Error>(), Some(gcm_ortho::Error::Io { .. }));
                 let part = match c.downcast_ref::<gcm_ortho::Error>() {
                     Some(gcm_ortho::Error::Setting { setting, msg }) => format!("{}: {msg}", cli::flag_of(&command, setting)),
                     _ => c.to_string(),

@@ -283,6 +283,16 @@ fn a_broken_manifest_lists_every_problem_with_lines() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1));
     assert!(err.contains("manifest.toml") && err.contains("line 2") && err.contains("dme"), "{err}");
+    // A slip in a job: said at its own line (not its job's first), with
+    // the keys a job takes, the nearest first; a job's other problems at
+    // its image's line.
+    let job = |image: &str, camera_key: &str| format!("[[job]]\nimage = \"{image}\"\n{camera_key} = \"c.toml\"\n\n");
+    std::fs::write(d.join("manifest.toml"), format!("{}{}", job("a.tif", "camera"), job("b.tif", "camrea"))).unwrap();
+    let err = String::from_utf8_lossy(&batch(d, &[]).stderr).to_string();
+    assert!(err.contains("line 7: unknown field `camrea` (did you mean `camera`?), expected one of `image`, `camera`"), "{err}");
+    std::fs::write(d.join("manifest.toml"), format!("{}{}", job("a.tif", "camera"), job("b.tif", "camera"))).unwrap();
+    let err = String::from_utf8_lossy(&batch(d, &["--dry-run"]).stderr).to_string();
+    assert!(err.contains("line 6: image ") && err.contains("b.tif does not exist"), "{err}");
 }
 
 #[test]
@@ -570,6 +580,6 @@ fn the_same_image_twice_is_refused_naming_both_jobs() {
     let o = batch(d, &["--dry-run"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "{err}");
-    assert!(err.contains("line 7: a second job for the image") && err.contains("./scans/s00.tif (the first at line 4)"), "{err}");
-    assert!(err.contains("line 10: a second job for the image") && err.contains("scans/../scans/s00.tif (the first at line 4)"), "{err}");
+    assert!(err.contains("line 8: a second job for the image") && err.contains("./scans/s00.tif (the first at line 5)"), "{err}");
+    assert!(err.contains("line 11: a second job for the image") && err.contains("scans/../scans/s00.tif (the first at line 5)"), "{err}");
 }

@@ -855,6 +855,10 @@ fn slips_in_edited_seamlines_are_named() {
     features.push(serde_json::json!({ "type": "Feature", "properties": image1, "geometry": polygon(&[[x0, y0], [x1, y1], [x0, y0]]) }));
     let far = [[x0 + 1e5, y0], [x1 + 1e5, y0], [x1 + 1e5, y1], [x0 + 1e5, y1], [x0 + 1e5, y0]];
     features.push(serde_json::json!({ "type": "Feature", "properties": image2, "geometry": polygon(&far) }));
+    // Properties that disagree: the image's name is taken, the rest said.
+    let mut mixed = image2.clone();
+    (mixed["index"], mixed["file"]) = (serde_json::json!(1), serde_json::json!("elsewhere.tif"));
+    features.push(serde_json::json!({ "type": "Feature", "properties": mixed, "geometry": polygon(&far) }));
     std::fs::write(d.join("edited.geojson"), serde_json::to_string(&doc).unwrap()).unwrap();
     let out = std::process::Command::new(bin())
         .current_dir(d)
@@ -867,8 +871,33 @@ fn slips_in_edited_seamlines_are_named() {
         |what: &str, feature: usize| err.lines().any(|l| l.contains("edited.geojson") && l.contains(&format!("features[{feature}]")) && l.contains(what));
     let n = doc["features"].as_array().unwrap().len();
     assert!(said("crosses itself", 0), "{err}");
-    assert!(said("no area", n - 2), "{err}");
-    assert!(said("holds no cell of the mosaic", n - 1), "{err}");
+    assert!(said("no area", n - 3), "{err}");
+    assert!(said("holds no cell of the mosaic", n - 2), "{err}");
+    let name = image2["image"].as_str().unwrap();
+    assert!(said(&format!("index 1 is not image '{name}'"), n - 1) && said("file elsewhere.tif is not image", n - 1), "{err}");
+
+    // What cannot be honoured is refused, naming the feature: a ring cut
+    // open by hand, an index past the manifest's images; and --seams,
+    // which edited seamlines replace.
+    let refused = |edit: &dyn Fn(&mut serde_json::Value), extra: &[&str]| {
+        let mut doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("seams.geojson")).unwrap()).unwrap();
+        edit(&mut doc);
+        std::fs::write(d.join("broken.geojson"), serde_json::to_string(&doc).unwrap()).unwrap();
+        let out = std::process::Command::new(bin())
+            .current_dir(d)
+            .args(["mosaic", "manifest.toml", "-o", "b.tif", "--seamlines", "broken.geojson", "--quiet"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(!d.join("b.tif").exists());
+        (out.status.code(), String::from_utf8_lossy(&out.stderr).to_string())
+    };
+    let (code, err) = refused(&|doc| doc["features"][0]["geometry"]["coordinates"][0][0].as_array_mut().unwrap().truncate(3), &[]);
+    assert!(code == Some(1) && err.contains("broken.geojson") && err.contains("features[0].geometry.coordinates") && err.contains("closed"), "{err}");
+    let (code, err) = refused(&|doc| doc["features"][0]["properties"] = serde_json::json!({ "index": 99 }), &[]);
+    assert!(code == Some(1) && err.contains("features[0].properties.index") && err.contains("99 is not an image of the manifest"), "{err}");
+    let (code, err) = refused(&|_| {}, &["--seams", "voronoi"]);
+    assert!(code == Some(2) && err.contains("--seams") && err.contains("--seamlines"), "{err}");
 }
 
 /// A blend hundreds of pixels wide (a typo, or a misunderstanding of the

@@ -870,4 +870,22 @@ fn a_missing_input_is_named_in_words_and_listed_tiles_are_told_the_way() {
     let r = run(&["batch", s(&d.join("m.toml")), "--quiet"]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(err.contains("nope.toml: no such file or folder") && !err.contains("os error"), "{err}");
+    // A mosaic's and an assembly's inputs, named with their options; a
+    // piece found missing only when opened (a link to nothing): its cause
+    // said once, in words.
+    std::os::unix::fs::symlink(d.join("gone.tif"), d.join("link.tif")).unwrap();
+    for (args, said) in [
+        (vec!["mosaic", s(&d.join("m.toml")), "-o", s(&out), "--seamlines", "nope.geojson"], "--seamlines nope.geojson: no such file or folder"),
+        (vec!["mosaic", "nope-manifest.toml", "-o", s(&out)], "manifest nope-manifest.toml: no such file or folder"),
+        (vec!["assemble", "-o", s(&out), "nope-piece.tif"], "piece nope-piece.tif: no such file or folder"),
+        (vec!["assemble", "-o", s(&out), s(&d.join("link.tif"))], "link.tif: no such file or folder"),
+    ] {
+        let r = run(&args);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(
+            r.status.code() == Some(1) && err.trim_end().lines().count() == 1 && err.contains(said) && !err.contains("os error") && !err.contains("No such"),
+            "{err}"
+        );
+        assert!(!out.exists());
+    }
 }

@@ -198,6 +198,65 @@ impl std::fmt::Display for ManifestErrors {
     }
 }
 
+/// The key an "unknown field `KEY`" message names.
+fn unknown_key(message: &str) -> Option<&str> {
+    message.strip_prefix("unknown field `")?.split('`').next()
+}
+
+/// The line of `text` within `span` where `key` is set (`key =`, its name
+/// bare or quoted).
+fn key_line(text: &str, span: std::ops::Range<usize>, key: &str) -> Option<usize> {
+    let within = text.get(span.start..span.end.min(text.len()))?;
+    let mut offset = span.start;
+    for l in within.split_inclusive('\n') {
+        let t = l.trim_start();
+        let rest = [key.to_string(), format!("\"{key}\""), format!("'{key}'")].into_iter().find_map(|k| t.strip_prefix(k.as_str()).map(str::to_string));
+        if rest.is_some_and(|r| r.trim_start().starts_with('=')) {
+            return Some(line_of(text, offset));
+        }
+        offset += l.len();
+    }
+    None
+}
+
+/// ", expected one of …" for a job's unknown `key`: a job's own keys and
+/// those of `[defaults]` (as serde lists them for `[defaults]`), the
+/// nearest first where one is a slip of it.
+fn job_keys_hint(key: &str) -> String {
+    let mut table = toml::Table::new();
+    table.insert(key.to_string(), toml::Value::Integer(0));
+    let listed = match toml::Value::Table(table).try_into::<Options>() {
+        Err(e) => e.to_string(),
+        Ok(_) => return String::new(),
+    };
+    let mut keys: Vec<String> = ["image", "camera", "output"].into_iter().map(String::from).collect();
+    if let Some((_, list)) = listed.split_once("expected one of ") {
+        keys.extend(list.split(", ").map(|k| k.trim().trim_matches('`').to_string()).filter(|k| !k.is_empty()));
+    }
+    let near = keys.iter().min_by_key(|k| edits(k, key)).filter(|k| edits(k, key) <= 2);
+    let all = keys.iter().map(|k| format!("`{k}`")).collect::<Vec<_>>().join(", ");
+    match near {
+        Some(k) => format!(" (did you mean `{k}`?), expected one of {all}"),
+        None => format!(", expected one of {all}"),
+    }
+}
+
+/// Levenshtein's distance between `a` and `b`, each letter a step.
+fn edits(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let here = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != cb)).min(row[j] + 1).min(here + 1);
+            prev = here;
+        }
+    }
+    row[b.len()]
+}
+
 fn line_of(text: &str, offset: usize) -> usize {
     text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
 }
@@ -208,8 +267,23 @@ fn line_of(text: &str, offset: usize) -> usize {
 pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
     let text = read_text_bounded(path, "a manifest", LIST).map_err(|e| ManifestErrors::of(vec![e.to_string()]))?;
     let m: ManifestFile = toml::from_str(&text).map_err(|e| {
-        let line = e.span().map(|s| format!(" line {}", line_of(&text, s.start))).unwrap_or_default();
-        ManifestErrors::of(vec![format!("{}:{line}: {}", path.display(), e.message().replace('\n', " "))])
+        let mut message = e.message().replace('\n', " ");
+        let line = e.span().map(|s| {
+            // A job's unknown key: its own line (the error spans the job's
+            // table), and the keys a job takes (serde does not list them
+            // through the job's flattened options).
+            match unknown_key(&message).and_then(|k| key_line(&text, s.clone(), k).map(|l| (k.to_string(), l))) {
+                Some((key, l)) => {
+                    if !message.contains("expected") {
+                        message = format!("{message}{}", job_keys_hint(&key));
+                    }
+                    l
+                }
+                None => line_of(&text, s.start),
+            }
+        });
+        let line = line.map(|l| format!(" line {l}")).unwrap_or_default();
+        ManifestErrors::of(vec![format!("{}:{line}: {message}", path.display())])
     })?;
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let rel = |p: &str| -> PathBuf {
@@ -234,7 +308,8 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
     let mut config_faults: Vec<Option<String>> = Vec::new();
     let mut entries: Vec<Entry> = Vec::new();
     for j in &m.job {
-        let line = line_of(&text, j.span().start);
+        // A job is said at its image's line (its table begins a line above).
+        let line = key_line(&text, j.span(), "image").unwrap_or_else(|| line_of(&text, j.span().start));
         let e = j.get_ref();
         let Some(cam) = &e.camera else {
             errors.push(format!("{}: [[job]] for {} has no camera", at(line), e.image));

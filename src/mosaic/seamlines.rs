@@ -236,8 +236,19 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
                 .position(|i| i.name == name)
                 .ok_or_else(|| Error::config(path, field("properties.image"), format!("'{name}' is not an image of the manifest")))?,
             (None, Some(i)) if i >= 1 && (i as usize) <= plan.images.len() => i as usize - 1,
+            (None, Some(i)) => {
+                return Err(Error::config(path, field("properties.index"), format!("{i} is not an image of the manifest (1 to {})", plan.images.len())));
+            }
             _ => return Err(Error::config(path, field("properties.image"), "missing: each feature names its image")),
         };
+        // Properties that name another image than the one taken.
+        let taken = &plan.images[image];
+        if let Some(i) = props.get("index").and_then(|v| v.as_u64()).filter(|&i| i as usize != image + 1) {
+            doubts.push(format!("features[{k}]: index {i} is not image '{}' (its index is {}): taken as '{}'", taken.name, image + 1, taken.name));
+        }
+        if let Some(file) = props.get("file").and_then(|v| v.as_str()).filter(|&f| std::path::Path::new(f) != taken.opts.image) {
+            doubts.push(format!("features[{k}]: file {file} is not image '{}' ({}): taken as '{}'", taken.name, taken.opts.image.display(), taken.name));
+        }
         // A feature whose parts were all deleted in a GIS gives nothing.
         let Some(geometry) = f.get("geometry").filter(|g| !g.is_null()) else { continue };
         let coords = geometry.get("coordinates").ok_or_else(|| Error::config(path, field("geometry.coordinates"), "missing"))?;
@@ -263,6 +274,15 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
                         None => (x, y),
                     };
                     pts.push(((x - g.x0) / g.gsd.x / c, (g.y0 - y) / g.gsd.y / c));
+                }
+                // GeoJSON's rings are closed (RFC 7946 §3.1.6): one that is
+                // not was cut by hand, and what it was to hold is unknown.
+                if pts.len() > 1 && pts.first() != pts.last() {
+                    return Err(Error::config(
+                        path,
+                        field("geometry.coordinates"),
+                        format!("a ring of {} positions whose last is not its first: GeoJSON rings are closed", pts.len()),
+                    ));
                 }
                 let mut distinct = pts.clone();
                 distinct.dedup();
