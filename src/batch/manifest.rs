@@ -322,6 +322,7 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
             output: e.output.as_deref().map(rel),
             options: e.options.over(&m.defaults),
             line,
+            span: Some(j.span()),
         });
     }
     if let Some(b) = &m.block {
@@ -332,7 +333,15 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
             Ok(cams) => {
                 for (name, cam, origin) in cams {
                     let image = rel(&image_of(&b.images, &name));
-                    entries.push(Entry { image, camera: PathBuf::from(origin), inline: Some(cam), output: None, options: m.defaults.clone(), line });
+                    entries.push(Entry {
+                        image,
+                        camera: PathBuf::from(origin),
+                        inline: Some(cam),
+                        output: None,
+                        options: m.defaults.clone(),
+                        line,
+                        span: None,
+                    });
                 }
             }
             Err(e) => errors.push(e.to_string()),
@@ -345,7 +354,7 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
     // Each image's first job's line: the same image twice is a mistake,
     // however spelt (two images of one name in two folders are not).
     let mut seen: std::collections::HashMap<PathBuf, usize> = std::collections::HashMap::new();
-    for Entry { image, camera, inline, output, options: opts, line } in entries {
+    for Entry { image, camera, inline, output, options: opts, line, span } in entries {
         let first = *seen.entry(std::fs::canonicalize(&image).unwrap_or_else(|_| image.clone())).or_insert(line);
         if first != line {
             errors.push(format!("{}: a second job for the image {} (the first at line {first})", at(line), image.display()));
@@ -382,7 +391,10 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
                 RectifyOptions::new(image, camera, DemSource::Height(0.0), output_of(&name, output.clone(), &opts, &rel))
             }
         };
-        let problem = (!problems.is_empty()).then(|| format!("{}: {}", at(line), problems.join("; ")));
+        // A bad value of the job's own: said at its key's line.
+        let key = problems.first().and_then(|p| p.split(':').next()).map(str::trim);
+        let own = span.zip(key).and_then(|(span, key)| key_line(&text, span, key));
+        let problem = (!problems.is_empty()).then(|| format!("{}: {}", at(own.unwrap_or(line)), problems.join("; ")));
         jobs.push(Job { name, config: cfg, problem });
     }
     if let Some(e) = defaults_fault.filter(|e| !config_faults.is_empty() && config_faults.iter().all(|f| f.as_ref() == Some(e))) {
@@ -451,6 +463,8 @@ struct Entry {
     output: Option<PathBuf>,
     options: Options,
     line: usize,
+    /// The job's table in the manifest's text (none for a block's images).
+    span: Option<std::ops::Range<usize>>,
 }
 
 /// Where a job's orthophoto goes: as the job says, or named after the
@@ -627,7 +641,7 @@ mod tests {
         assert!(problems.len() == 1 && problems[0].contains("line 3: [defaults]: dem_outside"), "{problems:?}");
         std::fs::write(&m, "[defaults]\ndem = \"dem.tif\"\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\ndem_outside = \"zero\"\n").unwrap();
         let problem = load(&m).unwrap()[0].problem.clone().unwrap_or_default();
-        assert!(problem.contains("line 3") && problem.contains("dem_outside"), "{problem}");
+        assert!(problem.contains("line 6") && problem.contains("dem_outside"), "{problem}");
         // A default that holds with each job's own settings is no fault.
         std::fs::write(
             &m,
