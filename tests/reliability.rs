@@ -889,3 +889,24 @@ fn a_missing_input_is_named_in_words_and_listed_tiles_are_told_the_way() {
         assert!(!out.exists());
     }
 }
+
+/// A focal length in pixels written where millimetres are meant (as other
+/// tools give it) makes a lens that sees a degree or two from an aircraft:
+/// warned of, even with `--quiet`, naming the camera file; the real one
+/// is not.
+#[test]
+fn a_focal_length_in_the_wrong_unit_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    let text = std::fs::read_to_string(&camera).unwrap();
+    std::fs::write(d.join("px.toml"), text.replace("focal_length_mm = 152.0", "focal_length_mm = 12000.0")).unwrap();
+    for (cam, warned) in [(camera.clone(), false), (d.join("px.toml"), true)] {
+        let out = d.join("o.tif");
+        let r = run(&["rectify", "--image", s(&scan), "--camera", s(&cam), "--dem", s(&dem), "--quiet", "-o", s(&out)]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        let said = err.lines().any(|l| l.contains("warning") && l.contains(s(&cam)) && l.contains("focal_length_mm") && l.contains("in pixels"));
+        assert_eq!(said, warned, "{}: {err}", cam.display());
+        let _ = std::fs::remove_file(&out);
+    }
+}

@@ -564,6 +564,34 @@ fn check_residuals(io: &InteriorOrientation, limit: Option<f64>) -> std::result:
 
 /// The format a film scan is masked to (mm), or `None`: a digital camera,
 /// `format_mm = "scan"`, or marks beyond every standard format.
+/// A warning where the frame camera of `file` (at `path`, for a scan of
+/// `scan` pixels, `above_ground` metres up) sees less than a degree
+/// across, or two from an aircraft (its frame: the film's
+/// format, else the sensor's pixels, else the spread of its marks): a
+/// focal length in pixels, most likely, as other tools give it (mapping
+/// cameras see 20° and more).
+pub fn narrow_view(path: &Path, file: &CameraFile, scan: (u32, u32), above_ground: f64) -> Option<String> {
+    let (f, s) = (file.camera.focal_length_mm?, file.interior.as_ref()?);
+    let format = film_format(s).ok().flatten();
+    let [w, h] = s.image_size_px.unwrap_or([scan.0, scan.1]);
+    let sensor = s.pixel_size_mm.map(|p| [p.sides()[0] * f64::from(w), p.sides()[1] * f64::from(h)]);
+    let marks = s.fiducials_mm.as_ref().filter(|m| m.len() >= 2).map(|m| {
+        let span = |k: usize| m.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max) - m.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
+        [span(0), span(1)]
+    });
+    let [w, h] = format.or(sensor).or(marks)?;
+    let fov = 2.0 * (w.hypot(h) / 2.0 / f).atan().to_degrees();
+    // Satellites' frame cameras see under a degree from hundreds of km;
+    // an aerial one (under 10 km above the ground) under two, none.
+    let aerial = above_ground < 10_000.0;
+    (fov < 1.0 || (aerial && fov < 2.0)).then(|| {
+        format!(
+            "{}: camera.focal_length_mm = {f} on a frame of {w:.1}×{h:.1} mm sees only {fov:.3}° across: a focal length in pixels (it is in millimetres here)?",
+            path.display()
+        )
+    })
+}
+
 fn film_format(s: &InteriorSection) -> std::result::Result<Option<[f64; 2]>, String> {
     let film = s.fiducials_mm.is_some() || s.fiducial_distances_mm.is_some();
     match &s.format_mm {

@@ -178,6 +178,11 @@ impl RunPlan {
             Sensor::ReprojectedFrame(r) => Some((&r.inner, r.to_ground(r.inner.centre.x, r.inner.centre.y))),
             Sensor::Rpc(_) => None,
         };
+        if let Some((f, _)) = frame {
+            if let Some(w) = crate::camera::file::narrow_view(&opts.camera, &camera.file, (sw, sh), f.centre.z - z_guess) {
+                progress.warn(&w);
+            }
+        }
         if let Some([w, h]) = camera.file.interior.as_ref().and_then(|i| i.image_size_px) {
             if [w, h] != [sw, sh] {
                 return Err(Error::config(
