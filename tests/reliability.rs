@@ -391,7 +391,12 @@ fn absurd_settings_are_refused_before_any_work_with_their_flag() {
     // Bounds in degrees under a CRS in metres: said so.
     let r = run(&[&base[..], &["--bounds", "5.29,44.14,5.31,44.16"]].concat());
     let err = String::from_utf8_lossy(&r.stderr);
-    assert!(r.status.code() == Some(1) && err.contains("--bounds look like degrees") && err.trim_end().lines().count() == 1, "{err}");
+    assert!(r.status.code() == Some(2) && err.contains("--bounds") && err.contains("look like degrees") && err.trim_end().lines().count() == 1, "{err}");
+    assert!(!out.exists());
+    // Northing first: said so, naming --bounds (not the DEM alone).
+    let r = run(&[&base[..], &["--bounds", "4890800,650400,4891000,650600"]].concat());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.code() == Some(2) && err.contains("--bounds") && err.contains("X and Y swapped") && err.trim_end().lines().count() == 1, "{err}");
     assert!(!out.exists());
     // A COG without overviews is warned of, even when quiet.
     let r = run(&[&base[..], &["--cog", "--overviews", "none"]].concat());
@@ -908,5 +913,30 @@ fn a_focal_length_in_the_wrong_unit_is_warned_of() {
         let said = err.lines().any(|l| l.contains("warning") && l.contains(s(&cam)) && l.contains("focal_length_mm") && l.contains("in pixels"));
         assert_eq!(said, warned, "{}: {err}", cam.display());
         let _ = std::fs::remove_file(&out);
+    }
+}
+
+/// A camera file that is empty, or that calibrates too few marks, is
+/// refused naming that file (not the scan), in one line.
+#[test]
+fn an_empty_camera_file_and_too_few_marks_name_the_camera_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = fixture(d);
+    std::fs::write(d.join("empty.yaml"), "").unwrap();
+    let text = std::fs::read_to_string(&camera).unwrap();
+    let two: String = text
+        .lines()
+        .filter(|l| !l.starts_with("fiducials_px"))
+        .map(|l| if l.starts_with("fiducials_mm") { "fiducials_mm = [[-117.5, -117.5], [117.5, 117.5]]" } else { l })
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(d.join("two.toml"), two).unwrap();
+    let out = d.join("o.tif");
+    for (cam, said) in [("empty.yaml", "empty.yaml: the file is empty"), ("two.toml", "two.toml: interior.fiducials_mm: 2 calibrated fiducial marks")] {
+        let r = run(&["rectify", "--image", s(&scan), "--camera", s(&d.join(cam)), "--dem", s(&dem), "--quiet", "-o", s(&out)]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.code() == Some(1) && err.contains(said) && err.trim_end().lines().count() == 1, "{cam}: {err}");
+        assert!(!out.exists());
     }
 }

@@ -82,6 +82,10 @@ pub fn detect_for(file: &CameraFile, camera_path: &Path, src: &SourceImage, over
     };
     interior.scan_pixel_mm.map(pixel_size).transpose().map_err(|m| err("scan_pixel_mm", m))?;
     interior.max_fiducial_residual_px.map(residual).transpose().map_err(|m| err("max_fiducial_residual_px", m))?;
+    if marks.len() < 3 {
+        // The camera file's fault, not the scan's.
+        return Err(err("fiducials_mm", format!("{} calibrated fiducial marks: at least 3 are needed", marks.len())));
+    }
     let pixel_mm = over.pixel_mm.or(interior.scan_pixel_mm);
     let limit_px = over.limit_px.or(interior.max_fiducial_residual_px).unwrap_or(1.0);
     let mut req =

@@ -365,8 +365,33 @@ impl RunPlan {
             let degrees = opts.bounds.is_some_and(|[x0, y0, x1, y1]| {
                 !camera.crs.is_geographic() && [x0, x1].iter().all(|x| x.abs() <= 180.0) && [y0, y1].iter().all(|y| y.abs() <= 90.0)
             });
-            let hint = if degrees { format!(" (--bounds look like degrees; the output's CRS, {}, is in its own units)", camera.crs) } else { String::new() };
-            Error::format(&dem.path, format!("no height anywhere inside the output area{hint}"))
+            // Northing first: the box given with X and Y swapped lies on the DEM.
+            let swapped = match (opts.bounds, &dem.model) {
+                (Some([x0, y0, x1, y1]), crate::dem::HeightModel::Grid(g)) if dem.to_dem.is_none() => {
+                    let [a0, b0, a1, b1] = g.bounds();
+                    y0 < a1 && y1 > a0 && x0 < b1 && x1 > b0
+                }
+                _ => false,
+            };
+            match (degrees, swapped, opts.bounds.is_some()) {
+                (true, _, _) => Error::setting(
+                    "bounds",
+                    format!(
+                        "no height of {} anywhere inside them: they look like degrees; the output's CRS, {}, is in its own units",
+                        dem.path.display(),
+                        camera.crs
+                    ),
+                ),
+                (_, true, _) => Error::setting(
+                    "bounds",
+                    format!(
+                        "no height of {} anywhere inside them, but there is with X and Y swapped: they are xmin,ymin,xmax,ymax (easting first)",
+                        dem.path.display()
+                    ),
+                ),
+                (_, _, true) => Error::setting("bounds", format!("no height of {} anywhere inside them", dem.path.display())),
+                _ => Error::format(&dem.path, "no height anywhere inside the output area"),
+            }
         })?;
         let approx = Approx::new(model, &grid, plane).ok_or_else(|| Error::Geometry("the terrain plane is not in front of the camera".into()))?;
         let band_order = match opts.band_order {

@@ -347,6 +347,9 @@ fn read_one(path: &Path, for_lenses: bool, image: Option<&Path>) -> Result<Impor
     let text = read_text_bounded(path, "a camera or pose file", SMALL * 64)?;
     // A byte-order mark (Windows editors) is no part of any of these forms.
     let text = text.trim_start_matches('\u{feff}');
+    if text.trim().is_empty() {
+        return Err(Error::format(path, "the file is empty: a camera or pose file was expected"));
+    }
     let mut set = match detect(path, text)? {
         Kind::Ours => {
             let file = CameraFile::parse(text, path)?;
