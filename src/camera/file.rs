@@ -584,7 +584,8 @@ pub fn narrow_view(path: &Path, file: &CameraFile, scan: (u32, u32), above_groun
     // Satellites' frame cameras see under a degree from hundreds of km;
     // an aerial one (under 10 km above the ground) under two, none.
     let aerial = above_ground < 10_000.0;
-    (fov < 1.0 || (aerial && fov < 2.0)).then(|| {
+    // (Under 0.2° the camera is refused: no lens of this image.)
+    (fov >= 0.2 && (fov < 1.0 || (aerial && fov < 2.0))).then(|| {
         format!(
             "{}: camera.focal_length_mm = {f} on a frame of {w:.1}×{h:.1} mm sees only {fov:.3}° across: a focal length in pixels (it is in millimetres here)?",
             path.display()
