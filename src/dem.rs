@@ -38,6 +38,14 @@ pub enum Miss {
 enum Samples {
     Memory(Vec<f32>),
     Chunked(Box<CachedRaster>),
+    /// A window of posts in memory, `at` = [i0, j0, width, height] (what
+    /// a mosaic looks up: its ground, not the whole file), the rest
+    /// through a small cache.
+    Window {
+        at: [usize; 4],
+        data: Vec<f32>,
+        rest: Box<CachedRaster>,
+    },
     /// Tiles of a VRT or a folder, each read as a DEM of its own.
     Mosaic(mosaic::Mosaic),
     /// An SRTM `.hgt` tile: big-endian Int16 in the mapped file, so that
@@ -85,6 +93,7 @@ impl GridDem {
         match &self.data {
             Samples::Memory(v) => v.len() as u64 * 4,
             Samples::Chunked(c) => c.cache_bytes() as u64,
+            Samples::Window { data, rest, .. } => data.len() as u64 * 4 + rest.cache_bytes() as u64,
             Samples::Mosaic(m) => m.held_bytes(),
             Samples::Hgt(_) => 0,
         }
@@ -96,6 +105,10 @@ impl GridDem {
         match &self.data {
             Samples::Memory(v) => v[j * self.width + i],
             Samples::Chunked(c) => c.get(i, j),
+            &Samples::Window { at: [wi, wj, ww, wh], ref data, ref rest } => match (i.wrapping_sub(wi), j.wrapping_sub(wj)) {
+                (a, b) if a < ww && b < wh => data[b * ww + a],
+                _ => rest.get(i, j),
+            },
             Samples::Mosaic(m) => m.get(i, j),
             Samples::Hgt(m) => hgt_at(m, j * self.width + i),
         }
@@ -107,6 +120,14 @@ impl GridDem {
         match &self.data {
             Samples::Memory(v) => [v[j0 * self.width + i0], v[j0 * self.width + i1], v[j1 * self.width + i0], v[j1 * self.width + i1]],
             Samples::Chunked(c) => c.corners(i0, j0, i1, j1),
+            &Samples::Window { at: [wi, wj, ww, wh], ref data, ref rest } => {
+                if i0 >= wi && j0 >= wj && i1 < wi + ww && j1 < wj + wh {
+                    let (a0, a1, b0, b1) = (i0 - wi, i1 - wi, (j0 - wj) * ww, (j1 - wj) * ww);
+                    [data[b0 + a0], data[b0 + a1], data[b1 + a0], data[b1 + a1]]
+                } else {
+                    rest.corners(i0, j0, i1, j1)
+                }
+            }
             Samples::Mosaic(m) => [m.get(i0, j0), m.get(i1, j0), m.get(i0, j1), m.get(i1, j1)],
             Samples::Hgt(m) => {
                 let w = self.width;
@@ -214,7 +235,7 @@ impl GridDem {
                 let (top, bottom) = (&v[k..k + 2], &v[k + self.width..k + self.width + 2]);
                 (top[0], top[1], bottom[0], bottom[1])
             }
-            Samples::Chunked(_) | Samples::Mosaic(_) | Samples::Hgt(_) => {
+            Samples::Chunked(_) | Samples::Window { .. } | Samples::Mosaic(_) | Samples::Hgt(_) => {
                 let [z00, z10, z01, z11] = self.corners(i0, j0, i0 + 1, j0 + 1);
                 (z00, z10, z01, z11)
             }
@@ -252,8 +273,10 @@ impl GridDem {
     pub fn lookup_gradient_many(&self, x: &[f64], y: &[f64], out: &mut [(f64, f64, f64)]) {
         let n = out.len().min(x.len()).min(y.len());
         let miss = |p: Option<(f64, f64, f64)>| p.unwrap_or((f64::NAN, 0.0, 0.0));
-        let v = match &self.data {
-            Samples::Memory(v) if self.nodata.is_none() && self.width >= 2 && self.height >= 2 => v,
+        // The posts in memory and where they lie: all of them, or a window.
+        let (v, [wi, wj, ww, wh]) = match &self.data {
+            Samples::Memory(v) if self.nodata.is_none() && self.width >= 2 && self.height >= 2 => (v, [0, 0, self.width, self.height]),
+            Samples::Window { at, data, .. } if self.nodata.is_none() && at[2] >= 2 && at[3] >= 2 => (data, *at),
             _ => {
                 for k in 0..n {
                     out[k] = miss(self.lookup_gradient(x[k], y[k]));
@@ -271,9 +294,14 @@ impl GridDem {
             let (c, r) = if inside { (c.clamp(0.0, w - 1.0), r.clamp(0.0, h - 1.0)) } else { (0.0, 0.0) };
             let i0 = (floor_split(c).0 as usize).min(self.width - 2);
             let j0 = (floor_split(r).0 as usize).min(self.height - 2);
+            if !(i0 >= wi && j0 >= wj && i0 + 1 < wi + ww && j0 + 1 < wj + wh) {
+                // Past the window: through the cache.
+                out[k] = if inside { miss(self.lookup_gradient(x[k], y[k])) } else { (f64::NAN, 0.0, 0.0) };
+                continue;
+            }
             let (fx, fy) = (c - i0 as f64, r - j0 as f64);
-            let at = j0 * self.width + i0;
-            let corners = [v[at], v[at + 1], v[at + self.width], v[at + self.width + 1]];
+            let at = (j0 - wj) * ww + i0 - wi;
+            let corners = [v[at], v[at + 1], v[at + ww], v[at + ww + 1]];
             // A hole (NaN) makes the height NaN by itself.
             let found = self.height_and_slopes(corners, fx, fy);
             out[k] = if inside && !found.0.is_nan() { found } else { (f64::NAN, 0.0, 0.0) };
@@ -485,6 +513,9 @@ pub struct Dem {
     mean: std::sync::OnceLock<Option<f64>>,
     /// [`Dem::height_range`], worked out once.
     range: std::sync::OnceLock<Option<(f64, f64)>>,
+    /// The bytes of the posts under the ground a run looks up, where it
+    /// said which ([`Dem::hold_window`]): what a larger budget holds.
+    window_bytes: Option<u64>,
 }
 
 /// The height at a ground point after the policy, or why there is none.
@@ -510,8 +541,76 @@ impl Dem {
     pub fn whole_bytes(&self) -> u64 {
         match &self.model {
             HeightModel::Flat(_) => 0,
-            HeightModel::Grid(g) => g.width as u64 * g.height as u64 * 4,
+            HeightModel::Grid(g) => self.window_bytes.unwrap_or(g.width as u64 * g.height as u64 * 4),
         }
+    }
+
+    /// A grid read a chunk at a time, through a cache of about
+    /// `cache_bytes` from now on.
+    pub fn recache(&mut self, cache_bytes: usize) {
+        let HeightModel::Grid(g) = &mut self.model else { return };
+        if matches!(g.data, Samples::Chunked(_)) {
+            let Samples::Chunked(c) = std::mem::replace(&mut g.data, Samples::Memory(Vec::new())) else { unreachable!("matched above") };
+            g.data = Samples::Chunked(Box::new(c.recached(cache_bytes)));
+        }
+    }
+
+    /// Holds in memory the posts under the ground box `b` (ground CRS)
+    /// and `margin` posts around it, where they take at most `max_bytes`:
+    /// a mosaic looks up its own ground, often a small part of a large
+    /// DEM. Lookups elsewhere still find the file's heights, through a
+    /// small cache. A grid read whole, a DEM of tiles and one whose box
+    /// does not fit stay as they are (the last read through a cache of up
+    /// to 16 MB within `max_bytes`). Returns whether it holds them.
+    pub fn hold_window(&mut self, b: [f64; 4], margin: usize, max_bytes: u64) -> Result<bool> {
+        const ALONG: usize = 32;
+        let HeightModel::Grid(g) = &self.model else { return Ok(false) };
+        // The box's edge, densely, in the grid's samples.
+        let mut edge = Vec::with_capacity(4 * (ALONG + 1));
+        for k in 0..=ALONG {
+            let t = k as f64 / ALONG as f64;
+            let (x, y) = (b[0] + t * (b[2] - b[0]), b[1] + t * (b[3] - b[1]));
+            edge.extend([(x, b[1]), (x, b[3]), (b[0], y), (b[2], y)]);
+        }
+        let mut span = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+        for (x, y) in edge {
+            let Some((gx, gy)) = self.in_grid_crs(x, y) else { return Ok(false) };
+            let (c, r) = g.sample_coords(gx, gy);
+            span = [span[0].min(c), span[1].min(r), span[2].max(c), span[3].max(r)];
+        }
+        if !span.iter().all(|v| v.is_finite()) {
+            return Ok(false);
+        }
+        let m = margin as f64;
+        let clamp = |v: f64, n: usize| v.clamp(0.0, n as f64) as usize;
+        let (i0, j0) = (clamp(span[0].floor() - m, g.width), clamp(span[1].floor() - m, g.height));
+        let (i1, j1) = (clamp(span[2].ceil() + 1.0 + m, g.width), clamp(span[3].ceil() + 1.0 + m, g.height));
+        let (w, h) = (i1.saturating_sub(i0), j1.saturating_sub(j0));
+        let bytes = w as u64 * h as u64 * 4;
+        self.window_bytes = Some(bytes);
+        let HeightModel::Grid(g) = &mut self.model else { return Ok(false) };
+        if !matches!(g.data, Samples::Chunked(_)) {
+            return Ok(false);
+        }
+        let Samples::Chunked(c) = std::mem::replace(&mut g.data, Samples::Memory(Vec::new())) else { unreachable!("matched above") };
+        if bytes > max_bytes || w < 2 || h < 2 {
+            // As a grid larger than its budget is read: up to 16 MB of it.
+            g.data = Samples::Chunked(Box::new(c.recached((max_bytes as usize).min(16 << 20))));
+            return Ok(false);
+        }
+        let at = [i0, j0, w, h];
+        let data = match c.read_window(at) {
+            Ok(d) => d,
+            Err(e) => {
+                g.data = Samples::Chunked(c);
+                return Err(e);
+            }
+        };
+        g.data = match at == [0, 0, g.width, g.height] {
+            true => Samples::Memory(data),
+            false => Samples::Window { at, data, rest: Box::new(c.recached(0)) },
+        };
+        Ok(true)
     }
 
     fn of(model: HeightModel, path: PathBuf) -> Dem {
@@ -524,6 +623,7 @@ impl Dem {
             warnings: Vec::new(),
             mean: std::sync::OnceLock::new(),
             range: std::sync::OnceLock::new(),
+            window_bytes: None,
         }
     }
 
@@ -813,16 +913,16 @@ mod tests {
         assert!(g.lookup_gradient(1030.0, 1990.0).is_none());
     }
 
-    #[test]
-    fn a_dem_read_in_chunks_gives_the_heights_of_one_read_whole() {
-        // 100×70 samples in 16×16 tiles (7×5 chunks, partial at the right
-        // and bottom), read whole and through a cache of a few chunks:
-        // every lookup, on chunk edges and across them, the same.
-        use crate::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("dem.tif");
+    /// Heights of the test DEMs: ridges, a slope and a little noise.
+    fn test_z(i: usize, j: usize) -> f32 {
+        200.0 + (i as f32 * 0.37).sin() * 20.0 + j as f32 * 0.5 + ((i * 7 + j * 3) % 5) as f32
+    }
+
+    /// A DEM of 100×70 samples of `test_z` plus `lift`, 10 m posts from
+    /// (1000, 2000) in UTM 31N, deflated in `chunking`.
+    fn write_test_dem(path: &Path, chunking: crate::io::tiff_out::Chunking, lift: f32) {
+        use crate::io::tiff_out::{write_raster, Compression, GeoTags, OutputSpec};
         let (w, h) = (100usize, 70usize);
-        let z = |i: usize, j: usize| 200.0 + (i as f32 * 0.37).sin() * 20.0 + j as f32 * 0.5 + ((i * 7 + j * 3) % 5) as f32;
         let spec = OutputSpec {
             overviews: 0,
             cog: false,
@@ -830,7 +930,7 @@ mod tests {
             height: h as u32,
             bands: 1,
             sample: crate::io::source::SampleType::F32,
-            chunking: Chunking::Tiles(16),
+            chunking,
             compression: Compression::Deflate,
             level: None,
             overview_level: None,
@@ -846,17 +946,28 @@ mod tests {
                 nodata: None,
             }),
         };
-        let write = |path: &Path, lift: f32| {
-            write_raster(path, &spec, |y0, y1, buf| {
-                let out: &mut [f32] = bytemuck::cast_slice_mut(buf);
-                for j in y0 as usize..y1 as usize {
-                    for i in 0..w {
-                        out[(j - y0 as usize) * w + i] = z(i, j) + lift;
-                    }
+        write_raster(path, &spec, |y0, y1, buf| {
+            let out: &mut [f32] = bytemuck::cast_slice_mut(buf);
+            for j in y0 as usize..y1 as usize {
+                for i in 0..w {
+                    out[(j - y0 as usize) * w + i] = test_z(i, j) + lift;
                 }
-            })
-            .unwrap()
-        };
+            }
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn a_dem_read_in_chunks_gives_the_heights_of_one_read_whole() {
+        // 100×70 samples in 16×16 tiles (7×5 chunks, partial at the right
+        // and bottom), read whole and through a cache of a few chunks:
+        // every lookup, on chunk edges and across them, the same.
+        use crate::io::tiff_out::Chunking;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("dem.tif");
+        let (w, h) = (100usize, 70usize);
+        let z = test_z;
+        let write = |path: &Path, lift: f32| write_test_dem(path, Chunking::Tiles(16), lift);
         write(&path, 0.0);
         let whole = GridDem::read(&path).unwrap();
         let chunked = GridDem::read_within(&path, 4 * 16 * 16 * 4).unwrap();
@@ -881,6 +992,59 @@ mod tests {
         }
         assert_eq!(n, 400 * 280);
         assert_eq!(whole.sample(99, 69), z(99, 69));
+    }
+
+    #[test]
+    fn a_dem_held_in_a_window_gives_the_heights_of_one_read_whole() {
+        // Tiles of 16 and strips of 3 rows: a window of posts in memory
+        // (a mosaic's ground), the rest through the cache; every lookup,
+        // inside it, on its edge and past it, as the DEM read whole.
+        use crate::io::tiff_out::Chunking;
+        let dir = tempfile::tempdir().unwrap();
+        let crs = Crs::from_epsg(32631).unwrap();
+        for chunking in [Chunking::Tiles(16), Chunking::Strips(3)] {
+            let path = dir.path().join("dem.tif");
+            write_test_dem(&path, chunking, 0.0);
+            let whole = Dem::open(&path, &crs).unwrap();
+            let mut held = Dem::open_within(&path, &crs, 1024).unwrap();
+            let grid = |d: &Dem| match &d.model {
+                HeightModel::Grid(g) => matches!(g.data, Samples::Window { .. }),
+                HeightModel::Flat(_) => false,
+            };
+            let b = [1000.0 + 300.0, 2000.0 - 400.0, 1000.0 + 600.0, 2000.0 - 200.0];
+            assert!(!held.hold_window(b, 2, 10 * 10 * 4).unwrap(), "{chunking:?}: 100 posts do not hold the window");
+            assert!(!grid(&held));
+            assert!(held.hold_window(b, 2, 64 << 10).unwrap(), "{chunking:?}");
+            assert!(grid(&held));
+            // Beside the window, a cache of four chunks for the rest.
+            let chunk = match chunking {
+                Chunking::Tiles(t) => t * t,
+                Chunking::Strips(rows) => rows * 100,
+            } as u64;
+            let window = held.held_bytes() - 4 * chunk * 4;
+            // The box's edges lie halfway between posts: posts 29..=60
+            // across and 19..=40 down for its bilinear cells, 2 more around.
+            assert_eq!((window, held.whole_bytes()), (36 * 26 * 4, 36 * 26 * 4), "{chunking:?}");
+            let (mut xs, mut ys) = (Vec::new(), Vec::new());
+            for jj in 0..(70 * 4) {
+                for ii in 0..(100 * 4) {
+                    let (x, y) = (1000.0 + (ii as f64 + 0.3) * 2.5, 2000.0 - (jj as f64 + 0.6) * 2.5);
+                    assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", held.lookup(x, y)), "{chunking:?} at ({x}, {y})");
+                    assert_eq!(whole.height_gradient(x, y), held.height_gradient(x, y), "{chunking:?} at ({x}, {y})");
+                    xs.push(x);
+                    ys.push(y);
+                }
+            }
+            let (mut a, mut c) = (vec![(0.0, 0.0, 0.0); xs.len()], vec![(0.0, 0.0, 0.0); xs.len()]);
+            whole.height_gradient_many(&xs, &ys, &mut a);
+            held.height_gradient_many(&xs, &ys, &mut c);
+            assert!(a.iter().zip(&c).all(|(p, q)| format!("{p:?}") == format!("{q:?}")), "{chunking:?}");
+            // A window over the whole DEM is the DEM read whole.
+            let mut all = Dem::open_within(&path, &crs, 1024).unwrap();
+            assert!(all.hold_window([0.0, 0.0, 1e5, 1e5], 2, 1 << 20).unwrap());
+            assert!(matches!(&all.model, HeightModel::Grid(g) if matches!(g.data, Samples::Memory(_))));
+            assert_eq!(all.held_bytes(), 100 * 70 * 4);
+        }
     }
 
     #[test]

@@ -72,6 +72,24 @@ impl CachedRaster {
         &self.raster
     }
 
+    /// Samples of a window (see [`ChunkedRaster::read_window`]),
+    /// rescaled; read past the cache.
+    pub fn read_window(&self, at: [usize; 4]) -> crate::error::Result<Vec<f32>> {
+        let mut v = self.raster.read_window(at)?;
+        if let Some(r) = self.rescale {
+            r.apply(&mut v);
+        }
+        Ok(v)
+    }
+
+    /// The same samples through a cache of about `cache_bytes` (at least
+    /// four chunks: the corners of a cell may lie in four).
+    pub fn recached(self, cache_bytes: usize) -> CachedRaster {
+        let (cw, ch) = self.raster.chunk;
+        let chunk = cw * ch * 4;
+        CachedRaster::new(self.raster, (cache_bytes / chunk).max(4) * chunk, self.rescale)
+    }
+
     fn chunk(&self, k: usize) -> Option<Arc<Vec<f32>>> {
         if let Some(c) = self.cache.lock().ok()?.get(k) {
             return Some(c);

@@ -174,6 +174,43 @@ impl ChunkedRaster {
         self.codec.read_chunk_into(&self.file, &self.path, k, (self.offsets[k], self.counts[k]), (cw, rows, ch), bytes)
     }
 
+    /// Samples `[i0, i0 + w) × [j0, j0 + h)` (inside the raster),
+    /// row-major: each chunk they touch decoded once, each row of chunks on
+    /// its own (on the current rayon pool).
+    pub fn read_window(&self, [i0, j0, w, h]: [usize; 4]) -> Result<Vec<f32>> {
+        use rayon::prelude::*;
+        let (cw, ch) = self.chunk;
+        let mut out = vec![0f32; w * h];
+        if w == 0 || h == 0 {
+            return Ok(out);
+        }
+        let ty0 = j0 / ch;
+        // Rows of the window by the row of chunks they lie in.
+        let first = (ch - j0 % ch).min(h);
+        let mut bands: Vec<(usize, &mut [f32])> = Vec::new();
+        let (head, mut rest) = out.split_at_mut(first * w);
+        bands.push((ty0, head));
+        let mut ty = ty0 + 1;
+        while !rest.is_empty() {
+            let (band, tail) = rest.split_at_mut((ch * w).min(rest.len()));
+            bands.push((ty, band));
+            (rest, ty) = (tail, ty + 1);
+        }
+        bands.into_par_iter().try_for_each(|(ty, rows)| {
+            let row0 = (ty * ch).max(j0);
+            for tx in i0 / cw..=(i0 + w - 1) / cw {
+                let chunk = self.chunk(ty * self.across() + tx)?;
+                let (a, b) = ((tx * cw).max(i0), ((tx + 1) * cw).min(i0 + w));
+                for (r, to) in rows.chunks_exact_mut(w).enumerate() {
+                    let at = (row0 + r - ty * ch) * cw;
+                    to[a - i0..b - i0].copy_from_slice(&chunk[at + a - tx * cw..at + b - tx * cw]);
+                }
+            }
+            Ok::<(), crate::error::Error>(())
+        })?;
+        Ok(out)
+    }
+
     /// The whole raster, row-major: each row of chunks read and decoded
     /// on its own (on the current rayon pool).
     pub fn read_all(&self) -> Result<Vec<f32>> {

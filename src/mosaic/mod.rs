@@ -613,8 +613,29 @@ type Strip = [u32; 4];
 /// A strip and how its render fits the memory.
 type StripPlan = (Strip, render::Fit);
 
+/// Strips are at most this wide, output pixels, or twice the images'
+/// median footprint where that is wider: the images' bands in hand and
+/// the mosaic's band then do not grow with the block's width, and an
+/// image is made in two strips at most.
+const STRIP_PX: u32 = 4096;
+
+/// The most tile columns a strip of the plan's mosaic takes.
+fn widest_strip(plan: &Plan, tile: u32) -> u32 {
+    strip_columns(plan.images.iter().map(|i| (i.cells[2] - i.cells[0]) as u32 * plan.cell).collect(), tile)
+}
+
+/// The most tile columns a strip takes where the images' footprints are
+/// `widths` output pixels wide (0: none): a power of two (see
+/// [`STRIP_PX`]).
+fn strip_columns(mut widths: Vec<u32>, tile: u32) -> u32 {
+    widths.retain(|&w| w > 0);
+    widths.sort_unstable();
+    let median = widths.get(widths.len() / 2).copied().unwrap_or(0);
+    STRIP_PX.max(2 * median).div_ceil(tile.max(1)).max(1).next_power_of_two()
+}
+
 /// `window` cut into strips of tile columns whose renders each fit
-/// `memory`: the whole where it fits, else the widest power of two that
+/// `memory`: the whole where it is no wider than [`widest_strip`] and fits, else the widest power of two that
 /// does (strips start at multiples of it, the last what is left; overview
 /// tiles then rarely wait for the next strip). When strips a tile column wide
 /// do not fit either, the refusal of the one that needs the most (its
@@ -634,13 +655,17 @@ fn column_strips(plan: &Plan, works: &[render::ImageWork], spec: &OutputSpec, wi
         }
         worst.map_or(Ok(fits), Err)
     };
-    match cut(tcw) {
-        Ok(whole) => return Ok(whole),
-        Err(short) if tcw == 1 => return Err(short.into()),
-        Err(_) => {}
+    let most = widest_strip(plan, spec.chunk().0);
+    if tcw <= most {
+        match cut(tcw) {
+            Ok(whole) => return Ok(whole),
+            Err(short) if tcw == 1 => return Err(short.into()),
+            Err(_) => {}
+        }
     }
-    // The widest power of two under the whole width.
-    let mut wide = 1 << (31 - (tcw - 1).leading_zeros());
+    // The widest power of two under the whole width (and no wider than
+    // the most).
+    let mut wide = most.min(1 << (31 - (tcw - 1).leading_zeros()));
     loop {
         match cut(wide) {
             Ok(fits) => return Ok(fits),
@@ -827,5 +852,22 @@ impl MosaicReport {
             pieces_reused: None,
             strips: 0,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Strips of 4096 px under frames of 2000 px; twice a frame under
+    /// frames wider than half that (a frame then lies in two strips at
+    /// most); in whole powers of two of tiles.
+    #[test]
+    fn strips_are_a_few_frames_wide_whatever_the_block() {
+        assert_eq!(strip_columns(vec![2000, 2010, 0, 1990], 256), 16);
+        assert_eq!(strip_columns(vec![2000; 400], 512), 8);
+        assert_eq!(strip_columns(vec![18918; 4], 512), 128, "2 × 18918 px = 74 tiles");
+        assert_eq!(strip_columns(vec![3000, 30000, 3100], 256), 32, "the median frame's 6200 px");
+        assert_eq!(strip_columns(Vec::new(), 256), 16);
     }
 }

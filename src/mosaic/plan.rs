@@ -33,6 +33,14 @@ pub const BUDGET_PER_CELL: u64 = 128;
 /// every wall pixel: through the cache a sixth slower).
 pub const DEM_SHARE: u64 = 4;
 
+/// A DEM file of at most this many bytes of heights is read whole at once;
+/// a larger one only where the mosaic lies ([`Dem::hold_window`]).
+const DEM_WHOLE: u64 = 4 << 20;
+
+/// Posts held around the mosaic's ground: a render's last nodes may lie a
+/// little past its edge.
+const DEM_MARGIN: usize = 8;
+
 /// One image as the plan sees it.
 pub struct PlanImage {
     pub name: String,
@@ -275,7 +283,12 @@ impl Plan {
                 DemSource::File(p) => match dem_of.get(p) {
                     Some(&k) => k,
                     None => {
-                        let mut d = Dem::open_within(p, &ground, s.memory / DEM_SHARE)?;
+                        // Tiles (a VRT, a folder) hold what they read within the share.
+                        let share = s.memory / DEM_SHARE;
+                        let first = if Dem::tile_files(p).is_empty() { share.min(DEM_WHOLE) } else { share };
+                        let mut d = Dem::open_within(p, &ground, first)?;
+                        // Until it holds the mosaic's window: footprints look all over it.
+                        d.recache((share as usize).min(16 << 20));
                         for w in &d.warnings {
                             progress.warn(w);
                         }
@@ -391,6 +404,21 @@ impl Plan {
         // default 256 MiB holds MAX_CELLS).
         let cell = s.cell.unwrap_or_else(|| cell_side(grid.width as u64 * grid.height as u64, s.memory));
         let (cw, ch) = (grid.width.div_ceil(cell) as usize, grid.height.div_ceil(cell) as usize);
+        // Of a large DEM, the posts under the mosaic in memory (within its
+        // share), before any image's render shares it.
+        let [gx0, gy1] = {
+            let (x, y) = grid.ground(0.0, 0.0);
+            [x, y]
+        };
+        let [gx1, gy0] = {
+            let (x, y) = grid.ground(grid.width as f64, grid.height as f64);
+            [x, y]
+        };
+        for d in &mut dems {
+            if let Some(d) = std::sync::Arc::get_mut(d) {
+                d.hold_window([gx0.min(gx1), gy0.min(gy1), gx0.max(gx1), gy0.max(gy1)], DEM_MARGIN, s.memory / DEM_SHARE)?;
+            }
+        }
         let mut plan = Plan { grid, crs, cell, cw, ch, heights: vec![f32::NAN; cw * ch], label: vec![NONE; cw * ch], images: Vec::new(), dems };
         // Heights of the first image's DEM: the seams' height edges.
         if let Some((im, _)) = images.first() {
