@@ -69,18 +69,21 @@ pub struct PlanImage {
 
 impl PlanImage {
     /// Index of cell (x, y) in the box, or `None` outside it.
+    #[inline]
     fn at(&self, x: usize, y: usize) -> Option<usize> {
         let [x0, y0, x1, y1] = self.cells;
         (x >= x0 && x < x1 && y >= y0 && y < y1).then(|| (y - y0) * (x1 - x0) + (x - x0))
     }
 
     /// Where in the scan it sees cell (x, y) (see `radius`), if it does.
+    #[inline]
     pub fn radius(&self, x: usize, y: usize) -> Option<f32> {
         self.radius.get(self.at(x, y)?).copied().filter(|r| r.is_finite())
     }
 
     /// Its low-resolution pixel at cell (x, y), where it sees it (and its
     /// thumbnail is held).
+    #[inline]
     pub fn value(&self, x: usize, y: usize) -> Option<Pixel<'_>> {
         let k = self.at(x, y)?;
         if !self.radius.get(k)?.is_finite() {
@@ -93,6 +96,7 @@ impl PlanImage {
         }
     }
 
+    #[inline]
     pub fn sees(&self, x: usize, y: usize) -> bool {
         self.radius(x, y).is_some()
     }
@@ -252,6 +256,7 @@ impl Plan {
         }
     }
 
+    #[inline]
     pub fn label_at(&self, x: usize, y: usize) -> u16 {
         self.label[y * self.cw + x]
     }
