@@ -465,6 +465,24 @@ impl Compose<'_> {
             if let Some(i) = sole {
                 // Pixels of the row inside the mosaic.
                 let inside = if gy0 + py < h { t.min(w.saturating_sub(gx0)) } else { 0 };
+                let row = py * t..py * t + inside;
+                if inside == t && pieces[i].valid[row.clone()].iter().all(|&v| v != 0) {
+                    // The image has the whole row (most rows of most
+                    // tiles): copied, or through its table, at once.
+                    let (from, to) = (&samples[i][row.start * nb..row.end * nb], &mut out[row.start * nb..row.end * nb]);
+                    match &tables[i] {
+                        _ if identity[i] => to.copy_from_slice(from),
+                        Some(table) => to.chunks_exact_mut(nb).zip(from.chunks_exact(nb)).for_each(|(p, f)| table.put(p, f)),
+                        None => {
+                            for px in 0..t {
+                                let k = py * t + px;
+                                corrected(&mut out[k * nb..(k + 1) * nb], i, k, px, py);
+                            }
+                        }
+                    }
+                    valid[row].fill(1);
+                    continue;
+                }
                 for px in 0..t {
                     let k = py * t + px;
                     let pixel = &mut out[k * nb..(k + 1) * nb];
