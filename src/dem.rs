@@ -545,23 +545,13 @@ impl Dem {
         }
     }
 
-    /// A grid read a chunk at a time, through a cache of about
-    /// `cache_bytes` from now on.
-    pub fn recache(&mut self, cache_bytes: usize) {
-        let HeightModel::Grid(g) = &mut self.model else { return };
-        if matches!(g.data, Samples::Chunked(_)) {
-            let Samples::Chunked(c) = std::mem::replace(&mut g.data, Samples::Memory(Vec::new())) else { unreachable!("matched above") };
-            g.data = Samples::Chunked(Box::new(c.recached(cache_bytes)));
-        }
-    }
-
     /// Holds in memory the posts under the ground box `b` (ground CRS)
     /// and `margin` posts around it, where they take at most `max_bytes`:
     /// a mosaic looks up its own ground, often a small part of a large
     /// DEM. Lookups elsewhere still find the file's heights, through a
-    /// small cache. A grid read whole, a DEM of tiles and one whose box
-    /// does not fit stay as they are (the last read through a cache of up
-    /// to 16 MB within `max_bytes`). Returns whether it holds them.
+    /// small cache. A DEM of tiles and one whose box does not fit stay as
+    /// they are (the last read through a cache of up to 16 MB within
+    /// `max_bytes`). Returns whether it holds them.
     pub fn hold_window(&mut self, b: [f64; 4], margin: usize, max_bytes: u64) -> Result<bool> {
         const ALONG: usize = 32;
         let HeightModel::Grid(g) = &self.model else { return Ok(false) };
@@ -589,28 +579,43 @@ impl Dem {
         let bytes = w as u64 * h as u64 * 4;
         self.window_bytes = Some(bytes);
         let HeightModel::Grid(g) = &mut self.model else { return Ok(false) };
-        if !matches!(g.data, Samples::Chunked(_)) {
-            return Ok(false);
-        }
-        let Samples::Chunked(c) = std::mem::replace(&mut g.data, Samples::Memory(Vec::new())) else { unreachable!("matched above") };
-        if bytes > max_bytes || w < 2 || h < 2 {
-            // As a grid larger than its budget is read: up to 16 MB of it.
-            g.data = Samples::Chunked(Box::new(c.recached((max_bytes as usize).min(16 << 20))));
-            return Ok(false);
-        }
         let at = [i0, j0, w, h];
-        let data = match c.read_window(at) {
-            Ok(d) => d,
-            Err(e) => {
-                g.data = Samples::Chunked(c);
-                return Err(e);
+        let whole = at == [0, 0, g.width, g.height];
+        match g.data {
+            Samples::Chunked(_) => {
+                let Samples::Chunked(c) = std::mem::replace(&mut g.data, Samples::Memory(Vec::new())) else { unreachable!("matched above") };
+                if bytes > max_bytes || w < 2 || h < 2 {
+                    // As a grid larger than its budget is read: up to 16 MB of it.
+                    g.data = Samples::Chunked(Box::new(c.recached((max_bytes as usize).min(16 << 20))));
+                    return Ok(false);
+                }
+                let data = match c.read_window(at) {
+                    Ok(d) => d,
+                    Err(e) => {
+                        g.data = Samples::Chunked(c);
+                        return Err(e);
+                    }
+                };
+                g.data = match whole {
+                    true => Samples::Memory(data),
+                    false => Samples::Window { at, data, rest: Box::new(c.recached(0)) },
+                };
+                Ok(true)
             }
-        };
-        g.data = match at == [0, 0, g.width, g.height] {
-            true => Samples::Memory(data),
-            false => Samples::Window { at, data, rest: Box::new(c.recached(0)) },
-        };
-        Ok(true)
+            // Read whole: the window kept, the rest read again from the
+            // file where looked up.
+            Samples::Memory(_) if !whole && w >= 2 && h >= 2 => {
+                let rest = match GridDem::read_within(&self.path, 0) {
+                    Ok(GridDem { data: Samples::Chunked(c), .. }) => c,
+                    _ => return Ok(false),
+                };
+                let Samples::Memory(all) = std::mem::replace(&mut g.data, Samples::Memory(Vec::new())) else { unreachable!("matched above") };
+                let data = (j0..j0 + h).flat_map(|j| &all[j * g.width + i0..j * g.width + i0 + w]).copied().collect();
+                g.data = Samples::Window { at, data, rest: Box::new(rest.recached(0)) };
+                Ok(true)
+            }
+            _ => Ok(false),
+        }
     }
 
     fn of(model: HeightModel, path: PathBuf) -> Dem {
@@ -1007,6 +1012,8 @@ mod tests {
             write_test_dem(&path, chunking, 0.0);
             let whole = Dem::open(&path, &crs).unwrap();
             let mut held = Dem::open_within(&path, &crs, 1024).unwrap();
+            // The same window of a DEM read whole (it fit its budget).
+            let mut cropped = Dem::open(&path, &crs).unwrap();
             let grid = |d: &Dem| match &d.model {
                 HeightModel::Grid(g) => matches!(g.data, Samples::Window { .. }),
                 HeightModel::Flat(_) => false,
@@ -1015,7 +1022,9 @@ mod tests {
             assert!(!held.hold_window(b, 2, 10 * 10 * 4).unwrap(), "{chunking:?}: 100 posts do not hold the window");
             assert!(!grid(&held));
             assert!(held.hold_window(b, 2, 64 << 10).unwrap(), "{chunking:?}");
-            assert!(grid(&held));
+            assert!(cropped.hold_window(b, 2, 64 << 10).unwrap(), "{chunking:?}");
+            assert!(grid(&held) && grid(&cropped));
+            assert_eq!(cropped.held_bytes(), held.held_bytes());
             // Beside the window, a cache of four chunks for the rest.
             let chunk = match chunking {
                 Chunking::Tiles(t) => t * t,
@@ -1031,6 +1040,7 @@ mod tests {
                     let (x, y) = (1000.0 + (ii as f64 + 0.3) * 2.5, 2000.0 - (jj as f64 + 0.6) * 2.5);
                     assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", held.lookup(x, y)), "{chunking:?} at ({x}, {y})");
                     assert_eq!(whole.height_gradient(x, y), held.height_gradient(x, y), "{chunking:?} at ({x}, {y})");
+                    assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", cropped.lookup(x, y)), "{chunking:?} at ({x}, {y})");
                     xs.push(x);
                     ys.push(y);
                 }
@@ -1038,6 +1048,8 @@ mod tests {
             let (mut a, mut c) = (vec![(0.0, 0.0, 0.0); xs.len()], vec![(0.0, 0.0, 0.0); xs.len()]);
             whole.height_gradient_many(&xs, &ys, &mut a);
             held.height_gradient_many(&xs, &ys, &mut c);
+            assert!(a.iter().zip(&c).all(|(p, q)| format!("{p:?}") == format!("{q:?}")), "{chunking:?}");
+            cropped.height_gradient_many(&xs, &ys, &mut c);
             assert!(a.iter().zip(&c).all(|(p, q)| format!("{p:?}") == format!("{q:?}")), "{chunking:?}");
             // A window over the whole DEM is the DEM read whole.
             let mut all = Dem::open_within(&path, &crs, 1024).unwrap();

@@ -33,10 +33,6 @@ pub const BUDGET_PER_CELL: u64 = 128;
 /// every wall pixel: through the cache a sixth slower).
 pub const DEM_SHARE: u64 = 4;
 
-/// A DEM file of at most this many bytes of heights is read whole at once;
-/// a larger one only where the mosaic lies ([`Dem::hold_window`]).
-const DEM_WHOLE: u64 = 4 << 20;
-
 /// Posts held around the mosaic's ground: a render's last nodes may lie a
 /// little past its edge.
 const DEM_MARGIN: usize = 8;
@@ -288,12 +284,7 @@ impl Plan {
                 DemSource::File(p) => match dem_of.get(p) {
                     Some(&k) => k,
                     None => {
-                        // Tiles (a VRT, a folder) hold what they read within the share.
-                        let share = s.memory / DEM_SHARE;
-                        let first = if Dem::tile_files(p).is_empty() { share.min(DEM_WHOLE) } else { share };
-                        let mut d = Dem::open_within(p, &ground, first)?;
-                        // Until it holds the mosaic's window: footprints look all over it.
-                        d.recache((share as usize).min(16 << 20));
+                        let mut d = Dem::open_within(p, &ground, s.memory / DEM_SHARE)?;
                         for w in &d.warnings {
                             progress.warn(w);
                         }
