@@ -610,7 +610,10 @@ impl Dem {
                     _ => return Ok(false),
                 };
                 let Samples::Memory(all) = std::mem::replace(&mut g.data, Samples::Memory(Vec::new())) else { unreachable!("matched above") };
-                let data = (j0..j0 + h).flat_map(|j| &all[j * g.width + i0..j * g.width + i0 + w]).copied().collect();
+                let mut data = Vec::with_capacity(w * h);
+                for j in j0..j0 + h {
+                    data.extend_from_slice(&all[j * g.width + i0..j * g.width + i0 + w]);
+                }
                 g.data = Samples::Window { at, data, rest: Box::new(rest.recached(0)) };
                 Ok(true)
             }
