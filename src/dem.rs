@@ -138,8 +138,11 @@ impl GridDem {
 
     /// Every `step`-th sample, row-major (for summaries: mean height).
     pub fn samples(&self, step: usize) -> Vec<f32> {
-        if let Samples::Memory(v) = &self.data {
-            return v.iter().step_by(step.max(1)).copied().collect();
+        match &self.data {
+            Samples::Memory(v) => return v.iter().step_by(step.max(1)).copied().collect(),
+            // (A window's rest is the same file's samples.)
+            Samples::Chunked(c) | Samples::Window { rest: c, .. } => return c.samples(step),
+            Samples::Mosaic(_) | Samples::Hgt(_) => {}
         }
         let n = self.width * self.height;
         (0..n).step_by(step.max(1)).map(|k| self.sample(k % self.width, k / self.width)).collect()
@@ -1059,6 +1062,26 @@ mod tests {
             assert!(all.hold_window([0.0, 0.0, 1e5, 1e5], 2, 1 << 20).unwrap());
             assert!(matches!(&all.model, HeightModel::Grid(g) if matches!(g.data, Samples::Memory(_))));
             assert_eq!(all.held_bytes(), 100 * 70 * 4);
+        }
+    }
+
+    #[test]
+    fn a_summary_of_a_dem_in_tiles_decodes_each_tile_once() {
+        // 7×5 tiles of 16: the mean height's and the voids check's samples
+        // spread row by row over the file; through the cache each sampled
+        // row decoded its row of tiles again.
+        use crate::io::tiff_out::Chunking;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("dem.tif");
+        write_test_dem(&path, Chunking::Tiles(16), 0.0);
+        let whole = GridDem::read(&path).unwrap();
+        for step in [1, 3, 7, 100, 6999, 7000, 9999] {
+            let chunked = GridDem::read_within(&path, 4 * 16 * 16 * 4).unwrap();
+            let Samples::Chunked(c) = &chunked.data else { panic!("read in chunks") };
+            let before = c.raster().chunks_decoded();
+            let got = chunked.samples(step);
+            assert_eq!(got, whole.samples(step), "step {step}");
+            assert!(c.raster().chunks_decoded() - before <= 35, "step {step}: {} chunks decoded", c.raster().chunks_decoded() - before);
         }
     }
 

@@ -67,6 +67,8 @@ pub struct ChunkedRaster {
     counts: Vec<u64>,
     codec: ChunkCodec,
     sample: Sample,
+    /// Chunks decoded so far (what a summary's reading costs, for tests).
+    decoded: std::sync::atomic::AtomicUsize,
 }
 
 impl ChunkedRaster {
@@ -135,7 +137,7 @@ impl ChunkedRaster {
             packed_bits: 0,
         };
         codec.check().map_err(|what| Error::unsupported(path, what))?;
-        Ok(ChunkedRaster { path: path.to_path_buf(), file, width, height, chunk, tiled, offsets, counts, codec, sample })
+        Ok(ChunkedRaster { path: path.to_path_buf(), file, width, height, chunk, tiled, offsets, counts, codec, sample, decoded: Default::default() })
     }
 
     /// Chunks across the raster (1 for strips).
@@ -168,7 +170,13 @@ impl ChunkedRaster {
         Ok(bytes)
     }
 
+    /// Chunks decoded so far.
+    pub fn chunks_decoded(&self) -> usize {
+        self.decoded.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
     fn chunk_bytes_into(&self, k: usize, bytes: &mut Vec<u8>) -> Result<()> {
+        self.decoded.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let (cw, ch) = self.chunk;
         let rows = if self.tiled { ch } else { ch.min(self.height - k * ch) };
         self.codec.read_chunk_into(&self.file, &self.path, k, (self.offsets[k], self.counts[k]), (cw, rows, ch), bytes)
