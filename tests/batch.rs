@@ -293,6 +293,17 @@ fn a_broken_manifest_lists_every_problem_with_lines() {
     std::fs::write(d.join("manifest.toml"), format!("{}{}", job("a.tif", "camera"), job("b.tif", "camera"))).unwrap();
     let err = String::from_utf8_lossy(&batch(d, &["--dry-run"]).stderr).to_string();
     assert!(err.contains("line 6: image ") && err.contains("b.tif does not exist"), "{err}");
+    // A DEM the jobs take from [defaults]: a missing one said at its line
+    // there, not at a job's; a folder of tiles is a DEM (as --dem takes).
+    block(d, 1);
+    std::fs::write(d.join("manifest.toml"), format!("# a block\n[defaults]\ndem = \"nowhere\"\n\n{}", jobs_toml(1))).unwrap();
+    let err = String::from_utf8_lossy(&batch(d, &["--dry-run"]).stderr).to_string();
+    assert!(err.contains("line 3: dem: ") && err.contains("nowhere does not exist"), "{err}");
+    std::fs::create_dir(d.join("tiles")).unwrap();
+    std::fs::copy(d.join("scene/dem.tif"), d.join("tiles/dem.tif")).unwrap();
+    std::fs::write(d.join("manifest.toml"), format!("[defaults]\ndem = \"tiles\"\n\n{}", jobs_toml(1))).unwrap();
+    let o = batch(d, &["--dry-run"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
 #[test]

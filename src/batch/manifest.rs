@@ -219,6 +219,17 @@ fn key_line(text: &str, span: std::ops::Range<usize>, key: &str) -> Option<usize
     None
 }
 
+/// The line (from 1) of `key` in the manifest's `[defaults]`, if there.
+fn defaults_key_line(text: &str, key: &str) -> Option<usize> {
+    let lines: Vec<&str> = text.lines().collect();
+    let section = lines.iter().position(|l| l.trim() == "[defaults]")?;
+    lines[section + 1..]
+        .iter()
+        .take_while(|l| !l.trim_start().starts_with('['))
+        .position(|l| l.split('=').next().is_some_and(|k| k.trim().trim_matches(|c| c == '"' || c == '\'') == key))
+        .map(|k| section + 2 + k)
+}
+
 /// ", expected one of …" for a job's unknown `key`: a job's own keys and
 /// those of `[defaults]` (as serde lists them for `[defaults]`), the
 /// nearest first where one is a slip of it.
@@ -393,21 +404,16 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         };
         // A bad value of the job's own: said at its key's line.
         let key = problems.first().and_then(|p| p.split(':').next()).map(str::trim);
-        let own = span.zip(key).and_then(|(span, key)| key_line(&text, span, key));
+        // (A key the job takes from [defaults]: said at that key's line.)
+        let own = span.clone().zip(key).and_then(|(span, key)| key_line(&text, span, key)).or_else(|| key.and_then(|k| defaults_key_line(&text, k)));
         let problem = (!problems.is_empty()).then(|| format!("{}: {}", at(own.unwrap_or(line)), problems.join("; ")));
         jobs.push(Job { name, config: cfg, problem });
     }
     if let Some(e) = defaults_fault.filter(|e| !config_faults.is_empty() && config_faults.iter().all(|f| f.as_ref() == Some(e))) {
         // The key's own line where the message starts with it.
-        let lines: Vec<&str> = text.lines().collect();
-        let section = lines.iter().position(|l| l.trim() == "[defaults]").unwrap_or(0);
-        let key = e.split(':').next().unwrap_or("").trim();
-        let own = lines[section + 1..]
-            .iter()
-            .take_while(|l| !l.trim_start().starts_with('['))
-            .position(|l| l.split('=').next().is_some_and(|k| k.trim() == key))
-            .map(|k| section + 1 + k);
-        errors.push(format!("{}: [defaults]: {e}", at(own.unwrap_or(section) + 1)));
+        let section = text.lines().position(|l| l.trim() == "[defaults]").unwrap_or(0);
+        let own = defaults_key_line(&text, e.split(':').next().unwrap_or("").trim());
+        errors.push(format!("{}: [defaults]: {e}", at(own.unwrap_or(section + 1))));
     }
     // No job may write over what any job reads, nor two jobs to one file.
     let mut refusal = false;
@@ -490,8 +496,9 @@ fn config(
     let dem = match (&o.dem, o.height) {
         (Some(d), None) => {
             let p = rel(d);
-            if !p.is_file() {
-                return Err(format!("DEM {} does not exist", p.display()));
+            // (A folder of tiles is a DEM too.)
+            if !(p.is_file() || p.is_dir()) {
+                return Err(format!("dem: {} does not exist", p.display()));
             }
             DemSource::File(p)
         }
