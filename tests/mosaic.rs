@@ -210,8 +210,21 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     assert!(err.contains("--memory") && err.trim().lines().count() == 1, "{err}");
     assert!(!d.join("out.tif").exists() && common::files_containing(d, "out.tif").is_empty());
     let enough = err.split("give --memory ").nth(1).and_then(|t| t.split_whitespace().next()).expect("a figure").to_string();
-    mosaic(d, &["-o", "out.tif", "--memory", &enough]);
-    assert!(d.join("out.tif").exists());
+    let out = std::process::Command::new(bin())
+        .current_dir(d)
+        .args(["mosaic", "manifest.toml", "-o", "out.tif", "--memory", &enough, "--quiet", "--json", "small.json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success() && d.join("out.tif").exists());
+    // That budget makes the plan coarser than the default: said, with the
+    // figure that makes it as fine, and that figure plans as finely.
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    let cell = |json: &str| serde_json::from_slice::<serde_json::Value>(&std::fs::read(d.join(json)).unwrap()).unwrap()["cell_px"].as_u64().unwrap();
+    let finer = err.split("px from --memory ").nth(1).and_then(|t| t.split(':').next()).unwrap_or_else(|| panic!("no notice: {err}")).to_string();
+    assert!(err.contains(&format!("the plan's cells are {} px", cell("small.json"))), "{err}");
+    mosaic(d, &["-o", "out.tif", "--memory", &finer, "--json", "finer.json", "--force"]);
+    mosaic(d, &["-o", "out.tif", "--json", "default.json", "--force"]);
+    assert!(cell("finer.json") < cell("small.json") && cell("finer.json") == cell("default.json"));
     // Large tiles (the manifest's): each image's render holds its own, so
     // the mosaic's figure is what they take; it runs, without another
     // refusal from an image's own set-up.

@@ -439,6 +439,9 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             }
             t_render = t.elapsed().as_secs_f64();
         }
+        if let Some(coarse) = coarse_plan(&plan, o) {
+            progress.warn(&coarse);
+        }
         // The report.
         let covered = plan.label.iter().filter(|&&l| l != NONE).count();
         let images = plan
@@ -491,6 +494,25 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         })
     })()
     .map_err(from_manifest)
+}
+
+/// Where `--memory` made the plan's cells coarser than a larger budget
+/// would (seams and balance then follow the ground less closely): what it
+/// says of that. (A plan file fixes the cells.)
+fn coarse_plan(plan: &Plan, o: &MosaicOptions) -> Option<String> {
+    let px = plan.grid.width as u64 * plan.grid.height as u64;
+    let finest = plan::cell_side(px, u64::MAX);
+    if o.plan_in.is_some() || plan.cell <= finest {
+        return None;
+    }
+    let cells = px.div_ceil(finest as u64 * finest as u64);
+    let more = (cells * plan::BUDGET_PER_CELL).next_multiple_of(1 << 20) >> 20;
+    Some(format!(
+        "--memory {} MiB: the plan's cells are {} px, {} px from --memory {more}M: the seams and the balance follow the ground more coarsely",
+        o.memory >> 20,
+        plan.cell,
+        finest
+    ))
 }
 
 /// Whether the manifest gave `setting` (the command line did not).
