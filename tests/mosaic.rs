@@ -509,6 +509,28 @@ fn shards_of_one_plan_assemble_into_the_single_run_byte_for_byte() {
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && e.contains("plan.json") && e.contains("another grid"), "{e}");
     assert!(!d.join("x.tif").exists());
+    // A plan from other inputs or a setting every piece shares: refused,
+    // named, before the render; the same DEM under another name is the
+    // same input.
+    let manifest = std::fs::read_to_string(d.join("manifest.toml")).unwrap();
+    let moved = manifest.replace("dem = \"dem.tif\"", "dem = \"moved.tif\"");
+    assert_ne!(moved, manifest);
+    std::fs::copy(d.join("dem.tif"), d.join("moved.tif")).unwrap();
+    std::fs::write(d.join("moved.toml"), moved).unwrap();
+    let out = std::process::Command::new(bin())
+        .current_dir(d)
+        .args(["mosaic", "moved.toml", "--quiet", "--plan", "plan.json", "-o", "moved.tif.out"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = std::process::Command::new(bin())
+        .current_dir(d)
+        .args(["mosaic", "manifest.toml", "--quiet", "--plan", "plan.json", "--blend", "2", "-o", "x.tif"])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.code() == Some(1) && e.contains("plan.json") && e.contains("planned from other"), "{e}");
+    assert!(!d.join("x.tif").exists());
 }
 
 /// Output pixels finer than the scans': the images' outputs are larger

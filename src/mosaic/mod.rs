@@ -304,7 +304,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             return Err(Error::Cancelled);
         }
         let t = Instant::now();
-        let from_plan = o.plan_in.as_deref().map(|p| plan_file::read(&mut plan, p)).transpose()?;
+        let from_plan = o.plan_in.as_deref().map(|p| plan_file::read(&mut plan, &source, p)).transpose()?;
         let pairs = balance::overlaps(&plan);
         for doubt in agreement::doubted(&plan, &pairs) {
             progress.warn(&doubt);
@@ -348,7 +348,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             seamlines::write(&plan, path)?;
         }
         if let Some(path) = &o.plan_out {
-            plan_file::write(&plan, &corrections, path)?;
+            plan_file::write(&plan, &corrections, &source, path)?;
         }
         // Pieces join only where their seams and balance are one: made with
         // another --balance, seam method, edited seams or plan, their

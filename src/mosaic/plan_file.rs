@@ -24,12 +24,18 @@ struct PlanFile {
     /// `[image, count]` runs over the cells, row by row (65535: none).
     labels: Vec<[u32; 2]>,
     corrections: Vec<Correction>,
+    /// What it was planned from: the images, cameras and DEMs by their
+    /// contents, and the settings every piece shares (none in plans of
+    /// earlier versions).
+    #[serde(default)]
+    source: Option<String>,
 }
 
 const FORMAT: &str = "gcm-ortho mosaic plan 1";
 
-/// Writes `plan`'s seams and `corrections` to `path`.
-pub fn write(plan: &Plan, corrections: &[Correction], path: &Path) -> Result<()> {
+/// Writes `plan`'s seams and `corrections`, planned from `source`, to
+/// `path`.
+pub fn write(plan: &Plan, corrections: &[Correction], source: &str, path: &Path) -> Result<()> {
     let mut labels: Vec<[u32; 2]> = Vec::new();
     for &l in &plan.label {
         match labels.last_mut() {
@@ -47,6 +53,7 @@ pub fn write(plan: &Plan, corrections: &[Correction], path: &Path) -> Result<()>
         images: plan.images.iter().map(|i| i.name.clone()).collect(),
         labels,
         corrections: corrections.to_vec(),
+        source: Some(source.to_string()),
     };
     let text = serde_json::to_string(&file).map_err(|e| Error::Geometry(e.to_string()))?;
     crate::io::publish::write_file(path, text.as_bytes())
@@ -69,8 +76,8 @@ pub fn cell_of(path: &Path) -> Result<u32> {
 }
 
 /// Takes the seams of the plan file at `path` into `plan` (made again from
-/// the same manifest and settings) and returns its corrections.
-pub fn read(plan: &mut Plan, path: &Path) -> Result<Vec<Correction>> {
+/// the same manifest and settings, `source`) and returns its corrections.
+pub fn read(plan: &mut Plan, source: &str, path: &Path) -> Result<Vec<Correction>> {
     let file = load(path)?;
     if file.format != FORMAT {
         return Err(Error::format(path, format!("'{}' is not a plan this version reads ({FORMAT})", file.format)));
@@ -83,6 +90,13 @@ pub fn read(plan: &mut Plan, path: &Path) -> Result<Vec<Correction>> {
         return Err(Error::format(
             path,
             "was planned on another grid (other --gsd, --bounds, --crs or DEMs): give the settings it was made with, or plan again",
+        ));
+    }
+    // Pieces of other inputs would not join: refused before the render.
+    if file.source.as_deref().is_some_and(|s| s != source) {
+        return Err(Error::format(
+            path,
+            "was planned from other images, cameras or DEMs (their contents), or other --blend, --occlusion, --gsd, --bounds or --crs: give what it was made from, or plan again",
         ));
     }
     let cells = plan.cw * plan.ch;
