@@ -255,7 +255,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
     }
     if !a.quiet {
         eprintln!(
-            "{}: {}×{} px at {} from {}; {}; seams {} px long; plan {:.1} s, seams {:.1} s, render {:.1} s",
+            "{}: {}×{} px at {} from {}; {}; seams {} px long; plan {:.1} s, balance {:.1} s, seams {:.1} s{}",
             report.output.as_deref().or(a.plan_out.as_deref()).unwrap_or(Path::new("")).display(),
             report.width,
             report.height,
@@ -268,8 +268,10 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
             },
             report.seam_length_px,
             report.seconds.plan,
+            report.seconds.balance,
             report.seconds.seams,
-            report.seconds.render
+            // (The plan alone renders nothing.)
+            if report.output.is_some() { format!(", render {:.1} s", report.seconds.render) } else { String::new() }
         );
         if let Some(u) = &report.unseen {
             eprintln!(
