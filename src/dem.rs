@@ -353,11 +353,21 @@ impl GridDem {
             tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(|e| Error::from_tiff(path, e))?.with_limits(crate::io::format::decoder_limits());
         let raster = ChunkedRaster::open(&mut dec, path)?;
         let (w, h) = (raster.width as u32, raster.height as u32);
-        let geo = read_georef(&mut dec, path)?.ok_or_else(|| Error::format(path, "the DEM has no georeferencing (no ModelPixelScale/ModelTiepoint)"))?;
+        let (geo, aux_crs) = match read_georef(&mut dec, path)? {
+            Some(g) => (g, None),
+            None => {
+                let tiff_nodata = crate::io::geotiff::read_nodata(&mut dec, path)?;
+                let (mut g, crs) = aux_xml_beside(path)?.ok_or_else(|| {
+                    Error::format(path, "the DEM has no georeferencing (no ModelPixelScale/ModelTiepoint, nor a GeoTransform in an .aux.xml beside it)")
+                })?;
+                g.nodata = g.nodata.or(tiff_nodata);
+                (g, crs)
+            }
+        };
         check_north_up(&geo, path)?;
         let crs = match crate::geodesy::geokeys::crs_of(&geo.keys).map_err(|m| Error::format(path, format!("its GeoTIFF keys: {m}")))? {
             Some(c) => Some(c),
-            None => prj_beside(path)?,
+            None => aux_crs.map_or_else(|| prj_beside(path), |c| Ok(Some(c)))?,
         };
         if w < 2 || h < 2 {
             return Err(Error::format(path, format!("a DEM of {w}×{h} posts: heights are interpolated between posts, so at least 2×2 are needed")));
@@ -406,6 +416,40 @@ impl GridDem {
         }
         Ok(g)
     }
+}
+
+/// The georeferencing GDAL keeps beside a raster whose own tags hold none
+/// (`FILE.aux.xml`, as a baseline TIFF profile writes it): the
+/// geotransform, the first band's nodata, scale and offset, and the SRS.
+fn aux_xml_beside(path: &Path) -> Result<Option<(GeoRef, Option<Crs>)>> {
+    let mut name = path.as_os_str().to_owned();
+    name.push(".aux.xml");
+    let aux = PathBuf::from(name);
+    if !aux.is_file() {
+        return Ok(None);
+    }
+    let text = crate::io::bounded_read::read_text_bounded(&aux, "GDAL's .aux.xml", crate::io::bounded_read::SMALL)?;
+    let doc = roxmltree::Document::parse(&text).map_err(|e| Error::format(&aux, format!("is not XML: {e}")))?;
+    let root = doc.root_element();
+    fn child<'a>(n: roxmltree::Node<'a, '_>, tag: &str) -> Option<&'a str> {
+        n.children().find(|c| c.has_tag_name(tag)).and_then(|c| c.text()).map(str::trim)
+    }
+    let Some(gt) = child(root, "GeoTransform") else { return Ok(None) };
+    let gt: Vec<f64> =
+        gt.split(',').map(|v| v.trim().parse().map_err(|_| Error::format(&aux, format!("GeoTransform '{gt}' is not six numbers")))).collect::<Result<_>>()?;
+    let transform: [f64; 6] = gt.try_into().map_err(|_| Error::format(&aux, "a GeoTransform of other than six numbers"))?;
+    let crs = child(root, "SRS")
+        .filter(|t| !t.is_empty())
+        .map(|t| Crs::parse(t, path.parent().unwrap_or(Path::new("."))).map_err(|m| Error::format(&aux, format!("its SRS: {m}"))))
+        .transpose()?;
+    let band = root.children().find(|c| c.has_tag_name("PAMRasterBand") && c.attribute("band").is_none_or(|b| b.trim() == "1"));
+    let number = |tag: &str| band.and_then(|b| child(b, tag)).and_then(|t| t.parse::<f64>().ok());
+    let scale_offset = match (number("Scale"), number("Offset")) {
+        (None, None) => None,
+        (s, o) => Some((s.unwrap_or(1.0), o.unwrap_or(0.0))).filter(|&so| so != (1.0, 0.0)),
+    };
+    let geo = GeoRef { transform, keys: Default::default(), nodata: number("NoDataValue"), scale_offset, source: None };
+    Ok(Some((geo, crs)))
 }
 
 /// The CRS of a `.prj` file beside a raster whose keys name none.
@@ -1082,6 +1126,63 @@ mod tests {
             let got = chunked.samples(step);
             assert_eq!(got, whole.samples(step), "step {step}");
             assert!(c.raster().chunks_decoded() - before <= 35, "step {step}: {} chunks decoded", c.raster().chunks_decoded() - before);
+        }
+    }
+
+    #[test]
+    fn georeferencing_in_gdals_aux_xml_is_read() {
+        // The test DEM without its GeoTIFF tags, its grid, CRS and nodata in
+        // FILE.aux.xml (as GDAL's baseline profile writes them): the same
+        // heights where the tagged one has them.
+        use crate::io::tiff_out::{write_raster, Chunking, Compression, OutputSpec};
+        let dir = tempfile::tempdir().unwrap();
+        let (tagged, bare) = (dir.path().join("tagged.tif"), dir.path().join("bare.tif"));
+        write_test_dem(&tagged, Chunking::Strips(8), 0.0);
+        let spec = OutputSpec {
+            overviews: 0,
+            cog: false,
+            width: 100,
+            height: 70,
+            bands: 1,
+            sample: crate::io::source::SampleType::F32,
+            chunking: Chunking::Strips(8),
+            compression: Compression::None,
+            level: None,
+            overview_level: None,
+            bigtiff: false,
+            photometric: 1,
+            alpha: false,
+            mask: false,
+            geo: None,
+        };
+        write_raster(&bare, &spec, |y0, y1, buf| {
+            let out: &mut [f32] = bytemuck::cast_slice_mut(buf);
+            for j in y0 as usize..y1 as usize {
+                for i in 0..100 {
+                    out[(j - y0 as usize) * 100 + i] = if (i, j) == (50, 30) { -9999.0 } else { test_z(i, j) };
+                }
+            }
+        })
+        .unwrap();
+        let crs = Crs::from_epsg(32631).unwrap();
+        let refused = Dem::open(&bare, &crs).err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(refused.contains("no georeferencing") && refused.contains(".aux.xml"), "{refused}");
+        let wkt = r#"PROJCS["WGS 84 / UTM zone 31N",GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563,AUTHORITY["EPSG","7030"]],AUTHORITY["EPSG","6326"]],PRIMEM["Greenwich",0,AUTHORITY["EPSG","8901"]],UNIT["degree",0.0174532925199433,AUTHORITY["EPSG","9122"]],AUTHORITY["EPSG","4326"]],PROJECTION["Transverse_Mercator"],PARAMETER["latitude_of_origin",0],PARAMETER["central_meridian",3],PARAMETER["scale_factor",0.9996],PARAMETER["false_easting",500000],PARAMETER["false_northing",0],UNIT["metre",1,AUTHORITY["EPSG","9001"]],AXIS["Easting",EAST],AXIS["Northing",NORTH],AUTHORITY["EPSG","32631"]]"#;
+        let aux = format!(
+            "<PAMDataset>\n  <SRS dataAxisToSRSAxisMapping=\"1,2\">{}</SRS>\n  <GeoTransform>  1.0000000000000000e+03,  1.0e+01,  0.0,  2.0e+03,  0.0, -1.0e+01</GeoTransform>\n  <PAMRasterBand band=\"1\">\n    <NoDataValue>-9999</NoDataValue>\n  </PAMRasterBand>\n</PAMDataset>\n",
+            wkt.replace('"', "&quot;")
+        );
+        std::fs::write(dir.path().join("bare.tif.aux.xml"), aux).unwrap();
+        let (whole, bare) = (Dem::open(&tagged, &crs).unwrap(), Dem::open(&bare, &crs).unwrap());
+        assert!(bare.warnings.is_empty(), "its CRS is read: {:?}", bare.warnings);
+        for (x, y) in [(1005.0, 1995.0), (1333.3, 1777.7), (1994.0, 1306.0), (1505.0, 1695.0)] {
+            let (a, b) = (whole.lookup(x, y), bare.lookup(x, y));
+            if (x, y) == (1505.0, 1695.0) {
+                // Post (50, 30) is the aux's nodata.
+                assert_eq!(b, Lookup::Hole);
+            } else {
+                assert_eq!(format!("{a:?}"), format!("{b:?}"), "at ({x}, {y})");
+            }
         }
     }
 
