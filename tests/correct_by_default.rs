@@ -199,6 +199,41 @@ fn dem_voids_without_a_nodata_tag_are_holes_with_a_warning_not_heights() {
     assert!(err.contains("warning") && err.contains("voids.tif") && err.contains("-32768") && err.contains("no nodata tag"), "{err}");
 }
 
+/// A void under the middle of the image (no point of its edge meets it),
+/// left empty under `--dem-hole nodata`: said, with about how much of the
+/// ground it takes; a DEM without one draws no such warning.
+#[test]
+fn a_void_under_the_middle_of_the_image_is_said_with_its_share() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini");
+    let dem = gcm_ortho::dem::GridDem::read(&root.join("dem.tif")).unwrap();
+    let georef = (dem.transform[0], dem.transform[3], dem.transform[1], 32631);
+    let (cw, ch) = (dem.width, dem.height);
+    // A fifth of the DEM across and down, in its middle.
+    let void = |i: usize, j: usize| (2 * cw / 5..3 * cw / 5).contains(&i) && (2 * ch / 5..3 * ch / 5).contains(&j);
+    let rectify = |name: &str, holed: bool| {
+        let path = d.join(name);
+        f32_raster(
+            &path,
+            (cw as u32, ch as u32),
+            georef,
+            |i, j| if holed && void(i as usize, j as usize) { f32::NAN } else { dem.sample(i as usize, j as usize) },
+        );
+        let (scan, camera, out) = (root.join("scan.tif"), root.join("camera.toml"), d.join(format!("{name}.out.tif")));
+        let r = run(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&path), "--dem-hole", "nodata", "--quiet", "-o", s(&out)]);
+        let err = String::from_utf8_lossy(&r.stderr).to_string();
+        assert!(r.status.success(), "{err}");
+        err
+    };
+    let err = rectify("void.tif", true);
+    let share: f64 =
+        err.split("under about ").nth(1).and_then(|t| t.split(" %").next()).and_then(|v| v.parse().ok()).unwrap_or_else(|| panic!("no share said: {err}"));
+    assert!(err.contains("void.tif") && err.contains("inside its edges") && (1.0..=20.0).contains(&share), "{err}");
+    let err = rectify("whole.tif", false);
+    assert!(!err.contains("no heights"), "{err}");
+}
+
 #[test]
 fn an_unbounded_run_far_off_the_exact_model_says_so_even_when_quiet() {
     let dir = tempfile::tempdir().unwrap();

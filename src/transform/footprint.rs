@@ -35,6 +35,10 @@ pub struct Footprint {
     /// nodata collar).
     pub on_holes: usize,
     pub edge_points: usize,
+    /// Of points spread over the scan inside its outline, those over the
+    /// DEM's holes, of `inner_points`: a void in the middle of its ground.
+    pub inner_holes: usize,
+    pub inner_points: usize,
 }
 
 impl Footprint {
@@ -80,6 +84,13 @@ impl Footprint {
                 "{image}: the DEM {path} has no heights (nodata) under part of the image ({} % of its edge meets heights): {hole}--dem-hole HEIGHT, in a manifest dem_hole = HEIGHT, goes on at that height)",
                 share(self.on_holes)
             )),
+            // Holes inside the ground alone, left empty as asked: how much.
+            (false, false) if self.inner_holes > 0 && dem.on_hole == Miss::Nodata => {
+                let share = 100.0 * self.inner_holes as f64 / self.inner_points.max(1) as f64;
+                Some(format!(
+                    "{image}: the DEM {path} has no heights (nodata) under about {share:.0} % of the image's ground, inside its edges: the orthophoto is empty there (--dem-hole HEIGHT, in a manifest dem_hole = HEIGHT, goes on at that height)"
+                ))
+            }
             (false, false) => None,
         }
     }
@@ -165,7 +176,16 @@ pub fn footprint_on(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32,
         };
         return Err(Error::Geometry(format!("only {hits} of {n} points on the image's edges meet the DEM: {why}")));
     }
-    Ok(Footprint { bounds: b, past_edge: past.0, on_holes: past.1, edge_points: outline.len() })
+    // Points over the scan on a grid (inside its image area): a void
+    // under its middle, which no edge point meets.
+    const INNER: usize = 24;
+    let area = model.image_area();
+    let inner: Vec<(f64, f64)> = (0..INNER * INNER)
+        .map(|k| (((k % INNER) as f64 + 0.5) * w as f64 / INNER as f64, ((k / INNER) as f64 + 0.5) * h as f64 / INNER as f64))
+        .filter(|&(c, r)| area.is_none_or(|a| a.contains(c, r)))
+        .collect();
+    let inner_holes = inner.par_iter().filter(|&&(c, r)| past_edge(c, r).1 == 1).count();
+    Ok(Footprint { bounds: b, past_edge: past.0, on_holes: past.1, edge_points: outline.len(), inner_holes, inner_points: inner.len() })
 }
 
 /// Where the ray of scan point `(c, r)`, beyond its ground point `hit`,
