@@ -652,6 +652,7 @@ impl Dem {
             // Read whole: the window kept, the rest read again from the
             // file where looked up.
             Samples::Memory(_) if !whole && w >= 2 && h >= 2 => {
+                // (Budget 0: a cache of four chunks.)
                 let rest = match GridDem::read_within(&self.path, 0) {
                     Ok(GridDem { data: Samples::Chunked(c), .. }) => c,
                     _ => return Ok(false),
@@ -661,7 +662,7 @@ impl Dem {
                 for j in j0..j0 + h {
                     data.extend_from_slice(&all[j * g.width + i0..j * g.width + i0 + w]);
                 }
-                g.data = Samples::Window { at, data, rest: Box::new(rest.recached(0)) };
+                g.data = Samples::Window { at, data, rest };
                 Ok(true)
             }
             _ => Ok(false),
@@ -976,6 +977,12 @@ mod tests {
     /// A DEM of 100×70 samples of `test_z` plus `lift`, 10 m posts from
     /// (1000, 2000) in UTM 31N, deflated in `chunking`.
     fn write_test_dem(path: &Path, chunking: crate::io::tiff_out::Chunking, lift: f32) {
+        write_test_grid(path, chunking, true, |i, j| test_z(i, j) + lift);
+    }
+
+    /// 100×70 samples `z(column, row)`, deflated in `chunking`, with the
+    /// test DEMs' georeferencing in GeoTIFF tags where `tagged`.
+    fn write_test_grid(path: &Path, chunking: crate::io::tiff_out::Chunking, tagged: bool, z: impl Fn(usize, usize) -> f32 + Sync) {
         use crate::io::tiff_out::{write_raster, Compression, GeoTags, OutputSpec};
         let (w, h) = (100usize, 70usize);
         let spec = OutputSpec {
@@ -993,7 +1000,7 @@ mod tests {
             photometric: 1,
             alpha: false,
             mask: false,
-            geo: Some(GeoTags {
+            geo: tagged.then(|| GeoTags {
                 x0: 1000.0,
                 y0: 2000.0,
                 gsd: crate::geom::Gsd::square(10.0),
@@ -1005,7 +1012,7 @@ mod tests {
             let out: &mut [f32] = bytemuck::cast_slice_mut(buf);
             for j in y0 as usize..y1 as usize {
                 for i in 0..w {
-                    out[(j - y0 as usize) * w + i] = test_z(i, j) + lift;
+                    out[(j - y0 as usize) * w + i] = z(i, j);
                 }
             }
         })
@@ -1134,36 +1141,11 @@ mod tests {
         // The test DEM without its GeoTIFF tags, its grid, CRS and nodata in
         // FILE.aux.xml (as GDAL's baseline profile writes them): the same
         // heights where the tagged one has them.
-        use crate::io::tiff_out::{write_raster, Chunking, Compression, OutputSpec};
+        use crate::io::tiff_out::Chunking;
         let dir = tempfile::tempdir().unwrap();
         let (tagged, bare) = (dir.path().join("tagged.tif"), dir.path().join("bare.tif"));
         write_test_dem(&tagged, Chunking::Strips(8), 0.0);
-        let spec = OutputSpec {
-            overviews: 0,
-            cog: false,
-            width: 100,
-            height: 70,
-            bands: 1,
-            sample: crate::io::source::SampleType::F32,
-            chunking: Chunking::Strips(8),
-            compression: Compression::None,
-            level: None,
-            overview_level: None,
-            bigtiff: false,
-            photometric: 1,
-            alpha: false,
-            mask: false,
-            geo: None,
-        };
-        write_raster(&bare, &spec, |y0, y1, buf| {
-            let out: &mut [f32] = bytemuck::cast_slice_mut(buf);
-            for j in y0 as usize..y1 as usize {
-                for i in 0..100 {
-                    out[(j - y0 as usize) * 100 + i] = if (i, j) == (50, 30) { -9999.0 } else { test_z(i, j) };
-                }
-            }
-        })
-        .unwrap();
+        write_test_grid(&bare, Chunking::Strips(8), false, |i, j| if (i, j) == (50, 30) { -9999.0 } else { test_z(i, j) });
         let crs = Crs::from_epsg(32631).unwrap();
         let refused = Dem::open(&bare, &crs).err().map(|e| e.to_string()).unwrap_or_default();
         assert!(refused.contains("no georeferencing") && refused.contains(".aux.xml"), "{refused}");
