@@ -8,6 +8,7 @@
 
 use super::normal::Normal;
 use super::plan::Plan;
+use crate::error::Result;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
@@ -108,17 +109,22 @@ const PRIOR: f64 = 0.01;
 
 /// Every pair of images that overlap on enough cells, with the sums of
 /// their thumbnails there (none without thumbnails: a plan read back).
-pub fn overlaps(plan: &Plan) -> Vec<Pair> {
+pub fn overlaps(plan: &Plan) -> Result<Vec<Pair>> {
     let nb = plan.images.first().map_or(1, |i| i.bands as usize);
     let n = plan.images.len();
     let mut pairs: Vec<Pair> = Vec::new();
     for i in 0..n {
+        let mut a = None;
         for j in i + 1..n {
-            let (a, b) = (&plan.images[i], &plan.images[j]);
-            let x0 = a.cells[0].max(b.cells[0]);
-            let x1 = a.cells[2].min(b.cells[2]);
-            let y0 = a.cells[1].max(b.cells[1]);
-            let y1 = a.cells[3].min(b.cells[3]);
+            let (x0, x1, y0, y1) = common_box(plan, i, j);
+            if x0 >= x1 || y0 >= y1 {
+                continue;
+            }
+            let a = match &mut a {
+                Some(a) => a,
+                None => a.insert(plan.rows_of(i, 0..plan.ch)?),
+            };
+            let b = plan.rows_of(j, y0..y1)?;
             let mut sums = vec![Sums::default(); nb];
             for y in y0..y1 {
                 for x in x0..x1 {
@@ -140,17 +146,24 @@ pub fn overlaps(plan: &Plan) -> Vec<Pair> {
             }
         }
     }
-    pairs
+    Ok(pairs)
+}
+
+/// The box both images' boxes hold: `(x0, x1, y0, y1)` (empty where
+/// `x0 >= x1` or `y0 >= y1`).
+fn common_box(plan: &Plan, i: usize, j: usize) -> (usize, usize, usize, usize) {
+    let (a, b) = (plan.images[i].cells, plan.images[j].cells);
+    (a[0].max(b[0]), a[2].min(b[2]), a[1].max(b[1]), a[3].min(b[3]))
 }
 
 /// The corrections of `mode` for every image of the plan, from its
 /// `pairs` ([`overlaps`]).
-pub fn solve(plan: &Plan, mode: Balance, pairs: &[Pair]) -> Vec<Correction> {
+pub fn solve(plan: &Plan, mode: Balance, pairs: &[Pair]) -> Result<Vec<Correction>> {
     let nb = plan.images.first().map_or(1, |i| i.bands as usize);
     let n = plan.images.len();
     let mut out: Vec<Correction> = (0..n).map(|_| Correction::identity(nb)).collect();
     if mode == Balance::None || n < 2 || pairs.is_empty() {
-        return out;
+        return Ok(out);
     }
     if mode == Balance::GainOffsetVignetting {
         return solve_radial(plan, pairs, out);
@@ -185,9 +198,9 @@ pub fn solve(plan: &Plan, mode: Balance, pairs: &[Pair]) -> Vec<Correction> {
             out[i].gain[band] = g[i];
             out[i].offset[band] = o[i];
         }
-        anchor(plan, band, offsets, &mut out);
+        anchor(plan, band, offsets, &mut out)?;
     }
-    out
+    Ok(out)
 }
 
 /// The block's mean level of `band` over the overlaps (values are solved
@@ -202,7 +215,7 @@ fn level_and_cells(pairs: &[Pair], band: usize) -> (f64, f64) {
 /// Gains, offsets and radial terms from every cell two images both see:
 /// each such cell asks that the two corrected values agree. Weakly pulled
 /// towards no correction; anchored as [`solve`]'s.
-fn solve_radial(plan: &Plan, pairs: &[Pair], mut out: Vec<Correction>) -> Vec<Correction> {
+fn solve_radial(plan: &Plan, pairs: &[Pair], mut out: Vec<Correction>) -> Result<Vec<Correction>> {
     let nb = out.first().map_or(1, |c| c.gain.len());
     let n = plan.images.len();
     const PER: usize = 4;
@@ -219,9 +232,8 @@ fn solve_radial(plan: &Plan, pairs: &[Pair], mut out: Vec<Correction>) -> Vec<Co
             [sign * v, sign * v * r2, sign * v * r2 * r2, sign]
         };
         for (i, j, _) in pairs {
-            let (a, b) = (&plan.images[*i], &plan.images[*j]);
-            let (x0, x1) = (a.cells[0].max(b.cells[0]), a.cells[2].min(b.cells[2]));
-            let (y0, y1) = (a.cells[1].max(b.cells[1]), a.cells[3].min(b.cells[3]));
+            let (x0, x1, y0, y1) = common_box(plan, *i, *j);
+            let (a, b) = (plan.rows_of(*i, y0..y1)?, plan.rows_of(*j, y0..y1)?);
             // The pair's cells summed into its own block first (the
             // rows' right-hand sides are zero).
             let mut block = DMatrix::zeros(2 * PER, 2 * PER);
@@ -253,33 +265,44 @@ fn solve_radial(plan: &Plan, pairs: &[Pair], mut out: Vec<Correction>) -> Vec<Co
             c.radial[band] = [x[PER * i + 1], x[PER * i + 2]];
             c.offset[band] = x[PER * i + 3] * scale;
         }
-        anchor(plan, band, true, &mut out);
+        anchor(plan, band, true, &mut out)?;
     }
-    out
+    Ok(out)
 }
 
 /// Keeps the block's mean and spread (with offsets; its mean alone
 /// without) on the cells each image is taken from: one common gain and
 /// offset over all images' corrections of `band`.
-fn anchor(plan: &Plan, band: usize, offsets: bool, out: &mut [Correction]) {
+fn anchor(plan: &Plan, band: usize, offsets: bool, out: &mut [Correction]) -> Result<()> {
     let (mut n, mut s, mut ss, mut c, mut cc) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for y in 0..plan.ch {
-        for x in 0..plan.cw {
-            let l = plan.label_at(x, y) as usize;
-            let Some(im) = plan.images.get(l) else { continue };
-            let Some(v) = im.value(x, y) else { continue };
-            let v = v.band(band) as f64;
-            let rho = im.radius(x, y).unwrap_or(0.0) as f64;
-            let w = out[l].apply(band, v, rho * rho);
-            n += 1.0;
-            s += v;
-            ss += v * v;
-            c += w;
-            cc += w * w;
+    // A band of cell rows at a time, with the boxes of the images there.
+    const ROWS: usize = 64;
+    for y0 in (0..plan.ch).step_by(ROWS) {
+        let y1 = (y0 + ROWS).min(plan.ch);
+        let held: Vec<Option<_>> = (0..plan.images.len())
+            .map(|k| {
+                let [_, b0, _, b1] = plan.images[k].cells;
+                (b0 < y1 && b1 > y0).then(|| plan.rows_of(k, y0..y1)).transpose()
+            })
+            .collect::<Result<_>>()?;
+        for y in y0..y1 {
+            for x in 0..plan.cw {
+                let l = plan.label_at(x, y) as usize;
+                let Some(Some(im)) = held.get(l) else { continue };
+                let Some(v) = im.value(x, y) else { continue };
+                let v = v.band(band) as f64;
+                let rho = im.radius(x, y).unwrap_or(0.0) as f64;
+                let w = out[l].apply(band, v, rho * rho);
+                n += 1.0;
+                s += v;
+                ss += v * v;
+                c += w;
+                cc += w * w;
+            }
         }
     }
     if n < 2.0 {
-        return;
+        return Ok(());
     }
     let (m0, m1) = (s / n, c / n);
     let (sd0, sd1) = ((ss / n - m0 * m0).max(0.0).sqrt(), (cc / n - m1 * m1).max(0.0).sqrt());
@@ -297,4 +320,5 @@ fn anchor(plan: &Plan, band: usize, offsets: bool, out: &mut [Correction]) {
             corr.offset[band] = k * (corr.offset[band] - m1) + m0;
         }
     }
+    Ok(())
 }

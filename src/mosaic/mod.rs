@@ -8,6 +8,7 @@
 
 pub mod agreement;
 pub mod balance;
+pub mod box_store;
 pub mod normal;
 pub mod plan;
 pub mod plan_file;
@@ -28,7 +29,7 @@ use crate::options::{BigTiff, Nodata, Occlusion, Overviews, RectifyOptions};
 use crate::pipeline::band_writer::{write_bands, BandWriting};
 use crate::progress::{Cancel, Progress, Task};
 use balance::{Balance, Correction};
-use plan::{Plan, PlanImage, PlanSettings, NONE};
+use plan::{Plan, PlanSettings, NONE};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -305,13 +306,13 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         }
         let t = Instant::now();
         let from_plan = o.plan_in.as_deref().map(|p| plan_file::read(&mut plan, &source, p)).transpose()?;
-        let pairs = balance::overlaps(&plan);
+        let pairs = balance::overlaps(&plan)?;
         for doubt in agreement::doubted(&plan, &pairs) {
             progress.warn(&doubt);
         }
         let corrections = match &from_plan {
             Some(c) => c.clone(),
-            None => balance::solve(&plan, o.balance, &pairs),
+            None => balance::solve(&plan, o.balance, &pairs)?,
         };
         let t_balance = t.elapsed().as_secs_f64();
         let t = Instant::now();
@@ -340,7 +341,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
                 }
                 (seams::SeamStats::default(), Some(edited))
             }
-            None if o.least_cost => (seams::refine(&mut plan, &corrections, corridor, &edges), None),
+            None if o.least_cost => (seams::refine(&mut plan, &corrections, corridor, &edges)?, None),
             None => (seams::SeamStats::default(), None),
         };
         let t_seams = t.elapsed().as_secs_f64();
@@ -354,9 +355,6 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         // another --balance, seam method, edited seams or plan, their
         // images would meet in a step at the join.
         let source = plan_source(&source, &plan, &corrections);
-        // The thumbnails are done with (balance and seams): dropped before the
-        // weights are worked out, so that the two are never held together.
-        plan.images.iter_mut().for_each(PlanImage::forget_values);
         let weights = weights::Weights::new(&plan, o.blend, &edges);
         let grid = plan.grid;
         let (tx_all, ty_all) = (grid.width.div_ceil(first.tile), grid.height.div_ceil(first.tile));
@@ -391,7 +389,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             // cell is made there, so that another can fill what it hides.
             let prone = true_ortho.then(|| render::occlusion_prone(&plan));
             works = within(&render::work(&plan, &weights, tile, prone.as_deref(), opts_of), window);
-            plan.forget_for_render(&corrections);
+            plan.forget_for_render();
 
             let t = Instant::now();
             let (fill, _) = fill_of(plan.images[0].sample, first.nodata)?;
@@ -779,7 +777,7 @@ impl PieceRender<'_> {
                 }
                 let got: Vec<_> = got.iter().map(|(j, band)| (&works[*j], band)).collect();
                 let strip = strips[k].0;
-                Ok(self.compose.make_band(tr0 + b, (strip[0], strip[0] + strip[2]), &got, self.pool, sample))
+                self.compose.make_band(tr0 + b, (strip[0], strip[0] + strip[2]), &got, self.pool, sample)
             })
         });
         progress.finish();

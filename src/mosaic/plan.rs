@@ -5,6 +5,7 @@
 //! image that sees it nearest its centre (least relief displacement and
 //! lens falloff), computed on the DEM, not from the image centres alone.
 
+use super::box_store::{BoxCells, BoxStore, Seen, Stored};
 use crate::camera::file::Camera;
 use crate::dem::{Dem, Height};
 use crate::error::{Error, Result};
@@ -53,54 +54,17 @@ pub struct PlanImage {
     pub gsd: f64,
     /// The box of cells that may see it: `[x0, y0, x1, y1)`.
     pub cells: [usize; 4],
-    /// Its low-resolution orthophoto on the cells of the box, band after
-    /// band inside each cell (what it holds where it does not see the cell
-    /// is no value). Dropped once balance and seams are worked out
-    /// ([`PlanImage::forget_values`]).
-    pub values: Thumbnail,
-    /// Where in the scan it sees each cell of the box: the distance from
-    /// the scan's centre over its half-diagonal (NaN: not seen).
-    pub radius: Vec<f32>,
+    /// Its low-resolution orthophoto on the cells of the box and where in
+    /// the scan it sees each, in the plan's store ([`Plan::rows_of`]).
+    pub stored: Stored,
+    /// Which cells of the box it sees.
+    pub seen: Seen,
 }
 
 impl PlanImage {
-    /// Index of cell (x, y) in the box, or `None` outside it.
-    #[inline]
-    fn at(&self, x: usize, y: usize) -> Option<usize> {
-        let [x0, y0, x1, y1] = self.cells;
-        (x >= x0 && x < x1 && y >= y0 && y < y1).then(|| (y - y0) * (x1 - x0) + (x - x0))
-    }
-
-    /// Where in the scan it sees cell (x, y) (see `radius`), if it does.
-    #[inline]
-    pub fn radius(&self, x: usize, y: usize) -> Option<f32> {
-        self.radius.get(self.at(x, y)?).copied().filter(|r| r.is_finite())
-    }
-
-    /// Its low-resolution pixel at cell (x, y), where it sees it (and its
-    /// thumbnail is held).
-    #[inline]
-    pub fn value(&self, x: usize, y: usize) -> Option<Pixel<'_>> {
-        let k = self.at(x, y)?;
-        if !self.radius.get(k)?.is_finite() {
-            return None;
-        }
-        let nb = self.bands as usize;
-        match &self.values {
-            Thumbnail::Levels { v, per_unit } => Some(Pixel::Levels(v.get(k * nb..(k + 1) * nb)?, 1.0 / per_unit)),
-            Thumbnail::Floats(v) => Some(Pixel::Floats(v.get(k * nb..(k + 1) * nb)?)),
-        }
-    }
-
     #[inline]
     pub fn sees(&self, x: usize, y: usize) -> bool {
-        self.radius(x, y).is_some()
-    }
-
-    /// Drops the low-resolution orthophoto (three fifths of the plan's
-    /// memory on RGB): the render needs only where the image sees.
-    pub fn forget_values(&mut self) {
-        self.values = Thumbnail::default();
+        self.seen.sees(x, y)
     }
 }
 
@@ -108,6 +72,7 @@ impl PlanImage {
 /// 8- and 16-bit ones as 16-bit levels (a 256th of an 8-bit level, a
 /// 16-bit one's level: finer than balancing and seams can tell), others as
 /// f32 — half the memory of f32 on the common images.
+#[derive(Clone)]
 pub enum Thumbnail {
     /// Values times `per_unit`, rounded.
     Levels {
@@ -212,6 +177,8 @@ pub struct Plan {
     pub images: Vec<PlanImage>,
     /// The images' DEMs, each opened once (renders share them).
     pub dems: Vec<std::sync::Arc<Dem>>,
+    /// Each image's thumbnail and distances on its box of cells.
+    pub store: BoxStore,
 }
 
 /// What the plan is made from.
@@ -239,17 +206,21 @@ impl Plan {
         self.grid.ground((x as f64 + 0.5) * s, (y as f64 + 0.5) * s)
     }
 
+    /// Rows `rows` of image `k`'s box: its thumbnail and where it sees
+    /// each cell.
+    pub fn rows_of(&self, k: usize, rows: std::ops::Range<usize>) -> Result<BoxCells> {
+        self.store.rows(&self.images[k].stored, rows, true)
+    }
+
+    /// The same, where it sees each cell only.
+    pub fn radius_rows_of(&self, k: usize, rows: std::ops::Range<usize>) -> Result<BoxCells> {
+        self.store.rows(&self.images[k].stored, rows, false)
+    }
+
     /// Drops what the render does not read once the images' works are
-    /// made from it (a fifth of the plan's memory on a large block): the
-    /// cells' heights, and where each image sees each cell unless a
-    /// correction's radial term needs it there.
-    pub fn forget_for_render(&mut self, corrections: &[super::balance::Correction]) {
+    /// made from it: the cells' heights.
+    pub fn forget_for_render(&mut self) {
         self.heights = Vec::new();
-        for (im, c) in self.images.iter_mut().zip(corrections) {
-            if !c.has_radial() {
-                im.radius = Vec::new();
-            }
-        }
     }
 
     #[inline]
@@ -341,8 +312,8 @@ impl Plan {
                     photometric: info.photometric,
                     gsd,
                     cells: [0; 4],
-                    values: Thumbnail::default(),
-                    radius: Vec::new(),
+                    stored: Stored::default(),
+                    seen: Seen::default(),
                 },
                 fp.map(|f| f.bounds),
             ));
@@ -415,7 +386,8 @@ impl Plan {
                 d.hold_window([gx0.min(gx1), gy0.min(gy1), gx0.max(gx1), gy0.max(gy1)], DEM_MARGIN, s.memory / DEM_SHARE)?;
             }
         }
-        let mut plan = Plan { grid, crs, cell, cw, ch, heights: vec![f32::NAN; cw * ch], label: vec![NONE; cw * ch], images: Vec::new(), dems };
+        let mut plan =
+            Plan { grid, crs, cell, cw, ch, heights: vec![f32::NAN; cw * ch], label: vec![NONE; cw * ch], images: Vec::new(), dems, store: BoxStore::new()? };
         // Heights of the first image's DEM: the seams' height edges.
         if let Some((im, _)) = images.first() {
             let dem = &plan.dems[im.dem];
@@ -453,10 +425,12 @@ impl Plan {
                 Ok(im)
             })
             .collect::<Result<_>>()?;
+        plan.images = sampled;
         let mut best = vec![f32::INFINITY; cw * ch];
-        for (k, im) in sampled.into_iter().enumerate() {
-            let [x0, y0, x1, _] = im.cells;
-            for (j, row) in im.radius.chunks((x1 - x0).max(1)).enumerate() {
+        for k in 0..plan.images.len() {
+            let [x0, y0, _, y1] = plan.images[k].cells;
+            let seen = plan.radius_rows_of(k, y0..y1)?;
+            for (j, row) in seen.radius_rows().enumerate() {
                 for (i, &d) in row.iter().enumerate() {
                     let at = (y0 + j) * cw + x0 + i;
                     if d < best[at] {
@@ -464,7 +438,6 @@ impl Plan {
                     }
                 }
             }
-            plan.images.push(im);
         }
         progress.finish();
         // A mosaic no image sees is a mistake in the bounds or the GSD,
@@ -502,12 +475,11 @@ impl Plan {
             if taken[k] > 0 || (bounded && !partial_dem[k]) {
                 continue;
             }
-            let [x0, y0, x1, _] = im.cells;
-            let bw = (x1 - x0).max(1);
+            let [x0, y0, x1, y1] = im.cells;
             // The image that took most of what it sees.
             let mut by = vec![0usize; self.images.len()];
-            for j in (0..im.radius.len()).filter(|&j| im.radius[j].is_finite()) {
-                if let Some(&l) = self.label.get((y0 + j / bw) * self.cw + x0 + j % bw).filter(|&&l| l != NONE) {
+            for (x, y) in (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))).filter(|&(x, y)| im.sees(x, y)) {
+                if let Some(&l) = Some(&self.label[y * self.cw + x]).filter(|&&l| l != NONE) {
                     by[l as usize] += 1;
                 }
             }
@@ -617,8 +589,7 @@ fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64, thumbnails: bool) 
             }
         }
     });
-    im.values = values;
-    im.radius = from_centre;
+    (im.stored, im.seen) = plan.store.put(im.cells, nb, &from_centre, &values)?;
     Ok(())
 }
 

@@ -7,6 +7,7 @@
 //! and ends with its last, so its scan is open only while bands need it.
 
 use super::balance::Correction;
+use super::box_store::BoxCells;
 use super::plan::{Plan, NONE};
 use super::turns::Turns;
 use super::weights::Weights;
@@ -207,7 +208,7 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, across: u32, 
     let tile = spec.chunk().0 as u64;
     let band_bytes = crate::pipeline::band_writer::held_bytes(spec, across);
     let dems = plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>();
-    let arrays = plan.images.iter().map(|i| i.radius.len() as u64 * 4).sum::<u64>() + plan.label.len() as u64 * 12 + plan.heights.len() as u64 * 4;
+    let arrays = plan.images.iter().map(|i| i.seen.bytes()).sum::<u64>() + plan.label.len() as u64 * 12 + plan.heights.len() as u64 * 4;
     let plan_bytes = arrays + dems;
     let image_tile = spec.tile_bytes() as u64 + tile * tile;
     let columns = |b: u32| works.iter().filter_map(|w| w.bands.get(&b)).map(|&(c0, c1)| (c1 - c0) as u64).sum::<u64>();
@@ -347,7 +348,7 @@ pub struct Compose<'a> {
 
 impl Compose<'_> {
     /// Mosaic tile (tc, b) from the pieces of the images that have it.
-    fn tile<T: Px>(&self, tc: u32, b: u32, pieces: &[Piece], out: &mut [T], valid: &mut [u8]) {
+    fn tile<T: Px>(&self, tc: u32, b: u32, pieces: &[Piece], held: &[(u16, BoxCells)], out: &mut [T], valid: &mut [u8]) {
         let (t, nb, c) = (self.tile as usize, self.bands, self.plan.cell as f64);
         let (gx0, gy0) = ((tc * self.tile) as usize, (b * self.tile) as usize);
         let (w, h) = (self.plan.grid.width as usize, self.plan.grid.height as usize);
@@ -388,8 +389,8 @@ impl Compose<'_> {
             .iter()
             .zip(&corrections)
             .map(|(p, corr)| {
+                let im = held.iter().find(|(k, _)| *k == p.image).map(|(_, cells)| cells)?;
                 corr.has_radial().then(|| {
-                    let im = &self.plan.images[p.image as usize];
                     (0..nx * ny)
                         .map(|k| {
                             let (x, y) = ((cx0 + (k % nx) as i64).clamp(0, cw - 1), (cy0 + (k / nx) as i64).clamp(0, ch - 1));
@@ -581,8 +582,18 @@ impl Compose<'_> {
     }
 
     /// Tile columns `cols` of band `b` of the mosaic from the images' bands.
-    fn band<T: Px>(&self, b: u32, cols: (u32, u32), got: &[(&ImageWork, &BandPixels)], pool: &rayon::ThreadPool) -> (Vec<T>, Vec<u8>) {
+    fn band<T: Px>(&self, b: u32, cols: (u32, u32), got: &[(&ImageWork, &BandPixels)], pool: &rayon::ThreadPool) -> Result<(Vec<T>, Vec<u8>)> {
         let tpx = (self.tile * self.tile) as usize;
+        // Where a correction has a radial term: where its image sees the
+        // band's cells (and one around).
+        let c = self.plan.cell as usize;
+        let rows = ((b * self.tile) as usize / c).saturating_sub(1)..((b + 1) * self.tile) as usize / c + 2;
+        let held: Vec<(u16, BoxCells)> = got
+            .iter()
+            .map(|(w, _)| w.image)
+            .filter(|&k| self.corrections[k].has_radial())
+            .map(|k| Ok((k as u16, self.plan.radius_rows_of(k, rows.clone())?)))
+            .collect::<Result<_>>()?;
         let tx = cols.1 - cols.0;
         let mut out = vec![T::put(self.fill); tx as usize * tpx * self.bands];
         let mut valid = vec![0u8; tx as usize * tpx];
@@ -591,11 +602,11 @@ impl Compose<'_> {
                 let tc = cols.0 + k as u32;
                 let pieces: Vec<Piece> =
                     got.iter().filter_map(|(w, band)| piece(w, band, tc, self.tile, tpx * self.bands * std::mem::size_of::<T>(), tpx)).collect();
-                self.tile::<T>(tc, b, &pieces, o, v);
+                self.tile::<T>(tc, b, &pieces, &held, o, v);
                 self.count_unseen(&pieces, v);
             })
         });
-        (out, valid)
+        Ok((out, valid))
     }
 
     /// Tile columns `cols` of band `b` in the output's sample type.
@@ -606,22 +617,22 @@ impl Compose<'_> {
         got: &[(&ImageWork, &BandPixels)],
         pool: &rayon::ThreadPool,
         sample: crate::io::source::SampleType,
-    ) -> (Raw, Option<Vec<u8>>) {
+    ) -> Result<(Raw, Option<Vec<u8>>)> {
         use crate::io::source::SampleType;
-        match sample {
+        Ok(match sample {
             SampleType::U8 => {
-                let (o, v) = self.band::<u8>(b, cols, got, pool);
+                let (o, v) = self.band::<u8>(b, cols, got, pool)?;
                 (Raw::U8(o), Some(v))
             }
             SampleType::U16 => {
-                let (o, v) = self.band::<u16>(b, cols, got, pool);
+                let (o, v) = self.band::<u16>(b, cols, got, pool)?;
                 (Raw::U16(o), Some(v))
             }
             SampleType::F32 => {
-                let (o, v) = self.band::<f32>(b, cols, got, pool);
+                let (o, v) = self.band::<f32>(b, cols, got, pool)?;
                 (Raw::F32(o), Some(v))
             }
-        }
+        })
     }
 }
 

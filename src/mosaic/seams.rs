@@ -8,6 +8,7 @@
 
 use super::balance::Correction;
 use super::plan::{Plan, NONE};
+use crate::error::Result;
 use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 use std::collections::VecDeque;
 
@@ -63,7 +64,7 @@ fn neighbours4(x: usize, y: usize, cw: usize, ch: usize) -> impl Iterator<Item =
 
 /// Moves every stretch of boundary onto its least-cost path (see the
 /// module doc); `corridor` is the half-width searched, in cells.
-pub fn refine(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: &[bool]) -> SeamStats {
+pub fn refine(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: &[bool]) -> Result<SeamStats> {
     let (cw, ch) = (plan.cw, plan.ch);
     let mut stats = SeamStats::default();
     // The pairs that share a boundary, from the first partition.
@@ -85,13 +86,13 @@ pub fn refine(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: &[bo
     for (i, j) in pairs {
         for stretch in stretches(plan, i, j) {
             stats.stretches += 1;
-            if let Some(moved) = refine_stretch(plan, corr, corridor, edges, (i, j), &stretch) {
+            if let Some(moved) = refine_stretch(plan, corr, corridor, edges, (i, j), &stretch)? {
                 stats.refined += 1;
                 stats.cells_moved += moved;
             }
         }
     }
-    stats
+    Ok(stats)
 }
 
 /// The boundary cells between images `i` and `j` (either side), in
@@ -285,7 +286,7 @@ impl ZoneGrid {
 
 /// One stretch moved onto its least-cost path; the cells that changed
 /// image, or `None` where it stays as it was.
-fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: &[bool], (i, j): (u16, u16), stretch: &[usize]) -> Option<usize> {
+fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: &[bool], (i, j): (u16, u16), stretch: &[usize]) -> Result<Option<usize>> {
     let (cw, ch) = (plan.cw, plan.ch);
     let (a, b) = (&plan.images[i as usize], &plan.images[j as usize]);
     let both = |k: usize| a.sees(k % cw, k / cw) && b.sees(k % cw, k / cw);
@@ -295,22 +296,20 @@ fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: 
     };
     let ends: Vec<usize> = stretch.iter().copied().filter(|&k| both(k)).collect();
     if ends.len() < 2 {
-        return None;
+        return Ok(None);
     }
     // The stretch's two ends: the cell farthest from any, and the one
     // farthest from that.
     let end_set: HashSet<usize> = ends.iter().copied().collect();
     let along = |from: usize| reach(cw, ch, &[from], usize::MAX, |k| end_set.contains(&k));
     let far = |d: &HashMap<usize, usize>| d.iter().max_by_key(|(k, d)| (**d, std::cmp::Reverse(**k))).map(|(k, _)| *k);
-    let e0 = far(&along(ends[0]))?;
-    let e1 = far(&along(e0))?;
-    if e0 == e1 {
-        return None;
-    }
+    let (Some(e0), nb) = (far(&along(ends[0])), a.bands as usize) else { return Ok(None) };
+    let Some(e1) = far(&along(e0)).filter(|&e1| e1 != e0) else { return Ok(None) };
     let mut zone = ZoneGrid::around(&ends, corridor, (cw, ch), pair);
     // Each cell's cost: where the balanced images differ, relative to
     // their mean difference over the zone, and height edges.
-    let nb = a.bands as usize;
+    let rows = zone.y0..zone.y0 + zone.h;
+    let (a, b) = (plan.rows_of(i as usize, rows.clone())?, plan.rows_of(j as usize, rows)?);
     let diff = |k: usize| -> f64 {
         let (x, y) = (k % cw, k / cw);
         match (a.value(x, y), b.value(x, y)) {
@@ -335,7 +334,7 @@ fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: 
         let k = zone.global(l);
         zone.cost[l] = 1.0 + DIFFERENCE * zone.cost[l] / mean.max(1e-9) + if edges[k] { HEIGHT_EDGE } else { 0.0 };
     }
-    let path = zone.least_cost_path(e0, e1)?;
+    let Some(path) = zone.least_cost_path(e0, e1) else { return Ok(None) };
     // The zone's cells off the path, in 4-connected parts; each part goes
     // to the image its outside neighbours all belong to.
     const NO_PART: u32 = u32::MAX;
@@ -402,7 +401,7 @@ fn refine_stretch(plan: &mut Plan, corr: &[Correction], corridor: usize, edges: 
             moved += 1;
         }
     }
-    Some(moved)
+    Ok(Some(moved))
 }
 
 #[cfg(test)]
