@@ -356,6 +356,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         // images would meet in a step at the join.
         let source = plan_source(&source, &plan, &corrections);
         let weights = weights::Weights::new(&plan, o.blend, &edges);
+        drop(edges);
         let grid = plan.grid;
         let (tx_all, ty_all) = (grid.width.div_ceil(first.tile), grid.height.div_ceil(first.tile));
         let window = crate::geom::cut_window(o.window.unwrap_or([0, 0, tx_all, ty_all]), (tx_all, ty_all))

@@ -4,26 +4,31 @@
 //! the DSM, where the cut stays sharp (a blend there would show a roof
 //! twice). Each cell knows its distance to the nearest boundary cell of
 //! its own image and the image across it (a two-pass propagation of the
-//! nearest boundary cell, 8-connected).
+//! nearest boundary cell, 8-connected). Only the cells within the ramp
+//! are kept (a few per seam cell): elsewhere a cell is its own image's.
 
 use super::plan::{Plan, NONE};
+use rustc_hash::FxHashMap as HashMap;
 
 pub struct Weights {
     cw: usize,
     label: Vec<u16>,
-    /// Cells from the nearest boundary cell of the same image (∞: none).
-    dist: Vec<f32>,
-    /// The image across that boundary.
-    other: Vec<u16>,
-    hard: Vec<bool>,
-    /// Ramp width, cells (0: no blend).
-    ramp: f32,
+    /// The cells whose own image weighs under 1 (within the ramp of a
+    /// boundary, off height edges): that weight, and the image across.
+    near: HashMap<u32, (f32, u16)>,
+    /// Whether the blend is a ramp at all.
+    ramp: bool,
 }
 
 impl Weights {
     pub fn new(plan: &Plan, blend_px: f64, edges: &[bool]) -> Weights {
         let (cw, ch) = (plan.cw, plan.ch);
         let n = cw * ch;
+        // Ramp width, cells (0: no blend).
+        let ramp = (blend_px / plan.cell as f64) as f32;
+        if ramp <= 0.0 {
+            return Weights { cw, label: plan.label.clone(), near: HashMap::default(), ramp: false };
+        }
         let mut seed = vec![(i32::MIN, i32::MIN); n];
         let mut other = vec![NONE; n];
         for y in 0..ch {
@@ -78,13 +83,20 @@ impl Weights {
                 }
             }
         }
-        let dist = (0..n).map(|k| if seed[k].0 == i32::MIN { f32::INFINITY } else { (d2(k, seed[k]) as f32).sqrt() }).collect();
-        Weights { cw, label: plan.label.clone(), dist, other, hard: edges.to_vec(), ramp: (blend_px / plan.cell as f64) as f32 }
+        // From the cell's centre to the boundary's edge, over the ramp.
+        let near = (0..n)
+            .filter(|&k| seed[k].0 != i32::MIN && !edges[k] && plan.label[k] != NONE)
+            .filter_map(|k| {
+                let own = (0.5 + ((d2(k, seed[k]) as f32).sqrt() + 0.5) / ramp).min(1.0);
+                (own < 1.0).then_some((k as u32, (own, other[k])))
+            })
+            .collect();
+        Weights { cw, label: plan.label.clone(), near, ramp: true }
     }
 
     /// Whether the blend is a ramp (else each pixel takes its cell's image).
     pub fn blends(&self) -> bool {
-        self.ramp > 0.0
+        self.ramp
     }
 
     /// Image `i`'s weight in cell (x, y).
@@ -94,15 +106,10 @@ impl Weights {
         if l == NONE {
             return 0.0;
         }
-        let own = if self.ramp <= 0.0 || self.hard[k] || self.dist[k].is_infinite() {
-            1.0
-        } else {
-            // From the cell's centre to the boundary's edge, over the ramp.
-            (0.5 + (self.dist[k] + 0.5) / self.ramp).min(1.0)
-        };
+        let (own, other) = self.near.get(&(k as u32)).copied().unwrap_or((1.0, NONE));
         if i == l {
             own
-        } else if i == self.other[k] {
+        } else if i == other {
             1.0 - own
         } else {
             0.0
@@ -112,7 +119,7 @@ impl Weights {
     /// The images with a weight in cell (x, y): its own and the one across.
     pub fn images(&self, x: usize, y: usize) -> [u16; 2] {
         let k = y * self.cw + x;
-        let other = if self.weight(x, y, self.other[k]) > 0.0 { self.other[k] } else { NONE };
+        let other = self.near.get(&(k as u32)).map_or(NONE, |&(_, o)| o);
         [self.label[k], other]
     }
 }
