@@ -592,16 +592,11 @@ impl Dem {
         }
     }
 
-    /// Holds in memory the posts under the ground box `b` (ground CRS)
-    /// and `margin` posts around it, where they take at most `max_bytes`:
-    /// a mosaic looks up its own ground, often a small part of a large
-    /// DEM. Lookups elsewhere still find the file's heights, through a
-    /// small cache. A DEM of tiles and one whose box does not fit stay as
-    /// they are (the last read through a cache of up to 16 MB within
-    /// `max_bytes`). Returns whether it holds them.
-    pub fn hold_window(&mut self, b: [f64; 4], margin: usize, max_bytes: u64) -> Result<bool> {
+    /// The posts under the ground box `b` (ground CRS) and `margin` around
+    /// it: `[i0, j0, width, height]`, where the DEM is one grid.
+    fn posts_under(&self, b: [f64; 4], margin: usize) -> Option<[usize; 4]> {
         const ALONG: usize = 32;
-        let HeightModel::Grid(g) = &self.model else { return Ok(false) };
+        let HeightModel::Grid(g) = &self.model else { return None };
         // The box's edge, densely, in the grid's samples.
         let mut edge = Vec::with_capacity(4 * (ALONG + 1));
         for k in 0..=ALONG {
@@ -611,18 +606,79 @@ impl Dem {
         }
         let mut span = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
         for (x, y) in edge {
-            let Some((gx, gy)) = self.in_grid_crs(x, y) else { return Ok(false) };
+            let (gx, gy) = self.in_grid_crs(x, y)?;
             let (c, r) = g.sample_coords(gx, gy);
             span = [span[0].min(c), span[1].min(r), span[2].max(c), span[3].max(r)];
         }
         if !span.iter().all(|v| v.is_finite()) {
-            return Ok(false);
+            return None;
         }
         let m = margin as f64;
         let clamp = |v: f64, n: usize| v.clamp(0.0, n as f64) as usize;
         let (i0, j0) = (clamp(span[0].floor() - m, g.width), clamp(span[1].floor() - m, g.height));
         let (i1, j1) = (clamp(span[2].ceil() + 1.0 + m, g.width), clamp(span[3].ceil() + 1.0 + m, g.height));
-        let (w, h) = (i1.saturating_sub(i0), j1.saturating_sub(j0));
+        Some([i0, j0, i1.saturating_sub(i0), j1.saturating_sub(j0)])
+    }
+
+    /// The bytes of the posts under `b` (and `margin` around).
+    pub fn bytes_under(&self, b: [f64; 4], margin: usize) -> u64 {
+        self.posts_under(b, margin).map_or(0, |[_, _, w, h]| w as u64 * h as u64 * 4)
+    }
+
+    /// A DEM of the same file holding in memory only the posts under `b`
+    /// (and `margin` around), read again from the file, the rest through a
+    /// small cache: the heights of a strip of a mosaic, let go with it.
+    /// `None` where this DEM is not one grid file or the posts take more
+    /// than `max_bytes` (this one then serves).
+    pub fn posts_for(&self, b: [f64; 4], margin: usize, max_bytes: u64) -> Result<Option<Dem>> {
+        let HeightModel::Grid(g) = &self.model else { return Ok(None) };
+        if !matches!(g.data, Samples::Memory(_) | Samples::Chunked(_) | Samples::Window { .. }) {
+            return Ok(None);
+        }
+        let Some(at @ [_, _, w, h]) = self.posts_under(b, margin) else { return Ok(None) };
+        let bytes = w as u64 * h as u64 * 4;
+        if w < 2 || h < 2 || bytes > max_bytes {
+            return Ok(None);
+        }
+        // (Budget 0: read a chunk at a time, a cache of four.)
+        let Samples::Chunked(rest) = GridDem::read_within(&self.path, 0)?.data else { return Ok(None) };
+        let data = rest.read_window(at)?;
+        let grid = GridDem { data: Samples::Window { at, data, rest }, crs: g.crs.clone(), ..*g };
+        Ok(Some(Dem {
+            model: HeightModel::Grid(grid),
+            on_hole: self.on_hole,
+            on_outside: self.on_outside,
+            path: self.path.clone(),
+            to_dem: self.to_dem.clone(),
+            warnings: Vec::new(),
+            mean: self.mean.clone(),
+            range: self.range.clone(),
+            window_bytes: Some(bytes),
+        }))
+    }
+
+    /// Lets go of the posts held in memory (read whole, or a window), the
+    /// file then read through a small cache (where the DEM is one grid
+    /// file): once a mosaic's strips hold their own ([`Dem::posts_for`]).
+    pub fn let_go_of_posts(&mut self) -> Result<()> {
+        let HeightModel::Grid(g) = &mut self.model else { return Ok(()) };
+        if matches!(g.data, Samples::Memory(_) | Samples::Window { .. }) {
+            if let Samples::Chunked(c) = GridDem::read_within(&self.path, 0)?.data {
+                g.data = Samples::Chunked(c);
+            }
+        }
+        Ok(())
+    }
+
+    /// Holds in memory the posts under the ground box `b` (ground CRS)
+    /// and `margin` posts around it, where they take at most `max_bytes`:
+    /// a mosaic looks up its own ground, often a small part of a large
+    /// DEM. Lookups elsewhere still find the file's heights, through a
+    /// small cache. A DEM of tiles and one whose box does not fit stay as
+    /// they are (the last read through a cache of up to 16 MB within
+    /// `max_bytes`). Returns whether it holds them.
+    pub fn hold_window(&mut self, b: [f64; 4], margin: usize, max_bytes: u64) -> Result<bool> {
+        let Some([i0, j0, w, h]) = self.posts_under(b, margin) else { return Ok(false) };
         let bytes = w as u64 * h as u64 * 4;
         self.window_bytes = Some(bytes);
         let HeightModel::Grid(g) = &mut self.model else { return Ok(false) };
@@ -1091,6 +1147,14 @@ mod tests {
             // The box's edges lie halfway between posts: posts 29..=60
             // across and 19..=40 down for its bilinear cells, 2 more around.
             assert_eq!((window, held.whole_bytes()), (36 * 26 * 4, 36 * 26 * 4), "{chunking:?}");
+            // A strip of a mosaic's own posts, read again from the file; the
+            // DEM read whole, once it lets go of its posts, through its cache.
+            let strip = whole.posts_for(b, 2, 64 << 10).unwrap().expect("one grid file");
+            assert_eq!((strip.held_bytes() - 4 * chunk * 4, whole.bytes_under(b, 2)), (36 * 26 * 4, 36 * 26 * 4), "{chunking:?}");
+            assert!(whole.posts_for(b, 2, 36 * 26 * 4 - 1).unwrap().is_none(), "{chunking:?}: a window past its budget");
+            let mut gone = Dem::open(&path, &crs).unwrap();
+            gone.let_go_of_posts().unwrap();
+            assert_eq!(gone.held_bytes(), 4 * chunk * 4, "{chunking:?}");
             let (mut xs, mut ys) = (Vec::new(), Vec::new());
             for jj in 0..(70 * 4) {
                 for ii in 0..(100 * 4) {
@@ -1098,6 +1162,8 @@ mod tests {
                     assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", held.lookup(x, y)), "{chunking:?} at ({x}, {y})");
                     assert_eq!(whole.height_gradient(x, y), held.height_gradient(x, y), "{chunking:?} at ({x}, {y})");
                     assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", cropped.lookup(x, y)), "{chunking:?} at ({x}, {y})");
+                    assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", strip.lookup(x, y)), "{chunking:?} at ({x}, {y})");
+                    assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", gone.lookup(x, y)), "{chunking:?} at ({x}, {y})");
                     xs.push(x);
                     ys.push(y);
                 }

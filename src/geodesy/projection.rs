@@ -6,6 +6,7 @@ use super::crs::Crs;
 use proj4rs::Proj;
 
 /// A CRS able to convert its (X, Y) to and from WGS84 longitude/latitude.
+#[derive(Clone)]
 pub struct GroundCrs {
     pub crs: Crs,
     /// `None` for WGS84 longitude/latitude itself: no conversion at all.
@@ -79,6 +80,7 @@ pub fn utm_zone(lon: f64, lat: f64) -> Crs {
 
 /// Points of one CRS into another, through WGS84 (identity when both are
 /// the same CRS).
+#[derive(Clone)]
 pub struct Reprojection {
     from: GroundCrs,
     to: GroundCrs,

@@ -301,6 +301,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs, grid: like.map(|(g, _)| g), memory: o.memory, cell, thumbnails: o.plan_in.is_none() };
         let mut plan = Plan::make(jobs.into_iter().map(|j| (j.name, j.config)).collect(), &settings, progress)?;
         let t_plan = wall.elapsed().as_secs_f64();
+        crate::pipeline::release_free_memory();
         if cancel.is_cancelled() {
             return Err(Error::Cancelled);
         }
@@ -381,16 +382,17 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
                 0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
                 n => n,
             };
+            let true_ortho = plan.images.iter().any(|im| o.occlusion.unwrap_or(im.opts.occlusion) != Occlusion::None);
+            // Where an image may not see the ground, every image that sees the
+            // cell is made there, so that another can fill what it hides.
+            let prone = true_ortho.then(|| render::occlusion_prone(&plan));
+            plan.forget_for_render()?;
             let opts_of = |i: usize| {
                 let own = &plan.images[i].opts;
                 RectifyOptions { threads, sync: false, occlusion: o.occlusion.unwrap_or(own.occlusion), ..own.clone() }
             };
-            let true_ortho = (0..plan.images.len()).any(|i| opts_of(i).occlusion != Occlusion::None);
-            // Where an image may not see the ground, every image that sees the
-            // cell is made there, so that another can fill what it hides.
-            let prone = true_ortho.then(|| render::occlusion_prone(&plan));
             works = within(&render::work(&plan, &weights, tile, prone.as_deref(), opts_of), window);
-            plan.forget_for_render();
+            crate::pipeline::release_free_memory();
 
             let t = Instant::now();
             let (fill, _) = fill_of(plan.images[0].sample, first.nodata)?;
@@ -423,6 +425,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
                 progress,
                 cancel,
                 source: &piece_source,
+                memory: o.memory,
             };
             // Strips of tile columns, as wide as the memory holds (one, the
             // whole width, where it holds that), each band of each made in turn
@@ -669,7 +672,7 @@ fn column_strips(plan: &Plan, works: &[render::ImageWork], spec: &OutputSpec, wi
         let (mut fits, mut worst) = (Vec::new(), None::<render::Short>);
         for c0 in (tc0..tc0 + tcw).step_by(wide as usize) {
             let strip = [c0, tr0, wide.min(tc0 + tcw - c0), trh];
-            match render::budget(plan, &within(works, strip), spec, strip[2], (tr0, trh), memory) {
+            match render::budget(plan, &within(works, strip), spec, strip, memory) {
                 Ok(fit) => fits.push((strip, fit)),
                 Err(short) => worst = Some(worst.filter(|w| w.enough >= short.enough).unwrap_or(short)),
             }
@@ -710,6 +713,8 @@ struct PieceRender<'a> {
     cancel: &'a Cancel,
     /// What the mosaic is made from ([`source_key`]).
     source: &'a str,
+    /// The run's budget, bytes (each strip's DEM posts take a share).
+    memory: u64,
 }
 
 impl PieceRender<'_> {
@@ -726,17 +731,22 @@ impl PieceRender<'_> {
         hidden: &mut [(u64, u64)],
     ) -> Result<crate::overview::Statistics> {
         let [tc0, tr0, tx, ty] = window;
-        let works: Vec<Vec<render::ImageWork>> = strips
-            .iter()
-            .map(|&(strip, (_, share))| {
-                let mut works = within(self.works, strip);
-                for w in &mut works {
-                    w.opts.memory = share;
-                    w.opts.geometry_memory = Some(render::least_share(spec));
-                }
-                works
-            })
-            .collect();
+        // Each strip's works, made as it starts (with the DEMs' posts under
+        // it) and let go when it ends.
+        let tile = spec.chunk().0;
+        let (grid, crs) = (self.plan.grid, &self.plan.crs);
+        let works_of = |&(strip, (_, share)): &StripPlan| -> Result<Vec<render::ImageWork>> {
+            let [c0, r0, w, h] = strip;
+            let px = [c0 * tile, r0 * tile, ((c0 + w) * tile).min(grid.width), ((r0 + h) * tile).min(grid.height)];
+            let dems = self.plan.dems_for(px, self.memory)?;
+            let mut works = within(self.works, strip);
+            for w in &mut works {
+                w.opts.memory = share;
+                w.opts.geometry_memory = Some(render::least_share(spec));
+                w.dem = Some((dems[self.plan.images[w.image].dem].clone(), crs.clone()));
+            }
+            Ok(works)
+        };
         let columns: Vec<(u32, u32)> = strips.iter().map(|(s, _)| (s[0] - tc0, s[0] - tc0 + s[2])).collect();
         let (cancel, progress) = (self.cancel, self.progress);
         progress.start(&Task {
@@ -759,15 +769,18 @@ impl PieceRender<'_> {
         };
         let sample = self.plan.images[0].sample;
         let written = std::thread::scope(|s| {
-            let mut feeds: Option<(usize, render::Feeds)> = None;
+            let mut feeds: Option<(usize, Vec<render::ImageWork>, render::Feeds)> = None;
             write_bands(&writing, pending, &columns, |k, b| {
-                if feeds.as_ref().is_none_or(|(j, _)| *j != k) {
+                if feeds.as_ref().is_none_or(|(j, _, _)| *j != k) {
                     // The strip before is done: its images' threads have ended.
                     feeds = None;
-                    feeds = Some((k, render::Feeds::new(s, works[k].len(), strips[k].1 .0)));
+                    crate::pipeline::release_free_memory();
+                    let works = works_of(&strips[k])?;
+                    let n = works.len();
+                    feeds = Some((k, works, render::Feeds::new(s, n, strips[k].1 .0)));
                 }
-                let feeds = &mut feeds.as_mut().expect("just made").1;
-                let works = &works[k];
+                let (_, works, feeds) = feeds.as_mut().expect("just made");
+                let works = &*works;
                 // The piece's band b is the mosaic's tr0 + b.
                 let got = feeds.band(works, tr0 + b, cancel, progress)?;
                 for (j, band) in &got {

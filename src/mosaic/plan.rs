@@ -217,10 +217,31 @@ impl Plan {
         self.store.rows(&self.images[k].stored, rows, false)
     }
 
-    /// Drops what the render does not read once the images' works are
-    /// made from it: the cells' heights.
-    pub fn forget_for_render(&mut self) {
+    /// Drops what the render does not read, before the images' works are
+    /// made from it: the cells' heights, and the DEMs' posts (each strip
+    /// of the render holds its own, [`Plan::dems_for`]).
+    pub fn forget_for_render(&mut self) -> Result<()> {
         self.heights = Vec::new();
+        for d in &mut self.dems {
+            if let Some(d) = std::sync::Arc::get_mut(d) {
+                d.let_go_of_posts()?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Each DEM as a render of the mosaic's pixels `px` (`[x0, y0, x1,
+    /// y1)`) looks it up: the posts under them in memory where they take at
+    /// most its share of `memory`, else the plan's own (through its cache).
+    pub fn dems_for(&self, px: [u32; 4], memory: u64) -> Result<Vec<std::sync::Arc<Dem>>> {
+        let b = ground_box(&self.grid, px);
+        self.dems.iter().map(|d| Ok(d.posts_for(b, DEM_MARGIN, memory / DEM_SHARE)?.map_or_else(|| d.clone(), std::sync::Arc::new))).collect()
+    }
+
+    /// The bytes [`Plan::dems_for`] holds for `px` (the plan's caches too).
+    pub fn dem_bytes_for(&self, px: [u32; 4], memory: u64) -> u64 {
+        let b = ground_box(&self.grid, px);
+        self.dems.iter().map(|d| d.held_bytes() + Some(d.bytes_under(b, DEM_MARGIN)).filter(|&n| n <= memory / DEM_SHARE).unwrap_or(0)).sum()
     }
 
     #[inline]
@@ -373,17 +394,10 @@ impl Plan {
         let (cw, ch) = (grid.width.div_ceil(cell) as usize, grid.height.div_ceil(cell) as usize);
         // Of a large DEM, the posts under the mosaic in memory (within its
         // share), before any image's render shares it.
-        let [gx0, gy1] = {
-            let (x, y) = grid.ground(0.0, 0.0);
-            [x, y]
-        };
-        let [gx1, gy0] = {
-            let (x, y) = grid.ground(grid.width as f64, grid.height as f64);
-            [x, y]
-        };
+        let whole = ground_box(&grid, [0, 0, grid.width, grid.height]);
         for d in &mut dems {
             if let Some(d) = std::sync::Arc::get_mut(d) {
-                d.hold_window([gx0.min(gx1), gy0.min(gy1), gx0.max(gx1), gy0.max(gy1)], DEM_MARGIN, s.memory / DEM_SHARE)?;
+                d.hold_window(whole, DEM_MARGIN, s.memory / DEM_SHARE)?;
             }
         }
         let mut plan =
@@ -507,6 +521,14 @@ impl Plan {
         }
         Ok(())
     }
+}
+
+/// The ground box `[x0, y0, x1, y1]` of the grid's pixels `[x0, y0, x1,
+/// y1)` (columns, rows).
+fn ground_box(grid: &OutputGrid, [c0, r0, c1, r1]: [u32; 4]) -> [f64; 4] {
+    let (ax, ay) = grid.ground(c0 as f64, r0 as f64);
+    let (bx, by) = grid.ground(c1 as f64, r1 as f64);
+    [ax.min(bx), ay.min(by), ax.max(bx), ay.max(by)]
 }
 
 /// The image's low-resolution orthophoto on the cells of its box: its scan

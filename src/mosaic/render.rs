@@ -204,10 +204,12 @@ pub fn least_share(spec: &OutputSpec) -> u64 {
 /// many as it holds at [`MIN_SHARE`] each, up to all the images those two
 /// bands need (more at once keep the cores busy through each one's serial
 /// stages). Returns how many at once, and each one's memory.
-pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, across: u32, (b0, n): (u32, u32), memory: u64) -> std::result::Result<Fit, Short> {
+pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, strip: [u32; 4], memory: u64) -> std::result::Result<Fit, Short> {
+    let [c0, b0, across, n] = strip;
     let tile = spec.chunk().0 as u64;
     let band_bytes = crate::pipeline::band_writer::held_bytes(spec, across);
-    let dems = plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>();
+    let strip_px = [c0 * tile as u32, b0 * tile as u32, ((c0 + across) * tile as u32).min(plan.grid.width), ((b0 + n) * tile as u32).min(plan.grid.height)];
+    let dems = plan.dem_bytes_for(strip_px, memory);
     let arrays = plan.images.iter().map(|i| i.seen.bytes()).sum::<u64>() + plan.label.len() as u64 * 12 + plan.heights.len() as u64 * 4;
     let plan_bytes = arrays + dems;
     let image_tile = spec.tile_bytes() as u64 + tile * tile;
@@ -236,7 +238,7 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, across: u32, 
         for _ in 0..16 {
             let side = super::plan::cell_side(px, enough) as u64;
             let arrays_then = arrays * (px / (side * side)).max(cells) / cells;
-            let dems_then = plan.dems.iter().map(|d| d.whole_bytes().min(enough / super::plan::DEM_SHARE).max(d.held_bytes())).sum::<u64>();
+            let dems_then = plan.dem_bytes_for(strip_px, enough);
             let need = other + min_share + arrays_then + dems_then;
             let need = need + need / 16;
             if need <= enough {
@@ -666,14 +668,14 @@ impl<'scope, 'env> Feeds<'scope, 'env> {
     /// The bands of band `b` from the images that have it (starting those
     /// whose first band is `b` or the next, and letting the next band's
     /// be made meanwhile).
-    pub fn band(&mut self, works: &'env [ImageWork], b: u32, cancel: &'env Cancel, warn: &'env dyn Progress) -> Result<Vec<(usize, BandPixels)>> {
+    pub fn band(&mut self, works: &[ImageWork], b: u32, cancel: &'env Cancel, warn: &'env dyn Progress) -> Result<Vec<(usize, BandPixels)>> {
         for (k, w) in works.iter().enumerate() {
             let first = *w.bands.keys().next().unwrap_or(&u32::MAX);
             if !self.started[k] && first <= b + 1 {
                 self.started[k] = true;
                 let (tx, rx) = bounded(1);
                 self.receivers[k] = Some(rx);
-                let turns = self.turns.clone();
+                let (turns, w) = (self.turns.clone(), w.clone());
                 self.scope.spawn(move || {
                     let requests = w.requests();
                     let (x0, y0) = w.origin;

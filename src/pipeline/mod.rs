@@ -32,6 +32,6 @@ mod threaded;
 
 pub use budget::MemoryBudget;
 pub use rectify::rectify;
-pub use report::{peak_rss_mib, Hidden, Report, StageTimes};
+pub use report::{peak_rss_mib, release_free_memory, Hidden, Report, StageTimes};
 pub use setup::{tiles_memory, RunPlan};
 pub use stages::resample::{Made, Raw};
