@@ -628,8 +628,9 @@ impl Dem {
     /// A DEM of the same file holding in memory only the posts under `b`
     /// (and `margin` around), read again from the file, the rest through a
     /// small cache: the heights of a strip of a mosaic, let go with it.
-    /// `None` where this DEM is not one grid file or the posts take more
-    /// than `max_bytes` (this one then serves).
+    /// Where the posts take more than `max_bytes`, all through a cache
+    /// within it. `None` where this DEM is not one grid file (this one then
+    /// serves).
     pub fn posts_for(&self, b: [f64; 4], margin: usize, max_bytes: u64) -> Result<Option<Dem>> {
         let HeightModel::Grid(g) = &self.model else { return Ok(None) };
         if !matches!(g.data, Samples::Memory(_) | Samples::Chunked(_) | Samples::Window { .. }) {
@@ -637,13 +638,18 @@ impl Dem {
         }
         let Some(at @ [_, _, w, h]) = self.posts_under(b, margin) else { return Ok(None) };
         let bytes = w as u64 * h as u64 * 4;
-        if w < 2 || h < 2 || bytes > max_bytes {
+        if w < 2 || h < 2 {
             return Ok(None);
         }
         // (Budget 0: read a chunk at a time, a cache of four.)
         let Samples::Chunked(rest) = GridDem::read_within(&self.path, 0)?.data else { return Ok(None) };
-        let data = rest.read_window(at)?;
-        let grid = GridDem { data: Samples::Window { at, data, rest }, crs: g.crs.clone(), ..*g };
+        let data = match bytes <= max_bytes {
+            true => Samples::Window { at, data: rest.read_window(at)?, rest },
+            // Too many posts: all through a cache of up to 16 MB within the
+            // budget, as a grid larger than its budget is read.
+            false => Samples::Chunked(Box::new(rest.recached((max_bytes as usize).min(16 << 20)))),
+        };
+        let grid = GridDem { data, crs: g.crs.clone(), ..*g };
         Ok(Some(Dem {
             model: HeightModel::Grid(grid),
             on_hole: self.on_hole,
@@ -653,19 +659,26 @@ impl Dem {
             warnings: Vec::new(),
             mean: self.mean.clone(),
             range: self.range.clone(),
-            window_bytes: Some(bytes),
+            window_bytes: Some(bytes.min(max_bytes)),
         }))
     }
 
-    /// Lets go of the posts held in memory (read whole, or a window), the
-    /// file then read through a small cache (where the DEM is one grid
-    /// file): once a mosaic's strips hold their own ([`Dem::posts_for`]).
+    /// Lets go of the posts held in memory (read whole, a window, or a
+    /// large cache), the file then read through the least cache (where the
+    /// DEM is one grid file): once a mosaic's strips hold their own
+    /// ([`Dem::posts_for`]).
     pub fn let_go_of_posts(&mut self) -> Result<()> {
         let HeightModel::Grid(g) = &mut self.model else { return Ok(()) };
-        if matches!(g.data, Samples::Memory(_) | Samples::Window { .. }) {
-            if let Samples::Chunked(c) = GridDem::read_within(&self.path, 0)?.data {
-                g.data = Samples::Chunked(c);
+        match std::mem::replace(&mut g.data, Samples::Memory(Vec::new())) {
+            // A grid read through a cache keeps the least one (four chunks).
+            Samples::Chunked(c) => g.data = Samples::Chunked(Box::new(c.recached(0))),
+            held @ (Samples::Memory(_) | Samples::Window { .. }) => {
+                g.data = held;
+                if let Samples::Chunked(c) = GridDem::read_within(&self.path, 0)?.data {
+                    g.data = Samples::Chunked(c);
+                }
             }
+            other => g.data = other,
         }
         Ok(())
     }
@@ -1151,7 +1164,8 @@ mod tests {
             // DEM read whole, once it lets go of its posts, through its cache.
             let strip = whole.posts_for(b, 2, 64 << 10).unwrap().expect("one grid file");
             assert_eq!((strip.held_bytes() - 4 * chunk * 4, whole.bytes_under(b, 2)), (36 * 26 * 4, 36 * 26 * 4), "{chunking:?}");
-            assert!(whole.posts_for(b, 2, 36 * 26 * 4 - 1).unwrap().is_none(), "{chunking:?}: a window past its budget");
+            let cached = whole.posts_for(b, 2, 36 * 26 * 4 - 1).unwrap().expect("one grid file");
+            assert!(grid(&strip) && !grid(&cached), "{chunking:?}: a window past its budget is read through a cache");
             let mut gone = Dem::open(&path, &crs).unwrap();
             gone.let_go_of_posts().unwrap();
             assert_eq!(gone.held_bytes(), 4 * chunk * 4, "{chunking:?}");
@@ -1164,6 +1178,7 @@ mod tests {
                     assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", cropped.lookup(x, y)), "{chunking:?} at ({x}, {y})");
                     assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", strip.lookup(x, y)), "{chunking:?} at ({x}, {y})");
                     assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", gone.lookup(x, y)), "{chunking:?} at ({x}, {y})");
+                    assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", cached.lookup(x, y)), "{chunking:?} at ({x}, {y})");
                     xs.push(x);
                     ys.push(y);
                 }

@@ -16,6 +16,7 @@ pub mod render;
 pub mod resume;
 pub mod seamlines;
 pub mod seams;
+pub mod strip_heights;
 pub mod turns;
 pub mod weights;
 
@@ -33,6 +34,7 @@ use plan::{Plan, PlanSettings, NONE};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use strip_heights::StripHeights;
 
 #[derive(Clone, Debug)]
 pub struct MosaicOptions {
@@ -731,21 +733,17 @@ impl PieceRender<'_> {
         hidden: &mut [(u64, u64)],
     ) -> Result<crate::overview::Statistics> {
         let [tc0, tr0, tx, ty] = window;
-        // Each strip's works, made as it starts (with the DEMs' posts under
-        // it) and let go when it ends.
+        // Each strip's works, made as it starts and let go when it ends;
+        // the DEMs' posts its images look up, a cohort of them at a time.
         let tile = spec.chunk().0;
-        let (grid, crs) = (self.plan.grid, &self.plan.crs);
-        let works_of = |&(strip, (_, share)): &StripPlan| -> Result<Vec<render::ImageWork>> {
-            let [c0, r0, w, h] = strip;
-            let px = [c0 * tile, r0 * tile, ((c0 + w) * tile).min(grid.width), ((r0 + h) * tile).min(grid.height)];
-            let dems = self.plan.dems_for(px, self.memory)?;
+        let works_of = |&(strip, (_, share)): &StripPlan| -> (Vec<render::ImageWork>, StripHeights) {
             let mut works = within(self.works, strip);
             for w in &mut works {
                 w.opts.memory = share;
                 w.opts.geometry_memory = Some(render::least_share(spec));
-                w.dem = Some((dems[self.plan.images[w.image].dem].clone(), crs.clone()));
             }
-            Ok(works)
+            let heights = StripHeights::new(&works);
+            (works, heights)
         };
         let columns: Vec<(u32, u32)> = strips.iter().map(|(s, _)| (s[0] - tc0, s[0] - tc0 + s[2])).collect();
         let (cancel, progress) = (self.cancel, self.progress);
@@ -769,20 +767,25 @@ impl PieceRender<'_> {
         };
         let sample = self.plan.images[0].sample;
         let written = std::thread::scope(|s| {
-            let mut feeds: Option<(usize, Vec<render::ImageWork>, render::Feeds)> = None;
+            let mut feeds: Option<(usize, Vec<render::ImageWork>, StripHeights, render::Feeds)> = None;
             write_bands(&writing, pending, &columns, |k, b| {
-                if feeds.as_ref().is_none_or(|(j, _, _)| *j != k) {
+                if feeds.as_ref().is_none_or(|(j, _, _, _)| *j != k) {
                     // The strip before is done: its images' threads have ended.
                     feeds = None;
                     crate::pipeline::release_free_memory();
-                    let works = works_of(&strips[k])?;
+                    let (works, heights) = works_of(&strips[k]);
                     let n = works.len();
-                    feeds = Some((k, works, render::Feeds::new(s, n, strips[k].1 .0)));
+                    feeds = Some((k, works, heights, render::Feeds::new(s, n, strips[k].1 .0)));
                 }
-                let (_, works, feeds) = feeds.as_mut().expect("just made");
-                let works = &*works;
+                let (_, works, heights, feeds) = feeds.as_mut().expect("just made");
                 // The piece's band b is the mosaic's tr0 + b.
+                let given = heights.give(self.plan, works, tr0 + b, tile, self.memory)?;
                 let got = feeds.band(works, tr0 + b, cancel, progress)?;
+                // The images started hold their DEMs themselves.
+                for j in given {
+                    works[j].dem = None;
+                }
+                let works = &*works;
                 for (j, band) in &got {
                     if let Some(s) = &band.seen {
                         hidden[works[*j].image].0 += s.imaged;

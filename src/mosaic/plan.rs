@@ -232,7 +232,8 @@ impl Plan {
 
     /// Each DEM as a render of the mosaic's pixels `px` (`[x0, y0, x1,
     /// y1)`) looks it up: the posts under them in memory where they take at
-    /// most its share of `memory`, else the plan's own (through its cache).
+    /// most its share of `memory`, else through a cache within it (a DEM
+    /// not one grid file: the plan's own).
     pub fn dems_for(&self, px: [u32; 4], memory: u64) -> Result<Vec<std::sync::Arc<Dem>>> {
         let b = ground_box(&self.grid, px);
         self.dems.iter().map(|d| Ok(d.posts_for(b, DEM_MARGIN, memory / DEM_SHARE)?.map_or_else(|| d.clone(), std::sync::Arc::new))).collect()
@@ -241,7 +242,9 @@ impl Plan {
     /// The bytes [`Plan::dems_for`] holds for `px` (the plan's caches too).
     pub fn dem_bytes_for(&self, px: [u32; 4], memory: u64) -> u64 {
         let b = ground_box(&self.grid, px);
-        self.dems.iter().map(|d| d.held_bytes() + Some(d.bytes_under(b, DEM_MARGIN)).filter(|&n| n <= memory / DEM_SHARE).unwrap_or(0)).sum()
+        let share = memory / DEM_SHARE;
+        // Posts past the share: read through a cache of up to 16 MB of it.
+        self.dems.iter().map(|d| d.held_bytes() + Some(d.bytes_under(b, DEM_MARGIN)).filter(|&n| n <= share).unwrap_or(share.min(16 << 20))).sum()
     }
 
     #[inline]

@@ -205,11 +205,11 @@ pub fn least_share(spec: &OutputSpec) -> u64 {
 /// bands need (more at once keep the cores busy through each one's serial
 /// stages). Returns how many at once, and each one's memory.
 pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, strip: [u32; 4], memory: u64) -> std::result::Result<Fit, Short> {
-    let [c0, b0, across, n] = strip;
+    let [_, b0, across, n] = strip;
     let tile = spec.chunk().0 as u64;
     let band_bytes = crate::pipeline::band_writer::held_bytes(spec, across);
-    let strip_px = [c0 * tile as u32, b0 * tile as u32, ((c0 + across) * tile as u32).min(plan.grid.width), ((b0 + n) * tile as u32).min(plan.grid.height)];
-    let dems = plan.dem_bytes_for(strip_px, memory);
+    let heights = super::strip_heights::StripHeights::new(works);
+    let dems = heights.most_bytes(plan, tile as u32, memory);
     let arrays = plan.images.iter().map(|i| i.seen.bytes()).sum::<u64>() + plan.label.len() as u64 * 12 + plan.heights.len() as u64 * 4;
     let plan_bytes = arrays + dems;
     let image_tile = spec.tile_bytes() as u64 + tile * tile;
@@ -238,7 +238,7 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, strip: [u32; 
         for _ in 0..16 {
             let side = super::plan::cell_side(px, enough) as u64;
             let arrays_then = arrays * (px / (side * side)).max(cells) / cells;
-            let dems_then = plan.dem_bytes_for(strip_px, enough);
+            let dems_then = heights.most_bytes(plan, tile as u32, enough);
             let need = other + min_share + arrays_then + dems_then;
             let need = need + need / 16;
             if need <= enough {
