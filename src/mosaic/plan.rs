@@ -34,6 +34,9 @@ pub const BUDGET_PER_CELL: u64 = 128;
 /// every wall pixel: through the cache a sixth slower).
 pub const DEM_SHARE: u64 = 4;
 
+/// A mosaic's DEM up to this size is read whole as it is opened.
+const OPEN_WHOLE: u64 = 16 << 20;
+
 /// Posts held around the mosaic's ground: a render's last nodes may lie a
 /// little past its edge.
 const DEM_MARGIN: usize = 8;
@@ -279,7 +282,11 @@ impl Plan {
                 DemSource::File(p) => match dem_of.get(p) {
                     Some(&k) => k,
                     None => {
-                        let mut d = Dem::open_within(p, &ground, s.memory / DEM_SHARE)?;
+                        // Read whole only when small: of a larger DEM only
+                        // the posts under the mosaic are read, once its grid
+                        // is known (before, the footprints look it up
+                        // through a cache).
+                        let mut d = Dem::open_within(p, &ground, (s.memory / DEM_SHARE).min(OPEN_WHOLE))?;
                         for w in &d.warnings {
                             progress.warn(w);
                         }
