@@ -584,6 +584,11 @@ impl Dem {
         }
     }
 
+    /// Is it one grid file (what [`Dem::posts_for`] reads a window of)?
+    pub fn is_grid(&self) -> bool {
+        matches!(&self.model, HeightModel::Grid(g) if matches!(g.data, Samples::Memory(_) | Samples::Chunked(_) | Samples::Window { .. }))
+    }
+
     /// Its heights' bytes, read whole (what a larger budget may hold).
     pub fn whole_bytes(&self) -> u64 {
         match &self.model {
@@ -628,10 +633,10 @@ impl Dem {
     /// A DEM of the same file holding in memory only the posts under `b`
     /// (and `margin` around), read again from the file, the rest through a
     /// small cache: the heights of a strip of a mosaic, let go with it.
-    /// Where the posts take more than `max_bytes`, all through a cache
-    /// within it. `None` where this DEM is not one grid file (this one then
-    /// serves).
-    pub fn posts_for(&self, b: [f64; 4], margin: usize, max_bytes: u64) -> Result<Option<Dem>> {
+    /// Where the posts take more than `max_bytes`, all through a cache of
+    /// `cache_bytes` (four chunks at least). `None` where this DEM is not
+    /// one grid file (this one then serves).
+    pub fn posts_for(&self, b: [f64; 4], margin: usize, max_bytes: u64, cache_bytes: u64) -> Result<Option<Dem>> {
         let HeightModel::Grid(g) = &self.model else { return Ok(None) };
         if !matches!(g.data, Samples::Memory(_) | Samples::Chunked(_) | Samples::Window { .. }) {
             return Ok(None);
@@ -645,9 +650,7 @@ impl Dem {
         let Samples::Chunked(rest) = GridDem::read_within(&self.path, 0)?.data else { return Ok(None) };
         let data = match bytes <= max_bytes {
             true => Samples::Window { at, data: rest.read_window(at)?, rest },
-            // Too many posts: all through a cache of up to 16 MB within the
-            // budget, as a grid larger than its budget is read.
-            false => Samples::Chunked(Box::new(rest.recached((max_bytes as usize).min(16 << 20)))),
+            false => Samples::Chunked(Box::new(rest.recached(cache_bytes as usize))),
         };
         let grid = GridDem { data, crs: g.crs.clone(), ..*g };
         Ok(Some(Dem {
@@ -659,7 +662,7 @@ impl Dem {
             warnings: Vec::new(),
             mean: self.mean.clone(),
             range: self.range.clone(),
-            window_bytes: Some(bytes.min(max_bytes)),
+            window_bytes: Some(bytes),
         }))
     }
 
@@ -1162,9 +1165,9 @@ mod tests {
             assert_eq!((window, held.whole_bytes()), (36 * 26 * 4, 36 * 26 * 4), "{chunking:?}");
             // A strip of a mosaic's own posts, read again from the file; the
             // DEM read whole, once it lets go of its posts, through its cache.
-            let strip = whole.posts_for(b, 2, 64 << 10).unwrap().expect("one grid file");
+            let strip = whole.posts_for(b, 2, 64 << 10, 0).unwrap().expect("one grid file");
             assert_eq!((strip.held_bytes() - 4 * chunk * 4, whole.bytes_under(b, 2)), (36 * 26 * 4, 36 * 26 * 4), "{chunking:?}");
-            let cached = whole.posts_for(b, 2, 36 * 26 * 4 - 1).unwrap().expect("one grid file");
+            let cached = whole.posts_for(b, 2, 36 * 26 * 4 - 1, 0).unwrap().expect("one grid file");
             assert!(grid(&strip) && !grid(&cached), "{chunking:?}: a window past its budget is read through a cache");
             let mut gone = Dem::open(&path, &crs).unwrap();
             gone.let_go_of_posts().unwrap();

@@ -216,6 +216,19 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
         .output()
         .unwrap();
     assert!(out.status.success() && d.join("out.tif").exists());
+    // From an absurd budget (the plan then a cell or two): a figure near
+    // that one, which runs as well.
+    let tried = |memory: &str| {
+        std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "one.tif", "--memory", memory, "--quiet"]).output().unwrap()
+    };
+    let one = tried("1");
+    let said = String::from_utf8_lossy(&one.stderr);
+    assert_eq!(one.status.code(), Some(2), "{said}");
+    let from_one = said.split("give --memory ").nth(1).and_then(|t| t.split_whitespace().next()).expect("a figure").to_string();
+    let mib = |f: &str| f.trim_end_matches('M').parse::<i64>().unwrap_or_else(|_| panic!("{f}"));
+    assert!((mib(&from_one) - mib(&enough)).abs() <= 8, "{from_one} from 1 byte, {enough} from 20M");
+    let one = tried(&from_one);
+    assert!(one.status.success(), "{}", String::from_utf8_lossy(&one.stderr));
     // That budget makes the plan coarser than the default: said, with the
     // figure that makes it as fine, and that figure plans as finely.
     let err = String::from_utf8_lossy(&out.stderr).to_string();

@@ -742,7 +742,8 @@ impl PieceRender<'_> {
                 w.opts.memory = share;
                 w.opts.geometry_memory = Some(render::least_share(spec));
             }
-            let heights = StripHeights::new(&works);
+            let mut heights = StripHeights::new(&works);
+            heights.settle(self.plan, tile, self.memory);
             (works, heights)
         };
         let columns: Vec<(u32, u32)> = strips.iter().map(|(s, _)| (s[0] - tc0, s[0] - tc0 + s[2])).collect();
@@ -779,7 +780,7 @@ impl PieceRender<'_> {
                 }
                 let (_, works, heights, feeds) = feeds.as_mut().expect("just made");
                 // The piece's band b is the mosaic's tr0 + b.
-                let given = heights.give(self.plan, works, tr0 + b, tile, self.memory)?;
+                let given = heights.give(self.plan, works, tr0 + b, tile)?;
                 let got = feeds.band(works, tr0 + b, cancel, progress)?;
                 // The images started hold their DEMs themselves.
                 for j in given {

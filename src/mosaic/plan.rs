@@ -57,6 +57,8 @@ pub struct PlanImage {
     pub gsd: f64,
     /// The box of cells that may see it: `[x0, y0, x1, y1)`.
     pub cells: [usize; 4],
+    /// The box of the mosaic's pixels its footprint spans: `[x0, y0, x1, y1)`.
+    pub pixels: [u32; 4],
     /// Its low-resolution orthophoto on the cells of the box and where in
     /// the scan it sees each, in the plan's store ([`Plan::rows_of`]).
     pub stored: Stored,
@@ -234,20 +236,19 @@ impl Plan {
     }
 
     /// Each DEM as a render of the mosaic's pixels `px` (`[x0, y0, x1,
-    /// y1)`) looks it up: the posts under them in memory where they take at
-    /// most its share of `memory`, else through a cache within it (a DEM
-    /// not one grid file: the plan's own).
-    pub fn dems_for(&self, px: [u32; 4], memory: u64) -> Result<Vec<std::sync::Arc<Dem>>> {
+    /// y1)`) looks it up: with `hold`, the posts under them in memory, else
+    /// through a cache of `cache` bytes (a DEM not one grid file: the
+    /// plan's own).
+    pub fn dems_for(&self, px: [u32; 4], hold: bool, cache: u64) -> Result<Vec<std::sync::Arc<Dem>>> {
         let b = ground_box(&self.grid, px);
-        self.dems.iter().map(|d| Ok(d.posts_for(b, DEM_MARGIN, memory / DEM_SHARE)?.map_or_else(|| d.clone(), std::sync::Arc::new))).collect()
+        let most = if hold { u64::MAX } else { 0 };
+        self.dems.iter().map(|d| Ok(d.posts_for(b, DEM_MARGIN, most, cache)?.map_or_else(|| d.clone(), std::sync::Arc::new))).collect()
     }
 
-    /// The bytes [`Plan::dems_for`] holds for `px` (the plan's caches too).
-    pub fn dem_bytes_for(&self, px: [u32; 4], memory: u64) -> u64 {
+    /// The bytes of the DEMs' posts under the mosaic's pixels `px`.
+    pub fn dem_posts_under(&self, px: [u32; 4]) -> u64 {
         let b = ground_box(&self.grid, px);
-        let share = memory / DEM_SHARE;
-        // Posts past the share: read through a cache of up to 16 MB of it.
-        self.dems.iter().map(|d| d.held_bytes() + Some(d.bytes_under(b, DEM_MARGIN)).filter(|&n| n <= share).unwrap_or(share.min(16 << 20))).sum()
+        self.dems.iter().map(|d| d.bytes_under(b, DEM_MARGIN)).sum()
     }
 
     #[inline]
@@ -343,6 +344,7 @@ impl Plan {
                     photometric: info.photometric,
                     gsd,
                     cells: [0; 4],
+                    pixels: [0; 4],
                     stored: Stored::default(),
                     seen: Seen::default(),
                 },
@@ -442,6 +444,8 @@ impl Plan {
                 let c = plan.cell as f64;
                 let clampc = |v: f64, n: usize| (v / c).floor().clamp(0.0, n as f64) as usize;
                 im.cells = [clampc(u0, cw), clampc(v0, ch), (clampc(u1, cw) + 1).min(cw), (clampc(v1, ch) + 1).min(ch)];
+                let (gw, gh) = (plan.grid.width as f64, plan.grid.height as f64);
+                im.pixels = [u0.clamp(0.0, gw) as u32, v0.clamp(0.0, gh) as u32, u1.ceil().clamp(0.0, gw) as u32, v1.ceil().clamp(0.0, gh) as u32];
                 // How far from its centre the image sees each cell (a
                 // fraction of its half-diagonal): the partition's measure.
                 sample_image(&plan, &mut im, s.memory, s.thumbnails)?;

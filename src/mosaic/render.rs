@@ -209,7 +209,7 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, strip: [u32; 
     let tile = spec.chunk().0 as u64;
     let band_bytes = crate::pipeline::band_writer::held_bytes(spec, across);
     let heights = super::strip_heights::StripHeights::new(works);
-    let dems = heights.most_bytes(plan, tile as u32, memory);
+    let dems = heights.holding(plan, tile as u32, memory).bytes;
     let arrays = plan.images.iter().map(|i| i.seen.bytes()).sum::<u64>() + plan.label.len() as u64 * 12 + plan.heights.len() as u64 * 4;
     let plan_bytes = arrays + dems;
     let image_tile = spec.tile_bytes() as u64 + tile * tile;
@@ -223,8 +223,27 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, strip: [u32; 
     if room < min_share {
         // The figure that does: more memory lets the plan hold more of its
         // DEMs (a share of the budget each, up to the whole) and take
-        // more cells.
-        let other = fixed - plan_bytes;
+        // more cells. A plan of cells a tile wide or more (an absurd
+        // budget's) says little of which images a tile needs: then every
+        // image whose footprint meets a band is taken at work in it (a
+        // bound).
+        let [c0, ..] = strip;
+        let boxes: Vec<[u32; 4]> = plan
+            .images
+            .iter()
+            .map(|im| {
+                let [x0, y0, x1, y1] = im.pixels.map(|p| p as u64);
+                [((x0 / tile) as u32).max(c0), (y0 / tile) as u32, (x1.div_ceil(tile) as u32).min(c0 + across), y1.div_ceil(tile) as u32]
+            })
+            .filter(|b| b[0] < b[2])
+            .collect();
+        let meets = |b: u32| boxes.iter().filter(move |x| x[1] <= b + 1 && b < x[3]);
+        let held_then = (b0..b0 + n).map(|b| meets(b).map(|x| 2 * (x[2] - x[0]) as u64).sum::<u64>()).max().unwrap_or(0) * image_tile;
+        let most_then = (b0..b0 + n).map(|b| meets(b).count()).max().unwrap_or(1).max(most) as u64;
+        let other = match plan.cell as u64 >= tile {
+            true => band_bytes + held.max(held_then) + most_then * IDLE_IMAGE,
+            false => fixed - plan_bytes,
+        };
         let px = plan.grid.width as u64 * plan.grid.height as u64;
         let cells = (plan.cw * plan.ch).max(1) as u64;
         // The cells' count is estimated (boxes round up to whole cells):
@@ -237,8 +256,10 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, strip: [u32; 
         let mut enough = mib(fixed + min_share);
         for _ in 0..16 {
             let side = super::plan::cell_side(px, enough) as u64;
-            let arrays_then = arrays * (px / (side * side)).max(cells) / cells;
-            let dems_then = heights.most_bytes(plan, tile as u32, enough);
+            // Another plan's cells: a label and blend weights each, and a
+            // bit for each image whose box holds it (16 deep at most).
+            let arrays_then = if side == plan.cell as u64 { arrays } else { (px / (side * side)).max(cells) * 14 };
+            let dems_then = heights.holding(plan, tile as u32, enough).bytes;
             let need = other + min_share + arrays_then + dems_then;
             let need = need + need / 16;
             if need <= enough {

@@ -28,6 +28,8 @@ pub struct StripHeights {
     /// The DEMs of the cohorts some image of which is still to start.
     held: BTreeMap<u32, Vec<Arc<Dem>>>,
     given: Vec<bool>,
+    /// How the posts are held, once settled for a budget.
+    how: Holding,
 }
 
 impl StripHeights {
@@ -48,7 +50,7 @@ impl StripHeights {
             c.tiles = [c.tiles[0].min(c0), c.tiles[1].min(r0), c.tiles[2].max(c1), c.tiles[3].max(r1)];
             c.waiting += 1;
         }
-        StripHeights { rows, cohorts, held: BTreeMap::new(), given: vec![false; works.len()] }
+        StripHeights { rows, cohorts, held: BTreeMap::new(), given: vec![false; works.len()], how: Holding { hold: false, cache: 0, bytes: 0 } }
     }
 
     /// The mosaic's pixels under tiles `[c0, r0, c1, r1)`.
@@ -56,19 +58,37 @@ impl StripHeights {
         [c0 * tile, r0 * tile, (c1 * tile).min(plan.grid.width), (r1 * tile).min(plan.grid.height)]
     }
 
-    /// The most the cohorts alive at once hold, bytes.
-    pub fn most_bytes(&self, plan: &Plan, tile: u32, memory: u64) -> u64 {
-        // (A cohort's figure counts a cache as large as the plan's DEM's
-        // own beside its posts.)
-        let bytes: Vec<([u32; 4], u64)> = self.cohorts.values().map(|c| (c.tiles, plan.dem_bytes_for(Self::pixels(plan, c.tiles, tile), memory))).collect();
-        let at = |b: u32| bytes.iter().filter(|(t, _)| t[1] <= b + 1 && b < t[3]).map(|(_, n)| n).sum::<u64>();
-        bytes.iter().map(|(t, _)| at(t[1])).max().unwrap_or(0) + plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>()
+    /// How the strip's cohorts hold their heights within `memory`: the
+    /// posts of the cohorts alive at once, where they fit the DEMs' share
+    /// of it, else a cache each (their share of that share, up to 16 MB);
+    /// and the most bytes that takes at once (the plan's own caches too).
+    pub fn holding(&self, plan: &Plan, tile: u32, memory: u64) -> Holding {
+        let posts: Vec<([u32; 4], u64)> = self.cohorts.values().map(|c| (c.tiles, plan.dem_posts_under(Self::pixels(plan, c.tiles, tile)))).collect();
+        let alive = |b: u32| posts.iter().filter(move |(t, _)| t[1] <= b + 1 && b < t[3]);
+        let most_posts = posts.iter().map(|(t, _)| alive(t[1]).map(|(_, n)| n).sum::<u64>()).max().unwrap_or(0);
+        let most_alive = posts.iter().map(|(t, _)| alive(t[1]).count() as u64).max().unwrap_or(1).max(1);
+        let share = memory / super::plan::DEM_SHARE;
+        let caches = plan.dems.iter().map(|d| d.held_bytes()).sum::<u64>();
+        let grids = plan.dems.iter().filter(|d| d.is_grid()).count() as u64;
+        match most_posts <= share {
+            true => Holding { hold: true, cache: 0, bytes: most_posts + caches },
+            false => {
+                let cache = (share / most_alive).min(16 << 20);
+                Holding { hold: false, cache, bytes: most_alive * grids * cache + caches }
+            }
+        }
+    }
+
+    /// Holds the posts as [`StripHeights::holding`] says for `memory`.
+    pub fn settle(&mut self, plan: &Plan, tile: u32, memory: u64) {
+        self.how = self.holding(plan, tile, memory);
     }
 
     /// Gives each image that starts at band `b` (its first band `b + 1`
-    /// at most) its cohort's DEMs; returns which were given, whose DEMs
-    /// the caller takes back once their threads hold their own.
-    pub fn give(&mut self, plan: &Plan, works: &mut [ImageWork], b: u32, tile: u32, memory: u64) -> Result<Vec<usize>> {
+    /// at most) its cohort's DEMs, held as settled; returns which were
+    /// given, whose DEMs the caller takes back once their threads hold
+    /// their own.
+    pub fn give(&mut self, plan: &Plan, works: &mut [ImageWork], b: u32, tile: u32) -> Result<Vec<usize>> {
         let mut now = Vec::new();
         for (j, w) in works.iter_mut().enumerate() {
             let first = w.bands.keys().next().copied().unwrap_or(u32::MAX);
@@ -80,7 +100,7 @@ impl StripHeights {
             let dems = match self.held.get(&key) {
                 Some(d) => d.clone(),
                 None => {
-                    let d = plan.dems_for(Self::pixels(plan, cohort.tiles, tile), memory)?;
+                    let d = plan.dems_for(Self::pixels(plan, cohort.tiles, tile), self.how.hold, self.how.cache)?;
                     self.held.insert(key, d.clone());
                     d
                 }
@@ -96,6 +116,16 @@ impl StripHeights {
         }
         Ok(now)
     }
+}
+
+/// How a strip's cohorts hold their heights ([`StripHeights::holding`]).
+pub struct Holding {
+    /// Their posts in memory (else through a cache each).
+    pub hold: bool,
+    /// Each one's cache, bytes, where not.
+    pub cache: u64,
+    /// The most they take at once, bytes.
+    pub bytes: u64,
 }
 
 #[cfg(test)]
