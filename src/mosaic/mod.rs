@@ -639,11 +639,12 @@ type Strip = [u32; 4];
 /// A strip and how its render fits the memory.
 type StripPlan = (Strip, render::Fit);
 
-/// Strips are at most this wide, output pixels, or twice the images'
-/// median footprint where that is wider: the images' bands in hand and
-/// the mosaic's band then do not grow with the block's width, and an
-/// image is made in two strips at most.
-const STRIP_PX: u32 = 4096;
+/// Strips are at most this wide, output pixels, or the images' median
+/// footprint where that is wider (in a power of two of tiles): the images'
+/// bands in hand and the mosaic's band then do not grow with the block's
+/// width (about three images across at work in a band of a 60/30 %
+/// block), and an image is made in two strips at most.
+const STRIP_PX: u32 = 2048;
 
 /// The most tile columns a strip of the plan's mosaic takes.
 fn widest_strip(plan: &Plan, tile: u32) -> u32 {
@@ -657,7 +658,7 @@ fn strip_columns(mut widths: Vec<u32>, tile: u32) -> u32 {
     widths.retain(|&w| w > 0);
     widths.sort_unstable();
     let median = widths.get(widths.len() / 2).copied().unwrap_or(0);
-    STRIP_PX.max(2 * median).div_ceil(tile.max(1)).max(1).next_power_of_two()
+    STRIP_PX.max(median).div_ceil(tile.max(1)).max(1).next_power_of_two()
 }
 
 /// `window` cut into strips of tile columns whose renders each fit
@@ -897,15 +898,15 @@ impl MosaicReport {
 mod tests {
     use super::*;
 
-    /// Strips of 4096 px under frames of 2000 px; twice a frame under
-    /// frames wider than half that (a frame then lies in two strips at
-    /// most); in whole powers of two of tiles.
+    /// Strips of 2048 px under frames of 2000 px; a frame wide under
+    /// wider frames (a frame then lies in two strips at most); in whole
+    /// powers of two of tiles.
     #[test]
-    fn strips_are_a_few_frames_wide_whatever_the_block() {
-        assert_eq!(strip_columns(vec![2000, 2010, 0, 1990], 256), 16);
-        assert_eq!(strip_columns(vec![2000; 400], 512), 8);
-        assert_eq!(strip_columns(vec![18918; 4], 512), 128, "2 × 18918 px = 74 tiles");
-        assert_eq!(strip_columns(vec![3000, 30000, 3100], 256), 32, "the median frame's 6200 px");
-        assert_eq!(strip_columns(Vec::new(), 256), 16);
+    fn strips_are_about_a_frame_wide_whatever_the_block() {
+        assert_eq!(strip_columns(vec![2000, 2010, 0, 1990], 256), 8);
+        assert_eq!(strip_columns(vec![2000; 400], 512), 4);
+        assert_eq!(strip_columns(vec![18918; 4], 512), 64, "18918 px = 37 tiles");
+        assert_eq!(strip_columns(vec![3000, 30000, 3100], 256), 16, "the median frame's 3100 px");
+        assert_eq!(strip_columns(Vec::new(), 256), 8);
     }
 }

@@ -409,7 +409,9 @@ impl Plan {
         let whole = ground_box(&grid, [0, 0, grid.width, grid.height]);
         for d in &mut dems {
             if let Some(d) = std::sync::Arc::get_mut(d) {
-                d.hold_window(whole, DEM_MARGIN, s.memory / DEM_SHARE)?;
+                // (Half the render's share: the plan's passes look each
+                // post up a few times, the render's at every wall pixel.)
+                d.hold_window(whole, DEM_MARGIN, s.memory / (2 * DEM_SHARE))?;
             }
         }
         let mut plan =
