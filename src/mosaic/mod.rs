@@ -662,7 +662,7 @@ fn strip_columns(mut widths: Vec<u32>, tile: u32) -> u32 {
 }
 
 /// `window` cut into strips of tile columns whose renders each fit
-/// `memory`: the whole where it is no wider than [`widest_strip`] and fits, else the widest power of two that
+/// `memory`: the whole where it is no wider than twice [`widest_strip`] and fits, else the widest power of two that
 /// does (strips start at multiples of it, the last what is left; overview
 /// tiles then rarely wait for the next strip). When strips a tile column wide
 /// do not fit either, the refusal of the one that needs the most (its
@@ -683,7 +683,9 @@ fn column_strips(plan: &Plan, works: &[render::ImageWork], spec: &OutputSpec, wi
         worst.map_or(Ok(fits), Err)
     };
     let most = widest_strip(plan, spec.chunk().0);
-    if tcw <= most {
+    // A mosaic up to two strips wide is made whole where it fits: cut in
+    // two it would hold little less, and make its images twice.
+    if tcw <= 2 * most {
         match cut(tcw) {
             Ok(whole) => return Ok(whole),
             Err(short) if tcw == 1 => return Err(short.into()),
