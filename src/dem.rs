@@ -386,9 +386,8 @@ impl GridDem {
             raster.chunk(0)?;
             let (cw, ch) = raster.chunk;
             let cache = (max_bytes as usize).min(16 << 20);
-            // At least four chunks: the corners of a cell may lie in four.
             let chunk_bytes = cw * ch * 4;
-            let keep = (cache / chunk_bytes).max(4);
+            let keep = (cache / chunk_bytes).max(crate::io::cached_raster::least_chunks(&raster));
             let chunked = CachedRaster::new(raster, keep * chunk_bytes, rescale);
             let gt = geo.transform;
             let g = GridDem {
@@ -634,7 +633,7 @@ impl Dem {
     /// (and `margin` around), read again from the file, the rest through a
     /// small cache: the heights of a strip of a mosaic, let go with it.
     /// Where the posts take more than `max_bytes`, all through a cache of
-    /// `cache_bytes` (four chunks at least). `None` where this DEM is not
+    /// `cache_bytes` (the least chunks at least). `None` where this DEM is not
     /// one grid file (this one then serves).
     pub fn posts_for(&self, b: [f64; 4], margin: usize, max_bytes: u64, cache_bytes: u64) -> Result<Option<Dem>> {
         let HeightModel::Grid(g) = &self.model else { return Ok(None) };
@@ -646,7 +645,7 @@ impl Dem {
         if w < 2 || h < 2 {
             return Ok(None);
         }
-        // (Budget 0: read a chunk at a time, a cache of four.)
+        // (Budget 0: read a chunk at a time, the least cache.)
         let Samples::Chunked(rest) = GridDem::read_within(&self.path, 0)?.data else { return Ok(None) };
         let data = match bytes <= max_bytes {
             true => Samples::Window { at, data: rest.read_window(at)?, rest },
@@ -673,7 +672,7 @@ impl Dem {
     pub fn let_go_of_posts(&mut self) -> Result<()> {
         let HeightModel::Grid(g) = &mut self.model else { return Ok(()) };
         match std::mem::replace(&mut g.data, Samples::Memory(Vec::new())) {
-            // A grid read through a cache keeps the least one (four chunks).
+            // A grid read through a cache keeps the least one.
             Samples::Chunked(c) => g.data = Samples::Chunked(Box::new(c.recached(0))),
             held @ (Samples::Memory(_) | Samples::Window { .. }) => {
                 g.data = held;
@@ -690,9 +689,9 @@ impl Dem {
     /// and `margin` posts around it, where they take at most `max_bytes`:
     /// a mosaic looks up its own ground, often a small part of a large
     /// DEM. Lookups elsewhere still find the file's heights, through a
-    /// small cache. A DEM of tiles and one whose box does not fit stay as
-    /// they are (the last read through a cache of up to 16 MB within
-    /// `max_bytes`). Returns whether it holds them.
+    /// small cache. One whose box does not fit is read through a cache of
+    /// up to 16 MB within `max_bytes` (read whole or not). Returns whether
+    /// it holds them.
     pub fn hold_window(&mut self, b: [f64; 4], margin: usize, max_bytes: u64) -> Result<bool> {
         let Some([i0, j0, w, h]) = self.posts_under(b, margin) else { return Ok(false) };
         let bytes = w as u64 * h as u64 * 4;
@@ -721,10 +720,17 @@ impl Dem {
                 };
                 Ok(true)
             }
+            // Read whole, but its window past the budget: read again
+            // through a cache of that size.
+            Samples::Memory(_) if bytes > max_bytes || w < 2 || h < 2 => {
+                let Samples::Chunked(c) = GridDem::read_within(&self.path, 0)?.data else { return Ok(false) };
+                g.data = Samples::Chunked(Box::new(c.recached((max_bytes as usize).min(16 << 20))));
+                Ok(false)
+            }
             // Read whole: the window kept, the rest read again from the
             // file where looked up.
-            Samples::Memory(_) if !whole && w >= 2 && h >= 2 => {
-                // (Budget 0: a cache of four chunks.)
+            Samples::Memory(_) if !whole => {
+                // (Budget 0: the least cache.)
                 let rest = match GridDem::read_within(&self.path, 0) {
                     Ok(GridDem { data: Samples::Chunked(c), .. }) => c,
                     _ => return Ok(false),
@@ -1154,24 +1160,29 @@ mod tests {
             assert!(cropped.hold_window(b, 2, 64 << 10).unwrap(), "{chunking:?}");
             assert!(grid(&held) && grid(&cropped));
             assert_eq!(cropped.held_bytes(), held.held_bytes());
-            // Beside the window, a cache of four chunks for the rest.
+            // Beside the window, a cache of the least chunks for the rest
+            // (four tiles, two strips).
             let chunk = match chunking {
-                Chunking::Tiles(t) => t * t,
-                Chunking::Strips(rows) => rows * 100,
+                Chunking::Tiles(t) => 4 * t * t,
+                Chunking::Strips(rows) => 2 * rows * 100,
             } as u64;
-            let window = held.held_bytes() - 4 * chunk * 4;
+            let window = held.held_bytes() - chunk * 4;
             // The box's edges lie halfway between posts: posts 29..=60
             // across and 19..=40 down for its bilinear cells, 2 more around.
             assert_eq!((window, held.whole_bytes()), (36 * 26 * 4, 36 * 26 * 4), "{chunking:?}");
             // A strip of a mosaic's own posts, read again from the file; the
             // DEM read whole, once it lets go of its posts, through its cache.
             let strip = whole.posts_for(b, 2, 64 << 10, 0).unwrap().expect("one grid file");
-            assert_eq!((strip.held_bytes() - 4 * chunk * 4, whole.bytes_under(b, 2)), (36 * 26 * 4, 36 * 26 * 4), "{chunking:?}");
+            assert_eq!((strip.held_bytes() - chunk * 4, whole.bytes_under(b, 2)), (36 * 26 * 4, 36 * 26 * 4), "{chunking:?}");
             let cached = whole.posts_for(b, 2, 36 * 26 * 4 - 1, 0).unwrap().expect("one grid file");
             assert!(grid(&strip) && !grid(&cached), "{chunking:?}: a window past its budget is read through a cache");
+            // Read whole, a window past the budget: read through the cache.
+            let mut past = Dem::open(&path, &crs).unwrap();
+            assert!(!past.hold_window(b, 2, 10 * 10 * 4).unwrap(), "{chunking:?}");
+            assert_eq!(past.held_bytes(), chunk * 4, "{chunking:?}: read whole, it keeps only the least cache");
             let mut gone = Dem::open(&path, &crs).unwrap();
             gone.let_go_of_posts().unwrap();
-            assert_eq!(gone.held_bytes(), 4 * chunk * 4, "{chunking:?}");
+            assert_eq!(gone.held_bytes(), chunk * 4, "{chunking:?}");
             let (mut xs, mut ys) = (Vec::new(), Vec::new());
             for jj in 0..(70 * 4) {
                 for ii in 0..(100 * 4) {
@@ -1182,6 +1193,7 @@ mod tests {
                     assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", strip.lookup(x, y)), "{chunking:?} at ({x}, {y})");
                     assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", gone.lookup(x, y)), "{chunking:?} at ({x}, {y})");
                     assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", cached.lookup(x, y)), "{chunking:?} at ({x}, {y})");
+                    assert_eq!(format!("{:?}", whole.lookup(x, y)), format!("{:?}", past.lookup(x, y)), "{chunking:?} at ({x}, {y})");
                     xs.push(x);
                     ys.push(y);
                 }

@@ -49,6 +49,16 @@ impl Rescale {
     }
 }
 
+/// The fewest chunks a cache of `raster` holds: those the corners of a
+/// cell may lie in (four tiles, or two strips).
+pub fn least_chunks(raster: &ChunkedRaster) -> usize {
+    if raster.chunk.0 >= raster.width {
+        2
+    } else {
+        4
+    }
+}
+
 impl CachedRaster {
     /// `raster`'s samples through a cache of about `cache_bytes`, each
     /// chunk rescaled as it is decoded.
@@ -117,11 +127,13 @@ impl CachedRaster {
     }
 
     /// The same samples through a cache of about `cache_bytes` (at least
-    /// four chunks: the corners of a cell may lie in four).
+    /// the chunks the corners of a cell may lie in: four tiles, or two
+    /// strips).
     pub fn recached(self, cache_bytes: usize) -> CachedRaster {
         let (cw, ch) = self.raster.chunk;
         let chunk = cw * ch * 4;
-        CachedRaster::new(self.raster, (cache_bytes / chunk).max(4) * chunk, self.rescale)
+        let keep = (cache_bytes / chunk).max(least_chunks(&self.raster));
+        CachedRaster::new(self.raster, keep * chunk, self.rescale)
     }
 
     fn chunk(&self, k: usize) -> Option<Arc<Vec<f32>>> {

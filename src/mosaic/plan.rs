@@ -34,8 +34,15 @@ pub const BUDGET_PER_CELL: u64 = 128;
 /// every wall pixel: through the cache a sixth slower).
 pub const DEM_SHARE: u64 = 4;
 
-/// A mosaic's DEM up to this size is read whole as it is opened.
-const OPEN_WHOLE: u64 = 16 << 20;
+/// The plan holds at most this much of a DEM: the posts under the mosaic
+/// where they fit, else a cache of this size. Its passes look heights up
+/// box by box, row by row, a few chunks at a time, so a cache serves them
+/// at the speed of posts in memory, and the plan of 64 frames holds no
+/// more DEM than the plan of 4.
+const PLAN_POSTS: u64 = 4 << 20;
+
+/// Bytes of the partition's nearest distances at a time.
+const PARTITION_BAND: usize = 1 << 20;
 
 /// Posts held around the mosaic's ground: a render's last nodes may lie a
 /// little past its edge.
@@ -284,10 +291,10 @@ impl Plan {
                     Some(&k) => k,
                     None => {
                         // Read whole only when small: of a larger DEM only
-                        // the posts under the mosaic are read, once its grid
-                        // is known (before, the footprints look it up
-                        // through a cache).
-                        let mut d = Dem::open_within(p, &ground, (s.memory / DEM_SHARE).min(OPEN_WHOLE))?;
+                        // the posts under the mosaic, once its grid is known
+                        // (before, the footprints look it up through a
+                        // cache).
+                        let mut d = Dem::open_within(p, &ground, plan_posts(s.memory))?;
                         for w in &d.warnings {
                             progress.warn(w);
                         }
@@ -404,18 +411,15 @@ impl Plan {
         // default 256 MiB holds MAX_CELLS).
         let cell = s.cell.unwrap_or_else(|| cell_side(grid.width as u64 * grid.height as u64, s.memory));
         let (cw, ch) = (grid.width.div_ceil(cell) as usize, grid.height.div_ceil(cell) as usize);
-        // Of a large DEM, the posts under the mosaic in memory (within its
-        // share), before any image's render shares it.
+        // Of a DEM, the posts under the mosaic in memory where they fit the
+        // plan's share, else a cache of that size.
         let whole = ground_box(&grid, [0, 0, grid.width, grid.height]);
         for d in &mut dems {
             if let Some(d) = std::sync::Arc::get_mut(d) {
-                // (Half the render's share: the plan's passes look each
-                // post up a few times, the render's at every wall pixel.)
-                d.hold_window(whole, DEM_MARGIN, s.memory / (2 * DEM_SHARE))?;
+                d.hold_window(whole, DEM_MARGIN, plan_posts(s.memory))?;
             }
         }
-        let mut plan =
-            Plan { grid, crs, cell, cw, ch, heights: vec![f32::NAN; cw * ch], label: vec![NONE; cw * ch], images: Vec::new(), dems, store: BoxStore::new()? };
+        let mut plan = Plan { grid, crs, cell, cw, ch, heights: Vec::new(), label: vec![NONE; cw * ch], images: Vec::new(), dems, store: BoxStore::new()? };
         // Heights of the first image's DEM: the seams' height edges.
         if let Some((im, _)) = images.first() {
             let dem = &plan.dems[im.dem];
@@ -456,15 +460,27 @@ impl Plan {
             })
             .collect::<Result<_>>()?;
         plan.images = sampled;
-        let mut best = vec![f32::INFINITY; cw * ch];
-        for k in 0..plan.images.len() {
-            let [x0, y0, _, y1] = plan.images[k].cells;
-            let seen = plan.radius_rows_of(k, y0..y1)?;
-            for (j, row) in seen.radius_rows().enumerate() {
-                for (i, &d) in row.iter().enumerate() {
-                    let at = (y0 + j) * cw + x0 + i;
-                    if d < best[at] {
-                        (best[at], plan.label[at]) = (d, k as u16);
+        // A band of cell rows at a time (the nearest distance so far is a
+        // float a cell: over the whole mosaic, twice its labels).
+        let band = (PARTITION_BAND / (4 * cw)).max(1);
+        let mut best = Vec::new();
+        for r0 in (0..ch).step_by(band) {
+            let r1 = (r0 + band).min(ch);
+            best.clear();
+            best.resize(cw * (r1 - r0), f32::INFINITY);
+            for k in 0..plan.images.len() {
+                let [x0, y0, _, y1] = plan.images[k].cells;
+                let (a, b) = (y0.max(r0), y1.min(r1));
+                if a >= b {
+                    continue;
+                }
+                let seen = plan.radius_rows_of(k, a..b)?;
+                for (j, row) in seen.radius_rows().enumerate() {
+                    for (i, &d) in row.iter().enumerate() {
+                        let at = (a + j) * cw + x0 + i;
+                        if d < best[at - r0 * cw] {
+                            (best[at - r0 * cw], plan.label[at]) = (d, k as u16);
+                        }
                     }
                 }
             }
@@ -537,6 +553,11 @@ impl Plan {
         }
         Ok(())
     }
+}
+
+/// The most of a DEM the plan holds on a budget of `memory` bytes.
+fn plan_posts(memory: u64) -> u64 {
+    PLAN_POSTS.min(memory / (2 * DEM_SHARE))
 }
 
 /// The ground box `[x0, y0, x1, y1]` of the grid's pixels `[x0, y0, x1,

@@ -97,7 +97,7 @@ pub fn work(plan: &Plan, weights: &Weights, tile: u32, prone: Option<&[bool]>, o
             let mut set = std::collections::BTreeSet::new();
             for y in y0..y1 {
                 for x in x0..x1 {
-                    for i in weights.images(x, y) {
+                    for i in weights.images(&plan.label, x, y) {
                         if i != NONE {
                             set.insert(i);
                         }
@@ -387,7 +387,7 @@ impl Compose<'_> {
                 (0..nx * ny)
                     .map(|k| {
                         let (x, y) = ((cx0 + (k % nx) as i64).clamp(0, cw - 1), (cy0 + (k / nx) as i64).clamp(0, ch - 1));
-                        self.weights.weight(x as usize, y as usize, p.image)
+                        self.weights.weight(&self.plan.label, x as usize, y as usize, p.image)
                     })
                     .collect()
             })

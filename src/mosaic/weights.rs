@@ -12,13 +12,15 @@ use rustc_hash::FxHashMap as HashMap;
 
 pub struct Weights {
     cw: usize,
-    label: Vec<u16>,
     /// The cells whose own image weighs under 1 (within the ramp of a
     /// boundary, off height edges): that weight, and the image across.
     near: HashMap<u32, (f32, u16)>,
     /// Whether the blend is a ramp at all.
     ramp: bool,
 }
+
+/// No boundary cell found yet.
+const FAR: u32 = u32::MAX;
 
 impl Weights {
     pub fn new(plan: &Plan, blend_px: f64, edges: &[bool]) -> Weights {
@@ -27,38 +29,36 @@ impl Weights {
         // Ramp width, cells (0: no blend).
         let ramp = (blend_px / plan.cell as f64) as f32;
         if ramp <= 0.0 {
-            return Weights { cw, label: plan.label.clone(), near: HashMap::default(), ramp: false };
+            return Weights { cw, near: HashMap::default(), ramp: false };
         }
-        let mut seed = vec![(i32::MIN, i32::MIN); n];
-        let mut other = vec![NONE; n];
-        for y in 0..ch {
-            for x in 0..cw {
-                let l = plan.label_at(x, y);
-                if l == NONE {
-                    continue;
-                }
-                let across = [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)]
-                    .into_iter()
-                    .filter(|&(a, b)| a < cw && b < ch)
-                    .map(|(a, b)| plan.label_at(a, b))
-                    .find(|&m| m != NONE && m != l);
-                if let Some(m) = across {
-                    seed[y * cw + x] = (x as i32, y as i32);
-                    other[y * cw + x] = m;
-                }
+        // The image across a boundary cell (NONE: the cell is no boundary).
+        let across = |k: usize| -> u16 {
+            let (x, y) = (k % cw, k / cw);
+            let l = plan.label[k];
+            if l == NONE {
+                return NONE;
             }
-        }
-        let d2 = |k: usize, s: (i32, i32)| {
-            if s.0 == i32::MIN {
+            [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)]
+                .into_iter()
+                .filter(|&(a, b)| a < cw && b < ch)
+                .map(|(a, b)| plan.label_at(a, b))
+                .find(|&m| m != NONE && m != l)
+                .unwrap_or(NONE)
+        };
+        // Each cell's nearest boundary cell of its image, as an index (the
+        // image across is that cell's): 4 bytes a cell while it is made.
+        let mut seed: Vec<u32> = (0..n).map(|k| if across(k) != NONE { k as u32 } else { FAR }).collect();
+        let d2 = |k: usize, s: u32| {
+            if s == FAR {
                 return i64::MAX;
             }
             let (x, y) = ((k % cw) as i64, (k / cw) as i64);
-            (x - s.0 as i64).pow(2) + (y - s.1 as i64).pow(2)
+            let (sx, sy) = ((s as usize % cw) as i64, (s as usize / cw) as i64);
+            (x - sx).pow(2) + (y - sy).pow(2)
         };
-        let relax = |k: usize, n: usize, seed: &mut Vec<(i32, i32)>, other: &mut Vec<u16>| {
+        let relax = |k: usize, n: usize, seed: &mut Vec<u32>| {
             if plan.label[n] == plan.label[k] && d2(k, seed[n]) < d2(k, seed[k]) {
                 seed[k] = seed[n];
-                other[k] = other[n];
             }
         };
         for y in 0..ch {
@@ -67,7 +67,7 @@ impl Weights {
                 for (dx, dy) in [(-1i64, 0i64), (-1, -1), (0, -1), (1, -1)] {
                     let (a, b) = (x as i64 + dx, y as i64 + dy);
                     if a >= 0 && b >= 0 && a < cw as i64 {
-                        relax(k, b as usize * cw + a as usize, &mut seed, &mut other);
+                        relax(k, b as usize * cw + a as usize, &mut seed);
                     }
                 }
             }
@@ -78,20 +78,20 @@ impl Weights {
                 for (dx, dy) in [(1i64, 0i64), (1, 1), (0, 1), (-1, 1)] {
                     let (a, b) = (x as i64 + dx, y as i64 + dy);
                     if a >= 0 && a < cw as i64 && b < ch as i64 {
-                        relax(k, b as usize * cw + a as usize, &mut seed, &mut other);
+                        relax(k, b as usize * cw + a as usize, &mut seed);
                     }
                 }
             }
         }
         // From the cell's centre to the boundary's edge, over the ramp.
         let near = (0..n)
-            .filter(|&k| seed[k].0 != i32::MIN && !edges[k] && plan.label[k] != NONE)
+            .filter(|&k| seed[k] != FAR && !edges[k] && plan.label[k] != NONE)
             .filter_map(|k| {
                 let own = (0.5 + ((d2(k, seed[k]) as f32).sqrt() + 0.5) / ramp).min(1.0);
-                (own < 1.0).then_some((k as u32, (own, other[k])))
+                (own < 1.0).then(|| (k as u32, (own, across(seed[k] as usize))))
             })
             .collect();
-        Weights { cw, label: plan.label.clone(), near, ramp: true }
+        Weights { cw, near, ramp: true }
     }
 
     /// Whether the blend is a ramp (else each pixel takes its cell's image).
@@ -99,10 +99,11 @@ impl Weights {
         self.ramp
     }
 
-    /// Image `i`'s weight in cell (x, y).
-    pub fn weight(&self, x: usize, y: usize, i: u16) -> f32 {
+    /// Image `i`'s weight in cell (x, y), of the cells' labels `label`
+    /// (the plan's).
+    pub fn weight(&self, label: &[u16], x: usize, y: usize, i: u16) -> f32 {
         let k = y * self.cw + x;
-        let l = self.label[k];
+        let l = label[k];
         if l == NONE {
             return 0.0;
         }
@@ -117,9 +118,9 @@ impl Weights {
     }
 
     /// The images with a weight in cell (x, y): its own and the one across.
-    pub fn images(&self, x: usize, y: usize) -> [u16; 2] {
+    pub fn images(&self, label: &[u16], x: usize, y: usize) -> [u16; 2] {
         let k = y * self.cw + x;
         let other = self.near.get(&(k as u32)).map_or(NONE, |&(_, o)| o);
-        [self.label[k], other]
+        [label[k], other]
     }
 }
