@@ -36,9 +36,9 @@ pub const DEM_SHARE: u64 = 4;
 
 /// The plan holds at most this much of a DEM: the posts under the mosaic
 /// where they fit, else a cache of this size. Its passes look heights up
-/// box by box, row by row, a few chunks at a time, so a cache serves them
-/// at the speed of posts in memory, and the plan of 64 frames holds no
-/// more DEM than the plan of 4.
+/// box by box, row by row, a few chunks at a time, so a small cache serves
+/// them about as fast as posts in memory, and the plan of 64 frames holds
+/// no more DEM than the plan of 4.
 const PLAN_POSTS: u64 = 4 << 20;
 
 /// Bytes of the partition's nearest distances at a time.

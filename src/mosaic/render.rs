@@ -186,6 +186,11 @@ const MIN_SHARE: u64 = 24 << 20;
 /// its threads' stacks (about 1 MiB measured on 2000² frames).
 const IDLE_IMAGE: u64 = 1 << 20;
 
+/// What each image keeps through the render, whether at work or not: its
+/// entry in the plan (camera and options) and its works (the mosaic's and
+/// a strip's): about 10 KB, 40 MB for 4000 frames.
+const PER_IMAGE: u64 = (std::mem::size_of::<super::plan::PlanImage>() + 2 * std::mem::size_of::<ImageWork>()) as u64;
+
 /// The least memory an image's render is given: [`MIN_SHARE`], or what
 /// its tiles in flight take as `rectify`'s do (the manifest's `tile` may
 /// be large). Its geometry is planned for this much whatever it gets, so
@@ -197,7 +202,7 @@ pub fn least_share(spec: &OutputSpec) -> u64 {
 
 /// The render's memory for the mosaic bands `b0..b0 + n` of `spec`, in a
 /// strip `across` tile columns wide: the writer's bands in flight and
-/// unfinished overview tiles; the plan's arrays and DEMs; the images'
+/// unfinished overview tiles; the plan's arrays, DEMs and images; the images'
 /// bands in hand, of a band of the mosaic and the next (see [`Turns`]), a
 /// tile and its mask for each of their tile columns; the images alive
 /// between turns. What is left goes to the renders that run at once, as
@@ -211,7 +216,8 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, strip: [u32; 
     let heights = super::strip_heights::StripHeights::new(works);
     let dems = heights.holding(plan, tile as u32, memory).bytes;
     let arrays = plan.images.iter().map(|i| i.seen.bytes()).sum::<u64>() + plan.label.len() as u64 * 12 + plan.heights.len() as u64 * 4;
-    let plan_bytes = arrays + dems;
+    let images = plan.images.len() as u64 * PER_IMAGE;
+    let plan_bytes = arrays + dems + images;
     let image_tile = spec.tile_bytes() as u64 + tile * tile;
     let columns = |b: u32| works.iter().filter_map(|w| w.bands.get(&b)).map(|&(c0, c1)| (c1 - c0) as u64).sum::<u64>();
     let held = (b0..b0 + n).map(|b| columns(b) + columns(b + 1)).max().unwrap_or(0) * image_tile;
@@ -260,7 +266,7 @@ pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, strip: [u32; 
             // bit for each image whose box holds it (16 deep at most).
             let arrays_then = if side == plan.cell as u64 { arrays } else { (px / (side * side)).max(cells) * 14 };
             let dems_then = heights.holding(plan, tile as u32, enough).bytes;
-            let need = other + min_share + arrays_then + dems_then;
+            let need = other + min_share + arrays_then + dems_then + images;
             let need = need + need / 16;
             if need <= enough {
                 break;
