@@ -779,7 +779,11 @@ impl PieceRender<'_> {
                     crate::pipeline::release_free_memory();
                     let (works, heights) = works_of(&strips[k]);
                     let n = works.len();
-                    feeds = Some((k, works, heights, render::Feeds::new(s, n, strips[k].1 .0)));
+                    // No more images make a band at once than there are
+                    // threads (two at least, so that one's serial stages
+                    // overlap another's): more only hold more in flight.
+                    let at_once = strips[k].1 .0.min(self.threads.max(2));
+                    feeds = Some((k, works, heights, render::Feeds::new(s, n, at_once)));
                 }
                 let (_, works, heights, feeds) = feeds.as_mut().expect("just made");
                 // The piece's band b is the mosaic's tr0 + b.
