@@ -52,7 +52,9 @@ const DEM_MARGIN: usize = 8;
 pub struct PlanImage {
     pub name: String,
     pub opts: RectifyOptions,
-    pub camera: Camera,
+    /// Its camera, while the plan samples it (let go after: the render
+    /// loads its own).
+    pub camera: Option<Box<Camera>>,
     /// Index of its DEM in [`Plan::dems`].
     pub dem: usize,
     pub width: u32,
@@ -342,7 +344,7 @@ impl Plan {
                 PlanImage {
                     name,
                     opts,
-                    camera,
+                    camera: Some(Box::new(camera)),
                     dem,
                     width: info.width,
                     height: info.height,
@@ -441,6 +443,10 @@ impl Plan {
         let sampled: Vec<PlanImage> = images
             .into_par_iter()
             .map(|(mut im, fp)| {
+                let camera = im
+                    .camera
+                    .take()
+                    .ok_or_else(|| Error::Geometry(format!("{}: its camera was let go before the plan sampled it (please report it)", im.name)))?;
                 let Some(fp) = fp else {
                     progress.advance(1);
                     return Ok(im);
@@ -454,7 +460,7 @@ impl Plan {
                 im.pixels = [u0.clamp(0.0, gw) as u32, v0.clamp(0.0, gh) as u32, u1.ceil().clamp(0.0, gw) as u32, v1.ceil().clamp(0.0, gh) as u32];
                 // How far from its centre the image sees each cell (a
                 // fraction of its half-diagonal): the partition's measure.
-                sample_image(&plan, &mut im, s.memory, s.thumbnails)?;
+                sample_image(&plan, &mut im, &camera, s.memory, s.thumbnails)?;
                 progress.advance(1);
                 Ok(im)
             })
@@ -573,7 +579,7 @@ fn ground_box(grid: &OutputGrid, [c0, r0, c1, r1]: [u32; 4]) -> [f64; 4] {
 /// averaged across), then sampled bilinearly where each cell's centre is
 /// seen, and how far from the scan's centre each cell is seen, over its
 /// half-diagonal (NaN: not seen).
-fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64, thumbnails: bool) -> Result<()> {
+fn sample_image(plan: &Plan, im: &mut PlanImage, camera: &Camera, memory: u64, thumbnails: bool) -> Result<()> {
     let (w, h, nb) = (im.width as usize, im.height as usize, im.bands as usize);
     let f = ((plan.cell_metres() / im.gsd).floor() as usize).clamp(1, w.min(h));
     let (tw, th) = if thumbnails { (w.div_ceil(f), h.div_ceil(f)) } else { (1, 1) };
@@ -612,7 +618,7 @@ fn sample_image(plan: &Plan, im: &mut PlanImage, memory: u64, thumbnails: bool) 
         }
     }
     let [x0, y0, x1, y1] = im.cells;
-    let model = im.camera.model();
+    let model = camera.model();
     let area = model.image_area();
     let dem = &plan.dems[im.dem];
     let bw = x1 - x0;

@@ -187,8 +187,8 @@ const MIN_SHARE: u64 = 24 << 20;
 const IDLE_IMAGE: u64 = 1 << 20;
 
 /// What each image keeps through the render, whether at work or not: its
-/// entry in the plan (camera and options) and its works (the mosaic's and
-/// a strip's): about 10 KB, 40 MB for 4000 frames.
+/// entry in the plan (its options) and its works (the mosaic's and a
+/// strip's): about 4 KB, 18 MB for 4000 frames.
 const PER_IMAGE: u64 = (std::mem::size_of::<super::plan::PlanImage>() + 2 * std::mem::size_of::<ImageWork>()) as u64;
 
 /// The least memory an image's render is given: [`MIN_SHARE`], or what
