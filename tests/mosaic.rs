@@ -224,6 +224,9 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     let one = tried("1");
     let said = String::from_utf8_lossy(&one.stderr);
     assert_eq!(one.status.code(), Some(2), "{said}");
+    // The images a grid that coarse takes nothing of are said in one line,
+    // not one each.
+    assert!(said.contains("span only one or two of the plan's cells") && said.trim().lines().count() == 2, "{said}");
     let from_one = said.split("give --memory ").nth(1).and_then(|t| t.split_whitespace().next()).expect("a figure").to_string();
     let mib = |f: &str| f.trim_end_matches('M').parse::<i64>().unwrap_or_else(|_| panic!("{f}"));
     assert!((mib(&from_one) - mib(&enough)).abs() <= 8, "{from_one} from 1 byte, {enough} from 20M");

@@ -41,6 +41,10 @@ pub const DEM_SHARE: u64 = 4;
 /// no more DEM than the plan of 4.
 const PLAN_POSTS: u64 = 4 << 20;
 
+/// Images said one by one to give nothing on a grid too coarse for them;
+/// more are said in one line.
+const COARSE_ONE_BY_ONE: usize = 3;
+
 /// Bytes of the partition's nearest distances at a time.
 const PARTITION_BAND: usize = 1 << 20;
 
@@ -517,6 +521,7 @@ impl Plan {
     /// another's camera. (`bounded`: the grid is a box of the block's.)
     fn check_each_image_gives(&self, partial_dem: &[bool], bounded: bool, progress: &dyn Progress) -> Result<()> {
         let mut taken = vec![0usize; self.images.len()];
+        let mut coarse = Vec::new();
         for &l in self.label.iter().filter(|&&l| l != NONE) {
             taken[l as usize] += 1;
         }
@@ -555,7 +560,23 @@ impl Plan {
             if partial_dem[k] && im.opts.dem_outside == crate::dem::Miss::Error {
                 return Err(Error::format(&im.opts.image, format!("{what} (dem_outside = \"error\")")));
             }
-            progress.warn(&format!("{}: {what}", im.opts.image.display()));
+            if (1..=2).contains(&across.min(down)) {
+                coarse.push((im.opts.image.display().to_string(), what));
+            } else {
+                progress.warn(&format!("{}: {what}", im.opts.image.display()));
+            }
+        }
+        // Images a grid too coarse for them gives nothing: one line for
+        // them all where there are many (a budget far too small makes
+        // cells as wide as the frames).
+        match coarse.len() {
+            0..=COARSE_ONE_BY_ONE => coarse.iter().for_each(|(image, what)| progress.warn(&format!("{image}: {what}"))),
+            n => progress.warn(&format!(
+                "{n} images (first {}) span only one or two of the plan's cells ({} px each) at GSD {}: the grid is coarse for them, and the mosaic takes nothing of them",
+                coarse.iter().take(COARSE_ONE_BY_ONE).map(|(image, _)| image.as_str()).collect::<Vec<_>>().join(", "),
+                self.cell,
+                self.grid.gsd
+            )),
         }
         Ok(())
     }
