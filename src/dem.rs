@@ -559,9 +559,6 @@ pub struct Dem {
     mean: std::sync::OnceLock<Option<f64>>,
     /// [`Dem::height_range`], worked out once.
     range: std::sync::OnceLock<Option<(f64, f64)>>,
-    /// The bytes of the posts under the ground a run looks up, where it
-    /// said which ([`Dem::hold_window`]): what a larger budget holds.
-    window_bytes: Option<u64>,
 }
 
 /// The height at a ground point after the policy, or why there is none.
@@ -586,14 +583,6 @@ impl Dem {
     /// Is it one grid file (what [`Dem::posts_for`] reads a window of)?
     pub fn is_grid(&self) -> bool {
         matches!(&self.model, HeightModel::Grid(g) if matches!(g.data, Samples::Memory(_) | Samples::Chunked(_) | Samples::Window { .. }))
-    }
-
-    /// Its heights' bytes, read whole (what a larger budget may hold).
-    pub fn whole_bytes(&self) -> u64 {
-        match &self.model {
-            HeightModel::Flat(_) => 0,
-            HeightModel::Grid(g) => self.window_bytes.unwrap_or(g.width as u64 * g.height as u64 * 4),
-        }
     }
 
     /// The posts under the ground box `b` (ground CRS) and `margin` around
@@ -661,7 +650,6 @@ impl Dem {
             warnings: Vec::new(),
             mean: self.mean.clone(),
             range: self.range.clone(),
-            window_bytes: Some(bytes),
         }))
     }
 
@@ -695,7 +683,6 @@ impl Dem {
     pub fn hold_window(&mut self, b: [f64; 4], margin: usize, max_bytes: u64) -> Result<bool> {
         let Some([i0, j0, w, h]) = self.posts_under(b, margin) else { return Ok(false) };
         let bytes = w as u64 * h as u64 * 4;
-        self.window_bytes = Some(bytes);
         let HeightModel::Grid(g) = &mut self.model else { return Ok(false) };
         let at = [i0, j0, w, h];
         let whole = at == [0, 0, g.width, g.height];
@@ -757,7 +744,6 @@ impl Dem {
             warnings: Vec::new(),
             mean: std::sync::OnceLock::new(),
             range: std::sync::OnceLock::new(),
-            window_bytes: None,
         }
     }
 
@@ -1169,7 +1155,7 @@ mod tests {
             let window = held.held_bytes() - chunk * 4;
             // The box's edges lie halfway between posts: posts 29..=60
             // across and 19..=40 down for its bilinear cells, 2 more around.
-            assert_eq!((window, held.whole_bytes()), (36 * 26 * 4, 36 * 26 * 4), "{chunking:?}");
+            assert_eq!((window, held.bytes_under(b, 2)), (36 * 26 * 4, 36 * 26 * 4), "{chunking:?}");
             // A strip of a mosaic's own posts, read again from the file; the
             // DEM read whole, once it lets go of its posts, through its cache.
             let strip = whole.posts_for(b, 2, 64 << 10, 0).unwrap().expect("one grid file");
