@@ -783,7 +783,7 @@ impl PieceRender<'_> {
                     // threads (two at least, so that one's serial stages
                     // overlap another's): more only hold more in flight.
                     let at_once = strips[k].1 .0.min(self.threads.max(2));
-                    feeds = Some((k, works, heights, render::Feeds::new(s, n, at_once)));
+                    feeds = Some((k, works, heights, render::Feeds::new(s, n, at_once, self.pool)));
                 }
                 let (_, works, heights, feeds) = feeds.as_mut().expect("just made");
                 // The piece's band b is the mosaic's tr0 + b.

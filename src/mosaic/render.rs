@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::geom::Snap;
 use crate::io::tiff_out::OutputSpec;
 use crate::options::RectifyOptions;
-use crate::pipeline::band_render::{render_bands, BandPixels, BandRequest};
+use crate::pipeline::band_render::{render_bands, BandPixels, BandRequest, Shared};
 use crate::pipeline::{Made, Raw};
 use crate::progress::{Cancel, Progress};
 use crossbeam_channel::{bounded, Receiver};
@@ -684,12 +684,15 @@ pub struct Feeds<'scope, 'env> {
     started: Vec<bool>,
     turns: Arc<Turns>,
     scope: &'scope std::thread::Scope<'scope, 'env>,
+    /// The workers the images resample on (the composer's).
+    pool: &'env rayon::ThreadPool,
 }
 
 impl<'scope, 'env> Feeds<'scope, 'env> {
-    /// Feeds for `n` images, `at_once` of them making a band at a time.
-    pub fn new(scope: &'scope std::thread::Scope<'scope, 'env>, n: usize, at_once: usize) -> Feeds<'scope, 'env> {
-        Feeds { receivers: (0..n).map(|_| None).collect(), started: vec![false; n], turns: Arc::new(Turns::new(at_once)), scope }
+    /// Feeds for `n` images, `at_once` of them making a band at a time,
+    /// resampling on `pool`.
+    pub fn new(scope: &'scope std::thread::Scope<'scope, 'env>, n: usize, at_once: usize, pool: &'env rayon::ThreadPool) -> Feeds<'scope, 'env> {
+        Feeds { receivers: (0..n).map(|_| None).collect(), started: vec![false; n], turns: Arc::new(Turns::new(at_once)), scope, pool }
     }
 
     /// The bands of band `b` from the images that have it (starting those
@@ -702,12 +705,12 @@ impl<'scope, 'env> Feeds<'scope, 'env> {
                 self.started[k] = true;
                 let (tx, rx) = bounded(1);
                 self.receivers[k] = Some(rx);
-                let (turns, w) = (self.turns.clone(), w.clone());
+                let (turns, w, pool) = (self.turns.clone(), w.clone(), self.pool);
                 self.scope.spawn(move || {
                     let requests = w.requests();
                     let (x0, y0) = w.origin;
                     let turn = |&(band, cols): &BandRequest| turns.wait((band + y0, cols.0 + x0, k));
-                    let r = render_bands(&w.opts, w.dem.clone(), &requests, cancel, warn, turn, |band| tx.send(band).is_ok());
+                    let r = render_bands(&w.opts, w.dem.clone(), &requests, &Shared { pool, cancel, warn }, turn, |band| tx.send(band).is_ok());
                     if let Err(e) = r {
                         let _ = tx.send(Err(e));
                     }

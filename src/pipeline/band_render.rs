@@ -6,7 +6,7 @@
 //!
 //! The run's set-up holds the scan, the DEM and the GCM, which borrow from
 //! one another; a caller that needs several images at once runs each on a
-//! thread of its own (see `mosaic::render`).
+//! thread of its own (see `mosaic::render`), all resampling on one pool.
 
 use super::budget::MemoryBudget;
 use super::context::{Counters, Inputs, Run, Stop, Walk};
@@ -73,20 +73,29 @@ impl Progress for ImageWarnings<'_> {
     }
 }
 
+/// What the images of a mosaic share: the workers they resample on (so
+/// that an image waiting for its turn holds no threads of its own), the
+/// run's cancel, where their set-up warnings go.
+pub struct Shared<'a> {
+    pub pool: &'a rayon::ThreadPool,
+    pub cancel: &'a Cancel,
+    pub warn: &'a dyn Progress,
+}
+
 /// Makes the bands `requests` names (in increasing order) of the image of
 /// `opts` (see [`in_memory`]), handing each to `sink`. Each band waits for
 /// `turn`, whose answer is held while the band is made; stops early when
-/// `turn` gives none, `sink` says so (its reader went away) or `cancel` is
-/// set. The set-up's warnings go to `warn`.
+/// `turn` gives none, `sink` says so (its reader went away) or the run is
+/// cancelled.
 pub fn render_bands<T>(
     opts: &RectifyOptions,
     dem: SharedDem,
     requests: &[BandRequest],
-    cancel: &Cancel,
-    warn: &dyn Progress,
+    with: &Shared,
     mut turn: impl FnMut(&BandRequest) -> Option<T>,
     mut sink: impl FnMut(Result<BandPixels>) -> bool,
 ) -> Result<()> {
+    let Shared { pool, cancel, warn } = *with;
     let opts = in_memory(opts);
     let setup = match RunPlan::with_dem(&opts, &ImageWarnings { to: warn, image: &opts.image, camera: &opts.camera }, dem) {
         Ok(p) => p,
@@ -100,10 +109,6 @@ pub fn render_bands<T>(
     let visibility = (opts.occlusion != Occlusion::None).then(|| Visibility::new(&t, setup.occlusion_tolerance()));
     let (tx, ty) = (setup.grid.width.div_ceil(opts.tile), setup.grid.height.div_ceil(opts.tile));
     let walk = Walk { grid: t.grid, tile: opts.tile, bands: (0, ty), cols: (0, tx), columns: false, piece: (0, 0, tx) };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(opts.threads)
-        .build()
-        .map_err(|e| Error::setting("threads", format!("cannot start {} threads: {e}", opts.threads)))?;
     let mut run = Run {
         // Into memory, not a file: nothing to name.
         source: None,

@@ -177,8 +177,9 @@ pub struct Run<'a> {
     pub budget: MemoryBudget,
     pub counters: Counters,
     pub stop: Stop<'a>,
-    /// The workers of resampling and encoding.
-    pub pool: rayon::ThreadPool,
+    /// The workers of resampling and encoding (a mosaic's images share
+    /// one pool: threads of their own each would sit idle between turns).
+    pub pool: &'a rayon::ThreadPool,
     pub progress: &'a dyn Progress,
     /// Chunks' mask bytes, handed back by the encoder for the next chunk
     /// (as the pixels' buffers are: fresh multi-MB buffers on every chunk
@@ -204,7 +205,7 @@ impl Run<'_> {
             path: self.inputs.output,
             sync: self.inputs.sync,
             walk: self.walk,
-            pool: &self.pool,
+            pool: self.pool,
             stop: &self.stop,
             progress: self.progress,
             spare_masks: &self.spare_masks.0,

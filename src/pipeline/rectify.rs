@@ -85,7 +85,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         budget: plan.budget,
         counters: Counters { sampled: Some(Default::default()), ..Default::default() },
         stop: Stop::new(cancel),
-        pool,
+        pool: &pool,
         progress,
         spare_masks: crossbeam_channel::bounded(4),
         pyramid: Pyramid::new(spec, opts.overview_resampling, ValidBy::of(spec), plan.pixels.fill).map(std::sync::Mutex::new),

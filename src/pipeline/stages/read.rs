@@ -85,7 +85,7 @@ pub fn read<'a>(run: &Run<'a>, b: u32, band: Arc<BandGcm>, chunk: Chunk, reader:
         None => {
             // A chunk that sees no pixel of the scan decides nothing.
             reader.copying |= c1 > c0 && r1 > r0;
-            timed(&mut reader.busy, || src.read_window_on(&run.pool, c0, r0, c1 - c0, r1 - r0, &mut win)).map_err(|e| run.stop.fail(e))?
+            timed(&mut reader.busy, || src.read_window_on(run.pool, c0, r0, c1 - c0, r1 - r0, &mut win)).map_err(|e| run.stop.fail(e))?
         }
     }
     Ok(ReadMsg { band: b, gcm: band, chunk, win, in_place })
