@@ -32,6 +32,13 @@ thread_local! {
     static LAST: RefCell<LastLook> = const { RefCell::new(None) };
 }
 
+/// Lets go of the chunk this thread looked into last: a thread about to
+/// wait long (an image of a mosaic between its turns) would otherwise keep
+/// it alive past the cache, a strip as wide as the DEM each.
+pub fn let_go_of_last_look() {
+    LAST.with(|last| *last.borrow_mut() = None);
+}
+
 /// Stored values to heights by the band's scale and offset (GDAL's
 /// metadata); the stored nodata value becomes NaN first.
 #[derive(Clone, Copy)]

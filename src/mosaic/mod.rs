@@ -9,6 +9,7 @@
 pub mod agreement;
 pub mod balance;
 pub mod box_store;
+pub mod label_runs;
 pub mod normal;
 pub mod plan;
 pub mod plan_file;
@@ -317,6 +318,8 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             Some(c) => c.clone(),
             None => balance::solve(&plan, o.balance, &pairs)?,
         };
+        // Sums over every pair of images: not for the render to hold.
+        drop(pairs);
         let t_balance = t.elapsed().as_secs_f64();
         let t = Instant::now();
         let edges = seams::height_edges(&plan);
@@ -370,6 +373,9 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         let layout = (o.overviews.unwrap_or(first.overviews), o.cog.unwrap_or(first.cog));
         let spec = piece_spec(&plan, &first, window, layout, o.compress)?;
 
+        // The report's counts, while the plan has its labels cell by cell.
+        let cells = CellCounts::of(&plan);
+        let covered = cells.of_image.iter().sum::<usize>();
         // The render (none when only the plan is asked for).
         let mut works: Vec<render::ImageWork> = Vec::new();
         let mut t_render = 0.0;
@@ -432,7 +438,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             // Strips of tile columns, as wide as the memory holds (one, the
             // whole width, where it holds that), each band of each made in turn
             // into the one file, laid out as a band-by-band run's.
-            let strips = column_strips(&plan, &works, &spec, window, o.memory)?;
+            let strips = column_strips(&plan, weights.bytes(), &works, &spec, window, o.memory)?;
             strips_made = strips.len();
             let stats = pieces.render(window, &strips, &spec, (out, pending, o.sync), &mut hidden)?;
             pixels_with_value = stats.bands.first().map(|b| [b.count, stats.pixels]);
@@ -447,7 +453,6 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             progress.warn(&coarse);
         }
         // The report.
-        let covered = plan.label.iter().filter(|&&l| l != NONE).count();
         let images = plan
             .images
             .iter()
@@ -455,21 +460,12 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             .map(|(k, im)| ImageReport {
                 name: im.name.clone(),
                 image: im.opts.image.clone(),
-                share: plan.label.iter().filter(|&&l| l == k as u16).count() as f64 / covered.max(1) as f64,
+                share: cells.of_image[k] as f64 / covered.max(1) as f64,
                 correction: corrections[k].clone(),
                 grid: works.iter().find(|w| w.image == k).map(|w| w.grid),
                 hidden_share: unseen.is_some().then(|| hidden[k].1 as f64 / hidden[k].0.max(1) as f64),
             })
             .collect();
-        let seam_cells = (0..plan.cw * plan.ch)
-            .map(|k| {
-                let (x, y) = (k % plan.cw, k / plan.cw);
-                let l = plan.label[k];
-                let right = x + 1 < plan.cw && l != NONE && plan.label[k + 1] != NONE && plan.label[k + 1] != l;
-                let down = y + 1 < plan.ch && l != NONE && plan.label[k + plan.cw] != NONE && plan.label[k + plan.cw] != l;
-                usize::from(right) + usize::from(down)
-            })
-            .sum::<usize>();
         Ok(MosaicReport {
             output: o.output.clone(),
             skipped: false,
@@ -484,8 +480,8 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             balance: o.balance,
             blend_px: o.blend,
             seams: seam_stats,
-            seam_length: seam_cells as f64 * plan.cell_metres(),
-            seam_length_px: seam_cells as u64 * plan.cell as u64,
+            seam_length: cells.seams as f64 * plan.cell_metres(),
+            seam_length_px: cells.seams as u64 * plan.cell as u64,
             edited_seams,
             images,
             unseen,
@@ -667,7 +663,7 @@ fn strip_columns(mut widths: Vec<u32>, tile: u32) -> u32 {
 /// tiles then rarely wait for the next strip). When strips a tile column wide
 /// do not fit either, the refusal of the one that needs the most (its
 /// figure is the least that runs).
-fn column_strips(plan: &Plan, works: &[render::ImageWork], spec: &OutputSpec, window: Strip, memory: u64) -> Result<Vec<StripPlan>> {
+fn column_strips(plan: &Plan, weights: u64, works: &[render::ImageWork], spec: &OutputSpec, window: Strip, memory: u64) -> Result<Vec<StripPlan>> {
     let [tc0, tr0, tcw, trh] = window;
     // Strips `wide` columns wide (the last what is left), or the most
     // that one of them lacks.
@@ -675,7 +671,7 @@ fn column_strips(plan: &Plan, works: &[render::ImageWork], spec: &OutputSpec, wi
         let (mut fits, mut worst) = (Vec::new(), None::<render::Short>);
         for c0 in (tc0..tc0 + tcw).step_by(wide as usize) {
             let strip = [c0, tr0, wide.min(tc0 + tcw - c0), trh];
-            match render::budget(plan, &within(works, strip), spec, strip, memory) {
+            match render::budget(plan, weights, &within(works, strip), spec, strip, memory) {
                 Ok(fit) => fits.push((strip, fit)),
                 Err(short) => worst = Some(worst.filter(|w| w.enough >= short.enough).unwrap_or(short)),
             }
@@ -810,6 +806,32 @@ impl PieceRender<'_> {
             return Err(Error::Cancelled);
         }
         written.map(|(_, stats)| stats)
+    }
+}
+
+/// The plan's cells each image is given, and the cell sides its seams run
+/// along (between two images).
+struct CellCounts {
+    of_image: Vec<usize>,
+    seams: usize,
+}
+
+impl CellCounts {
+    fn of(plan: &Plan) -> CellCounts {
+        let mut of_image = vec![0; plan.images.len()];
+        for &l in plan.label.iter().filter(|&&l| l != NONE) {
+            of_image[l as usize] += 1;
+        }
+        let seams = (0..plan.cw * plan.ch)
+            .map(|k| {
+                let (x, y) = (k % plan.cw, k / plan.cw);
+                let l = plan.label[k];
+                let right = x + 1 < plan.cw && l != NONE && plan.label[k + 1] != NONE && plan.label[k + 1] != l;
+                let down = y + 1 < plan.ch && l != NONE && plan.label[k + plan.cw] != NONE && plan.label[k + plan.cw] != l;
+                usize::from(right) + usize::from(down)
+            })
+            .sum::<usize>();
+        CellCounts { of_image, seams }
     }
 }
 

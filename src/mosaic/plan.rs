@@ -190,8 +190,11 @@ pub struct Plan {
     pub ch: usize,
     /// The DEM's height at each cell's centre (NaN: none).
     pub heights: Vec<f32>,
-    /// The image each cell is taken from ([`NONE`]: none sees it).
+    /// The image each cell is taken from ([`NONE`]: none sees it); empty
+    /// once the render has them as [`Plan::runs`].
     pub label: Vec<u16>,
+    /// The same as runs along each row, for the render.
+    pub runs: Option<super::label_runs::LabelRuns>,
     pub images: Vec<PlanImage>,
     /// The images' DEMs, each opened once (renders share them).
     pub dems: Vec<std::sync::Arc<Dem>>,
@@ -237,9 +240,12 @@ impl Plan {
 
     /// Drops what the render does not read, before the images' works are
     /// made from it: the cells' heights, and the DEMs' posts (each strip
-    /// of the render holds its own, [`Plan::dems_for`]).
+    /// of the render holds its own, [`Plan::dems_for`]); the labels are
+    /// kept as runs.
     pub fn forget_for_render(&mut self) -> Result<()> {
         self.heights = Vec::new();
+        self.runs = Some(super::label_runs::LabelRuns::new(&self.label, self.cw));
+        self.label = Vec::new();
         for d in &mut self.dems {
             if let Some(d) = std::sync::Arc::get_mut(d) {
                 d.let_go_of_posts()?;
@@ -264,9 +270,19 @@ impl Plan {
         self.dems.iter().map(|d| d.bytes_under(b, DEM_MARGIN)).sum()
     }
 
+    /// The bytes the plan holds a cell: the images' bits of where they
+    /// see, the labels (or their runs), the heights (till the render).
+    pub fn cell_bytes(&self) -> u64 {
+        let labels = self.runs.as_ref().map_or(self.label.len() as u64 * 2, |r| r.bytes());
+        self.images.iter().map(|i| i.seen.bytes()).sum::<u64>() + labels + self.heights.len() as u64 * 4
+    }
+
     #[inline]
     pub fn label_at(&self, x: usize, y: usize) -> u16 {
-        self.label[y * self.cw + x]
+        match &self.runs {
+            Some(runs) => runs.at(x, y),
+            None => self.label[y * self.cw + x],
+        }
     }
 
     /// Ground size of a cell's side (of a square cell of the same area,
@@ -425,7 +441,8 @@ impl Plan {
                 d.hold_window(whole, DEM_MARGIN, plan_posts(s.memory))?;
             }
         }
-        let mut plan = Plan { grid, crs, cell, cw, ch, heights: Vec::new(), label: vec![NONE; cw * ch], images: Vec::new(), dems, store: BoxStore::new()? };
+        let mut plan =
+            Plan { grid, crs, cell, cw, ch, heights: Vec::new(), label: vec![NONE; cw * ch], runs: None, images: Vec::new(), dems, store: BoxStore::new()? };
         // Heights of the first image's DEM: the seams' height edges.
         if let Some((im, _)) = images.first() {
             let dem = &plan.dems[im.dem];

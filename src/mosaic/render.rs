@@ -97,12 +97,12 @@ pub fn work(plan: &Plan, weights: &Weights, tile: u32, prone: Option<&[bool]>, o
             let mut set = std::collections::BTreeSet::new();
             for y in y0..y1 {
                 for x in x0..x1 {
-                    for i in weights.images(&plan.label, x, y) {
+                    let l = plan.label_at(x, y);
+                    for i in weights.images(l, x, y) {
                         if i != NONE {
                             set.insert(i);
                         }
                     }
-                    let l = plan.label_at(x, y);
                     let edge = l != NONE
                         && [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)]
                             .into_iter()
@@ -202,20 +202,21 @@ pub fn least_share(spec: &OutputSpec) -> u64 {
 
 /// The render's memory for the mosaic bands `b0..b0 + n` of `spec`, in a
 /// strip `across` tile columns wide: the writer's bands in flight and
-/// unfinished overview tiles; the plan's arrays, DEMs and images; the images'
+/// unfinished overview tiles; the plan's arrays (and the blend's `weights`
+/// bytes), DEMs and images; the images'
 /// bands in hand, of a band of the mosaic and the next (see [`Turns`]), a
 /// tile and its mask for each of their tile columns; the images alive
 /// between turns. What is left goes to the renders that run at once, as
 /// many as it holds at [`MIN_SHARE`] each, up to all the images those two
 /// bands need (more at once keep the cores busy through each one's serial
 /// stages). Returns how many at once, and each one's memory.
-pub fn budget(plan: &Plan, works: &[ImageWork], spec: &OutputSpec, strip: [u32; 4], memory: u64) -> std::result::Result<Fit, Short> {
+pub fn budget(plan: &Plan, weights: u64, works: &[ImageWork], spec: &OutputSpec, strip: [u32; 4], memory: u64) -> std::result::Result<Fit, Short> {
     let [_, b0, across, n] = strip;
     let tile = spec.chunk().0 as u64;
     let band_bytes = crate::pipeline::band_writer::held_bytes(spec, across);
     let heights = super::strip_heights::StripHeights::new(works);
     let dems = heights.holding(plan, tile as u32, memory).bytes;
-    let arrays = plan.images.iter().map(|i| i.seen.bytes()).sum::<u64>() + plan.label.len() as u64 * 12 + plan.heights.len() as u64 * 4;
+    let arrays = plan.cell_bytes() + weights;
     let images = plan.images.len() as u64 * PER_IMAGE;
     let plan_bytes = arrays + dems + images;
     let image_tile = spec.tile_bytes() as u64 + tile * tile;
@@ -393,7 +394,8 @@ impl Compose<'_> {
                 (0..nx * ny)
                     .map(|k| {
                         let (x, y) = ((cx0 + (k % nx) as i64).clamp(0, cw - 1), (cy0 + (k / nx) as i64).clamp(0, ch - 1));
-                        self.weights.weight(&self.plan.label, x as usize, y as usize, p.image)
+                        let (x, y) = (x as usize, y as usize);
+                        self.weights.weight(self.plan.label_at(x, y), x, y, p.image)
                     })
                     .collect()
             })

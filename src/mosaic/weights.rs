@@ -94,16 +94,20 @@ impl Weights {
         Weights { cw, near, ramp: true }
     }
 
+    /// The bytes it holds: a hash table's entry and control byte a cell
+    /// within a ramp.
+    pub fn bytes(&self) -> u64 {
+        (self.near.capacity() * (std::mem::size_of::<(u32, (f32, u16))>() + 1)) as u64
+    }
+
     /// Whether the blend is a ramp (else each pixel takes its cell's image).
     pub fn blends(&self) -> bool {
         self.ramp
     }
 
-    /// Image `i`'s weight in cell (x, y), of the cells' labels `label`
-    /// (the plan's).
-    pub fn weight(&self, label: &[u16], x: usize, y: usize, i: u16) -> f32 {
+    /// Image `i`'s weight in cell (x, y), whose label (the plan's) is `l`.
+    pub fn weight(&self, l: u16, x: usize, y: usize, i: u16) -> f32 {
         let k = y * self.cw + x;
-        let l = label[k];
         if l == NONE {
             return 0.0;
         }
@@ -117,10 +121,11 @@ impl Weights {
         }
     }
 
-    /// The images with a weight in cell (x, y): its own and the one across.
-    pub fn images(&self, label: &[u16], x: usize, y: usize) -> [u16; 2] {
+    /// The images with a weight in cell (x, y), whose label is `l`: its
+    /// own and the one across.
+    pub fn images(&self, l: u16, x: usize, y: usize) -> [u16; 2] {
         let k = y * self.cw + x;
         let other = self.near.get(&(k as u32)).map_or(NONE, |&(_, o)| o);
-        [label[k], other]
+        [l, other]
     }
 }

@@ -160,11 +160,13 @@ pub fn render_bands<T>(
             }
             Ok(BandPixels { band: b, chunks, seen: gcm.seen.clone() })
         })();
-        // Until its next turn the image holds no scan rows and no window.
+        // Until its next turn the image holds no scan rows, no window and
+        // no DEM chunk.
         if let Some(rows) = mapped.take() {
             release_outside(run.inputs.src, rows, None);
         }
         win = Window::default();
+        crate::io::cached_raster::let_go_of_last_look();
         drop(turn);
         let failed = band.is_err();
         if !sink(band) || failed {
