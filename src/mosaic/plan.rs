@@ -246,6 +246,10 @@ impl Plan {
         self.heights = Vec::new();
         self.runs = Some(super::label_runs::LabelRuns::new(&self.label, self.cw));
         self.label = Vec::new();
+        // The plan's lookups ran on this thread and the global pool's,
+        // each of which still holds the DEM chunk it looked into last.
+        crate::io::cached_raster::let_go_of_last_look();
+        rayon::broadcast(|_| crate::io::cached_raster::let_go_of_last_look());
         for d in &mut self.dems {
             if let Some(d) = std::sync::Arc::get_mut(d) {
                 d.let_go_of_posts()?;
