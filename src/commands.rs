@@ -245,7 +245,13 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         eprintln!("gcm-ortho: warning: {w}");
     }
     if let Some(j) = &a.json {
-        write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
+        // A rerun that finds its output current made nothing: it says so,
+        // not a mosaic's figures it never measured.
+        let text = match report.skipped {
+            true => serde_json::to_string_pretty(&serde_json::json!({ "output": report.output, "skipped": true, "output_bytes": report.output_bytes }))?,
+            false => serde_json::to_string_pretty(&report)?,
+        };
+        write_file(j, text.as_bytes())?;
     }
     if report.skipped {
         if !a.quiet {

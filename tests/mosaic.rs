@@ -202,13 +202,18 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
         assert!(!d.join("out.tif").exists());
     }
     // Too little memory for the render: refused in one line with the
-    // figure that would do, nothing left behind; that figure runs.
-    let out =
-        std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", "out.tif", "--memory", "20M", "--quiet"]).output().unwrap();
+    // figure that would do, nothing left behind (nor the seamlines and plan
+    // asked for, made before the render was refused); that figure runs.
+    let out = std::process::Command::new(bin())
+        .current_dir(d)
+        .args(["mosaic", "manifest.toml", "-o", "out.tif", "--memory", "20M", "--seamlines-out", "cut.geojson", "--plan-out", "cut.plan", "--quiet"])
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("--memory") && err.trim().lines().count() == 1, "{err}");
     assert!(!d.join("out.tif").exists() && common::files_containing(d, "out.tif").is_empty());
+    assert!(common::files_containing(d, "cut.").is_empty(), "{:?}", common::files_containing(d, "cut."));
     let enough = err.split("give --memory ").nth(1).and_then(|t| t.split_whitespace().next()).expect("a figure").to_string();
     let out = std::process::Command::new(bin())
         .current_dir(d)
@@ -428,11 +433,36 @@ fn edited_seamlines_are_honoured() {
     assert_eq!(edited.cells_given, to_a + to_b);
     assert!(to_a > 100 && to_b > 100 && edited.cells_kept > 0, "{edited:?}");
 
-    // The mosaic honours them: the seamlines it writes back are the edit.
+    // The run's own seams (least-cost), as it writes them.
+    mosaic(d, &["-o", "p.tif", "--seamlines-out", "plain.geojson"]);
+    let mut own = make();
+    assert_eq!(gcm_ortho::mosaic::seamlines::read(&mut own, &d.join("plain.geojson")).unwrap().cells_kept, 0);
+    assert_ne!(own.label, planned, "least-cost seams move the first partition");
+    // The mosaic honours the edit: the seamlines it writes back are the
+    // edit where it gives a cell to an image that sees it, elsewhere the
+    // run's own seams.
     mosaic(d, &["-o", "e.tif", "--seamlines", "edited.geojson", "--seamlines-out", "back.geojson", "--json", "e.json"]);
     let mut again = make();
     let back = gcm_ortho::mosaic::seamlines::read(&mut again, &d.join("back.geojson")).unwrap();
-    assert_eq!(again.label, plan.label, "the written seamlines give back the edited partition");
+    let expected: Vec<u16> = (0..plan.cw * plan.ch)
+        .map(|k| {
+            let (cx, _) = plan.cell_centre(k % plan.cw, k / plan.cw);
+            let wanted = if cx < xm { 0 } else { 1 };
+            if plan.images[wanted].sees(k % plan.cw, k / plan.cw) {
+                wanted as u16
+            } else {
+                own.label[k]
+            }
+        })
+        .collect();
+    assert!(again.label == expected, "the written seamlines give back the edited partition");
+    // An image's feature left out of the run's own seamlines: its cells
+    // keep its cut, and the mosaic is the run's, byte for byte.
+    let mut plain: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("plain.geojson")).unwrap()).unwrap();
+    plain["features"].as_array_mut().unwrap().remove(1);
+    std::fs::write(d.join("dropped.geojson"), plain.to_string()).unwrap();
+    mosaic(d, &["-o", "dropped.tif", "--seamlines", "dropped.geojson"]);
+    assert!(std::fs::read(d.join("dropped.tif")).unwrap() == std::fs::read(d.join("p.tif")).unwrap(), "a feature left out changed the mosaic");
     assert_eq!((back.cells_kept, back.cells_overlapping), (0, 0), "every labelled cell, edge cells too, is in the file it wrote");
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("e.json")).unwrap()).unwrap();
     assert_eq!(report["edited_seams"]["cells_given"].as_u64().unwrap() as usize, edited.cells_given);
@@ -618,9 +648,14 @@ fn a_restarted_shard_leaves_its_finished_piece_and_redoes_a_changed_one() {
         r["skipped"].as_bool().unwrap()
     };
     assert!(!skipped(d));
-    // The same command again: the piece is current, left as it is.
+    // The same command again: the piece is current, left as it is; the
+    // report says so, and no figure of a mosaic it did not make.
     mosaic(d, &args);
     assert!(skipped(d));
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
+    let keys: Vec<&str> = r.as_object().unwrap().keys().map(|k| k.as_str()).collect();
+    assert_eq!(keys, ["output", "output_bytes", "skipped"], "{r}");
+    assert_eq!(r["output_bytes"].as_u64(), Some(std::fs::metadata(&piece).unwrap().len()));
     assert_eq!(std::fs::metadata(&piece).unwrap().modified().unwrap(), first);
     // Another window, or --force, or a changed plan: made again.
     let mut forced = args.to_vec();

@@ -190,25 +190,36 @@ pub fn without_path(e: &std::io::Error) -> std::io::Error {
 }
 
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
+    match write_pending(path, bytes)? {
+        Some(pending) => pending.publish(),
+        None => Ok(()),
+    }
+}
+
+/// [`write_file`] up to the rename: the file written under its temporary
+/// name, for the caller to publish once the rest of its run is done (a
+/// run stopped before leaves none of it). `None`: `path` is a stream or a
+/// device, written into at once.
+pub fn write_pending(path: &Path, bytes: &[u8]) -> Result<Option<PendingFile>> {
     use std::io::Write;
     // A report into a stream (`--json /dev/stdout`, a pipe, the file the
     // shell opened for it): written into it, after what the run printed.
     let std_stream = |names: [&str; 3]| names.iter().any(|n| path == Path::new(n));
     if std_stream(["/dev/stdout", "/dev/fd/1", "/proc/self/fd/1"]) {
         let mut out = std::io::stdout().lock();
-        return out.write_all(bytes).and_then(|()| out.flush()).map_err(|e| Error::io(path, e));
+        return out.write_all(bytes).and_then(|()| out.flush()).map(|()| None).map_err(|e| Error::io(path, e));
     }
     if std_stream(["/dev/stderr", "/dev/fd/2", "/proc/self/fd/2"]) {
-        return std::io::stderr().lock().write_all(bytes).map_err(|e| Error::io(path, e));
+        return std::io::stderr().lock().write_all(bytes).map(|()| None).map_err(|e| Error::io(path, e));
     }
     let descriptor = ["/dev/fd", "/proc/self/fd"].iter().any(|d| path.starts_with(d));
     if descriptor || crate::io::overwrite::special_kind(path).is_some() {
         let mut f = std::fs::OpenOptions::new().append(true).open(path).map_err(|e| Error::io(path, e))?;
-        return f.write_all(bytes).map_err(|e| Error::io(path, e));
+        return f.write_all(bytes).map(|()| None).map_err(|e| Error::io(path, e));
     }
     let pending = PendingFile::create(path)?;
     pending.file()?.write_all(bytes).map_err(|e| Error::io(path, e))?;
-    pending.publish()
+    Ok(Some(pending))
 }
 
 #[cfg(test)]

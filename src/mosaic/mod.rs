@@ -333,6 +333,13 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             // The plan's seams are taken as they are.
             _ if from_plan.is_some() => (seams::SeamStats::default(), None),
             Some(path) => {
+                // The seams the run makes without the file (as its
+                // --seamlines-out wrote them) for the cells no feature
+                // takes: a feature left out keeps its image's cut.
+                let stats = match o.least_cost {
+                    true => seams::refine(&mut plan, &corrections, corridor, &edges)?,
+                    false => seams::SeamStats::default(),
+                };
                 let edited = seamlines::read(&mut plan, path)?;
                 for doubt in &edited.doubts {
                     progress.warn(&format!("{}: {doubt}", path.display()));
@@ -345,17 +352,20 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
                     edited.cells_overlapping
                 ));
                 }
-                (seams::SeamStats::default(), Some(edited))
+                (stats, Some(edited))
             }
             None if o.least_cost => (seams::refine(&mut plan, &corrections, corridor, &edges)?, None),
             None => (seams::SeamStats::default(), None),
         };
         let t_seams = t.elapsed().as_secs_f64();
+        // Written now (the render lets the cells' labels go), published
+        // with the mosaic: a run stopped or failed leaves none of them.
+        let mut side_outputs = Vec::new();
         if let Some(path) = &o.seamlines_out {
-            seamlines::write(&plan, path)?;
+            side_outputs.extend(seamlines::write(&plan, path)?);
         }
         if let Some(path) = &o.plan_out {
-            plan_file::write(&plan, &corrections, &source, path)?;
+            side_outputs.extend(plan_file::write(&plan, &corrections, &source, path)?);
         }
         // Pieces join only where their seams and balance are one: made with
         // another --balance, seam method, edited seams or plan, their
@@ -448,6 +458,9 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
                 unseen = Some(Unseen::new(compose.covered.load(Ordering::Relaxed), compose.unseen.load(Ordering::Relaxed), grid.gsd));
             }
             t_render = t.elapsed().as_secs_f64();
+        }
+        for side in side_outputs {
+            side.publish()?;
         }
         if let Some(coarse) = coarse_plan(&plan, o) {
             progress.warn(&coarse);

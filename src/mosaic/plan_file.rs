@@ -33,9 +33,10 @@ struct PlanFile {
 
 const FORMAT: &str = "gcm-ortho mosaic plan 1";
 
-/// Writes `plan`'s seams and `corrections`, planned from `source`, to
-/// `path`.
-pub fn write(plan: &Plan, corrections: &[Correction], source: &str, path: &Path) -> Result<()> {
+/// Writes `plan`'s seams and `corrections`, planned from `source`, for
+/// `path` under a temporary name beside it, for the caller to publish
+/// when its run is done.
+pub fn write(plan: &Plan, corrections: &[Correction], source: &str, path: &Path) -> Result<Option<crate::io::publish::PendingFile>> {
     let mut labels: Vec<[u32; 2]> = Vec::new();
     for &l in &plan.label {
         match labels.last_mut() {
@@ -56,7 +57,7 @@ pub fn write(plan: &Plan, corrections: &[Correction], source: &str, path: &Path)
         source: Some(source.to_string()),
     };
     let text = serde_json::to_string(&file).map_err(|e| Error::Geometry(e.to_string()))?;
-    crate::io::publish::write_file(path, text.as_bytes())
+    crate::io::publish::write_pending(path, text.as_bytes())
 }
 
 fn load(path: &Path) -> Result<PlanFile> {

@@ -11,9 +11,9 @@ use std::collections::HashMap;
 
 type Vertex = (i64, i64);
 
-/// Writes the seamlines of `plan` to `path` (a temporary beside it,
-/// renamed when complete).
-pub fn write(plan: &Plan, path: &std::path::Path) -> Result<()> {
+/// Writes the seamlines of `plan` for `path` under a temporary name
+/// beside it, for the caller to publish when its run is done.
+pub fn write(plan: &Plan, path: &std::path::Path) -> Result<Option<crate::io::publish::PendingFile>> {
     let mut features = Vec::new();
     for (k, im) in plan.images.iter().enumerate() {
         let rings = rings_of(plan, k as u16);
@@ -44,7 +44,7 @@ pub fn write(plan: &Plan, path: &std::path::Path) -> Result<()> {
         doc["crs"] = serde_json::json!({ "type": "name", "properties": { "name": format!("urn:ogc:def:crs:EPSG::{code}") } });
     }
     let text = serde_json::to_string(&doc).map_err(|e| Error::Geometry(e.to_string()))?;
-    crate::io::publish::write_file(path, text.as_bytes())
+    crate::io::publish::write_pending(path, text.as_bytes())
 }
 
 /// The closed rings around the cells of image `l`, in cell corners,
