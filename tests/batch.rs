@@ -290,6 +290,11 @@ fn a_broken_manifest_lists_every_problem_with_lines() {
     std::fs::write(d.join("manifest.toml"), format!("{}{}", job("a.tif", "camera"), job("b.tif", "camrea"))).unwrap();
     let err = String::from_utf8_lossy(&batch(d, &[]).stderr).to_string();
     assert!(err.contains("line 7: unknown field `camrea` (did you mean `camera`?), expected one of `image`, `camera`"), "{err}");
+    // A slip in the key a job must have: the slip named at its line, not
+    // only the key found missing.
+    std::fs::write(d.join("manifest.toml"), format!("{}[[job]]\nimgae = \"b.tif\"\ncamera = \"c.toml\"\n", job("a.tif", "camera"))).unwrap();
+    let err = String::from_utf8_lossy(&batch(d, &[]).stderr).to_string();
+    assert!(err.contains("line 6: missing field `image`, and `imgae` is no key a job takes (did you mean `image`?)"), "{err}");
     std::fs::write(d.join("manifest.toml"), format!("{}{}", job("a.tif", "camera"), job("b.tif", "camera"))).unwrap();
     let err = String::from_utf8_lossy(&batch(d, &["--dry-run"]).stderr).to_string();
     assert!(err.contains("line 6: image ") && err.contains("b.tif does not exist"), "{err}");

@@ -230,6 +230,20 @@ fn defaults_key_line(text: &str, key: &str) -> Option<usize> {
         .map(|k| section + 2 + k)
 }
 
+/// The keys of the job table at `span` of `text` that no job takes.
+fn stray_job_keys(text: &str, span: std::ops::Range<usize>) -> Vec<String> {
+    // (The span starts at the table's `[[job]]` header.)
+    let Some(Ok(table)) = text.get(span).map(|t| t.trim_start().strip_prefix("[[job]]").unwrap_or(t)).map(toml::from_str::<toml::Table>) else {
+        return Vec::new();
+    };
+    let unknown = |key: &str| {
+        let mut t = toml::Table::new();
+        t.insert(key.to_string(), toml::Value::Integer(0));
+        matches!(toml::Value::Table(t).try_into::<Options>(), Err(e) if e.to_string().contains("unknown field"))
+    };
+    table.keys().filter(|k| !["image", "camera", "output"].contains(&k.as_str()) && unknown(k)).cloned().collect()
+}
+
 /// ", expected one of …" for a job's unknown `key`: a job's own keys and
 /// those of `[defaults]` (as serde lists them for `[defaults]`), the
 /// nearest first where one is a slip of it.
@@ -283,6 +297,18 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
             // A job's unknown key: its own line (the error spans the job's
             // table), and the keys a job takes (serde does not list them
             // through the job's flattened options).
+            // A key a job lacks, where the job has one it does not take: a
+            // slip of the one it lacks, named on its line.
+            let slip = match message.starts_with("missing field") {
+                true => stray_job_keys(&text, s.clone()).into_iter().next(),
+                false => None,
+            };
+            if let Some(key) = slip {
+                if let Some(l) = key_line(&text, s.clone(), &key) {
+                    message = format!("{message}, and `{key}` is no key a job takes{}", job_keys_hint(&key));
+                    return l;
+                }
+            }
             match unknown_key(&message).and_then(|k| key_line(&text, s.clone(), k).map(|l| (k.to_string(), l))) {
                 Some((key, l)) => {
                     if !message.contains("expected") {
