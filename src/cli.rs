@@ -72,7 +72,7 @@ pub enum Command {
     Demo(DemoArgs),
     /// Run many rectify jobs from a manifest: resumable, shardable.
     Batch(BatchArgs),
-    /// Put pieces made with `rectify --window` together into one GeoTIFF.
+    /// Put pieces made with `rectify --window` or `mosaic --window` together into one GeoTIFF.
     Assemble(AssembleArgs),
     /// One seamless orthomosaic of a batch manifest's images, straight from
     /// the scans: seamlines, radiometric balancing, blending.
@@ -289,7 +289,7 @@ impl CamerasArgs {
 
 #[derive(Args, Debug)]
 pub struct AssembleArgs {
-    /// The pieces (GeoTIFFs written by `rectify --window`).
+    /// The pieces (GeoTIFFs written by `rectify --window` or `mosaic --window`).
     #[arg(required = true)]
     pub pieces: Vec<PathBuf>,
     /// The assembled orthophoto (its overviews made anew)
@@ -414,8 +414,9 @@ pub struct MosaicArgs {
     #[arg(long)]
     pub force: bool,
     /// Render by pieces finished in this folder, so that a stopped run,
-    /// run again, keeps its finished pieces (the folder is emptied once the
-    /// mosaic is made; it holds about the mosaic's size meanwhile)
+    /// run again, keeps its finished pieces (its own files are removed once
+    /// the mosaic is made, and the folder where that leaves it empty; it
+    /// holds about the mosaic's size meanwhile)
     #[arg(long, requires = "output", conflicts_with_all = ["window", "plan", "plan_out"])]
     pub resume_dir: Option<PathBuf>,
     /// Pixel size of the mosaic: X, or X,Y for non-square pixels (default:
@@ -457,7 +458,8 @@ pub struct MosaicArgs {
     #[arg(long)]
     pub cog: bool,
     /// A true orthomosaic: ground an image does not see on the DSM is taken
-    /// from another image that sees it (else as each job's `occlusion`)
+    /// from another image that sees it, and what no image sees has no value
+    /// (`nodata` and `mask` alike; else as each job's `occlusion`)
     #[arg(long, value_parser = choice::<Occlusion>())]
     pub occlusion: Option<Occlusion>,
     /// Memory budget
