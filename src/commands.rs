@@ -193,9 +193,6 @@ fn run_cameras(a: &crate::cli::CamerasArgs) -> Result<()> {
 
 fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
     use gcm_ortho::mosaic::{mosaic, MosaicOptions};
-    if let Some(o) = &a.output {
-        warn_if_not_tiff(o);
-    }
     inputs_exist(&[
         ("manifest", Some(a.manifest.as_path())),
         ("--seamlines", a.seamlines.as_deref()),
@@ -503,11 +500,7 @@ fn past_budget(given: &str, budget: u64) -> Option<String> {
 /// `.jpg`, `.vrt`) would mislead whoever opens it by its name. Said on
 /// stderr, even with --quiet.
 fn warn_if_not_tiff(output: &Path) -> Option<String> {
-    let ext = output.extension()?.to_string_lossy().to_lowercase();
-    if matches!(ext.as_str(), "tif" | "tiff" | "gtiff" | "gtif") {
-        return None;
-    }
-    let w = format!("{}: the output is a GeoTIFF, whatever its name's .{ext} says", output.display());
+    let w = gcm_ortho::io::tiff_out::named_as_other_format(output)?;
     eprintln!("gcm-ortho: warning: {w}");
     Some(w)
 }

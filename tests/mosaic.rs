@@ -136,10 +136,14 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     block(d);
     let before = std::fs::read(d.join("scans/002.tif")).unwrap();
     let camera = std::fs::read(d.join("scans/001.toml")).unwrap();
-    for target in ["scans/002.tif", "dem.tif", "manifest.toml"] {
+    for target in ["scans/002.tif", "dem.tif", "manifest.toml", "scans/001.toml"] {
         let out = std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "-o", target, "--quiet"]).output().unwrap();
-        assert_eq!(out.status.code(), Some(2), "{target}: {}", String::from_utf8_lossy(&out.stderr));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{target}: {err}");
+        // The refusal alone (not first a word on the name's format).
+        assert!(err.trim().lines().count() == 1 && err.contains("refusing to write over an input"), "{target}: {err}");
     }
+    assert_eq!(std::fs::read(d.join("scans/001.toml")).unwrap(), camera);
     // Nor its report, written after the run.
     for target in ["scans/001.toml", "scans/002.tif", "dem.tif"] {
         let out =
@@ -229,9 +233,19 @@ fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line()
     let one = tried("1");
     let said = String::from_utf8_lossy(&one.stderr);
     assert_eq!(one.status.code(), Some(2), "{said}");
-    // The images a grid that coarse takes nothing of are said in one line,
-    // not one each.
-    assert!(said.contains("span only one or two of the plan's cells") && said.trim().lines().count() == 2, "{said}");
+    // The refusal alone: what the plan on that budget would say of its
+    // images comes only where the run goes on (a plan alone), in one line
+    // for the images a grid that coarse takes nothing of, not one each.
+    assert!(said.trim().lines().count() == 1, "{said}");
+    let plan_only = std::process::Command::new(bin())
+        .current_dir(d)
+        .args(["mosaic", "manifest.toml", "--plan-out", "coarse.plan", "--memory", "1", "--quiet"])
+        .output()
+        .unwrap();
+    let notes = String::from_utf8_lossy(&plan_only.stderr);
+    assert!(plan_only.status.success(), "{notes}");
+    assert_eq!(notes.lines().filter(|l| l.contains("span only one or two of the plan's cells")).count(), 1, "{notes}");
+    assert!(notes.lines().all(|l| !l.contains("takes nothing of it:")), "{notes}");
     let from_one = said.split("give --memory ").nth(1).and_then(|t| t.split_whitespace().next()).expect("a figure").to_string();
     let mib = |f: &str| f.trim_end_matches('M').parse::<i64>().unwrap_or_else(|_| panic!("{f}"));
     assert!((mib(&from_one) - mib(&enough)).abs() <= 8, "{from_one} from 1 byte, {enough} from 20M");

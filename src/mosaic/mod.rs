@@ -279,6 +279,10 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     };
     (|| -> Result<MosaicReport> {
         check_mosaic_outputs(o, &jobs)?;
+        // Said once the output is known to be no input (else refused alone).
+        if let Some(w) = o.output.as_deref().and_then(crate::io::tiff_out::named_as_other_format) {
+            progress.warn(&w);
+        }
         // A rerun (a restarted shard) leaves a current output as it is.
         let key = run_key(o, &jobs);
         let source = source_key(o, &jobs);
@@ -461,6 +465,9 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         }
         for side in side_outputs {
             side.publish()?;
+        }
+        for note in &plan.coarse_notes {
+            progress.warn(note);
         }
         if let Some(coarse) = coarse_plan(&plan, o) {
             progress.warn(&coarse);

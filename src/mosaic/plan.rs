@@ -200,6 +200,9 @@ pub struct Plan {
     pub dems: Vec<std::sync::Arc<Dem>>,
     /// Each image's thumbnail and distances on its box of cells.
     pub store: BoxStore,
+    /// Images a grid too coarse for them gives nothing (an absurd budget's
+    /// cells): said once the run goes on, not before its refusal.
+    pub coarse_notes: Vec<String>,
 }
 
 /// What the plan is made from.
@@ -445,8 +448,20 @@ impl Plan {
                 d.hold_window(whole, DEM_MARGIN, plan_posts(s.memory))?;
             }
         }
-        let mut plan =
-            Plan { grid, crs, cell, cw, ch, heights: Vec::new(), label: vec![NONE; cw * ch], runs: None, images: Vec::new(), dems, store: BoxStore::new()? };
+        let mut plan = Plan {
+            grid,
+            crs,
+            cell,
+            cw,
+            ch,
+            heights: Vec::new(),
+            label: vec![NONE; cw * ch],
+            runs: None,
+            images: Vec::new(),
+            dems,
+            store: BoxStore::new()?,
+            coarse_notes: Vec::new(),
+        };
         // Heights of the first image's DEM: the seams' height edges.
         if let Some((im, _)) = images.first() {
             let dem = &plan.dems[im.dem];
@@ -530,7 +545,7 @@ impl Plan {
                 None => Error::setting("gsd", what),
             });
         }
-        plan.check_each_image_gives(&partial_dem, s.bounds.is_some() || s.grid.is_some(), progress)?;
+        plan.coarse_notes = plan.check_each_image_gives(&partial_dem, s.bounds.is_some() || s.grid.is_some(), progress)?;
         Ok(plan)
     }
 }
@@ -540,7 +555,9 @@ impl Plan {
     /// its DEM (an error under `--dem-outside error`), or seen nearer its
     /// centre everywhere by another image — the same image twice, or
     /// another's camera. (`bounded`: the grid is a box of the block's.)
-    fn check_each_image_gives(&self, partial_dem: &[bool], bounded: bool, progress: &dyn Progress) -> Result<()> {
+    /// Returns what it has to say of images a grid too coarse for them
+    /// gives nothing, for the run to say once it goes on.
+    fn check_each_image_gives(&self, partial_dem: &[bool], bounded: bool, progress: &dyn Progress) -> Result<Vec<String>> {
         let mut taken = vec![0usize; self.images.len()];
         let mut coarse = Vec::new();
         for &l in self.label.iter().filter(|&&l| l != NONE) {
@@ -590,16 +607,15 @@ impl Plan {
         // Images a grid too coarse for them gives nothing: one line for
         // them all where there are many (a budget far too small makes
         // cells as wide as the frames).
-        match coarse.len() {
-            0..=COARSE_ONE_BY_ONE => coarse.iter().for_each(|(image, what)| progress.warn(&format!("{image}: {what}"))),
-            n => progress.warn(&format!(
+        Ok(match coarse.len() {
+            0..=COARSE_ONE_BY_ONE => coarse.iter().map(|(image, what)| format!("{image}: {what}")).collect(),
+            n => vec![format!(
                 "{n} images (first {}) span only one or two of the plan's cells ({} px each) at GSD {}: the grid is coarse for them, and the mosaic takes nothing of them",
                 coarse.iter().take(COARSE_ONE_BY_ONE).map(|(image, _)| image.as_str()).collect::<Vec<_>>().join(", "),
                 self.cell,
                 self.grid.gsd
-            )),
-        }
-        Ok(())
+            )],
+        })
     }
 }
 
