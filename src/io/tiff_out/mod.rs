@@ -303,7 +303,16 @@ impl OutputSpec {
     }
 }
 
-#[cfg(test)]
+/// What to say of an output named as another format (`out.png`): it is a
+/// GeoTIFF whatever its name says. `None` for a TIFF's name, or none.
+pub fn named_as_other_format(output: &std::path::Path) -> Option<String> {
+    let ext = output.extension()?.to_string_lossy().to_lowercase();
+    if matches!(ext.as_str(), "tif" | "tiff" | "gtiff" | "gtif") {
+        return None;
+    }
+    Some(format!("{}: the output is a GeoTIFF, whatever its name's .{ext} says", output.display()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::writer::PAGE;
@@ -471,14 +480,4 @@ mod tests {
             assert_eq!(inflate(&encoded), want, "{bands} bands of {sample:?}");
         }
     }
-}
-
-/// What to say of an output named as another format (`out.png`): it is a
-/// GeoTIFF whatever its name says. `None` for a TIFF's name, or none.
-pub fn named_as_other_format(output: &std::path::Path) -> Option<String> {
-    let ext = output.extension()?.to_string_lossy().to_lowercase();
-    if matches!(ext.as_str(), "tif" | "tiff" | "gtiff" | "gtif") {
-        return None;
-    }
-    Some(format!("{}: the output is a GeoTIFF, whatever its name's .{ext} says", output.display()))
 }
