@@ -167,7 +167,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
         // Made from the same image, camera, DEM and settings (a piece of
         // another run on the same grid would join without a seam to see).
         if g.source.as_deref().map(crate::io::geotiff::without_layout) != geo0.source.as_deref().map(crate::io::geotiff::without_layout) {
-            return Err(not_one("made from other inputs or settings (image, camera, DEM, resampling…)".into()));
+            return Err(not_one("made from other inputs or settings (image, camera, DEM, resampling; a mosaic's seams, balance or blend…)".into()));
         }
         // And for a whole of one layout, unless this run says which: else
         // the first piece named would choose it.
