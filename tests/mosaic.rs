@@ -671,6 +671,12 @@ fn a_restarted_shard_leaves_its_finished_piece_and_redoes_a_changed_one() {
     assert_eq!(keys, ["output", "output_bytes", "skipped"], "{r}");
     assert_eq!(r["output_bytes"].as_u64(), Some(std::fs::metadata(&piece).unwrap().len()));
     assert_eq!(std::fs::metadata(&piece).unwrap().modified().unwrap(), first);
+    // Asked for its seamlines as well, it makes them (and so the piece).
+    let with_seams = [&args[..], &["--seamlines-out", "again.geojson"]].concat();
+    mosaic(d, &with_seams);
+    assert!(!skipped(d) && d.join("again.geojson").exists());
+    mosaic(d, &args);
+    assert!(skipped(d));
     // Another window, or --force, or a changed plan: made again.
     let mut forced = args.to_vec();
     forced.push("--force");

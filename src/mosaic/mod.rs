@@ -286,7 +286,8 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         // A rerun (a restarted shard) leaves a current output as it is.
         let key = run_key(o, &jobs);
         let source = source_key(o, &jobs);
-        if let (Some(out), None, false) = (&o.output, &o.plan_out, o.force) {
+        // (Not where a plan or seamlines are asked for: they are made anew.)
+        if let (Some(out), None, None, false) = (&o.output, &o.plan_out, &o.seamlines_out, o.force) {
             if crate::batch::output_is_current(out, &key) {
                 return Ok(MosaicReport::skipped(out));
             }
