@@ -334,33 +334,30 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             sides.sort_unstable();
             (sides[sides.len() / 2] / 6).clamp(4, 256)
         };
-        let (seam_stats, edited_seams) = match &o.seamlines_in {
-            // The plan's seams are taken as they are.
-            _ if from_plan.is_some() => (seams::SeamStats::default(), None),
-            Some(path) => {
-                // The seams the run makes without the file (as its
-                // --seamlines-out wrote them) for the cells no feature
-                // takes: a feature left out keeps its image's cut.
-                let stats = match o.least_cost {
-                    true => seams::refine(&mut plan, &corrections, corridor, &edges)?,
-                    false => seams::SeamStats::default(),
-                };
+        // The plan's seams are taken as they are; else least-cost ones, and
+        // over them an edited file's (the cells no feature takes keep
+        // their cut, as --seamlines-out wrote it).
+        let seam_stats = match from_plan.is_none() && o.least_cost {
+            true => seams::refine(&mut plan, &corrections, corridor, &edges)?,
+            false => seams::SeamStats::default(),
+        };
+        let edited_seams = match (&o.seamlines_in, &from_plan) {
+            (Some(path), None) => {
                 let edited = seamlines::read(&mut plan, path)?;
                 for doubt in &edited.doubts {
                     progress.warn(&format!("{}: {doubt}", path.display()));
                 }
                 if edited.cells_kept > 0 || edited.cells_overlapping > 0 {
                     progress.warn(&format!(
-                    "{}: {} cells kept their planned image (given to an image that does not see them, or to none), {} lay in two features (the first one's)",
-                    path.display(),
-                    edited.cells_kept,
-                    edited.cells_overlapping
-                ));
+                        "{}: {} cells kept their planned image (given to an image that does not see them, or to none), {} lay in two features (the first one's)",
+                        path.display(),
+                        edited.cells_kept,
+                        edited.cells_overlapping
+                    ));
                 }
-                (stats, Some(edited))
+                Some(edited)
             }
-            None if o.least_cost => (seams::refine(&mut plan, &corrections, corridor, &edges)?, None),
-            None => (seams::SeamStats::default(), None),
+            _ => None,
         };
         let t_seams = t.elapsed().as_secs_f64();
         // Written now (the render lets the cells' labels go), published
