@@ -216,20 +216,24 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
                 let slot = &mut owner[((tr + r) * ta + tc + c) as usize];
                 if let Some((other, _)) = *slot {
                     // Like a gap, a fault of the pieces given, not of a file.
-                    return Err(Error::Usage(format!(
-                        "{} and {} both cover tile ({}, {}) of the whole",
-                        pieces[other].display(),
-                        pieces[k].display(),
-                        tc + c,
-                        tr + r
-                    )));
+                    let same = std::fs::canonicalize(&pieces[other]).ok().is_some_and(|a| std::fs::canonicalize(&pieces[k]).ok() == Some(a));
+                    return Err(Error::Usage(match same {
+                        true => format!("{} is given twice", pieces[k].display()),
+                        false => format!("{} and {} both cover tile ({}, {}) of the whole", pieces[other].display(), pieces[k].display(), tc + c, tr + r),
+                    }));
                 }
                 *slot = Some((k, (r * pa + c) as usize));
             }
         }
     }
     if let Some(missing) = owner.iter().position(Option::is_none) {
-        return Err(Error::Usage(format!("no piece covers tile ({}, {}) of the whole", missing as u32 % ta, missing as u32 / ta)));
+        let gaps = owner.iter().filter(|o| o.is_none()).count();
+        return Err(Error::Usage(format!(
+            "no piece covers tile ({}, {}) of the whole's {ta}×{} tiles ({gaps} tiles uncovered): a piece is missing",
+            missing as u32 % ta,
+            missing as u32 / ta,
+            owner.len() as u32 / ta
+        )));
     }
     // Pieces name the whole they are pieces of: a set that leaves out its
     // edge (a last shard that failed) would make a smaller file, not a gap.

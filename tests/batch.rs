@@ -447,7 +447,8 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     // A missing piece is an error naming the gap.
     let o = run(&["assemble", "-o", s(&d.join("gap.tif")), s(&pieces[0]), s(&pieces[1])]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("no piece covers tile"));
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(err.contains("no piece covers tile") && err.contains("tiles uncovered): a piece is missing"), "{err}");
     // Pieces that leave out an edge of the whole (a last shard that
     // failed) make no smaller file: refused, naming what is missing.
     for (set, missing) in [(vec![&pieces[0]], "0..2 across"), (vec![&pieces[1], &pieces[2], &pieces[3]], "2..")] {
@@ -500,6 +501,12 @@ fn window_pieces_assemble_into_the_single_run_bit_for_bit() {
     std::fs::remove_file(&mixed).unwrap();
     // A piece given twice: both named, exit 2 as for the gap.
     let o = run(&["assemble", "-o", s(&d.join("twice.tif")), s(&pieces[0]), s(&pieces[0]), s(&pieces[1])]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("is given twice"), "{}", String::from_utf8_lossy(&o.stderr));
+    // Two files of one window (a piece copied): both named, with the tile.
+    let copy = d.join("copy.tif");
+    std::fs::copy(&pieces[0], &copy).unwrap();
+    let o = run(&["assemble", "-o", s(&d.join("twice.tif")), s(&pieces[0]), s(&copy), s(&pieces[1])]);
     assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stderr).contains("both cover tile"));
     // Float pieces (NaN their nodata value, which is not equal to
