@@ -90,20 +90,77 @@ enum Kind {
     List,
 }
 
-/// A file that is a VRT or a list of tiles, told from its first bytes.
+/// A file that is a VRT or a list of tiles, told from its first bytes
+/// (a VRT may open with an XML declaration and comments, as GDAL's own
+/// writers and editors leave them).
 fn kind_of(path: &Path) -> Option<Kind> {
-    let head = crate::io::bounded_read::read_head(path, 64).ok()?;
-    if String::from_utf8_lossy(&head).trim_start().starts_with("<VRTDataset") {
+    let head = crate::io::bounded_read::read_head(path, 4096).ok()?;
+    if starts_as_vrt(&String::from_utf8_lossy(&head)) {
         return Some(Kind::Vrt);
     }
+    let head = &head[..head.len().min(64)];
     let printable = !head.is_empty() && head.iter().all(|&b| b == b'\t' || b == b'\n' || b == b'\r' || b >= 0x20);
     printable.then_some(Kind::List)
+}
+
+/// Whether a text opens as a VRT: `<VRTDataset`, after any XML
+/// declaration, comments and blank space.
+fn starts_as_vrt(text: &str) -> bool {
+    let mut rest = text.trim_start_matches('\u{feff}').trim_start();
+    loop {
+        if let Some(r) = rest.strip_prefix("<?") {
+            let Some(end) = r.find("?>") else { return false };
+            rest = r[end + 2..].trim_start();
+        } else if let Some(r) = rest.strip_prefix("<!--") {
+            let Some(end) = r.find("-->") else { return false };
+            rest = r[end + 3..].trim_start();
+        } else {
+            return rest.starts_with("<VRTDataset");
+        }
+    }
+}
+
+/// How deep mosaics may name mosaics (a VRT of VRTs of tiles is two).
+const MAX_NESTING: usize = 8;
+
+thread_local! {
+    /// The mosaics being opened on this thread, outermost first: a mosaic
+    /// that names itself, directly or through others, is refused, not
+    /// followed until the stack runs out.
+    static OPENING: std::cell::RefCell<Vec<PathBuf>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Leaves the mosaic's place on [`OPENING`] when it is open (or failed).
+struct Opening;
+
+impl Drop for Opening {
+    fn drop(&mut self) {
+        OPENING.with(|o| o.borrow_mut().pop());
+    }
+}
+
+/// Enters `path` on [`OPENING`], refusing a cycle or too deep a nesting.
+fn enter(path: &Path) -> Result<Opening> {
+    let key = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    OPENING.with(|o| {
+        let mut o = o.borrow_mut();
+        if let Some(first) = o.iter().position(|p| *p == key) {
+            let chain: Vec<String> = o[first..].iter().chain(std::iter::once(&key)).map(|p| p.display().to_string()).collect();
+            return Err(Error::format(path, format!("a DEM mosaic that names itself: {}", chain.join(" → "))));
+        }
+        if o.len() >= MAX_NESTING {
+            return Err(Error::limits(path, format!("DEM mosaics (VRTs, lists, folders) nested more than {MAX_NESTING} deep")));
+        }
+        o.push(key);
+        Ok(Opening)
+    })
 }
 
 /// Opens the mosaic at `path` (a VRT file, a folder or a list of tiles),
 /// its tiles holding at most about `max_bytes` of heights in memory
 /// together.
 pub(super) fn open(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
+    let _opening = enter(path)?;
     if path.is_dir() {
         open_folder(path, max_bytes)
     } else if matches!(kind_of(path), Some(Kind::List)) {
@@ -174,9 +231,12 @@ fn open_list(list: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
     let mut files = Vec::new();
     for (n, line, file) in list_lines(list)? {
         if !file.is_file() {
+            // The line is shown only where it reads as a tile's name: the
+            // text of a file that is no list at all is never echoed.
+            let shown = if is_tile_name(Path::new(&line)) || line.to_ascii_lowercase().ends_with(".vrt") { format!(": {line:?}") } else { String::new() };
             return Err(Error::format(
                 list,
-                format!("read as a list of DEM tiles (a path a line, as gdalbuildvrt -input_file_list): line {} names no file: {line:?} (a DEM is a GeoTIFF, an .hgt, a GDAL VRT, or a folder or list of those)", n + 1),
+                format!("read as a list of DEM tiles (a path a line, as gdalbuildvrt -input_file_list): line {} names no file{shown} (a DEM is a GeoTIFF, an .hgt, a GDAL VRT, or a folder or list of those)", n + 1),
             ));
         }
         files.push(file);
@@ -204,7 +264,7 @@ fn list_lines(list: &Path) -> Result<Vec<(usize, String, PathBuf)>> {
 /// number of samples from the others.
 fn open_tiles(files: Vec<PathBuf>, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
     let share = max_bytes / files.len() as u64;
-    let grids: Vec<GridDem> = files.iter().map(|f| GridDem::read_within(f, share)).collect::<Result<_>>()?;
+    let grids: Vec<GridDem> = files.iter().map(|f| GridDem::read_posts(f, share)).collect::<Result<_>>()?;
     let (step_x, step_y, first_epsg) = (grids[0].transform[1], grids[0].transform[5], grids[0].crs.clone());
     let x_min = grids.iter().map(|g| g.transform[0]).fold(f64::INFINITY, f64::min);
     let y_max = grids.iter().map(|g| g.transform[3]).fold(f64::NEG_INFINITY, f64::max);
@@ -325,7 +385,7 @@ fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
                 }
             }
         }
-        let grid = GridDem::read_within(&tile_path, share).map_err(|e| bad(format!("its source: {e}")))?;
+        let grid = GridDem::read_posts(&tile_path, share).map_err(|e| bad(format!("its source: {e}")))?;
         let rect = |tag: &str, default: [f64; 4]| -> Result<[f64; 4]> {
             let Some(r) = child(s, tag) else { return Ok(default) };
             let a = |k: &str| r.attribute(k).and_then(|v| v.trim().parse::<f64>().ok()).ok_or_else(|| bad(format!("{tag} of {name} without {k}")));
