@@ -90,12 +90,14 @@ impl Crs {
         if looks_like_file(t) {
             let path = dir.join(t);
             let inner = crate::io::bounded_read::read_text_bounded(&path, "CRS file", 1 << 20).map_err(|e| e.to_string())?;
-            return Crs::parse_text(inner.trim_start_matches('\u{feff}').trim()).map_err(|m| format!("{}: {m}", path.display()));
+            return Crs::parse_text(inner.trim_start_matches('\u{feff}').trim(), false).map_err(|m| format!("{}: {m}", path.display()));
         }
-        Crs::parse_text(t)
+        Crs::parse_text(t, true)
     }
 
-    fn parse_text(t: &str) -> Result<Crs, String> {
+    /// A CRS from its text; `show` quotes the text in the refusal (what the
+    /// user typed, never what a file holds: it may be no CRS file at all).
+    fn parse_text(t: &str, show: bool) -> Result<Crs, String> {
         if t.starts_with('+') {
             return Crs::from_proj4(t);
         }
@@ -112,6 +114,9 @@ impl Crs {
                 Arc::get_mut(&mut crs.def).expect("just made").vertical = Some(vertical);
             }
             return Ok(crs);
+        }
+        if !show {
+            return Err(format!("not a CRS: a CRS file holds {ACCEPTED}"));
         }
         let shown: String = t.chars().take(60).collect();
         Err(format!("'{shown}' is not a CRS: give {ACCEPTED}"))

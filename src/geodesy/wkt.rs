@@ -41,12 +41,47 @@ impl<'a> Processor<'a> for TreeBuilder {
     }
 }
 
+/// The deepest nesting of brackets a CRS's WKT is read with. Real ones
+/// nest six or seven deep (a compound CRS's projection's datum's
+/// ellipsoid's unit…); the parser recurses once a level, so a text nested
+/// tens of thousands deep would overflow the stack.
+pub const MAX_DEPTH: usize = 64;
+
 /// The tree of a WKT text, or why it is not WKT.
 pub fn parse(text: &str) -> Result<Node, String> {
-    parse_wkt(text.trim(), &TreeBuilder).map_err(|e| {
-        let shown: String = text.trim().chars().take(50).collect();
+    let text = text.trim();
+    check_shape(text)?;
+    parse_wkt(text, &TreeBuilder).map_err(|e| {
+        let shown: String = text.chars().take(50).collect();
         format!("'{shown}…' is not WKT this build reads: {e}")
     })
+}
+
+/// Refuses, before the recursive parser sees it, a text that does not open
+/// as WKT does (a keyword and a bracket) or nests deeper than
+/// [`MAX_DEPTH`]. The text itself is not quoted: it may be any file a
+/// `.prj` or an option points at, and what is not WKT is not shown.
+pub fn check_shape(text: &str) -> Result<(), String> {
+    let keyword_len = text.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(text.len());
+    let opens = text[keyword_len..].trim_start().starts_with(['[', '(']);
+    if keyword_len == 0 || !opens {
+        return Err("not WKT (it does not open with a keyword and a bracket, as PROJCS[ or GEOGCRS[ do)".to_string());
+    }
+    let (mut depth, mut quoted) = (0usize, false);
+    for c in text.chars() {
+        match c {
+            '"' => quoted = !quoted,
+            '[' | '(' if !quoted => {
+                depth += 1;
+                if depth > MAX_DEPTH {
+                    return Err(format!("WKT nested more than {MAX_DEPTH} brackets deep (a CRS nests a few)"));
+                }
+            }
+            ']' | ')' if !quoted => depth = depth.saturating_sub(1),
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 const HORIZONTAL: &[&str] = &["PROJCS", "PROJCRS", "PROJECTEDCRS", "GEOGCS", "GEOGCRS", "GEOGRAPHICCRS", "GEODCRS", "GEODETICCRS"];
@@ -122,6 +157,17 @@ impl Node {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn deep_or_foreign_text_is_refused_without_being_quoted() {
+        let deep = format!("GEOGCS[{}1{}", "A[".repeat(80_000), "]".repeat(80_000));
+        assert!(parse(&deep).unwrap_err().contains("nested more than 64"));
+        let e = parse("root:x:0:0:root:/root:/bin/bash").unwrap_err();
+        assert!(!e.contains("root"), "{e}");
+        // Brackets inside quoted names are not nesting.
+        let quoted = format!("GEOGCS[\"{}\",DATUM[\"WGS_1984\"]]", "[".repeat(100));
+        assert!(check_shape(&quoted).is_ok());
+    }
 
     #[test]
     fn codes_names_and_parts() {
