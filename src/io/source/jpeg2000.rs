@@ -16,6 +16,10 @@ use std::path::Path;
 /// A chunk's side at most: a codestream tile larger than this is read in
 /// parts (areas), so that decoding one holds little memory.
 const MAX_CHUNK: u32 = 1024;
+/// The most chunks a JPEG 2000 scan is read in: each has its place in
+/// the bookkeeping (offsets, a lock), some 40 bytes (160 MiB at this
+/// limit); 4 Tpx in chunks of [`MAX_CHUNK`].
+const MAX_CHUNKS: u64 = 1 << 22;
 
 /// What the codestream's SIZ segment says.
 #[derive(Clone, Debug, PartialEq)]
@@ -126,7 +130,19 @@ pub(super) fn info(path: &Path, siz: &Siz) -> Result<SourceInfo> {
     while chunk.1 > MAX_CHUNK {
         chunk.1 = chunk.1.div_ceil(2);
     }
-    let n = w.div_ceil(chunk.0) as usize * h.div_ceil(chunk.1) as usize;
+    // Every tile of the codestream has a tile-part (a 12-byte SOT segment
+    // and an SOD marker at least): a header claiming more tiles than the
+    // file can hold is refused before anything is counted out per chunk.
+    let tiles = u64::from(siz.x1.div_ceil(siz.tile.0)) * u64::from(siz.y1.div_ceil(siz.tile.1));
+    let len = std::fs::metadata(path).map_err(|e| Error::io(path, e))?.len();
+    if tiles > len / 14 {
+        return Err(Error::format(path, format!("its JPEG 2000 header claims {tiles} tiles ({w}×{h} px), more than its {len} bytes can hold")));
+    }
+    let n = u64::from(w.div_ceil(chunk.0)) * u64::from(h.div_ceil(chunk.1));
+    if n > MAX_CHUNKS {
+        return Err(Error::limits(path, format!("a JPEG 2000 image of {n} tiles of {}×{} px (at most {MAX_CHUNKS} are read)", chunk.0, chunk.1)));
+    }
+    let n = n as usize;
     Ok(SourceInfo {
         width: w,
         height: h,
@@ -288,15 +304,24 @@ mod tests {
         jp2.extend_from_slice(b"jp2c");
         jp2.extend_from_slice(&codestream(4));
         let boxed = dir.path().join("a.jp2");
-        std::fs::write(&boxed, jp2).unwrap();
+        // Room for the tile-parts the header promises (read_siz stops at SIZ).
+        let mut padded = jp2.clone();
+        padded.resize(jp2.len() + 4096, 0);
+        std::fs::write(&boxed, padded).unwrap();
         assert_eq!(read_siz(&boxed).unwrap(), want);
         let i = info(&boxed, &want).unwrap();
         assert_eq!((i.width, i.height, i.bands, i.sample, i.chunk), (1000, 700, 4, SampleType::U16, (256, 256)));
         // Tiles larger than a chunk may be are halved; five components refused.
         let big = Siz { tile: (4096, 4096), tile_origin: (8, 4), x1: 3008, y1: 2404, ..want.clone() };
         assert_eq!(info(&boxed, &big).unwrap().chunk, (750, 600));
-        let five = Siz { components: vec![(12, false, 1, 1); 5], ..want };
+        let five = Siz { components: vec![(12, false, 1, 1); 5], ..want.clone() };
         assert!(info(&boxed, &five).unwrap_err().to_string().contains("5 components"));
+        // A header claiming 4.29e9² px in 1-px tiles: refused by what the
+        // file can hold, not by the allocator.
+        let vast = Siz { x0: 0, y0: 0, x1: u32::MAX, y1: u32::MAX, tile: (1, 1), tile_origin: (0, 0), ..want.clone() };
+        assert!(info(&boxed, &vast).unwrap_err().to_string().contains("more than its"), "{:?}", info(&boxed, &vast).err());
+        let wide = Siz { x0: 0, y0: 0, x1: u32::MAX, y1: u32::MAX, tile: (u32::MAX, u32::MAX), tile_origin: (0, 0), ..want.clone() };
+        assert!(info(&boxed, &wide).unwrap_err().to_string().contains("at most"));
         // Cut short: refused by name.
         std::fs::write(&bare, &codestream(4)[..30]).unwrap();
         assert!(read_siz(&bare).unwrap_err().to_string().contains("truncated"));
