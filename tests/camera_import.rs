@@ -462,7 +462,9 @@ fn incomplete_files_name_what_they_lack() {
     assert!(e.contains("e.csv") && e.contains("x, y, z"), "{e}");
     let junk = write("junk.yaml", "hello: [\n");
     let e = formats::read(&junk, None, None).unwrap_err().to_string();
-    assert!(e.contains("junk.yaml") && e.contains("not a camera file of a form read here") && e.contains("line 1"), "{e}");
+    // Named as YAML: YAML's complaint, where it is (not TOML's).
+    assert!(e.contains("junk.yaml") && e.contains("not a camera file of a form read here") && e.contains("as YAML") && e.contains("line 2"), "{e}");
+    assert!(!e.contains("TOML,"), "{e}");
 }
 
 /// Numbers in another unit than the form's are read as the form says, and

@@ -240,6 +240,9 @@ impl Kind {
     }
 }
 
+/// The forms of camera file read, as a refusal lists them.
+const FORMS: &str = "ours in TOML; Orthority's YAML, CSV or GeoJSON; OpenSfM's JSON; Metashape's XML; Pix4D's";
+
 /// The kind of a camera or pose file, from its text.
 pub fn detect(path: &Path, text: &str) -> Result<Kind> {
     let t = text.trim_start_matches('\u{feff}').trim_start();
@@ -266,19 +269,28 @@ pub fn detect(path: &Path, text: &str) -> Result<Kind> {
     if orthority::looks_like_csv(t) {
         return Ok(Kind::OrthorityCsv);
     }
+    // A file named as YAML or JSON is told its own parser's complaint, not
+    // TOML's.
+    let named = |exts: &[&str]| path.extension().and_then(|e| e.to_str()).is_some_and(|e| exts.iter().any(|x| e.eq_ignore_ascii_case(x)));
+    if named(&["yaml", "yml"]) {
+        let why = match orthority::parse_yaml(t) {
+            Err(e) => e,
+            Ok(_) => "it holds no Orthority cameras (a mapping of camera ids, each with `type`, `im_size` and `focal_len`)".to_string(),
+        };
+        return Err(Error::format(path, format!("not a camera file of a form read here ({FORMS}): as YAML, {why}")));
+    }
+    if named(&["json", "geojson"]) {
+        if let Err(e) = serde_json::from_str::<serde_json::Value>(t) {
+            return Err(Error::format(path, format!("not a camera file of a form read here ({FORMS}): as JSON, {e}")));
+        }
+    }
     // Our own file with a mistake (its parser says what), or no form read.
-    let named_toml = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    let named_toml = named(&["toml"]);
     match toml::from_str::<toml::Table>(t) {
         Err(e) if !named_toml => {
             let line =
                 e.span().map_or(String::new(), |s| format!("line {}: ", text[..(text.len() - t.len() + s.start).min(text.len())].matches('\n').count() + 1));
-            Err(Error::format(
-                path,
-                format!(
-                    "not a camera file of a form read here (ours in TOML; Orthority's YAML, CSV or GeoJSON; OpenSfM's JSON; Metashape's XML; Pix4D's): as TOML, {line}{}",
-                    e.message().replace('\n', " ")
-                ),
-            ))
+            Err(Error::format(path, format!("not a camera file of a form read here ({FORMS}): as TOML, {line}{}", e.message().replace('\n', " "))))
         }
         _ => Ok(Kind::Ours),
     }

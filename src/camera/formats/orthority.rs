@@ -30,10 +30,47 @@ use nalgebra::{Matrix3, Vector3};
 use serde_yaml_ng::Value;
 use std::path::Path;
 
+/// How deep YAML collections may nest (a camera file nests three or four
+/// deep): the parser recurses a level at a time, and a text of 300,000
+/// `[` took minutes before failing.
+const MAX_YAML_DEPTH: usize = 64;
+
+/// A YAML text as a tree, refused before parsing where its brackets or
+/// its indentation nest deeper than [`MAX_YAML_DEPTH`].
+pub fn parse_yaml(text: &str) -> std::result::Result<Value, String> {
+    let (mut depth, mut quote) = (0usize, None);
+    for line in text.lines() {
+        let indent = line.len() - line.trim_start_matches([' ', '-']).len();
+        if indent / 2 > MAX_YAML_DEPTH * 2 {
+            return Err(format!("YAML indented more than {} levels deep", MAX_YAML_DEPTH * 2));
+        }
+        for c in line.chars() {
+            match (c, quote) {
+                ('"' | '\'', None) => quote = Some(c),
+                (q, Some(open)) if q == open => quote = None,
+                ('#', None) => break,
+                ('[' | '{', None) => {
+                    depth += 1;
+                    if depth > MAX_YAML_DEPTH {
+                        return Err(format!("YAML nested more than {MAX_YAML_DEPTH} brackets deep"));
+                    }
+                }
+                (']' | '}', None) => depth = depth.saturating_sub(1),
+                _ => {}
+            }
+        }
+        // A quote left open at a line's end in plain YAML is an apostrophe.
+        if quote == Some('\'') {
+            quote = None;
+        }
+    }
+    serde_yaml_ng::from_str::<Value>(text).map_err(|e| e.to_string())
+}
+
 /// Does this YAML hold Orthority cameras (a mapping of mappings with
 /// `type` and `im_size`, or one such mapping)?
 pub fn looks_like_interior(text: &str) -> bool {
-    let Ok(Value::Mapping(root)) = serde_yaml_ng::from_str::<Value>(text) else { return false };
+    let Ok(Value::Mapping(root)) = parse_yaml(text) else { return false };
     // An Orthority camera: a `type` of its own or a `focal_len` (the reader
     // then names what else is missing).
     let is_camera = |v: &Value| {
@@ -66,7 +103,7 @@ fn fields(line: &str, d: u8) -> Vec<String> {
 
 /// Orthority's interior parameter file.
 pub fn read_interior(path: &Path, text: &str) -> Result<Imported> {
-    let root: Value = serde_yaml_ng::from_str(text).map_err(|e| Error::format(path, format!("YAML: {e}")))?;
+    let root: Value = parse_yaml(text).map_err(|e| Error::format(path, format!("YAML: {e}")))?;
     let Value::Mapping(map) = root else { return Err(Error::format(path, "expected camera ids, each with its parameters")) };
     let mut set = Imported::default();
     // The legacy form: one camera's keys at the top (its id under `name`).
