@@ -83,7 +83,33 @@ pub fn read(path: &Path, image: &Path) -> Result<Vec<Gcp>> {
         let name = image.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
         return Err(Error::format(path, format!("no ground control point for the image {name}")));
     }
+    refuse_repeats(path, &all)?;
     Ok(all)
+}
+
+/// Refuses a point given twice (the same image and ground position under
+/// other ids): each copy would weigh the fit as an independent point, and
+/// a wrong camera could then be "fitted" to 0 px on one point.
+fn refuse_repeats(path: &Path, gcps: &[Gcp]) -> Result<()> {
+    let key = |g: &Gcp| [g.col, g.row, g.lon * 1e5, g.lat * 1e5, g.height];
+    let mut order: Vec<usize> = (0..gcps.len()).collect();
+    order.sort_by(|&a, &b| key(&gcps[a]).partial_cmp(&key(&gcps[b])).unwrap_or(std::cmp::Ordering::Equal));
+    // Within a millipixel on the image, a millimetre on the ground.
+    let same = |a: &Gcp, b: &Gcp| {
+        (a.col - b.col).abs() < 1e-3
+            && (a.row - b.row).abs() < 1e-3
+            && (a.lon - b.lon).abs() < 1e-8
+            && (a.lat - b.lat).abs() < 1e-8
+            && (a.height - b.height).abs() < 1e-3
+    };
+    for w in order.windows(2) {
+        let (a, b) = (&gcps[w[0].min(w[1])], &gcps[w[0].max(w[1])]);
+        if same(a, b) {
+            let copies: Vec<&str> = gcps.iter().filter(|g| same(g, a)).map(|g| g.id.as_str()).collect();
+            return Err(Error::format(path, format!("GCPs {} are one point (the same image and ground position): give each point once", copies.join(", "))));
+        }
+    }
+    Ok(())
 }
 
 /// Does a GCP file's image name name `image` (by file name, else stem)?
@@ -248,6 +274,34 @@ fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasMo
 /// rotation and the interior's changes). A solution the points do not fix
 /// — the interior from points near one plane seen square-on, where focal
 /// length and flying height trade off — is refused.
+/// Refuses GCPs on one line on the ground: the camera may turn about it
+/// freely, and a resection on them fits anything.
+fn refuse_collinear(points: &[Vector3<f64>], source: &Path) -> Result<()> {
+    let n = points.len() as f64;
+    let mean = points.iter().fold(Vector3::zeros(), |m, p| m + p) / n;
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in points {
+        let (dx, dy) = (p.x - mean.x, p.y - mean.y);
+        sxx += dx * dx;
+        sxy += dx * dy;
+        syy += dy * dy;
+    }
+    // The spread across the points' main line against the spread along it.
+    let (half_trace, det) = ((sxx + syy) / 2.0, sxx * syy - sxy * sxy);
+    let root = (half_trace * half_trace - det).max(0.0).sqrt();
+    let (along, across) = (half_trace + root, (half_trace - root).max(0.0));
+    if across.sqrt() <= 1e-3 * along.sqrt() {
+        return Err(Error::format(
+            source,
+            format!(
+                "the {} GCPs lie on one line on the ground: a resection needs points spread across the image, three or more off any one line",
+                points.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 fn resection(f: &FrameCamera, gcps: &[Gcp], crs: &Crs, interior: bool, source: &Path) -> Result<(FrameCamera, GcpFit)> {
     let least = if interior { 5 } else { 3 };
     if gcps.len() < least {
@@ -264,6 +318,7 @@ fn resection(f: &FrameCamera, gcps: &[Gcp], crs: &Crs, interior: bool, source: &
                 .ok_or_else(|| Error::format(source, format!("GCP {}: outside {crs}", g.id)))
         })
         .collect::<Result<_>>()?;
+    refuse_collinear(&points, source)?;
     // The unknowns' current values: centre, rotation, focal length (mm),
     // principal point's move (px).
     struct State {
