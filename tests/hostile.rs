@@ -1,0 +1,189 @@
+//! Hostile and absurd inputs (a class each): recursion that would
+//! overflow the stack, files outside the inputs that a message could echo,
+//! points given twice that would fit a wrong camera to 0 px. Each is
+//! refused in one line naming the input, with no crash and nothing left
+//! at the output path.
+
+mod common;
+use common::*;
+use std::path::{Path, PathBuf};
+
+/// The mini scene copied into `dir`: scan, camera, DEM, checkpoints.
+fn mini(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini");
+    for f in ["scan.tif", "camera.toml", "dem.tif", "checkpoints.csv"] {
+        std::fs::copy(root.join(f), dir.join(f)).unwrap();
+    }
+    (dir.join("scan.tif"), dir.join("camera.toml"), dir.join("dem.tif"))
+}
+
+/// Runs `rectify` on the mini scene with `extra`; it must fail (exit 1 or
+/// 2, not a signal's abort) in one line holding every one of `words` and
+/// none of `never`, leaving no output.
+fn refused(dir: &Path, extra: &[&str], words: &[&str], never: &[&str]) -> String {
+    let (scan, camera, dem) = (dir.join("scan.tif"), dir.join("camera.toml"), dir.join("dem.tif"));
+    let out = dir.join("out.tif");
+    let mut args = vec!["rectify", "--image", s(&scan), "--quiet", "-o", s(&out)];
+    if !extra.contains(&"--camera") {
+        args.extend(["--camera", s(&camera)]);
+    }
+    if !extra.contains(&"--dem") {
+        args.extend(["--dem", s(&dem)]);
+    }
+    args.extend_from_slice(extra);
+    let child = std::process::Command::new(bin()).args(&args).stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped()).spawn().unwrap();
+    let r = wait_deadline(child, 60);
+    let err = String::from_utf8_lossy(&r.stderr).into_owned();
+    assert!(matches!(r.status.code(), Some(1 | 2)), "{extra:?}: exit {:?}: {err}", r.status);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    for w in words {
+        assert!(err.contains(w), "{extra:?}: '{w}' not in: {err}");
+    }
+    for n in never {
+        assert!(!err.contains(n), "{extra:?}: '{n}' echoed in: {err}");
+    }
+    assert!(!out.exists() && files_containing(dir, "out.tif").is_empty(), "{extra:?} left an output");
+    err
+}
+
+/// A file outside the inputs, whose lines no message may show.
+fn secret(dir: &Path) -> PathBuf {
+    let p = dir.join("secret.txt");
+    std::fs::write(&p, "hunter2:x:0:0:the secret line:/root:/bin/sh\nsecond:x:1:1\n").unwrap();
+    p
+}
+
+#[test]
+fn recursion_in_wkt_and_dem_mosaics_is_refused_not_a_stack_overflow() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    mini(d);
+    // WKT 80,000 brackets deep, well under the CRS file's size limit.
+    let deep = d.join("deep.prj");
+    std::fs::write(&deep, format!("GEOGCS[{}1{}", "A[".repeat(80_000), "]".repeat(80_001))).unwrap();
+    refused(d, &["--crs", s(&deep)], &["deep.prj", "nested more than"], &[]);
+    // A VRT whose source is itself, directly and through another.
+    let vrt = |name: &str, source: &str| {
+        let text = format!(
+            "<VRTDataset rasterXSize=\"10\" rasterYSize=\"10\"><GeoTransform>0,1,0,10,0,-1</GeoTransform><VRTRasterBand dataType=\"Float32\" band=\"1\"><SimpleSource><SourceFilename relativeToVRT=\"1\">{source}</SourceFilename><SourceBand>1</SourceBand></SimpleSource></VRTRasterBand></VRTDataset>"
+        );
+        std::fs::write(d.join(name), text).unwrap();
+        d.join(name)
+    };
+    let own = vrt("own.vrt", "own.vrt");
+    refused(d, &["--dem", s(&own)], &["own.vrt", "names itself"], &[]);
+    vrt("a.vrt", "b.vrt");
+    let b = vrt("b.vrt", "a.vrt");
+    refused(d, &["--dem", s(&b)], &["a.vrt", "b.vrt", "names itself"], &[]);
+    // A list of tiles naming itself.
+    std::fs::write(d.join("tiles.txt"), "tiles.txt\n").unwrap();
+    refused(d, &["--dem", s(&d.join("tiles.txt"))], &["tiles.txt", "names itself"], &[]);
+}
+
+#[test]
+fn yaml_nested_past_any_camera_file_is_refused_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    mini(d);
+    let cam = d.join("cam.yaml");
+    std::fs::write(&cam, "[".repeat(300_000)).unwrap();
+    // Named as YAML, told as YAML (not as a TOML error).
+    refused(d, &["--camera", s(&cam)], &["cam.yaml", "YAML", "nested more than"], &["TOML"]);
+    std::fs::write(&cam, "cam1:\n  type: pinhole\n  im_size: [100, 100\n").unwrap();
+    refused(d, &["--camera", s(&cam)], &["cam.yaml", "as YAML"], &["TOML"]);
+}
+
+#[test]
+fn no_message_shows_the_lines_of_a_file_that_is_not_an_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    mini(d);
+    let secret = secret(d);
+    // A .prj that is a link to it.
+    std::os::unix::fs::symlink(&secret, d.join("link.prj")).unwrap();
+    refused(d, &["--crs", s(&d.join("link.prj"))], &["link.prj", "not a CRS"], &["hunter2", "secret line"]);
+    // A DEM tile list naming it: read as a list itself, never quoted.
+    std::fs::write(d.join("tiles.txt"), format!("{}\n", secret.display())).unwrap();
+    refused(d, &["--dem", s(&d.join("tiles.txt"))], &["secret.txt"], &["hunter2", "secret line"]);
+    // A VRT whose source it is.
+    let vrt = format!(
+        "<VRTDataset rasterXSize=\"10\" rasterYSize=\"10\"><GeoTransform>0,1,0,10,0,-1</GeoTransform><VRTRasterBand dataType=\"Float32\" band=\"1\"><SimpleSource><SourceFilename relativeToVRT=\"0\">{}</SourceFilename><SourceBand>1</SourceBand></SimpleSource></VRTRasterBand></VRTDataset>",
+        secret.display()
+    );
+    std::fs::write(d.join("s.vrt"), vrt).unwrap();
+    refused(d, &["--dem", s(&d.join("s.vrt"))], &["s.vrt"], &["hunter2", "secret line"]);
+    // As the camera file.
+    refused(d, &["--camera", s(&secret)], &["secret.txt"], &["hunter2", "secret line"]);
+}
+
+/// A VRT that opens with an XML declaration and a comment, as editors
+/// leave them, is read as a VRT (it was read as a list of tiles).
+#[test]
+fn a_vrt_with_an_xml_declaration_is_a_vrt() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = mini(d);
+    let g = gcm_ortho::dem::GridDem::read(&dem).unwrap();
+    let t = g.transform;
+    let vrt = format!(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- edited by hand -->\n<VRTDataset rasterXSize=\"{w}\" rasterYSize=\"{h}\">\n<SRS>EPSG:32631</SRS><GeoTransform>{},{},0,{},0,{}</GeoTransform><VRTRasterBand dataType=\"Float32\" band=\"1\"><SimpleSource><SourceFilename relativeToVRT=\"1\">dem.tif</SourceFilename><SourceBand>1</SourceBand><SrcRect xOff=\"0\" yOff=\"0\" xSize=\"{w}\" ySize=\"{h}\"/><DstRect xOff=\"0\" yOff=\"0\" xSize=\"{w}\" ySize=\"{h}\"/></SimpleSource></VRTRasterBand></VRTDataset>\n",
+        t[0],
+        t[1],
+        t[3],
+        t[5],
+        w = g.width,
+        h = g.height
+    );
+    std::fs::write(d.join("dem.vrt"), vrt).unwrap();
+    let (a, b) = (d.join("a.tif"), d.join("b.tif"));
+    for (dem, out) in [(&dem, &a), (&d.join("dem.vrt"), &b)] {
+        let r = run(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(dem), "--quiet", "-o", s(out)]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    }
+    assert_eq!(whole_image(&a).0, whole_image(&b).0, "the VRT's heights are the file's");
+}
+
+/// One point under several ids would weigh the fit as several: refused,
+/// naming them; points on one line cannot fix a pose: refused as such.
+#[test]
+fn gcps_given_twice_or_on_one_line_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    mini(d);
+    let cp = std::fs::read_to_string(d.join("checkpoints.csv")).unwrap();
+    let rows: Vec<Vec<String>> = cp.lines().skip(1).map(|l| l.split(',').map(str::to_string).collect()).collect();
+    assert!(rows.len() >= 4);
+    let as_gcps = |rows: &[Vec<String>]| {
+        let mut t = "id,x,y,z,col,row\n".to_string();
+        for r in rows {
+            t.push_str(&format!("{},{},{},{},{},{}\n", r[0], r[1], r[2], r[3], r[4], r[5]));
+        }
+        t
+    };
+    std::fs::write(d.join("gcps.prj"), "EPSG:32631").unwrap();
+    // The first point again under four other ids, with the others.
+    let mut twice = rows.clone();
+    for id in ["a", "b", "c", "d"] {
+        let mut r = rows[0].clone();
+        r[0] = id.to_string();
+        twice.push(r);
+    }
+    std::fs::write(d.join("gcps.csv"), as_gcps(&twice)).unwrap();
+    let first = rows[0][0].clone();
+    refused(d, &["--gcps", s(&d.join("gcps.csv"))], &["gcps.csv", "are one point", &format!("{first}, a, b, c, d")], &[]);
+    // Three or more points on one ground line (the image positions are
+    // those the camera would see; the line is what is wrong).
+    let (x0, y0): (f64, f64) = (rows[0][1].parse().unwrap(), rows[0][2].parse().unwrap());
+    let (x1, y1): (f64, f64) = (rows[1][1].parse().unwrap(), rows[1][2].parse().unwrap());
+    let line: Vec<Vec<String>> = (0..4)
+        .map(|k| {
+            let f = k as f64 / 3.0;
+            let mut r = rows[k].clone();
+            r[1] = format!("{}", x0 + f * (x1 - x0));
+            r[2] = format!("{}", y0 + f * (y1 - y0));
+            r
+        })
+        .collect();
+    std::fs::write(d.join("gcps.csv"), as_gcps(&line)).unwrap();
+    refused(d, &["--gcps", s(&d.join("gcps.csv"))], &["on one line"], &["left the"]);
+}
