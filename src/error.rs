@@ -39,6 +39,10 @@ pub enum Error {
     /// its line).
     #[error("{0}")]
     Named(String),
+    /// A fault of gcm-ortho itself, not of any input or setting (a bug to
+    /// report).
+    #[error("internal error (a fault of gcm-ortho, not of the inputs): {0}")]
+    Internal(String),
     /// The run was cancelled (signal, or another stage failed first).
     #[error("cancelled")]
     Cancelled,

@@ -560,6 +560,33 @@ fn shards_of_one_plan_assemble_into_the_single_run_byte_for_byte() {
         std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "--quiet", "--plan", "bad.json", "-o", "y.tif"]).output().unwrap();
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && e.contains("bad.json") && e.contains("damaged"), "{e}");
+    // A gain of 1000 under a checksum made for it (a plan forged, or a
+    // solver gone wrong; 1e308 saturated the mosaic) is refused by its
+    // range, naming image and band.
+    let plan = std::fs::read_to_string(d.join("plan.json")).unwrap();
+    let (body, sum) = plan.rsplit_once(",\"checksum\":\"").expect("a checksum");
+    let fnv = |t: &str| t.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
+    assert_eq!(format!("{:016x}\"}}", fnv(&format!("{body}}}"))), sum, "the checksum is FNV-1a of the plan without it");
+    let at = body.find("\"gain\":[").unwrap() + "\"gain\":[".len();
+    let end = at + body[at..].find([',', ']']).unwrap();
+    let forged = format!("{}1000.0{}", &body[..at], &body[end..]);
+    std::fs::write(d.join("forged.json"), format!("{forged},\"checksum\":\"{:016x}\"}}", fnv(&format!("{forged}}}")))).unwrap();
+    let out =
+        std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "--quiet", "--plan", "forged.json", "-o", "y.tif"]).output().unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && e.contains("forged.json") && e.contains("band 1") && e.contains("1/64 to 64"), "{e}");
+    // The same edit without its checksum made again: refused as edited.
+    std::fs::write(d.join("edited.json"), plan.replacen(&body[at..end], "1000.0", 1)).unwrap();
+    let out =
+        std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "--quiet", "--plan", "edited.json", "-o", "y.tif"]).output().unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && e.contains("checksum"), "{e}");
+    assert!(!d.join("y.tif").exists());
+    // Threads past any machine's: refused by name, nothing started.
+    let out =
+        std::process::Command::new(bin()).current_dir(d).args(["mosaic", "manifest.toml", "--quiet", "--threads", "100000", "-o", "y.tif"]).output().unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.code() == Some(2) && e.contains("--threads") && e.contains("1024"), "{e}");
     // A plan for other settings is refused, named.
     let out = std::process::Command::new(bin())
         .current_dir(d)

@@ -256,6 +256,9 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     if !(o.blend >= 0.0 && o.blend.is_finite()) {
         return Err(Error::setting("blend", format!("{} is not a width in pixels (0 or more)", o.blend)));
     }
+    if o.threads > RectifyOptions::MAX_THREADS {
+        return Err(Error::setting("threads", format!("{} is more than {} (0 takes every core)", o.threads, RectifyOptions::MAX_THREADS)));
+    }
     if o.blend > MOST_BLEND_PX {
         progress.warn(&format!(
             "--blend {} px: a ramp that wide mixes two images over their whole overlap (anything that moved or stands up shows twice); a few pixels hide a seam",

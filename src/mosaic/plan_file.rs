@@ -29,9 +29,72 @@ struct PlanFile {
     /// earlier versions).
     #[serde(default)]
     source: Option<String>,
+    /// FNV-1a of the file's JSON written without this field: a plan edited
+    /// or damaged by hand is refused, not taken as planned.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    checksum: Option<String>,
 }
 
 const FORMAT: &str = "gcm-ortho mosaic plan 1";
+
+/// The bounds a plan's corrections are taken within: a balance solved on
+/// real overlaps stays far inside them (a gain of 1e308 saturates every
+/// pixel of its image).
+const GAINS: std::ops::RangeInclusive<f64> = (1.0 / 64.0)..=64.0;
+const MAX_OFFSET: f64 = 1e9;
+const MAX_RADIAL: f64 = 16.0;
+
+/// The plan's checksum: FNV-1a (64 bits) of its JSON without one.
+fn checksum(file: &PlanFile) -> Result<String> {
+    let text = serde_json::to_vec(&PlanFileRef(file)).map_err(|e| Error::Internal(format!("a mosaic plan as JSON: {e}")))?;
+    let hash = text.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
+    Ok(format!("{hash:016x}"))
+}
+
+/// A plan serialized without its checksum.
+struct PlanFileRef<'a>(&'a PlanFile);
+
+impl Serialize for PlanFileRef<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let f = self.0;
+        let mut st = s.serialize_struct("PlanFile", 10)?;
+        st.serialize_field("format", &f.format)?;
+        st.serialize_field("grid", &f.grid)?;
+        st.serialize_field("crs", &f.crs)?;
+        st.serialize_field("cell", &f.cell)?;
+        st.serialize_field("cw", &f.cw)?;
+        st.serialize_field("ch", &f.ch)?;
+        st.serialize_field("images", &f.images)?;
+        st.serialize_field("labels", &f.labels)?;
+        st.serialize_field("corrections", &f.corrections)?;
+        st.serialize_field("source", &f.source)?;
+        st.end()
+    }
+}
+
+/// Refuses a correction out of [`GAINS`], [`MAX_OFFSET`] or [`MAX_RADIAL`],
+/// naming the image and band.
+fn check_corrections(path: &Path, file: &PlanFile) -> Result<()> {
+    for (c, image) in file.corrections.iter().zip(&file.images) {
+        for (band, &g) in c.gain.iter().enumerate() {
+            if !GAINS.contains(&g) {
+                return Err(Error::format(path, format!("the gain of {image}, band {}, is {g}: a plan's gains lie within 1/64 to 64", band + 1)));
+            }
+        }
+        for (band, &o) in c.offset.iter().enumerate() {
+            if !(o.abs() <= MAX_OFFSET) {
+                return Err(Error::format(path, format!("the offset of {image}, band {}, is {o}: a plan's offsets lie within ±{MAX_OFFSET:e}", band + 1)));
+            }
+        }
+        for (band, r) in c.radial.iter().enumerate() {
+            if !r.iter().all(|v| v.abs() <= MAX_RADIAL) {
+                return Err(Error::format(path, format!("the vignetting terms of {image}, band {}, are {r:?}: they lie within ±{MAX_RADIAL}", band + 1)));
+            }
+        }
+    }
+    Ok(())
+}
 
 /// Writes `plan`'s seams and `corrections`, planned from `source`, for
 /// `path` under a temporary name beside it, for the caller to publish
@@ -55,14 +118,23 @@ pub fn write(plan: &Plan, corrections: &[Correction], source: &str, path: &Path)
         labels,
         corrections: corrections.to_vec(),
         source: Some(source.to_string()),
+        checksum: None,
     };
-    let text = serde_json::to_string(&file).map_err(|e| Error::Geometry(e.to_string()))?;
+    let file = PlanFile { checksum: Some(checksum(&file)?), ..file };
+    let text = serde_json::to_string(&file).map_err(|e| Error::Internal(format!("a mosaic plan as JSON: {e}")))?;
     crate::io::publish::write_pending(path, text.as_bytes())
 }
 
 fn load(path: &Path) -> Result<PlanFile> {
     let text = crate::io::bounded_read::read_text_bounded(path, "a mosaic plan", crate::io::bounded_read::LIST)?;
-    serde_json::from_str(&text).map_err(|e| Error::format(path, format!("is not a mosaic plan: {e}")))
+    let file: PlanFile = serde_json::from_str(&text).map_err(|e| Error::format(path, format!("is not a mosaic plan: {e}")))?;
+    match &file.checksum {
+        Some(sum) if *sum == checksum(&file)? => {}
+        Some(_) => return Err(Error::format(path, "its content does not match its checksum (edited or damaged): plan again")),
+        None => return Err(Error::format(path, "has no checksum (a plan of an earlier version, or written by hand): plan again")),
+    }
+    check_corrections(path, &file)?;
+    Ok(file)
 }
 
 /// The grid of the plan file at `path`.
