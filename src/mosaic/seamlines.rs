@@ -293,8 +293,15 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
                     doubts.push(format!("{what}: a ring of {} point(s), no area: left out", distinct.len()));
                     continue;
                 }
-                if crosses_itself(&distinct) {
-                    doubts.push(format!("{what}: its outline crosses itself; cells are filled by the even-odd rule (where it loops over itself, left out)"));
+                match crosses_itself(&distinct) {
+                    Some(true) => {
+                        doubts.push(format!("{what}: its outline crosses itself; cells are filled by the even-odd rule (where it loops over itself, left out)"))
+                    }
+                    Some(false) => {}
+                    None => doubts.push(format!(
+                        "{what}: a ring of {} points too dense to check for crossing itself; cells are filled by the even-odd rule",
+                        distinct.len()
+                    )),
                 }
                 rings.push(pts);
             }
@@ -307,26 +314,45 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
     // Cell centres, row by row: where a polygon's rings cross the row, the
     // even-odd rule fills between the crossings; a feature is the union of
     // its polygons. A cell cut by the grid's edge has its centre in the
-    // part inside (as `write` traces it).
+    // part inside (as `write` traces it). A cell's claims come in the
+    // features' and polygons' order, whatever the order of rows.
     let (wc, hc) = (g.width as f64 / c, g.height as f64 / c);
     let centre = |i: usize, n: f64| (i as f64 + (i as f64 + 1.0).min(n)) / 2.0;
     let mut given = vec![NONE_GIVEN; plan.cw * plan.ch];
     let mut report = EditedSeams::default();
-    for y in 0..plan.ch {
-        let yc = centre(y, hc);
-        for (n, (image, parts)) in shapes.iter().enumerate() {
-            for rings in parts {
-                let mut xs: Vec<f64> = Vec::new();
-                for r in rings {
-                    for k in 0..r.len() {
-                        let (a, b) = (r[k], r[(k + 1) % r.len()]);
-                        if (a.1 > yc) != (b.1 > yc) {
-                            xs.push(a.0 + (yc - a.1) / (b.1 - a.1) * (b.0 - a.0));
-                        }
+    // Rows whose centre yc lies in [lo, hi): the rows an edge crosses (one
+    // end strictly above yc, as the even-odd rule counts an end once).
+    let below = |v: f64| first_index(plan.ch, |y| centre(y, hc) >= v);
+    let rows_between = |lo: f64, hi: f64| below(lo)..below(hi);
+    let mut crossings_left = MAX_CROSSINGS;
+    for (n, (image, parts)) in shapes.iter().enumerate() {
+        for rings in parts {
+            // Each row's crossings, gathered edge by edge (work as the
+            // crossings, not as rows × edges).
+            let mut by_row: Vec<(u32, f64)> = Vec::new();
+            for r in rings {
+                for k in 0..r.len() {
+                    let (a, b) = (r[k], r[(k + 1) % r.len()]);
+                    if a.1 == b.1 {
+                        continue;
+                    }
+                    // A row's centre yc is crossed where exactly one end lies above it.
+                    let (lo, hi) = if a.1 < b.1 { (a.1, b.1) } else { (b.1, a.1) };
+                    let rows = rows_between(lo, hi);
+                    crossings_left = crossings_left
+                        .checked_sub(rows.len())
+                        .ok_or_else(|| Error::limits(path, format!("its rings cross the mosaic's rows of cells more than {MAX_CROSSINGS} times in all")))?;
+                    for y in rows {
+                        let yc = centre(y, hc);
+                        by_row.push((y as u32, a.0 + (yc - a.1) / (b.1 - a.1) * (b.0 - a.0)));
                     }
                 }
-                xs.sort_by(f64::total_cmp);
-                for pair in xs.chunks_exact(2) {
+            }
+            by_row.sort_by(|p, q| p.0.cmp(&q.0).then(p.1.total_cmp(&q.1)));
+            for row in by_row.chunk_by(|p, q| p.0 == q.0) {
+                let y = row[0].0 as usize;
+                for pair in row.chunks_exact(2) {
+                    let pair = [pair[0].1, pair[1].1];
                     // Cells whose centre lies in [pair[0], pair[1]).
                     let from = (pair[0] - 0.5).ceil().clamp(0.0, plan.cw as f64) as usize;
                     let to = (pair[1].ceil().max(0.0) as usize).min(plan.cw);
@@ -373,23 +399,128 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
 }
 
 /// Does the closed ring `pts` (no point repeated at its end) cross itself:
-/// two edges that are not neighbours meet? (Edges a pair at a time: rings
-/// as a GIS edits them hold hundreds of points, not millions.)
-fn crosses_itself(pts: &[(f64, f64)]) -> bool {
+/// two edges that are not neighbours meet? `None` where it cannot be told
+/// within [`MAX_PAIRS`] edge pairs. Edges are binned on a grid of about
+/// one edge a bin, and only edges sharing a bin compared: near-linear for
+/// the rings a GIS draws, however many points they hold.
+fn crosses_itself(pts: &[(f64, f64)]) -> Option<bool> {
     let n = pts.len();
     let edge = |i: usize| (pts[i], pts[(i + 1) % n]);
     let side = |a: (f64, f64), b: (f64, f64), p: (f64, f64)| ((b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0)).signum();
-    (0..n).any(|i| {
+    let neighbours = |i: usize, j: usize| i.abs_diff(j) <= 1 || (i.min(j) == 0 && i.max(j) == n - 1);
+    let cross = |i: usize, j: usize| {
+        let ((a, b), (c, d)) = (edge(i), edge(j));
+        !neighbours(i, j) && side(a, b, c) * side(a, b, d) < 0.0 && side(c, d, a) * side(c, d, b) < 0.0
+    };
+    let (x0, x1) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.0), hi.max(p.0)));
+    let (y0, y1) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.1), hi.max(p.1)));
+    // Bins a few mean edges wide: a few edges each along the outline
+    // (at most 2^20 a side).
+    let mean_edge = (0..n).map(|i| (pts[(i + 1) % n].0 - pts[i].0).hypot(pts[(i + 1) % n].1 - pts[i].1)).sum::<f64>() / n as f64;
+    let extent = (x1 - x0).max(y1 - y0);
+    let step = (4.0 * mean_edge).max(extent / f64::from(1u32 << 20)).max(f64::MIN_POSITIVE);
+    let bin = |v: f64, v0: f64| (((v - v0) / step) as u64).min((1 << 20) - 1);
+    let mut entries: Vec<(u64, u32)> = Vec::new();
+    for i in 0..n {
         let (a, b) = edge(i);
-        (i + 2..n).filter(|&j| !(i == 0 && j == n - 1)).any(|j| {
-            let (c, d) = edge(j);
-            side(a, b, c) * side(a, b, d) < 0.0 && side(c, d, a) * side(c, d, b) < 0.0
-        })
-    })
+        let (bx0, bx1) = (bin(a.0.min(b.0), x0), bin(a.0.max(b.0), x0));
+        let (by0, by1) = (bin(a.1.min(b.1), y0), bin(a.1.max(b.1), y0));
+        if entries.len() as u64 + (bx1 - bx0 + 1) * (by1 - by0 + 1) > MAX_PAIRS as u64 {
+            return None;
+        }
+        for by in by0..=by1 {
+            for bx in bx0..=bx1 {
+                entries.push((by << 20 | bx, i as u32));
+            }
+        }
+    }
+    entries.sort_unstable();
+    let mut pairs = 0usize;
+    for group in entries.chunk_by(|p, q| p.0 == q.0) {
+        pairs += group.len() * (group.len() - 1) / 2;
+        if pairs > MAX_PAIRS {
+            return None;
+        }
+        for (k, &(_, i)) in group.iter().enumerate() {
+            if group[k + 1..].iter().any(|&(_, j)| cross(i as usize, j as usize)) {
+                return Some(true);
+            }
+        }
+    }
+    Some(false)
 }
+
+/// The most pairs of edges compared for a ring's crossing itself.
+const MAX_PAIRS: usize = 50_000_000;
+
+/// The first of `0..n` where `at_or_past` holds (it holds from there on).
+fn first_index(n: usize, at_or_past: impl Fn(usize) -> bool) -> usize {
+    let (mut lo, mut hi) = (0, n);
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        if at_or_past(mid) {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    lo
+}
+
+/// The most crossings of rings with rows of cells a seamlines file may
+/// make (16 bytes each, held a polygon at a time): a polygon from a GIS
+/// crosses each row a few times.
+const MAX_CROSSINGS: usize = 8_000_000;
 
 /// Closed rings in cell coordinates.
 type Rings = Vec<Vec<(f64, f64)>>;
 
 /// A cell no feature covers.
 const NONE_GIVEN: u16 = u16::MAX;
+
+#[cfg(test)]
+mod tests {
+    use super::crosses_itself;
+
+    /// The pairs of edges one by one: the reference the binned search must agree with.
+    fn crosses_by_pairs(pts: &[(f64, f64)]) -> bool {
+        let n = pts.len();
+        let edge = |i: usize| (pts[i], pts[(i + 1) % n]);
+        let side = |a: (f64, f64), b: (f64, f64), p: (f64, f64)| ((b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0)).signum();
+        (0..n).any(|i| {
+            let (a, b) = edge(i);
+            (i + 2..n).filter(|&j| !(i == 0 && j == n - 1)).any(|j| {
+                let (c, d) = edge(j);
+                side(a, b, c) * side(a, b, d) < 0.0 && side(c, d, a) * side(c, d, b) < 0.0
+            })
+        })
+    }
+
+    #[test]
+    fn binned_crossing_search_agrees_with_every_pair_and_takes_a_million_points() {
+        // Stars of every kind: a pentagram crosses itself, a regular polygon not.
+        let mut seed = 7u64;
+        let mut rand = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for n in [3usize, 4, 5, 7, 40, 300] {
+            for step in [1usize, 2, 3] {
+                let pts: Vec<(f64, f64)> = (0..n)
+                    .map(|k| {
+                        let t = std::f64::consts::TAU * (k * step % n) as f64 / n as f64;
+                        (100.0 * t.cos() + rand() * 1e-3, 100.0 * t.sin())
+                    })
+                    .collect();
+                assert_eq!(crosses_itself(&pts), Some(crosses_by_pairs(&pts)), "n {n} step {step}");
+            }
+            let random: Vec<(f64, f64)> = (0..n).map(|_| (rand() * 50.0, rand() * 50.0)).collect();
+            assert_eq!(crosses_itself(&random), Some(crosses_by_pairs(&random)), "random {n}");
+        }
+        // A million-point circle is told within the pair budget (every pair
+        // would be 5e11 of them).
+        let n = 1_000_000;
+        let circle: Vec<(f64, f64)> = (0..n).map(|k| (std::f64::consts::TAU * k as f64 / n as f64).sin_cos()).map(|(s, c)| (1e4 * c, 1e4 * s)).collect();
+        assert_eq!(crosses_itself(&circle), Some(false));
+    }
+}
