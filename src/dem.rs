@@ -10,7 +10,9 @@ use crate::io::chunked_raster::ChunkedRaster;
 use crate::io::geotiff::{read_georef, GeoRef};
 use std::path::{Path, PathBuf};
 
+mod collar;
 mod mosaic;
+pub use collar::Collar;
 pub use mosaic::{is_vrt, vrt_grid};
 
 /// What a raw lookup found.
@@ -74,12 +76,14 @@ pub struct GridDem {
     pub crs: Option<Crs>,
     /// 1/gt1 and 1/gt5: lookups multiply instead of dividing.
     inv_step: (f64, f64),
+    /// Nodata joined to the grid's edge: outside the DEM, not a hole.
+    collar: Option<std::sync::Arc<Collar>>,
 }
 
 impl GridDem {
     pub fn new(width: usize, height: usize, data: Vec<f32>, transform: [f64; 6], nodata: Option<f64>, crs: Option<Crs>) -> GridDem {
         assert_eq!(data.len(), width * height);
-        GridDem { width, height, data: Samples::Memory(data), transform, nodata, crs, inv_step: (1.0 / transform[1], 1.0 / transform[5]) }
+        GridDem { width, height, data: Samples::Memory(data), transform, nodata, crs, inv_step: (1.0 / transform[1], 1.0 / transform[5]), collar: None }
     }
 
     /// Is the grid read a chunk at a time?
@@ -206,7 +210,15 @@ impl GridDem {
         let (fx, fy) = (c - i0 as f64, r - j0 as f64);
         let [z00, z10, z01, z11] = self.corners(i0, j0, i1, j1);
         let need = |z: f32, wgt: f64| wgt > 0.0 && self.is_nodata(z);
-        if need(z00, (1.0 - fx) * (1.0 - fy)) || need(z10, fx * (1.0 - fy)) || need(z01, (1.0 - fx) * fy) || need(z11, fx * fy) {
+        let needed = [need(z00, (1.0 - fx) * (1.0 - fy)), need(z10, fx * (1.0 - fy)), need(z01, (1.0 - fx) * fy), need(z11, fx * fy)];
+        if needed.iter().any(|&n| n) {
+            // Every missing post in the collar: past the DEM's edge.
+            let at = [(i0, j0), (i1, j0), (i0, j1), (i1, j1)];
+            if let Some(c) = &self.collar {
+                if needed.iter().zip(at).all(|(&n, (i, j))| !n || c.contains(i, j)) {
+                    return Lookup::Outside;
+                }
+            }
             return Lookup::Hole;
         }
         let z = |z: f32, wgt: f64| if wgt > 0.0 { z as f64 * wgt } else { 0.0 };
@@ -327,6 +339,36 @@ impl GridDem {
     /// As `read`, holding at most about `max_bytes` of heights in memory:
     /// a larger grid is read a chunk at a time into a cache of that size.
     pub fn read_within(path: &Path, max_bytes: u64) -> Result<GridDem> {
+        let mut g = GridDem::read_posts(path, max_bytes)?;
+        g.find_collar();
+        Ok(g)
+    }
+
+    /// Finds the grid's [`Collar`] where its posts are in memory (read
+    /// whole, or an `.hgt` mapped): the nodata cut around a DSM's data.
+    /// (A grid read a chunk at a time keeps every nodata post a hole.)
+    fn find_collar(&mut self) {
+        let collar = match &self.data {
+            Samples::Memory(v) => Collar::find(self.width, self.height, |j, out| {
+                collar::runs_of(v[j * self.width..(j + 1) * self.width].iter().copied(), |z| self.is_nodata(z), out)
+            }),
+            Samples::Hgt(_) => {
+                Collar::find(self.width, self.height, |j, out| collar::runs_of((0..self.width).map(|i| self.sample(i, j)), |z| self.is_nodata(z), out))
+            }
+            Samples::Chunked(_) | Samples::Window { .. } | Samples::Mosaic(_) => None,
+        };
+        self.collar = collar.map(std::sync::Arc::new);
+    }
+
+    /// How many nodata posts are joined to the grid's edge (outside the
+    /// DEM's data, not holes in it).
+    pub fn collar_posts(&self) -> u64 {
+        self.collar.as_ref().map_or(0, |c| c.posts())
+    }
+
+    /// As [`GridDem::read_within`], without looking for the collar (a
+    /// mosaic's tile, a file read again for a window of it).
+    pub(crate) fn read_posts(path: &Path, max_bytes: u64) -> Result<GridDem> {
         if mosaic::is_mosaic(path) {
             let (m, g) = mosaic::open(path, max_bytes)?;
             mosaic::check(path, &g)?;
@@ -339,6 +381,7 @@ impl GridDem {
                 nodata: None,
                 crs: g.crs,
                 inv_step: (1.0 / t[1], 1.0 / t[5]),
+                collar: None,
             };
             if dem.samples((dem.width * dem.height / 20_000).max(1)).iter().all(|v| v.is_nan()) {
                 return Err(Error::format(path, "no tile of the DEM mosaic has a height"));
@@ -398,6 +441,7 @@ impl GridDem {
                 nodata,
                 crs,
                 inv_step: (1.0 / gt[1], 1.0 / gt[5]),
+                collar: None,
             };
             // A readable first chunk, or a clear error now rather than NaNs later.
             if g.sample(0, 0).is_nan() && g.samples((pixels / 1000).max(1) as usize).iter().all(|v| v.is_nan()) {
@@ -516,6 +560,7 @@ fn read_hgt(path: &Path) -> Result<GridDem> {
         nodata: Some(-32768.0),
         crs: Some(Crs::wgs84()),
         inv_step: (1.0 / t[1], 1.0 / t[5]),
+        collar: None,
     })
 }
 
@@ -635,12 +680,12 @@ impl Dem {
             return Ok(None);
         }
         // (Budget 0: read a chunk at a time, the least cache.)
-        let Samples::Chunked(rest) = GridDem::read_within(&self.path, 0)?.data else { return Ok(None) };
+        let Samples::Chunked(rest) = GridDem::read_posts(&self.path, 0)?.data else { return Ok(None) };
         let data = match bytes <= max_bytes {
             true => Samples::Window { at, data: rest.read_window(at)?, rest },
             false => Samples::Chunked(Box::new(rest.recached(cache_bytes as usize))),
         };
-        let grid = GridDem { data, crs: g.crs.clone(), ..*g };
+        let grid = GridDem { data, crs: g.crs.clone(), collar: g.collar.clone(), ..*g };
         Ok(Some(Dem {
             model: HeightModel::Grid(grid),
             on_hole: self.on_hole,
@@ -718,7 +763,7 @@ impl Dem {
             // file where looked up.
             Samples::Memory(_) if !whole => {
                 // (Budget 0: the least cache.)
-                let rest = match GridDem::read_within(&self.path, 0) {
+                let rest = match GridDem::read_posts(&self.path, 0) {
                     Ok(GridDem { data: Samples::Chunked(c), .. }) => c,
                     _ => return Ok(false),
                 };

@@ -148,6 +148,65 @@ fn a_height_the_dem_policy_gives_is_within_the_bound_at_every_pixel() {
     }
 }
 
+/// A DSM cut to its data, as OpenDroneMap writes it: nodata all round,
+/// joined to the raster's edge. That collar is outside the DEM (the
+/// `--dem-outside` default: nodata), not a hole: the defaults run, the
+/// pixels over the data are the full DEM's to the bound, those over the
+/// collar empty. A hole inside the data is still a hole (an error).
+#[test]
+fn a_dsm_cut_to_its_data_runs_at_the_defaults_and_a_hole_inside_is_still_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (w, h) = (1200, 800);
+    let sc = scene(&d.join("scene"), w, |o| {
+        o.height = h;
+        o.camera = gcm_ortho::synth::CameraKind::Digital;
+        o.kappa_deg = 0.0;
+    });
+    let g = gcm_ortho::dem::GridDem::read_within(&sc.dem, u64::MAX).unwrap();
+    let (gw, gh, gt) = (g.width as u32, g.height as u32, g.transform);
+    // A ragged edge across the footprint, as a DSM's data ends.
+    let edge = |r: u32| gw as f64 * 0.55 + 6.0 * (r as f64 / 5.0).sin();
+    let cut = d.join("cut.tif");
+    f32_raster(&cut, (gw, gh), (gt[0], gt[3], gt[1], 32631), |c, r| if c as f64 > edge(r) { f32::NAN } else { g.sample(c as usize, r as usize) });
+    let full = rectify_coords_on(d, &sc, &sc.dem, (w, h), "full.tif", &[]).0;
+    // On the full run's grid (the automatic one stops where the data does).
+    let (cut_out, report) = rectify_coords_on(d, &sc, &cut, (w, h), "cut_out.tif", &["--like", s(&full)]);
+    let m = coordinate_map_difference(&cut_out, &full, w, h);
+    assert!(m.pixels > 200_000, "{} px compared", m.pixels);
+    assert!(m.max <= 0.1, "max {} px", m.max);
+    assert_eq!(report["error_within"], true, "{}", report["accuracy_estimate"]);
+    let filled = |p: &Path| read_f32(p).3.iter().filter(|&&v| v != -1.0).count();
+    let (on_cut, on_full) = (filled(&cut_out), filled(&full));
+    assert!(on_cut < on_full * 9 / 10 && on_cut > on_full / 3, "{on_cut} px with a value on the cut DSM, {on_full} on the whole");
+    // A hole inside the data, under the footprint: still refused by default.
+    let holed = d.join("holed.tif");
+    // Under the west half of the image (the full run's grid).
+    let info = gcm_ortho::io::source::SourceImage::open(&full, 1 << 20).unwrap().info;
+    let ft = info.georef.unwrap().transform;
+    let (hx, hy) = (ft[0] + ft[1] * info.width as f64 * 0.3, ft[3] + ft[5] * info.height as f64 * 0.5);
+    let (hc, hr) = (((hx - gt[0]) / gt[1]) as u32, ((hy - gt[3]) / gt[5]) as u32);
+    assert!((hc as f64) < edge(hr) - 10.0, "the hole inside the data");
+    let hole = |c: u32, r: u32| c.abs_diff(hc) < 4 && r.abs_diff(hr) < 4;
+    f32_raster(
+        &holed,
+        (gw, gh),
+        (gt[0], gt[3], gt[1], 32631),
+        |c, r| {
+            if c as f64 > edge(r) || hole(c, r) {
+                f32::NAN
+            } else {
+                g.sample(c as usize, r as usize)
+            }
+        },
+    );
+    let out = d.join("holed_out.tif");
+    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&holed), "--quiet", "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains("hole"), "{err}");
+    assert!(!out.exists());
+}
+
 #[test]
 fn the_old_defaults_missed_on_these_scenes() {
     // What the bound is for: the same drone scene with a fixed spacing of 16

@@ -301,7 +301,8 @@ fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
         assert!(cut[k] + gsd >= dem_box[k] && cut[k + 2] - gsd <= dem_box[k + 2], "{cut:?} within a pixel of {dem_box:?}");
     }
     // The same middle as heights in a DEM of the whole extent, nodata
-    // around it (a collar): said too, as holes under the image; the
+    // around it joined to its edge (a collar, as a DSM cut to its data):
+    // past the DEM, not holes in it, whatever --dem-hole says; the
     // orthophoto stops where the middle does.
     let collar = dir.path().join("dem_collar.tif");
     f32_raster_with_keys(&collar, (g.width as u32, g.height as u32), (gt[0], gt[3], gt[1]), keys_of(&sc.dem), |c, r| {
@@ -315,14 +316,14 @@ fn the_default_grid_follows_what_dem_outside_says_of_the_ground_past_the_dem() {
     let out = dir.path().join("collar.tif");
     let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&collar), "--dem-hole", "nodata", "--quiet", "-o", s(&out)]);
     let err = String::from_utf8_lossy(&r.stderr);
-    assert!(r.status.success() && err.contains("has no heights (nodata) under part of the image") && err.contains("dem_collar.tif"), "{err}");
-    assert!(err.contains("the orthophoto stops there"), "{err}");
-    // At the default (`error`) the warning says too that an extent that
-    // still meets them (a gap between tiles) stops the run; this one
-    // follows the heights, and runs.
-    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&collar), "--quiet", "-o", s(&dir.path().join("stops.tif"))]);
+    let past_edge = |err: &str| err.contains("covers only part of the image") && err.contains("dem_collar.tif") && err.contains("stops at the DEM's edge");
+    assert!(r.status.success() && past_edge(&err), "{err}");
+    // At the defaults the same: the collar is no hole.
+    let stops = dir.path().join("stops.tif");
+    let r = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&collar), "--quiet", "-o", s(&stops)]);
     let err = String::from_utf8_lossy(&r.stderr);
-    assert!(r.status.success() && err.contains("where its extent still meets them (a gap between tiles, given --bounds) the run fails"), "{err}");
+    assert!(r.status.success() && past_edge(&err) && !err.contains("hole"), "{err}");
+    assert_eq!(grid_of(&stops), grid_of(&out));
     let (gt_c, wc, hc) = grid_of(&out);
     let on_collar = [gt_c[0], gt_c[3] + gt_c[5] * hc as f64, gt_c[0] + gt_c[1] * wc as f64, gt_c[3]];
     // (Within a few DEM posts: a point half a post from a hole has no
