@@ -116,6 +116,26 @@ impl Statistics {
                 }
                 continue;
             }
+            if let (ValidBy::Nodata(v), false) = (by, lay.sample == SampleType::F32) {
+                // Integers with a nodata value: the whole row at once, each
+                // band's samples that hold it left out (none can where it
+                // is no value of the type).
+                let bytes = &pixels[row * px..(row + extent.0) * px];
+                let most = if lay.sample == SampleType::U8 { 255.0 } else { 65535.0 };
+                let held = (v.fract() == 0.0 && (0.0..=most).contains(&v)).then_some(v as u64);
+                match (lay.sample, held) {
+                    (SampleType::U8, None) => lanes.add_row_u8(bytes),
+                    (SampleType::U8, Some(v)) => lanes.add_row_u8_except(bytes, v as u8),
+                    (_, held) => {
+                        let samples = bytes.chunks_exact(2).map(|p| u16::from_ne_bytes([p[0], p[1]]) as u64);
+                        match held {
+                            None => lanes.add_row(samples, bytes.len() / 2),
+                            Some(v) => lanes.add_row_except(samples, v),
+                        }
+                    }
+                }
+                continue;
+            }
             for x in 0..extent.0 {
                 let i = y * lay.tile + x;
                 let p = &pixels[i * px..(i + 1) * px];
@@ -294,6 +314,50 @@ impl Lanes {
         self.add_row(rest.iter().map(|&v| v as u64), rest.len());
     }
 
+    /// A row of 8-bit samples but those equal to `skip`: as
+    /// [`Lanes::add_row_u8`], each sample weighed 0 or 1 (no branch).
+    #[allow(clippy::needless_range_loop)] // six arrays stepped together
+    fn add_row_u8_except(&mut self, row: &[u8], skip: u8) {
+        let (mut s, mut q, mut lo, mut hi, mut n) = ([0u32; LANES], [0u32; LANES], [u32::MAX; LANES], [0u32; LANES], [0u32; LANES]);
+        let blocks = row.chunks_exact(LANES);
+        let rest = blocks.remainder();
+        for block in blocks {
+            let block: &[u8; LANES] = block.try_into().expect("a whole block");
+            for j in 0..LANES {
+                let v = block[j] as u32;
+                let keep = u32::from(block[j] != skip);
+                s[j] += v * keep;
+                q[j] += v * v * keep;
+                n[j] += keep;
+                lo[j] = lo[j].min(if keep == 1 { v } else { u32::MAX });
+                hi[j] = hi[j].max(v * keep);
+            }
+        }
+        for j in 0..LANES {
+            self.count[j] += n[j] as u64;
+            self.sum[j] += s[j] as u64;
+            self.sum_sq[j] += q[j] as u64;
+            self.min[j] = self.min[j].min(lo[j] as u64);
+            self.max[j] = self.max[j].max(hi[j] as u64);
+        }
+        self.add_row_except(rest.iter().map(|&v| v as u64), u64::from(skip));
+    }
+
+    /// Samples of a row, in order, but those equal to `skip`.
+    fn add_row_except(&mut self, samples: impl Iterator<Item = u64>, skip: u64) {
+        for (k, v) in samples.enumerate() {
+            if v == skip {
+                continue;
+            }
+            let j = k % LANES;
+            self.count[j] += 1;
+            self.sum[j] += v;
+            self.sum_sq[j] += v * v;
+            self.min[j] = self.min[j].min(v);
+            self.max[j] = self.max[j].max(v);
+        }
+    }
+
     /// Adds the lanes to their bands.
     fn fold_into(&self, bands: &mut [BandStats]) {
         let b = bands.len();
@@ -314,6 +378,43 @@ impl Lanes {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each band's samples but those holding `v`, one by one.
+    fn by_sample(samples: &[u64], bands: usize, v: u64, sample: SampleType) -> Vec<BandStats> {
+        let mut out = vec![BandStats::default(); bands];
+        for (k, &s) in samples.iter().enumerate().filter(|(_, &s)| s != v) {
+            out[k % bands].push(s as f64, sample);
+        }
+        out
+    }
+
+    #[test]
+    fn a_nodata_value_is_left_out_of_each_band_whole_rows_at_once() {
+        let mut seed = 3u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed >> 33
+        };
+        for (sample, bands, v) in
+            [(SampleType::U8, 3, 0u64), (SampleType::U8, 1, 7), (SampleType::U8, 4, 255), (SampleType::U16, 3, 0), (SampleType::U16, 2, 65535)]
+        {
+            let (tile, w, h) = (53, 51, 4);
+            let most = if sample == SampleType::U8 { 255 } else { 65535 };
+            // A third of the samples hold the nodata value.
+            let values: Vec<u64> = (0..tile * h * bands).map(|_| if next() % 3 == 0 { v } else { next() % (most + 1) }).collect();
+            let bytes: Vec<u8> = match sample {
+                SampleType::U8 => values.iter().map(|&x| x as u8).collect(),
+                _ => values.iter().flat_map(|&x| (x as u16).to_ne_bytes()).collect(),
+            };
+            let lay = TileLayout { tile, bands, sample };
+            let got = Statistics::of_tile(lay, ValidBy::Nodata(v as f64), &bytes, None, (w, h));
+            let inside: Vec<u64> = (0..h).flat_map(|y| values[y * tile * bands..(y * tile + w) * bands].to_vec()).collect();
+            assert_eq!(got.bands, by_sample(&inside, bands, v, sample), "{sample:?} × {bands}, nodata {v}");
+            // A nodata value no sample can hold: every sample counted.
+            let all = Statistics::of_tile(lay, ValidBy::Nodata(-1.0), &bytes, None, (w, h));
+            assert_eq!(all.bands, by_sample(&inside, bands, u64::MAX, sample));
+        }
+    }
 
     #[test]
     fn tiles_add_up_to_the_image_and_skip_pixels_without_a_value() {

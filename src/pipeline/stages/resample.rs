@@ -387,11 +387,20 @@ pub fn resample_chunk<T: Sample + Recycle>(
             if opts.nudge {
                 let (fill_f32, mut moved) = (fill.to_f32(), 0);
                 let off = T::from_f32(off_nodata(f64::from(fill_f32), T::TYPE) as f32);
-                for (p, _) in px.chunks_exact_mut(bands_in).zip(valid.iter()).filter(|(_, v)| **v) {
-                    for s in p.iter_mut().filter(|s| s.to_f32() == fill_f32) {
-                        *s = off;
-                        moved += 1;
+                // Each run of pixels with a value looked at whole (a compare
+                // without a branch, which the compiler vectorises); the
+                // rare run that holds the value, sample by sample.
+                let mut x = 0;
+                while let Some(start) = valid[x..].iter().position(|&v| v).map(|p| x + p) {
+                    let end = valid[start..].iter().position(|&v| !v).map_or(valid.len(), |p| start + p);
+                    let run = &mut px[start * bands_in..end * bands_in];
+                    if run.iter().fold(false, |hit, s| hit | (s.to_f32() == fill_f32)) {
+                        for s in run.iter_mut().filter(|s| s.to_f32() == fill_f32) {
+                            *s = off;
+                            moved += 1;
+                        }
                     }
+                    x = end;
                 }
                 if moved > 0 {
                     nudged.fetch_add(moved, Ordering::Relaxed);
