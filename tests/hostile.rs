@@ -88,9 +88,9 @@ fn yaml_nested_past_any_camera_file_is_refused_at_once() {
     let cam = d.join("cam.yaml");
     std::fs::write(&cam, "[".repeat(300_000)).unwrap();
     // Named as YAML, told as YAML (not as a TOML error).
-    refused(d, &["--camera", s(&cam)], &["cam.yaml", "YAML", "nested more than"], &["TOML"]);
+    refused(d, &["--camera", s(&cam)], &["cam.yaml", "as YAML", "nested more than"], &["as TOML"]);
     std::fs::write(&cam, "cam1:\n  type: pinhole\n  im_size: [100, 100\n").unwrap();
-    refused(d, &["--camera", s(&cam)], &["cam.yaml", "as YAML"], &["TOML"]);
+    refused(d, &["--camera", s(&cam)], &["cam.yaml", "as YAML"], &["as TOML"]);
 }
 
 #[test]
