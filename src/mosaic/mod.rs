@@ -864,18 +864,18 @@ impl CellCounts {
 fn source_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
     // What the pixels depend on beyond the plan the pieces share: the
     // blend, the occlusion, each image by its contents (see
-    // `batch::source_key`).
+    // `identity::source_key`).
     // The grid is the mosaic's, whether the manifest or the flags give it.
     let settings = format!("{} {:?} {:?} {:?} {:?}", o.blend, o.occlusion, o.gsd, o.bounds, o.crs.as_ref().map(ToString::to_string));
     let job_keys: Vec<String> = jobs
         .iter()
         .map(|j| {
             let config = RectifyOptions { gsd: None, bounds: None, crs: None, like: None, ..j.config.clone() };
-            format!("{}={}", j.name, crate::batch::source_key(&config))
+            format!("{}={}", j.name, crate::identity::source_key(&config))
         })
         .collect();
     let like: Vec<&std::path::Path> = o.like.iter().map(PathBuf::as_path).collect();
-    crate::batch::content_key_of(&[settings.as_bytes(), job_keys.join(";").as_bytes()], &like)
+    crate::identity::content_key_of(&[settings.as_bytes(), job_keys.join(";").as_bytes()], &like)
 }
 
 /// `source` with what the plan gives every pixel: its cells' labels (the
@@ -883,7 +883,7 @@ fn source_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String
 fn plan_source(source: &str, plan: &Plan, corrections: &[balance::Correction]) -> String {
     let gains = serde_json::to_vec(corrections).unwrap_or_default();
     let cells = format!("{} {}x{}", plan.cell, plan.cw, plan.ch);
-    crate::batch::content_key_of(&[source.as_bytes(), cells.as_bytes(), bytemuck::cast_slice(&plan.label), &gains], &[])
+    crate::identity::content_key_of(&[source.as_bytes(), cells.as_bytes(), bytemuck::cast_slice(&plan.label), &gains], &[])
 }
 
 /// The key of a run: the manifest's jobs (their inputs and settings), the
@@ -908,7 +908,7 @@ fn run_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
     let joined = job_keys.join(";");
     let files: Vec<&std::path::Path> =
         [Some(&o.manifest), o.plan_in.as_ref(), o.seamlines_in.as_ref(), o.like.as_ref()].into_iter().flatten().map(PathBuf::as_path).collect();
-    crate::batch::key_of(&[settings.as_bytes(), joined.as_bytes()], &files)
+    crate::identity::key_of(&[settings.as_bytes(), joined.as_bytes()], &files)
 }
 
 impl MosaicReport {

@@ -7,12 +7,12 @@ use super::sequential::run_sequential;
 use super::setup::RunPlan;
 use super::threaded::run_threaded;
 use crate::error::{Error, Result};
+use crate::gcm::self_check;
 use crate::gcm::{Gcm, GcmStats};
 use crate::io::tiff_out::{page_padding, reserve, verify, Compression, PendingFile};
 use crate::options::{Occlusion, RectifyOptions};
 use crate::overview::{Pyramid, ValidBy};
 use crate::progress::{Cancel, Progress, Task};
-use crate::study::accuracy;
 use crate::transform::visibility::Visibility;
 use crate::transform::Transform;
 use std::sync::atomic::Ordering;
@@ -92,7 +92,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         valid_by: ValidBy::of(spec),
         statistics: Default::default(),
         // A piece also names the whole it is a piece of.
-        source: Some(match (opts.window, crate::batch::source_key(opts)) {
+        source: Some(match (opts.window, crate::identity::source_key(opts)) {
             (Some(_), key) => {
                 crate::io::geotiff::piece_source(&key, &plan.grid, &crate::assemble::layout_record(opts.overviews, opts.overview_resampling, opts.cog))
             }
@@ -137,7 +137,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     times.write = (wall_s - times.setup).max(0.0);
     // On the run's own workers: one thread stays one thread to the end.
     let sampled = run.counters.sampled.as_ref().map(|s| *s.lock().expect("sample")).unwrap_or_default();
-    let mut estimate = accuracy::ErrorStats::of(&sampled, accuracy::run_sample_steps(&t.grid).1);
+    let mut estimate = self_check::ErrorStats::of(&sampled, self_check::run_sample_steps(&t.grid).1);
     if columns {
         // Where the largest error is, on the output grid.
         estimate.argmax.swap(0, 1);
