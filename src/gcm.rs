@@ -41,6 +41,7 @@
 //! never holds the whole matrix.
 
 mod quadtree;
+pub mod self_check;
 
 use crate::dem::{Height, Lookup};
 use crate::geom::Span;

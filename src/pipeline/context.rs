@@ -118,7 +118,7 @@ pub struct Counters {
     pub hidden: AtomicU64,
     /// The report's sample of the GCM's error, band by band (`None`: no
     /// report wants it, as a mosaic's images).
-    pub sampled: Option<Mutex<crate::study::accuracy::Acc>>,
+    pub sampled: Option<Mutex<crate::gcm::self_check::Acc>>,
 }
 
 /// Cancelled from outside, or failed in one stage (the others then stop).

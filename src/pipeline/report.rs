@@ -1,8 +1,8 @@
 //! What a run did and how fast: written as JSON with `--json`.
 
+use crate::gcm::self_check::ErrorStats;
 use crate::gcm::GcmStats;
 use crate::geom::OutputGrid;
-use crate::study::accuracy::ErrorStats;
 
 /// Busy seconds of each stage (waiting on channels excluded).
 #[derive(Clone, Debug, Default, serde::Serialize)]

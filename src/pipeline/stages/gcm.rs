@@ -5,9 +5,9 @@ use super::dem::DemMsg;
 use super::SharedRows;
 use crate::dem::{Dem, Lookup};
 use crate::error::{Error, Result};
+use crate::gcm::self_check;
 use crate::gcm::{BandGcm, NodeRow};
 use crate::pipeline::context::Run;
-use crate::study::accuracy;
 use crate::transform::visibility::{Seen, Visibility};
 use rayon::prelude::*;
 use std::sync::atomic::Ordering;
@@ -35,7 +35,7 @@ pub fn band_gcm(run: &Run, msg: DemMsg, before: &mut SharedRows<NodeRow>) -> Res
         // The report's sample of the error, from the band as it is used.
         let (y0, y1) = run.walk.band_rows(msg.band);
         let (t, (c0, c1)) = (run.walk.tile, run.walk.cols);
-        let here = accuracy::sample_band(gcm, &band, y0..y1, c0 * t..(c1 * t).min(run.walk.grid.width));
+        let here = self_check::sample_band(gcm, &band, y0..y1, c0 * t..(c1 * t).min(run.walk.grid.width));
         let mut acc = sampled.lock().expect("sample");
         *acc = acc.merge(here);
     }
