@@ -766,7 +766,7 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
         }
         check_outputs(&ins, &outs)?;
     }
-    let cam = model.load(&a.sensor.image, &origin, None)?;
+    let cam = gcm_ortho::scene::camera::load(&model, &a.sensor.image, &origin, None)?;
     let Sensor::Rpc(r) = &cam.sensor else {
         return Err(gcm_ortho::error::Error::unsupported(&origin, "rpc-grid needs an RPC model (camera.model = \"rpc\")").into());
     };

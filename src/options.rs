@@ -5,7 +5,6 @@
 //! setting by its manifest key (`tile`, `dem_hole`); the binary turns the
 //! key into its flag.
 
-use crate::camera::file::Camera;
 use crate::camera::CameraFile;
 use crate::dem::Miss;
 use crate::error::{Error, Result};
@@ -17,7 +16,7 @@ use crate::io::tiff_out::Compression;
 use crate::overview::OverviewResampling;
 use crate::resample::Kernel;
 use crate::transform::Trend;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// A setting chosen by name from a fixed list.
 pub trait Choice: Sized + Copy + Send + Sync + 'static {
@@ -353,29 +352,6 @@ pub enum ModelSource {
 }
 
 impl ModelSource {
-    /// The sensor model of `image` described at `origin`.
-    /// `crs`: the orthophoto's CRS where given, taken as the positions'
-    /// where the camera's files give none.
-    pub fn load(&self, image: &Path, origin: &Path, crs: Option<&crate::geodesy::Crs>) -> Result<Camera> {
-        match self {
-            ModelSource::CameraFile => Camera::read_for(image, origin, None, crs),
-            ModelSource::WithPoses(poses) => Camera::read_for(image, origin, Some(poses), crs),
-            ModelSource::Inline(f) => {
-                let (file, found) = crate::fiducials::camera::measured(f.clone(), origin, image)?;
-                let mut cam = file.build(origin)?;
-                cam.warnings.extend(found);
-                Ok(cam)
-            }
-            ModelSource::Rpc { offset, geoid } => {
-                let offset = offset.or_else(|| {
-                    let xml = crate::io::bounded_read::read_text_bounded(origin, "an RPC file", crate::io::bounded_read::SMALL).ok()?;
-                    crate::camera::rpc::Rpc::tile_offset(&xml, image.file_name()?.to_str()?)
-                });
-                Camera::rpc_file(origin, offset, geoid.as_deref()).build(origin)
-            }
-        }
-    }
-
     /// The camera file it stands for, where there is one without reading `origin`.
     pub fn inline(&self) -> Option<&CameraFile> {
         match self {

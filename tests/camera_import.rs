@@ -29,7 +29,7 @@ const PINHOLE_MM: [[f64; 2]; 4] =
     [[92.012332580039, 98.25926306718], [24.982255876275, 110.82622957381], [61.816249261672, 109.485019713817], [198.610695262985, 41.175239392837]];
 
 fn camera(image: &str, cameras: &str, poses: &str) -> Camera {
-    Camera::read_for(Path::new(image), &fixture(cameras), Some(&fixture(poses)), None).unwrap_or_else(|e| panic!("{image}: {e}"))
+    gcm_ortho::scene::camera::read_for(Path::new(image), &fixture(cameras), Some(&fixture(poses)), None).unwrap_or_else(|e| panic!("{image}: {e}"))
 }
 
 fn assert_projects(cam: &Camera, expected: &[[f64; 2]; 4], what: &str) {
@@ -166,7 +166,7 @@ fn bad_files_are_refused_by_name() {
     // when the camera is built, naming the ways to give it.
     let one = write("one.yaml", "cam:\n  type: pinhole\n  im_size: [640, 480]\n  focal_len: 0.8\n");
     let no_prj = write("noprj.csv", "filename,x,y,z,omega,phi,kappa\nimg1,500000,4100000,600,0,0,0\n");
-    let Err(e) = Camera::read_for(Path::new("img1.tif"), &one, Some(&no_prj), None) else { panic!("built without a CRS") };
+    let Err(e) = gcm_ortho::scene::camera::read_for(Path::new("img1.tif"), &one, Some(&no_prj), None) else { panic!("built without a CRS") };
     let e = e.to_string();
     assert!(e.contains("crs") && e.contains(".prj") && e.contains("--crs"), "{e}");
 
@@ -227,7 +227,7 @@ const DJI_PIXELS: [[f64; 2]; 3] = [[58.00579068376169, 31.5610853493057], [69.21
 fn a_dji_image_is_its_own_camera_as_orthority_reads_it() {
     // Gimbal pitch −60°, yaw 30.5°, roll 0; DewarpData (Brown); XMP position.
     let image = fixture("exif/dji_oblique.jpg");
-    let cam = Camera::read_for(&image, Path::new("exif"), None, None).unwrap();
+    let cam = gcm_ortho::scene::camera::read_for(&image, Path::new("exif"), None, None).unwrap();
     assert_eq!(cam.crs.epsg(), Some(32633), "the UTM zone of the position");
     for (p, e) in DJI_WORLD.iter().zip(DJI_PIXELS) {
         let (c, r) = cam.model().project(p[0], p[1], p[2]).unwrap();
@@ -264,7 +264,7 @@ fn an_image_without_camera_tags_is_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let tif = dir.path().join("plain.tif");
     common::f32_raster(&tif, (8, 8), (500000.0, 4100000.0, 1.0, 32633), |_, _| 7.0);
-    let Err(e) = Camera::read_for(&tif, Path::new("exif"), None, None) else { panic!("a camera from no tags") };
+    let Err(e) = gcm_ortho::scene::camera::read_for(&tif, Path::new("exif"), None, None) else { panic!("a camera from no tags") };
     let e = e.to_string();
     assert!(e.contains("plain.tif") && e.contains("focal length") && e.contains("camera file"), "{e}");
 }

@@ -414,7 +414,7 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
             // Marks to be found in the scan are found when the job runs.
             Some(cf) if cf.needs_marks() => Ok(()),
             Some(cf) => cf.clone().build(&camera).map(|_| ()),
-            None => crate::camera::file::Camera::check_for(&image, &camera),
+            None => crate::scene::camera::check_for(&image, &camera),
         };
         if let Err(e) = cam {
             problems.push(e.to_string());

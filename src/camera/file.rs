@@ -315,7 +315,7 @@ impl CameraFile {
     }
 
     /// A film camera whose marks are calibrated but not measured in the
-    /// scan: they are found in it ([`crate::fiducials::for_camera`]).
+    /// scan: they are found in it (`fiducials::for_camera`, joined in `scene::camera`).
     #[must_use]
     pub fn needs_marks(&self) -> bool {
         self.interior.as_ref().is_some_and(|i| (i.fiducials_mm.is_some() || i.fiducial_distances_mm.is_some()) && i.fiducials_px.is_none())
@@ -429,36 +429,6 @@ impl CameraFile {
 impl Camera {
     pub fn read(path: &Path) -> Result<Camera> {
         CameraFile::read(path)?.build(path)
-    }
-
-    /// The camera of `image` from a camera file in any format
-    /// [`super::import`] reads, with the exterior orientations of many
-    /// images in `poses` where given. Doubtful things the files hold are in
-    /// [`Camera::warnings`].
-    /// `crs`: the positions' CRS where the files give none.
-    pub fn read_for(image: &Path, camera: &Path, poses: Option<&Path>, crs: Option<&Crs>) -> Result<Camera> {
-        let set = super::formats::read_for(image, camera, poses, crs)?;
-        let (mut file, found) = crate::fiducials::camera::measured(set.camera_for(image)?, camera, image)?;
-        if let (true, Some(c)) = (file.crs.trim().is_empty(), crs) {
-            file.crs = c.epsg().map_or_else(|| c.proj4().to_string(), |e| format!("EPSG:{e}"));
-        }
-        let origin = if super::formats::is_exif(camera) { image } else { poses.unwrap_or(camera) };
-        let mut cam = file.build(origin)?;
-        cam.warnings = set.warnings;
-        cam.warnings.extend(found);
-        cam.relative_altitude = set.relative_altitude;
-        Ok(cam)
-    }
-
-    /// What [`Camera::read_for`] would refuse, short of finding fiducial
-    /// marks in the scan (a batch's check of its jobs: the marks are found
-    /// once, when the job runs).
-    pub fn check_for(image: &Path, camera: &Path) -> Result<()> {
-        let set = super::formats::read_for(image, camera, None, None)?;
-        if set.camera_for(image)?.needs_marks() {
-            return Ok(());
-        }
-        Self::read_for(image, camera, None, None).map(|_| ())
     }
 
     /// The camera file for an RPC file given on the command line.

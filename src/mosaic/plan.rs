@@ -309,7 +309,7 @@ impl Plan {
         let mut partial_dem = Vec::new();
         let mut crs = s.crs.clone();
         for (name, opts) in jobs {
-            let camera = opts.model.load(&opts.image, &opts.camera, s.crs.as_ref())?;
+            let camera = crate::scene::camera::load(&opts.model, &opts.image, &opts.camera, s.crs.as_ref())?;
             for w in &camera.warnings {
                 progress.warn(w);
             }

@@ -66,7 +66,7 @@ impl RunPlan {
     pub fn with_dem(opts: &RectifyOptions, progress: &dyn Progress, shared: super::band_render::SharedDem) -> Result<RunPlan> {
         let mut budget = MemoryBudget::new(opts.memory);
         let like = opts.like.as_deref().map(reference_grid).transpose()?;
-        let mut camera = opts.model.load(&opts.image, &opts.camera, opts.crs.as_ref())?;
+        let mut camera = crate::scene::camera::load(&opts.model, &opts.image, &opts.camera, opts.crs.as_ref())?;
         for w in &camera.warnings {
             progress.warn(w);
         }

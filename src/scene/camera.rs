@@ -1,0 +1,65 @@
+//! A run's camera: the model source of its options read (our camera file,
+//! other tools' files, the image's own tags, an RPC), with the fiducial
+//! marks found in the scan where the file gives them calibrated but not
+//! measured. The camera module reads files; finding marks needs the scan,
+//! and is joined to it here.
+
+use crate::camera::file::Camera;
+use crate::camera::formats;
+use crate::error::Result;
+use crate::geodesy::Crs;
+use crate::options::ModelSource;
+use std::path::Path;
+
+/// The sensor model of `image` described at `origin`.
+/// `crs`: the orthophoto's CRS where given, taken as the positions'
+/// where the camera's files give none.
+pub fn load(model: &ModelSource, image: &Path, origin: &Path, crs: Option<&Crs>) -> Result<Camera> {
+    match model {
+        ModelSource::CameraFile => read_for(image, origin, None, crs),
+        ModelSource::WithPoses(poses) => read_for(image, origin, Some(poses), crs),
+        ModelSource::Inline(f) => {
+            let (file, found) = crate::fiducials::camera::measured(f.clone(), origin, image)?;
+            let mut cam = file.build(origin)?;
+            cam.warnings.extend(found);
+            Ok(cam)
+        }
+        ModelSource::Rpc { offset, geoid } => {
+            let offset = offset.or_else(|| {
+                let xml = crate::io::bounded_read::read_text_bounded(origin, "an RPC file", crate::io::bounded_read::SMALL).ok()?;
+                crate::camera::rpc::Rpc::tile_offset(&xml, image.file_name()?.to_str()?)
+            });
+            Camera::rpc_file(origin, offset, geoid.as_deref()).build(origin)
+        }
+    }
+}
+
+/// The camera of `image` from a camera file in any format
+/// [`formats::read_for`] reads, with the exterior orientations of many
+/// images in `poses` where given. Doubtful things the files hold are in
+/// [`Camera::warnings`].
+/// `crs`: the positions' CRS where the files give none.
+pub fn read_for(image: &Path, camera: &Path, poses: Option<&Path>, crs: Option<&Crs>) -> Result<Camera> {
+    let set = formats::read_for(image, camera, poses, crs)?;
+    let (mut file, found) = crate::fiducials::camera::measured(set.camera_for(image)?, camera, image)?;
+    if let (true, Some(c)) = (file.crs.trim().is_empty(), crs) {
+        file.crs = c.epsg().map_or_else(|| c.proj4().to_string(), |e| format!("EPSG:{e}"));
+    }
+    let origin = if formats::is_exif(camera) { image } else { poses.unwrap_or(camera) };
+    let mut cam = file.build(origin)?;
+    cam.warnings = set.warnings;
+    cam.warnings.extend(found);
+    cam.relative_altitude = set.relative_altitude;
+    Ok(cam)
+}
+
+/// What [`read_for`] would refuse, short of finding fiducial marks in the
+/// scan (a batch's check of its jobs: the marks are found once, when the
+/// job runs).
+pub fn check_for(image: &Path, camera: &Path) -> Result<()> {
+    let set = formats::read_for(image, camera, None, None)?;
+    if set.camera_for(image)?.needs_marks() {
+        return Ok(());
+    }
+    read_for(image, camera, None, None).map(|_| ())
+}
