@@ -7,7 +7,7 @@
 //! seams cross far fewer height edges than the first partition's.
 
 mod common;
-use common::{bin, have, python_with, run, s};
+use common::{bin, have, python_with, run, s, whole_image};
 use std::path::Path;
 
 fn block(dir: &Path) {
@@ -1051,4 +1051,46 @@ fn a_blend_wider_than_a_seam_needs_is_warned_of() {
         assert!(out.status.success(), "{err}");
         assert_eq!(err.contains("--blend") && err.contains("whole overlap"), warned, "--blend {blend}: {err}");
     }
+}
+
+/// An image whose pose is wrong but refined by GCPs takes the same place in
+/// the mosaic as with the right pose: its footprint, seams and pixels come
+/// from the refined pose (the plan took the unrefined one, so its seams
+/// and footprint were where the pixels were not).
+#[test]
+fn a_pose_refined_by_gcps_places_the_seams_as_the_right_pose_does() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    mosaic(d, &["-o", "right.tif", "--seamlines-out", "right.geojson"]);
+    // GCPs of frame 2 from its true camera (a lattice over the frame, at
+    // heights 40 m apart), then its pose made wrong by 30 m and a degree.
+    let cam_path = d.join("scans/002.toml");
+    let truth = gcm_ortho::camera::file::Camera::read(&cam_path).unwrap();
+    let mut csv = String::from("id,col,row,x,y,z\n");
+    for k in 0..12 {
+        let (c, r) = (100.0 + 433.0 * (k % 4) as f64, 100.0 + 400.0 * (k / 4) as f64);
+        let z = 40.0 * (k % 3) as f64;
+        let (x, y) = gcm_ortho::camera::locate(truth.model(), c, r, z, 1e-6).unwrap_or_else(|| panic!("({c}, {r}) at {z} m"));
+        csv += &format!("g{k},{c},{r},{x},{y},{z}\n");
+    }
+    std::fs::write(d.join("gcp002.csv"), csv).unwrap();
+    std::fs::write(d.join("gcp002.prj"), "EPSG:32631").unwrap();
+    let mut file = gcm_ortho::camera::file::CameraFile::read(&cam_path).unwrap();
+    let ext = file.exterior.as_mut().unwrap();
+    ext.position[0] += 30.0;
+    ext.angles_deg[0] += 1.0;
+    std::fs::write(d.join("scans/002_wrong.toml"), file.to_toml()).unwrap();
+    let manifest = std::fs::read_to_string(d.join("manifest.toml")).unwrap();
+    let wrong = manifest.replace("camera = \"scans/002.toml\"", "camera = \"scans/002_wrong.toml\"\ngcps = \"gcp002.csv\"");
+    assert_ne!(wrong, manifest);
+    std::fs::write(d.join("manifest.toml"), wrong).unwrap();
+    mosaic(d, &["-o", "refined.tif", "--seamlines-out", "refined.geojson"]);
+    let seams = |name: &str| std::fs::read_to_string(d.join(name)).unwrap();
+    assert!(seams("refined.geojson") == seams("right.geojson"), "the seams of the refined pose are not the right pose's");
+    let (a, info_a) = whole_image(&d.join("right.tif"));
+    let (b, info_b) = whole_image(&d.join("refined.tif"));
+    assert_eq!((info_a.width, info_a.height), (info_b.width, info_b.height));
+    let off = a.iter().zip(&b).filter(|(p, q)| p.abs_diff(**q) > 1).count();
+    assert!(off * 10_000 <= a.len(), "{off} of {} samples more than 1 DN off the right pose's mosaic", a.len());
 }

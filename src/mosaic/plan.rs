@@ -309,10 +309,9 @@ impl Plan {
         let mut partial_dem = Vec::new();
         let mut crs = s.crs.clone();
         for (name, opts) in jobs {
-            let camera = crate::scene::camera::load(&opts.model, &opts.image, &opts.camera, s.crs.as_ref())?;
-            for w in &camera.warnings {
-                progress.warn(w);
-            }
+            // The pose the image's render will take (GCPs applied), so that
+            // its footprint and seams are where its pixels land.
+            let (camera, _, _) = crate::scene::camera::of_run(&opts, s.crs.as_ref(), progress)?;
             let ground = crs.get_or_insert_with(|| camera.crs.clone()).clone();
             let camera = camera.in_crs(&ground).map_err(|m| Error::setting("crs", format!("{name}: {m}")))?;
             let dem = match &opts.dem {

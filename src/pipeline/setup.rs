@@ -66,23 +66,9 @@ impl RunPlan {
     pub fn with_dem(opts: &RectifyOptions, progress: &dyn Progress, shared: super::band_render::SharedDem) -> Result<RunPlan> {
         let mut budget = MemoryBudget::new(opts.memory);
         let like = opts.like.as_deref().map(reference_grid).transpose()?;
-        let mut camera = crate::scene::camera::load(&opts.model, &opts.image, &opts.camera, opts.crs.as_ref())?;
-        for w in &camera.warnings {
-            progress.warn(w);
-        }
         // GCPs refine a frame camera's pose in its own CRS, before anything
         // else uses it (an RPC's bias once its heights' geoid is known, below).
-        let gcps = opts.gcps.as_ref().map(|g| crate::camera::gcp::read(&g.file, &opts.image).map(|p| (g, p))).transpose()?;
-        let mut gcp_fit = None;
-        if let (Some((g, points)), Sensor::Frame(_)) = (&gcps, &camera.sensor) {
-            if points.iter().any(|p| p.ellipsoidal) {
-                progress.warn(&format!(
-                    "{}: the GCPs' heights are ellipsoidal (Orthority's form) and are taken as the DEM's: where its heights are above a geoid they are off by its undulation; give a CSV with heights in the DEM's datum",
-                    g.file.display()
-                ));
-            }
-            gcp_fit = Some(crate::camera::gcp::refine(&mut camera, points, g.model, g.max_residual, &g.file)?);
-        }
+        let (camera, gcps, mut gcp_fit) = crate::scene::camera::of_run(opts, opts.crs.as_ref(), progress)?;
         // The orthophoto's CRS: as given, else the reference grid's, else
         // the camera's.
         let ground = match (&opts.crs, &like) {

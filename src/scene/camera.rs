@@ -63,3 +63,35 @@ pub fn check_for(image: &Path, camera: &Path) -> Result<()> {
     }
     read_for(image, camera, None, None).map(|_| ())
 }
+
+/// The ground control points a run's options name, read for its image.
+pub type Control<'a> = (&'a crate::options::GcpOptions, Vec<crate::camera::gcp::Gcp>);
+
+/// The camera of a run, as `rectify` and each image of a mosaic take it:
+/// loaded ([`load`], in `crs` where the files give none) and, for a frame
+/// camera, its pose refined by the run's GCPs in its own CRS before
+/// anything else uses it, so that a mosaic's seams and footprints come
+/// from the pose its pixels do. Returns the GCPs read (an RPC's bias is
+/// fitted once its heights' geoid is known) and the frame's fit.
+pub fn of_run<'a>(
+    opts: &'a crate::options::RectifyOptions,
+    crs: Option<&Crs>,
+    progress: &dyn crate::progress::Progress,
+) -> Result<(Camera, Option<Control<'a>>, Option<crate::camera::gcp::GcpFit>)> {
+    let mut camera = load(&opts.model, &opts.image, &opts.camera, crs)?;
+    for w in &camera.warnings {
+        progress.warn(w);
+    }
+    let gcps = opts.gcps.as_ref().map(|g| crate::camera::gcp::read(&g.file, &opts.image).map(|p| (g, p))).transpose()?;
+    let mut fit = None;
+    if let (Some((g, points)), crate::camera::file::Sensor::Frame(_)) = (&gcps, &camera.sensor) {
+        if points.iter().any(|p| p.ellipsoidal) {
+            progress.warn(&format!(
+                "{}: the GCPs' heights are ellipsoidal (Orthority's form) and are taken as the DEM's: where its heights are above a geoid they are off by its undulation; give a CSV with heights in the DEM's datum",
+                g.file.display()
+            ));
+        }
+        fit = Some(crate::camera::gcp::refine(&mut camera, points, g.model, g.max_residual, &g.file)?);
+    }
+    Ok((camera, gcps, fit))
+}
