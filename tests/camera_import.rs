@@ -236,6 +236,22 @@ fn a_dji_image_is_its_own_camera_as_orthority_reads_it() {
     assert!(cam.warnings.is_empty(), "{:?}", cam.warnings);
 }
 
+/// The same XMP in a TIFF's tag 700 written as ASCII (as some firmware
+/// writes it; BYTE is the specification's), or in a `.xmp` sidecar beside
+/// a TIFF with none, gives the JPEG's pose.
+#[test]
+fn a_dji_tiffs_xmp_is_read_from_tag_700_or_its_sidecar() {
+    let jpeg = formats::read_for(&fixture("exif/dji_oblique.jpg"), Path::new("exif"), None, None).unwrap();
+    let want = &jpeg.poses[0];
+    for tif in ["exif/dji_xmp_ascii.tif", "exif/dji_sidecar.tif"] {
+        let set = formats::read_for(&fixture(tif), Path::new("exif"), None, None).unwrap_or_else(|e| panic!("{tif}: {e}"));
+        let pose = &set.poses[0];
+        assert!((0..3).all(|k| (pose.position[k] - want.position[k]).abs() < 1e-6), "{tif}: {:?} vs {:?}", pose.position, want.position);
+        assert!((pose.r - want.r).abs().max() < 1e-12, "{tif}: {} vs {}", pose.r, want.r);
+        assert_eq!(set.relative_altitude, jpeg.relative_altitude, "{tif}");
+    }
+}
+
 #[test]
 fn a_nadir_dji_frame_tagged_roll_180_looks_down() {
     // Pitch −90°, roll +180°, yaw −149.5°: the frame turned in its own

@@ -52,6 +52,11 @@ impl Tags {
     pub fn read(path: &Path) -> Result<Tags> {
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
         let mut tags = Tags::default();
+        // An XMP sidecar first: the image's own packet, read after, wins.
+        if let Some(sidecar) = xmp_sidecar(path) {
+            let text = crate::io::bounded_read::read_text_bounded(&sidecar, "an XMP sidecar", crate::io::bounded_read::SMALL)?;
+            tags.xmp_packet(&text);
+        }
         // GDAL, for one, ends its EXIF directories with a pointer to the
         // next one that is not zero: the reader's strict mode would give
         // up on the whole block for that.
@@ -74,8 +79,12 @@ impl Tags {
                 tags.exif(&exif);
                 // A TIFF's XMP packet is its tag 700.
                 if let Some(f) = exif.get_field(Tag(exif::Context::Tiff, 700), In::PRIMARY) {
-                    if let Value::Byte(b) | Value::Undefined(b, _) = &f.value {
-                        tags.xmp_packet(&String::from_utf8_lossy(b));
+                    // BYTE as the TIFF/XMP specifications say; UNDEFINED
+                    // and ASCII as some cameras' firmware writes it.
+                    match &f.value {
+                        Value::Byte(b) | Value::Undefined(b, _) => tags.xmp_packet(&String::from_utf8_lossy(b)),
+                        Value::Ascii(lines) => tags.xmp_packet(&lines.iter().map(|l| String::from_utf8_lossy(l)).collect::<Vec<_>>().join("\n")),
+                        _ => {}
                     }
                 }
                 if let Some(f) = exif.get_field(Tag(exif::Context::Tiff, 42112), In::PRIMARY) {
@@ -199,6 +208,14 @@ impl Tags {
             id
         }
     }
+}
+
+/// The XMP sidecar beside an image, where there is one: `IMG.xmp` (as
+/// Adobe's tools name it) or `IMG.tif.xmp` (as darktable's do).
+pub fn xmp_sidecar(image: &Path) -> Option<std::path::PathBuf> {
+    let mut appended = image.as_os_str().to_owned();
+    appended.push(".xmp");
+    [image.with_extension("xmp"), image.with_extension("XMP"), std::path::PathBuf::from(appended)].into_iter().find(|p| p.is_file() && p != image)
 }
 
 /// The XMP packet of a JPEG (its APP1 segment), read segment by segment up
