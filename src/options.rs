@@ -618,6 +618,10 @@ impl RectifyOptions {
         if let Some(l) = &self.like {
             v.push(("reference grid", l.clone()));
         }
+        // What other tools keep beside them (a CSV's .prj, an image's
+        // .aux.xml or world file, RPC files, an XMP sidecar) is read too.
+        let beside: Vec<PathBuf> = v.iter().flat_map(|(_, p)| crate::io::sidecars::of(p)).collect();
+        v.extend(beside.into_iter().map(|p| ("file beside an input (read with it)", p)));
         v
     }
 

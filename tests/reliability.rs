@@ -57,6 +57,9 @@ fn rectify_never_writes_over_an_input_under_any_name() {
     std::fs::create_dir(d.join("sub")).unwrap();
     std::os::unix::fs::symlink(&scan, d.join("link.tif")).unwrap();
     std::fs::hard_link(&dem, d.join("hard.tif")).unwrap();
+    // Files other tools keep beside an input, read with it.
+    std::fs::write(d.join("scan.xmp"), "<x:xmpmeta xmlns:x=\"adobe:ns:meta/\"/>").unwrap();
+    std::fs::write(d.join("dem.prj"), "EPSG:32631").unwrap();
     let base = ["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet"];
     let with = |extra: &[&str]| -> Vec<String> { base.iter().chain(extra).map(|a| a.to_string()).collect() };
     let cases: Vec<(Vec<String>, Vec<&str>)> = vec![
@@ -68,6 +71,9 @@ fn rectify_never_writes_over_an_input_under_any_name() {
         (with(&["-o", s(&d.join("o.tif")), "--json", s(&scan)]), vec!["report", "image"]),
         (with(&["-o", s(&d.join("o.tif")), "--json", s(&d.join("o.tif"))]), vec!["are one file"]),
         (with(&["-o", s(d)]), vec!["is a folder"]),
+        (with(&["-o", s(&d.join("scan.xmp"))]), vec!["scan.xmp", "beside an input"]),
+        (with(&["-o", s(&d.join("dem.prj"))]), vec!["dem.prj", "beside an input"]),
+        (with(&["-o", s(&d.join("o.tif")), "--json", s(&d.join("dem.prj"))]), vec!["report", "dem.prj"]),
     ];
     for (args, words) in cases {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();

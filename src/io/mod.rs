@@ -10,5 +10,6 @@ pub mod geotiff;
 pub mod mmap_guard;
 pub mod overwrite;
 pub mod publish;
+pub mod sidecars;
 pub mod source;
 pub mod tiff_out;
