@@ -892,6 +892,18 @@ impl Dem {
 
     /// Ground (X, Y) in the grid's own CRS.
     #[inline]
+    /// Is ground (X, Y) within the grid's rectangle (where a lookup
+    /// outside its data is its collar of nodata, not past its edge)?
+    pub fn in_rectangle(&self, x: f64, y: f64) -> bool {
+        match (&self.model, self.in_grid_crs(x, y)) {
+            (HeightModel::Grid(g), Some((gx, gy))) => {
+                let b = g.bounds();
+                (b[0]..=b[2]).contains(&gx) && (b[1]..=b[3]).contains(&gy)
+            }
+            _ => false,
+        }
+    }
+
     fn in_grid_crs(&self, x: f64, y: f64) -> Option<(f64, f64)> {
         match &self.to_dem {
             None => Some((x, y)),

@@ -160,7 +160,7 @@ fn an_orthophoto_of_nothing_and_a_void_under_the_scan_are_said() {
     let r = run(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&void), "--quiet", "-o", s(&d.join("c.tif"))]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(1), "{err}");
-    assert!(err.contains("void.tif") && err.contains("fall in its holes") && !err.contains("does the DEM cover"), "{err}");
+    assert!(err.contains("void.tif") && err.contains("fall in its nodata") && !err.contains("does the DEM cover"), "{err}");
     assert!(!d.join("c.tif").exists());
 }
 

@@ -150,8 +150,18 @@ pub fn footprint_on(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32,
         let n = outline.len();
         // Most of the edge over the DEM's holes: the DEM is there, its
         // heights are not.
+        // Past the edge but within the grid's rectangle: its collar of
+        // nodata around the data, no heights as in a hole.
+        let in_collar = outline
+            .iter()
+            .filter(|&&(c, r)| model.locate_approx(c, r, z_guess).is_some_and(|(x, y)| matches!(dem.lookup(x, y), Lookup::Outside) && dem.in_rectangle(x, y)))
+            .count();
+        let past = (past.0 - in_collar.min(past.0), past.1 + in_collar);
         let why = if past.1 > past.0 {
-            format!("{} of them fall in its holes (nodata or void values): a void under the scan; --dem-hole HEIGHT goes on at that height", past.1)
+            format!(
+                "{} of them fall in its nodata (holes, or the void around its data): no heights under the scan; --dem-hole HEIGHT (--dem-outside HEIGHT around the data) goes on at that height",
+                past.1
+            )
         } else {
             // Both boxes in the DEM's CRS, so that the user sees which of
             // the two (the DEM, or the scan's camera or RPC) is elsewhere.
