@@ -129,6 +129,36 @@ fn the_seamlines_are_polygons_gdal_reads_one_per_image() {
     }
 }
 
+/// Seamlines of a mosaic in a CRS without an EPSG code (a national
+/// transverse Mercator) carry it: GDAL reads the CRS and places them on
+/// the mosaic (they were read as WGS 84 and landed nowhere), and they are
+/// read back as they were written.
+#[test]
+fn seamlines_in_a_crs_without_a_code_are_placed_by_gdal() {
+    let Some(python) = python_with("osgeo.ogr", "python3-gdal") else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    block(d);
+    let tm = "+proj=tmerc +lat_0=0 +lon_0=3.1 +k=0.9996 +x_0=500000 +y_0=0 +ellps=WGS84 +units=m +no_defs";
+    mosaic(d, &["-o", "m.tif", "--crs", tm, "--seamlines-out", "seams.geojson"]);
+    let script = "import sys, json\nfrom osgeo import ogr\nds = ogr.Open(sys.argv[1])\nl = ds.GetLayer(0)\nsrs = l.GetSpatialRef()\nprint(json.dumps({'proj': srs.ExportToProj4(), 'extent': l.GetExtent()}))\n";
+    let out = std::process::Command::new(python).args(["-c", script]).arg(d.join("seams.geojson")).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let proj = v["proj"].as_str().unwrap();
+    assert!(proj.contains("+proj=tmerc") && proj.contains("+lon_0=3.1"), "{v}");
+    // The extent lies on the mosaic's grid.
+    let info = gcm_ortho::io::source::SourceImage::open(&d.join("m.tif"), 1 << 20).unwrap().info;
+    let t = info.georef.unwrap().transform;
+    let (x0, x1, y1, y0) = (t[0], t[0] + t[1] * info.width as f64, t[3], t[3] + t[5] * info.height as f64);
+    let e: Vec<f64> = v["extent"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    assert!(e[0] >= x0 - 1e-6 && e[1] <= x1 + 1e-6 && e[2] >= y0 - 1e-6 && e[3] <= y1 + 1e-6, "{e:?} within {x0} {x1} {y0} {y1}");
+    assert!((e[1] - e[0]) > 0.5 * (x1 - x0) && (e[3] - e[2]) > 0.5 * (y1 - y0), "{e:?}");
+    // Read back as the edited seamlines: the same mosaic.
+    mosaic(d, &["-o", "again.tif", "--crs", tm, "--seamlines", "seams.geojson"]);
+    assert!(std::fs::read(d.join("m.tif")).unwrap() == std::fs::read(d.join("again.tif")).unwrap(), "the seams read back give the same mosaic");
+}
+
 #[test]
 fn a_mosaic_never_writes_over_its_inputs_and_refuses_bad_manifests_in_one_line() {
     let tmp = tempfile::tempdir().unwrap();

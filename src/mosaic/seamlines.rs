@@ -40,10 +40,12 @@ pub fn write(plan: &Plan, path: &std::path::Path) -> Result<Option<crate::io::pu
         }));
     }
     let mut doc = serde_json::json!({ "type": "FeatureCollection", "name": "seamlines", "features": features });
-    if let Some(code) = plan.crs.epsg() {
-        doc["crs"] = serde_json::json!({ "type": "name", "properties": { "name": format!("urn:ogc:def:crs:EPSG::{code}") } });
-    }
-    let text = serde_json::to_string(&doc).map_err(|e| Error::Geometry(e.to_string()))?;
+    // A CRS without a code as its PROJ string: GDAL (and so QGIS) takes a
+    // named CRS as any text its SetFromUserInput reads; none would be read
+    // as WGS 84 longitude and latitude (RFC 7946) and land nowhere.
+    let name = plan.crs.epsg().map_or_else(|| plan.crs.proj4().to_string(), |code| format!("urn:ogc:def:crs:EPSG::{code}"));
+    doc["crs"] = serde_json::json!({ "type": "name", "properties": { "name": name } });
+    let text = serde_json::to_string(&doc).map_err(|e| Error::Internal(format!("seamlines as JSON: {e}")))?;
     crate::io::publish::write_pending(path, text.as_bytes())
 }
 
@@ -212,6 +214,12 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
     let unnamed_lonlat =
         doc.get("crs").is_none() && !plan.crs.is_geographic() && first_position(features).is_some_and(|[x, y]| x.abs() <= 180.0 && y.abs() <= 90.0);
     let lonlat = named.ends_with("EPSG::4326") || named.ends_with("CRS84") || named == "EPSG:4326" || unnamed_lonlat;
+    if named.starts_with('+') {
+        let theirs = crate::geodesy::Crs::from_proj4(named).map_err(|m| Error::config(path, "crs", m))?;
+        if theirs != plan.crs {
+            return Err(Error::unsupported(path, format!("the seamlines are in {theirs}, the mosaic in {}: save them in the mosaic's CRS", plan.crs)));
+        }
+    }
     let to_plan = match (lonlat, named.rsplit(':').next().and_then(|c| c.parse::<u32>().ok())) {
         (true, _) => Some(crate::geodesy::GroundCrs::new(&plan.crs).map_err(|m| Error::format(path, m))?),
         (false, Some(code)) if plan.crs.epsg() != Some(code) => {
