@@ -1009,3 +1009,45 @@ fn rpcm_json_reads_as_the_text_it_was_written_from() {
     let e = Rpc::read(&json).unwrap_err().to_string();
     assert!(e.contains("image.json") && e.contains("row_offset"), "{e}");
 }
+
+/// A DEM tagged EPSG:4979 (WGS 84 with ellipsoidal heights, as
+/// `gdal_translate -a_srs EPSG:4979` writes it for RPC work) holds the
+/// heights an RPC expects: read, no geoid applied and nothing doubted,
+/// the orthophoto of the same heights tagged plain WGS 84 (it was refused:
+/// "EPSG:4979 is a horizontal CRS").
+#[test]
+fn a_dem_of_ellipsoidal_heights_tagged_epsg_4979_is_taken_as_it_is() {
+    if !have("gdal_translate") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let crop = ventoux("srtm_N44E005_crop.tif");
+    for (code, name) in [("EPSG:4979", "dem4979.tif"), ("EPSG:4326", "dem4326.tif")] {
+        let out = Command::new("gdal_translate").args(["-q", "-a_srs", code]).arg(&crop).arg(d.join(name)).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    }
+    let ortho = |dem: &str, out: &str| {
+        let r = run(&[
+            "rectify",
+            "--image",
+            s(&ventoux("left_image.tif")),
+            "--rpc",
+            s(&ventoux("left_image.geom")),
+            "--rpc-offset",
+            "5000,5000",
+            "--dem",
+            s(&d.join(dem)),
+            "--quiet",
+            "-o",
+            s(&d.join(out)),
+        ]);
+        let err = String::from_utf8_lossy(&r.stderr).into_owned();
+        assert!(r.status.success(), "{dem}: {err}");
+        err
+    };
+    let said = ortho("dem4979.tif", "a.tif");
+    assert!(said.trim().is_empty(), "nothing to doubt: {said}");
+    ortho("dem4326.tif", "b.tif");
+    assert_eq!(whole_image(&d.join("a.tif")).0, whole_image(&d.join("b.tif")).0);
+}

@@ -30,17 +30,41 @@ const KNOWN: &[(u32, &str, &[&str])] = &[
     (5711, "AHD height", &["au_ga_AUSGeoid2020_20180201.tif"]),
 ];
 
+/// Geographic 3D CRSs: as the vertical key of a GeoTIFF (as GDAL writes
+/// `-a_srs EPSG:4979` for RPC work), heights above their ellipsoid.
+const GEOGRAPHIC_3D: &[(u32, &str)] = &[
+    (4979, "WGS 84"),
+    (4327, "WGS 84 (geographic 3D)"),
+    (4937, "ETRS89"),
+    (4939, "GDA94"),
+    (7843, "GDA2020"),
+    (4959, "NZGD2000"),
+    (6319, "NAD83(2011)"),
+    (7912, "ITRF2014"),
+    (9989, "ITRF2020"),
+];
+
 impl Vertical {
     /// The vertical CRS of an EPSG code. Codes not in the table are kept
-    /// (with no grid named) unless they are a horizontal CRS.
+    /// (with no grid named) unless they are a horizontal CRS; a geographic
+    /// 3D CRS's are ellipsoidal heights.
     pub fn from_epsg(code: u32) -> Result<Vertical, String> {
         if let Some((c, name, grids)) = KNOWN.iter().find(|(c, ..)| *c == code) {
             return Ok(Vertical { epsg: Some(*c), name: name.to_string(), grids: grids.iter().map(|g| g.to_string()).collect() });
+        }
+        if let Some((c, name)) = GEOGRAPHIC_3D.iter().find(|(c, _)| *c == code) {
+            return Ok(Vertical { epsg: Some(*c), name: format!("ellipsoidal heights ({name}, EPSG:{c})"), grids: Vec::new() });
         }
         if u16::try_from(code).ok().and_then(crs_definitions::from_code).is_some() {
             return Err(format!("EPSG:{code} is a horizontal CRS, not the vertical part of a compound one"));
         }
         Ok(Vertical { epsg: Some(code), name: format!("EPSG:{code}"), grids: Vec::new() })
+    }
+
+    /// Heights above the ellipsoid (a geographic 3D CRS's), as an RPC
+    /// takes them: no geoid to apply.
+    pub fn is_ellipsoidal(&self) -> bool {
+        self.epsg.is_some_and(|code| GEOGRAPHIC_3D.iter().any(|(c, _)| *c == code))
     }
 
     /// Whether this code is a vertical CRS this build names.

@@ -624,6 +624,9 @@ fn geoid_of_heights(dem: &Dem, crs: Option<&Crs>, progress: &dyn Progress) -> Re
             return Ok(None);
         }
     };
+    if vertical.is_ellipsoidal() {
+        return Ok(None);
+    }
     if vertical.grids.is_empty() {
         progress.warn(&format!(
             "{whose} says its heights are {vertical}, a height system without a geoid grid this build knows; the RPC's ellipsoidal heights are taken as they are unless --geoid gives the grid"
