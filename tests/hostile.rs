@@ -187,3 +187,24 @@ fn gcps_given_twice_or_on_one_line_are_refused_by_name() {
     std::fs::write(d.join("gcps.csv"), as_gcps(&line)).unwrap();
     refused(d, &["--gcps", s(&d.join("gcps.csv"))], &["on one line"], &["left the"]);
 }
+
+/// Absurd values in one input are blamed on that input and its field, not
+/// on the DEM the run then fails to meet.
+#[test]
+fn absurd_values_are_blamed_on_their_input_not_on_the_dem() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (_, camera, _) = mini(d);
+    refused(d, &["--crs", "+proj=tmerc +lon_0=1e300 +ellps=WGS84"], &["--crs", "+lon_0=1e300", "out of range"], &["dem.tif"]);
+    refused(d, &["--crs", "+proj=tmerc +lon_0=3 +k=0 +ellps=WGS84"], &["--crs", "+k=0", "scale factor"], &["dem.tif"]);
+    refused(d, &["--gsd", "1e9"], &["--gsd", "less than one pixel"], &["dem.tif"]);
+    let text = std::fs::read_to_string(&camera).unwrap();
+    let line = text.lines().find(|l| l.trim_start().starts_with("position")).expect("a position line").to_string();
+    let nums: Vec<&str> = line.split(['[', ']']).nth(1).unwrap().split(',').map(str::trim).collect();
+    for (name, position) in
+        [("far.toml", format!("position = [1e308, {}, {}]", nums[1], nums[2])), ("high.toml", format!("position = [{}, {}, 1e300]", nums[0], nums[1]))]
+    {
+        std::fs::write(d.join(name), text.replace(&line, &position)).unwrap();
+        refused(d, &["--camera", s(&d.join(name))], &[name, "exterior.position", "1e3"], &["dem.tif"]);
+    }
+}

@@ -787,13 +787,13 @@ fn doubtful_inputs_are_warned_about_even_when_quiet() {
     // centre lies past the horizon there).
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let many = (cores + 1).to_string();
-    for (extra, words) in [(["--threads", &many], &["--threads", "more than the"]), (["--gsd", "1e5"], &["scan pixels", "aliases"])] {
+    for (extra, words) in [(["--threads", &many], &["--threads", "more than the"]), (["--gsd", "200"], &["scan pixels", "aliases"])] {
         std::fs::remove_file(&out).unwrap();
         warned(&[&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&out)][..], &extra].concat(), words);
     }
     // What was said is in the report too.
     std::fs::remove_file(&out).unwrap();
-    let report = report_of(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&out), "--gsd", "1e5"], d);
+    let report = report_of(&["rectify", "--image", s(&scan), "--camera", s(&camera), "--dem", s(&dem), "--quiet", "-o", s(&out), "--gsd", "200"], d);
     assert!(report["warnings"].as_array().unwrap().iter().any(|w| w.as_str().unwrap().contains("aliases")), "{report}");
     // An output named as another format is still a GeoTIFF: said.
     let png = d.join("o.png");

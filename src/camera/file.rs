@@ -356,6 +356,7 @@ impl CameraFile {
         let ext = self.exterior.clone().ok_or_else(|| err("exterior", "missing section".into()))?;
         all_finite(&ext.position).map_err(|m| err("exterior.position", m))?;
         all_finite(&ext.angles_deg).map_err(|m| err("exterior.angles_deg", m))?;
+        plausible_position(&crs, ext.position).map_err(|m| err("exterior.position", m))?;
         let angles = ext.angles_deg.map(f64::to_radians);
         let r = ext.convention.matrix(angles);
         let mut frame = FrameCamera::new(f, Vector3::from(ext.position), r, io, distortion, self.corrections.refraction, self.corrections.earth_curvature);
@@ -495,6 +496,27 @@ impl Camera {
             Sensor::ReprojectedFrame(r) => r.inner.centre.z - 1000.0,
             Sensor::Rpc(r) => r.height_hint(),
         }
+    }
+}
+
+/// The most a camera may be above or below the ground, metres: beyond a
+/// geostationary orbit's height no frame camera images the Earth.
+const MOST_HEIGHT: f64 = 1e8;
+
+/// Refuses a camera position that is no place in its CRS (a translation of
+/// 1e308, a height of 1e300), naming the position rather than the DEM it
+/// then fails to meet.
+fn plausible_position(crs: &Crs, [x, y, z]: [f64; 3]) -> std::result::Result<(), String> {
+    // (Huge numbers shown as 1e308, not 309 digits.)
+    let shown = |v: f64| if v.abs() < 1e9 { format!("{v}") } else { format!("{v:e}") };
+    if z.abs() > MOST_HEIGHT {
+        return Err(format!("a height of {} m is no camera's (at most {MOST_HEIGHT:e} m)", shown(z)));
+    }
+    // (A CRS that is no ground, a geocentric one, is left to the model.)
+    let Ok(ground) = crate::geodesy::GroundCrs::new(crs) else { return Ok(()) };
+    match ground.to_lonlat(x, y) {
+        Some((lon, lat)) if lon.is_finite() && lat.is_finite() && lat.abs() <= 90.0 => Ok(()),
+        _ => Err(format!("({}, {}) is no place in {crs}", shown(x), shown(y))),
     }
 }
 

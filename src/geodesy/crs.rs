@@ -152,6 +152,7 @@ impl Crs {
     /// A PROJ definition with its EPSG code, if known. (Looking the code
     /// up reads every EPSG definition: done only for users' PROJ strings.)
     fn from_definition(s: &str, epsg: Option<u32>) -> Result<Crs, String> {
+        check_parameters(s)?;
         super::grid_shift::load_for(s).map_err(|m| match epsg {
             Some(c) => format!("EPSG:{c}: {m}"),
             None => m,
@@ -344,6 +345,32 @@ pub(super) fn proj_tokens(s: &str) -> Vec<&str> {
     let mut t: Vec<&str> = s.split_whitespace().filter(|t| !matches!(*t, "+no_defs" | "+type=crs" | "+wktext")).collect();
     t.sort_unstable();
     t
+}
+
+/// Refuses a PROJ string's numeric parameter out of its range (a
+/// longitude of 1e300, a scale factor of 0): PROJ would build the
+/// projection, and every point would then fall nowhere, blamed on the DEM.
+fn check_parameters(s: &str) -> Result<(), String> {
+    for token in s.split_whitespace() {
+        let Some((key, value)) = token.trim_start_matches('+').split_once('=') else { continue };
+        let range: Option<(f64, f64, &str)> = match key {
+            "lon_0" | "lonc" | "lon_1" | "lon_2" | "pm" => Some((-360.0, 360.0, "a longitude, degrees")),
+            "lat_0" | "lat_1" | "lat_2" | "lat_ts" => Some((-90.0, 90.0, "a latitude, degrees")),
+            "k" | "k_0" => Some((1e-3, 1e3, "a scale factor (near 1)")),
+            "x_0" | "y_0" => Some((-1e9, 1e9, "a false easting or northing, metres")),
+            "a" | "b" | "R" => Some((1.0, 1e9, "an ellipsoid's axis, metres")),
+            "rf" => Some((1.0, 1e12, "an inverse flattening")),
+            "alpha" | "gamma" => Some((-360.0, 360.0, "an angle, degrees")),
+            _ => None,
+        };
+        let Some((lo, hi, what)) = range else { continue };
+        // (Degrees may be written as PROJ's DMS, e.g. 3d30'E: left to PROJ.)
+        let Ok(v) = value.parse::<f64>() else { continue };
+        if !(lo..=hi).contains(&v) {
+            return Err(format!("+{key}={value} in '{s}' is out of range for {what} ({lo} to {hi})"));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -145,6 +145,9 @@ impl RunPlan {
             }
         };
         let mut camera = camera;
+        if let Sensor::Rpc(r) = &camera.sensor {
+            check_denominators_in_box(r, &opts.camera)?;
+        }
         if let Sensor::Rpc(r) = &mut camera.sensor {
             if r.geoid.is_none() {
                 r.geoid = geoid_of_heights(&dem, opts.crs.as_ref(), progress)?;
@@ -285,7 +288,23 @@ impl RunPlan {
             Some((grid, _)) => grid,
             None => {
                 let gsd = match opts.gsd {
-                    Some(g) => g,
+                    Some(g) => {
+                        // A pixel wider than the scan's whole ground makes
+                        // an orthophoto of less than a pixel: said as the
+                        // GSD's fault, not the DEM's it then fails to meet.
+                        if let Ok(own) = mean_gsd(model, &dem, sw, sh, z_guess) {
+                            let across = own * f64::from(sw.max(sh));
+                            // (Metres given in a CRS of degrees are said so below.)
+                            let metres_in_degrees = camera.crs.is_geographic() && g.max() > MAX_GSD_DEGREES;
+                            if g.max() > across && !metres_in_degrees {
+                                return Err(Error::setting(
+                                    "gsd",
+                                    format!("{g} makes the orthophoto less than one pixel a side: the scan spans about {across:.1} on the ground (its own GSD {own:.4})"),
+                                ));
+                            }
+                        }
+                        g
+                    }
                     None => Gsd::square(mean_gsd(model, &dem, sw, sh, z_guess).map_err(on_dem)?),
                 };
                 match opts.bounds {
@@ -555,6 +574,34 @@ impl RunPlan {
     pub fn columns(&self) -> bool {
         self.band_order == BandOrder::Columns
     }
+}
+
+/// Refuses an RPC whose denominator changes sign within its own validity
+/// box (offsets ± scales, 9×9 places at its lowest, middle and highest
+/// heights), before anything is located with it: a fold throws the
+/// footprint off the scene it cuts, and the error would blame the DEM.
+fn check_denominators_in_box(r: &crate::camera::RpcCamera, path: &std::path::Path) -> Result<()> {
+    let p = &r.rpc;
+    let (mut line, mut samp) = ([false; 2], [false; 2]);
+    for i in 0..9 {
+        for j in 0..9 {
+            for k in [-1.0, 0.0, 1.0] {
+                let (lon, lat) = (p.long_off + p.long_scale * (i as f64 / 4.0 - 1.0), p.lat_off + p.lat_scale * (j as f64 / 4.0 - 1.0));
+                let (ld, sd) = p.denominators(lon, lat, p.height_off + k * p.height_scale);
+                line[usize::from(ld > 0.0)] |= ld != 0.0;
+                samp[usize::from(sd > 0.0)] |= sd != 0.0;
+            }
+        }
+    }
+    for (name, seen) in [("LINE_DEN_COEFF", line), ("SAMP_DEN_COEFF", samp)] {
+        if seen == [true, true] {
+            return Err(Error::format(
+                path,
+                format!("RPC: {name} changes sign within the RPC's validity box (offsets ± scales): the image would fold where it passes zero"),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Refuses an RPC whose denominator changes sign over the scene (the output
