@@ -684,6 +684,46 @@ fn an_rpc_whose_denominator_changes_sign_over_the_scene_is_refused() {
     assert!(!out.exists());
 }
 
+/// An RPC whose denominator passes through zero within its own validity
+/// box but off the crop's ground (1 + 2.5·L: zero at L = −0.4) is refused at
+/// the defaults too (it was taken, with a warning on the DEM's coverage).
+#[test]
+fn an_rpc_whose_denominator_changes_sign_in_its_validity_box_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let geom = std::fs::read_to_string(ventoux("left_image.geom")).unwrap();
+    let bad: String = geom
+        .lines()
+        .map(|l| match l.split(':').next().unwrap_or("") {
+            "line_den_coeff_00" => "line_den_coeff_00:  1\n".to_string(),
+            "line_den_coeff_01" => "line_den_coeff_01:  2.5\n".to_string(),
+            k if k.starts_with("line_den_coeff_") => format!("{k}:  0\n"),
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    let rpc = d.join("folding.geom");
+    std::fs::write(&rpc, bad).unwrap();
+    let out = d.join("o.tif");
+    let r = run(&[
+        "rectify",
+        "--image",
+        s(&ventoux("left_image.tif")),
+        "--rpc",
+        s(&rpc),
+        "--rpc-offset",
+        "5000,5000",
+        "--dem",
+        s(&ventoux("srtm_N44E005_crop.tif")),
+        "--quiet",
+        "-o",
+        s(&out),
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.contains("folding.geom") && err.contains("LINE_DEN_COEFF changes sign"), "{err}");
+    assert!(!out.exists());
+}
+
 /// A geoid grid that does not cover the scene is an error naming the grid,
 /// what it covers and what the scene spans — not half a scene of nodata.
 #[test]
@@ -1050,4 +1090,34 @@ fn a_dem_of_ellipsoidal_heights_tagged_epsg_4979_is_taken_as_it_is() {
     assert!(said.trim().is_empty(), "nothing to doubt: {said}");
     ortho("dem4326.tif", "b.tif");
     assert_eq!(whole_image(&d.join("a.tif")).0, whole_image(&d.join("b.tif")).0);
+}
+
+/// Real RPCs keep their denominators' sign over their whole validity box:
+/// the box check that refuses a folding RPC refuses none of them.
+#[test]
+fn real_rpcs_keep_their_denominators_sign_over_their_validity_box() {
+    let files = [
+        "20191015_073816_ssc1d3_0011_basic_l1a_panchromatic_dn_RPC.TXT",
+        "PHR1B_P_201709281038393_SEN_PRG_FC_178609-001.RPB",
+        "rpc_IKONOS.txt",
+        "rpc_SPOT6.xml",
+        "rpc_WV2.xml",
+        "wv3_20.NTF",
+    ];
+    let mut paths: Vec<PathBuf> = files.iter().map(|f| fx(f)).collect();
+    paths.push(ventoux("left_image.geom"));
+    for p in paths {
+        let r = Rpc::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        let mut signs = std::collections::BTreeSet::new();
+        for i in 0..=8 {
+            for j in 0..=8 {
+                for k in [-1.0, 0.0, 1.0] {
+                    let (lon, lat) = (r.long_off + r.long_scale * (i as f64 / 4.0 - 1.0), r.lat_off + r.lat_scale * (j as f64 / 4.0 - 1.0));
+                    let (ld, sd) = r.denominators(lon, lat, r.height_off + k * r.height_scale);
+                    signs.insert((ld > 0.0, sd > 0.0));
+                }
+            }
+        }
+        assert_eq!(signs.len(), 1, "{}: {signs:?}", p.display());
+    }
 }
