@@ -108,6 +108,19 @@ fn a_film_scan_on_a_coarse_dem_is_within_the_bound_at_every_pixel() {
     assert_eq!(report["gcm"]["refined_cells"], 0);
 }
 
+/// A digital frame over hills on a DEM posted at 5 m, north up (its post
+/// lines are node lines, the case where bands were passed whole), `w`×`h`
+/// px in `dir/scene`; and its DEM read whole.
+fn digital_over_hills(dir: &Path, (w, h): (u32, u32)) -> (gcm_ortho::synth::SynthReport, gcm_ortho::dem::GridDem) {
+    let sc = scene(&dir.join("scene"), w, |o| {
+        o.height = h;
+        o.camera = gcm_ortho::synth::CameraKind::Digital;
+        o.kappa_deg = 0.0;
+    });
+    let g = gcm_ortho::dem::GridDem::read_within(&sc.dem, u64::MAX).unwrap();
+    (sc, g)
+}
+
 /// Where the DEM stops (or has a hole) and `--dem-outside` (or
 /// `--dem-hole`) gives a height near its own, the heights step at its
 /// edge, half a posting past its last posts, and round the hole: cells
@@ -118,14 +131,7 @@ fn a_height_the_dem_policy_gives_is_within_the_bound_at_every_pixel() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (w, h) = (1200, 800);
-    // A digital frame over hills on a DEM posted at 5 m, north up: its
-    // post lines are node lines, the case where bands were passed whole.
-    let sc = scene(&d.join("scene"), w, |o| {
-        o.height = h;
-        o.camera = gcm_ortho::synth::CameraKind::Digital;
-        o.kappa_deg = 0.0;
-    });
-    let g = gcm_ortho::dem::GridDem::read_within(&sc.dem, u64::MAX).unwrap();
+    let (sc, g) = digital_over_hills(d, (w, h));
     let (gw, gh, gt) = (g.width as u32, g.height as u32, g.transform);
     // The west half, and the whole with a hole in the middle.
     let half = d.join("half.tif");
@@ -158,12 +164,7 @@ fn a_dsm_cut_to_its_data_runs_at_the_defaults_and_a_hole_inside_is_still_one() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (w, h) = (1200, 800);
-    let sc = scene(&d.join("scene"), w, |o| {
-        o.height = h;
-        o.camera = gcm_ortho::synth::CameraKind::Digital;
-        o.kappa_deg = 0.0;
-    });
-    let g = gcm_ortho::dem::GridDem::read_within(&sc.dem, u64::MAX).unwrap();
+    let (sc, g) = digital_over_hills(d, (w, h));
     let (gw, gh, gt) = (g.width as u32, g.height as u32, g.transform);
     // A ragged edge across the footprint, as a DSM's data ends.
     let edge = |r: u32| gw as f64 * 0.55 + 6.0 * (r as f64 / 5.0).sin();

@@ -632,6 +632,38 @@ fn ventoux_error_bound_holds_at_every_pixel() {
     }
 }
 
+/// The Pléiades crop's RPC with its line denominator `c0 + c1·L` (the rest
+/// 0), in `dir/folding.geom`.
+fn folding_rpc(dir: &Path, c0: f64, c1: f64) -> PathBuf {
+    let geom = std::fs::read_to_string(ventoux("left_image.geom")).unwrap();
+    let bad: String = geom
+        .lines()
+        .map(|l| match l.split(':').next().unwrap_or("") {
+            "line_den_coeff_00" => format!("line_den_coeff_00:  {c0}\n"),
+            "line_den_coeff_01" => format!("line_den_coeff_01:  {c1}\n"),
+            k if k.starts_with("line_den_coeff_") => format!("{k}:  0\n"),
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    let rpc = dir.join("folding.geom");
+    std::fs::write(&rpc, bad).unwrap();
+    rpc
+}
+
+/// `rectify` of the Pléiades crop with `rpc` and `extra` into `dir/o.tif`,
+/// which must be refused naming the RPC file and its line denominator.
+fn refused_as_folding(dir: &Path, rpc: &Path, extra: &[&str]) {
+    let (out, image, dem) = (dir.join("o.tif"), ventoux("left_image.tif"), ventoux("srtm_N44E005_crop.tif"));
+    let mut args = vec!["rectify", "--image", s(&image), "--rpc", s(rpc), "--rpc-offset", "5000,5000"];
+    args.extend(["--dem", s(&dem), "--quiet", "-o", s(&out)]);
+    args.extend_from_slice(extra);
+    let r = run(&args);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.contains("folding.geom") && err.contains("LINE_DEN_COEFF changes sign"), "{err}");
+    assert!(!out.exists());
+}
+
 /// An RPC whose line denominator passes through zero inside the scene (the
 /// image would go to infinity and fold there) is refused, naming the file.
 #[test]
@@ -641,87 +673,21 @@ fn an_rpc_whose_denominator_changes_sign_over_the_scene_is_refused() {
     let (x0, y0, gsd, w, h) = VENTOUX_GRID;
     let crs = gcm_ortho::geodesy::GroundCrs::from_epsg(32631).unwrap();
     let (lon, _) = crs.to_lonlat(x0 + w as f64 * gsd / 2.0, y0 - h as f64 * gsd / 2.0).unwrap();
-    let geom = std::fs::read_to_string(ventoux("left_image.geom")).unwrap();
     // den = L − L0: zero at the grid's middle longitude.
     let l0 = (lon - 5.28464655928485) / 0.12870115852264;
-    let bad: String = geom
-        .lines()
-        .map(|l| match l.split(':').next().unwrap_or("") {
-            "line_den_coeff_00" => format!("line_den_coeff_00:  {}\n", -l0),
-            "line_den_coeff_01" => "line_den_coeff_01:  1\n".to_string(),
-            k if k.starts_with("line_den_coeff_") => format!("{k}:  0\n"),
-            _ => format!("{l}\n"),
-        })
-        .collect();
-    let rpc = d.join("folding.geom");
-    std::fs::write(&rpc, bad).unwrap();
+    let rpc = folding_rpc(d, -l0, 1.0);
     let (x1, y1) = (x0 + w as f64 * gsd, y0 - h as f64 * gsd);
     let bounds = format!("{x0},{y1},{x1},{y0}");
-    let out = d.join("o.tif");
-    let r = run(&[
-        "rectify",
-        "--image",
-        s(&ventoux("left_image.tif")),
-        "--rpc",
-        s(&rpc),
-        "--rpc-offset",
-        "5000,5000",
-        "--dem",
-        s(&ventoux("srtm_N44E005_crop.tif")),
-        "--crs",
-        "EPSG:32631",
-        "--bounds",
-        &bounds,
-        "--gsd",
-        "0.5",
-        "--quiet",
-        "-o",
-        s(&out),
-    ]);
-    let err = String::from_utf8_lossy(&r.stderr);
-    assert_eq!(r.status.code(), Some(1), "{err}");
-    assert!(err.contains("folding.geom") && err.contains("LINE_DEN_COEFF changes sign"), "{err}");
-    assert!(!out.exists());
+    refused_as_folding(d, &rpc, &["--crs", "EPSG:32631", "--bounds", &bounds, "--gsd", "0.5"]);
 }
 
 /// An RPC whose denominator passes through zero within its own validity
 /// box but off the crop's ground (1 + 2.5·L: zero at L = −0.4) is refused at
-/// the defaults too (it was taken, with a warning on the DEM's coverage).
+/// the defaults too (it was taken, blamed on the DEM's coverage).
 #[test]
 fn an_rpc_whose_denominator_changes_sign_in_its_validity_box_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let geom = std::fs::read_to_string(ventoux("left_image.geom")).unwrap();
-    let bad: String = geom
-        .lines()
-        .map(|l| match l.split(':').next().unwrap_or("") {
-            "line_den_coeff_00" => "line_den_coeff_00:  1\n".to_string(),
-            "line_den_coeff_01" => "line_den_coeff_01:  2.5\n".to_string(),
-            k if k.starts_with("line_den_coeff_") => format!("{k}:  0\n"),
-            _ => format!("{l}\n"),
-        })
-        .collect();
-    let rpc = d.join("folding.geom");
-    std::fs::write(&rpc, bad).unwrap();
-    let out = d.join("o.tif");
-    let r = run(&[
-        "rectify",
-        "--image",
-        s(&ventoux("left_image.tif")),
-        "--rpc",
-        s(&rpc),
-        "--rpc-offset",
-        "5000,5000",
-        "--dem",
-        s(&ventoux("srtm_N44E005_crop.tif")),
-        "--quiet",
-        "-o",
-        s(&out),
-    ]);
-    let err = String::from_utf8_lossy(&r.stderr);
-    assert_eq!(r.status.code(), Some(1), "{err}");
-    assert!(err.contains("folding.geom") && err.contains("LINE_DEN_COEFF changes sign"), "{err}");
-    assert!(!out.exists());
+    refused_as_folding(dir.path(), &folding_rpc(dir.path(), 1.0, 2.5), &[]);
 }
 
 /// A geoid grid that does not cover the scene is an error naming the grid,

@@ -576,37 +576,39 @@ impl RunPlan {
     }
 }
 
+/// Which of an RPC's denominators takes both signs over `places` (lon,
+/// lat, height): where one passes through zero the image goes to infinity
+/// and folds.
+fn denominator_changing_sign(r: &crate::camera::rpc::Rpc, places: impl Iterator<Item = (f64, f64, f64)>) -> Option<&'static str> {
+    let (mut line, mut samp) = ([false; 2], [false; 2]);
+    for (lon, lat, h) in places {
+        let (ld, sd) = r.denominators(lon, lat, h);
+        line[usize::from(ld > 0.0)] |= ld != 0.0;
+        samp[usize::from(sd > 0.0)] |= sd != 0.0;
+    }
+    [("LINE_DEN_COEFF", line), ("SAMP_DEN_COEFF", samp)].into_iter().find(|(_, seen)| *seen == [true, true]).map(|(name, _)| name)
+}
+
 /// Refuses an RPC whose denominator changes sign within its own validity
 /// box (offsets ± scales, 9×9 places at its lowest, middle and highest
 /// heights), before anything is located with it: a fold throws the
 /// footprint off the scene it cuts, and the error would blame the DEM.
 fn check_denominators_in_box(r: &crate::camera::RpcCamera, path: &std::path::Path) -> Result<()> {
     let p = &r.rpc;
-    let (mut line, mut samp) = ([false; 2], [false; 2]);
-    for i in 0..9 {
-        for j in 0..9 {
-            for k in [-1.0, 0.0, 1.0] {
-                let (lon, lat) = (p.long_off + p.long_scale * (i as f64 / 4.0 - 1.0), p.lat_off + p.lat_scale * (j as f64 / 4.0 - 1.0));
-                let (ld, sd) = p.denominators(lon, lat, p.height_off + k * p.height_scale);
-                line[usize::from(ld > 0.0)] |= ld != 0.0;
-                samp[usize::from(sd > 0.0)] |= sd != 0.0;
-            }
-        }
+    let at = |i: usize, off: f64, scale: f64| off + scale * (i as f64 / 4.0 - 1.0);
+    let places =
+        (0..9 * 9 * 3).map(|n| (at(n / 27, p.long_off, p.long_scale), at(n / 3 % 9, p.lat_off, p.lat_scale), at(n % 3 * 4, p.height_off, p.height_scale)));
+    match denominator_changing_sign(p, places) {
+        Some(name) => Err(Error::format(
+            path,
+            format!("RPC: {name} changes sign within the RPC's validity box (offsets ± scales): the image would fold where it passes zero"),
+        )),
+        None => Ok(()),
     }
-    for (name, seen) in [("LINE_DEN_COEFF", line), ("SAMP_DEN_COEFF", samp)] {
-        if seen == [true, true] {
-            return Err(Error::format(
-                path,
-                format!("RPC: {name} changes sign within the RPC's validity box (offsets ± scales): the image would fold where it passes zero"),
-            ));
-        }
-    }
-    Ok(())
 }
 
 /// Refuses an RPC whose denominator changes sign over the scene (the output
-/// grid, from the DEM's lowest to its highest height, on a 9×9 lattice):
-/// where it passes through zero the image goes to infinity and folds.
+/// grid, from the DEM's lowest to its highest height, on a 9×9 lattice).
 fn check_denominators(r: &crate::camera::RpcCamera, grid: &OutputGrid, dem: &Dem, path: &std::path::Path) -> Result<()> {
     let heights: Vec<f64> = match &dem.model {
         HeightModel::Flat(z) => vec![*z],
@@ -620,25 +622,17 @@ fn check_denominators(r: &crate::camera::RpcCamera, grid: &OutputGrid, dem: &Dem
             }
         }
     };
-    let (mut line, mut samp) = ([false; 2], [false; 2]);
-    for i in 0..9 {
-        for j in 0..9 {
-            let (x, y) = grid.ground(grid.width as f64 * i as f64 / 8.0, grid.height as f64 * j as f64 / 8.0);
-            let Some((lon, lat)) = r.crs.to_lonlat(x, y) else { continue };
-            for &h in &heights {
-                // Ellipsoidal heights: the geoid moves them by tens of metres at most.
-                let (ld, sd) = r.rpc.denominators(lon, lat, h);
-                line[usize::from(ld > 0.0)] |= ld != 0.0;
-                samp[usize::from(sd > 0.0)] |= sd != 0.0;
-            }
-        }
+    // Ellipsoidal heights: the geoid moves them by tens of metres at most.
+    let places = (0..81)
+        .filter_map(|n| {
+            let (x, y) = grid.ground(grid.width as f64 * (n / 9) as f64 / 8.0, grid.height as f64 * (n % 9) as f64 / 8.0);
+            r.crs.to_lonlat(x, y)
+        })
+        .flat_map(|(lon, lat)| heights.iter().map(move |&h| (lon, lat, h)));
+    match denominator_changing_sign(&r.rpc, places) {
+        Some(name) => Err(Error::format(path, format!("RPC: {name} changes sign over the scene: the image would fold where it passes zero"))),
+        None => Ok(()),
     }
-    for (name, seen) in [("LINE_DEN_COEFF", line), ("SAMP_DEN_COEFF", samp)] {
-        if seen == [true, true] {
-            return Err(Error::format(path, format!("RPC: {name} changes sign over the scene: the image would fold where it passes zero")));
-        }
-    }
-    Ok(())
 }
 
 /// Farther off the image's centre than this share of its size, a frame
