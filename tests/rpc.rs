@@ -650,14 +650,19 @@ fn folding_rpc(dir: &Path, c0: f64, c1: f64) -> PathBuf {
     rpc
 }
 
+/// `rectify --quiet` of the Pléiades crop with `rpc` on `dem` into `out`.
+fn pleiades_rectify(rpc: &Path, dem: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let image = ventoux("left_image.tif");
+    let mut args = vec!["rectify", "--image", s(&image), "--rpc", s(rpc), "--rpc-offset", "5000,5000", "--dem", s(dem), "--quiet", "-o", s(out)];
+    args.extend_from_slice(extra);
+    run(&args)
+}
+
 /// `rectify` of the Pléiades crop with `rpc` and `extra` into `dir/o.tif`,
 /// which must be refused naming the RPC file and its line denominator.
 fn refused_as_folding(dir: &Path, rpc: &Path, extra: &[&str]) {
-    let (out, image, dem) = (dir.join("o.tif"), ventoux("left_image.tif"), ventoux("srtm_N44E005_crop.tif"));
-    let mut args = vec!["rectify", "--image", s(&image), "--rpc", s(rpc), "--rpc-offset", "5000,5000"];
-    args.extend(["--dem", s(&dem), "--quiet", "-o", s(&out)]);
-    args.extend_from_slice(extra);
-    let r = run(&args);
+    let out = dir.join("o.tif");
+    let r = pleiades_rectify(rpc, &ventoux("srtm_N44E005_crop.tif"), &out, extra);
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(1), "{err}");
     assert!(err.contains("folding.geom") && err.contains("LINE_DEN_COEFF changes sign"), "{err}");
@@ -1034,20 +1039,7 @@ fn a_dem_of_ellipsoidal_heights_tagged_epsg_4979_is_taken_as_it_is() {
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     }
     let ortho = |dem: &str, out: &str| {
-        let r = run(&[
-            "rectify",
-            "--image",
-            s(&ventoux("left_image.tif")),
-            "--rpc",
-            s(&ventoux("left_image.geom")),
-            "--rpc-offset",
-            "5000,5000",
-            "--dem",
-            s(&d.join(dem)),
-            "--quiet",
-            "-o",
-            s(&d.join(out)),
-        ]);
+        let r = pleiades_rectify(&ventoux("left_image.geom"), &d.join(dem), &d.join(out), &[]);
         let err = String::from_utf8_lossy(&r.stderr).into_owned();
         assert!(r.status.success(), "{dem}: {err}");
         err
