@@ -1079,3 +1079,38 @@ fn real_rpcs_keep_their_denominators_sign_over_their_validity_box() {
         assert_eq!(signs.len(), 1, "{}: {signs:?}", p.display());
     }
 }
+
+/// A DEM whose vertical CRS is user-defined but named (GeoTIFF's vertical
+/// citation "EGM2008 height", as a compound CRS's WKT leaves it) holds
+/// heights above that geoid: its grid is looked for and, not found,
+/// named in the refusal (the heights were taken as ellipsoidal without a
+/// word, about 1 px off on this scene).
+#[test]
+fn a_vertical_datum_named_only_by_its_citation_is_applied_or_its_grid_named() {
+    use gcm_ortho::io::geotiff::GeoKeyValue;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let srtm = gcm_ortho::dem::GridDem::read(&ventoux("srtm_N44E005_crop.tif")).unwrap();
+    let mut keys = gcm_ortho::geodesy::geokeys::keys_of_epsg(4326).unwrap();
+    keys.set(4096, GeoKeyValue::Short(32767));
+    keys.set(4097, GeoKeyValue::Ascii("EGM2008 height".into()));
+    let dem = d.join("named.tif");
+    let t = srtm.transform;
+    f32_raster_with_keys(&dem, (srtm.width as u32, srtm.height as u32), (t[0], t[3], t[1]), keys, |c, r| srtm.sample(c as usize, r as usize));
+    let r = pleiades_rectify(&ventoux("left_image.geom"), &dem, &d.join("o.tif"), &[]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    // (A machine with PROJ's EGM2008 grid applies it; none of CI's has it.)
+    let folders = [
+        std::env::var("PROJ_DATA").unwrap_or_default(),
+        std::env::var("PROJ_LIB").unwrap_or_default(),
+        "/usr/share/proj".into(),
+        "/usr/local/share/proj".into(),
+    ];
+    let has_grid = folders.iter().any(|f| ["egm08_25.gtx", "us_nga_egm08_25.tif"].iter().any(|g| !f.is_empty() && Path::new(f).join(g).is_file()));
+    if has_grid {
+        assert!(r.status.success(), "{err}");
+    } else {
+        assert!(err.contains("EGM2008") && err.contains("egm08_25"), "{err}");
+        assert!(!d.join("o.tif").exists());
+    }
+}

@@ -45,6 +45,7 @@ const AZIMUTH: u16 = 3094;
 const STRAIGHT_VERT_POLE_LONG: u16 = 3095;
 const RECTIFIED_GRID_ANGLE: u16 = 3096;
 const VERTICAL_TYPE: u16 = 4096;
+const VERTICAL_CITATION: u16 = 4097;
 const VERTICAL_UNITS: u16 = 4099;
 
 const USER_DEFINED: u16 = 32767;
@@ -85,6 +86,12 @@ pub fn crs_of(keys: &GeoKeys) -> Result<Option<Crs>, String> {
     let code = |id: u16| keys.short(id).filter(|&c| c != 0 && c != USER_DEFINED);
     let vertical = match code(VERTICAL_TYPE) {
         Some(v) => Some(Vertical::from_epsg(u32::from(v)).map_err(|m| format!("VerticalCSTypeGeoKey: {m}"))?),
+        // User-defined: told by its citation, or the vertical half of the
+        // compound CRS's ("… + EGM2008 height"), as GDAL writes them.
+        None if keys.short(VERTICAL_TYPE) == Some(USER_DEFINED) => keys
+            .ascii(VERTICAL_CITATION)
+            .and_then(Vertical::from_name)
+            .or_else(|| keys.ascii(CITATION).and_then(|c| c.rsplit_once(" + ")).and_then(|(_, v)| Vertical::from_name(v))),
         None => None,
     };
     let with_vertical = |c: Crs| if vertical.is_some() { c.with_vertical(vertical.clone()) } else { c };

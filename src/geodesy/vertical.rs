@@ -67,6 +67,23 @@ impl Vertical {
         self.epsg.is_some_and(|code| GEOGRAPHIC_3D.iter().any(|(c, _)| *c == code))
     }
 
+    /// The height system a name (a WKT's VERT_CS, a GeoTIFF's vertical
+    /// citation, the vertical half of a compound CRS's name) says, as
+    /// GDAL/PROJ identify it: the first word of one of [`KNOWN`]'s names
+    /// among the name's words ("EGM2008 height", "EGM2008_Geoid", "WGS 84 +
+    /// EGM96 height"); `None` for a name it does not hold.
+    pub fn from_name(name: &str) -> Option<Vertical> {
+        let words: Vec<String> = name.split(|c: char| !c.is_ascii_alphanumeric()).filter(|w| !w.is_empty()).map(str::to_ascii_lowercase).collect();
+        let joined: String = words.concat();
+        let (code, ..) = KNOWN.iter().find(|(_, known, _)| {
+            let key: String =
+                known.split_whitespace().next().unwrap_or("").chars().filter(char::is_ascii_alphanumeric).collect::<String>().to_ascii_lowercase();
+            // A short key (AHD, ODN, MSL) only as a word of its own.
+            words.contains(&key) || (key.len() >= 6 && joined.contains(&key))
+        })?;
+        Vertical::from_epsg(*code).ok()
+    }
+
     /// Whether this code is a vertical CRS this build names.
     pub fn is_known(code: u32) -> bool {
         KNOWN.iter().any(|(c, ..)| *c == code)
@@ -86,6 +103,12 @@ impl Vertical {
             return Vertical::from_epsg(code);
         }
         let name = node.name().unwrap_or("unnamed vertical CRS").to_string();
+        // A user-defined vertical CRS named as a known one (no code, no grid).
+        if node.find(&["EXTENSION", "GEOIDMODEL"]).is_none() {
+            if let Some(known) = Vertical::from_name(&name) {
+                return Ok(known);
+            }
+        }
         let mut grids = Vec::new();
         if let Some(ext) = node.find(&["EXTENSION"]) {
             if ext.name() == Some("PROJ4_GRIDS") {
@@ -116,6 +139,27 @@ impl std::fmt::Display for Vertical {
         match self.epsg {
             Some(c) if self.name != format!("EPSG:{c}") => write!(f, "EPSG:{c} ({})", self.name),
             _ => f.write_str(&self.name),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Vertical;
+
+    #[test]
+    fn a_height_system_is_told_by_its_name() {
+        for (name, code) in [
+            ("EGM2008 height", 3855),
+            ("EGM2008_Geoid", 3855),
+            ("WGS 84 / UTM zone 35S + EGM96 height", 5773),
+            ("NGF-IGN69 height", 5720),
+            ("AHD height", 5711),
+        ] {
+            assert_eq!(Vertical::from_name(name).and_then(|v| v.epsg), Some(code), "{name}");
+        }
+        for name in ["Lo29 height above sea", "London datum", "unnamed vertical CRS"] {
+            assert!(Vertical::from_name(name).is_none(), "{name}");
         }
     }
 }
