@@ -275,6 +275,24 @@ fn a_nadir_dji_frame_tagged_roll_180_looks_down() {
     assert!(set.warnings.iter().any(|w| w.contains("35 mm equivalent") && w.contains("calibrate")), "{:?}", set.warnings);
 }
 
+/// An EXIF GPS position without GPSAltitude (and no XMP height) is refused
+/// naming the tag: it was taken as 0 m and blamed on the DEM below.
+#[test]
+fn a_gps_position_without_an_altitude_is_refused_by_its_tag() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut jpeg = std::fs::read(fixture("exif/dji_nadir_roll180.jpg")).unwrap();
+    // The GPS directory's GPSAltitude entry (big-endian: tag 6, RATIONAL,
+    // one value) renamed to a tag no reader knows.
+    let entry = [0u8, 6, 0, 5, 0, 0, 0, 1];
+    let at = jpeg.windows(8).position(|w| w == entry).expect("a GPSAltitude entry");
+    assert_eq!(jpeg.windows(8).filter(|w| *w == entry).count(), 1);
+    jpeg[at + 1] = 0xEE;
+    let image = dir.path().join("no_altitude.jpg");
+    std::fs::write(&image, jpeg).unwrap();
+    let e = formats::read_for(&image, Path::new("exif"), None, None).map(|_| ()).unwrap_err().to_string();
+    assert!(e.contains("no_altitude.jpg") && e.contains("GPSAltitude") && e.contains("camera file"), "{e}");
+}
+
 #[test]
 fn an_image_without_camera_tags_is_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();

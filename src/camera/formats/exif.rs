@@ -38,7 +38,8 @@ pub struct Tags {
     /// The sensor's size in mm from the focal-plane resolution.
     pub sensor_mm: Option<[f64; 2]>,
     pub orientation: Option<u32>,
-    /// Latitude, longitude (degrees), altitude (m).
+    /// Latitude, longitude (degrees), altitude (m; NaN where the tags
+    /// give none).
     pub gps: Option<[f64; 3]>,
     /// XMP properties by namespace and name.
     pub xmp: HashMap<(String, String), String>,
@@ -172,7 +173,9 @@ impl Tags {
         let sign = |t: Tag, negative: &str| if text(t).is_some_and(|s| s.starts_with(negative)) { -1.0 } else { 1.0 };
         if let (None, Some(lat), Some(lon)) = (self.gps, dms(Tag::GPSLatitude), dms(Tag::GPSLongitude)) {
             let below = num(Tag::GPSAltitudeRef) == Some(1.0);
-            let alt = num(Tag::GPSAltitude).unwrap_or(0.0) * if below { -1.0 } else { 1.0 };
+            // No GPSAltitude: NaN, refused when the position is used (it
+            // was taken as 0 m and blamed on the DEM below).
+            let alt = num(Tag::GPSAltitude).map_or(f64::NAN, |a| a * if below { -1.0 } else { 1.0 });
             self.gps = Some([lat * sign(Tag::GPSLatitudeRef, "S"), lon * sign(Tag::GPSLongitudeRef, "W"), alt]);
         }
     }
@@ -268,6 +271,14 @@ pub fn read(image: &Path, crs: Option<&Crs>) -> Result<Imported> {
     let alt = tags.xmp_num(DJI, "AbsoluteAltitude");
     let [lat, lon, alt] = match (lat, lon, alt, tags.gps) {
         (Some(a), Some(b), Some(c), _) => [a, b, c],
+        // EXIF's position with XMP's height where EXIF has none.
+        (_, _, Some(c), Some([a, b, z])) if z.is_nan() => [a, b, c],
+        (_, _, _, Some([_, _, z])) if z.is_nan() => {
+            return Err(Error::format(
+                image,
+                "its EXIF GPS position has no GPSAltitude (nor XMP AbsoluteAltitude): the camera's height is unknown; give a camera file",
+            ));
+        }
         (_, _, _, Some(g)) => g,
         _ => {
             let why = tags.unreadable.as_ref().map_or(String::new(), |u| format!(" ({u})"));
