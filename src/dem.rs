@@ -210,9 +210,9 @@ impl GridDem {
         let (fx, fy) = (c - i0 as f64, r - j0 as f64);
         let [z00, z10, z01, z11] = self.corners(i0, j0, i1, j1);
         let need = |z: f32, wgt: f64| wgt > 0.0 && self.is_nodata(z);
-        let needed = [need(z00, (1.0 - fx) * (1.0 - fy)), need(z10, fx * (1.0 - fy)), need(z01, (1.0 - fx) * fy), need(z11, fx * fy)];
-        if needed.iter().any(|&n| n) {
+        if need(z00, (1.0 - fx) * (1.0 - fy)) || need(z10, fx * (1.0 - fy)) || need(z01, (1.0 - fx) * fy) || need(z11, fx * fy) {
             // Every missing post in the collar: past the DEM's edge.
+            let needed = [need(z00, (1.0 - fx) * (1.0 - fy)), need(z10, fx * (1.0 - fy)), need(z01, (1.0 - fx) * fy), need(z11, fx * fy)];
             let at = [(i0, j0), (i1, j0), (i0, j1), (i1, j1)];
             if let Some(c) = &self.collar {
                 if needed.iter().zip(at).all(|(&n, (i, j))| !n || c.contains(i, j)) {

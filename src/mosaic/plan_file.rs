@@ -44,33 +44,14 @@ const GAINS: std::ops::RangeInclusive<f64> = (1.0 / 64.0)..=64.0;
 const MAX_OFFSET: f64 = 1e9;
 const MAX_RADIAL: f64 = 16.0;
 
-/// The plan's checksum: FNV-1a (64 bits) of its JSON without one.
+/// The plan's checksum: FNV-1a (64 bits) of its JSON without one (`file`'s
+/// own is left out: `None` is not written).
 fn checksum(file: &PlanFile) -> Result<String> {
-    let text = serde_json::to_vec(&PlanFileRef(file)).map_err(|e| Error::Internal(format!("a mosaic plan as JSON: {e}")))?;
-    let hash = text.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
+    debug_assert!(file.checksum.is_none());
+    let text = serde_json::to_vec(file).map_err(|e| Error::Internal(format!("a mosaic plan as JSON: {e}")))?;
+    let mut hash = 0xcbf2_9ce4_8422_2325u64;
+    crate::identity::fnv(&mut hash, &text);
     Ok(format!("{hash:016x}"))
-}
-
-/// A plan serialized without its checksum.
-struct PlanFileRef<'a>(&'a PlanFile);
-
-impl Serialize for PlanFileRef<'_> {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
-        use serde::ser::SerializeStruct;
-        let f = self.0;
-        let mut st = s.serialize_struct("PlanFile", 10)?;
-        st.serialize_field("format", &f.format)?;
-        st.serialize_field("grid", &f.grid)?;
-        st.serialize_field("crs", &f.crs)?;
-        st.serialize_field("cell", &f.cell)?;
-        st.serialize_field("cw", &f.cw)?;
-        st.serialize_field("ch", &f.ch)?;
-        st.serialize_field("images", &f.images)?;
-        st.serialize_field("labels", &f.labels)?;
-        st.serialize_field("corrections", &f.corrections)?;
-        st.serialize_field("source", &f.source)?;
-        st.end()
-    }
 }
 
 /// Refuses a correction out of [`GAINS`], [`MAX_OFFSET`] or [`MAX_RADIAL`],
@@ -127,9 +108,9 @@ pub fn write(plan: &Plan, corrections: &[Correction], source: &str, path: &Path)
 
 fn load(path: &Path) -> Result<PlanFile> {
     let text = crate::io::bounded_read::read_text_bounded(path, "a mosaic plan", crate::io::bounded_read::LIST)?;
-    let file: PlanFile = serde_json::from_str(&text).map_err(|e| Error::format(path, format!("is not a mosaic plan: {e}")))?;
-    match &file.checksum {
-        Some(sum) if *sum == checksum(&file)? => {}
+    let mut file: PlanFile = serde_json::from_str(&text).map_err(|e| Error::format(path, format!("is not a mosaic plan: {e}")))?;
+    match file.checksum.take() {
+        Some(sum) if sum == checksum(&file)? => {}
         Some(_) => return Err(Error::format(path, "its content does not match its checksum (edited or damaged): plan again")),
         None => return Err(Error::format(path, "has no checksum (a plan of an earlier version, or written by hand): plan again")),
     }
