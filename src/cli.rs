@@ -88,6 +88,94 @@ pub enum Command {
     /// image pyramid, after Chibunichev): the marks' places, scores and
     /// residuals, the camera file with them (--write), a sheet to look at.
     Fiducials(FiducialsArgs),
+    /// A DEM from irregular heights (CSV/XYZ, LAS, LAZ): a Delaunay TIN,
+    /// natural neighbours, inverse distance, nearest, or the highest /
+    /// lowest / mean point of each cell; blunders dropped; streamed.
+    Grid(Box<GridArgs>),
+}
+
+#[derive(Args, Debug)]
+pub struct GridArgs {
+    /// The point files: CSV or XYZ text (a header `x,y,z` or
+    /// easting/northing/height needs nothing more), LAS or LAZ.
+    #[arg(required = true)]
+    pub points: Vec<PathBuf>,
+    /// The DEM (a tiled GeoTIFF, Float32, nodata -9999).
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
+    /// Cell size: X, or X,Y
+    #[arg(long, allow_negative_numbers = true)]
+    pub gsd: gcm_ortho::geom::Gsd,
+    /// The DEM's extent: minx,miny,maxx,maxy, snapped outward to the cell
+    /// size (default: the points')
+    #[arg(long, allow_hyphen_values = true)]
+    pub bounds: Option<String>,
+    /// The DEM's CRS, in any form; points in another CRS are brought into
+    /// it (default: the points')
+    #[arg(long)]
+    pub crs: Option<String>,
+    /// The points' CRS where their files say none (no .prj beside a text
+    /// file, no CRS in a LAS header; default: --crs)
+    #[arg(long)]
+    pub points_crs: Option<String>,
+    /// tin (linear in each Delaunay triangle), natural (natural
+    /// neighbour), idw (inverse distance), nearest, or max, min, mean (of
+    /// the points in each cell: max makes a DSM from a point cloud)
+    #[arg(long, default_value = "tin", value_parser = choice::<gcm_ortho::gridding::Method>())]
+    pub method: gcm_ortho::gridding::Method,
+    /// The longest triangle side gridded across (tin, natural): cells in
+    /// larger gaps get no height (default: ten times the points' typical
+    /// spacing, at least four cells)
+    #[arg(long)]
+    pub max_edge: Option<f64>,
+    /// Points within this distance count (idw, nearest; default: --max-edge's)
+    #[arg(long)]
+    pub radius: Option<f64>,
+    /// Inverse distance's power (idw)
+    #[arg(long, default_value_t = 2.0)]
+    pub power: f64,
+    /// At most this many nearest points (idw; default: all within --radius)
+    #[arg(long)]
+    pub neighbours: Option<usize>,
+    /// A text file's x, y and height columns: names from its header, or
+    /// numbers counted from 1 (default: found by name, else the first three)
+    #[arg(long)]
+    pub columns: Option<String>,
+    /// Point cloud classes kept, e.g. 2 for a DTM from ground points
+    /// (default: all but noise, 7 and 18, and withheld points)
+    #[arg(long, value_delimiter = ',')]
+    pub class: Option<Vec<u8>>,
+    /// Returns kept: all, first (a DSM) or last
+    #[arg(long, default_value = "all", value_parser = choice::<gcm_ortho::points::Returns>())]
+    pub returns: gcm_ortho::points::Returns,
+    /// Drop points whose height lies outside their Delaunay neighbours' by
+    /// more than this many robust sigmas, or none
+    #[arg(long, default_value = "8")]
+    pub blunders: String,
+    /// Memory budget
+    #[arg(long, default_value = "512M")]
+    pub memory: String,
+    /// Worker threads (0: all cores)
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Tile size of the DEM, px
+    #[arg(long, default_value_t = 256)]
+    pub tile: u32,
+    /// Cells a block's side (default: from the points' density and
+    /// --memory; the DEM does not depend on it)
+    #[arg(long, hide = true)]
+    pub block: Option<u32>,
+    /// Compression: none, deflate, lzw, zstd
+    #[arg(long, default_value = "deflate", value_parser = choice::<Compression>())]
+    pub compress: Compression,
+    #[command(flatten)]
+    pub layout: LayoutArgs,
+    /// Write the report (JSON) here
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// No progress bar, no summary (warnings still show)
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 #[derive(Args, Debug)]

@@ -80,6 +80,7 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Mosaic(a) => run_mosaic(&a, signals).map(|()| 0),
         Command::Cameras(a) => run_cameras(&a).map(|()| 0),
         Command::Fiducials(a) => run_fiducials(&a).map(|()| 0),
+        Command::Grid(a) => run_grid(&a, signals).map(|()| 0),
         Command::Assemble(a) => {
             warn_if_not_tiff(&a.output);
             inputs_exist(&a.pieces.iter().map(|p| ("piece", Some(p.as_path()))).collect::<Vec<_>>())?;
@@ -88,6 +89,77 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
             Ok(0)
         }
     }
+}
+
+fn run_grid(a: &crate::cli::GridArgs, signals: &Signals) -> Result<()> {
+    use gcm_ortho::gridding::{grid, GridOptions};
+    use gcm_ortho::points::{Columns, Filter};
+    warn_if_not_tiff(&a.output);
+    inputs_exist(&a.points.iter().map(|p| ("points", Some(p.as_path()))).collect::<Vec<_>>())?;
+    let parse_crs = |setting: &'static str, c: &Option<String>| {
+        c.as_deref().map(|c| gcm_ortho::geodesy::Crs::parse(c, Path::new("."))).transpose().map_err(|m| gcm_ortho::Error::setting(setting, m))
+    };
+    let mut o = GridOptions::new(a.points.clone(), a.output.clone(), a.gsd);
+    o.bounds = match &a.bounds {
+        Some(b) => gcm_ortho::options::parse_bounds("bounds", b)?,
+        None => None,
+    };
+    o.crs = parse_crs("crs", &a.crs)?;
+    o.points_crs = parse_crs("points_crs", &a.points_crs)?;
+    o.method = a.method;
+    o.max_edge = a.max_edge;
+    o.radius = a.radius;
+    o.power = a.power;
+    o.neighbours = a.neighbours;
+    if let Some(c) = &a.columns {
+        let parts: Vec<String> = c.split(',').map(|s| s.trim().to_string()).collect();
+        let [x, y, z]: [String; 3] =
+            parts.try_into().map_err(|_| gcm_ortho::Error::setting("columns", format!("'{c}' is not three columns: x,y,z (names or numbers from 1)")))?;
+        o.columns = Columns::Given([x, y, z]);
+    }
+    o.filter = Filter { classes: a.class.clone(), returns: a.returns };
+    o.blunders = match a.blunders.trim() {
+        "none" | "off" => None,
+        k => Some(k.parse::<f64>().map_err(|_| gcm_ortho::Error::setting("blunders", format!("'{k}' is not a number of sigmas or none")))?),
+    };
+    o.memory = parse_bytes("memory", &a.memory)?;
+    o.threads = match a.threads {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        t => threads_within_cores(t, 1).0,
+    };
+    o.tile = a.tile;
+    o.block = a.block;
+    o.compress = a.compress;
+    let layout = a.layout.options()?;
+    o.level = layout.level;
+    o.overviews = layout.overviews.unwrap_or_default();
+    o.cog = a.layout.cog;
+    if let Some(j) = &a.json {
+        check_writable(Role::new("report", j))?;
+    }
+    let report = grid(&o, &Bar::new(a.quiet), &signals.cancel)?;
+    if let Some(w) = past_budget(&a.memory, o.memory) {
+        eprintln!("gcm-ortho: warning: {w}");
+    }
+    if let Some(j) = &a.json {
+        write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
+    }
+    if !a.quiet {
+        eprintln!(
+            "{}: {}×{} cells at {} from {} points ({} blunders dropped); {:.1} % with a height; typical spacing {:.3}, longest side {:.3}; {:.1} s",
+            report.output.display(),
+            report.width,
+            report.height,
+            report.gsd[0],
+            report.points_used,
+            report.blunders,
+            100.0 * report.cells_with_height as f64 / (report.cells_with_height + report.cells_without).max(1) as f64,
+            report.spacing,
+            report.max_edge,
+            report.seconds
+        );
+    }
+    Ok(())
 }
 
 fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {

@@ -1,0 +1,768 @@
+//! `grid`: irregular heights (surveyed points, lidar and drone point clouds)
+//! to a regular DEM, streamed. The points are read twice: once for their
+//! extent and count, once into bins on disk ([`bins`]); then blunders are
+//! found and dropped ([`blunders`]), and the DEM is made a block of cells at
+//! a time from its bin and the bins around it ([`neighbourhood`],
+//! [`methods`]), band after band of tiles through the orthophoto's own
+//! writer. Memory is bounded by `--memory` whatever the number of points.
+
+pub mod bins;
+pub mod blunders;
+pub mod methods;
+pub mod neighbourhood;
+
+use crate::error::{Error, Result};
+use crate::geodesy::Crs;
+use crate::geodesy::Reprojection;
+use crate::geom::{Gsd, OutputGrid, Snap};
+use crate::io::tiff_out::{Chunking, Compression, GeoTags, OutputSpec};
+use crate::options::Overviews;
+use crate::pipeline::Raw;
+use crate::points::{Columns, Filter, Point, PointFile};
+use crate::progress::{Cancel, Progress, Task};
+use bins::{BinGrid, Bins, Rect};
+use methods::{CellStat, Cells};
+use neighbourhood::{Buckets, Loaded, Settle};
+use rayon::prelude::*;
+use std::path::PathBuf;
+
+/// How cells get their heights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Linear in each Delaunay triangle.
+    Tin,
+    /// Natural neighbour (Sibson): smooth, without the TIN's facets.
+    Natural,
+    /// Inverse distance to a power (Shepard).
+    Idw,
+    /// The nearest point's height.
+    Nearest,
+    /// The highest point in the cell (a DSM from a point cloud).
+    Max,
+    /// The lowest point in the cell.
+    Min,
+    /// The mean of the points in the cell.
+    Mean,
+}
+
+impl crate::options::Choice for Method {
+    const NAMES: &'static [&'static str] = &["tin", "natural", "idw", "nearest", "max", "min", "mean"];
+    fn from_name(name: &str) -> Option<Self> {
+        Some(match name {
+            "tin" => Method::Tin,
+            "natural" => Method::Natural,
+            "idw" => Method::Idw,
+            "nearest" => Method::Nearest,
+            "max" => Method::Max,
+            "min" => Method::Min,
+            "mean" => Method::Mean,
+            _ => return None,
+        })
+    }
+}
+
+/// What `grid` is asked to do.
+#[derive(Clone, Debug)]
+pub struct GridOptions {
+    pub inputs: Vec<PathBuf>,
+    pub output: PathBuf,
+    pub gsd: Gsd,
+    /// `[minx, miny, maxx, maxy]` in the output CRS (default: the points'),
+    /// snapped outward to multiples of the GSD.
+    pub bounds: Option<[f64; 4]>,
+    /// The DEM's CRS (default: the points').
+    pub crs: Option<Crs>,
+    /// The points' CRS where their files say none (default: `crs`).
+    pub points_crs: Option<Crs>,
+    pub method: Method,
+    /// The longest triangle side (tin, natural) gridded across; beyond it,
+    /// no height (default: ten times the points' typical spacing).
+    pub max_edge: Option<f64>,
+    /// Points within this distance take part (idw, nearest; default: the
+    /// longest side's).
+    pub radius: Option<f64>,
+    pub power: f64,
+    /// At most this many nearest points (idw).
+    pub neighbours: Option<usize>,
+    pub columns: Columns,
+    pub filter: Filter,
+    /// Drop points outside their neighbours' heights by more than this many
+    /// robust sigmas (`None`: keep every point).
+    pub blunders: Option<f64>,
+    pub memory: u64,
+    pub threads: usize,
+    pub tile: u32,
+    /// Cells a block's side (default: from the points' density and the
+    /// memory); the DEM does not depend on it.
+    pub block: Option<u32>,
+    pub compress: Compression,
+    pub level: Option<u8>,
+    pub overviews: Overviews,
+    pub cog: bool,
+    pub sync: bool,
+}
+
+impl GridOptions {
+    pub fn new(inputs: Vec<PathBuf>, output: PathBuf, gsd: Gsd) -> GridOptions {
+        GridOptions {
+            inputs,
+            output,
+            gsd,
+            bounds: None,
+            crs: None,
+            points_crs: None,
+            method: Method::Tin,
+            max_edge: None,
+            radius: None,
+            power: 2.0,
+            neighbours: None,
+            columns: Columns::Auto,
+            filter: Filter::default(),
+            blunders: Some(DEFAULT_BLUNDER_SIGMAS),
+            memory: 512 << 20,
+            threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            tile: 256,
+            block: None,
+            compress: Compression::Deflate,
+            level: None,
+            overviews: Overviews::Auto,
+            cog: false,
+            sync: true,
+        }
+    }
+}
+
+/// A blunder's least distance outside its neighbours, in their robust sigmas.
+pub const DEFAULT_BLUNDER_SIGMAS: f64 = 8.0;
+
+/// Where a DEM cell has no height.
+pub const NODATA: f64 = -9999.0;
+
+/// What a `grid` run did.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GridReport {
+    pub output: PathBuf,
+    pub crs: String,
+    pub width: u32,
+    pub height: u32,
+    pub gsd: [f64; 2],
+    pub bounds: [f64; 4],
+    pub method: Method,
+    /// Points the files hold.
+    pub points_read: u64,
+    /// Left out by class or return (point clouds).
+    pub points_filtered: u64,
+    /// Outside the DEM and the ring of neighbours around it.
+    pub points_outside: u64,
+    /// Could not be brought into the DEM's CRS.
+    pub points_unprojected: u64,
+    /// Dropped as blunders.
+    pub blunders: u64,
+    /// Gridded.
+    pub points_used: u64,
+    /// The points' typical spacing (the median over the area they cover).
+    pub spacing: f64,
+    pub max_edge: f64,
+    pub cells_with_height: u64,
+    pub cells_without: u64,
+    /// Triangles whose circumcircle reached too far to be sure of (counted,
+    /// used as found).
+    pub unsettled: u64,
+    /// Cells a block's side.
+    pub block: u32,
+    pub seconds: f64,
+    pub warnings: Vec<String>,
+}
+
+/// Bytes a loaded point takes with its share of a triangulation.
+const BYTES_A_POINT: u64 = 200;
+
+/// The points of every file in the DEM's CRS, batch after batch.
+struct Reader<'a> {
+    files: Vec<(PointFile, Option<Reprojection>)>,
+    o: &'a GridOptions,
+    cancel: &'a Cancel,
+}
+
+impl Reader<'_> {
+    /// Every point to `each`; returns (points in the files, points not
+    /// brought into the CRS).
+    fn each(&self, progress: &dyn Progress, mut each: impl FnMut(&Point)) -> Result<(u64, u64)> {
+        let (mut read, mut lost) = (0, 0);
+        for (file, reproject) in &self.files {
+            let mut last = 0;
+            read += file.read(&self.o.columns, &self.o.filter, self.cancel, &mut |batch, bytes| {
+                for p in batch {
+                    match reproject {
+                        None => each(p),
+                        Some(r) => match r.apply(p.x, p.y) {
+                            Some((x, y)) => each(&Point { x, y, z: p.z }),
+                            None => lost += 1,
+                        },
+                    }
+                }
+                progress.advance(bytes - last);
+                last = bytes;
+                Ok(())
+            })?;
+        }
+        Ok((read, lost))
+    }
+}
+
+/// Makes the DEM `o.output` from the points of `o.inputs`.
+pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result<GridReport> {
+    let started = std::time::Instant::now();
+    let mut warnings = Vec::new();
+    check(o)?;
+    let (reader, crs) = open(o, cancel, &mut warnings)?;
+    let input_bytes: u64 = o.inputs.iter().filter_map(|p| std::fs::metadata(p).ok()).map(|m| m.len()).sum();
+
+    // Pass 1: the points' extent and number.
+    progress.start(&Task { name: "reading points", units: input_bytes, lines: 0, line_name: "", input_bytes });
+    let (mut x0, mut y0, mut x1, mut y1, mut kept) = (f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY, 0u64);
+    let (read, unprojected) = reader.each(progress, |p| {
+        x0 = x0.min(p.x);
+        y0 = y0.min(p.y);
+        x1 = x1.max(p.x);
+        y1 = y1.max(p.y);
+        kept += 1;
+    })?;
+    progress.finish();
+    let files = o.inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ");
+    if kept == 0 {
+        return Err(Error::Named(format!("{files}: no points{}", if read > 0 { " left after the class and return filters" } else { "" })));
+    }
+    plausible(&crs, [x0, y0, x1, y1], &files)?;
+    let bounds = o.bounds.unwrap_or([x0, y0, x1, y1]);
+    let grid = output_grid(bounds, o.gsd)?;
+    let (gx, gy) = (o.gsd.x, o.gsd.y);
+    let (w, h) = (grid.width, grid.height);
+
+    // Bins: a block of cells each, and a ring around the DEM (the
+    // neighbours of its edge cells); the points kept do not depend on the
+    // block.
+    let ring = if o.bounds.is_some() { 0.1 * (w as f64 * gx).max(h as f64 * gy) + 64.0 * gx.max(gy) + 2.0 * o.max_edge.unwrap_or(0.0) } else { 0.0 };
+    let keep = [-ring, -(h as f64) * gy - ring, w as f64 * gx + ring, ring];
+    let density = kept as f64 / (((keep[2] - keep[0]) / gx) * ((keep[3] - keep[1]) / gy)).max(1.0);
+    let block = block_side(o, density);
+    let (side_x, side_y) = (block as f64 * gx, block as f64 * gy);
+    let ring_bins = (ring / side_x.min(side_y)).ceil() as u32 + 1;
+    let (bc, br) = (w.div_ceil(block) + 2 * ring_bins, h.div_ceil(block) + 2 * ring_bins);
+    if bc as u64 * br as u64 > 1 << 26 {
+        return Err(Error::setting("gsd", format!("{w}×{h} cells are too many for the memory given: a coarser --gsd, smaller --bounds or more --memory")));
+    }
+    let top = ring_bins as f64 * side_y;
+    let bin_grid = BinGrid { x0: -(ring_bins as f64) * side_x, y0: top - br as f64 * side_y, side_x, side_y, cols: bc, rows: br };
+    let nbins = bc as u64 * br as u64;
+    let chunk = (o.memory / 4 / 24 / nbins).clamp(64, 4096) as usize;
+    let dir = crate::io::publish::folder_of(&o.output);
+    let mut bins = Bins::new(bin_grid, &dir, chunk)?;
+
+    // Pass 2: into the bins, and the points' density on a fixed lattice
+    // (their typical spacing, whatever the blocks).
+    // Cells of a few dozen points each, so that the median is a density.
+    let lat = ((kept as f64 / 32.0).sqrt() as usize).clamp(1, 128);
+    let mut lattice = vec![0u64; lat * lat];
+    let (lw, lh) = (w as f64 * gx, h as f64 * gy);
+    let mut outside = 0u64;
+    let mut failed = None;
+    progress.start(&Task { name: "binning points", units: input_bytes, lines: 0, line_name: "", input_bytes });
+    reader.each(progress, |p| {
+        let (x, y) = (p.x - grid.x0, p.y - grid.y0);
+        if !(x >= keep[0] && x <= keep[2] && y >= keep[1] && y <= keep[3]) {
+            outside += 1;
+            return;
+        }
+        let (u, v) = (x / lw, -y / lh);
+        if (0.0..1.0).contains(&u) && (0.0..1.0).contains(&v) {
+            lattice[(v * lat as f64) as usize * lat + (u * lat as f64) as usize] += 1;
+        }
+        if failed.is_none() {
+            match bins.push([x, y, p.z], &dir) {
+                Ok(true) => {}
+                Ok(false) => outside += 1,
+                Err(e) => failed = Some(e),
+            }
+        }
+    })?;
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    bins.finish(&dir)?;
+    progress.finish();
+    if bins.total() == 0 {
+        return Err(Error::Named(format!("{files}: none of the points lies within the bounds asked for")));
+    }
+    let spacing = typical_spacing(&lattice, lw * lh / (lat * lat) as f64);
+    let max_edge = o.max_edge.unwrap_or_else(|| (10.0 * spacing).max(4.0 * gx.max(gy)));
+    let radius = o.radius.unwrap_or(max_edge);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(o.threads)
+        .build()
+        .map_err(|e| Error::setting("threads", format!("cannot start {} threads: {e}", o.threads)))?;
+    let cap = (o.memory / 2 / o.threads as u64 / BYTES_A_POINT).max(100_000);
+    let ctx = Ctx { bins: &bins, max_edge, radius, cap, block, grid, o };
+
+    // Blunders, each bin's found from the points as read, then dropped;
+    // once more among those left, for a blunder that another beside it
+    // hid (two neighbours of a point with three or four).
+    let mut blunders = 0;
+    if let Some(k) = o.blunders {
+        for _ in 0..2 {
+            let found = pool.install(|| drop_blunders(&ctx, k, progress, cancel))?;
+            blunders += found;
+            if found == 0 {
+                break;
+            }
+        }
+    }
+    check_not_collinear(&ctx, &files)?;
+
+    // The DEM, band after band of tiles.
+    let spec = spec_of(o, &grid, &crs)?;
+    let pending = crate::io::publish::PendingFile::create(&o.output)?;
+    let tile = o.tile;
+    let across = strip_tiles(&spec, o.memory / 4);
+    let strips: Vec<(u32, u32)> = (0..spec.tiles_across()).step_by(across as usize).map(|c| (c, (c + across).min(spec.tiles_across()))).collect();
+    let writing = crate::pipeline::band_writer::BandWriting {
+        spec: &spec,
+        path: &o.output,
+        threads: o.threads,
+        overview_resampling: crate::overview::OverviewResampling::Average,
+        fill: NODATA,
+        sync: o.sync,
+        progress,
+        cancel,
+        source: None,
+    };
+    progress.start(&Task { name: "grid", units: spec.tiles_across() as u64 * spec.tiles_down() as u64, lines: h as u64, line_name: "rows", input_bytes: 0 });
+    let unsettled = std::sync::atomic::AtomicU64::new(0);
+    let (mut with, mut without) = (0u64, 0u64);
+    let written = crate::pipeline::band_writer::write_bands(&writing, pending, &strips, |s, b| {
+        let (c0, c1) = strips[s];
+        let tiles = (c1 - c0) as usize;
+        let mut raw = vec![NODATA as f32; tiles * (tile * tile) as usize];
+        let per_tile = tile / block;
+        let blocks: Vec<(u32, u32)> = (0..per_tile)
+            .flat_map(|bj| (c0 * per_tile..c1 * per_tile).map(move |bi| (bi, b * per_tile + bj)))
+            .filter(|&(bi, bj)| bi * block < w && bj * block < h)
+            .collect();
+        let made: Vec<Result<(Cells, Vec<f32>, u64)>> = pool.install(|| blocks.par_iter().map(|&(bi, bj)| ctx.block_values(bi, bj, cancel)).collect());
+        for m in made {
+            let (cells, values, u) = m?;
+            unsettled.fetch_add(u, std::sync::atomic::Ordering::Relaxed);
+            for j in 0..cells.h {
+                for i in 0..cells.w {
+                    let v = values[(j * cells.w + i) as usize];
+                    let (ci, cj) = (cells.i0 + i, cells.j0 + j);
+                    let t = (ci / tile - c0) as usize;
+                    let at = t * (tile * tile) as usize + ((cj % tile) * tile + ci % tile) as usize;
+                    if v.is_nan() {
+                        without += 1;
+                    } else {
+                        raw[at] = v;
+                        with += 1;
+                    }
+                }
+            }
+        }
+        Ok((Raw::F32(raw), None))
+    });
+    progress.finish();
+    if cancel.is_cancelled() {
+        return Err(Error::Cancelled);
+    }
+    written?;
+    let unsettled = unsettled.into_inner();
+    if with == 0 {
+        warnings.push("no cell has a height: the points are farther apart than --max-edge (or --radius) everywhere".into());
+    }
+    if blunders > 0 {
+        warnings.push(format!("{blunders} points dropped as blunders (--blunders none keeps them)"));
+    }
+    for wmsg in &warnings {
+        progress.warn(wmsg);
+    }
+    let used = bins.total() - blunders;
+    Ok(GridReport {
+        output: o.output.clone(),
+        crs: crs.to_string(),
+        width: w,
+        height: h,
+        gsd: [gx, gy],
+        bounds: [grid.x0, grid.y0 - h as f64 * gy, grid.x0 + w as f64 * gx, grid.y0],
+        method: o.method,
+        points_read: read,
+        points_filtered: read - kept - unprojected,
+        points_outside: outside,
+        points_unprojected: unprojected,
+        blunders,
+        points_used: used,
+        spacing,
+        max_edge,
+        cells_with_height: with,
+        cells_without: without,
+        unsettled,
+        block,
+        seconds: started.elapsed().as_secs_f64(),
+        warnings,
+    })
+}
+
+/// Settings that cannot make a DEM.
+fn check(o: &GridOptions) -> Result<()> {
+    if o.inputs.is_empty() {
+        return Err(Error::Usage("no point files given".into()));
+    }
+    if !(o.gsd.x > 0.0 && o.gsd.y > 0.0 && o.gsd.x.is_finite() && o.gsd.y.is_finite()) {
+        return Err(Error::setting("gsd", "the cell size must be a positive number"));
+    }
+    for (setting, v) in [("max_edge", o.max_edge), ("radius", o.radius)] {
+        if v.is_some_and(|v| !(v > 0.0 && v.is_finite())) {
+            return Err(Error::setting(setting, "must be a positive length"));
+        }
+    }
+    if !(o.power > 0.0 && o.power <= 16.0) {
+        return Err(Error::setting("power", "must be over 0 and at most 16"));
+    }
+    if o.blunders.is_some_and(|k| !(k > 0.0 && k.is_finite())) {
+        return Err(Error::setting("blunders", "must be a positive number of sigmas, or none"));
+    }
+    if o.neighbours == Some(0) {
+        return Err(Error::setting("neighbours", "must be 1 or more"));
+    }
+    if !(16..=4096).contains(&o.tile) || !o.tile.is_multiple_of(16) {
+        return Err(Error::setting("tile", "must be a multiple of 16 from 16 to 4096"));
+    }
+    if let Some(b) = o.block {
+        if b == 0 || !o.tile.is_multiple_of(b) {
+            return Err(Error::setting("block", "must divide the tile size"));
+        }
+    }
+    if o.threads == 0 || o.threads > 1024 {
+        return Err(Error::setting("threads", "must be from 1 to 1024"));
+    }
+    let mut inputs: Vec<crate::io::overwrite::Role> = o.inputs.iter().map(|p| crate::io::overwrite::Role::new("points", p)).collect();
+    let sidecars: Vec<PathBuf> = o.inputs.iter().map(|p| p.with_extension("prj")).filter(|p| p.is_file()).collect();
+    inputs.extend(sidecars.iter().map(|p| crate::io::overwrite::Role::new("points' .prj", p)));
+    crate::io::overwrite::check_outputs(&inputs, &[crate::io::overwrite::Role::new("output", &o.output)])
+}
+
+/// The point files and the DEM's CRS, each file with what brings its points
+/// into it.
+fn open<'a>(o: &'a GridOptions, cancel: &'a Cancel, warnings: &mut Vec<String>) -> Result<(Reader<'a>, Crs)> {
+    let mut files = Vec::new();
+    let mut said = Vec::new();
+    for p in &o.inputs {
+        let f = PointFile::open(p)?;
+        let crs = f.crs()?;
+        said.push(crs.clone());
+        files.push(f);
+    }
+    let first_said = said.iter().flatten().next().cloned();
+    let crs = o
+        .crs
+        .clone()
+        .or_else(|| o.points_crs.clone())
+        .or(first_said)
+        .ok_or_else(|| Error::Named(format!("{}: the points' CRS is not said (no .prj, no CRS in the LAS header): give --crs", o.inputs[0].display())))?;
+    let mut out = Vec::new();
+    for (f, s) in files.into_iter().zip(said) {
+        let from = match (s, &o.points_crs) {
+            (Some(s), Some(given)) if s != *given => {
+                warnings.push(format!("{}: its points are in {s}, not --points-crs {given}: taken as the file says", f.path.display()));
+                s
+            }
+            (Some(s), _) => s,
+            (None, Some(given)) => given.clone(),
+            (None, None) => crs.clone(),
+        };
+        let reproject = (from != crs)
+            .then(|| Reprojection::new(&from, &crs))
+            .transpose()
+            .map_err(|m| Error::Named(format!("{}: its points cannot be brought into {crs}: {m}", f.path.display())))?;
+        out.push((f, reproject));
+    }
+    Ok((Reader { files: out, o, cancel }, crs))
+}
+
+/// Refuses coordinates that cannot be in `crs`: degrees taken as metres.
+fn plausible(crs: &Crs, [x0, y0, x1, y1]: [f64; 4], files: &str) -> Result<()> {
+    if crs.is_geographic() {
+        if x0 < -540.0 || x1 > 540.0 || y0 < -90.5 || y1 > 90.5 {
+            return Err(Error::Named(format!("{files}: the points ({x0:.1}…{x1:.1}, {y0:.1}…{y1:.1}) are not longitudes and latitudes, but their CRS ({crs}) is geographic: give --points-crs")));
+        }
+    } else if x0 >= -180.0 && x1 <= 180.0 && y0 >= -90.0 && y1 <= 90.0 && (x1 - x0) < 2.0 && (y1 - y0) < 2.0 && (x0.fract() != 0.0 || y0.fract() != 0.0) {
+        return Err(Error::Named(format!("{files}: the points ({x0}…{x1}, {y0}…{y1}) look like longitudes and latitudes, but their CRS ({crs}) is projected: give --points-crs EPSG:4326 (or theirs)")));
+    }
+    Ok(())
+}
+
+fn output_grid(bounds: [f64; 4], gsd: Gsd) -> Result<OutputGrid> {
+    let [x0, y0, x1, y1] = bounds;
+    if !bounds.iter().all(|v| v.is_finite()) {
+        return Err(Error::setting("bounds", "not finite"));
+    }
+    // A single point, or points on one line across or down: a cell around them.
+    let (x1, y1) = (if x1 > x0 { x1 } else { x0 + gsd.x }, if y1 > y0 { y1 } else { y0 + gsd.y });
+    let grid = OutputGrid::from_bounds([x0, y0, x1, y1], gsd, Snap::Tap)
+        .ok_or_else(|| Error::setting("bounds", format!("{x0},{y0},{x1},{y1} at {} × {} makes no grid", gsd.x, gsd.y)))?;
+    if grid.width as u64 * grid.height as u64 > 1 << 40 {
+        return Err(Error::setting("gsd", format!("{} × {} cells are too many: a coarser --gsd or smaller --bounds", grid.width, grid.height)));
+    }
+    Ok(grid)
+}
+
+/// A block's side in cells: the tile halved while a block with the ring of
+/// blocks around it would hold more points than a thread's share of memory
+/// triangulates (or as given).
+fn block_side(o: &GridOptions, density: f64) -> u32 {
+    if let Some(b) = o.block {
+        return b;
+    }
+    let share = (o.memory / 2 / o.threads as u64).max(16 << 20) as f64;
+    let mut b = o.tile;
+    while b.is_multiple_of(2) && b > 16 && 9.0 * (b as f64).powi(2) * density * BYTES_A_POINT as f64 > share {
+        b /= 2;
+    }
+    b
+}
+
+/// The points' typical spacing: from the median density over the cells
+/// of `lattice` that hold any (each `area` in size), so that voids and
+/// clusters do not sway it.
+fn typical_spacing(lattice: &[u64], area: f64) -> f64 {
+    let mut held: Vec<u64> = lattice.iter().copied().filter(|&c| c > 0).collect();
+    if held.is_empty() {
+        return area.sqrt();
+    }
+    held.sort_unstable();
+    let median = held[held.len() / 2] as f64;
+    (area / median).sqrt()
+}
+
+/// How many tile columns a strip holds within `budget` bytes.
+fn strip_tiles(spec: &OutputSpec, budget: u64) -> u32 {
+    let mut across = spec.tiles_across();
+    while across > 1 && crate::pipeline::band_writer::held_bytes(spec, across) > budget {
+        across = across.div_ceil(2);
+    }
+    across
+}
+
+fn spec_of(o: &GridOptions, grid: &OutputGrid, crs: &Crs) -> Result<OutputSpec> {
+    let mut spec = OutputSpec {
+        overviews: 0,
+        cog: false,
+        width: grid.width,
+        height: grid.height,
+        bands: 1,
+        sample: crate::io::source::SampleType::F32,
+        chunking: Chunking::Tiles(o.tile),
+        compression: o.compress,
+        level: crate::options::codec_level(o.compress, o.level, None)?,
+        overview_level: None,
+        bigtiff: false,
+        photometric: 1,
+        alpha: false,
+        mask: false,
+        geo: Some(GeoTags {
+            x0: grid.x0,
+            y0: grid.y0,
+            gsd: grid.gsd,
+            keys: crate::geodesy::geokeys::keys_of(crs).map_err(|m| Error::setting("crs", m))?,
+            nodata: Some(NODATA),
+        }),
+    };
+    spec.check_codec().map_err(|m| Error::setting("compress", m))?;
+    spec.overviews = o.overviews.levels(grid.width, grid.height, o.tile);
+    spec.cog = o.cog;
+    spec.bigtiff = spec.needs_bigtiff();
+    Ok(spec)
+}
+
+/// What every block of a run shares.
+struct Ctx<'a> {
+    bins: &'a Bins,
+    max_edge: f64,
+    radius: f64,
+    /// The most points a neighbourhood grows to.
+    cap: u64,
+    block: u32,
+    grid: OutputGrid,
+    o: &'a GridOptions,
+}
+
+impl Ctx<'_> {
+    /// The bin of block `(bi, bj)` (columns right, rows down from the DEM's
+    /// top-left).
+    fn bin_of_block(&self, bi: u32, bj: u32) -> (u32, u32) {
+        let g = &self.bins.grid;
+        let ring = ((-g.x0) / g.side_x).round() as u32;
+        (bi + ring, g.rows - 1 - (bj + ring))
+    }
+
+    fn margin(&self, reach: f64) -> u32 {
+        let g = &self.bins.grid;
+        (reach / g.side_x.min(g.side_y)).ceil().max(1.0) as u32
+    }
+
+    fn points_in(&self, rect: Rect) -> u64 {
+        (rect.r0..=rect.r1).map(|r| (rect.c0..=rect.c1).map(|c| self.bins.count(c, r)).sum::<u64>()).sum()
+    }
+
+    /// Runs `f` on the points around bin `core`, growing the neighbourhood
+    /// while a triangle it used may not be the whole set's; returns `f`'s
+    /// last result and the triangles left unsettled.
+    fn settled<T>(&self, core: (u32, u32), cancel: &Cancel, mut f: impl FnMut(&Loaded, &mut Settle) -> T) -> Result<(T, u64)> {
+        let grid = &self.bins.grid;
+        let mut rect = Rect::around(core.0, core.1, self.margin(self.max_edge), grid);
+        loop {
+            if cancel.is_cancelled() {
+                return Err(Error::Cancelled);
+            }
+            let loaded = Loaded::read(self.bins, rect)?;
+            let mut settle = Settle::new(self.bins, rect);
+            let out = f(&loaded, &mut settle);
+            match settle.need {
+                Some(need) => {
+                    let grown = rect.union(need);
+                    if grown != rect && self.points_in(grown) <= self.cap {
+                        rect = grown;
+                        continue;
+                    }
+                    return Ok((out, settle.unsettled + 1));
+                }
+                None => return Ok((out, settle.unsettled)),
+            }
+        }
+    }
+
+    /// The cells of block `(bi, bj)` (NaN: no height) and its unsettled
+    /// triangles.
+    fn block_values(&self, bi: u32, bj: u32, cancel: &Cancel) -> Result<(Cells, Vec<f32>, u64)> {
+        let b = self.block;
+        let (i0, j0) = (bi * b, bj * b);
+        let cells = Cells { i0, j0, w: b.min(self.grid.width - i0), h: b.min(self.grid.height - j0), gx: self.grid.gsd.x, gy: self.grid.gsd.y };
+        let mut out = vec![f32::NAN; (cells.w * cells.h) as usize];
+        let core = self.bin_of_block(bi, bj);
+        let o = self.o;
+        let unsettled = match o.method {
+            Method::Tin | Method::Natural => {
+                self.settled(core, cancel, |loaded, settle| {
+                    out.fill(f32::NAN);
+                    if let Some(tin) = loaded.tin() {
+                        methods::by_tin(&tin, settle, &cells, self.max_edge, o.method == Method::Natural, &mut out);
+                    }
+                })?
+                .1
+            }
+            Method::Idw | Method::Nearest => {
+                let loaded = Loaded::read(self.bins, Rect::around(core.0, core.1, self.margin(self.radius), &self.bins.grid))?;
+                let buckets = Buckets::new(&loaded.posts, self.radius);
+                methods::by_distance(
+                    &buckets,
+                    &loaded.posts,
+                    &cells,
+                    &methods::Distance { radius: self.radius, power: o.power, neighbours: o.neighbours, nearest: o.method == Method::Nearest },
+                    &mut out,
+                );
+                0
+            }
+            Method::Max | Method::Min | Method::Mean => {
+                let loaded = Loaded::read(self.bins, Rect::around(core.0, core.1, 1, &self.bins.grid))?;
+                let stat = match o.method {
+                    Method::Max => CellStat::Max,
+                    Method::Min => CellStat::Min,
+                    _ => CellStat::Mean,
+                };
+                methods::by_cell(&loaded.posts, &cells, stat, &mut out);
+                0
+            }
+        };
+        Ok((cells, out, unsettled))
+    }
+}
+
+/// A bin and the places of its blunders.
+type BinBlunders = ((u32, u32), Vec<(f64, f64)>);
+
+/// Finds the blunders of every bin from the points as read, then marks them
+/// dropped; returns how many.
+fn drop_blunders(ctx: &Ctx, k: f64, progress: &dyn Progress, cancel: &Cancel) -> Result<u64> {
+    let g = ctx.bins.grid;
+    let held: Vec<(u32, u32)> = (0..g.rows).flat_map(|r| (0..g.cols).map(move |c| (c, r))).filter(|&(c, r)| ctx.bins.count(c, r) > 0).collect();
+    progress.start(&Task { name: "blunders", units: held.len() as u64, lines: 0, line_name: "", input_bytes: 0 });
+    let found: Vec<Result<BinBlunders>> = held
+        .par_iter()
+        .map(|&(c, r)| {
+            let core = Rect { c0: c, r0: r, c1: c, r1: r };
+            let (places, _) = ctx.settled((c, r), cancel, |loaded, settle| match loaded.tin() {
+                Some(tin) => blunders::find(&tin, settle, &g, core, ctx.max_edge, k),
+                None => Vec::new(),
+            })?;
+            progress.advance(1);
+            Ok(((c, r), places))
+        })
+        .collect();
+    progress.finish();
+    let mut dropped = 0;
+    for f in found {
+        let ((c, r), places) = f?;
+        if places.is_empty() {
+            continue;
+        }
+        let set: rustc_hash::FxHashSet<(u64, u64)> = places.iter().map(|&(x, y)| (x.to_bits(), y.to_bits())).collect();
+        let mut positions = Vec::new();
+        let mut k = 0u64;
+        ctx.bins.read_bin(c, r, |p| {
+            if set.contains(&(p[0].to_bits(), p[1].to_bits())) {
+                positions.push(k);
+            }
+            k += 1;
+        })?;
+        dropped += positions.len() as u64;
+        ctx.bins.drop_points(c, r, &positions)?;
+    }
+    Ok(dropped)
+}
+
+/// Refuses points that make no surface (all on one line) for the methods
+/// that triangulate.
+fn check_not_collinear(ctx: &Ctx, files: &str) -> Result<()> {
+    if !matches!(ctx.o.method, Method::Tin | Method::Natural) {
+        return Ok(());
+    }
+    // Three points not on one line among the first of each bin decide it.
+    let g = ctx.bins.grid;
+    let mut some: Vec<[f64; 3]> = Vec::new();
+    for r in 0..g.rows {
+        for c in 0..g.cols {
+            if ctx.bins.count(c, r) > 0 {
+                let mut n = 0;
+                ctx.bins.read_bin(c, r, |p| {
+                    if n < 64 && !p[2].is_nan() {
+                        some.push(*p);
+                        n += 1;
+                    }
+                })?;
+            }
+        }
+    }
+    if some.len() < 3 {
+        return Err(Error::Named(format!("{files}: {} point(s): a surface needs three not on one line", some.len())));
+    }
+    let (a, b) = (some[0], some.iter().copied().max_by(|p, q| dist2(p, &some[0]).total_cmp(&dist2(q, &some[0]))).expect("three"));
+    let len = dist2(&a, &b).sqrt();
+    let off = some.iter().map(|p| ((b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])).abs() / len.max(f64::MIN_POSITIVE)).fold(0.0, f64::max);
+    if !(off > 1e-9 * len.max(1.0)) {
+        return Err(Error::Named(format!("{files}: all the points lie on one line: they make no surface")));
+    }
+    Ok(())
+}
+
+fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)
+}

@@ -1,0 +1,379 @@
+//! `grid`: a DEM from irregular points. Analytic surfaces sampled at random
+//! points (planes exact, a paraboloid, a box city), GDAL's `gdal_grid` on
+//! the same points, LAS and LAZ written here read as the CSV is, the DEM
+//! independent of the block it is made in, blunders found, bad input named.
+
+mod common;
+use common::*;
+use std::path::{Path, PathBuf};
+
+/// Points from a fixed seed (xorshift), uniform on `[0, size)²` from
+/// (500000, 4000000).
+fn random_points(n: usize, size: f64, seed: u64, z: impl Fn(f64, f64) -> f64) -> Vec<[f64; 3]> {
+    let mut s = seed.max(1);
+    let mut next = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..n)
+        .map(|_| {
+            let (u, v) = (next() * size, next() * size);
+            [500000.0 + u, 4000000.0 + v, z(u, v)]
+        })
+        .collect()
+}
+
+fn write_csv(path: &Path, pts: &[[f64; 3]]) {
+    let mut text = String::from("x,y,z\n");
+    for p in pts {
+        // Shortest round-trip: the file holds the points exactly.
+        text.push_str(&format!("{:?},{:?},{:?}\n", p[0], p[1], p[2]));
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+fn plane(u: f64, v: f64) -> f64 {
+    100.0 + 0.02 * u - 0.013 * v
+}
+
+fn bowl(u: f64, v: f64) -> f64 {
+    50.0 + ((u - 500.0).powi(2) + (v - 500.0).powi(2)) / 5000.0
+}
+
+/// The DEM's cells (NaN where it has none) and its size.
+fn cells(path: &Path) -> (u32, u32, Vec<f64>) {
+    let (w, h, _, v) = read_f32(path);
+    (w, h, v.into_iter().map(|z| if z == -9999.0 { f64::NAN } else { z as f64 }).collect())
+}
+
+fn grid(dir: &Path, name: &str, args: &[&str]) -> (PathBuf, std::process::Output) {
+    let out = dir.join(name);
+    let mut all = vec!["grid", "-o", s(&out), "--quiet"];
+    all.extend_from_slice(args);
+    let o = run(&all);
+    (out, o)
+}
+
+fn ok(o: &std::process::Output) {
+    assert!(o.status.success(), "grid failed: {}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn a_tin_of_points_on_a_plane_is_the_plane_at_every_cell() {
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("plane.csv");
+    write_csv(&csv, &random_points(20000, 1000.0, 7, plane));
+    let (dem, o) = grid(d.path(), "plane.tif", &[s(&csv), "--gsd", "2", "--crs", "EPSG:32631", "--json", s(&d.path().join("r.json"))]);
+    ok(&o);
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.path().join("r.json")).unwrap()).unwrap();
+    assert_eq!(r["blunders"], 0, "a plane has no blunders: {r}");
+    assert_eq!(r["points_used"], 20000);
+    let (w, h, z) = cells(&dem);
+    assert_eq!((w, h), (500, 500));
+    let mut valid = 0;
+    for j in 0..h {
+        for i in 0..w {
+            let v = z[(j * w + i) as usize];
+            if v.is_nan() {
+                continue;
+            }
+            valid += 1;
+            let t = plane((i as f64 + 0.5) * 2.0, 1000.0 - (j as f64 + 0.5) * 2.0);
+            // Exact but for the file's Float32.
+            assert!((v - t).abs() <= t.abs() * f64::from(f32::EPSILON) * 0.5 + 1e-9, "cell {i},{j}: {v} against {t}");
+        }
+    }
+    // Only cells outside the points' hull, along the edges, have none.
+    assert!(valid as f64 > 0.99 * (w * h) as f64, "{valid} cells with a height");
+}
+
+#[test]
+fn linear_interpolation_in_a_triangle_is_exact_on_a_plane_in_double() {
+    use gcm_ortho::gridding::methods::linear;
+    use gcm_ortho::gridding::neighbourhood::Post;
+    let f = |x: f64, y: f64| 1234.5 + 0.37 * x - 0.21 * y;
+    let v = [(3.1, 7.7), (250.9, 11.3), (97.2, 301.4)].map(|(x, y)| Post { x, y, z: f(x, y) });
+    for (x, y) in [(100.0, 100.0), (50.0, 20.0), (120.5, 200.25)] {
+        assert!((linear(x, y, v) - f(x, y)).abs() <= 1e-9);
+    }
+}
+
+#[test]
+fn the_tin_matches_gdal_grid_linear_and_idw_matches_gdal_grid_invdist() {
+    if !have("gdal_grid") {
+        eprintln!("skipped: GDAL is not installed");
+        return;
+    }
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("bowl.csv");
+    let pts = random_points(5000, 1000.0, 11, bowl);
+    write_csv(&csv, &pts);
+    // GDAL reads the CSV through a VRT naming its columns.
+    let vrt = d.path().join("bowl.vrt");
+    std::fs::write(
+        &vrt,
+        format!(
+            "<OGRVRTDataSource><OGRVRTLayer name=\"bowl\"><SrcDataSource>{}</SrcDataSource><GeometryType>wkbPoint</GeometryType><GeometryField encoding=\"PointFromColumns\" x=\"x\" y=\"y\" z=\"z\"/></OGRVRTLayer></OGRVRTDataSource>",
+            s(&csv)
+        ),
+    )
+    .unwrap();
+    let extent = ["-txe", "500000", "501000", "-tye", "4001000", "4000000", "-outsize", "200", "200", "-ot", "Float64"];
+    let bounds = "500000,4000000,501000,4001000";
+    for (name, algo, ours) in [
+        ("linear", "linear:radius=0:nodata=-9999", vec!["--method", "tin", "--max-edge", "2000"]),
+        (
+            "invdist",
+            "invdist:power=2:smoothing=0:radius1=40:radius2=40:angle=0:max_points=0:min_points=1:nodata=-9999",
+            vec!["--method", "idw", "--radius", "40"],
+        ),
+    ] {
+        let theirs = d.path().join(format!("gdal_{name}.tif"));
+        let mut args = vec!["-q", "-l", "bowl", "-a", algo];
+        args.extend_from_slice(&extent);
+        args.extend_from_slice(&[s(&vrt), s(&theirs)]);
+        let g = std::process::Command::new("gdal_grid").args(&args).output().unwrap();
+        assert!(g.status.success(), "gdal_grid: {}", String::from_utf8_lossy(&g.stderr));
+        let mut a = vec![s(&csv), "--gsd", "5", "--crs", "EPSG:32631", "--bounds", bounds, "--blunders", "none"];
+        a.extend(ours.iter().copied());
+        let (dem, o) = grid(d.path(), &format!("ours_{name}.tif"), &a);
+        ok(&o);
+        let (w, h, z) = cells(&dem);
+        let (gw, gh, _, t) = read_f64(&theirs);
+        assert_eq!((w, h), (gw, gh));
+        let (mut compared, mut beyond, mut worst) = (0, 0, 0.0f64);
+        for k in 0..z.len() {
+            if z[k].is_nan() || t[k] == -9999.0 {
+                assert_eq!(z[k].is_nan(), t[k] == -9999.0 || name == "linear", "{name}: cell {k} has a height in one and not the other ({} / {})", z[k], t[k]);
+                continue;
+            }
+            compared += 1;
+            // Ours is Float32; GDAL's Float64.
+            let e = (z[k] - t[k]).abs() - t[k].abs() * f64::from(f32::EPSILON) * 0.5;
+            worst = worst.max(e);
+            beyond += usize::from(e > 1e-6);
+        }
+        assert!(compared > 35000, "{name}: {compared} cells compared");
+        // Where four points are all but on one circle, GDAL's triangulation
+        // (qhull, in floating point) may take the other diagonal than ours
+        // (exact predicates): a cell in ten thousand, off by micrometres.
+        assert!(beyond <= compared / 10000 && worst <= 1e-4, "{name}: {beyond} cells beyond 1e-6 m of gdal_grid (Float32 rounding aside), the worst {worst} m");
+    }
+}
+
+/// A LAS file of `pts` (format 1, scale 1 mm), compressed (LAZ) where asked,
+/// every tenth point classed as noise (7) and every other one ground (2).
+fn write_las(path: &Path, pts: &[[f64; 3]], laz: bool) {
+    let mut b = las::Builder::from((1, 2));
+    b.point_format = las::point::Format::new(1).unwrap();
+    b.point_format.is_compressed = laz;
+    b.transforms = las::Vector {
+        x: las::Transform { scale: 0.001, offset: 500000.0 },
+        y: las::Transform { scale: 0.001, offset: 4000000.0 },
+        z: las::Transform { scale: 0.001, offset: 0.0 },
+    };
+    let mut w = las::Writer::from_path(path, b.into_header().unwrap()).unwrap();
+    for (k, p) in pts.iter().enumerate() {
+        let class = if k % 10 == 9 {
+            7
+        } else if k % 2 == 0 {
+            2
+        } else {
+            1
+        };
+        w.write_point(las::Point {
+            x: p[0],
+            y: p[1],
+            z: p[2],
+            classification: las::point::Classification::new(class).unwrap(),
+            gps_time: Some(0.0),
+            ..Default::default()
+        })
+        .unwrap();
+    }
+    w.close().unwrap();
+}
+
+#[test]
+fn las_laz_and_csv_of_the_same_points_make_the_same_dem_and_classes_filter() {
+    let d = tempfile::tempdir().unwrap();
+    // Millimetres, as the LAS holds them.
+    let pts: Vec<[f64; 3]> = random_points(6000, 500.0, 5, bowl).into_iter().map(|p| p.map(|v| (v * 1000.0).round() / 1000.0)).collect();
+    let (las_path, laz_path, csv) = (d.path().join("p.las"), d.path().join("p.laz"), d.path().join("p.csv"));
+    write_las(&las_path, &pts, false);
+    write_las(&laz_path, &pts, true);
+    // The CSV holds what the LAS keeps by default: noise (class 7) left out.
+    let kept: Vec<[f64; 3]> = pts.iter().enumerate().filter(|(k, _)| k % 10 != 9).map(|(_, p)| *p).collect();
+    write_csv(&csv, &kept);
+    let common = ["--gsd", "2", "--crs", "EPSG:32631"];
+    let mut made = Vec::new();
+    for (name, input) in [("las.tif", &las_path), ("laz.tif", &laz_path), ("csv.tif", &csv)] {
+        let mut a = vec![s(input)];
+        a.extend_from_slice(&common);
+        let (dem, o) = grid(d.path(), name, &a);
+        ok(&o);
+        made.push(cells(&dem).2);
+    }
+    let same = |a: &[f64], b: &[f64]| a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan()));
+    assert!(same(&made[0], &made[1]), "LAZ differs from LAS");
+    assert!(same(&made[0], &made[2]), "LAS differs from the CSV of its points");
+    // Ground only (class 2): the even points.
+    let ground: Vec<[f64; 3]> = pts.iter().step_by(2).copied().collect();
+    let gcsv = d.path().join("g.csv");
+    write_csv(&gcsv, &ground);
+    let (a, o) =
+        grid(d.path(), "ground_las.tif", &[s(&laz_path), "--class", "2", "--gsd", "2", "--crs", "EPSG:32631", "--bounds", "500000,4000000,500500,4000500"]);
+    ok(&o);
+    let (b, o) = grid(d.path(), "ground_csv.tif", &[s(&gcsv), "--gsd", "2", "--crs", "EPSG:32631", "--bounds", "500000,4000000,500500,4000500"]);
+    ok(&o);
+    assert!(same(&cells(&a).2, &cells(&b).2), "--class 2 is not the ground points' DEM");
+}
+
+#[test]
+fn the_dem_does_not_depend_on_the_block_it_is_made_in() {
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("city.csv");
+    // A box city on a bowl, clustered and gappy: most points in the west.
+    let pts: Vec<[f64; 3]> = random_points(30000, 800.0, 3, |u, v| bowl(u, v) + if u % 100.0 < 40.0 && v % 100.0 < 40.0 { 20.0 } else { 0.0 })
+        .into_iter()
+        .filter(|p| (p[0] - 500000.0) < 300.0 || (p[0] as u64 + p[1] as u64).is_multiple_of(5))
+        .collect();
+    write_csv(&csv, &pts);
+    for method in ["tin", "idw", "nearest", "max"] {
+        let mut files = Vec::new();
+        for block in ["16", "64", "256"] {
+            let (dem, o) = grid(
+                d.path(),
+                &format!("{method}_{block}.tif"),
+                &[s(&csv), "--gsd", "1", "--crs", "EPSG:32631", "--method", method, "--block", block, "--radius", "6"],
+            );
+            ok(&o);
+            files.push(std::fs::read(dem).unwrap());
+        }
+        assert!(files[0] == files[1] && files[1] == files[2], "{method}: the DEM changes with the block");
+    }
+    // Natural neighbours reach past the triangles around the one a cell is
+    // in, now and then beyond what a block checks: measured, 2 cells in
+    // 800,000 differ, by under a centimetre.
+    let mut natural = Vec::new();
+    for block in ["16", "256"] {
+        let (dem, o) =
+            grid(d.path(), &format!("natural_{block}.tif"), &[s(&csv), "--gsd", "1", "--crs", "EPSG:32631", "--method", "natural", "--block", block]);
+        ok(&o);
+        natural.push(cells(&dem).2);
+    }
+    let differ: Vec<f64> =
+        natural[0].iter().zip(&natural[1]).filter(|(x, y)| !((**x - **y).abs() <= 1e-4 || (x.is_nan() && y.is_nan()))).map(|(x, y)| x - y).collect();
+    assert!(
+        differ.len() <= 8 && differ.iter().all(|d| d.abs() < 0.02),
+        "natural: {} cells change with the block: {:?}",
+        differ.len(),
+        &differ[..differ.len().min(8)]
+    );
+    // Another tile size: the same cells.
+    let (a, o) = grid(d.path(), "t128.tif", &[s(&csv), "--gsd", "1", "--crs", "EPSG:32631", "--tile", "128"]);
+    ok(&o);
+    let (b, o) = grid(d.path(), "t512.tif", &[s(&csv), "--gsd", "1", "--crs", "EPSG:32631", "--tile", "512", "--block", "32"]);
+    ok(&o);
+    let (za, zb) = (cells(&a).2, cells(&b).2);
+    assert!(za.iter().zip(&zb).all(|(x, y)| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan())), "the cells change with the tile size");
+}
+
+#[test]
+fn one_percent_blunders_are_dropped_and_the_clean_surface_comes_back() {
+    let d = tempfile::tempdir().unwrap();
+    let mut pts = random_points(40000, 1000.0, 9, bowl);
+    let mut planted = 0;
+    for (k, p) in pts.iter_mut().enumerate() {
+        if k % 100 == 37 {
+            p[2] += if k % 200 == 37 { 1.0 } else { -1.0 } * (3.0 + (k % 4700) as f64 / 100.0);
+            planted += 1;
+        }
+    }
+    let csv = d.path().join("b.csv");
+    write_csv(&csv, &pts);
+    let json = d.path().join("r.json");
+    let (dem, o) = grid(d.path(), "b.tif", &[s(&csv), "--gsd", "2", "--crs", "EPSG:32631", "--json", s(&json)]);
+    ok(&o);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("dropped as blunders"), "the drop is said");
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let dropped = r["blunders"].as_u64().unwrap();
+    assert!(dropped >= planted && dropped <= planted + planted / 5, "{dropped} dropped of {planted} planted");
+    let (w, h, z) = cells(&dem);
+    let mut off = 0;
+    for j in 0..h {
+        for i in 0..w {
+            let v = z[(j * w + i) as usize];
+            if !v.is_nan() && (v - bowl((i as f64 + 0.5) * 2.0, 1000.0 - (j as f64 + 0.5) * 2.0)).abs() > 0.05 {
+                off += 1;
+            }
+        }
+    }
+    // A TIN of the clean points is within 0.05 m of the bowl everywhere;
+    // a blunder left (on the hull, beside another) spoils a few cells.
+    assert!(off < (w * h / 500) as usize, "{off} cells off the clean surface");
+}
+
+#[test]
+fn bad_points_are_refused_naming_the_file_and_leaving_no_dem() {
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n);
+    std::fs::write(p("empty.csv"), "x,y,z\n").unwrap();
+    std::fs::write(p("line.csv"), "x,y,z\n0,0,1\n1,1,2\n2,2,3\n3,3,4\n").unwrap();
+    std::fs::write(p("nan.csv"), "x,y,z\n0,0,1\n5,0,nan\n0,5,2\n").unwrap();
+    std::fs::write(p("degrees.csv"), "x,y,z\n2.35,48.85,35\n2.36,48.86,40\n2.35,48.86,41\n").unwrap();
+    std::fs::write(p("nocrs.csv"), "x,y,z\n0,0,1\n5,0,2\n0,5,3\n").unwrap();
+    std::fs::write(p("header.csv"), "a,b,c\n0,0,1\n").unwrap();
+    // A LAS header claiming 10^12 points in a file of a few hundred bytes.
+    let las_path = p("huge.las");
+    write_las(&las_path, &random_points(3, 10.0, 1, plane), false);
+    let mut bytes = std::fs::read(&las_path).unwrap();
+    bytes[107..111].copy_from_slice(&u32::MAX.to_le_bytes());
+    if bytes[24] == 1 && bytes[25] >= 4 {
+        bytes[247..255].copy_from_slice(&1_000_000_000_000u64.to_le_bytes());
+    }
+    std::fs::write(&las_path, &bytes).unwrap();
+    for (input, crs, said) in [
+        ("empty.csv", "EPSG:32631", "no points"),
+        ("line.csv", "EPSG:32631", "on one line"),
+        ("nan.csv", "EPSG:32631", "line 3"),
+        ("degrees.csv", "EPSG:32631", "look like longitudes and latitudes"),
+        ("nocrs.csv", "", "give --crs"),
+        ("header.csv", "EPSG:32631", "names no x, y and z"),
+        ("huge.las", "EPSG:32631", "more than the file"),
+    ] {
+        let out = p("dem.tif");
+        let input_path = d.path().join(input);
+        let mut args = vec!["grid", s(&input_path), "-o", s(&out), "--gsd", "1", "--quiet"];
+        if !crs.is_empty() {
+            args.extend_from_slice(&["--crs", crs]);
+        }
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{input} was taken");
+        assert!(err.contains(input) && err.contains(said), "{input}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{input}: one line: {err}");
+        assert!(!out.exists(), "{input}: a DEM was left");
+        assert!(files_containing(d.path(), ".tmp").is_empty() && files_containing(d.path(), "dem.tif").is_empty(), "{input}: a temporary was left");
+    }
+}
+
+#[test]
+fn a_gridded_dem_reads_back_as_a_dem_with_its_crs_and_nodata() {
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("p.csv");
+    write_csv(&csv, &random_points(3000, 300.0, 4, plane));
+    let (dem, o) = grid(d.path(), "dem.tif", &[s(&csv), "--gsd", "3", "--crs", "EPSG:32631"]);
+    ok(&o);
+    let src = gcm_ortho::io::source::SourceImage::open(&dem, 1 << 20).unwrap();
+    let geo = src.info.georef.as_ref().expect("georeferenced");
+    assert_eq!(geo.transform[1], 3.0);
+    assert_eq!(src.info.nodata, Some(-9999.0));
+    let crs = gcm_ortho::geodesy::Crs::from_epsg(32631).unwrap();
+    let dem = gcm_ortho::dem::Dem::open(&dem, &crs).expect("rectify's DEM reader takes it");
+    let (x, y) = (500150.5, 4000150.25);
+    let gcm_ortho::dem::Height::Value(z) = dem.height(x, y) else { panic!("no height in the middle") };
+    assert!((z - plane(x - 500000.0, y - 4000000.0)).abs() < 1e-3, "{z}");
+}
