@@ -282,6 +282,39 @@ fn the_dem_does_not_depend_on_the_block_it_is_made_in() {
 }
 
 #[test]
+fn a_lattice_of_points_grids_the_same_whatever_diagonals_the_triangulation_draws() {
+    // An XYZ export of another DEM: every square's four corners on one
+    // circle, so that either diagonal is Delaunay; with spikes to drop.
+    let d = tempfile::tempdir().unwrap();
+    let mut text = String::from("x y z\n");
+    let mut planted = 0;
+    for i in 0..150u32 {
+        for j in 0..150u32 {
+            let (u, v) = (f64::from(i) * 5.0, f64::from(j) * 5.0);
+            let mut z = bowl(u, v) + f64::from((i * 7 + j * 3) % 5) * 0.1;
+            if (i * 31 + j * 17) % 97 == 0 {
+                z += 30.0;
+                planted += 1;
+            }
+            text.push_str(&format!("{} {} {z:?}\n", 500000.0 + u, 4000000.0 + v));
+        }
+    }
+    let xyz = d.path().join("lattice.xyz");
+    std::fs::write(&xyz, text).unwrap();
+    let mut files = Vec::new();
+    for block in ["16", "64", "256"] {
+        let json = d.path().join(format!("r{block}.json"));
+        let (dem, o) = grid(d.path(), &format!("lattice_{block}.tif"), &[s(&xyz), "--gsd", "2", "--crs", "EPSG:32631", "--block", block, "--json", s(&json)]);
+        ok(&o);
+        let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let dropped = r["blunders"].as_u64().unwrap();
+        assert!(dropped <= planted && dropped + planted / 20 >= planted, "{dropped} dropped of {planted}");
+        files.push(std::fs::read(dem).unwrap());
+    }
+    assert!(files[0] == files[1] && files[1] == files[2], "the lattice's DEM changes with the block");
+}
+
+#[test]
 fn one_percent_blunders_are_dropped_and_the_clean_surface_comes_back() {
     let d = tempfile::tempdir().unwrap();
     let mut pts = random_points(40000, 1000.0, 9, bowl);

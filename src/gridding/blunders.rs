@@ -10,7 +10,7 @@
 //! (not on the hull, not beside a gap) is judged.
 
 use super::bins::{BinGrid, Rect};
-use super::neighbourhood::{Post, Settle, Tin};
+use super::neighbourhood::{delaunay_cell, Post, Settle, Tin};
 use spade::Triangulation;
 
 /// The places `(x, y)` of the blunders among the points of bin `core`.
@@ -28,20 +28,27 @@ pub fn find(tin: &Tin, settle: &mut Settle, grid: &BinGrid, core: Rect, max_edge
         ring.clear();
         let (mut inside, mut on_hull) = (true, false);
         for e in v.out_edges() {
-            let to = e.to();
-            let q = to.data();
-            ring.push((q.x - p.x, q.y - p.y, q.z));
-            inside &= (q.x - p.x).powi(2) + (q.y - p.y).powi(2) <= l2;
             match e.face().as_inner() {
                 Some(f) => {
                     let [a, b, c] = f.vertices().map(|v| v.position());
                     settle.check(a, b, c);
+                    // The corners of its Delaunay cell: on a lattice, the
+                    // same neighbours whichever diagonals were drawn.
+                    for q in delaunay_cell(tin, f.fix()) {
+                        let r = (q.x - p.x, q.y - p.y, q.z);
+                        if (r.0, r.1) != (0.0, 0.0) && !ring.contains(&r) {
+                            inside &= r.0 * r.0 + r.1 * r.1 <= l2;
+                            ring.push(r);
+                        }
+                    }
                 }
                 // On the hull: judged only by a plane through its neighbours
                 // (beyond their heights, it may be on a slope).
                 None => on_hull = true,
             }
         }
+        // In one order, whatever order the triangulation went round in.
+        ring.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
         if !inside || ring.len() < if on_hull { 6 } else { 3 } {
             continue;
         }

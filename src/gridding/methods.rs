@@ -3,7 +3,7 @@
 //! neighbour (Sibson), inverse distance (Shepard), the nearest point, and
 //! the highest, lowest or mean point in each cell.
 
-use super::neighbourhood::{Buckets, Post, Settle, Tin};
+use super::neighbourhood::{delaunay_cell, fan_triangle, Buckets, Post, Settle, Tin};
 use spade::{HasPosition, Point2, PositionInTriangulation, Triangulation};
 
 /// The output cells of a block: `w`×`h` from column `i0`, row `j0` of a
@@ -63,12 +63,16 @@ pub fn by_tin(tin: &Tin, settle: &mut Settle, cells: &Cells, max_edge: f64, natu
                 Some(h) => tin.locate_with_hint(q, h),
                 None => tin.locate(q),
             };
-            let face_value = |settle: &mut Settle, corners: [Post; 3]| -> Option<f64> {
-                let v = sorted(corners);
+            // A cell's triangle is the fan's of its Delaunay cell (a lattice's
+            // square cut one way whatever the triangulation drew), linear
+            // on it; natural neighbours over the whole triangulation.
+            let face_value = |settle: &mut Settle, f: spade::handles::FixedFaceHandle<spade::handles::InnerTag>| -> Option<f64> {
+                let cell = delaunay_cell(tin, f);
+                let v = sorted(fan_triangle(&cell, x, y)?);
                 if !short(&v, l2) {
                     return None;
                 }
-                settle.check(pos(&v[0]), pos(&v[1]), pos(&v[2]));
+                settle.check(pos(&cell[0]), pos(&cell[1]), pos(&cell[2]));
                 match &nn {
                     Some(nn) => nn.interpolate(|v| v.data().z, q),
                     None => Some(linear(x, y, v)),
@@ -95,14 +99,14 @@ pub fn by_tin(tin: &Tin, settle: &mut Settle, cells: &Cells, max_edge: f64, natu
                             }
                         }
                     }
-                    face_value(settle, vs.map(|v| *v.data()))
+                    face_value(settle, f)
                 }
                 PositionInTriangulation::OnEdge(e) => {
                     let edge = tin.directed_edge(e);
                     hint = Some(edge.from().fix());
                     // Either side's triangle gives the edge's line; the
                     // first whose sides are short enough.
-                    [edge, edge.rev()].into_iter().find_map(|e| e.face().as_inner().and_then(|f| face_value(settle, f.vertices().map(|v| *v.data()))))
+                    [edge, edge.rev()].into_iter().find_map(|e| e.face().as_inner().and_then(|f| face_value(settle, f.fix())))
                 }
                 PositionInTriangulation::OutsideOfConvexHull(_) | PositionInTriangulation::NoTriangulation => None,
             };

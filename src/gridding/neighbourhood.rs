@@ -219,3 +219,61 @@ impl<'a> Buckets<'a> {
         out.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     }
 }
+
+fn coord(p: &Post) -> robust::Coord<f64> {
+    robust::Coord { x: p.x, y: p.y }
+}
+
+/// The Delaunay cell holding face `f`: the faces whose corners lie exactly
+/// on its circumcircle with it (a regular lattice's squares), as the
+/// corners of that polygon in one order whatever diagonals the
+/// triangulation happened to draw: counter-clockwise from the least corner
+/// (by x, then y). Three corners where the face is alone.
+pub fn delaunay_cell(tin: &Tin, f: spade::handles::FixedFaceHandle<spade::handles::InnerTag>) -> Vec<Post> {
+    let face = tin.face(f);
+    let [a, b, c] = face.vertices().map(|v| *v.data());
+    let (ca, cb, cc) = (coord(&a), coord(&b), coord(&c));
+    let mut faces = vec![f];
+    let mut corners = face.vertices().map(|v| v.fix()).to_vec();
+    let mut k = 0;
+    while k < faces.len() {
+        for e in tin.face(faces[k]).adjacent_edges() {
+            let Some(other) = e.rev().face().as_inner() else { continue };
+            if faces.contains(&other.fix()) {
+                continue;
+            }
+            let Some(o) = e.rev().opposite_vertex() else { continue };
+            if robust::incircle(ca, cb, cc, coord(o.data())) == 0.0 {
+                faces.push(other.fix());
+                if !corners.contains(&o.fix()) {
+                    corners.push(o.fix());
+                }
+            }
+        }
+        k += 1;
+    }
+    let mut posts: Vec<Post> = corners.iter().map(|&v| *tin.vertex(v).data()).collect();
+    posts.sort_unstable_by(|p, q| p.x.total_cmp(&q.x).then(p.y.total_cmp(&q.y)));
+    if posts.len() > 3 {
+        let first = posts[0];
+        // Round a convex polygon from one of its corners, the angle is
+        // told exactly by the side each corner lies on of another.
+        posts[1..].sort_unstable_by(|p, q| 0.0_f64.total_cmp(&robust::orient2d(coord(&first), coord(p), coord(q))));
+    } else {
+        let first = posts[0];
+        if robust::orient2d(coord(&first), coord(&posts[1]), coord(&posts[2])) < 0.0 {
+            posts.swap(1, 2);
+        }
+    }
+    posts
+}
+
+/// The triangle of the fan from `cell[0]` that holds `(x, y)` (the first,
+/// on a side two share), if any.
+pub fn fan_triangle(cell: &[Post], x: f64, y: f64) -> Option<[Post; 3]> {
+    let q = robust::Coord { x, y };
+    let v0 = cell[0];
+    (1..cell.len() - 1).map(|i| [v0, cell[i], cell[i + 1]]).find(|[a, b, c]| {
+        robust::orient2d(coord(a), coord(b), q) >= 0.0 && robust::orient2d(coord(b), coord(c), q) >= 0.0 && robust::orient2d(coord(c), coord(a), q) >= 0.0
+    })
+}
