@@ -625,6 +625,17 @@ pub struct SynthArgs {
     /// `mosaic` and the ground's true colours.
     #[arg(long)]
     pub block: Option<String>,
+    /// Only points for `grid`: this many at random on rolling hills with a
+    /// town of boxes, written as --out/points.las (points.laz with
+    /// --laz), streamed
+    #[arg(long)]
+    pub points: Option<u64>,
+    /// Points a square metre (with --points)
+    #[arg(long, default_value_t = 1.0)]
+    pub points_density: f64,
+    /// Write the points as LAZ (with --points)
+    #[arg(long)]
+    pub laz: bool,
     /// Film: the fiducial marks' shape (as `fiducials --shape`).
     #[arg(long, default_value = "cross")]
     pub mark: String,

@@ -18,6 +18,7 @@ pub fn find(tin: &Tin, settle: &mut Settle, grid: &BinGrid, core: Rect, max_edge
     let l2 = max_edge * max_edge;
     let mut found = Vec::new();
     let mut ring: Vec<(f64, f64, f64)> = Vec::new();
+    let mut cell = Vec::with_capacity(8);
     for v in tin.vertices() {
         let p: Post = *v.data();
         if grid.bin_of(p.x, p.y) != Some((core.c0, core.r0)) {
@@ -34,7 +35,8 @@ pub fn find(tin: &Tin, settle: &mut Settle, grid: &BinGrid, core: Rect, max_edge
                     settle.check(a, b, c);
                     // The corners of its Delaunay cell: on a lattice, the
                     // same neighbours whichever diagonals were drawn.
-                    for q in delaunay_cell(tin, f.fix()) {
+                    delaunay_cell(tin, f.fix(), &mut cell);
+                    for q in cell.iter().copied() {
                         let r = (q.x - p.x, q.y - p.y, q.z);
                         if (r.0, r.1) != (0.0, 0.0) && !ring.contains(&r) {
                             inside &= r.0 * r.0 + r.1 * r.1 <= l2;

@@ -55,6 +55,7 @@ pub fn by_tin(tin: &Tin, settle: &mut Settle, cells: &Cells, max_edge: f64, natu
     let l2 = max_edge * max_edge;
     let nn = natural.then(|| tin.natural_neighbor());
     let mut hint = None;
+    let (mut cell, mut last) = (Vec::with_capacity(8), None);
     for j in 0..cells.h {
         for i in 0..cells.w {
             let (x, y) = cells.centre(i, j);
@@ -66,8 +67,12 @@ pub fn by_tin(tin: &Tin, settle: &mut Settle, cells: &Cells, max_edge: f64, natu
             // A cell's triangle is the fan's of its Delaunay cell (a lattice's
             // square cut one way whatever the triangulation drew), linear
             // on it; natural neighbours over the whole triangulation.
-            let face_value = |settle: &mut Settle, f: spade::handles::FixedFaceHandle<spade::handles::InnerTag>| -> Option<f64> {
-                let cell = delaunay_cell(tin, f);
+            let mut face_value = |settle: &mut Settle, f: spade::handles::FixedFaceHandle<spade::handles::InnerTag>| -> Option<f64> {
+                // Cells in a row fall in one triangle by twos and threes.
+                if last != Some(f) {
+                    delaunay_cell(tin, f, &mut cell);
+                    last = Some(f);
+                }
                 let v = sorted(fan_triangle(&cell, x, y)?);
                 if !short(&v, l2) {
                     return None;

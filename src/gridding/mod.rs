@@ -308,14 +308,30 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     // Blunders, each bin's found from the points as read, then dropped;
     // once more among those left, for a blunder that another beside it
     // hid (two neighbours of a point with three or four).
+    // The second pass looks only where the first dropped some: elsewhere
+    // no point's neighbours changed.
     let mut blunders = 0;
     if let Some(k) = o.blunders {
-        for _ in 0..2 {
-            let found = pool.install(|| drop_blunders(&ctx, k, progress, cancel))?;
-            blunders += found;
-            if found == 0 {
-                break;
+        let g = bins.grid;
+        let held: Vec<(u32, u32)> = (0..g.rows).flat_map(|r| (0..g.cols).map(move |c| (c, r))).filter(|&(c, r)| bins.count(c, r) > 0).collect();
+        let (found, touched) = pool.install(|| drop_blunders(&ctx, k, &held, progress, cancel))?;
+        blunders += found;
+        if found > 0 {
+            let reach = (max_edge / g.side_x.min(g.side_y)).ceil() as u32;
+            let mut again = rustc_hash::FxHashSet::default();
+            for (c, r) in touched {
+                let near = Rect::around(c, r, reach, &g);
+                for rr in near.r0..=near.r1 {
+                    for cc in near.c0..=near.c1 {
+                        if bins.count(cc, rr) > 0 {
+                            again.insert((cc, rr));
+                        }
+                    }
+                }
             }
+            let mut again: Vec<(u32, u32)> = again.into_iter().collect();
+            again.sort_unstable_by_key(|&(c, r)| (r, c));
+            blunders += pool.install(|| drop_blunders(&ctx, k, &again, progress, cancel))?.0;
         }
     }
     check_not_collinear(&ctx, &files)?;
@@ -604,33 +620,36 @@ impl Ctx<'_> {
         (bi + ring, g.rows - 1 - (bj + ring))
     }
 
-    fn margin(&self, reach: f64) -> u32 {
-        let g = &self.bins.grid;
-        (reach / g.side_x.min(g.side_y)).ceil().max(1.0) as u32
+    /// The ground of bin `core` and `reach` around it.
+    fn around(&self, core: (u32, u32), reach: f64) -> [f64; 4] {
+        let g = self.bins.grid.ground_of(Rect { c0: core.0, r0: core.1, c1: core.0, r1: core.1 });
+        [g[0] - reach, g[1] - reach, g[2] + reach, g[3] + reach]
     }
 
-    fn points_in(&self, rect: Rect) -> u64 {
+    /// Points in the bins over `region` (those just outside it too).
+    fn points_over(&self, region: [f64; 4]) -> u64 {
+        let Some(rect) = self.bins.grid.bins_over(region[0], region[1], region[2], region[3]) else { return 0 };
         (rect.r0..=rect.r1).map(|r| (rect.c0..=rect.c1).map(|c| self.bins.count(c, r)).sum::<u64>()).sum()
     }
 
-    /// Runs `f` on the points around bin `core`, growing the neighbourhood
-    /// while a triangle it used may not be the whole set's; returns `f`'s
-    /// last result and the triangles left unsettled.
+    /// Runs `f` on the points within the longest side of bin `core`,
+    /// growing the ground read while a triangle it used may not be the
+    /// whole set's; returns `f`'s last result and the triangles left
+    /// unsettled.
     fn settled<T>(&self, core: (u32, u32), cancel: &Cancel, mut f: impl FnMut(&Loaded, &mut Settle) -> T) -> Result<(T, u64)> {
-        let grid = &self.bins.grid;
-        let mut rect = Rect::around(core.0, core.1, self.margin(self.max_edge), grid);
+        let mut region = self.around(core, self.max_edge);
         loop {
             if cancel.is_cancelled() {
                 return Err(Error::Cancelled);
             }
-            let loaded = Loaded::read(self.bins, rect)?;
-            let mut settle = Settle::new(self.bins, rect);
+            let loaded = Loaded::read(self.bins, region)?;
+            let mut settle = Settle::new(self.bins, region);
             let out = f(&loaded, &mut settle);
             match settle.need {
-                Some(need) => {
-                    let grown = rect.union(need);
-                    if grown != rect && self.points_in(grown) <= self.cap {
-                        rect = grown;
+                Some(n) => {
+                    let grown = [region[0].min(n[0]), region[1].min(n[1]), region[2].max(n[2]), region[3].max(n[3])];
+                    if grown != region && self.points_over(grown) <= self.cap {
+                        region = grown;
                         continue;
                     }
                     return Ok((out, settle.unsettled + 1));
@@ -660,7 +679,7 @@ impl Ctx<'_> {
                 .1
             }
             Method::Idw | Method::Nearest => {
-                let loaded = Loaded::read(self.bins, Rect::around(core.0, core.1, self.margin(self.radius), &self.bins.grid))?;
+                let loaded = Loaded::read(self.bins, self.around(core, self.radius))?;
                 let buckets = Buckets::new(&loaded.posts, self.radius);
                 methods::by_distance(
                     &buckets,
@@ -672,7 +691,7 @@ impl Ctx<'_> {
                 0
             }
             Method::Max | Method::Min | Method::Mean => {
-                let loaded = Loaded::read(self.bins, Rect::around(core.0, core.1, 1, &self.bins.grid))?;
+                let loaded = Loaded::read(self.bins, self.around(core, self.grid.gsd.x.max(self.grid.gsd.y)))?;
                 let stat = match o.method {
                     Method::Max => CellStat::Max,
                     Method::Min => CellStat::Min,
@@ -689,11 +708,10 @@ impl Ctx<'_> {
 /// A bin and the places of its blunders.
 type BinBlunders = ((u32, u32), Vec<(f64, f64)>);
 
-/// Finds the blunders of every bin from the points as read, then marks them
-/// dropped; returns how many.
-fn drop_blunders(ctx: &Ctx, k: f64, progress: &dyn Progress, cancel: &Cancel) -> Result<u64> {
+/// Finds the blunders of the bins `held` from the points as read, then
+/// marks them dropped; returns how many, and the bins they were in.
+fn drop_blunders(ctx: &Ctx, k: f64, held: &[(u32, u32)], progress: &dyn Progress, cancel: &Cancel) -> Result<(u64, Vec<(u32, u32)>)> {
     let g = ctx.bins.grid;
-    let held: Vec<(u32, u32)> = (0..g.rows).flat_map(|r| (0..g.cols).map(move |c| (c, r))).filter(|&(c, r)| ctx.bins.count(c, r) > 0).collect();
     progress.start(&Task { name: "blunders", units: held.len() as u64, lines: 0, line_name: "", input_bytes: 0 });
     let found: Vec<Result<BinBlunders>> = held
         .par_iter()
@@ -708,12 +726,13 @@ fn drop_blunders(ctx: &Ctx, k: f64, progress: &dyn Progress, cancel: &Cancel) ->
         })
         .collect();
     progress.finish();
-    let mut dropped = 0;
+    let (mut dropped, mut touched) = (0, Vec::new());
     for f in found {
         let ((c, r), places) = f?;
         if places.is_empty() {
             continue;
         }
+        touched.push((c, r));
         let set: rustc_hash::FxHashSet<(u64, u64)> = places.iter().map(|&(x, y)| (x.to_bits(), y.to_bits())).collect();
         let mut positions = Vec::new();
         let mut k = 0u64;
@@ -726,7 +745,7 @@ fn drop_blunders(ctx: &Ctx, k: f64, progress: &dyn Progress, cancel: &Cancel) ->
         dropped += positions.len() as u64;
         ctx.bins.drop_points(c, r, &positions)?;
     }
-    Ok(dropped)
+    Ok((dropped, touched))
 }
 
 /// Refuses points that make no surface (all on one line) for the methods

@@ -6,7 +6,7 @@
 //! and the block is done again, so that a block's cells do not depend on
 //! where the blocks fall (nor on the tile size).
 
-use super::bins::{BinGrid, Bins, Rect, Stored};
+use super::bins::{Bins, Rect, Stored};
 use crate::error::Result;
 use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
 
@@ -27,18 +27,27 @@ impl HasPosition for Post {
 
 pub type Tin = DelaunayTriangulation<Post>;
 
-/// The points of the bins in `rect`, in one order whatever the order they
-/// were read in, points at one place merged (their mean height).
+/// The points within a region of the ground (`[x0, y0, x1, y1]`, edges
+/// included), in one order whatever the order they were read in, points at
+/// one place merged (their mean height).
 pub struct Loaded {
-    pub rect: Rect,
+    pub region: [f64; 4],
     pub posts: Vec<Post>,
 }
 
+/// Whether `(x, y)` lies in `r` (edges included).
+fn holds(r: &[f64; 4], x: f64, y: f64) -> bool {
+    x >= r[0] && x <= r[2] && y >= r[1] && y <= r[3]
+}
+
 impl Loaded {
-    pub fn read(bins: &Bins, rect: Rect) -> Result<Loaded> {
+    pub fn read(bins: &Bins, region: [f64; 4]) -> Result<Loaded> {
         let mut raw: Vec<Stored> = Vec::new();
-        bins.read(rect, &mut raw)?;
-        Ok(Loaded { rect, posts: merged(raw) })
+        if let Some(rect) = bins.grid.bins_over(region[0], region[1], region[2], region[3]) {
+            bins.read(rect, &mut raw)?;
+        }
+        raw.retain(|p| holds(&region, p[0], p[1]));
+        Ok(Loaded { region, posts: merged(raw) })
     }
 
     /// The Delaunay triangulation of the posts (`None` where they are fewer
@@ -81,14 +90,13 @@ pub fn circumcircle(a: Point2<f64>, b: Point2<f64>, c: Point2<f64>) -> (f64, f64
     (a.x + ux, a.y + uy, if r.is_finite() { r } else { f64::INFINITY })
 }
 
-/// Which triangles used are the whole set's, and the bins that would
+/// Which triangles used are the whole set's, and the ground that would
 /// settle those that may not be.
 pub struct Settle<'a> {
     bins: &'a Bins,
-    rect: Rect,
-    ground: [f64; 4],
-    /// Bins to load as well.
-    pub need: Option<Rect>,
+    region: [f64; 4],
+    /// Ground to load as well.
+    pub need: Option<[f64; 4]>,
     /// Triangles used whose circle reaches too far to load.
     pub unsettled: u64,
 }
@@ -98,20 +106,17 @@ pub struct Settle<'a> {
 const MAX_CIRCLE_BINS: u64 = 1 << 12;
 
 impl<'a> Settle<'a> {
-    pub fn new(bins: &'a Bins, rect: Rect) -> Settle<'a> {
-        Settle { bins, rect, ground: bins.grid.ground_of(rect), need: None, unsettled: 0 }
-    }
-
-    pub fn grid(&self) -> &BinGrid {
-        &self.bins.grid
+    pub fn new(bins: &'a Bins, region: [f64; 4]) -> Settle<'a> {
+        Settle { bins, region, need: None, unsettled: 0 }
     }
 
     /// Whether the triangle `a, b, c` is the whole point set's; where it
-    /// may not be, the bins that would tell are noted in `need`.
+    /// may not be, the ground that would tell is noted in `need`.
     pub fn check(&mut self, a: Point2<f64>, b: Point2<f64>, c: Point2<f64>) -> bool {
         let (cx, cy, r) = circumcircle(a, b, c);
-        let g = self.ground;
-        if cx - r >= g[0] && cx + r <= g[2] && cy - r >= g[1] && cy + r <= g[3] {
+        let g = self.region;
+        let bbox = [cx - r, cy - r, cx + r, cy + r];
+        if bbox[0] >= g[0] && bbox[2] <= g[2] && bbox[1] >= g[1] && bbox[3] <= g[3] {
             return true;
         }
         if !r.is_finite() {
@@ -119,19 +124,25 @@ impl<'a> Settle<'a> {
             return false;
         }
         // A circle outside every bin holds no point kept.
-        let Some(over) = self.bins.grid.bins_over(cx - r, cy - r, cx + r, cy + r) else { return true };
-        if self.rect.contains(&over) {
-            return true;
-        }
+        let Some(over) = self.bins.grid.bins_over(bbox[0], bbox[1], bbox[2], bbox[3]) else { return true };
         if over.bins() > MAX_CIRCLE_BINS {
             self.unsettled += 1;
             return false;
         }
-        let empty = (over.r0..=over.r1).all(|r| (over.c0..=over.c1).all(|c| self.rect.holds(c, r) || self.bins.count(c, r) == 0));
-        if !empty {
-            self.need = Some(self.need.map_or(over, |n| n.union(over)));
+        // Settled where every bin it meets is empty or was read whole.
+        let grid = &self.bins.grid;
+        let whole = |c: u32, r: u32| {
+            let b = grid.ground_of(Rect { c0: c, r0: r, c1: c, r1: r });
+            b[0] >= g[0] && b[2] <= g[2] && b[1] >= g[1] && b[3] <= g[3]
+        };
+        let settled = (over.r0..=over.r1).all(|r| (over.c0..=over.c1).all(|c| self.bins.count(c, r) == 0 || whole(c, r)));
+        if !settled {
+            self.need = Some(match self.need {
+                None => bbox,
+                Some(n) => [n[0].min(bbox[0]), n[1].min(bbox[1]), n[2].max(bbox[2]), n[3].max(bbox[3])],
+            });
         }
-        empty
+        settled
     }
 }
 
@@ -224,48 +235,64 @@ fn coord(p: &Post) -> robust::Coord<f64> {
     robust::Coord { x: p.x, y: p.y }
 }
 
+/// Whether `d` lies exactly on the circle through `a, b, c`: the
+/// determinant in floating point where it is clearly not zero, else
+/// exactly (Shewchuk's adaptive predicate).
+fn cocircular(a: &Post, b: &Post, c: &Post, d: &Post) -> bool {
+    let (adx, ady, bdx, bdy, cdx, cdy) = (a.x - d.x, a.y - d.y, b.x - d.x, b.y - d.y, c.x - d.x, c.y - d.y);
+    let (alift, blift, clift) = (adx * adx + ady * ady, bdx * bdx + bdy * bdy, cdx * cdx + cdy * cdy);
+    let det = alift * (bdx * cdy - cdx * bdy) + blift * (cdx * ady - adx * cdy) + clift * (adx * bdy - bdx * ady);
+    let permanent =
+        alift * ((bdx * cdy).abs() + (cdx * bdy).abs()) + blift * ((cdx * ady).abs() + (adx * cdy).abs()) + clift * ((adx * bdy).abs() + (bdx * ady).abs());
+    // Far above the predicate's own error bound (about 1.1e-15).
+    if det.abs() > 1e-12 * permanent {
+        return false;
+    }
+    robust::incircle(coord(a), coord(b), coord(c), coord(d)) == 0.0
+}
+
 /// The Delaunay cell holding face `f`: the faces whose corners lie exactly
 /// on its circumcircle with it (a regular lattice's squares), as the
 /// corners of that polygon in one order whatever diagonals the
 /// triangulation happened to draw: counter-clockwise from the least corner
-/// (by x, then y). Three corners where the face is alone.
-pub fn delaunay_cell(tin: &Tin, f: spade::handles::FixedFaceHandle<spade::handles::InnerTag>) -> Vec<Post> {
+/// (by x, then y), into `out`. Three corners where the face is alone.
+pub fn delaunay_cell(tin: &Tin, f: spade::handles::FixedFaceHandle<spade::handles::InnerTag>, out: &mut Vec<Post>) {
     let face = tin.face(f);
     let [a, b, c] = face.vertices().map(|v| *v.data());
-    let (ca, cb, cc) = (coord(&a), coord(&b), coord(&c));
-    let mut faces = vec![f];
-    let mut corners = face.vertices().map(|v| v.fix()).to_vec();
-    let mut k = 0;
-    while k < faces.len() {
-        for e in tin.face(faces[k]).adjacent_edges() {
-            let Some(other) = e.rev().face().as_inner() else { continue };
-            if faces.contains(&other.fix()) {
-                continue;
-            }
-            let Some(o) = e.rev().opposite_vertex() else { continue };
-            if robust::incircle(ca, cb, cc, coord(o.data())) == 0.0 {
-                faces.push(other.fix());
-                if !corners.contains(&o.fix()) {
-                    corners.push(o.fix());
+    out.clear();
+    out.extend([a, b, c]);
+    // Most faces are alone: their neighbours' far corners lie outside.
+    let cocircular = |e: spade::handles::DirectedEdgeHandle<Post, (), (), ()>| {
+        let g = e.rev().face().as_inner()?.fix();
+        let o = *e.rev().opposite_vertex()?.data();
+        cocircular(&a, &b, &c, &o).then_some((g, o))
+    };
+    if face.adjacent_edges().into_iter().any(|e| cocircular(e).is_some()) {
+        let mut faces = vec![f];
+        let mut k = 0;
+        while k < faces.len() {
+            for e in tin.face(faces[k]).adjacent_edges() {
+                if let Some((g, o)) = cocircular(e) {
+                    if !faces.contains(&g) {
+                        faces.push(g);
+                        if !out.iter().any(|q| q.x == o.x && q.y == o.y) {
+                            out.push(o);
+                        }
+                    }
                 }
             }
+            k += 1;
         }
-        k += 1;
     }
-    let mut posts: Vec<Post> = corners.iter().map(|&v| *tin.vertex(v).data()).collect();
-    posts.sort_unstable_by(|p, q| p.x.total_cmp(&q.x).then(p.y.total_cmp(&q.y)));
-    if posts.len() > 3 {
-        let first = posts[0];
+    out.sort_unstable_by(|p, q| p.x.total_cmp(&q.x).then(p.y.total_cmp(&q.y)));
+    let first = out[0];
+    if out.len() > 3 {
         // Round a convex polygon from one of its corners, the angle is
         // told exactly by the side each corner lies on of another.
-        posts[1..].sort_unstable_by(|p, q| 0.0_f64.total_cmp(&robust::orient2d(coord(&first), coord(p), coord(q))));
-    } else {
-        let first = posts[0];
-        if robust::orient2d(coord(&first), coord(&posts[1]), coord(&posts[2])) < 0.0 {
-            posts.swap(1, 2);
-        }
+        out[1..].sort_unstable_by(|p, q| 0.0_f64.total_cmp(&robust::orient2d(coord(&first), coord(p), coord(q))));
+    } else if robust::orient2d(coord(&first), coord(&out[1]), coord(&out[2])) < 0.0 {
+        out.swap(1, 2);
     }
-    posts
 }
 
 /// The triangle of the fan from `cell[0]` that holds `(x, y)` (the first,

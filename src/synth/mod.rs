@@ -8,6 +8,7 @@
 pub mod block;
 pub mod film_marks;
 pub mod noise;
+pub mod points;
 mod render;
 mod satellite;
 pub mod texture;
