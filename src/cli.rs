@@ -626,10 +626,13 @@ pub struct SynthArgs {
     #[arg(long)]
     pub block: Option<String>,
     /// Only points for `grid`: this many at random on rolling hills with a
-    /// town of boxes, written as --out/points.las (points.laz with
-    /// --laz), streamed
+    /// town of boxes, written as --out/points.las (points.laz with --laz,
+    /// points.csv with --csv), streamed
     #[arg(long)]
     pub points: Option<u64>,
+    /// Write the points as CSV (with --points)
+    #[arg(long, conflicts_with = "laz")]
+    pub csv: bool,
     /// Points a square metre (with --points)
     #[arg(long, default_value_t = 1.0)]
     pub points_density: f64,

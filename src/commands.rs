@@ -466,7 +466,13 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
     let t = std::time::Instant::now();
     if let Some(n) = a.points {
         std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot make the folder", a.out.display()))?;
-        let path = a.out.join(if a.laz { "points.laz" } else { "points.las" });
+        let path = a.out.join(if a.laz {
+            "points.laz"
+        } else if a.csv {
+            "points.csv"
+        } else {
+            "points.las"
+        });
         let side = gcm_ortho::synth::points::write_points(&path, n, a.points_density, a.seed, &Bar::new(a.quiet))?;
         if !a.quiet {
             say!("synth: {n} points on {side:.0} m × {side:.0} m from (500000, 4000000), EPSG:32631, {:.1} s\n  {}", t.elapsed().as_secs_f64(), path.display());

@@ -15,14 +15,42 @@ pub fn height(u: f64, v: f64) -> f64 {
 }
 
 /// Writes `n` points at `density` a square metre into `path` (LAZ where it
-/// ends in .laz), from (500000, 4000000) (UTM zone 31N); returns the
+/// ends in .laz, text where .csv; millimetres), from (500000, 4000000) (UTM zone 31N); returns the
 /// square's side.
 pub fn write_points(path: &Path, n: u64, density: f64, seed: u64, progress: &dyn Progress) -> Result<f64> {
     if n == 0 || !(density > 0.0 && density.is_finite()) {
         return Err(Error::setting("points", "a number of points over 0 and a density over 0"));
     }
     let side = (n as f64 / density).sqrt();
-    let laz = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("laz"));
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut next = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    // Millimetres, as the LAS holds them.
+    let mm = |v: f64| (v * 1000.0).round() / 1000.0;
+    progress.start(&Task { name: "points", units: n, lines: 0, line_name: "", input_bytes: 0 });
+    if ext == "csv" {
+        use std::io::Write;
+        let f = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+        let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+        let io = |e| Error::io(path, e);
+        writeln!(w, "x,y,z").map_err(io)?;
+        for k in 0..n {
+            let (u, v) = (mm(next() * side), mm(next() * side));
+            writeln!(w, "{:.3},{:.3},{:.3}", 500000.0 + u, 4000000.0 + v, height(u, v)).map_err(io)?;
+            if k % 65536 == 65535 {
+                progress.advance(65536);
+            }
+        }
+        w.flush().map_err(io)?;
+        progress.finish();
+        return Ok(side);
+    }
+    let laz = ext == "laz";
     let mut b = las::Builder::from((1, 2));
     b.point_format = las::point::Format::new(0).expect("format 0");
     b.point_format.is_compressed = laz;
@@ -35,16 +63,8 @@ pub fn write_points(path: &Path, n: u64, density: f64, seed: u64, progress: &dyn
     let header = b.into_header().map_err(|e| Error::Internal(format!("a LAS header: {e}")))?;
     let failed = |e: las::Error| Error::Format { path: path.into(), msg: format!("writing points: {e}") };
     let mut w = las::Writer::from_path(path, header).map_err(failed)?;
-    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    let mut next = move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
-    progress.start(&Task { name: "points", units: n, lines: 0, line_name: "", input_bytes: 0 });
     for k in 0..n {
-        let (u, v) = (next() * side, next() * side);
+        let (u, v) = (mm(next() * side), mm(next() * side));
         w.write_point(las::Point { x: 500000.0 + u, y: 4000000.0 + v, z: height(u, v), ..Default::default() }).map_err(failed)?;
         if k % 65536 == 65535 {
             progress.advance(65536);
