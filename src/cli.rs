@@ -168,6 +168,12 @@ pub struct GridArgs {
     /// Compression: none, deflate, lzw, zstd
     #[arg(long, default_value = "deflate", value_parser = choice::<Compression>())]
     pub compress: Compression,
+    /// Only these tiles: col,row,width,height (a piece for `assemble`)
+    #[arg(long, conflicts_with = "shard")]
+    pub window: Option<String>,
+    /// The I-th of N pieces (rows of tiles), 1-based: I/N
+    #[arg(long)]
+    pub shard: Option<String>,
     #[command(flatten)]
     pub layout: LayoutArgs,
     /// Write the report (JSON) here

@@ -129,6 +129,15 @@ fn run_grid(a: &crate::cli::GridArgs, signals: &Signals) -> Result<()> {
     };
     o.tile = a.tile;
     o.block = a.block;
+    o.window = a.window.as_deref().map(|w| gcm_ortho::options::parse_window("window", w)).transpose()?;
+    o.shard = match &a.shard {
+        None => None,
+        Some(t) => {
+            let bad = || gcm_ortho::Error::setting("shard", format!("'{t}' is not I/N"));
+            let (i, n) = t.split_once('/').ok_or_else(bad)?;
+            Some((i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?))
+        }
+    };
     o.compress = a.compress;
     let layout = a.layout.options()?;
     o.level = layout.level;

@@ -315,6 +315,41 @@ fn a_lattice_of_points_grids_the_same_whatever_diagonals_the_triangulation_draws
 }
 
 #[test]
+fn pieces_made_apart_and_assembled_are_the_single_run_byte_for_byte() {
+    let d = tempfile::tempdir().unwrap();
+    let mut pts = random_points(20000, 600.0, 8, bowl);
+    for p in pts.iter_mut().step_by(97) {
+        p[2] += 25.0;
+    }
+    let csv = d.path().join("p.csv");
+    write_csv(&csv, &pts);
+    let common = [s(&csv), "--gsd", "1", "--crs", "EPSG:32631", "--tile", "128"];
+    let (whole, o) = grid(d.path(), "whole.tif", &common);
+    ok(&o);
+    let mut pieces = Vec::new();
+    for shard in ["1/3", "2/3", "3/3"] {
+        let mut a = common.to_vec();
+        a.extend_from_slice(&["--shard", shard]);
+        let (piece, o) = grid(d.path(), &format!("piece{}.tif", &shard[..1]), &a);
+        ok(&o);
+        pieces.push(piece);
+    }
+    let joined = d.path().join("joined.tif");
+    let mut a = vec!["assemble", "-o", s(&joined)];
+    a.extend(pieces.iter().map(|p| s(p)));
+    let o = run(&a);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::read(&joined).unwrap() == std::fs::read(&whole).unwrap(), "the assembled DEM is not the single run's");
+    // A piece of another DEM (other settings) is refused.
+    let mut a = common.to_vec();
+    a.extend_from_slice(&["--shard", "3/3", "--method", "idw"]);
+    let (other, o) = grid(d.path(), "other.tif", &a);
+    ok(&o);
+    let o = run(&["assemble", "-o", s(&d.path().join("mixed.tif")), s(&pieces[0]), s(&pieces[1]), s(&other)]);
+    assert!(!o.status.success(), "pieces of two DEMs were joined");
+}
+
+#[test]
 fn one_percent_blunders_are_dropped_and_the_clean_surface_comes_back() {
     let d = tempfile::tempdir().unwrap();
     let mut pts = random_points(40000, 1000.0, 9, bowl);

@@ -96,6 +96,11 @@ pub struct GridOptions {
     /// Cells a block's side (default: from the points' density and the
     /// memory); the DEM does not depend on it.
     pub block: Option<u32>,
+    /// Only these tiles of the whole DEM: first column, first row,
+    /// columns, rows (a piece for `assemble`).
+    pub window: Option<[u32; 4]>,
+    /// The `i`th of `n` pieces (1-based): bands of whole tile rows.
+    pub shard: Option<(u32, u32)>,
     pub compress: Compression,
     pub level: Option<u8>,
     pub overviews: Overviews,
@@ -124,6 +129,8 @@ impl GridOptions {
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             tile: 256,
             block: None,
+            window: None,
+            shard: None,
             compress: Compression::Deflate,
             level: None,
             overviews: Overviews::Auto,
@@ -305,6 +312,14 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     let cap = (o.memory / 2 / o.threads as u64 / BYTES_A_POINT).max(100_000);
     let ctx = Ctx { bins: &bins, max_edge, radius, cap, block, grid, o };
 
+    let (piece_x0, piece_y0, piece_w, piece_h) = match piece_window(o, &grid) {
+        Ok([c, r, cw, rh]) => {
+            let (x0, y0) = grid.ground((c * o.tile) as f64, (r * o.tile) as f64);
+            (x0, y0, ((cw * o.tile) as f64 * gx), ((rh * o.tile) as f64 * gy))
+        }
+        Err(e) => return Err(e),
+    };
+
     // Blunders, each bin's found from the points as read, then dropped;
     // once more among those left, for a blunder that another beside it
     // hid (two neighbours of a point with three or four).
@@ -313,7 +328,23 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     let mut blunders = 0;
     if let Some(k) = o.blunders {
         let g = bins.grid;
-        let held: Vec<(u32, u32)> = (0..g.rows).flat_map(|r| (0..g.cols).map(move |c| (c, r))).filter(|&(c, r)| bins.count(c, r) > 0).collect();
+        // A piece needs the blunders its blocks may see: those within a
+        // few longest sides of it (a triangle reaching farther is rare).
+        let near = (o.window.is_some() || o.shard.is_some()).then(|| {
+            let reach = 4.0 * max_edge + 2.0 * g.side_x.max(g.side_y);
+            let (x0, y0) = (piece_x0 - grid.x0, piece_y0 - grid.y0);
+            [x0 - reach, y0 - piece_h - reach, x0 + piece_w + reach, y0 + reach]
+        });
+        let held: Vec<(u32, u32)> = (0..g.rows)
+            .flat_map(|r| (0..g.cols).map(move |c| (c, r)))
+            .filter(|&(c, r)| bins.count(c, r) > 0)
+            .filter(|&(c, r)| {
+                near.is_none_or(|n| {
+                    let b = g.ground_of(Rect { c0: c, r0: r, c1: c, r1: r });
+                    b[2] >= n[0] && b[0] <= n[2] && b[3] >= n[1] && b[1] <= n[3]
+                })
+            })
+            .collect();
         let (found, touched) = pool.install(|| drop_blunders(&ctx, k, &held, progress, cancel))?;
         blunders += found;
         if found > 0 {
@@ -336,10 +367,22 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     }
     check_not_collinear(&ctx, &files)?;
 
-    // The DEM, band after band of tiles.
-    let spec = spec_of(o, &grid, &crs)?;
-    let pending = crate::io::publish::PendingFile::create(&o.output)?;
+    // The DEM (or the piece of it asked for), band after band of tiles.
     let tile = o.tile;
+    let [tc0, tr0, tcw, trh] = piece_window(o, &grid)?;
+    let piece = {
+        let (x0, y0) = grid.ground((tc0 * tile) as f64, (tr0 * tile) as f64);
+        OutputGrid { x0, y0, gsd: grid.gsd, width: ((tc0 + tcw) * tile).min(w) - tc0 * tile, height: ((tr0 + trh) * tile).min(h) - tr0 * tile }
+    };
+    let key = source_key(o, &crs);
+    let source = match o.window.or(o.shard.map(|_| [0; 4])) {
+        Some(_) => {
+            crate::io::geotiff::piece_source(&key, &grid, &crate::assemble::layout_record(o.overviews, crate::overview::OverviewResampling::Average, o.cog))
+        }
+        None => key,
+    };
+    let spec = spec_of(o, &piece, &crs)?;
+    let pending = crate::io::publish::PendingFile::create(&o.output)?;
     let across = strip_tiles(&spec, o.memory / 4);
     let strips: Vec<(u32, u32)> = (0..spec.tiles_across()).step_by(across as usize).map(|c| (c, (c + across).min(spec.tiles_across()))).collect();
     let writing = crate::pipeline::band_writer::BandWriting {
@@ -351,13 +394,21 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
         sync: o.sync,
         progress,
         cancel,
-        source: None,
+        source: Some(&source),
     };
-    progress.start(&Task { name: "grid", units: spec.tiles_across() as u64 * spec.tiles_down() as u64, lines: h as u64, line_name: "rows", input_bytes: 0 });
+    progress.start(&Task {
+        name: "grid",
+        units: spec.tiles_across() as u64 * spec.tiles_down() as u64,
+        lines: piece.height as u64,
+        line_name: "rows",
+        input_bytes: 0,
+    });
     let unsettled = std::sync::atomic::AtomicU64::new(0);
     let (mut with, mut without) = (0u64, 0u64);
     let written = crate::pipeline::band_writer::write_bands(&writing, pending, &strips, |s, b| {
-        let (c0, c1) = strips[s];
+        // The whole DEM's tile columns and band.
+        let (c0, c1) = (strips[s].0 + tc0, strips[s].1 + tc0);
+        let b = b + tr0;
         let tiles = (c1 - c0) as usize;
         let mut raw = vec![NODATA as f32; tiles * (tile * tile) as usize];
         let per_tile = tile / block;
@@ -427,6 +478,54 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     })
 }
 
+/// The tiles to make, `[col, row, cols, rows]`: the window asked for (within
+/// the whole's tiles), else all.
+fn piece_window(o: &GridOptions, grid: &OutputGrid) -> Result<[u32; 4]> {
+    let tile = o.tile;
+    let (ta, td) = (grid.width.div_ceil(tile), grid.height.div_ceil(tile));
+    if let Some((i, n)) = o.shard {
+        let (r0, r1) = ((i - 1) as u64 * td as u64 / n as u64, i as u64 * td as u64 / n as u64);
+        if r1 == r0 {
+            return Err(Error::setting("shard", format!("{i}/{n} holds no row of tiles: the DEM has {td}")));
+        }
+        return Ok([0, r0 as u32, ta, (r1 - r0) as u32]);
+    }
+    match o.window {
+        None => Ok([0, 0, ta, td]),
+        Some([c, r, cw, rh]) => {
+            if c >= ta || r >= td {
+                return Err(Error::setting("window", format!("{c},{r},{cw},{rh} starts outside the DEM's {ta} × {td} tiles")));
+            }
+            Ok([c, r, cw.min(ta - c), rh.min(td - r)])
+        }
+    }
+}
+
+/// What a DEM is made from, as a key: the points' files by their contents
+/// and every setting that changes a cell (pieces of one DEM share it).
+fn source_key(o: &GridOptions, crs: &Crs) -> String {
+    let settings = format!(
+        "grid gsd={:?} bounds={:?} crs={crs} points_crs={:?} method={:?} max_edge={:?} radius={:?} power={:?} neighbours={:?} columns={:?} classes={:?} returns={:?} blunders={:?} tile={}",
+        o.gsd,
+        o.bounds,
+        o.points_crs.as_ref().map(|c| c.to_string()),
+        o.method,
+        o.max_edge,
+        o.radius,
+        o.power,
+        o.neighbours,
+        o.columns,
+        o.filter.classes,
+        o.filter.returns,
+        o.blunders,
+        o.tile
+    );
+    let mut files: Vec<PathBuf> = o.inputs.clone();
+    files.extend(o.inputs.iter().map(|p| p.with_extension("prj")).filter(|p| p.is_file()));
+    let files: Vec<&std::path::Path> = files.iter().map(|p| p.as_path()).collect();
+    crate::identity::content_key_of(&[settings.as_bytes()], &files)
+}
+
 /// Settings that cannot make a DEM.
 fn check(o: &GridOptions) -> Result<()> {
     if o.inputs.is_empty() {
@@ -455,6 +554,14 @@ fn check(o: &GridOptions) -> Result<()> {
     if let Some(b) = o.block {
         if b == 0 || !o.tile.is_multiple_of(b) {
             return Err(Error::setting("block", "must divide the tile size"));
+        }
+    }
+    if let Some((i, n)) = o.shard {
+        if n == 0 || i == 0 || i > n {
+            return Err(Error::setting("shard", format!("{i}/{n}: give I/N with 1 ≤ I ≤ N")));
+        }
+        if o.window.is_some() {
+            return Err(Error::setting("shard", "a shard is a window of its own: give one or the other"));
         }
     }
     if o.threads == 0 || o.threads > 1024 {
