@@ -55,7 +55,13 @@ impl Progress for Bar {
 fn style(task: &Task) -> ProgressStyle {
     let (units, lines, input_bytes) = (task.units, task.lines, task.input_bytes);
     let rate = if input_bytes > 0 { "{input_rate}" } else { "{per_sec}" };
-    ProgressStyle::with_template(&format!("{:>8} [{{bar:40}}] {{lines}} {} {rate} ETA {{eta}}", task.name, task.line_name))
+    // A task not of lines shows its units: bytes read, or the things done.
+    let done = match (lines, input_bytes) {
+        (0, 0) => "{pos}/{len}",
+        (0, _) => "{bytes}/{total_bytes}",
+        _ => "{lines}",
+    };
+    ProgressStyle::with_template(&format!("{:>8} [{{bar:40}}] {done} {} {rate} ETA {{eta}}", task.name, task.line_name))
         .expect("valid template")
         .with_key("lines", move |s: &ProgressState, w: &mut dyn Write| {
             let _ = write!(w, "{}/{lines}", rows_done(s.pos(), units, lines));

@@ -819,7 +819,7 @@ type BinBlunders = ((u32, u32), Vec<(f64, f64)>);
 /// marks them dropped; returns how many, and the bins they were in.
 fn drop_blunders(ctx: &Ctx, k: f64, held: &[(u32, u32)], progress: &dyn Progress, cancel: &Cancel) -> Result<(u64, Vec<(u32, u32)>)> {
     let g = ctx.bins.grid;
-    progress.start(&Task { name: "blunders", units: held.len() as u64, lines: 0, line_name: "", input_bytes: 0 });
+    progress.start(&Task { name: "blunders", units: held.len() as u64, lines: 0, line_name: "bins", input_bytes: 0 });
     let found: Vec<Result<BinBlunders>> = held
         .par_iter()
         .map(|&(c, r)| {

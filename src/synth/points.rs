@@ -32,7 +32,7 @@ pub fn write_points(path: &Path, n: u64, density: f64, seed: u64, progress: &dyn
     };
     // Millimetres, as the LAS holds them.
     let mm = |v: f64| (v * 1000.0).round() / 1000.0;
-    progress.start(&Task { name: "points", units: n, lines: 0, line_name: "", input_bytes: 0 });
+    progress.start(&Task { name: "points", units: n, lines: 0, line_name: "points", input_bytes: 0 });
     if ext == "csv" {
         use std::io::Write;
         let f = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
