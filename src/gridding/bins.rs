@@ -86,20 +86,36 @@ pub struct Bins {
     pub grid: BinGrid,
     file: File,
     chunk: usize,
-    /// Each bin's chunks, as the index of their first point in the file.
-    chunks: Vec<Vec<u64>>,
+    /// Each bin's chunks: the index of their first point in the file, and
+    /// how many they hold.
+    chunks: Vec<Vec<(u64, u32)>>,
     counts: Vec<u64>,
     pending: Vec<Vec<Stored>>,
+    /// Points pending in all bins, and the most that may be: past it every
+    /// bin's are written (memory stays bounded however many bins there are).
+    held: usize,
+    max_held: usize,
     next: u64,
 }
 
 impl Bins {
     /// Empty bins of `grid`, their file in `dir`, each bin's points
-    /// gathered `chunk` at a time before they are written.
-    pub fn new(grid: BinGrid, dir: &Path, chunk: usize) -> Result<Bins> {
+    /// gathered `chunk` at a time before they are written, `max_held` at
+    /// most in all.
+    pub fn new(grid: BinGrid, dir: &Path, chunk: usize, max_held: usize) -> Result<Bins> {
         let file = tempfile::tempfile_in(dir).map_err(|e| Error::io(dir, crate::io::publish::without_path(&e)))?;
         let n = grid.cols as usize * grid.rows as usize;
-        Ok(Bins { grid, file, chunk: chunk.max(1), chunks: vec![Vec::new(); n], counts: vec![0; n], pending: (0..n).map(|_| Vec::new()).collect(), next: 0 })
+        Ok(Bins {
+            grid,
+            file,
+            chunk: chunk.max(1),
+            chunks: vec![Vec::new(); n],
+            counts: vec![0; n],
+            pending: (0..n).map(|_| Vec::new()).collect(),
+            held: 0,
+            max_held: max_held.max(chunk),
+            next: 0,
+        })
     }
 
     fn index(&self, c: u32, r: u32) -> usize {
@@ -118,22 +134,29 @@ impl Bins {
             pending.reserve_exact(chunk);
         }
         pending.push(p);
+        self.held += 1;
         if pending.len() == chunk {
             self.spill(i, dir)?;
+        }
+        if self.held >= self.max_held {
+            for i in 0..self.pending.len() {
+                self.spill(i, dir)?;
+            }
         }
         Ok(true)
     }
 
     fn spill(&mut self, i: usize, dir: &Path) -> Result<()> {
-        let pending = std::mem::take(&mut self.pending[i]);
-        if pending.is_empty() {
+        if self.pending[i].is_empty() {
             return Ok(());
         }
-        self.file.write_all_at(bytemuck::cast_slice(&pending), self.next * STORED).map_err(|e| Error::io(dir, e))?;
-        self.chunks[i].push(self.next);
-        // Every chunk takes a whole chunk's room, so that the last (short)
-        // one of a bin is found as the others are.
-        self.next += self.chunk as u64;
+        let pending = &mut self.pending[i];
+        self.file.write_all_at(bytemuck::cast_slice(pending), self.next * STORED).map_err(|e| Error::io(dir, e))?;
+        self.chunks[i].push((self.next, pending.len() as u32));
+        self.next += pending.len() as u64;
+        self.held -= pending.len();
+        // Its room kept for the next: a bin that fills keeps filling.
+        pending.clear();
         Ok(())
     }
 
@@ -171,16 +194,13 @@ impl Bins {
     /// Each point of bin `(c, r)`, dropped ones included, in the order stored.
     pub fn read_bin(&self, c: u32, r: u32, mut each: impl FnMut(&Stored)) -> Result<()> {
         let i = self.index(c, r);
-        let mut left = self.counts[i];
         let mut buf: Vec<Stored> = Vec::new();
-        for &at in &self.chunks[i] {
-            let n = left.min(self.chunk as u64) as usize;
-            buf.resize(n, [0.0; 3]);
+        for &(at, n) in &self.chunks[i] {
+            buf.resize(n as usize, [0.0; 3]);
             self.file
                 .read_exact_at(bytemuck::cast_slice_mut(&mut buf), at * STORED)
                 .map_err(|e| Error::Internal(format!("reading back binned points: {e}")))?;
             buf.iter().for_each(&mut each);
-            left -= n as u64;
         }
         Ok(())
     }
@@ -189,8 +209,16 @@ impl Bins {
     /// bin) as dropped.
     pub fn drop_points(&self, c: u32, r: u32, positions: &[u64]) -> Result<()> {
         let i = self.index(c, r);
+        // Each chunk's first position in the bin.
+        let mut firsts = Vec::with_capacity(self.chunks[i].len());
+        let mut k0 = 0u64;
+        for &(_, n) in &self.chunks[i] {
+            firsts.push(k0);
+            k0 += u64::from(n);
+        }
         for &k in positions {
-            let at = self.chunks[i][(k / self.chunk as u64) as usize] + k % self.chunk as u64;
+            let c = firsts.partition_point(|&f| f <= k) - 1;
+            let at = self.chunks[i][c].0 + (k - firsts[c]);
             self.file.write_all_at(&f64::NAN.to_ne_bytes(), at * STORED + 16).map_err(|e| Error::Internal(format!("marking a blunder: {e}")))?;
         }
         Ok(())

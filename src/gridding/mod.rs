@@ -263,9 +263,11 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     let top = ring_bins as f64 * side_y;
     let bin_grid = BinGrid { x0: -(ring_bins as f64) * side_x, y0: top - br as f64 * side_y, side_x, side_y, cols: bc, rows: br };
     let nbins = bc as u64 * br as u64;
-    let chunk = (o.memory / 4 / 24 / nbins).clamp(64, 4096) as usize;
+    // A quarter of the memory for points waiting to be written.
+    let max_held = (o.memory / 4 / 24) as usize;
+    let chunk = (max_held as u64 / nbins).clamp(64, 4096) as usize;
     let dir = crate::io::publish::folder_of(&o.output);
-    let mut bins = Bins::new(bin_grid, &dir, chunk)?;
+    let mut bins = Bins::new(bin_grid, &dir, chunk, max_held)?;
 
     // Pass 2: into the bins, and the points' density on a fixed lattice
     // (their typical spacing, whatever the blocks).
