@@ -445,3 +445,82 @@ fn a_gridded_dem_reads_back_as_a_dem_with_its_crs_and_nodata() {
     let gcm_ortho::dem::Height::Value(z) = dem.height(x, y) else { panic!("no height in the middle") };
     assert!((z - plane(x - 500000.0, y - 4000000.0)).abs() < 1e-3, "{z}");
 }
+
+#[test]
+fn a_dem_gridded_from_points_of_a_scene_rectifies_its_scan_as_the_scene_dem_does() {
+    let d = tempfile::tempdir().unwrap();
+    let sc = scene(&d.path().join("scene"), 800, |_| {});
+    // Points at random on the scene's DEM, one for every two posts.
+    let src = gcm_ortho::io::source::SourceImage::open(&sc.dem, 1 << 20).unwrap();
+    let gt = src.info.georef.as_ref().unwrap().transform;
+    let (w, h) = (src.info.width as f64, src.info.height as f64);
+    let crs = gcm_ortho::geodesy::Crs::from_epsg(32631).unwrap();
+    let dem = gcm_ortho::dem::Dem::open(&sc.dem, &crs).unwrap();
+    let n = (w * h / 2.0) as usize;
+    let unit = random_points(n, 1.0, 21, |_, _| 0.0);
+    let mut pts = Vec::with_capacity(n);
+    for p in unit {
+        let (u, v) = (p[0] - 500000.0, p[1] - 4000000.0);
+        let (x, y) = (gt[0] + gt[1] * (1.0 + u * (w - 2.0)), gt[3] + gt[5] * (1.0 + v * (h - 2.0)));
+        if let gcm_ortho::dem::Height::Value(z) = dem.height(x, y) {
+            pts.push([x, y, z]);
+        }
+    }
+    let csv = d.path().join("points.csv");
+    write_csv(&csv, &pts);
+    let gsd = gt[1].to_string();
+    let (gridded, o) = grid(d.path(), "gridded.tif", &[s(&csv), "--gsd", &gsd, "--crs", "EPSG:32631"]);
+    ok(&o);
+    // The gridded DEM against the scene's at the gridded cells.
+    let (gw, gh, z) = cells(&gridded);
+    let ggt = gcm_ortho::io::source::SourceImage::open(&gridded, 1 << 20).unwrap().info.georef.unwrap().transform;
+    let (mut sum2, mut k) = (0.0, 0);
+    for j in 0..gh {
+        for i in 0..gw {
+            let v = z[(j * gw + i) as usize];
+            let (x, y) = (ggt[0] + ggt[1] * (i as f64 + 0.5), ggt[3] + ggt[5] * (j as f64 + 0.5));
+            if let (false, gcm_ortho::dem::Height::Value(t)) = (v.is_nan(), dem.height(x, y)) {
+                sum2 += (v - t).powi(2);
+                k += 1;
+            }
+        }
+    }
+    let rms = (sum2 / k as f64).sqrt();
+    eprintln!("gridded DEM: {k} cells, {rms:.3} m RMS from the scene DEM");
+    assert!(k > (gw * gh) as usize * 9 / 10 && rms < 0.5, "{k} cells, {rms} m RMS from the scene's DEM");
+    // The scan rectified on each, on one grid.
+    let a = d.path().join("on_scene_dem.tif");
+    let b = d.path().join("on_gridded.tif");
+    let o = run(&["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "-o", s(&a), "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = run(&[
+        "rectify",
+        "--image",
+        s(&sc.scan),
+        "--camera",
+        s(&sc.camera),
+        "--dem",
+        s(&gridded),
+        "--like",
+        s(&a),
+        "--dem-outside",
+        "nodata",
+        "-o",
+        s(&b),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (pa, _) = whole_image(&a);
+    let (pb, _) = whole_image(&b);
+    assert_eq!(pa.len(), pb.len());
+    let (mut diff, mut both) = (0u64, 0u64);
+    for (x, y) in pa.iter().zip(&pb) {
+        if *x != 0 && *y != 0 {
+            diff += (*x as i32 - *y as i32).unsigned_abs() as u64;
+            both += 1;
+        }
+    }
+    let mean = diff as f64 / both as f64;
+    eprintln!("orthophotos: {mean:.3} DN apart over {both} samples");
+    assert!(both as usize > pa.len() / 2 && mean < 2.0, "{mean} DN apart over {both} samples");
+}
