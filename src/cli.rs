@@ -126,13 +126,13 @@ pub struct GridArgs {
     /// The longest triangle side gridded across (tin, natural): cells in
     /// larger gaps get no height (default: ten times the points' typical
     /// spacing, at least four cells)
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub max_edge: Option<f64>,
     /// Points within this distance count (idw, nearest; default: --max-edge's)
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub radius: Option<f64>,
     /// Inverse distance's power (idw)
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     pub power: f64,
     /// At most this many nearest points (idw; default: all within --radius)
     #[arg(long)]

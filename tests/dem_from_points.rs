@@ -394,6 +394,8 @@ fn bad_points_are_refused_naming_the_file_and_leaving_no_dem() {
     std::fs::write(p("degrees.csv"), "x,y,z\n2.35,48.85,35\n2.36,48.86,40\n2.35,48.86,41\n").unwrap();
     std::fs::write(p("nocrs.csv"), "x,y,z\n0,0,1\n5,0,2\n0,5,3\n").unwrap();
     std::fs::write(p("header.csv"), "a,b,c\n0,0,1\n").unwrap();
+    std::fs::write(p("far.csv"), "x,y,z\n0,0,1\n1e300,1e300,2\n5,0,3\n").unwrap();
+    std::fs::write(p("high.csv"), "x,y,z\n0,0,1\n10,0,1e300\n0,10,3\n").unwrap();
     // A LAS header claiming 10^12 points in a file of a few hundred bytes.
     let las_path = p("huge.las");
     write_las(&las_path, &random_points(3, 10.0, 1, plane), false);
@@ -410,6 +412,8 @@ fn bad_points_are_refused_naming_the_file_and_leaving_no_dem() {
         ("degrees.csv", "EPSG:32631", "look like longitudes and latitudes"),
         ("nocrs.csv", "", "give --crs"),
         ("header.csv", "EPSG:32631", "names no x, y and z"),
+        ("far.csv", "EPSG:32631", "that is no grid"),
+        ("high.csv", "EPSG:32631", "line 3: the height 1e300 is past any terrain"),
         ("huge.las", "EPSG:32631", "more than the file"),
     ] {
         let out = p("dem.tif");

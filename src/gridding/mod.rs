@@ -242,8 +242,16 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
         return Err(Error::Named(format!("{files}: no points{}", if read > 0 { " left after the class and return filters" } else { "" })));
     }
     plausible(&crs, [x0, y0, x1, y1], &files)?;
-    let bounds = o.bounds.unwrap_or([x0, y0, x1, y1]);
-    let grid = output_grid(bounds, o.gsd)?;
+    let grid = match o.bounds {
+        Some(b) => output_grid(b, o.gsd)?,
+        // Points that make no grid at this cell size are named as the cause.
+        None => output_grid([x0, y0, x1, y1], o.gsd).map_err(|_| {
+            Error::Named(format!(
+                "{files}: the points span {x0:e}…{x1:e} × {y0:e}…{y1:e}: at --gsd {} × {} that is no grid (a point far from the others, or the wrong CRS?)",
+                o.gsd.x, o.gsd.y
+            ))
+        })?,
+    };
     let (gx, gy) = (o.gsd.x, o.gsd.y);
     let (w, h) = (grid.width, grid.height);
 

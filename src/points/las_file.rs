@@ -76,8 +76,14 @@ pub fn read(path: &Path, filter: &Filter, cancel: &Cancel, each: &mut dyn FnMut(
         }
         done += n;
         batch.clear();
-        for p in data.points() {
+        for (i, p) in data.points().enumerate() {
             let p = p.map_err(|e| failed(path, e))?;
+            if !(p.z.abs() <= super::MAX_HEIGHT && p.x.is_finite() && p.y.is_finite()) {
+                return Err(Error::Format {
+                    path: path.into(),
+                    msg: format!("point {}: the height {} is past any terrain's (its scale and offset?)", done - n + i as u64 + 1, p.z),
+                });
+            }
             if filter.keeps(u8::from(p.classification), p.return_number, p.number_of_returns, p.is_withheld) {
                 batch.push(Point { x: p.x, y: p.y, z: p.z });
             }

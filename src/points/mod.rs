@@ -142,5 +142,9 @@ impl PointFile {
     }
 }
 
+/// The largest height taken, in the points' units: past it (ten thousand
+/// kilometres) a height is a fault of the file, not terrain.
+pub const MAX_HEIGHT: f64 = 1e7;
+
 /// Points in a batch handed on at once.
 pub const BATCH: usize = 1 << 16;

@@ -123,6 +123,9 @@ pub fn read(path: &Path, columns: &Columns, cancel: &Cancel, each: &mut dyn FnMu
             if !v[k].is_finite() {
                 return Err(bad(line_no, format!("{} is {}", ["x", "y", "the height"][k], field)));
             }
+            if k == 2 && v[k].abs() > super::MAX_HEIGHT {
+                return Err(bad(line_no, format!("the height {field} is past any terrain's")));
+            }
         }
         batch.push(Point { x: v[0], y: v[1], z: v[2] });
         count += 1;
