@@ -169,13 +169,10 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     let cap = (o.memory / 2 / o.threads as u64 / BYTES_A_POINT).max(100_000);
     let ctx = Ctx { bins: &bins, max_edge, radius, cap, block, grid, o };
 
-    let (piece_x0, piece_y0, piece_w, piece_h) = match piece_window(o, &grid) {
-        Ok([c, r, cw, rh]) => {
-            let (x0, y0) = grid.ground((c * o.tile) as f64, (r * o.tile) as f64);
-            (x0, y0, ((cw * o.tile) as f64 * gx), ((rh * o.tile) as f64 * gy))
-        }
-        Err(e) => return Err(e),
-    };
+    // The tiles to make: all, or the piece asked for.
+    let tile = o.tile;
+    let [tc0, tr0, tcw, trh] = piece_window(o, &grid)?;
+    let is_piece = o.window.is_some() || o.shard.is_some();
 
     // Blunders, each bin's found from the points as read, then dropped;
     // once more among those left, for a blunder that another beside it
@@ -187,10 +184,10 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
         let g = bins.grid;
         // A piece needs the blunders its blocks may see: those within a
         // few longest sides of it (a triangle reaching farther is rare).
-        let near = (o.window.is_some() || o.shard.is_some()).then(|| {
+        let near = is_piece.then(|| {
             let reach = 4.0 * max_edge + 2.0 * g.side_x.max(g.side_y);
-            let (x0, y0) = (piece_x0 - grid.x0, piece_y0 - grid.y0);
-            [x0 - reach, y0 - piece_h - reach, x0 + piece_w + reach, y0 + reach]
+            let (x0, y0) = ((tc0 * tile) as f64 * gx, -((tr0 * tile) as f64) * gy);
+            [x0 - reach, y0 - (trh * tile) as f64 * gy - reach, x0 + (tcw * tile) as f64 * gx + reach, y0 + reach]
         });
         let held: Vec<(u32, u32)> = (0..g.rows)
             .flat_map(|r| (0..g.cols).map(move |c| (c, r)))
@@ -225,18 +222,16 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     check_not_collinear(&ctx, &files)?;
 
     // The DEM (or the piece of it asked for), band after band of tiles.
-    let tile = o.tile;
-    let [tc0, tr0, tcw, trh] = piece_window(o, &grid)?;
     let piece = {
         let (x0, y0) = grid.ground((tc0 * tile) as f64, (tr0 * tile) as f64);
         OutputGrid { x0, y0, gsd: grid.gsd, width: ((tc0 + tcw) * tile).min(w) - tc0 * tile, height: ((tr0 + trh) * tile).min(h) - tr0 * tile }
     };
     let key = source_key(o, &crs);
-    let source = match o.window.or(o.shard.map(|_| [0; 4])) {
-        Some(_) => {
+    let source = match is_piece {
+        true => {
             crate::io::geotiff::piece_source(&key, &grid, &crate::assemble::layout_record(o.overviews, crate::overview::OverviewResampling::Average, o.cog))
         }
-        None => key,
+        false => key,
     };
     let spec = spec_of(o, &piece, &crs)?;
     let pending = crate::io::publish::PendingFile::create(&o.output)?;
