@@ -92,6 +92,96 @@ pub enum Command {
     /// natural neighbours, inverse distance, nearest, or the highest /
     /// lowest / mean point of each cell; blunders dropped; streamed.
     Grid(Box<GridArgs>),
+    /// A DSM from a stereo pair (Nekrasov): the pair brought to epipolar
+    /// geometry, matched densely (semi-global, or the thesis's
+    /// correlation), each match intersected with the exact models, the
+    /// points gridded by a TIN with blunders dropped; streamed in tiles.
+    Dem(Box<DemArgs>),
+}
+
+#[derive(Args, Debug)]
+pub struct DemArgs {
+    /// The left image of the pair
+    #[arg(long)]
+    pub left: PathBuf,
+    /// The right image of the pair
+    #[arg(long)]
+    pub right: PathBuf,
+    /// The left image's camera file (any format rectify's --camera reads)
+    #[arg(long, conflicts_with = "left_rpc")]
+    pub left_camera: Option<PathBuf>,
+    /// The right image's camera file
+    #[arg(long, conflicts_with = "right_rpc")]
+    pub right_camera: Option<PathBuf>,
+    /// The left image's RPC file, in any format rectify's --rpc reads
+    #[arg(long)]
+    pub left_rpc: Option<PathBuf>,
+    /// The right image's RPC file
+    #[arg(long)]
+    pub right_rpc: Option<PathBuf>,
+    /// The left image is a crop from this column,row of its RPC's scene
+    #[arg(long, requires = "left_rpc")]
+    pub left_rpc_offset: Option<String>,
+    /// The right image is a crop from this column,row of its RPC's scene
+    #[arg(long, requires = "right_rpc")]
+    pub right_rpc_offset: Option<String>,
+    /// Heights above this geoid (PROJ .gtx or GeoTIFF grid) instead of
+    /// the ellipsoid the RPCs use
+    #[arg(long)]
+    pub geoid: Option<PathBuf>,
+    /// The DSM (a tiled GeoTIFF, Float32, nodata -9999)
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
+    /// The DSM's cell size: X, or X,Y
+    #[arg(long, allow_negative_numbers = true)]
+    pub gsd: gcm_ortho::geom::Gsd,
+    /// The DSM's CRS (default: the cameras', or the UTM zone of an RPC pair)
+    #[arg(long)]
+    pub crs: Option<String>,
+    /// The heights searched: LOWEST,HIGHEST (default: --dem-init's, else
+    /// the RPCs' range; frame cameras need one or the other)
+    #[arg(long, allow_hyphen_values = true)]
+    pub heights: Option<String>,
+    /// A DEM of the area whose heights narrow the search
+    #[arg(long)]
+    pub dem_init: Option<PathBuf>,
+    /// sgm (semi-global matching of census costs) or ncc (the thesis's
+    /// sequential similarity search accepted by normalised correlation)
+    #[arg(long, value_enum, default_value = "sgm")]
+    pub matcher: gcm_ortho::stereo::matching::Matcher,
+    /// Correlation window side, pixels (odd, 3 to 21)
+    #[arg(long, default_value_t = 7)]
+    pub window: usize,
+    /// Keep a match whose correlation reaches this (default: 0.5 for sgm;
+    /// for ncc the window's threshold, 0.5 + 2.5/side)
+    #[arg(long)]
+    pub min_correlation: Option<f32>,
+    /// Also write the matched points (LAS) here
+    #[arg(long)]
+    pub points: Option<PathBuf>,
+    /// Also write each cell's mean residual parallax of its matches
+    /// (pixels; a GeoTIFF on the DSM's grid) here
+    #[arg(long)]
+    pub quality: Option<PathBuf>,
+    /// Drop points whose height lies outside their Delaunay neighbours' by
+    /// more than this many robust sigmas, or none
+    #[arg(long, default_value = "8")]
+    pub blunders: String,
+    /// Memory budget
+    #[arg(long, default_value = "512M")]
+    pub memory: String,
+    /// Worker threads (0: all cores)
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Write a Cloud-Optimized GeoTIFF
+    #[arg(long)]
+    pub cog: bool,
+    /// A JSON report of the run here
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// No progress bar
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 #[derive(Args, Debug)]
@@ -631,6 +721,11 @@ pub struct SynthArgs {
     /// `mosaic` and the ground's true colours.
     #[arg(long)]
     pub block: Option<String>,
+    /// An in-track stereo pair of RPC views (--camera rpc) at this
+    /// base-to-height ratio: left.tif, right.tif, their _RPC.TXT and the
+    /// true heights (dem.tif), for `dem`
+    #[arg(long, conflicts_with = "block")]
+    pub stereo: Option<f64>,
     /// Only points for `grid`: this many at random on rolling hills with a
     /// town of boxes, written as --out/points.las (points.laz with --laz,
     /// points.csv with --csv), streamed

@@ -81,6 +81,7 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Cameras(a) => run_cameras(&a).map(|()| 0),
         Command::Fiducials(a) => run_fiducials(&a).map(|()| 0),
         Command::Grid(a) => run_grid(&a, signals).map(|()| 0),
+        Command::Dem(a) => run_dem(&a, signals).map(|()| 0),
         Command::Assemble(a) => {
             warn_if_not_tiff(&a.output);
             inputs_exist(&a.pieces.iter().map(|p| ("piece", Some(p.as_path()))).collect::<Vec<_>>())?;
@@ -89,6 +90,94 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
             Ok(0)
         }
     }
+}
+
+fn run_dem(a: &crate::cli::DemArgs, signals: &Signals) -> Result<()> {
+    use gcm_ortho::options::{parse_offset, ModelSource};
+    use gcm_ortho::stereo::{dem, SideOptions, StereoOptions};
+    warn_if_not_tiff(&a.output);
+    let side = |image: &PathBuf,
+                camera: &Option<PathBuf>,
+                rpc: &Option<PathBuf>,
+                offset: &Option<String>,
+                which: &'static str,
+                key: &'static str|
+     -> Result<SideOptions> {
+        match (camera, rpc) {
+            (Some(c), None) => {
+                if a.geoid.is_some() {
+                    return Err(gcm_ortho::Error::setting("geoid", "goes with RPC files (--left-rpc, --right-rpc), not camera files").into());
+                }
+                Ok(SideOptions { image: image.clone(), model: ModelSource::CameraFile, camera: c.clone() })
+            }
+            (None, Some(r)) => {
+                let offset = offset.as_deref().map(|o| parse_offset(key, o)).transpose()?;
+                Ok(SideOptions { image: image.clone(), model: ModelSource::Rpc { offset, geoid: a.geoid.clone() }, camera: r.clone() })
+            }
+            _ => Err(gcm_ortho::Error::Usage(format!("the {which} image needs --{which}-camera or --{which}-rpc")).into()),
+        }
+    };
+    let left = side(&a.left, &a.left_camera, &a.left_rpc, &a.left_rpc_offset, "left", "left_rpc_offset")?;
+    let right = side(&a.right, &a.right_camera, &a.right_rpc, &a.right_rpc_offset, "right", "right_rpc_offset")?;
+    let mut o = StereoOptions::new(left, right, a.output.clone(), a.gsd);
+    o.crs = a.crs.as_deref().map(|c| gcm_ortho::geodesy::Crs::parse(c, Path::new("."))).transpose().map_err(|m| gcm_ortho::Error::setting("crs", m))?;
+    o.heights = match &a.heights {
+        None => None,
+        Some(h) => {
+            let v: Vec<f64> = h
+                .split(',')
+                .map(|s| s.trim().parse::<f64>())
+                .collect::<std::result::Result<_, _>>()
+                .map_err(|_| gcm_ortho::Error::setting("heights", format!("'{h}' is not LOWEST,HIGHEST")))?;
+            match v[..] {
+                [lo, hi] => Some([lo, hi]),
+                _ => return Err(gcm_ortho::Error::setting("heights", format!("'{h}' is not LOWEST,HIGHEST")).into()),
+            }
+        }
+    };
+    o.dem_init = a.dem_init.clone();
+    if !(3..=21).contains(&a.window) || a.window.is_multiple_of(2) {
+        return Err(gcm_ortho::Error::setting("window", format!("{} is not an odd side from 3 to 21", a.window)).into());
+    }
+    if let Some(c) = a.min_correlation {
+        if !(-1.0..=1.0).contains(&c) {
+            return Err(gcm_ortho::Error::setting("min_correlation", format!("{c} is not a correlation, -1 to 1")).into());
+        }
+    }
+    o.matching = gcm_ortho::stereo::matching::MatchParams { matcher: a.matcher, window: a.window, min_correlation: a.min_correlation };
+    o.points = a.points.clone();
+    o.quality = a.quality.clone();
+    o.blunders = match a.blunders.trim() {
+        "none" | "off" => None,
+        k => Some(k.parse::<f64>().map_err(|_| gcm_ortho::Error::setting("blunders", format!("'{k}' is not a number of sigmas or none")))?),
+    };
+    o.memory = parse_bytes("memory", &a.memory)?;
+    o.threads = match a.threads {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        t => threads_within_cores(t, 1).0,
+    };
+    o.cog = a.cog;
+    if let Some(j) = &a.json {
+        check_writable(Role::new("report", j))?;
+    }
+    let report = dem(&o, &Bar::new(a.quiet), &signals.cancel)?;
+    if let Some(j) = &a.json {
+        write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
+    }
+    if !a.quiet {
+        eprintln!(
+            "{}: {} × {} cells; {:.1} % of the overlap matched, residual parallax {:.3} px (median), B/H {:.2}, height precision {:.2} m; {:.1} s",
+            report.output.display(),
+            report.dsm.width,
+            report.dsm.height,
+            100.0 * report.matched_share,
+            report.residual_parallax_px.median,
+            report.epipolar.base_to_height,
+            report.height_precision_m,
+            report.seconds
+        );
+    }
+    Ok(())
 }
 
 fn run_grid(a: &crate::cli::GridArgs, signals: &Signals) -> Result<()> {
@@ -489,6 +578,27 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
         return Ok(());
     }
     let o = a.options()?;
+    if let Some(bh) = a.stereo {
+        if o.camera != gcm_ortho::synth::CameraKind::Rpc {
+            return Err(usage("--stereo: only for --camera rpc (a frame pair: --block 2x1)".into()));
+        }
+        let r = gcm_ortho::synth::satellite::synth_rpc_pair(&o, bh, &Bar::new(a.quiet))?;
+        if !a.quiet {
+            say!(
+                "synth: an RPC stereo pair of {}x{} at B/H {}, relief {:.0} to {:.0} m, {:.1} s\n  {}\n  {}\n  {}",
+                o.width,
+                o.height,
+                r.base_to_height,
+                r.relief_range[0],
+                r.relief_range[1],
+                t.elapsed().as_secs_f64(),
+                r.left.display(),
+                r.right.display(),
+                r.dem.display()
+            );
+        }
+        return Ok(());
+    }
     if let Some(b) = &a.block {
         let (cols, rows) = parse_size("block", b)?;
         let r = gcm_ortho::synth::block::synth_block(&o, cols, rows, &Bar::new(a.quiet))?;

@@ -29,6 +29,7 @@ pub mod progress;
 pub mod resample;
 pub mod rpcgrid;
 pub mod scene;
+pub mod stereo;
 pub mod study;
 pub mod synth;
 pub mod transform;

@@ -10,7 +10,7 @@ pub mod film_marks;
 pub mod noise;
 pub mod points;
 mod render;
-mod satellite;
+pub mod satellite;
 pub mod texture;
 
 use crate::camera::atmosphere::Refraction;

@@ -45,13 +45,19 @@ struct Pushbroom {
 
 impl Pushbroom {
     fn new(o: &SynthOptions, lon0: f64, lat0: f64) -> Pushbroom {
+        Self::pitched(o, lon0, lat0, PITCH_DEG)
+    }
+
+    /// A sensor looking `pitch_deg` forward along its track (negative:
+    /// back): the two views of an in-track stereo pair.
+    fn pitched(o: &SynthOptions, lon0: f64, lat0: f64, pitch_deg: f64) -> Pushbroom {
         let roll = o.off_nadir_deg.to_radians();
         let psi = (10.0 + o.kappa_deg).to_radians();
         Pushbroom {
             lon0,
             lat0,
             roll,
-            pitch: PITCH_DEG.to_radians(),
+            pitch: pitch_deg.to_radians(),
             // A descending pass: rows run south-ish, columns east-ish.
             along: (psi.sin(), -psi.cos()),
             across: (psi.cos(), psi.sin()),
@@ -170,4 +176,100 @@ pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progre
     };
     let scene = Scene { model: &model, dem: &dem, colour: &colour, inside: &inside, margin: &|_, _| [0.0; 3], shade: &|_, _, c| c, mid_z };
     finish(o, &scene.as_dyn(), &spec, &grid, Measures { gsd, flying_height: ALTITUDE, relief_range: [zlo, zhi], max_slope_deg: slope })
+}
+
+/// What `synth --camera rpc --stereo B/H` wrote.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PairReport {
+    pub left: std::path::PathBuf,
+    pub right: std::path::PathBuf,
+    pub left_rpc: std::path::PathBuf,
+    pub right_rpc: std::path::PathBuf,
+    /// The ground's true heights (EPSG:4326, ellipsoidal).
+    pub dem: std::path::PathBuf,
+    pub base_to_height: f64,
+    pub relief_range: [f64; 2],
+}
+
+/// An in-track stereo pair of one relief and texture: two pushbroom views
+/// pitched forward and back so that the base-to-height ratio is
+/// `base_to_height`, each with its RPC fitted as `synth_rpc`'s. Written:
+/// `left.tif`, `right.tif`, `left_RPC.TXT`, `right_RPC.TXT`, `dem.tif`.
+pub fn synth_rpc_pair(o: &SynthOptions, base_to_height: f64, progress: &dyn crate::progress::Progress) -> Result<PairReport> {
+    if !(0.05..=1.2).contains(&base_to_height) {
+        return Err(Error::setting("stereo", format!("a base-to-height ratio of {base_to_height} is not 0.05 to 1.2")));
+    }
+    std::fs::create_dir_all(&o.out).map_err(|e| Error::io(&o.out, e))?;
+    let out = |name: &str| o.out.join(name);
+    let utm = GroundCrs::from_epsg(EPSG).map_err(Error::Geometry)?;
+    let u = |k: i64| noise::unit(k, 3, o.seed);
+    let centre = (ORIGIN.0 + (u(3) * 1000.0).round(), ORIGIN.1 + (u(4) * 1000.0).round());
+    let (lon0, lat0) = utm.to_lonlat(centre.0, centre.1).ok_or_else(|| Error::Geometry("scene centre".into()))?;
+    let pitch = (base_to_height / 2.0).atan().to_degrees();
+    let sensors = [Pushbroom::pitched(o, lon0, lat0, pitch), Pushbroom::pitched(o, lon0, lat0, -pitch)];
+    let mountain_range = 2000.0;
+    let (mut lo, mut hi) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN));
+    for sensor in &sensors {
+        for (c, r) in [(0.0, 0.0), (sensor.width, 0.0), (0.0, sensor.height), (sensor.width, sensor.height)] {
+            for z in [BASE_HEIGHT, BASE_HEIGHT + mountain_range] {
+                let (lon, lat) = sensor.ground(c, r, z);
+                lo = (lo.0.min(lon), lo.1.min(lat));
+                hi = (hi.0.max(lon), hi.1.max(lat));
+            }
+        }
+    }
+    let p = o.dem_posting / METRES_PER_DEGREE;
+    let margin = 300.0 / METRES_PER_DEGREE;
+    let x0 = ((lo.0 - 2.0 * margin) / p).floor() * p;
+    let y0 = ((hi.1 + margin) / p).ceil() * p;
+    let nx = ((hi.0 + 2.0 * margin - x0) / p).ceil() as usize;
+    let ny = ((y0 - lo.1 + margin) / p).ceil() as usize;
+    let posting_m = (p * METRES_PER_DEGREE * lat0.to_radians().cos(), o.dem_posting);
+    let s0 = &sensors[0];
+    let grid_dem = relief_grid(o, (nx, ny), [x0, p, 0.0, y0, 0.0, -p], &|x, y| s0.metres(x, y), posting_m, mountain_range, 4326);
+    let zs: Vec<f64> = grid_dem.samples(1).iter().map(|&v| f64::from(v)).collect();
+    let (zlo, zhi) = zs.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    let dem_path = out("dem.tif");
+    write_dem(&dem_path, &grid_dem)?;
+    let dem_geo = Dem::grid(grid_dem, &dem_path);
+    let tex = Texture::new(o.seed, GSD, 0.0, 0.0, o.width.max(o.height) as f64 * GSD);
+    let colour_geo = |lon: f64, lat: f64| {
+        let (x, y) = s0.metres(lon, lat);
+        tex.rgb(x, y)
+    };
+    let (w, h) = (o.width as f64, o.height as f64);
+    let inside = |c: f64, r: f64| c >= 0.0 && r >= 0.0 && c < w && r < h;
+    let spec = scan_spec(o);
+    for (sensor, name) in sensors.iter().zip(["left", "right"]) {
+        let mut pts = Vec::with_capacity(21 * 21 * 7);
+        for j in 0..=20 {
+            for i in 0..=20 {
+                for k in 0..=6 {
+                    let (c, r) = (sensor.width * i as f64 / 20.0, sensor.height * j as f64 / 20.0);
+                    let z = zlo - 50.0 + (zhi - zlo + 100.0) * k as f64 / 6.0;
+                    let (lon, lat) = sensor.ground(c, r, z);
+                    pts.push(((lon, lat, z), (c, r)));
+                }
+            }
+        }
+        let fitted = fit_rpc(&pts).ok_or_else(|| Error::Geometry("the RPC fit is singular".into()))?;
+        if fitted.max_residual_px > 0.01 {
+            return Err(Error::Geometry(format!("the RPC fits the sensor only to {:.3} px", fitted.max_residual_px)));
+        }
+        let rpc_path = out(&format!("{name}_RPC.TXT"));
+        std::fs::write(&rpc_path, fitted.rpc.to_gdal_text()).map_err(|e| Error::io(&rpc_path, e))?;
+        let geo = RpcCamera::new(fitted.rpc, GroundCrs::from_epsg(4326).map_err(Error::Geometry)?, None);
+        let scene =
+            Scene { model: &geo, dem: &dem_geo, colour: &colour_geo, inside: &inside, margin: &|_, _| [0.0; 3], shade: &|_, _, c| c, mid_z: (zlo + zhi) / 2.0 };
+        render_scan(o, &scene, &spec, &out(&format!("{name}.tif")), progress)?;
+    }
+    Ok(PairReport {
+        left: out("left.tif"),
+        right: out("right.tif"),
+        left_rpc: out("left_RPC.TXT"),
+        right_rpc: out("right_RPC.TXT"),
+        dem: dem_path,
+        base_to_height,
+        relief_range: [zlo, zhi],
+    })
 }

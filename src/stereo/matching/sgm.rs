@@ -1,0 +1,147 @@
+//! Semi-global matching (Hirschmüller 2008) of census costs: each pixel's
+//! cost at each disparity summed with the smoothest way to it along eight
+//! paths, a small penalty for a step of one pixel and a large one for
+//! more; the disparity of least sum, kept where the right image's own
+//! least sum points back (the left-right check on the same sums).
+//!
+//! Each pixel searches its own `n` disparities from `lo[p]` (the coarser
+//! level's answer); a path's step between pixels compares costs at the
+//! same disparity, whatever the two pixels' ranges.
+
+use super::census::{self, NO_IMAGE};
+use crate::stereo::resample::Img;
+
+/// The penalties for a step of one disparity and for more, in census bits
+/// (a cost is 0 to 48): the large one about a third of a cost that matches
+/// nothing alike, so surfaces may break at edges but not at noise.
+const P1: u16 = 8;
+const P2: u16 = 40;
+const FAR: u16 = u16::MAX / 4;
+
+const PATHS: [(i64, i64); 8] = [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, 1), (1, -1), (-1, -1)];
+
+/// The disparity of each pixel of `left` (sub-pixel by a parabola through
+/// the sums), NaN where it has no image, where the least sum is at the
+/// range's end, or where the left-right check fails.
+pub fn disparities(left: &Img, right: &Img, lo: &[i32], n: usize) -> Vec<f32> {
+    let (w, h) = (left.w, left.h);
+    let cl = census::transform(left);
+    let cr = census::transform(right);
+    let mut cost = vec![NO_IMAGE; w * h * n];
+    for y in 0..h {
+        let ry = y as i64 + left.y0 - right.y0;
+        if ry < 0 || ry >= right.h as i64 {
+            continue;
+        }
+        for x in 0..w {
+            let p = y * w + x;
+            if cl[p].is_none() {
+                continue;
+            }
+            for k in 0..n {
+                let xr = x as i64 + left.x0 - (lo[p] + k as i32) as i64 - right.x0;
+                if xr >= 0 && xr < right.w as i64 {
+                    cost[p * n + k] = census::cost(cl[p], cr[ry as usize * right.w + xr as usize]);
+                }
+            }
+        }
+    }
+    let mut sum = vec![0u16; w * h * n];
+    let mut path = vec![0u16; w * h * n];
+    let mut least = vec![0u16; w * h];
+    for (dx, dy) in PATHS {
+        aggregate(&cost, lo, n, w, h, (dx, dy), &mut path, &mut least);
+        for (s, v) in sum.iter_mut().zip(&path) {
+            *s += v;
+        }
+    }
+    // A disparity is only chosen where the right image is there.
+    let right_at = |p: usize, d: i32| {
+        let (x, y) = ((p % w) as i64 + left.x0 - d as i64 - right.x0, (p / w) as i64 + left.y0 - right.y0);
+        x >= 0 && y >= 0 && x < right.w as i64 && y < right.h as i64 && cr[y as usize * right.w + x as usize].is_some()
+    };
+    choose(&sum, &cl, lo, n, w, h, &right_at)
+}
+
+/// One path's sums `L_r(p, d) = C(p, d) + min(L_r(q, d), L_r(q, d ± 1) + P1,
+/// min L_r(q) + P2) − min L_r(q)`, `q` the pixel before `p` on the path.
+#[allow(clippy::too_many_arguments)]
+fn aggregate(cost: &[u8], lo: &[i32], n: usize, w: usize, h: usize, (dx, dy): (i64, i64), path: &mut [u16], least: &mut [u16]) {
+    for yi in 0..h {
+        let y = if dy < 0 { h - 1 - yi } else { yi };
+        for xi in 0..w {
+            let x = if dx < 0 { w - 1 - xi } else { xi };
+            let p = y * w + x;
+            let (qx, qy) = (x as i64 - dx, y as i64 - dy);
+            let mut best = FAR;
+            if qx < 0 || qy < 0 || qx >= w as i64 || qy >= h as i64 {
+                for k in 0..n {
+                    let v = u16::from(cost[p * n + k]);
+                    path[p * n + k] = v;
+                    best = best.min(v);
+                }
+            } else {
+                let q = qy as usize * w + qx as usize;
+                let mq = least[q];
+                let shift = (lo[p] - lo[q]) as i64;
+                for k in 0..n {
+                    let kq = k as i64 + shift;
+                    let lq = |k: i64| if k >= 0 && k < n as i64 { path[q * n + k as usize] } else { FAR };
+                    let step = lq(kq).min(lq(kq - 1).saturating_add(P1)).min(lq(kq + 1).saturating_add(P1)).min(mq + P2);
+                    let v = u16::from(cost[p * n + k]) + step - mq;
+                    path[p * n + k] = v;
+                    best = best.min(v);
+                }
+            }
+            least[p] = best;
+        }
+    }
+}
+
+/// The disparity of least sum, checked against the right image's.
+fn choose(sum: &[u16], cl: &[Option<u64>], lo: &[i32], n: usize, w: usize, h: usize, right_at: &dyn Fn(usize, i32) -> bool) -> Vec<f32> {
+    let mut out = vec![f32::NAN; w * h];
+    for y in 0..h {
+        let row = y * w..(y + 1) * w;
+        let dmax = lo[row.clone()].iter().max().copied().unwrap_or(0) + n as i32 - 1;
+        let dmin = lo[row.clone()].iter().min().copied().unwrap_or(0);
+        // The right pixel x − d's least sum and its disparity, indexed by
+        // x − d + dmax.
+        let span = w + (dmax - dmin) as usize;
+        let mut right = vec![(u16::MAX, 0i32); span];
+        let mut left = vec![(0usize, u16::MAX); w];
+        for x in 0..w {
+            let p = y * w + x;
+            for k in 0..n {
+                let s = sum[p * n + k];
+                let d = lo[p] + k as i32;
+                let r = &mut right[(x as i32 - d + dmax) as usize];
+                if s < r.0 {
+                    *r = (s, d);
+                }
+                if s < left[x].1 {
+                    left[x] = (k, s);
+                }
+            }
+        }
+        for x in 0..w {
+            let p = y * w + x;
+            let (k, _) = left[x];
+            if cl[p].is_none() || k == 0 || k + 1 >= n {
+                continue;
+            }
+            let d = lo[p] + k as i32;
+            if !right_at(p, d) {
+                continue;
+            }
+            if (right[(x as i32 - d + dmax) as usize].1 - d).abs() > 1 {
+                continue;
+            }
+            let (a, b, c) = (f32::from(sum[p * n + k - 1]), f32::from(sum[p * n + k]), f32::from(sum[p * n + k + 1]));
+            let den = a - 2.0 * b + c;
+            let frac = if den > 0.0 { ((a - c) / (2.0 * den)).clamp(-0.5, 0.5) } else { 0.0 };
+            out[p] = d as f32 + frac;
+        }
+    }
+    out
+}
