@@ -150,7 +150,7 @@ pub struct DemArgs {
     #[arg(long, value_enum, default_value = "sgm")]
     pub matcher: gcm_ortho::stereo::matching::Matcher,
     /// Correlation window side, pixels (odd, 3 to 21)
-    #[arg(long, default_value_t = 7)]
+    #[arg(long, default_value_t = 9)]
     pub window: usize,
     /// Keep a match whose correlation reaches this (default: 0.5 for sgm;
     /// for ncc the window's threshold, 0.5 + 2.5/side)

@@ -196,8 +196,8 @@ pub struct PairReport {
 /// `base_to_height`, each with its RPC fitted as `synth_rpc`'s. Written:
 /// `left.tif`, `right.tif`, `left_RPC.TXT`, `right_RPC.TXT`, `dem.tif`.
 pub fn synth_rpc_pair(o: &SynthOptions, base_to_height: f64, progress: &dyn crate::progress::Progress) -> Result<PairReport> {
-    if !(0.05..=1.2).contains(&base_to_height) {
-        return Err(Error::setting("stereo", format!("a base-to-height ratio of {base_to_height} is not 0.05 to 1.2")));
+    if !(0.01..=1.2).contains(&base_to_height) {
+        return Err(Error::setting("stereo", format!("a base-to-height ratio of {base_to_height} is not 0.01 to 1.2")));
     }
     std::fs::create_dir_all(&o.out).map_err(|e| Error::io(&o.out, e))?;
     let out = |name: &str| o.out.join(name);

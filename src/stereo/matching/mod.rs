@@ -40,7 +40,7 @@ pub struct MatchParams {
 
 impl Default for MatchParams {
     fn default() -> Self {
-        MatchParams { matcher: Matcher::Sgm, window: 7, min_correlation: None }
+        MatchParams { matcher: Matcher::Sgm, window: 9, min_correlation: None }
     }
 }
 
