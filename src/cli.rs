@@ -163,9 +163,10 @@ pub struct DemArgs {
     /// (pixels; a GeoTIFF on the DSM's grid) here
     #[arg(long)]
     pub quality: Option<PathBuf>,
-    /// Drop points whose height lies outside their Delaunay neighbours' by
-    /// more than this many robust sigmas, or none
-    #[arg(long, default_value = "8")]
+    /// Also drop points whose height lies outside their Delaunay
+    /// neighbours' by more than this many robust sigmas (matching drops
+    /// its gross errors itself), or none
+    #[arg(long, default_value = "none")]
     pub blunders: String,
     /// Memory budget
     #[arg(long, default_value = "512M")]

@@ -85,7 +85,10 @@ impl StereoOptions {
             matching: MatchParams::default(),
             points: None,
             quality: None,
-            blunders: Some(crate::gridding::DEFAULT_BLUNDER_SIGMAS),
+            // Matching drops its gross errors itself (the left-right
+            // check, the correlation, the neighbourhood's median): the
+            // grid's own search costs six times the gridding.
+            blunders: None,
             memory: 512 << 20,
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             cog: false,
@@ -376,7 +379,7 @@ fn match_one(
     let rx1 = align(lx0 + side as i64 - dlo.floor() as i64 + 8, true);
     let rs = Side { scan: right.0, model: right.1 };
     let ri = resample(frame, &rs, rx0, ly0, (rx1 - rx0) as usize, side, frame.right_row_shift)?;
-    let m = matching::match_tile(&li, &ri, dlo, dhi, p);
+    let m = matching::match_tile(&li, &ri, dlo, dhi, p, [MARGIN as usize, MARGIN as usize, (MARGIN + TILE) as usize, (MARGIN + TILE) as usize]);
     let (disp, corr) = (&m.disparity, &m.correlation);
     // The ground points: from the lattice of exact intersections, a
     // sample of them checked against the exact one.

@@ -80,10 +80,11 @@ pub struct Matches {
     pub expected: Vec<i32>,
 }
 
-/// The disparity of each pixel of `left` searching `right` over `[dmin,
+/// The disparity of each pixel of `left` within `core` (`[x0, y0, x1,
+/// y1)`, local; the rest is context) searching `right` over `[dmin,
 /// dmax]`. Both windows' origins are multiples of `2^levels`, their rows
 /// the same.
-pub fn match_tile(left: &Img, right: &Img, dmin: f64, dmax: f64, p: &MatchParams) -> Matches {
+pub fn match_tile(left: &Img, right: &Img, dmin: f64, dmax: f64, p: &MatchParams, core: [usize; 4]) -> Matches {
     let nl = levels(left.w, left.h, dmax - dmin);
     let mut lp = vec![left.clone()];
     let mut rp = vec![right.clone()];
@@ -122,10 +123,44 @@ pub fn match_tile(left: &Img, right: &Img, dmin: f64, dmax: f64, p: &MatchParams
         // only drops what matched nothing alike (flat or changed ground).
         Matcher::Sgm => p.min_correlation.unwrap_or(0.5),
     };
-    let (disparity, correlation) = refine::subpixel(left, right, &mut disp, p.window, min_corr);
+    let (mut disparity, mut correlation) = refine::subpixel(left, right, &mut disp, p.window, min_corr, core);
+    drop_outliers(&mut disparity, &mut correlation, left.w, left.h, core);
     let half = (n / 2) as i32;
     Matches { disparity, correlation, expected: lo.iter().map(|l| l + half).collect() }
 }
+
+/// Disparities off their neighbourhood dropped: a match more than
+/// [`OUTLIER_PX`] from the median of the matches in the 5 × 5 around it,
+/// or with fewer than 6 of those 24 matched (a speckle). The gross errors
+/// a DSM's gridding would otherwise have to find among its points.
+fn drop_outliers(d: &mut [f32], corr: &mut [f32], w: usize, h: usize, [x0, y0, x1, y1]: [usize; 4]) {
+    let src = d.to_vec();
+    let mut near = Vec::with_capacity(25);
+    for y in y0..y1.min(h) {
+        for x in x0..x1.min(w) {
+            let p = y * w + x;
+            if src[p].is_nan() {
+                continue;
+            }
+            near.clear();
+            for yy in y.saturating_sub(2)..(y + 3).min(h) {
+                near.extend(src[yy * w + x.saturating_sub(2)..yy * w + (x + 3).min(w)].iter().copied().filter(|v| !v.is_nan()));
+            }
+            let keep = near.len() > 6 && {
+                let m = near.len() / 2;
+                let (_, med, _) = near.select_nth_unstable_by(m, f32::total_cmp);
+                (src[p] - *med).abs() <= OUTLIER_PX
+            };
+            if !keep {
+                d[p] = f32::NAN;
+                corr[p] = f32::NAN;
+            }
+        }
+    }
+}
+
+/// How far a match may lie from its neighbours' median, pixels.
+const OUTLIER_PX: f32 = 2.0;
 
 /// Holes filled along the row from the lower of the nearest disparities
 /// on either side (the background's, where a hole is an occlusion), rows
@@ -224,7 +259,7 @@ mod tests {
                 .collect(),
         };
         for m in [Matcher::Sgm, Matcher::Ncc] {
-            let d = match_tile(&left, &right, 0.0, 40.0, &MatchParams { matcher: m, ..Default::default() }).disparity;
+            let d = match_tile(&left, &right, 0.0, 40.0, &MatchParams { matcher: m, ..Default::default() }, [0, 0, w, h]).disparity;
             let (mut n, mut sq) = (0, 0.0);
             for y in 8..h - 8 {
                 for x in 8..w - 8 {

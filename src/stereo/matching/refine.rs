@@ -8,44 +8,68 @@
 
 use crate::stereo::resample::Img;
 
-/// The correlation of the `side × side` windows at left grid pixel
-/// `(gx, gy)` and right grid pixel `(gx − d, gy)`; None where either
-/// window is not whole or is flat.
-fn ncc(left: &Img, right: &Img, gx: i64, gy: i64, d: i64, r: i64) -> Option<f32> {
-    let (mut sa, mut sb, mut saa, mut sbb, mut sab) = (0f64, 0f64, 0f64, 0f64, 0f64);
-    for dy in -r..=r {
-        for dx in -r..=r {
-            let a = left.at(gx + dx, gy + dy) as f64;
-            let b = right.at(gx - d + dx, gy + dy) as f64;
-            sa += a;
-            sb += b;
-            saa += a * a;
-            sbb += b * b;
-            sab += a * b;
-        }
-    }
-    let n = ((2 * r + 1) * (2 * r + 1)) as f64;
-    let (va, vb) = (saa - sa * sa / n, sbb - sb * sb / n);
-    let c = (sab - sa * sb / n) / (va * vb).sqrt();
-    (c.is_finite() && va > 1e-6 * n && vb > 1e-6 * n).then_some(c as f32)
+/// The left window of a match, its mean taken out.
+struct LeftWindow {
+    a: Vec<f64>,
+    /// Σ a² (n times the variance).
+    va: f64,
+    r: i64,
 }
 
-/// Each match of `disp` refined; returns the disparities and their peak
-/// correlations (NaN where there is no match).
-pub fn subpixel(left: &Img, right: &Img, disp: &mut [f32], side: usize, min_corr: f32) -> (Vec<f32>, Vec<f32>) {
+impl LeftWindow {
+    fn at(left: &Img, gx: i64, gy: i64, r: i64) -> Option<LeftWindow> {
+        let side = (2 * r + 1) as usize;
+        let mut a = Vec::with_capacity(side * side);
+        for dy in -r..=r {
+            a.extend(left.row(gy + dy, gx - r, side)?.iter().map(|&v| f64::from(v)));
+        }
+        let mean = a.iter().sum::<f64>() / a.len() as f64;
+        a.iter_mut().for_each(|v| *v -= mean);
+        let va = a.iter().map(|v| v * v).sum::<f64>();
+        (va.is_finite() && va > 1e-6 * a.len() as f64).then_some(LeftWindow { a, va, r })
+    }
+
+    /// The correlation with the right window at `(gx − d, gy)`; None where
+    /// it is not whole or is flat.
+    fn ncc(&self, right: &Img, gx: i64, gy: i64, d: i64) -> Option<f32> {
+        let r = self.r;
+        let side = (2 * r + 1) as usize;
+        let (mut sb, mut sbb, mut sab) = (0f64, 0f64, 0f64);
+        for (j, dy) in (-r..=r).enumerate() {
+            let row = right.row(gy + dy, gx - d - r, side)?;
+            let a = &self.a[j * side..(j + 1) * side];
+            for (&b, &a) in row.iter().zip(a) {
+                let b = f64::from(b);
+                sb += b;
+                sbb += b * b;
+                sab += a * b;
+            }
+        }
+        let n = self.a.len() as f64;
+        let vb = sbb - sb * sb / n;
+        let c = sab / (self.va * vb).sqrt();
+        (c.is_finite() && vb > 1e-6 * n).then_some(c as f32)
+    }
+}
+
+/// Each match of `disp` within `[x0, x1) × [y0, y1)` (the tile's own
+/// pixels) refined; returns the disparities and their peak correlations
+/// (NaN where there is no match, and outside).
+pub fn subpixel(left: &Img, right: &Img, disp: &mut [f32], side: usize, min_corr: f32, [x0, y0, x1, y1]: [usize; 4]) -> (Vec<f32>, Vec<f32>) {
     let r = (side / 2) as i64;
     let mut out = vec![f32::NAN; disp.len()];
     let mut corr = vec![f32::NAN; disp.len()];
-    for y in 0..left.h {
+    for y in y0..y1.min(left.h) {
         let gy = y as i64 + left.y0;
-        for x in 0..left.w {
+        for x in x0..x1.min(left.w) {
             let p = y * left.w + x;
             if disp[p].is_nan() {
                 continue;
             }
             let gx = x as i64 + left.x0;
             let mut d = disp[p].round() as i64;
-            let at = |d: i64| ncc(left, right, gx, gy, d, r);
+            let Some(lw) = LeftWindow::at(left, gx, gy, r) else { continue };
+            let at = |d: i64| lw.ncc(right, gx, gy, d);
             let (Some(mut cm), Some(mut c0), Some(mut cp)) = (at(d - 1), at(d), at(d + 1)) else { continue };
             // One step to the better neighbour, where the peak is not here.
             if cm > c0 || cp > c0 {
@@ -66,7 +90,7 @@ pub fn subpixel(left: &Img, right: &Img, disp: &mut [f32], side: usize, min_corr
             // The paraboloid's fraction leans toward whole pixels; the
             // windows' least squares (gain and offset free, the right
             // row interpolated) takes it the rest of the way.
-            let fine = least_squares(left, right, gx, gy, parabola, r).filter(|f| (f - parabola).abs() < 0.75).unwrap_or(parabola);
+            let fine = least_squares(&lw, right, gx, gy, parabola).filter(|f| (f - parabola).abs() < 0.75).unwrap_or(parabola);
             out[p] = fine as f32;
             corr[p] = c0;
         }
@@ -79,52 +103,42 @@ pub fn subpixel(left: &Img, right: &Img, disp: &mut [f32], side: usize, min_corr
 /// interpolated along its row, matches the left one best after a gain and
 /// an offset (Gauss–Newton, a few steps); None where a window is not whole
 /// or the step does not settle.
-fn least_squares(left: &Img, right: &Img, gx: i64, gy: i64, d0: f64, r: i64) -> Option<f64> {
+fn least_squares(lw: &LeftWindow, right: &Img, gx: i64, gy: i64, d0: f64) -> Option<f64> {
+    let r = lw.r;
     let side = (2 * r + 1) as usize;
-    let n = side * side;
-    let mut a = [0f64; 21 * 21];
-    let mut k = 0;
-    for dy in -r..=r {
-        for dx in -r..=r {
-            a[k] = left.at(gx + dx, gy + dy) as f64;
-            k += 1;
-        }
-    }
+    let n = lw.a.len();
+    let nf = n as f64;
+    let (mut b, mut g) = (vec![0f64; n], vec![0f64; n]);
     let mut d = d0;
-    let (mut b, mut g) = ([0f64; 21 * 21], [0f64; 21 * 21]);
     for _ in 0..4 {
         // The right samples at x − d and their slope along the row.
         let pos = gx as f64 - d;
         let base = pos.floor();
         let f = pos - base;
-        let mut k = 0;
-        for dy in -r..=r {
-            for dx in -r..=r {
-                let x = base as i64 + dx;
-                let (v0, v1) = (right.at(x, gy + dy) as f64, right.at(x + 1, gy + dy) as f64);
-                b[k] = v0 + f * (v1 - v0);
-                g[k] = v1 - v0;
-                k += 1;
+        for (j, dy) in (-r..=r).enumerate() {
+            let row = right.row(gy + dy, base as i64 - r, side + 1)?;
+            for i in 0..side {
+                let (v0, v1) = (f64::from(row[i]), f64::from(row[i + 1]));
+                b[j * side + i] = v0 + f * (v1 - v0);
+                g[j * side + i] = v1 - v0;
             }
         }
-        let (mut sb, mut sa, mut sbb, mut sab) = (0.0, 0.0, 0.0, 0.0);
-        for k in 0..n {
-            sb += b[k];
-            sa += a[k];
-            sbb += b[k] * b[k];
-            sab += a[k] * b[k];
+        let sb: f64 = b.iter().sum();
+        let mb = sb / nf;
+        let (mut var, mut cov) = (0.0, 0.0);
+        for (bk, ak) in b.iter().zip(&lw.a) {
+            let bc = bk - mb;
+            var += bc * bc;
+            cov += ak * bc;
         }
-        let nf = n as f64;
-        let var = sbb - sb * sb / nf;
         if !(var > 1e-9) || !var.is_finite() {
             return None;
         }
-        let gain = (sab - sa * sb / nf) / var;
-        let offset = (sa - gain * sb) / nf;
-        // m = gain·b(d) + offset; ∂m/∂d = −gain·slope.
+        // a (mean 0) ≈ gain·(b − mean b); ∂/∂d of the model is −gain·slope.
+        let gain = cov / var;
         let (mut num, mut den) = (0.0, 0.0);
         for k in 0..n {
-            let e = a[k] - gain * b[k] - offset;
+            let e = lw.a[k] - gain * (b[k] - mb);
             let j = -gain * g[k];
             num += j * e;
             den += j * j;
@@ -134,7 +148,7 @@ fn least_squares(left: &Img, right: &Img, gx: i64, gy: i64, d0: f64, r: i64) -> 
         }
         let step = (num / den).clamp(-0.5, 0.5);
         d += step;
-        if step.abs() < 0.005 {
+        if step.abs() < 0.01 {
             return Some(d);
         }
     }

@@ -47,13 +47,8 @@ pub fn disparities(left: &Img, right: &Img, lo: &[i32], n: usize) -> Vec<f32> {
         }
     }
     let mut sum = vec![0u16; w * h * n];
-    let mut path = vec![0u16; w * h * n];
-    let mut least = vec![0u16; w * h];
     for (dx, dy) in PATHS {
-        aggregate(&cost, lo, n, w, h, (dx, dy), &mut path, &mut least);
-        for (s, v) in sum.iter_mut().zip(&path) {
-            *s += v;
-        }
+        aggregate(&cost, lo, n, w, h, (dx, dy), &mut sum);
     }
     // A disparity is only chosen where the right image is there.
     let right_at = |p: usize, d: i32| {
@@ -64,37 +59,61 @@ pub fn disparities(left: &Img, right: &Img, lo: &[i32], n: usize) -> Vec<f32> {
 }
 
 /// One path's sums `L_r(p, d) = C(p, d) + min(L_r(q, d), L_r(q, d ± 1) + P1,
-/// min L_r(q) + P2) − min L_r(q)`, `q` the pixel before `p` on the path.
-#[allow(clippy::too_many_arguments)]
-fn aggregate(cost: &[u8], lo: &[i32], n: usize, w: usize, h: usize, (dx, dy): (i64, i64), path: &mut [u16], least: &mut [u16]) {
+/// min L_r(q) + P2) − min L_r(q)`, `q` the pixel before `p` on the path,
+/// added into `sum`. Only the row before is kept (the pixel before, for a
+/// path along the rows).
+fn aggregate(cost: &[u8], lo: &[i32], n: usize, w: usize, h: usize, (dx, dy): (i64, i64), sum: &mut [u16]) {
+    let (mut prev, mut cur) = (vec![0u16; w * n], vec![0u16; w * n]);
+    let (mut prev_min, mut cur_min) = (vec![0u16; w], vec![0u16; w]);
+    // The pixel before's sums, aligned to this pixel's range and padded:
+    // `near[t] = L_r(q, lo[p] + t − 1)`.
+    let mut near = vec![FAR; n + 2];
     for yi in 0..h {
         let y = if dy < 0 { h - 1 - yi } else { yi };
         for xi in 0..w {
             let x = if dx < 0 { w - 1 - xi } else { xi };
             let p = y * w + x;
-            let (qx, qy) = (x as i64 - dx, y as i64 - dy);
+            let c = &cost[p * n..(p + 1) * n];
+            let qx = x as i64 - dx;
+            let before = qx >= 0 && qx < w as i64 && (dy == 0 || yi > 0);
             let mut best = FAR;
-            if qx < 0 || qy < 0 || qx >= w as i64 || qy >= h as i64 {
+            if !before {
+                let out = &mut cur[x * n..(x + 1) * n];
                 for k in 0..n {
-                    let v = u16::from(cost[p * n + k]);
-                    path[p * n + k] = v;
-                    best = best.min(v);
+                    out[k] = u16::from(c[k]);
+                    best = best.min(out[k]);
                 }
             } else {
-                let q = qy as usize * w + qx as usize;
-                let mq = least[q];
-                let shift = (lo[p] - lo[q]) as i64;
+                let qx = qx as usize;
+                let qy = (y as i64 - dy) as usize;
+                let (values, mq) = if dy == 0 { (&cur[qx * n..(qx + 1) * n], cur_min[qx]) } else { (&prev[qx * n..(qx + 1) * n], prev_min[qx]) };
+                let shift = (lo[p] - lo[qy * w + qx]) as i64;
+                if shift == 0 {
+                    near[1..=n].copy_from_slice(values);
+                    near[0] = FAR;
+                    near[n + 1] = FAR;
+                } else {
+                    for (t, v) in near.iter_mut().enumerate() {
+                        let kq = t as i64 - 1 + shift;
+                        *v = if kq >= 0 && kq < n as i64 { values[kq as usize] } else { FAR };
+                    }
+                }
+                let jump = mq + P2;
+                let out = &mut cur[x * n..(x + 1) * n];
                 for k in 0..n {
-                    let kq = k as i64 + shift;
-                    let lq = |k: i64| if k >= 0 && k < n as i64 { path[q * n + k as usize] } else { FAR };
-                    let step = lq(kq).min(lq(kq - 1).saturating_add(P1)).min(lq(kq + 1).saturating_add(P1)).min(mq + P2);
-                    let v = u16::from(cost[p * n + k]) + step - mq;
-                    path[p * n + k] = v;
+                    let step = near[k + 1].min(near[k] + P1).min(near[k + 2] + P1).min(jump);
+                    let v = u16::from(c[k]) + step - mq;
+                    out[k] = v;
                     best = best.min(v);
                 }
             }
-            least[p] = best;
+            cur_min[x] = best;
+            for (s, v) in sum[p * n..(p + 1) * n].iter_mut().zip(&cur[x * n..(x + 1) * n]) {
+                *s += v;
+            }
         }
+        std::mem::swap(&mut prev, &mut cur);
+        std::mem::swap(&mut prev_min, &mut cur_min);
     }
 }
 
