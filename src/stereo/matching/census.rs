@@ -15,32 +15,36 @@ const R: i64 = 3;
 pub const NO_IMAGE: u8 = 12;
 
 /// The census bits of each pixel of `img`, `None` where its window is not
-/// whole (an image's edge: the missing neighbours would compare as if
-/// brighter, and differently in the other image).
+/// whole: an image's edge (missing neighbours would compare as if
+/// brighter, and differently in the other image) and the window's own
+/// border of 3 pixels (the tile's context, never its own pixels).
 pub fn transform(img: &Img) -> Vec<Option<u64>> {
-    let (w, h) = (img.w as i64, img.h as i64);
-    let mut out = vec![None; img.w * img.h];
-    for y in 0..h {
-        for x in 0..w {
-            let c = img.v[(y * w + x) as usize];
+    let (w, h) = (img.w, img.h);
+    let r = R as usize;
+    let mut out = vec![None; w * h];
+    if w <= 2 * r || h <= 2 * r {
+        return out;
+    }
+    for y in r..h - r {
+        let rows: [&[f32]; 7] = std::array::from_fn(|k| &img.v[(y + k - r) * w..(y + k - r + 1) * w]);
+        for x in r..w - r {
+            let c = rows[r][x];
             if c.is_nan() {
                 continue;
             }
             let mut bits = 0u64;
             let mut whole = true;
-            for dy in -R..=R {
-                for dx in -R..=R {
-                    if dx == 0 && dy == 0 {
+            for (k, row) in rows.iter().enumerate() {
+                for (i, &v) in row[x - r..=x + r].iter().enumerate() {
+                    if k == r && i == r {
                         continue;
                     }
-                    let (xx, yy) = ((x + dx).clamp(0, w - 1), (y + dy).clamp(0, h - 1));
-                    let v = img.v[(yy * w + xx) as usize];
                     whole &= !v.is_nan();
                     bits = (bits << 1) | u64::from(v < c);
                 }
             }
             if whole {
-                out[(y * w + x) as usize] = Some(bits);
+                out[y * w + x] = Some(bits);
             }
         }
     }

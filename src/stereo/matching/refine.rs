@@ -17,16 +17,25 @@ struct LeftWindow {
 }
 
 impl LeftWindow {
-    fn at(left: &Img, gx: i64, gy: i64, r: i64) -> Option<LeftWindow> {
+    fn new(r: i64) -> LeftWindow {
         let side = (2 * r + 1) as usize;
-        let mut a = Vec::with_capacity(side * side);
+        LeftWindow { a: Vec::with_capacity(side * side), va: 0.0, r }
+    }
+
+    /// This window filled at `(gx, gy)` (its buffer reused: a match costs
+    /// no allocation); false where it is not whole or is flat.
+    fn fill(&mut self, left: &Img, gx: i64, gy: i64) -> bool {
+        let r = self.r;
+        let side = (2 * r + 1) as usize;
+        self.a.clear();
         for dy in -r..=r {
-            a.extend(left.row(gy + dy, gx - r, side)?.iter().map(|&v| f64::from(v)));
+            let Some(row) = left.row(gy + dy, gx - r, side) else { return false };
+            self.a.extend(row.iter().map(|&v| f64::from(v)));
         }
-        let mean = a.iter().sum::<f64>() / a.len() as f64;
-        a.iter_mut().for_each(|v| *v -= mean);
-        let va = a.iter().map(|v| v * v).sum::<f64>();
-        (va.is_finite() && va > 1e-6 * a.len() as f64).then_some(LeftWindow { a, va, r })
+        let mean = self.a.iter().sum::<f64>() / self.a.len() as f64;
+        self.a.iter_mut().for_each(|v| *v -= mean);
+        self.va = self.a.iter().map(|v| v * v).sum::<f64>();
+        self.va.is_finite() && self.va > 1e-6 * self.a.len() as f64
     }
 
     /// The correlation with the right window at `(gx − d, gy)`; None where
@@ -59,6 +68,8 @@ pub fn subpixel(left: &Img, right: &Img, disp: &mut [f32], side: usize, min_corr
     let r = (side / 2) as i64;
     let mut out = vec![f32::NAN; disp.len()];
     let mut corr = vec![f32::NAN; disp.len()];
+    let mut lw = LeftWindow::new(r);
+    let mut scratch = (Vec::new(), Vec::new());
     for y in y0..y1.min(left.h) {
         let gy = y as i64 + left.y0;
         for x in x0..x1.min(left.w) {
@@ -68,7 +79,10 @@ pub fn subpixel(left: &Img, right: &Img, disp: &mut [f32], side: usize, min_corr
             }
             let gx = x as i64 + left.x0;
             let mut d = disp[p].round() as i64;
-            let Some(lw) = LeftWindow::at(left, gx, gy, r) else { continue };
+            if !lw.fill(left, gx, gy) {
+                continue;
+            }
+            let lw = &lw;
             let at = |d: i64| lw.ncc(right, gx, gy, d);
             let (Some(mut cm), Some(mut c0), Some(mut cp)) = (at(d - 1), at(d), at(d + 1)) else { continue };
             // One step to the better neighbour, where the peak is not here.
@@ -90,7 +104,7 @@ pub fn subpixel(left: &Img, right: &Img, disp: &mut [f32], side: usize, min_corr
             // The paraboloid's fraction leans toward whole pixels; the
             // windows' least squares (gain and offset free, the right
             // row interpolated) takes it the rest of the way.
-            let fine = least_squares(&lw, right, gx, gy, parabola).filter(|f| (f - parabola).abs() < 0.75).unwrap_or(parabola);
+            let fine = least_squares(lw, right, gx, gy, parabola, &mut scratch).filter(|f| (f - parabola).abs() < 0.75).unwrap_or(parabola);
             out[p] = fine as f32;
             corr[p] = c0;
         }
@@ -103,12 +117,13 @@ pub fn subpixel(left: &Img, right: &Img, disp: &mut [f32], side: usize, min_corr
 /// interpolated along its row, matches the left one best after a gain and
 /// an offset (Gauss–Newton, a few steps); None where a window is not whole
 /// or the step does not settle.
-fn least_squares(lw: &LeftWindow, right: &Img, gx: i64, gy: i64, d0: f64) -> Option<f64> {
+fn least_squares(lw: &LeftWindow, right: &Img, gx: i64, gy: i64, d0: f64, (b, g): &mut (Vec<f64>, Vec<f64>)) -> Option<f64> {
     let r = lw.r;
     let side = (2 * r + 1) as usize;
     let n = lw.a.len();
     let nf = n as f64;
-    let (mut b, mut g) = (vec![0f64; n], vec![0f64; n]);
+    b.resize(n, 0.0);
+    g.resize(n, 0.0);
     let mut d = d0;
     for _ in 0..4 {
         // The right samples at x − d and their slope along the row.

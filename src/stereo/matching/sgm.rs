@@ -100,10 +100,9 @@ fn aggregate(cost: &[u8], lo: &[i32], n: usize, w: usize, h: usize, (dx, dy): (i
                 }
                 let jump = mq + P2;
                 let out = &mut cur[x * n..(x + 1) * n];
-                for k in 0..n {
-                    let step = near[k + 1].min(near[k] + P1).min(near[k + 2] + P1).min(jump);
-                    let v = u16::from(c[k]) + step - mq;
-                    out[k] = v;
+                for ((o, &c), w) in out.iter_mut().zip(c).zip(near.windows(3)) {
+                    let v = u16::from(c) + w[1].min(w[0] + P1).min(w[2] + P1).min(jump) - mq;
+                    *o = v;
                     best = best.min(v);
                 }
             }
