@@ -77,16 +77,32 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Textured synthetic ground at B/H 0.5: the DSM's height RMSE against the
 /// truth is at most half the theoretical precision (GSD × H/B × 0.3), almost
-/// every pixel of the overlap is matched, and the DSM does not depend on
-/// the memory or the number of threads.
+/// every pixel of the overlap is matched, none on the scene's flat lake
+/// while the ground around it is, and the DSM does not depend on the
+/// memory or the number of threads.
 #[test]
 fn synthetic_rpc_pair_meets_half_the_theoretical_precision() {
     let dir = tempfile::tempdir().unwrap();
     pair(dir.path(), 0.5, 800);
     let (out, json) = (dir.path().join("dsm.tif"), dir.path().join("dsm.json"));
-    let o = dem_of_pair(dir.path(), &out, &["--gsd", "2", "--json", s(&json)]);
+    let pts = dir.path().join("points.las");
+    let o = dem_of_pair(dir.path(), &out, &["--gsd", "2", "--json", s(&json), "--points", s(&pts)]);
     assert!(o.status.success(), "dem: {}", String::from_utf8_lossy(&o.stderr));
     let r = report(&json);
+    // The lake: no point within it (3 m in from its shore), the cells of a
+    // ring around it (3 to 20 m out) nearly all matched.
+    let lake = std::fs::read_to_string(dir.path().join("lake.csv")).unwrap();
+    let l: Vec<f64> = lake.lines().nth(1).unwrap().split(',').map(|v| v.parse().unwrap()).collect();
+    let (mut inside, mut ring) = (0, 0);
+    let data = las::Reader::from_path(&pts).unwrap().read_all().unwrap();
+    for p in data.points() {
+        let p = p.unwrap();
+        let d = (p.x - l[0]).hypot(p.y - l[1]);
+        inside += usize::from(d < l[2] - 3.0);
+        ring += usize::from(d > l[2] + 3.0 && d < l[2] + 20.0);
+    }
+    let ring_cells = std::f64::consts::PI * ((l[2] + 20.0).powi(2) - (l[2] + 3.0).powi(2)) / 4.0;
+    assert!(inside == 0 && ring as f64 > 0.9 * ring_cells, "{inside} points on the lake, {ring} of {ring_cells:.0} cells around it");
     let precision = r["height_precision_m"].as_f64().unwrap();
     // 0.3 px of disparity at 0.5 m pixels and B/H 0.5: 0.3 m.
     assert!((precision - 0.3).abs() < 0.02, "theoretical precision {precision}");

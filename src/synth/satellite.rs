@@ -193,8 +193,10 @@ pub struct PairReport {
 
 /// An in-track stereo pair of one relief and texture: two pushbroom views
 /// pitched forward and back so that the base-to-height ratio is
-/// `base_to_height`, each with its RPC fitted as `synth_rpc`'s. Written:
-/// `left.tif`, `right.tif`, `left_RPC.TXT`, `right_RPC.TXT`, `dem.tif`.
+/// `base_to_height`, each with its RPC fitted as `synth_rpc`'s; a small
+/// lake of flat colour in the scene. Written: `left.tif`, `right.tif`,
+/// `left_RPC.TXT`, `right_RPC.TXT`, `dem.tif`, `lake.csv` (its centre and
+/// radius in UTM 31N).
 pub fn synth_rpc_pair(o: &SynthOptions, base_to_height: f64, progress: &dyn crate::progress::Progress) -> Result<PairReport> {
     if !(0.01..=1.2).contains(&base_to_height) {
         return Err(Error::setting("stereo", format!("a base-to-height ratio of {base_to_height} is not 0.01 to 1.2")));
@@ -233,10 +235,21 @@ pub fn synth_rpc_pair(o: &SynthOptions, base_to_height: f64, progress: &dyn crat
     write_dem(&dem_path, &grid_dem)?;
     let dem_geo = Dem::grid(grid_dem, &dem_path);
     let tex = Texture::new(o.seed, GSD, 0.0, 0.0, o.width.max(o.height) as f64 * GSD);
+    // A lake: flat water, no texture to match (a hole in the DSM is the
+    // right answer there). Written as its centre and radius in UTM.
+    let side = o.width.min(o.height) as f64 * GSD;
+    let lake = (0.2 * side, 0.15 * side, 0.05 * side);
     let colour_geo = |lon: f64, lat: f64| {
         let (x, y) = s0.metres(lon, lat);
+        if (x - lake.0).hypot(y - lake.1) < lake.2 {
+            return [0.32, 0.38, 0.42];
+        }
         tex.rgb(x, y)
     };
+    let (lake_lon, lake_lat) = s0.lonlat(lake.0, lake.1);
+    let (lx, ly) = utm.from_lonlat(lake_lon, lake_lat).ok_or_else(|| Error::Geometry("the lake's centre".into()))?;
+    let lake_path = out("lake.csv");
+    std::fs::write(&lake_path, format!("x,y,radius\n{lx:.3},{ly:.3},{:.3}\n", lake.2)).map_err(|e| Error::io(&lake_path, e))?;
     let (w, h) = (o.width as f64, o.height as f64);
     let inside = |c: f64, r: f64| c >= 0.0 && r >= 0.0 && c < w && r < h;
     let spec = scan_spec(o);
