@@ -139,7 +139,7 @@ pub struct DemArgs {
     #[arg(long)]
     pub crs: Option<String>,
     /// The heights searched: LOWEST,HIGHEST (default: --dem-init's, else
-    /// the RPCs' range; frame cameras need one or the other)
+    /// the RPCs' range, else what a B/H of 0.1 to 1 puts below two frames)
     #[arg(long, allow_hyphen_values = true)]
     pub heights: Option<String>,
     /// A DEM of the area whose heights narrow the search

@@ -169,7 +169,14 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
             0.3 * frame.pixel / frame.base_to_height
         )));
     }
-    if frame.vertical_parallax_px > 1.0 {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(o.threads.max(1)).build().map_err(|e| Error::Internal(format!("a thread pool: {e}")))?;
+    // The pair's relative pointing, and the disparities its points span.
+    let (ls, rs) = (Side { scan: &left_scan, model: lm }, Side { scan: &right_scan, model: rm });
+    let pointing = pool.install(|| pointing::estimate(&frame, &ls, &rs))?;
+    // Over two frames' guessed heights (kilometres) the figure says
+    // nothing of the ground: only a search the user or the RPCs bounded.
+    let guessed = o.heights.is_none() && o.dem_init.is_none() && !matches!(left_cam.sensor, crate::camera::file::Sensor::Rpc(_));
+    if frame.vertical_parallax_px > 1.0 && !guessed {
         let w = format!(
             "the pair's epipolar rows leave {:.2} px of parallax across them somewhere in the heights searched: matches there may be missed",
             frame.vertical_parallax_px
@@ -177,13 +184,6 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
         progress.warn(&w);
         warnings.push(w);
     }
-
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(o.threads.max(1)).build().map_err(|e| Error::Internal(format!("a thread pool: {e}")))?;
-    // The pair's relative pointing, and the disparities its points span.
-    let pointing = {
-        let (ls, rs) = (Side { scan: &left_scan, model: lm }, Side { scan: &right_scan, model: rm });
-        pool.install(|| pointing::estimate(&frame, &ls, &rs))?
-    };
     if pointing.matched < 5 {
         let w = format!(
             "only {} of {} points spread over the overlap matched well: the pair's relative pointing is not corrected, and matching may fail where the images' rows are apart",
@@ -525,7 +525,8 @@ fn crs_name(c: &Crs) -> String {
 }
 
 /// The heights searched: given, or the initial DEM's (widened by 50 m for
-/// what stands on the ground), or the RPCs' common range.
+/// what stands on the ground), or the RPCs' common range, or for two
+/// frames the heights a base-to-height ratio of 0.1 to 1 allows.
 fn search_heights(o: &StereoOptions, l: &Camera, r: &Camera, crs: &Crs) -> Result<[f64; 2]> {
     if let Some([a, b]) = o.heights {
         if !(a.is_finite() && b.is_finite() && b > a) {
@@ -550,6 +551,25 @@ fn search_heights(o: &StereoOptions, l: &Camera, r: &Camera, crs: &Crs) -> Resul
             }
             Ok([a0.min(b0), a1.max(b1)])
         }
-        _ => Err(Error::setting("heights", "a frame camera says nothing of the ground's heights: give --heights LOWEST,HIGHEST or --dem-init")),
+        (a, b) => {
+            // Two frames: the ground lies somewhere below them at the
+            // distance a base-to-height ratio of 0.1 to 1 puts it; the
+            // pair's sparse matches then narrow the search to the heights
+            // the overlap holds.
+            let centre = |s: &Sensor| match s {
+                Sensor::Frame(f) => Some(f.centre),
+                Sensor::ReprojectedFrame(r) => Some(r.inner.centre),
+                Sensor::Rpc(_) => None,
+            };
+            let (Some(ca), Some(cb)) = (centre(a), centre(b)) else {
+                return Err(Error::setting("heights", "an RPC with a frame camera: give --heights LOWEST,HIGHEST or --dem-init"));
+            };
+            let base = (ca - cb).norm();
+            let top = ca.z.min(cb.z);
+            if !(base > 0.0) || l.crs.is_geographic() {
+                return Err(Error::setting("heights", "the two cameras' positions give no base: give --heights LOWEST,HIGHEST or --dem-init"));
+            }
+            Ok([top - 10.0 * base, top - base])
+        }
     }
 }
