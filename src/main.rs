@@ -86,8 +86,10 @@ fn main() -> ExitCode {
     };
     // Which subcommand ran, to name a setting by its flag where it has one.
     let command = std::env::args().nth(1).unwrap_or_default();
-    let polls =
-        matches!(cli.command, cli::Command::Rectify(_) | cli::Command::Batch(_) | cli::Command::Demo(_) | cli::Command::Mosaic(_) | cli::Command::Grid(_));
+    let polls = matches!(
+        cli.command,
+        cli::Command::Rectify(_) | cli::Command::Batch(_) | cli::Command::Demo(_) | cli::Command::Mosaic(_) | cli::Command::Grid(_) | cli::Command::Dem(_)
+    );
     let signals = match commands::Signals::install(polls) {
         Ok(s) => s,
         Err(e) => {

@@ -283,3 +283,34 @@ fn frame_pair_finds_the_ground() {
     let bias = median(d);
     assert!(med_abs < 0.6 * precision && bias.abs() < 0.2 * precision, "median |error| {med_abs:.3} m, bias {bias:.3} m, theoretical {precision:.3} m");
 }
+
+/// SIGTERM while the tiles are matched: exit 143, nothing left in the
+/// output's folder (the points, the DSM's temporary).
+#[test]
+fn stopped_run_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    pair(dir.path(), 0.5, 1500);
+    let outdir = dir.path().join("out");
+    std::fs::create_dir(&outdir).unwrap();
+    let (l, r) = (dir.path().join("left.tif"), dir.path().join("right.tif"));
+    let (lr, rr) = (dir.path().join("left_RPC.TXT"), dir.path().join("right_RPC.TXT"));
+    let out = outdir.join("dsm.tif");
+    #[rustfmt::skip]
+    let mut child = std::process::Command::new(bin())
+        .args(["dem", "--left", s(&l), "--right", s(&r), "--left-rpc", s(&lr), "--right-rpc", s(&rr), "-o", s(&out), "--gsd", "2", "--quiet"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Its temporary folder is made before the first tile.
+    let t0 = std::time::Instant::now();
+    while std::fs::read_dir(&outdir).unwrap().count() == 0 {
+        assert!(child.try_wait().unwrap().is_none(), "the run ended before it began matching");
+        assert!(t0.elapsed().as_secs() < 60);
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    assert!(std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
+    let o = wait_deadline(child, 60);
+    assert_eq!(o.status.code(), Some(143), "{}", String::from_utf8_lossy(&o.stderr));
+    let left: Vec<_> = std::fs::read_dir(&outdir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}

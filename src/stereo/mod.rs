@@ -222,7 +222,13 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
         let done: Vec<Result<TileOut>> =
             pool.install(|| batch.par_iter().map(|&(i0, j0)| match_one(&frame, (&left_scan, lm), (&right_scan, rm), i0, j0, &o.matching, cell)).collect());
         for t in done {
-            let t = t?;
+            let t = match t {
+                Err(e) => {
+                    progress.finish();
+                    return Err(e);
+                }
+                Ok(t) => t,
+            };
             seen += t.seen;
             matched += t.matches;
             failed += t.failed;
