@@ -92,6 +92,22 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
     }
 }
 
+/// `--blunders`: a number of robust sigmas, or none.
+fn parse_blunders(text: &str) -> Result<Option<f64>> {
+    Ok(match text.trim() {
+        "none" | "off" => None,
+        k => Some(k.parse::<f64>().map_err(|_| gcm_ortho::Error::setting("blunders", format!("'{k}' is not a number of sigmas or none")))?),
+    })
+}
+
+/// `--threads`: 0 is every core.
+fn worker_threads(asked: usize) -> usize {
+    match asked {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        t => threads_within_cores(t, 1).0,
+    }
+}
+
 fn run_dem(a: &crate::cli::DemArgs, signals: &Signals) -> Result<()> {
     use gcm_ortho::options::{parse_offset, ModelSource};
     use gcm_ortho::stereo::{dem, SideOptions, StereoOptions};
@@ -147,15 +163,9 @@ fn run_dem(a: &crate::cli::DemArgs, signals: &Signals) -> Result<()> {
     o.matching = gcm_ortho::stereo::matching::MatchParams { matcher: a.matcher, window: a.window, min_correlation: a.min_correlation };
     o.points = a.points.clone();
     o.quality = a.quality.clone();
-    o.blunders = match a.blunders.trim() {
-        "none" | "off" => None,
-        k => Some(k.parse::<f64>().map_err(|_| gcm_ortho::Error::setting("blunders", format!("'{k}' is not a number of sigmas or none")))?),
-    };
+    o.blunders = parse_blunders(&a.blunders)?;
     o.memory = parse_bytes("memory", &a.memory)?;
-    o.threads = match a.threads {
-        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
-        t => threads_within_cores(t, 1).0,
-    };
+    o.threads = worker_threads(a.threads);
     o.cog = a.cog;
     if let Some(j) = &a.json {
         check_writable(Role::new("report", j))?;
@@ -207,15 +217,9 @@ fn run_grid(a: &crate::cli::GridArgs, signals: &Signals) -> Result<()> {
         o.columns = Columns::Given([x, y, z]);
     }
     o.filter = Filter { classes: a.class.clone(), returns: a.returns };
-    o.blunders = match a.blunders.trim() {
-        "none" | "off" => None,
-        k => Some(k.parse::<f64>().map_err(|_| gcm_ortho::Error::setting("blunders", format!("'{k}' is not a number of sigmas or none")))?),
-    };
+    o.blunders = parse_blunders(&a.blunders)?;
     o.memory = parse_bytes("memory", &a.memory)?;
-    o.threads = match a.threads {
-        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
-        t => threads_within_cores(t, 1).0,
-    };
+    o.threads = worker_threads(a.threads);
     o.tile = a.tile;
     o.block = a.block;
     o.window = a.window.as_deref().map(|w| gcm_ortho::options::parse_window("window", w)).transpose()?;

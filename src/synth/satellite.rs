@@ -86,24 +86,20 @@ impl Pushbroom {
     }
 }
 
-pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progress) -> Result<SynthReport> {
-    let out = |name: &str| o.out.join(name);
-    let (cam_path, dem_path, scan_path, rpc_path) = (out("camera.toml"), out("dem.tif"), out("scan.tif"), out("scan_RPC.TXT"));
-    let utm = GroundCrs::from_epsg(EPSG).map_err(Error::Geometry)?;
-    let u = |k: i64| noise::unit(k, 3, o.seed);
-    let centre = (ORIGIN.0 + (u(3) * 1000.0).round(), ORIGIN.1 + (u(4) * 1000.0).round());
-    let (lon0, lat0) = utm.to_lonlat(centre.0, centre.1).ok_or_else(|| Error::Geometry("scene centre".into()))?;
-    let sensor = Pushbroom::new(o, lon0, lat0);
-
-    // The DEM: a posting of `dem_posting` metres in latitude, square in
-    // degrees like SRTM, covering the footprint at every height with room.
+/// The relief under `sensors` (the first's local metres): a posting of
+/// `dem_posting` metres in latitude, square in degrees like SRTM, covering
+/// every footprint at every height with room; its heights' range and
+/// steepest slope, degrees.
+fn relief_under(o: &SynthOptions, sensors: &[&Pushbroom], lat0: f64) -> (crate::dem::GridDem, (f64, f64), f64) {
     let mountain_range = 2000.0;
     let (mut lo, mut hi) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN));
-    for (c, r) in [(0.0, 0.0), (sensor.width, 0.0), (0.0, sensor.height), (sensor.width, sensor.height)] {
-        for z in [BASE_HEIGHT, BASE_HEIGHT + mountain_range] {
-            let (lon, lat) = sensor.ground(c, r, z);
-            lo = (lo.0.min(lon), lo.1.min(lat));
-            hi = (hi.0.max(lon), hi.1.max(lat));
+    for sensor in sensors {
+        for (c, r) in [(0.0, 0.0), (sensor.width, 0.0), (0.0, sensor.height), (sensor.width, sensor.height)] {
+            for z in [BASE_HEIGHT, BASE_HEIGHT + mountain_range] {
+                let (lon, lat) = sensor.ground(c, r, z);
+                lo = (lo.0.min(lon), lo.1.min(lat));
+                hi = (hi.0.max(lon), hi.1.max(lat));
+            }
         }
     }
     let p = o.dem_posting / METRES_PER_DEGREE;
@@ -113,13 +109,17 @@ pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progre
     let nx = ((hi.0 + 2.0 * margin - x0) / p).ceil() as usize;
     let ny = ((y0 - lo.1 + margin) / p).ceil() as usize;
     let posting_m = (p * METRES_PER_DEGREE * lat0.to_radians().cos(), o.dem_posting);
-    let grid_dem = relief_grid(o, (nx, ny), [x0, p, 0.0, y0, 0.0, -p], &|x, y| sensor.metres(x, y), posting_m, mountain_range, 4326);
+    let s0 = sensors[0];
+    let grid_dem = relief_grid(o, (nx, ny), [x0, p, 0.0, y0, 0.0, -p], &|x, y| s0.metres(x, y), posting_m, mountain_range, 4326);
     let zs: Vec<f64> = grid_dem.samples(1).iter().map(|&v| f64::from(v)).collect();
     let (zlo, zhi) = zs.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
     let slope = super::max_slope(&zs, (nx, ny), posting_m).atan().to_degrees();
-    write_dem(&dem_path, &grid_dem)?;
+    (grid_dem, (zlo, zhi), slope)
+}
 
-    // The RPC, fitted to the sensor on a 21×21×7 grid over the heights.
+/// The RPC of `sensor`, fitted on a 21×21×7 grid over the heights
+/// `zlo..zhi` (50 m more each side), as image providers fit theirs.
+fn fitted_rpc(sensor: &Pushbroom, zlo: f64, zhi: f64) -> Result<Rpc> {
     let mut pts = Vec::with_capacity(21 * 21 * 7);
     for j in 0..=20 {
         for i in 0..=20 {
@@ -135,7 +135,21 @@ pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progre
     if fitted.max_residual_px > 0.01 {
         return Err(Error::Geometry(format!("the RPC fits the sensor only to {:.3} px", fitted.max_residual_px)));
     }
-    let rpc: Rpc = fitted.rpc;
+    Ok(fitted.rpc)
+}
+
+pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progress) -> Result<SynthReport> {
+    let out = |name: &str| o.out.join(name);
+    let (cam_path, dem_path, scan_path, rpc_path) = (out("camera.toml"), out("dem.tif"), out("scan.tif"), out("scan_RPC.TXT"));
+    let utm = GroundCrs::from_epsg(EPSG).map_err(Error::Geometry)?;
+    let u = |k: i64| noise::unit(k, 3, o.seed);
+    let centre = (ORIGIN.0 + (u(3) * 1000.0).round(), ORIGIN.1 + (u(4) * 1000.0).round());
+    let (lon0, lat0) = utm.to_lonlat(centre.0, centre.1).ok_or_else(|| Error::Geometry("scene centre".into()))?;
+    let sensor = Pushbroom::new(o, lon0, lat0);
+
+    let (grid_dem, (zlo, zhi), slope) = relief_under(o, &[&sensor], lat0);
+    write_dem(&dem_path, &grid_dem)?;
+    let rpc: Rpc = fitted_rpc(&sensor, zlo, zhi)?;
     std::fs::write(&rpc_path, rpc.to_gdal_text()).map_err(|e| Error::io(&rpc_path, e))?;
     let file = CameraFile {
         crs: format!("EPSG:{EPSG}"),
@@ -209,28 +223,8 @@ pub fn synth_rpc_pair(o: &SynthOptions, base_to_height: f64, progress: &dyn crat
     let (lon0, lat0) = utm.to_lonlat(centre.0, centre.1).ok_or_else(|| Error::Geometry("scene centre".into()))?;
     let pitch = (base_to_height / 2.0).atan().to_degrees();
     let sensors = [Pushbroom::pitched(o, lon0, lat0, pitch), Pushbroom::pitched(o, lon0, lat0, -pitch)];
-    let mountain_range = 2000.0;
-    let (mut lo, mut hi) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN));
-    for sensor in &sensors {
-        for (c, r) in [(0.0, 0.0), (sensor.width, 0.0), (0.0, sensor.height), (sensor.width, sensor.height)] {
-            for z in [BASE_HEIGHT, BASE_HEIGHT + mountain_range] {
-                let (lon, lat) = sensor.ground(c, r, z);
-                lo = (lo.0.min(lon), lo.1.min(lat));
-                hi = (hi.0.max(lon), hi.1.max(lat));
-            }
-        }
-    }
-    let p = o.dem_posting / METRES_PER_DEGREE;
-    let margin = 300.0 / METRES_PER_DEGREE;
-    let x0 = ((lo.0 - 2.0 * margin) / p).floor() * p;
-    let y0 = ((hi.1 + margin) / p).ceil() * p;
-    let nx = ((hi.0 + 2.0 * margin - x0) / p).ceil() as usize;
-    let ny = ((y0 - lo.1 + margin) / p).ceil() as usize;
-    let posting_m = (p * METRES_PER_DEGREE * lat0.to_radians().cos(), o.dem_posting);
     let s0 = &sensors[0];
-    let grid_dem = relief_grid(o, (nx, ny), [x0, p, 0.0, y0, 0.0, -p], &|x, y| s0.metres(x, y), posting_m, mountain_range, 4326);
-    let zs: Vec<f64> = grid_dem.samples(1).iter().map(|&v| f64::from(v)).collect();
-    let (zlo, zhi) = zs.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    let (grid_dem, (zlo, zhi), _) = relief_under(o, &[&sensors[0], &sensors[1]], lat0);
     let dem_path = out("dem.tif");
     write_dem(&dem_path, &grid_dem)?;
     let dem_geo = Dem::grid(grid_dem, &dem_path);
@@ -254,24 +248,10 @@ pub fn synth_rpc_pair(o: &SynthOptions, base_to_height: f64, progress: &dyn crat
     let inside = |c: f64, r: f64| c >= 0.0 && r >= 0.0 && c < w && r < h;
     let spec = scan_spec(o);
     for (sensor, name) in sensors.iter().zip(["left", "right"]) {
-        let mut pts = Vec::with_capacity(21 * 21 * 7);
-        for j in 0..=20 {
-            for i in 0..=20 {
-                for k in 0..=6 {
-                    let (c, r) = (sensor.width * i as f64 / 20.0, sensor.height * j as f64 / 20.0);
-                    let z = zlo - 50.0 + (zhi - zlo + 100.0) * k as f64 / 6.0;
-                    let (lon, lat) = sensor.ground(c, r, z);
-                    pts.push(((lon, lat, z), (c, r)));
-                }
-            }
-        }
-        let fitted = fit_rpc(&pts).ok_or_else(|| Error::Geometry("the RPC fit is singular".into()))?;
-        if fitted.max_residual_px > 0.01 {
-            return Err(Error::Geometry(format!("the RPC fits the sensor only to {:.3} px", fitted.max_residual_px)));
-        }
+        let rpc = fitted_rpc(sensor, zlo, zhi)?;
         let rpc_path = out(&format!("{name}_RPC.TXT"));
-        std::fs::write(&rpc_path, fitted.rpc.to_gdal_text()).map_err(|e| Error::io(&rpc_path, e))?;
-        let geo = RpcCamera::new(fitted.rpc, GroundCrs::from_epsg(4326).map_err(Error::Geometry)?, None);
+        std::fs::write(&rpc_path, rpc.to_gdal_text()).map_err(|e| Error::io(&rpc_path, e))?;
+        let geo = RpcCamera::new(rpc, GroundCrs::from_epsg(4326).map_err(Error::Geometry)?, None);
         let scene =
             Scene { model: &geo, dem: &dem_geo, colour: &colour_geo, inside: &inside, margin: &|_, _| [0.0; 3], shade: &|_, _, c| c, mid_z: (zlo + zhi) / 2.0 };
         render_scan(o, &scene, &spec, &out(&format!("{name}.tif")), progress)?;
