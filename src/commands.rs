@@ -171,6 +171,9 @@ fn run_dem(a: &crate::cli::DemArgs, signals: &Signals) -> Result<()> {
         check_writable(Role::new("report", j))?;
     }
     let report = dem(&o, &Bar::new(a.quiet), &signals.cancel)?;
+    if let Some(w) = past_budget(&a.memory, o.memory) {
+        eprintln!("gcm-ortho: warning: {w}");
+    }
     if let Some(j) = &a.json {
         write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
     }

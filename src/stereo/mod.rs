@@ -170,6 +170,15 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
         )));
     }
     let pool = rayon::ThreadPoolBuilder::new().num_threads(o.threads.max(1)).build().map_err(|e| Error::Internal(format!("a thread pool: {e}")))?;
+    // A DSM of the overlap at `--gsd` that no file could hold is refused
+    // before any matching.
+    let side = frame.pixel * f64::from(frame.width.max(frame.height)) * std::f64::consts::SQRT_2;
+    if side / o.gsd.x * side / o.gsd.y > 1e11 {
+        return Err(Error::setting(
+            "gsd",
+            format!("{} × {} over the pair's overlap of about {side:.0} ground units a side is past 10^11 cells", o.gsd.x, o.gsd.y),
+        ));
+    }
     // The pair's relative pointing, and the disparities its points span.
     let (ls, rs) = (Side { scan: &left_scan, model: lm }, Side { scan: &right_scan, model: rm });
     let pointing = pool.install(|| pointing::estimate(&frame, &ls, &rs))?;
