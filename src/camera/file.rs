@@ -255,6 +255,8 @@ pub struct CameraFile {
     pub corrections: CorrectionsSection,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rpc: Option<RpcSection>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub panoramic: Option<super::panoramic_file::PanoramicSection>,
 }
 
 /// The sensor model a camera file describes.
@@ -264,6 +266,8 @@ pub enum Sensor {
     Rpc(RpcCamera),
     /// A frame camera whose orthophoto is made in another CRS.
     ReprojectedFrame(Reprojected<FrameCamera>),
+    /// A panoramic (optical-bar) film camera.
+    Panoramic(super::panoramic::PanoramicCamera),
 }
 
 /// A parsed and validated camera: its ground CRS and its sensor model.
@@ -331,15 +335,16 @@ impl CameraFile {
         match self.camera.model.as_str() {
             "frame" => {}
             "rpc" => return self.build_rpc(path),
-            other => return Err(err("camera.model", format!("unknown model '{other}' (expected \"frame\" or \"rpc\")"))),
+            "panoramic" => return self.build_panoramic(path),
+            other => return Err(err("camera.model", format!("unknown model '{other}' (expected \"frame\", \"rpc\" or \"panoramic\")"))),
         }
         if self.crs.trim().is_empty() {
             return Err(err("crs", "the CRS of the positions is not given: give crs here, a .prj beside the exterior orientations, or --crs".into()));
         }
         let crs = Crs::parse(&self.crs, path.parent().unwrap_or(Path::new(""))).map_err(|m| err("crs", m))?;
-        for (section, present) in [("rpc", self.rpc.is_some())] {
+        for (section, present, model) in [("rpc", self.rpc.is_some(), "rpc"), ("panoramic", self.panoramic.is_some(), "panoramic")] {
             if present {
-                return Err(err(section, "only for camera.model = \"rpc\"".into()));
+                return Err(err(section, format!("only for camera.model = \"{model}\"")));
             }
         }
         let f = self.camera.focal_length_mm.ok_or_else(|| err("camera.focal_length_mm", "missing".into()))?;
@@ -371,7 +376,12 @@ impl CameraFile {
     /// (`"auto"`: the WGS84 UTM zone of the scene's centre).
     fn build_rpc(self, path: &Path) -> Result<Camera> {
         let err = |field: &str, msg: String| Error::config(path, field, msg);
-        for (section, present) in [("interior", self.interior.is_some()), ("exterior", self.exterior.is_some()), ("distortion", self.distortion.is_some())] {
+        for (section, present) in [
+            ("interior", self.interior.is_some()),
+            ("exterior", self.exterior.is_some()),
+            ("distortion", self.distortion.is_some()),
+            ("panoramic", self.panoramic.is_some()),
+        ] {
             if present {
                 return Err(err(section, "not used by an RPC camera".into()));
             }
@@ -443,6 +453,7 @@ impl Camera {
             exterior: None,
             corrections: CorrectionsSection::default(),
             rpc: Some(RpcSection { file: Some(abs(rpc)), offset_px: offset, geoid: geoid.map(abs), inline: Default::default() }),
+            panoramic: None,
         }
     }
 
@@ -451,6 +462,7 @@ impl Camera {
             Sensor::Frame(f) => f,
             Sensor::Rpc(r) => r,
             Sensor::ReprojectedFrame(r) => r,
+            Sensor::Panoramic(p) => p,
         }
     }
 
@@ -463,6 +475,7 @@ impl Camera {
         }
         let sensor = match self.sensor {
             Sensor::Rpc(r) => Sensor::Rpc(RpcCamera::new(r.rpc, GroundCrs::new(ground)?, r.geoid)),
+            Sensor::Panoramic(p) => Sensor::Panoramic(super::panoramic::PanoramicCamera::new(p.bar, GroundCrs::new(ground)?, p.geoid)),
             // The same CRS spelled another way (a .prj of EPSG:32631).
             Sensor::Frame(f) if self.crs.agrees_at(ground, f.centre.x, f.centre.y) => Sensor::Frame(f),
             Sensor::Frame(f) => {
@@ -485,6 +498,7 @@ impl Camera {
             Sensor::Frame(f) => Ok(f),
             Sensor::ReprojectedFrame(r) => Ok(&r.inner),
             Sensor::Rpc(_) => Err(Error::unsupported(path, "this needs a frame camera, not an RPC model")),
+            Sensor::Panoramic(_) => Err(Error::unsupported(path, "this needs a frame camera, not a panoramic one")),
         }
     }
 
@@ -495,6 +509,7 @@ impl Camera {
             Sensor::Frame(f) => f.centre.z - 1000.0,
             Sensor::ReprojectedFrame(r) => r.inner.centre.z - 1000.0,
             Sensor::Rpc(r) => r.height_hint(),
+            Sensor::Panoramic(p) => p.height_hint(),
         }
     }
 }

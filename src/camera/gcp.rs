@@ -196,6 +196,21 @@ pub fn refine(camera: &mut Camera, gcps: &[Gcp], model: BiasModel, max_residual:
             fit
         }
         Sensor::ReprojectedFrame(_) => return Err(Error::format(source, "GCPs refine a camera in its own CRS, before it is reprojected")),
+        Sensor::Panoramic(p) => {
+            let dynamics = match model {
+                BiasModel::Shift | BiasModel::Affine => {
+                    return Err(Error::setting(
+                        "gcp_refine",
+                        "shift and affine refine an RPC; a panoramic camera is refined by resection (auto, or interior for the scan's dynamics too)",
+                    ))
+                }
+                BiasModel::Interior => Some(true),
+                BiasModel::Auto => None,
+            };
+            let (bar, fit) = super::panoramic_resection::resection(p, gcps, dynamics, source)?;
+            p.bar = bar;
+            fit
+        }
     };
     if let Some(worst) = fit.points.iter().max_by(|a, b| a.after[0].hypot(a.after[1]).total_cmp(&b.after[0].hypot(b.after[1]))) {
         let r = worst.after[0].hypot(worst.after[1]);
@@ -276,7 +291,7 @@ fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasMo
 /// length and flying height trade off — is refused.
 /// Refuses GCPs on one line on the ground: the camera may turn about it
 /// freely, and a resection on them fits anything.
-fn refuse_collinear(points: &[Vector3<f64>], source: &Path) -> Result<()> {
+pub(super) fn refuse_collinear(points: &[Vector3<f64>], source: &Path) -> Result<()> {
     let n = points.len() as f64;
     let mean = points.iter().fold(Vector3::zeros(), |m, p| m + p) / n;
     let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);

@@ -131,6 +131,7 @@ impl RunPlan {
                     DemSource::Height(h) => Dem::flat(*h),
                     DemSource::ModelHeight => match &camera.sensor {
                         Sensor::Rpc(r) => Dem::flat(r.height_hint()),
+                        Sensor::Panoramic(p) => Dem::flat(p.height_hint()),
                         Sensor::Frame(_) | Sensor::ReprojectedFrame(_) => {
                             return Err(Error::setting("dem", "a frame camera needs a DEM file or a constant height"))
                         }
@@ -153,6 +154,11 @@ impl RunPlan {
                 r.geoid = geoid_of_heights(&dem, opts.crs.as_ref(), progress)?;
             }
         }
+        if let Sensor::Panoramic(p) = &mut camera.sensor {
+            if p.geoid.is_none() {
+                p.geoid = geoid_of_heights(&dem, opts.crs.as_ref(), progress)?;
+            }
+        }
         if let (Some((g, points)), Sensor::Rpc(_)) = (&gcps, &camera.sensor) {
             gcp_fit = Some(crate::camera::gcp::refine(&mut camera, points, g.model, g.max_residual, &g.file)?);
         }
@@ -165,20 +171,20 @@ impl RunPlan {
         let frame = match &camera.sensor {
             Sensor::Frame(f) => Some((f, Some((f.centre.x, f.centre.y)))),
             Sensor::ReprojectedFrame(r) => Some((&r.inner, r.to_ground(r.inner.centre.x, r.inner.centre.y))),
-            Sensor::Rpc(_) => None,
+            Sensor::Rpc(_) | Sensor::Panoramic(_) => None,
         };
         if let Some((f, _)) = frame {
             if let Some(w) = crate::camera::file::narrow_view(&opts.camera, &camera.file, (sw, sh), f.centre.z - z_guess) {
                 progress.warn(&w);
             }
         }
-        if let Some([w, h]) = camera.file.interior.as_ref().and_then(|i| i.image_size_px) {
+        let sized = match &camera.sensor {
+            Sensor::Panoramic(p) => Some(("panoramic.size_px", p.bar.size)),
+            _ => camera.file.interior.as_ref().and_then(|i| i.image_size_px).map(|s| ("interior.image_size_px", s)),
+        };
+        if let Some((field, [w, h])) = sized {
             if [w, h] != [sw, sh] {
-                return Err(Error::config(
-                    &opts.camera,
-                    "interior.image_size_px",
-                    format!("the camera is for {w}×{h} images, but {} is {sw}×{sh}", opts.image.display()),
-                ));
+                return Err(Error::config(&opts.camera, field, format!("the camera is for {w}×{h} images, but {} is {sw}×{sh}", opts.image.display())));
             }
         }
         if let Some(r) = match &camera.sensor {

@@ -84,7 +84,7 @@ pub fn of_run<'a>(
     }
     let gcps = opts.gcps.as_ref().map(|g| crate::camera::gcp::read(&g.file, &opts.image).map(|p| (g, p))).transpose()?;
     let mut fit = None;
-    if let (Some((g, points)), crate::camera::file::Sensor::Frame(_)) = (&gcps, &camera.sensor) {
+    if let (Some((g, points)), crate::camera::file::Sensor::Frame(_) | crate::camera::file::Sensor::Panoramic(_)) = (&gcps, &camera.sensor) {
         if points.iter().any(|p| p.ellipsoidal) {
             progress.warn(&format!(
                 "{}: the GCPs' heights are ellipsoidal (Orthority's form) and are taken as the DEM's: where its heights are above a geoid they are off by its undulation; give a CSV with heights in the DEM's datum",

@@ -574,7 +574,7 @@ fn search_heights(o: &StereoOptions, l: &Camera, r: &Camera, crs: &Crs) -> Resul
             let centre = |s: &Sensor| match s {
                 Sensor::Frame(f) => Some(f.centre),
                 Sensor::ReprojectedFrame(r) => Some(r.inner.centre),
-                Sensor::Rpc(_) => None,
+                Sensor::Rpc(_) | Sensor::Panoramic(_) => None,
             };
             let (Some(ca), Some(cb)) = (centre(a), centre(b)) else {
                 return Err(Error::setting("heights", "an RPC with a frame camera: give --heights LOWEST,HIGHEST or --dem-init"));

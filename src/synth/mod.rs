@@ -8,6 +8,7 @@
 pub mod block;
 pub mod film_marks;
 pub mod noise;
+mod panoramic;
 pub mod points;
 mod render;
 pub mod satellite;
@@ -48,6 +49,8 @@ pub enum CameraKind {
     Digital,
     /// A pushbroom satellite described by a fitted RPC.
     Rpc,
+    /// A KH-4B-like panoramic (optical-bar) film camera.
+    Panoramic,
     /// A drone's small-format frame looking obliquely (`off_nadir_deg`),
     /// with strong Brown distortion.
     Drone,
@@ -61,9 +64,13 @@ impl crate::options::Choice for Relief {
 }
 
 impl crate::options::Choice for CameraKind {
-    const NAMES: &'static [&'static str] = &["film", "digital", "rpc", "drone"];
+    const NAMES: &'static [&'static str] = &["film", "digital", "rpc", "drone", "panoramic"];
     fn from_name(name: &str) -> Option<Self> {
-        [CameraKind::Film, CameraKind::Digital, CameraKind::Rpc, CameraKind::Drone].into_iter().zip(Self::NAMES).find(|(_, n)| **n == name).map(|(c, _)| c)
+        [CameraKind::Film, CameraKind::Digital, CameraKind::Rpc, CameraKind::Drone, CameraKind::Panoramic]
+            .into_iter()
+            .zip(Self::NAMES)
+            .find(|(_, n)| **n == name)
+            .map(|(c, _)| c)
     }
 }
 
@@ -245,6 +252,7 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
                 }),
                 corrections: CorrectionsSection { refraction: Refraction::Auto, earth_curvature: true },
                 rpc: None,
+                panoramic: None,
             }
         }
         CameraKind::Drone => {
@@ -268,9 +276,10 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
                 }),
                 corrections: CorrectionsSection { refraction: Refraction::None, earth_curvature: false },
                 rpc: None,
+                panoramic: None,
             }
         }
-        CameraKind::Digital | CameraKind::Rpc => {
+        CameraKind::Digital | CameraKind::Rpc | CameraKind::Panoramic => {
             let px = 0.006 * 8000.0 / o.width.max(o.height) as f64;
             let flying = DIGITAL_FOCAL * o.scale / 1000.0;
             CameraFile {
@@ -289,6 +298,7 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
                 }),
                 corrections: CorrectionsSection { refraction: Refraction::Auto, earth_curvature: true },
                 rpc: None,
+                panoramic: None,
             }
         }
     }
@@ -440,7 +450,7 @@ fn in_image(o: &SynthOptions, cam: &crate::camera::FrameCamera, c: f64, r: f64) 
             let (x, y) = cam.interior.px_to_mm(c, r);
             x.abs() <= o.frame_half() && y.abs() <= o.frame_half()
         }
-        CameraKind::Digital | CameraKind::Rpc | CameraKind::Drone => c >= 0.0 && r >= 0.0 && c < o.width as f64 && r < o.height as f64,
+        CameraKind::Digital | CameraKind::Rpc | CameraKind::Drone | CameraKind::Panoramic => c >= 0.0 && r >= 0.0 && c < o.width as f64 && r < o.height as f64,
     }
 }
 
@@ -489,6 +499,9 @@ pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
     if o.camera == CameraKind::Rpc {
         return satellite::synth_rpc(o, progress);
     }
+    if o.camera == CameraKind::Panoramic {
+        return panoramic::synth_panoramic(o, progress);
+    }
     let cam_path = o.out.join("camera.toml");
     let dem_path = o.out.join("dem.tif");
     let scan_path = o.out.join("scan.tif");
@@ -503,7 +516,7 @@ pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
     let flying = file.exterior.as_ref().expect("synth writes exterior").position[2] - BASE_HEIGHT;
     let (focal, film_half) = match o.camera {
         CameraKind::Film => (FILM_FOCAL, o.film_mm() / 2.0),
-        CameraKind::Digital | CameraKind::Rpc => (DIGITAL_FOCAL, cam.interior.pixel_size_mm() * o.width.max(o.height) as f64 / 2.0),
+        CameraKind::Digital | CameraKind::Rpc | CameraKind::Panoramic => (DIGITAL_FOCAL, cam.interior.pixel_size_mm() * o.width.max(o.height) as f64 / 2.0),
         CameraKind::Drone => (DRONE_FOCAL, cam.interior.pixel_size_mm() * o.width.max(o.height) as f64 / 2.0),
     };
     // Far enough to hold the footprint, an oblique one's far side too.

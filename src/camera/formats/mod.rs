@@ -220,6 +220,8 @@ pub enum Kind {
     MetashapeXml,
     Pix4dCalibrated,
     Pix4dCam,
+    /// Ames Stereo Pipeline's optical-bar (panoramic) camera.
+    AspOpticalBar,
 }
 
 impl Kind {
@@ -236,12 +238,13 @@ impl Kind {
             Kind::MetashapeXml => "Metashape cameras (XML)",
             Kind::Pix4dCalibrated => "Pix4D calibrated camera parameters",
             Kind::Pix4dCam => "Pix4D internal camera parameters (.cam)",
+            Kind::AspOpticalBar => "Ames Stereo Pipeline optical-bar camera",
         }
     }
 }
 
 /// The forms of camera file read, as a refusal lists them.
-const FORMS: &str = "ours in TOML; Orthority's YAML, CSV or GeoJSON; OpenSfM's JSON; Metashape's XML; Pix4D's";
+const FORMS: &str = "ours in TOML; Orthority's YAML, CSV or GeoJSON; OpenSfM's JSON; Metashape's XML; Pix4D's; ASP's OPTICAL_BAR";
 
 /// The kind of a camera or pose file, from its text.
 pub fn detect(path: &Path, text: &str) -> Result<Kind> {
@@ -253,6 +256,9 @@ pub fn detect(path: &Path, text: &str) -> Result<Kind> {
     }
     if metashape::looks_like(t) {
         return Ok(Kind::MetashapeXml);
+    }
+    if crate::camera::panoramic_file::looks_like_asp(t) {
+        return Ok(Kind::AspOpticalBar);
     }
     if toml::from_str::<toml::Table>(t).is_ok_and(|table| table.contains_key("camera") || table.contains_key("crs")) {
         return Ok(Kind::Ours);
@@ -372,6 +378,7 @@ fn read_one(path: &Path, for_lenses: bool, image: Option<&Path>) -> Result<Impor
         Kind::OrthorityGeoJson => orthority::read_geojson(path, text)?,
         Kind::OpenSfmReconstruction | Kind::OpenSfmCameras => opensfm::read(path, text)?,
         Kind::MetashapeXml => metashape::read(path, text)?,
+        Kind::AspOpticalBar => Imported { base: Some(crate::camera::panoramic_file::read_asp(path, text)?), ..Default::default() },
         Kind::Pix4dCalibrated => pix4d::read_calibrated(path, text, for_lenses)?,
         Kind::Pix4dCam => {
             let image = image.ok_or_else(|| {
@@ -469,7 +476,7 @@ impl Imported {
         let (camera, interior) = lens.sections();
         let distortion = (lens.distortion != DistortionSection::default()).then(|| lens.distortion.clone());
         let corrections = self.base.as_ref().map(|b| b.corrections.clone()).unwrap_or_default();
-        Ok(CameraFile { crs, camera, interior: Some(interior), distortion, exterior, corrections, rpc: None })
+        Ok(CameraFile { crs, camera, interior: Some(interior), distortion, exterior, corrections, rpc: None, panoramic: None })
     }
 
     /// The camera file's `crs` and the poses' CRS must be one CRS.

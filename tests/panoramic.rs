@@ -1,0 +1,406 @@
+//! Panoramic (optical-bar) cameras: the model against an independent
+//! implementation of Ames Stereo Pipeline's optical bar (written here from
+//! its published equations, ASP's pixel convention), on ASP's published
+//! KH-4B and KH-9 sample cameras; the image motion compensation's sign for
+//! each scan direction; a synthetic KH-4B-like strip rectified at the
+//! defaults within the bound at every pixel (coordinate images) and on the
+//! truth; a resection from noisy GCPs; bad cameras named.
+
+mod common;
+use common::*;
+use gcm_ortho::camera::file::{Camera, Sensor};
+use nalgebra::{Matrix3, Vector3};
+use std::path::Path;
+
+const KH4B: &str = "VERSION_4
+OPTICAL_BAR
+image_size = 13656 1033
+image_center = 6828 517
+pitch = 7.0e-06
+f = 0.61000001430511475
+scan_time = 0.5
+forward_tilt = 0.2618
+iC = -1030862.1946224371 5468503.8842079658 3407902.5154047827
+iR = -0.95700845635275322 -0.27527006183758934 0.091439638698163225 -0.26345593052063937 0.69302501329766897 -0.67104940475144637 0.1213498543172795 -0.66629027007731101 -0.73575232847574434
+speed = 7700
+mean_earth_radius = 6371000
+mean_surface_elevation = 4000
+motion_compensation_factor = 1.0
+scan_dir = right
+";
+
+const KH9: &str = "VERSION_4
+OPTICAL_BAR
+image_size = 110507 7904
+image_center = 55253.5 3952
+pitch = 7.0e-06
+f = 0.61000001430511475
+scan_time = 0.5
+forward_tilt = -0.261799
+iC = -1047140.9611702315 5508464.4323527571 3340425.4078937685
+iR = -0.96635634448923746 -0.16918164442572045 0.1937343197650008 -0.23427205529446918 0.26804084264169648 -0.93448954557235941 0.10616976770014927 -0.94843643849513648 -0.29865750042675621
+speed = 7700
+mean_earth_radius = 6371000
+mean_surface_elevation = 4000
+motion_compensation_factor = 1.0
+scan_dir = left
+";
+
+/// ASP's optical bar, pixel → ray, from its published equations (not the
+/// project's code): ASP pixels (the first pixel's centre at 0, 0).
+struct AspBar {
+    size: [f64; 2],
+    centre: [f64; 2],
+    pitch: f64,
+    f: f64,
+    scan_time: f64,
+    tilt: f64,
+    c0: Vector3<f64>,
+    r: Matrix3<f64>,
+    speed: f64,
+    radius: f64,
+    elevation: f64,
+    mcf: f64,
+    left_to_right: bool,
+}
+
+impl AspBar {
+    fn parse(text: &str) -> AspBar {
+        let get = |k: &str| -> Vec<f64> {
+            let line = text.lines().find(|l| l.split('=').next().unwrap().trim() == k).unwrap();
+            line.split('=').nth(1).unwrap().split_whitespace().map(|v| v.parse().unwrap()).collect()
+        };
+        let r = get("iR");
+        AspBar {
+            size: [get("image_size")[0], get("image_size")[1]],
+            centre: [get("image_center")[0], get("image_center")[1]],
+            pitch: get("pitch")[0],
+            f: get("f")[0],
+            scan_time: get("scan_time")[0],
+            tilt: get("forward_tilt")[0],
+            c0: Vector3::new(get("iC")[0], get("iC")[1], get("iC")[2]),
+            r: Matrix3::new(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]),
+            speed: get("speed")[0],
+            radius: get("mean_earth_radius")[0],
+            elevation: get("mean_surface_elevation")[0],
+            mcf: get("motion_compensation_factor")[0],
+            left_to_right: !text.contains("scan_dir = left"),
+        }
+    }
+
+    /// (origin, unit direction) of ASP pixel (x, y), ECEF.
+    fn ray(&self, x: f64, y: f64) -> (Vector3<f64>, Vector3<f64>) {
+        let (sx, sy) = ((x - self.centre[0]) * self.pitch, (y - self.centre[1]) * self.pitch);
+        let angle = |px: f64| (px - self.centre[0]) * self.pitch / self.f;
+        let rate = (angle(self.size[0] - 1.0) - angle(0.0)) / self.scan_time;
+        let max_col = self.size[0] - 1.0;
+        let fraction = if self.left_to_right { x / max_col } else { (max_col - x) / max_col };
+        let (s, c) = self.tilt.sin_cos();
+        let tilt_x = Matrix3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c);
+        let velocity = self.r * tilt_x * Vector3::new(0.0, self.speed, 0.0);
+        let centre = self.c0 + fraction * self.scan_time * velocity;
+        let alpha = sx / self.f;
+        let h = centre.norm() - (self.elevation + self.radius);
+        let mut imc = self.f * self.speed / (h * rate) * alpha.sin() * self.mcf;
+        if !self.left_to_right {
+            imc = -imc;
+        }
+        let d = Vector3::new(self.f * alpha.sin(), sy + imc, self.f * alpha.cos()).normalize();
+        (centre, self.r * d)
+    }
+}
+
+/// WGS84 longitude, latitude (degrees), height of an ECEF point (the test's
+/// own: Bowring's start, fixed-point on the latitude).
+fn geodetic(p: Vector3<f64>) -> (f64, f64, f64) {
+    let (a, f) = (6_378_137.0, 1.0 / 298.257_223_563);
+    let e2 = f * (2.0 - f);
+    let r = p.x.hypot(p.y);
+    let mut lat = p.z.atan2(r * (1.0 - e2));
+    let mut h = 0.0;
+    for _ in 0..10 {
+        let n = a / (1.0 - e2 * lat.sin().powi(2)).sqrt();
+        h = r / lat.cos() - n;
+        lat = p.z.atan2(r * (1.0 - e2 * n / (n + h)));
+    }
+    (p.y.atan2(p.x).to_degrees(), lat.to_degrees(), h)
+}
+
+/// The camera an ASP file at `path` gives, its ground in EPSG:4326.
+fn camera_of(path: &Path) -> Camera {
+    let set = gcm_ortho::camera::formats::read(path, None, None).unwrap();
+    let cam = set.camera_for(Path::new("scan.tif")).unwrap().build(path).unwrap();
+    cam.in_crs(&gcm_ortho::geodesy::Crs::from_epsg(4326).unwrap()).unwrap()
+}
+
+#[test]
+fn asp_s_kh4b_and_kh9_samples_go_ground_to_image_as_asp_s_rays_say_to_a_millionth_of_a_pixel() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, text) in [("kh4b.tsai", KH4B), ("kh9.tsai", KH9)] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        let cam = camera_of(&path);
+        assert!(matches!(cam.sensor, Sensor::Panoramic(_)), "{name}: read as a panoramic camera");
+        let asp = AspBar::parse(text);
+        let mut worst: f64 = 0.0;
+        for j in 0..=8 {
+            for i in 0..=16 {
+                let (x, y) = ((asp.size[0] - 1.0) * f64::from(i) / 16.0, (asp.size[1] - 1.0) * f64::from(j) / 8.0);
+                let (o, d) = asp.ray(x, y);
+                // Down the ray to the mean surface's sphere (the test's own).
+                let rad = asp.radius + asp.elevation;
+                let b = o.dot(&d);
+                let t = -b - (b * b - (o.norm_squared() - rad * rad)).sqrt();
+                let (lon, lat, h) = geodetic(o + t * d);
+                let (c, r) = cam.model().project(lon, lat, h).expect("the ground point is imaged");
+                worst = worst.max((c - (x + 0.5)).abs()).max((r - (y + 0.5)).abs());
+            }
+        }
+        eprintln!("{name}: worst {worst:.2e} px");
+        assert!(worst <= 1e-6, "{name}: {worst} px");
+    }
+}
+
+#[test]
+fn the_motion_compensation_moves_the_image_along_the_film_with_the_scan_s_sign() {
+    let dir = tempfile::tempdir().unwrap();
+    for dir_word in ["right", "left"] {
+        let text = KH4B.replace("scan_dir = right", &format!("scan_dir = {dir_word}"));
+        let off = text.replace("motion_compensation_factor = 1.0", "motion_compensation_factor = 0.0");
+        let (on_path, off_path) = (dir.path().join(format!("on_{dir_word}.tsai")), dir.path().join(format!("off_{dir_word}.tsai")));
+        std::fs::write(&on_path, &text).unwrap();
+        std::fs::write(&off_path, &off).unwrap();
+        let (on, off_cam) = (camera_of(&on_path), camera_of(&off_path));
+        // A ground point seen 3000 columns right of the lens axis.
+        let asp = AspBar::parse(&off);
+        let (o, d) = asp.ray(asp.centre[0] + 3000.0, asp.centre[1]);
+        let (lon, lat, h) = geodetic(o + 170_000.0 * d);
+        let (_, r_on) = on.model().project(lon, lat, h).unwrap();
+        let (c_off, r_off) = off_cam.model().project(lon, lat, h).unwrap();
+        let alpha = (c_off - 0.5 - asp.centre[0]) * asp.pitch / asp.f;
+        let rate = (asp.size[0] - 1.0) * asp.pitch / asp.f / asp.scan_time;
+        let centre = o; // (the centre's height changes by metres over the scan: far below the tolerance)
+        let height = centre.norm() - (asp.radius + asp.elevation);
+        let imc_px = asp.f * asp.speed / (height * rate) * alpha.sin() / asp.pitch;
+        let expected = if dir_word == "right" { -imc_px } else { imc_px };
+        eprintln!("scan {dir_word}: the row moves {:.3} px (expected {expected:.3})", r_on - r_off);
+        assert!(imc_px > 10.0, "a compensation worth testing: {imc_px} px");
+        assert!((r_on - r_off - expected).abs() < 1e-3 * imc_px, "scan {dir_word}: {} vs {expected}", r_on - r_off);
+    }
+}
+
+/// A KH-4B-like strip (70° scan) over `relief`, DEM posted every 300 m (about 4 output px).
+fn strip(dir: &Path, relief: gcm_ortho::synth::Relief) -> gcm_ortho::synth::SynthReport {
+    let o = gcm_ortho::synth::SynthOptions {
+        out: dir.to_path_buf(),
+        width: 2400,
+        height: 200,
+        bands: 1,
+        relief,
+        camera: gcm_ortho::synth::CameraKind::Panoramic,
+        dem_posting: 300.0,
+        ..Default::default()
+    };
+    gcm_ortho::synth::synth(&o, &gcm_ortho::progress::NoProgress).unwrap()
+}
+
+/// `sc`'s coordinate image rectified at the defaults and exactly onto the
+/// truth's grid, with `camera`; (default, exact, default's report).
+fn coordinate_runs(dir: &Path, sc: &gcm_ortho::synth::SynthReport, camera: &Path) -> (MapDifference, serde_json::Value) {
+    let coords = dir.join("coords.tif");
+    if !coords.exists() {
+        coordinate_image(&coords, 2400, 200);
+    }
+    let truth = sc.truth.as_ref().unwrap();
+    let go = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let json = out.with_extension("json");
+        let mut a = vec![
+            "rectify",
+            "--image",
+            s(&coords),
+            "--camera",
+            s(camera),
+            "--dem",
+            s(&sc.dem),
+            "--like",
+            s(truth),
+            "--nodata",
+            "-1",
+            "--compress",
+            "none",
+            "--quiet",
+        ];
+        a.extend_from_slice(extra);
+        a.extend(["-o", s(&out), "--json", s(&json)]);
+        let r = run(&a);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        (out, serde_json::from_slice::<serde_json::Value>(&std::fs::read(&json).unwrap()).unwrap())
+    };
+    let (default, report) = go("default.tif", &[]);
+    let (exact, _) = go("exact.tif", &["--sparsity", "1", "--corrections", "cell", "--memory", "1G"]);
+    (coordinate_map_difference(&default, &exact, 2400, 200), report)
+}
+
+#[test]
+fn a_kh4b_like_strip_is_within_the_bound_at_every_pixel_and_on_the_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = strip(dir.path(), gcm_ortho::synth::Relief::Hilly);
+    let (m, report) = coordinate_runs(dir.path(), &sc, &sc.camera);
+    eprintln!("panoramic strip over hills: {} px, max {:.4} px, mean {:.5} px; gcm {}", m.pixels, m.max, m.mean, report["gcm"]);
+    assert!(m.pixels > 500_000, "{} px compared", m.pixels);
+    assert!(m.max <= 0.1, "max {} px", m.max);
+    assert_eq!(report["error_within"], true, "{}", report["error_within"]);
+
+    // The picture: the scan rectified onto the truth's grid.
+    let ortho = dir.path().join("ortho.tif");
+    let r = run(&[
+        "rectify",
+        "--image",
+        s(&sc.scan),
+        "--camera",
+        s(&sc.camera),
+        "--dem",
+        s(&sc.dem),
+        "--like",
+        s(sc.truth.as_ref().unwrap()),
+        "--quiet",
+        "-o",
+        s(&ortho),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let (a, _) = whole_image(&ortho);
+    let (t, _) = whole_image(sc.truth.as_ref().unwrap());
+    let both: Vec<(f64, f64)> = a.iter().zip(&t).filter(|(x, y)| **x > 0 && **y > 0).map(|(x, y)| (f64::from(*x), f64::from(*y))).collect();
+    let mean = both.iter().map(|(x, y)| (x - y).abs()).sum::<f64>() / both.len() as f64;
+    let (ma, mt) = both.iter().fold((0.0, 0.0), |s, (x, y)| (s.0 + x / both.len() as f64, s.1 + y / both.len() as f64));
+    let (mut sab, mut saa, mut stt) = (0.0, 0.0, 0.0);
+    for (x, y) in &both {
+        sab += (x - ma) * (y - mt);
+        saa += (x - ma) * (x - ma);
+        stt += (y - mt) * (y - mt);
+    }
+    let corr = sab / (saa * stt).sqrt();
+    eprintln!("ortho against truth: {} px, mean |diff| {mean:.2} DN, correlation {corr:.4}", both.len());
+    assert!(both.len() > 300_000 && corr > 0.97, "{} px, correlation {corr}", both.len());
+}
+
+#[test]
+fn over_flat_ground_a_70_degree_scan_needs_no_refined_cell_and_asp_s_file_gives_the_same_orthophoto() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = strip(dir.path(), gcm_ortho::synth::Relief::Flat);
+    let (m, report) = coordinate_runs(dir.path(), &sc, &sc.camera);
+    let g = &report["gcm"];
+    eprintln!("flat: max {:.4} px; gcm {g}", m.max);
+    assert!(m.max <= 0.1, "max {} px", m.max);
+    // The cylinder's bending over the whole scan is carried by the
+    // corrections between nodes 16 px apart: the GCM stays sparse.
+    assert_eq!(g["refined_cells"], 0, "{g}");
+    assert!(g["exact_pixels"].as_u64().unwrap() < (m.pixels / 100) as u64, "{g}");
+    // ASP's form of the same camera: the same bytes.
+    let tsai = sc.camera.with_file_name("scan.tsai");
+    let asp = dir.path().join("asp");
+    std::fs::create_dir_all(&asp).unwrap();
+    let (a, _) = coordinate_runs(&asp, &sc, &tsai);
+    assert_eq!(read_f32(&dir.path().join("default.tif")).3, read_f32(&asp.join("default.tif")).3);
+    assert_eq!(a.max, m.max);
+}
+
+#[test]
+fn a_resection_from_ten_noisy_gcps_recovers_the_strip_s_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = strip(dir.path(), gcm_ortho::synth::Relief::Hilly);
+    // Ten of synth's checkpoints spread over the strip, 0.2 px of noise.
+    let text = std::fs::read_to_string(&sc.checkpoints).unwrap();
+    let mut rows: Vec<Vec<f64>> = text.lines().skip(1).map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    rows.sort_by(|a, b| a[4].total_cmp(&b[4]));
+    let step = rows.len() / 10;
+    let mut csv = String::from("id,col,row,x,y,z\n");
+    for (k, r) in rows.iter().step_by(step).take(10).enumerate() {
+        let noise = |i: usize| 0.2 * (((k * 7 + i * 3) % 5) as f64 / 2.0 - 1.0);
+        csv += &format!("{k},{},{},{},{},{}\n", r[4] + noise(0), r[5] + noise(1), r[1], r[2], r[3]);
+    }
+    let gcps = dir.path().join("gcps.csv");
+    std::fs::write(&gcps, csv).unwrap();
+    std::fs::write(dir.path().join("gcps.prj"), "EPSG:32631").unwrap();
+    // The camera as poor metadata gives it: 3 km and half a degree off,
+    // half the motion compensation.
+    let truth_cam = std::fs::read_to_string(&sc.camera).unwrap();
+    let mut bad = gcm_ortho::camera::file::CameraFile::parse(&truth_cam, &sc.camera).unwrap();
+    let p = bad.panoramic.as_mut().unwrap();
+    p.position_ecef[0] += 3000.0;
+    p.position_ecef[2] -= 1500.0;
+    let turn = nalgebra::Rotation3::from_euler_angles(0.005, -0.008, 0.004).into_inner();
+    let r = Matrix3::from_fn(|i, j| p.rotation[i][j]) * turn;
+    p.rotation = [[r[(0, 0)], r[(0, 1)], r[(0, 2)]], [r[(1, 0)], r[(1, 1)], r[(1, 2)]], [r[(2, 0)], r[(2, 1)], r[(2, 2)]]];
+    p.motion_compensation = 0.5;
+    let bad_path = dir.path().join("bad.toml");
+    std::fs::write(&bad_path, bad.to_toml()).unwrap();
+    let coords = dir.path().join("coords.tif");
+    coordinate_image(&coords, 2400, 200);
+    let truth = sc.truth.as_ref().unwrap();
+    let go = |camera: &Path, name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let json = out.with_extension("json");
+        let mut a = vec![
+            "rectify",
+            "--image",
+            s(&coords),
+            "--camera",
+            s(camera),
+            "--dem",
+            s(&sc.dem),
+            "--like",
+            s(truth),
+            "--nodata",
+            "-1",
+            "--compress",
+            "none",
+            "--quiet",
+        ];
+        a.extend_from_slice(extra);
+        a.extend(["-o", s(&out), "--json", s(&json)]);
+        let r = run(&a);
+        (out, r, json)
+    };
+    let (right, r, _) = go(&sc.camera, "right.tif", &[]);
+    assert!(r.status.success());
+    let (fitted, r, json) = go(&bad_path, "fitted.tif", &["--gcps", s(&gcps), "--gcp-refine", "interior"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let g = &report["gcps"];
+    eprintln!("resection: {g}");
+    assert!(g["rms_before"].as_f64().unwrap() > 20.0 && g["rms_after"].as_f64().unwrap() < 0.3, "{g}");
+    assert!(g["method"].as_str().unwrap().contains("motion compensation"), "{g}");
+    let m = coordinate_map_difference(&fitted, &right, 2400, 200);
+    eprintln!("fitted against the true camera: {} px, mean {:.3} px, max {:.3} px", m.pixels, m.mean, m.max);
+    assert!(m.pixels > 300_000 && m.mean < 0.3 && m.max < 1.5, "mean {} max {}", m.mean, m.max);
+    // Three GCPs cannot fix the dynamics: asked for, refused by name.
+    let three: String = std::fs::read_to_string(&gcps).unwrap().lines().take(4).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&gcps, three).unwrap();
+    let (_, r, _) = go(&bad_path, "three.tif", &["--gcps", s(&gcps), "--gcp-refine", "interior"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains("gcps.csv") && err.contains("6 or more"), "{err}");
+    assert!(!dir.path().join("three.tif").exists());
+}
+
+#[test]
+fn a_scan_over_180_degrees_and_no_scan_time_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let coords = dir.path().join("coords.tif");
+    coordinate_image(&coords, 13656, 8);
+    for (what, text, expect) in [
+        ("wide", KH4B.replace("pitch = 7.0e-06", "pitch = 2.0e-04"), "spans"),
+        ("still", KH4B.replace("scan_time = 0.5", "scan_time = 0"), "scan time"),
+        ("short", KH4B.replace("iC = -1030862.1946224371 ", "iC = "), "iC takes 3"),
+    ] {
+        let cam = dir.path().join(format!("{what}.tsai"));
+        std::fs::write(&cam, text).unwrap();
+        let out = dir.path().join(format!("{what}.tif"));
+        let r = run(&["rectify", "--image", s(&coords), "--camera", s(&cam), "--height", "4000", "-o", s(&out)]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success() && err.contains(&format!("{what}.tsai")) && err.contains(expect), "{what}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{what}: one line: {err}");
+        assert!(!out.exists());
+    }
+}
