@@ -327,11 +327,13 @@ pub struct SensorArgs {
     /// The scan or image: TIFF or BigTIFF (any layout), JPEG, PNG or JPEG 2000.
     #[arg(long)]
     pub image: PathBuf,
-    /// The camera file: ours (TOML; a frame camera, or model = "rpc", which
-    /// rpc-grid needs), Orthority's interior parameters (YAML), an OpenSfM /
-    /// OpenDroneMap reconstruction.json or a Metashape camera export (XML)
-    /// (lenses and poses), or "exif": the image's own EXIF/XMP tags. A
-    /// satellite image gives its RPC with --rpc instead.
+    /// The camera file: ours (TOML; a frame camera, model = "rpc", which
+    /// rpc-grid needs, or model = "panoramic"), Orthority's interior
+    /// parameters (YAML), an OpenSfM / OpenDroneMap reconstruction.json or a
+    /// Metashape camera export (XML) (lenses and poses), Ames Stereo
+    /// Pipeline's OPTICAL_BAR camera (Corona, KH-9 panoramic film), or
+    /// "exif": the image's own EXIF/XMP tags. A satellite image gives its
+    /// RPC with --rpc instead.
     #[arg(long, required_unless_present = "rpc", conflicts_with = "rpc")]
     pub camera: Option<PathBuf>,
     /// The exterior orientations of many images (Orthority's CSV or
@@ -722,9 +724,10 @@ pub struct SynthArgs {
     /// `mosaic` and the ground's true colours.
     #[arg(long)]
     pub block: Option<String>,
-    /// An in-track stereo pair of RPC views (--camera rpc) at this
-    /// base-to-height ratio: left.tif, right.tif, their _RPC.TXT and the
-    /// true heights (dem.tif), for `dem`
+    /// An in-track stereo pair at this base-to-height ratio, for `dem`:
+    /// RPC views (--camera rpc: left.tif, right.tif, their _RPC.TXT) or a
+    /// panoramic fore/aft pair (--camera panoramic: left/right .tif, .toml,
+    /// .tsai), and the true heights (dem.tif)
     #[arg(long, conflicts_with = "block")]
     pub stereo: Option<f64>,
     /// Only points for `grid`: this many at random on rolling hills with a
@@ -830,13 +833,16 @@ pub struct RectifyArgs {
     pub crs: Option<String>,
     /// Ground control points refining the model: Orthority's GCP GeoJSON,
     /// or a CSV id,col,row,x,y,z with a .prj beside it. An RPC's bias is
-    /// corrected in image space; a frame camera's pose by resection.
+    /// corrected in image space; a frame or panoramic camera's pose by
+    /// resection.
     #[arg(long)]
     pub gcps: Option<PathBuf>,
     /// auto: an RPC's bias (affine with 3 or more GCPs, else a shift), a
-    /// frame camera's pose (interior fixed); shift, affine (RPC); interior:
-    /// a frame camera's pose, focal length and principal point (5 or more
-    /// GCPs spread in height).
+    /// frame camera's pose (interior fixed), a panoramic camera's pose (and
+    /// its motion compensation where 6 or more GCPs fix it); shift, affine
+    /// (RPC); interior: a frame camera's pose, focal length and principal
+    /// point (5 or more GCPs spread in height), a panoramic camera's pose
+    /// and motion compensation (6 or more).
     #[arg(long, value_enum, default_value_t = GcpRefine::Auto, requires = "gcps")]
     pub gcp_refine: GcpRefine,
     /// The most any GCP may sit off the refined model, image pixels: past

@@ -586,13 +586,15 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
     }
     let o = a.options()?;
     if let Some(bh) = a.stereo {
-        if o.camera != gcm_ortho::synth::CameraKind::Rpc {
-            return Err(usage("--stereo: only for --camera rpc (a frame pair: --block 2x1)".into()));
-        }
-        let r = gcm_ortho::synth::satellite::synth_rpc_pair(&o, bh, &Bar::new(a.quiet))?;
+        let r = match o.camera {
+            gcm_ortho::synth::CameraKind::Rpc => gcm_ortho::synth::satellite::synth_rpc_pair(&o, bh, &Bar::new(a.quiet))?,
+            gcm_ortho::synth::CameraKind::Panoramic => gcm_ortho::synth::panoramic::synth_panoramic_pair(&o, bh, &Bar::new(a.quiet))?,
+            _ => return Err(usage("--stereo: only for --camera rpc or panoramic (a frame pair: --block 2x1)".into())),
+        };
         if !a.quiet {
             say!(
-                "synth: an RPC stereo pair of {}x{} at B/H {}, relief {:.0} to {:.0} m, {:.1} s\n  {}\n  {}\n  {}",
+                "synth: a{} stereo pair of {}x{} at B/H {}, relief {:.0} to {:.0} m, {:.1} s\n  {}\n  {}\n  {}",
+                if o.camera == gcm_ortho::synth::CameraKind::Rpc { "n RPC" } else { " panoramic" },
                 o.width,
                 o.height,
                 r.base_to_height,

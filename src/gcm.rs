@@ -200,6 +200,10 @@ pub const A_LINEAR_TOLERANCE: f64 = 1.0 / 4096.0;
 /// in set-up than working every position out.
 pub const MAX_SPANS_A_GAP: usize = 4;
 
+/// Scan pixels the widest resampling kernel reaches from its centre
+/// (Lanczos-3), plus one: a position further off the scan takes nothing.
+const OFF_SCAN_REACH: f64 = 4.0;
+
 /// The forward differences (first step, and its step) of the quadratic
 /// through `f` at pixels `p0` (where it is `f0`), the middle one and
 /// `p1 − 1`: the span from `p0` steps `f0, f0 + d, f0 + 2d + dd, …`.
@@ -338,6 +342,29 @@ impl<'a> Gcm<'a> {
     fn among_pixels(&self, u: f64, v: f64) -> bool {
         let (w, h) = (self.t.grid.width as f64, self.t.grid.height as f64);
         (0.5..=w - 0.5).contains(&u) && (0.5..=h - 0.5).contains(&v)
+    }
+
+    /// Whether no pixel of the piece `q` can take a value from the scan:
+    /// its four corners lie beyond one side of it by more than twice the
+    /// piece's estimated error and the widest resampling kernel's reach.
+    /// The interpolated positions inside are then outside too, as the
+    /// exact ones are: refining there (the empty corners of a panoramic
+    /// strip's north-up grid, an oblique frame's far side) would cost
+    /// exact evaluations for pixels that stay empty either way.
+    fn off_the_scan(&self, q: &Quad, error: f64) -> bool {
+        let Some((sw, sh)) = self.t.scan else { return false };
+        if !error.is_finite() {
+            return false;
+        }
+        let margin = 2.0 * error + OFF_SCAN_REACH;
+        let (u1, v1) = (q.u0 + q.du, q.v0 + q.dv);
+        let mut at = [[0.0; 2]; 4];
+        for (k, (u, v)) in [(q.u0, q.v0), (u1, q.v0), (q.u0, v1), (u1, v1)].into_iter().enumerate() {
+            let Some((ac, ar)) = self.a.at(u, v) else { return false };
+            at[k] = [ac + q.corners[k][0], ar + q.corners[k][1]];
+        }
+        let all = |f: &dyn Fn(&[f64; 2]) -> bool| at.iter().all(f);
+        all(&|p| p[0] < -margin) || all(&|p| p[0] > sw + margin) || all(&|p| p[1] < -margin) || all(&|p| p[1] > sh + margin)
     }
 
     /// Correction `T − A` at (u, v), NaN where either has no value.
@@ -943,7 +970,7 @@ impl<'a> Gcm<'a> {
     /// (inside one DEM column) or exact.
     fn refine(&self, q: &Quad, bound: f64, stats: &mut GcmStats, miss: &mut Option<(f64, f64, Lookup)>, quads: &mut Vec<Node>) -> Node {
         let error = q.smooth + self.terrain_error(q);
-        if error <= bound {
+        if error <= bound || self.off_the_scan(q, error) {
             return Node::Leaf(q.corners);
         }
         // Splitting costs 5 exact evaluations and the pieces' checks; below

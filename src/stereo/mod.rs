@@ -184,7 +184,9 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
     let pointing = pool.install(|| pointing::estimate(&frame, &ls, &rs))?;
     // Over two frames' guessed heights (kilometres) the figure says
     // nothing of the ground: only a search the user or the RPCs bounded.
-    let guessed = o.heights.is_none() && o.dem_init.is_none() && !matches!(left_cam.sensor, crate::camera::file::Sensor::Rpc(_));
+    let guessed = o.heights.is_none()
+        && o.dem_init.is_none()
+        && !matches!(left_cam.sensor, crate::camera::file::Sensor::Rpc(_) | crate::camera::file::Sensor::Panoramic(_));
     if frame.vertical_parallax_px > 1.0 && !guessed {
         let w = format!(
             "the pair's epipolar rows leave {:.2} px of parallax across them somewhere in the heights searched: matches there may be missed",
@@ -518,7 +520,10 @@ fn cameras(o: &StereoOptions) -> Result<(Camera, Camera, Crs)> {
         Some(c) => c.clone(),
         None => {
             let (lc, rc) = (l.crs.clone(), r.crs.clone());
-            let frames = !matches!(l.sensor, crate::camera::file::Sensor::Rpc(_)) && !matches!(r.sensor, crate::camera::file::Sensor::Rpc(_));
+            // (An RPC's or a panoramic camera's CRS is only where its
+            // orthophoto goes: the right's is brought into the left's.)
+            use crate::camera::file::Sensor::{Panoramic, Rpc};
+            let frames = !matches!(l.sensor, Rpc(_) | Panoramic(_)) && !matches!(r.sensor, Rpc(_) | Panoramic(_));
             if frames && lc != rc {
                 return Err(Error::Named(format!(
                     "{} and {}: the cameras' positions are in different CRSs ({} and {}): give --crs for the DSM and both are brought into it",
@@ -566,6 +571,12 @@ fn search_heights(o: &StereoOptions, l: &Camera, r: &Camera, crs: &Crs) -> Resul
             }
             Ok([a0.min(b0), a1.max(b1)])
         }
+        (Sensor::Panoramic(a), Sensor::Panoramic(b)) => {
+            // The files' mean surface, 2 km below and 3 km above: the pair's
+            // sparse matches then narrow the search to the overlap's heights.
+            let (ha, hb) = (a.height_hint(), b.height_hint());
+            Ok([ha.min(hb) - 2000.0, ha.max(hb) + 3000.0])
+        }
         (a, b) => {
             // Two frames: the ground lies somewhere below them at the
             // distance a base-to-height ratio of 0.1 to 1 puts it; the
@@ -577,7 +588,7 @@ fn search_heights(o: &StereoOptions, l: &Camera, r: &Camera, crs: &Crs) -> Resul
                 Sensor::Rpc(_) | Sensor::Panoramic(_) => None,
             };
             let (Some(ca), Some(cb)) = (centre(a), centre(b)) else {
-                return Err(Error::setting("heights", "an RPC with a frame camera: give --heights LOWEST,HIGHEST or --dem-init"));
+                return Err(Error::setting("heights", "two cameras of different kinds: give --heights LOWEST,HIGHEST or --dem-init"));
             };
             let base = (ca - cb).norm();
             let top = ca.z.min(cb.z);

@@ -8,7 +8,7 @@
 pub mod block;
 pub mod film_marks;
 pub mod noise;
-mod panoramic;
+pub mod panoramic;
 pub mod points;
 mod render;
 pub mod satellite;

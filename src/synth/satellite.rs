@@ -198,8 +198,9 @@ pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progre
 pub struct PairReport {
     pub left: std::path::PathBuf,
     pub right: std::path::PathBuf,
-    pub left_rpc: std::path::PathBuf,
-    pub right_rpc: std::path::PathBuf,
+    /// Each view's model: its RPC file, or its camera file.
+    pub left_model: std::path::PathBuf,
+    pub right_model: std::path::PathBuf,
     /// The ground's true heights (EPSG:4326, ellipsoidal).
     pub dem: std::path::PathBuf,
     pub base_to_height: f64,
@@ -260,8 +261,8 @@ pub fn synth_rpc_pair(o: &SynthOptions, base_to_height: f64, progress: &dyn crat
     Ok(PairReport {
         left: out("left.tif"),
         right: out("right.tif"),
-        left_rpc: out("left_RPC.TXT"),
-        right_rpc: out("right_RPC.TXT"),
+        left_model: out("left_RPC.TXT"),
+        right_model: out("right_RPC.TXT"),
         dem: dem_path,
         base_to_height,
         relief_range: [zlo, zhi],
