@@ -211,21 +211,28 @@ impl OpticalBar {
     pub fn image_of(&self, p: &Vector3<f64>) -> Option<(f64, f64)> {
         let rt = self.rotation.transpose();
         // The column sets the instant, the instant the centre, the centre
-        // the angle: a fixed point that contracts by about the distance
-        // flown over the scan against the distance seen (a hundredth).
+        // the angle: Newton's method on the column, whose equation
+        // g(c) = c − c₀ − α(c)·f/p is nearly linear (the centre moves a
+        // hundredth as far as the ground seen), two or three steps.
+        let last = f64::from(self.size[0] - 1);
+        let per_col = if self.left_to_right { 1.0 / last } else { -1.0 / last };
+        // How the point moves in the camera frame a column on.
+        let e = -per_col * (rt * self.travel());
+        let k = self.focal / self.pitch;
         let mut col = self.centre_px[0];
         let mut alpha = 0.0;
-        for _ in 0..60 {
+        for _ in 0..30 {
             let c = self.centre_at(col);
             let d = rt * (p - c) - self.mirror(alpha);
             if d.z <= 0.0 {
                 return None;
             }
             alpha = d.x.atan2(d.z);
-            let next = self.centre_px[0] + alpha * self.focal / self.pitch;
-            let step = next - col;
-            col = next;
-            if step.abs() < 1e-10 {
+            let g = col - self.centre_px[0] - alpha * k;
+            let slope = 1.0 - k * (d.z * e.x - d.x * e.z) / (d.x * d.x + d.z * d.z);
+            let step = g / slope;
+            col -= step;
+            if step.abs() < 1e-9 {
                 let c = self.centre_at(col);
                 let y = self.focal * d.y / d.x.hypot(d.z) - self.imc(alpha, &c);
                 return Some((col, self.centre_px[1] + y / self.pitch));
@@ -294,6 +301,21 @@ impl PanoramicCamera {
 impl SensorModel for PanoramicCamera {
     fn project(&self, x: f64, y: f64, z: f64) -> Option<(f64, f64)> {
         self.bar.image_of(&self.ecef(x, y, z)?)
+    }
+
+    fn lonlat_from(&self) -> Option<&crate::geodesy::Crs> {
+        Some(&self.crs.crs)
+    }
+
+    fn project_many_lonlat(&self, lon: &[f64], lat: &[f64], z: &[f64], col: &mut [f64], row: &mut [f64]) {
+        assert!(
+            lat.len() == lon.len() && z.len() == lon.len() && col.len() == lon.len() && row.len() == lon.len(),
+            "project_many_lonlat: arrays of one length"
+        );
+        for k in 0..lon.len() {
+            let p = self.ellipsoidal(lon[k], lat[k], z[k]).and_then(|h| self.bar.image_of(&to_ecef(lon[k], lat[k], h)));
+            (col[k], row[k]) = p.unwrap_or((f64::NAN, f64::NAN));
+        }
     }
 
     fn locate_approx(&self, col: f64, row: f64, z: f64) -> Option<(f64, f64)> {

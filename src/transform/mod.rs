@@ -40,11 +40,22 @@ pub struct Transform<'a> {
     /// The scan's size (columns, rows), where known: what lies outside it
     /// is never resampled.
     pub scan: Option<(f64, f64)>,
+    /// The DEM and the model convert ground points to WGS84 longitude and
+    /// latitude alike (an RPC or a panoramic camera over a DEM in
+    /// EPSG:4326): the DEM's conversion serves the model too.
+    share_lonlat: bool,
+}
+
+/// Whether `dem` and `model` convert ground points to longitude and
+/// latitude alike.
+fn shares_lonlat(model: &dyn SensorModel, dem: &Dem) -> bool {
+    let from = model.lonlat_from();
+    from.is_some() && from == dem.lonlat_from()
 }
 
 impl<'a> Transform<'a> {
     pub fn new(model: &'a dyn SensorModel, dem: &'a Dem, grid: OutputGrid) -> Self {
-        Transform { model, dem, grid, transposed: false, scan: None }
+        Transform { model, dem, grid, transposed: false, scan: None, share_lonlat: shares_lonlat(model, dem) }
     }
 
     /// The same, knowing the scan is `size` (columns, rows).
@@ -57,7 +68,7 @@ impl<'a> Transform<'a> {
     /// output then reads scan rows along each of them.
     pub fn transposed(model: &'a dyn SensorModel, dem: &'a Dem, grid: OutputGrid) -> Self {
         let walked = OutputGrid { width: grid.height, height: grid.width, ..grid };
-        Transform { model, dem, grid: walked, transposed: true, scan: None }
+        Transform { model, dem, grid: walked, transposed: true, scan: None, share_lonlat: shares_lonlat(model, dem) }
     }
 
     pub fn is_transposed(&self) -> bool {
@@ -78,6 +89,25 @@ impl<'a> Transform<'a> {
     #[inline]
     pub fn exact(&self, u: f64, v: f64) -> Mapped {
         let (x, y) = self.ground(u, v);
+        if self.share_lonlat {
+            return match self.dem.height_and_lonlat(x, y) {
+                (Height::Value(z), Some((lon, lat))) => {
+                    let (mut c, mut r) = ([0.0], [0.0]);
+                    self.model.project_many_lonlat(&[lon], &[lat], &[z], &mut c, &mut r);
+                    if c[0].is_nan() || r[0].is_nan() {
+                        Mapped::Nodata
+                    } else {
+                        Mapped::Px(c[0], r[0])
+                    }
+                }
+                (Height::Value(z), None) => match self.model.project(x, y, z) {
+                    Some((c, r)) => Mapped::Px(c, r),
+                    None => Mapped::Nodata,
+                },
+                (Height::Nodata, _) => Mapped::Nodata,
+                (Height::Missing(l), _) => Mapped::DemMiss(x, y, l),
+            };
+        }
         match self.dem.height(x, y) {
             Height::Value(z) => match self.model.project(x, y, z) {
                 Some((c, r)) => Mapped::Px(c, r),
@@ -119,14 +149,31 @@ impl<'a> Transform<'a> {
         let (mut x, mut y, mut z) = ([0.0; BATCH], [0.0; BATCH], [0.0; BATCH]);
         let (mut c, mut r) = ([0.0; BATCH], [0.0; BATCH]);
         let mut which = [0usize; BATCH];
+        // With the DEM's longitude and latitude for the model (x, y hold
+        // them then): every point of a batch has them, or none has.
+        let mut lonlat = self.share_lonlat;
         for batch in at.chunks(BATCH) {
             let mut n = 0;
             for &i in batch {
                 let (gx, gy) = self.ground(u0 + i as f64, v);
                 (cols[i], rows[i]) = (f64::NAN, f64::NAN);
-                match self.dem.height(gx, gy) {
+                let (height, ll) = if lonlat { self.dem.height_and_lonlat(gx, gy) } else { (self.dem.height(gx, gy), None) };
+                match height {
                     Height::Value(h) => {
-                        (x[n], y[n], z[n], which[n]) = (gx, gy, h, i);
+                        let (px, py) = match ll {
+                            Some(ll) => ll,
+                            None if lonlat => {
+                                // (A point without them: the batches go on
+                                // from ground coordinates.)
+                                lonlat = false;
+                                for k in 0..n {
+                                    (x[k], y[k]) = self.ground(u0 + which[k] as f64, v);
+                                }
+                                (gx, gy)
+                            }
+                            None => (gx, gy),
+                        };
+                        (x[n], y[n], z[n], which[n]) = (px, py, h, i);
                         n += 1;
                     }
                     Height::Nodata => {}
@@ -135,7 +182,11 @@ impl<'a> Transform<'a> {
                     }
                 }
             }
-            self.model.project_many(&x[..n], &y[..n], &z[..n], &mut c[..n], &mut r[..n]);
+            if lonlat {
+                self.model.project_many_lonlat(&x[..n], &y[..n], &z[..n], &mut c[..n], &mut r[..n]);
+            } else {
+                self.model.project_many(&x[..n], &y[..n], &z[..n], &mut c[..n], &mut r[..n]);
+            }
             for k in 0..n {
                 (cols[which[k]], rows[which[k]]) = (c[k], r[k]);
             }
