@@ -437,6 +437,66 @@ impl CameraFile {
     }
 }
 
+impl CameraFile {
+    /// A camera file for `bar`, its orthophoto in `crs` ("auto": the UTM
+    /// zone under the camera).
+    #[must_use]
+    pub fn panoramic(bar: &super::panoramic::OpticalBar, crs: &str) -> CameraFile {
+        CameraFile {
+            crs: crs.into(),
+            camera: CameraSection { model: "panoramic".into(), focal_length_mm: Some(bar.focal * 1000.0) },
+            interior: None,
+            distortion: None,
+            exterior: None,
+            corrections: CorrectionsSection::default(),
+            rpc: None,
+            panoramic: Some(super::panoramic_file::PanoramicSection::of(bar, None)),
+        }
+    }
+
+    /// `model = "panoramic"`: the optical bar from `[panoramic]`, the
+    /// ground CRS from `crs` (empty or `"auto"`: the UTM zone under the
+    /// camera's first position).
+    fn build_panoramic(self, path: &Path) -> Result<Camera> {
+        let err = |field: &str, msg: String| Error::config(path, field, msg);
+        for (section, present) in [
+            ("interior", self.interior.is_some()),
+            ("exterior", self.exterior.is_some()),
+            ("distortion", self.distortion.is_some()),
+            ("rpc", self.rpc.is_some()),
+        ] {
+            if present {
+                return Err(err(section, "not used by a panoramic camera".into()));
+            }
+        }
+        let sec = self.panoramic.clone().ok_or_else(|| err("panoramic", "missing section".into()))?;
+        let f = self.camera.focal_length_mm.ok_or_else(|| err("camera.focal_length_mm", "missing".into()))?;
+        let bar = sec.bar(f);
+        bar.check().map_err(|(field, m)| err(&field, m))?;
+        let near = |f: &str| path.parent().unwrap_or(Path::new("")).join(f);
+        let (lon, lat, _) = crate::geodesy::ecef::from_ecef(bar.position);
+        let geoid = match &sec.geoid {
+            Some(g) => {
+                let geoid = Geoid::read(&near(g))?;
+                if geoid.undulation(lon, lat).is_none() {
+                    return Err(Error::format(&geoid.path, format!("the geoid grid does not cover the camera's position ({lon:.4}°, {lat:.4}°)")));
+                }
+                Some(geoid)
+            }
+            None => None,
+        };
+        let crs = if self.crs.trim().is_empty() || self.crs.trim().eq_ignore_ascii_case("auto") {
+            utm_zone(lon, lat)
+        } else {
+            Crs::parse(&self.crs, path.parent().unwrap_or(Path::new("")))
+                .map_err(|m| err("crs", format!("{m}, or \"auto\" (the UTM zone under the camera)")))?
+        };
+        let ground = GroundCrs::new(&crs).map_err(|m| err("crs", m))?;
+        let model = super::panoramic::PanoramicCamera::new(bar, ground, geoid);
+        Ok(Camera { crs, sensor: Sensor::Panoramic(model), file: self, warnings: Vec::new(), relative_altitude: None })
+    }
+}
+
 impl Camera {
     pub fn read(path: &Path) -> Result<Camera> {
         CameraFile::read(path)?.build(path)

@@ -17,6 +17,8 @@
 
 use super::file::{Camera, Sensor};
 use super::frame::FrameCamera;
+use super::gcp_points::{refuse_collinear, rms};
+pub use super::gcp_points::{Gcp, GcpFit, GcpResidual};
 use super::rotation::AngleConvention;
 use super::SensorModel;
 use crate::error::{Error, Result};
@@ -25,22 +27,6 @@ use crate::geom::Affine2;
 use crate::io::bounded_read::{read_text_bounded, LIST};
 use nalgebra::{DMatrix, DVector, Vector3};
 use std::path::Path;
-
-/// One ground control point.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Gcp {
-    pub id: String,
-    /// Where the image shows it (pixel centres at +½).
-    pub col: f64,
-    pub row: f64,
-    /// Where it is: WGS 84 longitude, latitude (degrees) and height (m).
-    pub lon: f64,
-    pub lat: f64,
-    pub height: f64,
-    /// The height is above the ellipsoid (Orthority's files), not in the
-    /// DEM's datum.
-    pub ellipsoidal: bool,
-}
 
 /// How an RPC's bias is modelled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -51,27 +37,6 @@ pub enum BiasModel {
     Affine,
     /// A frame camera: its pose, focal length and principal point.
     Interior,
-}
-
-/// What a refinement did: each point's residual before and after (image
-/// pixels, image − model), and the correction.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct GcpFit {
-    /// "rpc shift", "rpc affine" or "resection".
-    pub method: String,
-    pub points: Vec<GcpResidual>,
-    pub rms_before: f64,
-    pub rms_after: f64,
-    /// The RPC's image-space correction (col' = a·col + b·row + c, row' = …),
-    /// or the frame camera's new exterior orientation, as text.
-    pub correction: String,
-}
-
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct GcpResidual {
-    pub id: String,
-    pub before: [f64; 2],
-    pub after: [f64; 2],
 }
 
 /// The GCPs of `image` in the file at `path`.
@@ -227,10 +192,6 @@ pub fn refine(camera: &mut Camera, gcps: &[Gcp], model: BiasModel, max_residual:
     Ok(fit)
 }
 
-fn rms(v: &[[f64; 2]]) -> f64 {
-    (v.iter().map(|d| d[0] * d[0] + d[1] * d[1]).sum::<f64>() / v.len().max(1) as f64).sqrt()
-}
-
 fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasModel, source: &Path) -> Result<GcpFit> {
     if model == BiasModel::Interior {
         return Err(Error::setting("gcp_refine", "interior refines a frame camera; an RPC's bias is a shift or an affine map"));
@@ -289,34 +250,6 @@ fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasMo
 /// rotation and the interior's changes). A solution the points do not fix
 /// — the interior from points near one plane seen square-on, where focal
 /// length and flying height trade off — is refused.
-/// Refuses GCPs on one line on the ground: the camera may turn about it
-/// freely, and a resection on them fits anything.
-pub(super) fn refuse_collinear(points: &[Vector3<f64>], source: &Path) -> Result<()> {
-    let n = points.len() as f64;
-    let mean = points.iter().fold(Vector3::zeros(), |m, p| m + p) / n;
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for p in points {
-        let (dx, dy) = (p.x - mean.x, p.y - mean.y);
-        sxx += dx * dx;
-        sxy += dx * dy;
-        syy += dy * dy;
-    }
-    // The spread across the points' main line against the spread along it.
-    let (half_trace, det) = ((sxx + syy) / 2.0, sxx * syy - sxy * sxy);
-    let root = (half_trace * half_trace - det).max(0.0).sqrt();
-    let (along, across) = (half_trace + root, (half_trace - root).max(0.0));
-    if across.sqrt() <= 1e-3 * along.sqrt() {
-        return Err(Error::format(
-            source,
-            format!(
-                "the {} GCPs lie on one line on the ground: a resection needs points spread across the image, three or more off any one line",
-                points.len()
-            ),
-        ));
-    }
-    Ok(())
-}
-
 fn resection(f: &FrameCamera, gcps: &[Gcp], crs: &Crs, interior: bool, source: &Path) -> Result<(FrameCamera, GcpFit)> {
     let least = if interior { 5 } else { 3 };
     if gcps.len() < least {

@@ -7,6 +7,7 @@ pub mod file;
 pub mod formats;
 pub mod frame;
 pub mod gcp;
+pub mod gcp_points;
 pub mod interior;
 pub mod lanes;
 pub mod panoramic;

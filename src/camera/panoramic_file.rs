@@ -1,16 +1,14 @@
-//! `model = "panoramic"` in the camera file: the `[panoramic]` section, and
-//! Ames Stereo Pipeline's `OPTICAL_BAR` camera files (VERSION_4) read as
-//! they are into it.
+//! `model = "panoramic"` in the camera file: the `[panoramic]` section
+//! (the camera file builds it: `CameraFile::build`), and Ames Stereo
+//! Pipeline's `OPTICAL_BAR` camera files (VERSION_4) read as they are into
+//! it.
 //!
 //! ASP's pixel (0, 0) is the first pixel's centre; ours is (0.5, 0.5), so
 //! its `image_center` is shifted by half a pixel on reading. Its `iR` is
 //! the camera-to-ECEF rotation, written row by row.
 
-use super::file::{Camera, CameraFile, CameraSection, CorrectionsSection, Sensor};
-use super::panoramic::{OpticalBar, PanoramicCamera};
+use super::panoramic::OpticalBar;
 use crate::error::{Error, Result};
-use crate::geodesy::ecef::from_ecef;
-use crate::geodesy::{utm_zone, Crs, Geoid, GroundCrs};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -126,66 +124,6 @@ impl PanoramicSection {
     }
 }
 
-impl CameraFile {
-    /// A camera file for `bar`, its orthophoto in `crs` ("auto": the UTM
-    /// zone under the camera).
-    #[must_use]
-    pub fn panoramic(bar: &OpticalBar, crs: &str) -> CameraFile {
-        CameraFile {
-            crs: crs.into(),
-            camera: CameraSection { model: "panoramic".into(), focal_length_mm: Some(bar.focal * 1000.0) },
-            interior: None,
-            distortion: None,
-            exterior: None,
-            corrections: CorrectionsSection::default(),
-            rpc: None,
-            panoramic: Some(PanoramicSection::of(bar, None)),
-        }
-    }
-
-    /// `model = "panoramic"`: the optical bar from `[panoramic]`, the
-    /// ground CRS from `crs` (empty or `"auto"`: the UTM zone under the
-    /// camera's first position).
-    pub(super) fn build_panoramic(self, path: &Path) -> Result<Camera> {
-        let err = |field: &str, msg: String| Error::config(path, field, msg);
-        for (section, present) in [
-            ("interior", self.interior.is_some()),
-            ("exterior", self.exterior.is_some()),
-            ("distortion", self.distortion.is_some()),
-            ("rpc", self.rpc.is_some()),
-        ] {
-            if present {
-                return Err(err(section, "not used by a panoramic camera".into()));
-            }
-        }
-        let sec = self.panoramic.clone().ok_or_else(|| err("panoramic", "missing section".into()))?;
-        let f = self.camera.focal_length_mm.ok_or_else(|| err("camera.focal_length_mm", "missing".into()))?;
-        let bar = sec.bar(f);
-        bar.check().map_err(|(field, m)| err(&field, m))?;
-        let near = |f: &str| path.parent().unwrap_or(Path::new("")).join(f);
-        let (lon, lat, _) = from_ecef(bar.position);
-        let geoid = match &sec.geoid {
-            Some(g) => {
-                let geoid = Geoid::read(&near(g))?;
-                if geoid.undulation(lon, lat).is_none() {
-                    return Err(Error::format(&geoid.path, format!("the geoid grid does not cover the camera's position ({lon:.4}°, {lat:.4}°)")));
-                }
-                Some(geoid)
-            }
-            None => None,
-        };
-        let crs = if self.crs.trim().is_empty() || self.crs.trim().eq_ignore_ascii_case("auto") {
-            utm_zone(lon, lat)
-        } else {
-            Crs::parse(&self.crs, path.parent().unwrap_or(Path::new("")))
-                .map_err(|m| err("crs", format!("{m}, or \"auto\" (the UTM zone under the camera)")))?
-        };
-        let ground = GroundCrs::new(&crs).map_err(|m| err("crs", m))?;
-        let model = PanoramicCamera::new(bar, ground, geoid);
-        Ok(Camera { crs, sensor: Sensor::Panoramic(model), file: self, warnings: Vec::new(), relative_altitude: None })
-    }
-}
-
 /// True where `text` is an ASP optical-bar camera file.
 #[must_use]
 pub fn looks_like_asp(text: &str) -> bool {
@@ -194,8 +132,9 @@ pub fn looks_like_asp(text: &str) -> bool {
 }
 
 /// An ASP `OPTICAL_BAR` camera file (VERSION_4, with or without the
-/// optional `velocity` line) as our camera file; its CRS left to the run.
-pub fn read_asp(path: &Path, text: &str) -> Result<CameraFile> {
+/// optional `velocity` line): our `[panoramic]` section and the focal
+/// length, mm.
+pub fn read_asp(path: &Path, text: &str) -> Result<(PanoramicSection, f64)> {
     let mut fields: Vec<(usize, &str, Vec<&str>)> = Vec::new();
     for (n, line) in text.lines().enumerate() {
         let line = line.trim();
@@ -276,16 +215,7 @@ pub fn read_asp(path: &Path, text: &str) -> Result<CameraFile> {
         mirror_offset_mm: 0.0,
         geoid: None,
     };
-    Ok(CameraFile {
-        crs: String::new(),
-        camera: CameraSection { model: "panoramic".into(), focal_length_mm: Some(get("f", 1)?[0] * 1000.0) },
-        interior: None,
-        distortion: None,
-        exterior: None,
-        corrections: CorrectionsSection::default(),
-        rpc: None,
-        panoramic: Some(section),
-    })
+    Ok((section, get("f", 1)?[0] * 1000.0))
 }
 
 /// ASP's optical-bar file for `bar` (VERSION_4; the `velocity` line where
@@ -344,13 +274,12 @@ scan_dir = left
     #[test]
     fn asp_s_kh9_sample_reads_and_writes_back_the_same_numbers() {
         assert!(looks_like_asp(KH9));
-        let file = read_asp(Path::new("kh9.tsai"), KH9).unwrap();
-        let sec = file.panoramic.as_ref().unwrap();
+        let (sec, focal) = read_asp(Path::new("kh9.tsai"), KH9).unwrap();
         assert_eq!(sec.centre_px, [55254.0, 3952.5]);
         assert_eq!(sec.scan, ScanDirection::RightToLeft);
-        let bar = sec.bar(file.camera.focal_length_mm.unwrap());
-        let again = read_asp(Path::new("again.tsai"), &asp_text(&bar)).unwrap();
-        let bar2 = again.panoramic.as_ref().unwrap().bar(again.camera.focal_length_mm.unwrap());
+        let bar = sec.bar(focal);
+        let (again, focal2) = read_asp(Path::new("again.tsai"), &asp_text(&bar)).unwrap();
+        let bar2 = again.bar(focal2);
         assert!((bar2.focal - bar.focal).abs() < 1e-15 && (bar2.forward_tilt - bar.forward_tilt).abs() < 1e-15);
         assert_eq!(bar2.rotation, bar.rotation);
     }

@@ -19,7 +19,7 @@
 //! all three on ten GCPs of a synthetic strip put the tilt at 72° with
 //! 0.17 px residuals), so the one separable term stands for them.
 
-use super::gcp::{Gcp, GcpFit, GcpResidual};
+use super::gcp_points::{refuse_collinear, rms, Gcp, GcpFit, GcpResidual};
 use super::panoramic::{OpticalBar, PanoramicCamera};
 use crate::error::{Error, Result};
 use crate::geodesy::ecef::{nearest_rotation, to_ecef};
@@ -52,7 +52,7 @@ pub fn resection(cam: &PanoramicCamera, gcps: &[Gcp], dynamics: Option<bool>, so
         let (x, y) = cam.crs.from_lonlat(g.lon, g.lat).ok_or_else(|| Error::format(source, format!("GCP {}: outside the CRS", g.id)))?;
         local.push(Vector3::new(x, y, g.height));
     }
-    super::gcp::refuse_collinear(&local, source)?;
+    refuse_collinear(&local, source)?;
     let residuals =
         |bar: &OpticalBar| -> Option<Vec<[f64; 2]>> { points.iter().zip(gcps).map(|(p, g)| bar.image_of(p).map(|(c, r)| [g.col - c, g.row - r])).collect() };
     let left_view = || Error::format(source, "the panoramic resection left the GCPs' view");
@@ -125,7 +125,6 @@ pub fn resection(cam: &PanoramicCamera, gcps: &[Gcp], dynamics: Option<bool>, so
     if method.contains("compensation") {
         correction += &format!(", motion compensation {:.4} (was {:.4})", bar.motion_compensation, start.motion_compensation);
     }
-    let rms = |v: &[[f64; 2]]| (v.iter().map(|d| d[0] * d[0] + d[1] * d[1]).sum::<f64>() / v.len().max(1) as f64).sqrt();
     let fit = GcpFit {
         method: method.into(),
         points: gcps.iter().zip(before.iter().zip(&after)).map(|(g, (b, a))| GcpResidual { id: g.id.clone(), before: *b, after: *a }).collect(),

@@ -378,7 +378,21 @@ fn read_one(path: &Path, for_lenses: bool, image: Option<&Path>) -> Result<Impor
         Kind::OrthorityGeoJson => orthority::read_geojson(path, text)?,
         Kind::OpenSfmReconstruction | Kind::OpenSfmCameras => opensfm::read(path, text)?,
         Kind::MetashapeXml => metashape::read(path, text)?,
-        Kind::AspOpticalBar => Imported { base: Some(crate::camera::panoramic_file::read_asp(path, text)?), ..Default::default() },
+        Kind::AspOpticalBar => {
+            let (section, focal_mm) = crate::camera::panoramic_file::read_asp(path, text)?;
+            // The CRS is left to the run (--crs, else the UTM zone under the camera).
+            let file = CameraFile {
+                crs: String::new(),
+                camera: CameraSection { model: "panoramic".into(), focal_length_mm: Some(focal_mm) },
+                interior: None,
+                distortion: None,
+                exterior: None,
+                corrections: Default::default(),
+                rpc: None,
+                panoramic: Some(section),
+            };
+            Imported { base: Some(file), ..Default::default() }
+        }
         Kind::Pix4dCalibrated => pix4d::read_calibrated(path, text, for_lenses)?,
         Kind::Pix4dCam => {
             let image = image.ok_or_else(|| {
