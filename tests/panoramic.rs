@@ -12,39 +12,10 @@ use gcm_ortho::camera::file::{Camera, Sensor};
 use nalgebra::{Matrix3, Vector3};
 use std::path::Path;
 
-const KH4B: &str = "VERSION_4
-OPTICAL_BAR
-image_size = 13656 1033
-image_center = 6828 517
-pitch = 7.0e-06
-f = 0.61000001430511475
-scan_time = 0.5
-forward_tilt = 0.2618
-iC = -1030862.1946224371 5468503.8842079658 3407902.5154047827
-iR = -0.95700845635275322 -0.27527006183758934 0.091439638698163225 -0.26345593052063937 0.69302501329766897 -0.67104940475144637 0.1213498543172795 -0.66629027007731101 -0.73575232847574434
-speed = 7700
-mean_earth_radius = 6371000
-mean_surface_elevation = 4000
-motion_compensation_factor = 1.0
-scan_dir = right
-";
-
-const KH9: &str = "VERSION_4
-OPTICAL_BAR
-image_size = 110507 7904
-image_center = 55253.5 3952
-pitch = 7.0e-06
-f = 0.61000001430511475
-scan_time = 0.5
-forward_tilt = -0.261799
-iC = -1047140.9611702315 5508464.4323527571 3340425.4078937685
-iR = -0.96635634448923746 -0.16918164442572045 0.1937343197650008 -0.23427205529446918 0.26804084264169648 -0.93448954557235941 0.10616976770014927 -0.94843643849513648 -0.29865750042675621
-speed = 7700
-mean_earth_radius = 6371000
-mean_surface_elevation = 4000
-motion_compensation_factor = 1.0
-scan_dir = left
-";
+/// ASP's published sample cameras (its documentation's KH-4B and KH-9).
+fn sample(name: &str) -> String {
+    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/panoramic").join(name)).unwrap()
+}
 
 /// ASP's optical bar, pixel → ray, from its published equations (not the
 /// project's code): ASP pixels (the first pixel's centre at 0, 0).
@@ -136,7 +107,8 @@ fn camera_of(path: &Path) -> Camera {
 #[test]
 fn asp_s_kh4b_and_kh9_samples_go_ground_to_image_as_asp_s_rays_say_to_a_millionth_of_a_pixel() {
     let dir = tempfile::tempdir().unwrap();
-    for (name, text) in [("kh4b.tsai", KH4B), ("kh9.tsai", KH9)] {
+    for (name, text) in [("kh4b.tsai", sample("kh4b_sample.tsai")), ("kh9.tsai", sample("kh9_sample.tsai"))] {
+        let text = text.as_str();
         let path = dir.path().join(name);
         std::fs::write(&path, text).unwrap();
         let cam = camera_of(&path);
@@ -165,7 +137,7 @@ fn asp_s_kh4b_and_kh9_samples_go_ground_to_image_as_asp_s_rays_say_to_a_milliont
 fn the_motion_compensation_moves_the_image_along_the_film_with_the_scan_s_sign() {
     let dir = tempfile::tempdir().unwrap();
     for dir_word in ["right", "left"] {
-        let text = KH4B.replace("scan_dir = right", &format!("scan_dir = {dir_word}"));
+        let text = sample("kh4b_sample.tsai").replace("scan_dir = right", &format!("scan_dir = {dir_word}"));
         let off = text.replace("motion_compensation_factor = 1.0", "motion_compensation_factor = 0.0");
         let (on_path, off_path) = (dir.path().join(format!("on_{dir_word}.tsai")), dir.path().join(format!("off_{dir_word}.tsai")));
         std::fs::write(&on_path, &text).unwrap();
@@ -206,39 +178,52 @@ fn strip(dir: &Path, relief: gcm_ortho::synth::Relief) -> gcm_ortho::synth::Synt
 
 /// `sc`'s coordinate image rectified at the defaults and exactly onto the
 /// truth's grid, with `camera`; (default, exact, default's report).
-fn coordinate_runs(dir: &Path, sc: &gcm_ortho::synth::SynthReport, camera: &Path) -> (MapDifference, serde_json::Value) {
+/// The strip's coordinate image (written once into `dir`) rectified with
+/// `camera` onto the truth's grid, into `name` (its report beside it):
+/// the output, and how the run ended.
+fn rectify_coords(dir: &Path, sc: &gcm_ortho::synth::SynthReport, camera: &Path, name: &str, extra: &[&str]) -> (std::path::PathBuf, std::process::Output) {
     let coords = dir.join("coords.tif");
     if !coords.exists() {
         coordinate_image(&coords, 2400, 200);
     }
     let truth = sc.truth.as_ref().unwrap();
-    let go = |name: &str, extra: &[&str]| {
-        let out = dir.join(name);
-        let json = out.with_extension("json");
-        let mut a = vec![
-            "rectify",
-            "--image",
-            s(&coords),
-            "--camera",
-            s(camera),
-            "--dem",
-            s(&sc.dem),
-            "--like",
-            s(truth),
-            "--nodata",
-            "-1",
-            "--compress",
-            "none",
-            "--quiet",
-        ];
-        a.extend_from_slice(extra);
-        a.extend(["-o", s(&out), "--json", s(&json)]);
-        let r = run(&a);
-        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-        (out, serde_json::from_slice::<serde_json::Value>(&std::fs::read(&json).unwrap()).unwrap())
-    };
-    let (default, report) = go("default.tif", &[]);
-    let (exact, _) = go("exact.tif", &["--sparsity", "1", "--corrections", "cell", "--memory", "1G"]);
+    let out = dir.join(name);
+    let json = out.with_extension("json");
+    let mut a = vec![
+        "rectify",
+        "--image",
+        s(&coords),
+        "--camera",
+        s(camera),
+        "--dem",
+        s(&sc.dem),
+        "--like",
+        s(truth),
+        "--nodata",
+        "-1",
+        "--compress",
+        "none",
+        "--quiet",
+    ];
+    a.extend_from_slice(extra);
+    a.extend(["-o", s(&out), "--json", s(&json)]);
+    let r = run(&a);
+    (out, r)
+}
+
+/// A successful run's report.
+fn report_of(out: &Path, r: &std::process::Output) -> serde_json::Value {
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    serde_json::from_slice(&std::fs::read(out.with_extension("json")).unwrap()).unwrap()
+}
+
+/// `sc`'s coordinate image rectified at the defaults and exactly onto the
+/// truth's grid, with `camera`: their difference, and the default's report.
+fn coordinate_runs(dir: &Path, sc: &gcm_ortho::synth::SynthReport, camera: &Path) -> (MapDifference, serde_json::Value) {
+    let (default, r) = rectify_coords(dir, sc, camera, "default.tif", &[]);
+    let report = report_of(&default, &r);
+    let (exact, r) = rectify_coords(dir, sc, camera, "exact.tif", &["--sparsity", "1", "--corrections", "cell", "--memory", "1G"]);
+    report_of(&exact, &r);
     (coordinate_map_difference(&default, &exact, 2400, 200), report)
 }
 
@@ -336,38 +321,11 @@ fn a_resection_from_ten_noisy_gcps_recovers_the_strip_s_camera() {
     p.motion_compensation = 0.5;
     let bad_path = dir.path().join("bad.toml");
     std::fs::write(&bad_path, bad.to_toml()).unwrap();
-    let coords = dir.path().join("coords.tif");
-    coordinate_image(&coords, 2400, 200);
-    let truth = sc.truth.as_ref().unwrap();
-    let go = |camera: &Path, name: &str, extra: &[&str]| {
-        let out = dir.path().join(name);
-        let json = out.with_extension("json");
-        let mut a = vec![
-            "rectify",
-            "--image",
-            s(&coords),
-            "--camera",
-            s(camera),
-            "--dem",
-            s(&sc.dem),
-            "--like",
-            s(truth),
-            "--nodata",
-            "-1",
-            "--compress",
-            "none",
-            "--quiet",
-        ];
-        a.extend_from_slice(extra);
-        a.extend(["-o", s(&out), "--json", s(&json)]);
-        let r = run(&a);
-        (out, r, json)
-    };
-    let (right, r, _) = go(&sc.camera, "right.tif", &[]);
-    assert!(r.status.success());
-    let (fitted, r, json) = go(&bad_path, "fitted.tif", &["--gcps", s(&gcps), "--gcp-refine", "interior"]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let go = |camera: &Path, name: &str, extra: &[&str]| rectify_coords(dir.path(), &sc, camera, name, extra);
+    let (right, r) = go(&sc.camera, "right.tif", &[]);
+    report_of(&right, &r);
+    let (fitted, r) = go(&bad_path, "fitted.tif", &["--gcps", s(&gcps), "--gcp-refine", "interior"]);
+    let report = report_of(&fitted, &r);
     let g = &report["gcps"];
     eprintln!("resection: {g}");
     assert!(g["rms_before"].as_f64().unwrap() > 20.0 && g["rms_after"].as_f64().unwrap() < 0.3, "{g}");
@@ -378,7 +336,7 @@ fn a_resection_from_ten_noisy_gcps_recovers_the_strip_s_camera() {
     // Three GCPs cannot fix the dynamics: asked for, refused by name.
     let three: String = std::fs::read_to_string(&gcps).unwrap().lines().take(4).map(|l| format!("{l}\n")).collect();
     std::fs::write(&gcps, three).unwrap();
-    let (_, r, _) = go(&bad_path, "three.tif", &["--gcps", s(&gcps), "--gcp-refine", "interior"]);
+    let (_, r) = go(&bad_path, "three.tif", &["--gcps", s(&gcps), "--gcp-refine", "interior"]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(!r.status.success() && err.contains("gcps.csv") && err.contains("6 or more"), "{err}");
     assert!(!dir.path().join("three.tif").exists());
@@ -390,9 +348,9 @@ fn a_scan_over_180_degrees_and_no_scan_time_are_refused_by_name() {
     let coords = dir.path().join("coords.tif");
     coordinate_image(&coords, 13656, 8);
     for (what, text, expect) in [
-        ("wide", KH4B.replace("pitch = 7.0e-06", "pitch = 2.0e-04"), "spans"),
-        ("still", KH4B.replace("scan_time = 0.5", "scan_time = 0"), "scan time"),
-        ("short", KH4B.replace("iC = -1030862.1946224371 ", "iC = "), "iC takes 3"),
+        ("wide", sample("kh4b_sample.tsai").replace("pitch = 7.0e-06", "pitch = 2.0e-04"), "spans"),
+        ("still", sample("kh4b_sample.tsai").replace("scan_time = 0.5", "scan_time = 0"), "scan time"),
+        ("short", sample("kh4b_sample.tsai").replace("iC = -1030862.1946224371 ", "iC = "), "iC takes 3"),
     ] {
         let cam = dir.path().join(format!("{what}.tsai"));
         std::fs::write(&cam, text).unwrap();

@@ -17,7 +17,7 @@
 
 use super::file::{Camera, Sensor};
 use super::frame::FrameCamera;
-use super::gcp_points::{refuse_collinear, rms};
+use super::gcp_points::{condition, refuse_collinear, rms};
 pub use super::gcp_points::{Gcp, GcpFit, GcpResidual};
 use super::rotation::AngleConvention;
 use super::SensorModel;
@@ -355,15 +355,7 @@ const INTERIOR_CONDITION: f64 = 1e-4;
 /// each scaled to unit length, leave a near-zero singular value: a
 /// combination of changes the points cannot see.
 fn fixes_interior(j: &DMatrix<f64>, source: &Path) -> Result<()> {
-    let mut scaled = j.clone();
-    for mut col in scaled.column_iter_mut() {
-        let norm = col.norm();
-        if norm > 0.0 {
-            col /= norm;
-        }
-    }
-    let sv = scaled.singular_values();
-    let ratio = sv.min() / sv.max();
+    let ratio = condition(j);
     if ratio > INTERIOR_CONDITION {
         return Ok(());
     }

@@ -4,7 +4,7 @@
 //! bias, a frame's resection) and `panoramic_resection`.
 
 use crate::error::{Error, Result};
-use nalgebra::Vector3;
+use nalgebra::{DMatrix, Vector3};
 use std::path::Path;
 
 /// One ground control point.
@@ -77,4 +77,18 @@ pub fn refuse_collinear(points: &[Vector3<f64>], source: &Path) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// The smallest over the largest singular value of `j` with its columns
+/// scaled to unit length: near 0 where the points cannot see a change.
+pub fn condition(j: &DMatrix<f64>) -> f64 {
+    let mut scaled = j.clone();
+    for mut col in scaled.column_iter_mut() {
+        let norm = col.norm();
+        if norm > 0.0 {
+            col /= norm;
+        }
+    }
+    let sv = scaled.singular_values();
+    sv.min() / sv.max()
 }

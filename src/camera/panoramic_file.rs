@@ -254,22 +254,7 @@ pub fn asp_text(bar: &OpticalBar) -> String {
 mod tests {
     use super::*;
 
-    const KH9: &str = "VERSION_4
-OPTICAL_BAR
-image_size = 110507 7904
-image_center = 55253.5 3952
-pitch = 7.0e-06
-f = 0.61000001430511475
-scan_time = 0.5
-forward_tilt = -0.261799
-iC = -1047140.9611702315 5508464.4323527571 3340425.4078937685
-iR = -0.96635634448923746 -0.16918164442572045 0.1937343197650008 -0.23427205529446918 0.26804084264169648 -0.93448954557235941 0.10616976770014927 -0.94843643849513648 -0.29865750042675621
-speed = 7700
-mean_earth_radius = 6371000
-mean_surface_elevation = 4000
-motion_compensation_factor = 1.0
-scan_dir = left
-";
+    const KH9: &str = include_str!("../../fixtures/panoramic/kh9_sample.tsai");
 
     #[test]
     fn asp_s_kh9_sample_reads_and_writes_back_the_same_numbers() {

@@ -19,7 +19,7 @@
 //! all three on ten GCPs of a synthetic strip put the tilt at 72° with
 //! 0.17 px residuals), so the one separable term stands for them.
 
-use super::gcp_points::{refuse_collinear, rms, Gcp, GcpFit, GcpResidual};
+use super::gcp_points::{condition, refuse_collinear, rms, Gcp, GcpFit, GcpResidual};
 use super::panoramic::{OpticalBar, PanoramicCamera};
 use crate::error::{Error, Result};
 use crate::geodesy::ecef::{nearest_rotation, to_ecef};
@@ -133,20 +133,6 @@ pub fn resection(cam: &PanoramicCamera, gcps: &[Gcp], dynamics: Option<bool>, so
         correction,
     };
     Ok((bar, fit))
-}
-
-/// The smallest over the largest singular value of `j` with its columns
-/// scaled to unit length: near 0 where the points cannot see a change.
-fn condition(j: &DMatrix<f64>) -> f64 {
-    let mut scaled = j.clone();
-    for mut col in scaled.column_iter_mut() {
-        let norm = col.norm();
-        if norm > 0.0 {
-            col /= norm;
-        }
-    }
-    let sv = scaled.singular_values();
-    sv.min() / sv.max()
 }
 
 fn rot_y(a: f64) -> nalgebra::Matrix3<f64> {
