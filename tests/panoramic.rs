@@ -289,6 +289,17 @@ fn over_flat_ground_a_70_degree_scan_needs_no_refined_cell_and_asp_s_file_gives_
     let (a, _) = coordinate_runs(&asp, &sc, &tsai);
     assert_eq!(read_f32(&dir.path().join("default.tif")).3, read_f32(&asp.join("default.tif")).3);
     assert_eq!(a.max, m.max);
+    // `cameras` turns ASP's file into ours: the same orthophoto again; to
+    // Orthority's form it is refused by name.
+    let cams = dir.path().join("cams");
+    let r = run(&["cameras", "--camera", s(&tsai), "--out-dir", s(&cams), "--quiet"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let (ours, r) = rectify_coords(&asp, &sc, &cams.join("scan.toml"), "ours.tif", &[]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(read_f32(&ours).3, read_f32(&asp.join("default.tif")).3);
+    let r = run(&["cameras", "--camera", s(&tsai), "--out-dir", s(&dir.path().join("oty")), "--to", "orthority"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains("scan.tsai") && err.contains("panoramic"), "{err}");
 }
 
 #[test]

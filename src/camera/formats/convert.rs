@@ -94,6 +94,22 @@ pub fn convert(o: &ConvertOptions) -> Result<Converted> {
     }
     let dir = o.camera.parent().unwrap_or(Path::new("")).to_path_buf();
     for e in &mut entries {
+        if let Some(sec) = e.file.panoramic.as_ref() {
+            // An optical bar's position is ECEF: its CRS is only where its
+            // orthophoto goes (the UTM zone under it unless given).
+            if e.file.crs.trim().is_empty() {
+                e.file.crs = o.crs.as_ref().map_or_else(|| "auto".into(), |c| c.epsg().map_or_else(|| c.proj4().to_string(), |n| format!("EPSG:{n}")));
+            }
+            if let Some(real) = e.size.filter(|&real| real != sec.size_px) {
+                return Err(Error::config(
+                    &o.camera,
+                    "panoramic.size_px",
+                    format!("the camera is for {}×{} images, but {} is {}×{}", sec.size_px[0], sec.size_px[1], e.origin, real[0], real[1]),
+                ));
+            }
+            e.file.clone().build(&o.camera)?;
+            continue;
+        }
         // A CRS given as a file beside the camera file is written as the
         // CRS itself: the path would not hold where the output goes.
         if !e.file.crs.trim().is_empty() && dir.join(e.file.crs.trim()).is_file() {
@@ -154,6 +170,9 @@ fn write(entries: &[Entry], dir: &Path, o: &ConvertOptions) -> Result<Vec<PathBu
             out
         }
         Target::Orthority | Target::OpenSfm => {
+            if entries.iter().any(|e| e.file.panoramic.is_some()) {
+                return Err(Error::unsupported(&o.camera, "a panoramic camera has no form in Orthority's or OpenSfM's files (--to toml)"));
+            }
             let (lenses, poses) = lenses_and_poses(entries, &o.camera)?;
             let (unique, ids) = distinct_lenses(&lenses);
             let crs_text = one_crs(entries, &o.camera)?;
@@ -236,6 +255,15 @@ pub fn table(entries: &[Entry]) -> String {
     );
     for e in entries {
         let f = &e.file;
+        if let Some(p) = &f.panoramic {
+            // ECEF position; focal length in film pixels; the lens axis on the film.
+            let fpx = f.camera.focal_length_mm.map_or_else(|| "-".into(), |mm| format!("{:.2}", mm / p.pixel_size_mm));
+            let pp = format!("{:.2},{:.2}", p.centre_px[0], p.centre_px[1]);
+            let size = format!("{}x{}", p.size_px[0], p.size_px[1]);
+            let [x, y, z] = p.position_ecef;
+            out += &format!("{:<24} {x:>12.3} {y:>13.3} {z:>9.0} {:>9} {:>9} {:>9} {fpx:>9} {pp:>17} {size:>11}  panoramic (ECEF)\n", e.name, "-", "-", "-");
+            continue;
+        }
         let (pos, opk) = match &f.exterior {
             Some(x) => {
                 (x.position, AngleConvention::OmegaPhiKappa.angles(&x.convention.matrix(x.angles_deg.map(f64::to_radians))).map(|a| a.to_degrees() + 0.0))
