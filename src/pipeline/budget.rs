@@ -13,9 +13,9 @@
 //!   time through a cache of that size;
 //! * the decoded chunks of a compressed scan, two shares (a twelfth);
 //! * the GCM's node rows of the bands in flight, up to three shares (an
-//!   eighth): the default node spacing grows where finer rows would not fit;
-//!   a spacing the user gives may take three more from the slack below
-//!   ([`MemoryBudget::node_limit`]), and is refused beyond;
+//!   eighth); a spacing the user gives, or the default's DEM-aligned one,
+//!   may take three more from the slack below ([`MemoryBudget::node_limit`]):
+//!   beyond, the default grows to 16 px and a given one is refused;
 //! * what is left (~45 %) covers the GCM rows, the threads, the program and
 //!   the allocator's per-thread arenas (20–30 MB on 1 GiB scans), so that
 //!   the peak resident size stays under the budget.
