@@ -299,10 +299,16 @@ impl CameraFile {
         let near = |f: &String| path.parent().unwrap_or(Path::new("")).join(f);
         let rpc = file.rpc.as_ref();
         let template = file.interior.as_ref().and_then(|i| i.fiducial_mark.as_ref()).and_then(|m| m.template.as_ref());
-        [("RPC file", rpc.and_then(|r| r.file.as_ref())), ("geoid grid", rpc.and_then(|r| r.geoid.as_ref())), ("fiducial template", template)]
-            .into_iter()
-            .filter_map(|(what, f)| Some((what, near(f?))))
-            .collect()
+        let panoramic_geoid = file.panoramic.as_ref().and_then(|p| p.geoid.as_ref());
+        [
+            ("RPC file", rpc.and_then(|r| r.file.as_ref())),
+            ("geoid grid", rpc.and_then(|r| r.geoid.as_ref())),
+            ("geoid grid", panoramic_geoid),
+            ("fiducial template", template),
+        ]
+        .into_iter()
+        .filter_map(|(what, f)| Some((what, near(f?))))
+        .collect()
     }
 
     pub fn read(path: &Path) -> Result<CameraFile> {
