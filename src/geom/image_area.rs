@@ -45,6 +45,18 @@ impl ImageArea {
         [(x0, y0), (x1, y0), (x1, y1), (x0, y1)].iter().all(|&(c, r)| self.contains(c, r))
     }
 
+    /// Whether the whole rectangle lies in the area with room to spare (a
+    /// billionth of the area's size on every side): every point of it then
+    /// passes [`ImageArea::contains`] whatever its rounding.
+    pub fn holds_rect_with_room(&self, x0: f64, y0: f64, x1: f64, y1: f64) -> bool {
+        const ROOM: f64 = 1e-9;
+        [(x0, y0), (x1, y0), (x1, y1), (x0, y1)].iter().all(|&(c, r)| {
+            let s = self.s[0] * c + self.s[1] * r + self.s[2];
+            let t = self.t[0] * c + self.t[1] * r + self.t[2];
+            (ROOM..=1.0 - ROOM).contains(&s) && (ROOM..=1.0 - ROOM).contains(&t)
+        })
+    }
+
     /// The four corners, in order around the area.
     pub fn corners(&self) -> [(f64, f64); 4] {
         self.corners
@@ -70,6 +82,10 @@ mod tests {
         let (c, r) = at(0.5, 0.5);
         assert!(a.contains_rect(c - 5.0, r - 5.0, c + 5.0, r + 5.0));
         assert!(!a.contains_rect(c - 70.0, r - 5.0, c + 70.0, r + 5.0));
+        assert!(a.holds_rect_with_room(c - 5.0, r - 5.0, c + 5.0, r + 5.0));
+        // A corner on the edge: held (`contains`), but with no room.
+        let (ec, er) = at(1.0, 0.5);
+        assert!(a.contains_rect(ec - 1e-3, er, ec, er) && !a.holds_rect_with_room(ec - 1e-3, er, ec, er));
         assert_eq!(a.corners()[2], at(1.0, 1.0));
         assert!(ImageArea::parallelogram((0.0, 0.0), (1.0, 2.0), (2.0, 4.0)).is_none(), "degenerate");
     }

@@ -98,20 +98,27 @@ impl Statistics {
         let px = b * lay.sample.bytes();
         let mut sample = vec![0f64; b];
         let mut lanes = Lanes::default();
+        // A run of integer pixels that all have a value.
+        let add_run = |lanes: &mut Lanes, bytes: &[u8]| match lay.sample {
+            SampleType::U8 => lanes.add_row_u8(bytes),
+            _ => lanes.add_row(bytes.chunks_exact(2).map(|p| u16::from_ne_bytes([p[0], p[1]]) as u64), bytes.len() / 2),
+        };
         for y in 0..extent.1 {
             let row = y * lay.tile;
             if let (ValidBy::Mask, Some(v), false) = (by, valid, lay.sample == SampleType::F32) {
                 // Integers under a mask: each run of pixels with a value
                 // at once (a whole row, but for the image's edges).
                 let v = &v[row..row + extent.0];
+                if !v.contains(&0) {
+                    // A whole row with values (nearly every row): looked
+                    // for at memchr's speed, not a byte at a time below.
+                    add_run(&mut lanes, &pixels[row * px..(row + extent.0) * px]);
+                    continue;
+                }
                 let mut x = 0;
                 while let Some(start) = v[x..].iter().position(|&m| m != 0).map(|p| x + p) {
                     let end = v[start..].iter().position(|&m| m == 0).map_or(v.len(), |p| start + p);
-                    let bytes = &pixels[(row + start) * px..(row + end) * px];
-                    match lay.sample {
-                        SampleType::U8 => lanes.add_row_u8(bytes),
-                        _ => lanes.add_row(bytes.chunks_exact(2).map(|p| u16::from_ne_bytes([p[0], p[1]]) as u64), bytes.len() / 2),
-                    }
+                    add_run(&mut lanes, &pixels[(row + start) * px..(row + end) * px]);
                     x = end;
                 }
                 continue;
@@ -286,30 +293,49 @@ impl Lanes {
         }
     }
 
-    /// A row of 8-bit samples: 32-bit lanes within the row (a row of
-    /// samples cannot overflow them), added to the totals at its end.
+    /// A row of 8-bit samples: least and most in 8-bit lanes, sums in
+    /// 16-bit lanes for up to 256 blocks (255·256 < 2¹⁶), squares (each
+    /// below 2¹⁶) in 32-bit ones (a row of samples cannot overflow them),
+    /// added to the totals at the row's end. Lanes as narrow as the values
+    /// let the compiler take 16 samples an instruction: 32-bit lanes
+    /// throughout took 0.31 s of a 1 GiB scan's 4.6 s.
     #[allow(clippy::needless_range_loop)] // five arrays stepped together
     fn add_row_u8(&mut self, row: &[u8]) {
-        let (mut s, mut q, mut lo, mut hi) = ([0u32; LANES], [0u32; LANES], [u32::MAX; LANES], [0u32; LANES]);
-        let blocks = row.chunks_exact(LANES);
-        let rest = blocks.remainder();
-        let whole = blocks.len() as u64;
-        for block in blocks {
-            let block: &[u8; LANES] = block.try_into().expect("a whole block");
+        let (mut q, mut lo, mut hi) = ([0u32; LANES], [u8::MAX; LANES], [0u8; LANES]);
+        let mut s = [0u32; LANES];
+        let whole = (row.len() / LANES) as u64;
+        let (body, rest) = row.split_at(row.len() / LANES * LANES);
+        for part in body.chunks(LANES * 256) {
+            let mut s16 = [0u16; LANES];
+            // Two loops over the part (in the L1 cache): in one, the 108
+            // bytes of lanes would not fit the 16 vector registers.
+            for block in part.chunks_exact(LANES) {
+                let block: &[u8; LANES] = block.try_into().expect("a whole block");
+                for j in 0..LANES {
+                    let v = block[j];
+                    s16[j] += v as u16;
+                    lo[j] = lo[j].min(v);
+                    hi[j] = hi[j].max(v);
+                }
+            }
+            for block in part.chunks_exact(LANES) {
+                let block: &[u8; LANES] = block.try_into().expect("a whole block");
+                for j in 0..LANES {
+                    q[j] += (block[j] as u16 * block[j] as u16) as u32;
+                }
+            }
             for j in 0..LANES {
-                let v = block[j] as u32;
-                s[j] += v;
-                q[j] += v * v;
-                lo[j] = lo[j].min(v);
-                hi[j] = hi[j].max(v);
+                s[j] += s16[j] as u32;
             }
         }
-        for j in 0..LANES {
-            self.count[j] += whole;
-            self.sum[j] += s[j] as u64;
-            self.sum_sq[j] += q[j] as u64;
-            self.min[j] = self.min[j].min(lo[j] as u64);
-            self.max[j] = self.max[j].max(hi[j] as u64);
+        if whole > 0 {
+            for j in 0..LANES {
+                self.count[j] += whole;
+                self.sum[j] += s[j] as u64;
+                self.sum_sq[j] += q[j] as u64;
+                self.min[j] = self.min[j].min(lo[j] as u64);
+                self.max[j] = self.max[j].max(hi[j] as u64);
+            }
         }
         self.add_row(rest.iter().map(|&v| v as u64), rest.len());
     }
@@ -318,27 +344,44 @@ impl Lanes {
     /// [`Lanes::add_row_u8`], each sample weighed 0 or 1 (no branch).
     #[allow(clippy::needless_range_loop)] // six arrays stepped together
     fn add_row_u8_except(&mut self, row: &[u8], skip: u8) {
-        let (mut s, mut q, mut lo, mut hi, mut n) = ([0u32; LANES], [0u32; LANES], [u32::MAX; LANES], [0u32; LANES], [0u32; LANES]);
-        let blocks = row.chunks_exact(LANES);
-        let rest = blocks.remainder();
-        for block in blocks {
-            let block: &[u8; LANES] = block.try_into().expect("a whole block");
+        let (mut q, mut lo, mut hi) = ([0u32; LANES], [u8::MAX; LANES], [0u8; LANES]);
+        let (mut s, mut n) = ([0u32; LANES], [0u32; LANES]);
+        let (body, rest) = row.split_at(row.len() / LANES * LANES);
+        for part in body.chunks(LANES * 256) {
+            let (mut s16, mut n16) = ([0u16; LANES], [0u16; LANES]);
+            // Two loops, as in `add_row_u8`. A skipped sample counts 0 and
+            // as 255 to the least, 0 to the most.
+            for block in part.chunks_exact(LANES) {
+                let block: &[u8; LANES] = block.try_into().expect("a whole block");
+                for j in 0..LANES {
+                    let v = block[j];
+                    let keep = u8::from(v != skip).wrapping_neg();
+                    s16[j] += (v & keep) as u16;
+                    n16[j] += (keep & 1) as u16;
+                    lo[j] = lo[j].min(v | !keep);
+                    hi[j] = hi[j].max(v & keep);
+                }
+            }
+            for block in part.chunks_exact(LANES) {
+                let block: &[u8; LANES] = block.try_into().expect("a whole block");
+                for j in 0..LANES {
+                    let v = block[j] & u8::from(block[j] != skip).wrapping_neg();
+                    q[j] += (v as u16 * v as u16) as u32;
+                }
+            }
             for j in 0..LANES {
-                let v = block[j] as u32;
-                let keep = u32::from(block[j] != skip);
-                s[j] += v * keep;
-                q[j] += v * v * keep;
-                n[j] += keep;
-                lo[j] = lo[j].min(if keep == 1 { v } else { u32::MAX });
-                hi[j] = hi[j].max(v * keep);
+                s[j] += s16[j] as u32;
+                n[j] += n16[j] as u32;
             }
         }
         for j in 0..LANES {
-            self.count[j] += n[j] as u64;
-            self.sum[j] += s[j] as u64;
-            self.sum_sq[j] += q[j] as u64;
-            self.min[j] = self.min[j].min(lo[j] as u64);
-            self.max[j] = self.max[j].max(hi[j] as u64);
+            if n[j] > 0 {
+                self.count[j] += n[j] as u64;
+                self.sum[j] += s[j] as u64;
+                self.sum_sq[j] += q[j] as u64;
+                self.min[j] = self.min[j].min(lo[j] as u64);
+                self.max[j] = self.max[j].max(hi[j] as u64);
+            }
         }
         self.add_row_except(rest.iter().map(|&v| v as u64), u64::from(skip));
     }
@@ -438,6 +481,25 @@ mod tests {
         assert_eq!((s.bands[0].count, s.bands[0].min, s.bands[0].max), (3, -2.0, 1.5));
         let s = Statistics::of_tile(lay, ValidBy::Nodata(0.0), bytemuck::cast_slice(&v[1..].iter().chain(&[0.0]).copied().collect::<Vec<_>>()), None, (2, 2));
         assert_eq!(s.bands[0].count, 2);
+    }
+
+    #[test]
+    fn rows_longer_than_the_narrow_lanes_hold_are_summed_exactly() {
+        // 8-bit rows of 5,000 RGB pixels (more than 256 blocks of lanes, the
+        // most their 16-bit sums hold): all 255, then mixed, under a mask
+        // and by a nodata value, against the samples one by one.
+        let (tile, w, h, bands) = (5003, 5000, 2, 3);
+        for fill in [Some(255u64), None] {
+            let values: Vec<u64> = (0..tile * h * bands).map(|i| fill.unwrap_or((i as u64).wrapping_mul(2654435761) >> 13 & 0xff)).collect();
+            let bytes: Vec<u8> = values.iter().map(|&x| x as u8).collect();
+            let lay = TileLayout { tile, bands, sample: SampleType::U8 };
+            let inside: Vec<u64> = (0..h).flat_map(|y| values[y * tile * bands..(y * tile + w) * bands].to_vec()).collect();
+            let valid = vec![1u8; tile * h];
+            let masked = Statistics::of_tile(lay, ValidBy::Mask, &bytes, Some(&valid), (w, h));
+            assert_eq!(masked.bands, by_sample(&inside, bands, u64::MAX, SampleType::U8), "{fill:?}, mask");
+            let by_value = Statistics::of_tile(lay, ValidBy::Nodata(7.0), &bytes, None, (w, h));
+            assert_eq!(by_value.bands, by_sample(&inside, bands, 7, SampleType::U8), "{fill:?}, nodata 7");
+        }
     }
 
     #[test]

@@ -74,7 +74,7 @@ impl Weights {
 }
 
 /// A sample type the kernels read and write.
-pub trait Sample: Copy + Default + Send + Sync + bytemuck::Pod {
+pub trait Sample: Copy + Default + PartialEq + Send + Sync + bytemuck::Pod {
     const TYPE: SampleType;
     fn to_f32(self) -> f32;
     fn from_f32(v: f32) -> Self;
@@ -153,6 +153,12 @@ pub struct View<'a, T> {
     /// Where less than the whole scan holds the image (a film's format):
     /// positions outside it have no value.
     pub area: Option<ImageArea>,
+    /// An upright rectangle inside the area (with room: see
+    /// [`ImageArea::holds_rect_with_room`]), in the kernel's fixed point
+    /// (`[c_lo, r_lo, c_hi, r_hi]`, see [`Fixed`]): a span whose positions
+    /// lie in it is inside the area by four integer compares. The area's
+    /// own test on every span cost 0.2 s of a 1 GiB scan's 4.6 s.
+    area_inner: Option<[i64; 4]>,
 }
 
 impl<'a, T: Sample> View<'a, T> {
@@ -176,12 +182,27 @@ impl<'a, T: Sample> View<'a, T> {
             img_h: img_h as f64,
             in_scan: x0 as u64 + w as u64 <= img_w as u64 && y0 as u64 + h as u64 <= img_h as u64,
             area: None,
+            area_inner: None,
         }
     }
 
     /// Only positions inside `area` (and the scan) take a value.
     pub fn with_area(mut self, area: Option<ImageArea>) -> Self {
         self.area = area;
+        self.area_inner = area.and_then(|a| {
+            // Between each axis's second and third corner: a parallelogram
+            // near upright (a film's format) holds that rectangle.
+            let middle = |k: usize| {
+                let mut v = a.corners().map(|p| if k == 0 { p.0 } else { p.1 });
+                v.sort_by(f64::total_cmp);
+                (v[1], v[2])
+            };
+            let ((c0, c1), (r0, r1)) = (middle(0), middle(1));
+            const ONE: f64 = 4_294_967_296.0;
+            let (lo, hi) = (|v: f64| ((v - 0.5) * ONE).ceil(), |v: f64| ((v - 0.5) * ONE).floor());
+            let fits = [lo(c0), lo(r0), hi(c1), hi(r1)].iter().all(|q| q.abs() < 2f64.powi(62));
+            (c0 < c1 && r0 < r1 && fits && a.holds_rect_with_room(c0, r0, c1, r1)).then(|| [lo(c0) as i64, lo(r0) as i64, hi(c1) as i64, hi(r1) as i64])
+        });
         self
     }
 
@@ -504,9 +525,14 @@ fn span_is_inside<T: Sample, const B: usize>(view: &View<'_, T>, f: &Fixed, n: u
     );
     let (ia, ib, ja, jb) = (index(qa[0], view.x0), index(qb[0], view.x0), index(qa[1], view.y0), index(qb[1], view.y0));
     let in_window = ia <= ib && ja <= jb && (ia as u64) < wl && (ib as u64) < wl && (ja as u64) < hl && (jb as u64) < hl;
-    // Inside the image area too, where there is one: the positions' box.
+    // Inside the image area too, where there is one: the positions' box,
+    // in the area's upright inner rectangle or else by the area's own test.
     let position = |q: i64| q as f64 / 4_294_967_296.0 + 0.5;
-    in_window && view.area.is_none_or(|a| a.contains_rect(position(qa[0]), position(qa[1]), position(qb[0]), position(qb[1])))
+    let in_inner = |r: [i64; 4]| qa[0] >= r[0] && qa[1] >= r[1] && qb[0] <= r[2] && qb[1] <= r[3];
+    in_window
+        && view
+            .area
+            .is_none_or(|a| view.area_inner.is_some_and(in_inner) || a.contains_rect(position(qa[0]), position(qa[1]), position(qb[0]), position(qb[1])))
 }
 
 /// Whether [`bilinear_u8::span_inside`] can serve this window at all:

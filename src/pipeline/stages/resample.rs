@@ -385,22 +385,30 @@ pub fn resample_chunk<T: Sample + Recycle>(
                 }
             }
             if opts.nudge {
-                let (fill_f32, mut moved) = (fill.to_f32(), 0);
-                let off = T::from_f32(off_nodata(f64::from(fill_f32), T::TYPE) as f32);
+                let mut moved = 0;
+                let off = T::from_f32(off_nodata(f64::from(fill.to_f32()), T::TYPE) as f32);
                 // Each run of pixels with a value looked at whole (a compare
-                // without a branch, which the compiler vectorises); the
-                // rare run that holds the value, sample by sample.
-                let mut x = 0;
-                while let Some(start) = valid[x..].iter().position(|&v| v).map(|p| x + p) {
-                    let end = valid[start..].iter().position(|&v| !v).map_or(valid.len(), |p| start + p);
-                    let run = &mut px[start * bands_in..end * bands_in];
-                    if run.iter().fold(false, |hit, s| hit | (s.to_f32() == fill_f32)) {
-                        for s in run.iter_mut().filter(|s| s.to_f32() == fill_f32) {
+                // without a branch, which the compiler vectorises; a whole
+                // row found at memchr's speed); the rare run that holds the
+                // value, sample by sample.
+                let mut nudge = |run: &mut [T]| {
+                    if run.iter().fold(false, |hit, &s| hit | (s == fill)) {
+                        for s in run.iter_mut().filter(|s| **s == fill) {
                             *s = off;
                             moved += 1;
                         }
                     }
-                    x = end;
+                };
+                let flags: &[u8] = bytemuck::cast_slice(valid);
+                if !flags.contains(&0) {
+                    nudge(px);
+                } else {
+                    let mut x = 0;
+                    while let Some(start) = valid[x..].iter().position(|&v| v).map(|p| x + p) {
+                        let end = valid[start..].iter().position(|&v| !v).map_or(valid.len(), |p| start + p);
+                        nudge(&mut px[start * bands_in..end * bands_in]);
+                        x = end;
+                    }
                 }
                 if moved > 0 {
                     nudged.fetch_add(moved, Ordering::Relaxed);
@@ -435,9 +443,21 @@ pub fn resample_chunk<T: Sample + Recycle>(
                         }
                         // Piece x takes pixel x of each row made (those of
                         // columns `cx`; the pieces past the grid's edge zero).
+                        // Where every pixel of the block has a value (nearly
+                        // every block), whole pieces at once: byte by byte,
+                        // this took 0.28 s of a 1 GiB scan's 4.6 s.
+                        let all_valid = !mask_pieces.is_empty()
+                            && (0..group).all(|j| {
+                                let row: &[u8] = bytemuck::cast_slice(&valid_block[j * w + cx.start..j * w + cx.end]);
+                                !row.contains(&0)
+                            });
                         for (x, piece) in mask_pieces.iter_mut().enumerate().filter(|(x, _)| cx.contains(x) || *x >= w) {
+                            if x >= w || all_valid {
+                                piece.fill(u8::from(x < w));
+                                continue;
+                            }
                             for (j, to) in piece.iter_mut().enumerate() {
-                                *to = u8::from(x < w && valid_block[j * w + x]);
+                                *to = u8::from(valid_block[j * w + x]);
                             }
                         }
                         let (seen, pad) = row_pieces.split_at_mut(w);
