@@ -263,17 +263,20 @@ fn a_jpeg_compressed_rgb_scan_gives_the_orthophoto_within_jpeg_loss() {
     // JPEG at quality 90 moves a level or two on average; a band dropped,
     // swapped or misplaced would move tens.
     assert!(mean < 3.0, "mean difference {mean} levels");
-    // YCbCr (GDAL's usual JPEG): the same orthophoto as from GDAL's own
-    // decoding of the file (libjpeg), but for the chroma upsampling.
+    // YCbCr (GDAL's usual JPEG, chroma 2×2 subsampled): the same
+    // orthophoto as from GDAL's own decoding of the file (libjpeg's
+    // upsampling and colour conversion, as ours), to a level, no bias.
     let ycbcr = dir.path().join("ycbcr.tif");
     assert!(gdal_copy(&sc.scan, &ycbcr, &["COMPRESS=JPEG", "PHOTOMETRIC=YCBCR", "TILED=YES"]));
     let by_gdal = dir.path().join("ycbcr-decoded-by-gdal.tif");
     assert!(Command::new("gdal_translate").args(["-q", s(&ycbcr), s(&by_gdal)]).status().unwrap().success());
     let want = ortho(&sc, &by_gdal, &sc.dem, &dir.path().join("c.tif")).0;
     let got = ortho(&sc, &ycbcr, &sc.dem, &dir.path().join("d.tif")).0;
-    let diff: Vec<f64> = got.iter().zip(&want).map(|(&a, &b)| (a as f64 - b as f64).abs()).collect();
-    let (mean, max) = (diff.iter().sum::<f64>() / diff.len() as f64, diff.iter().cloned().fold(0.0, f64::max));
-    assert!(mean < 0.5 && max <= 10.0, "YCbCr: mean difference {mean}, largest {max} levels");
+    let diff: Vec<f64> = got.iter().zip(&want).map(|(&a, &b)| a as f64 - b as f64).collect();
+    let (bias, max) = (diff.iter().sum::<f64>() / diff.len() as f64, diff.iter().map(|d| d.abs()).fold(0.0, f64::max));
+    // (The tiff crate's decoding, with libjpeg's colour arithmetic after
+    // it, was +0.2 to +0.3 levels off in the mean and 10 at most.)
+    assert!(bias.abs() < 0.02 && max <= 1.0, "YCbCr: mean difference {bias}, largest {max} levels");
     assert_eq!(gdalinfo_json(&dir.path().join("d.tif"))["bands"][2]["colorInterpretation"], "Blue");
 }
 

@@ -1,6 +1,6 @@
 //! The compressed backend: a chunk (strip or tile) decoded on demand —
 //! deflate, LZW, PackBits and zstd by `chunk_codec`, JPEG by the `tiff`
-//! crate, a JPEG 2000 area by OpenJPEG — and kept in the cache for the
+//! crate (YCbCr by libjpeg), a JPEG 2000 area by OpenJPEG — and kept in the cache for the
 //! next window.
 
 use super::{decoder_limits, Backend, SampleType, SourceImage};
@@ -15,9 +15,11 @@ pub(super) enum Coder {
     /// Deflate, LZW, PackBits, zstd: decoded by `chunk_codec` from the
     /// chunk's bytes, read with `pread`.
     Own(ChunkCodec, File),
-    /// JPEG: `tiff` crate decoders, one per concurrent reader; `ycbcr`
-    /// when its samples are Y, Cb, Cr to be turned into RGB.
-    Tiff { decoders: Mutex<Vec<Decoder<BufReader<File>>>>, ycbcr: bool },
+    /// JPEG of grey or RGB samples: `tiff` crate decoders, one per
+    /// concurrent reader.
+    Tiff { decoders: Mutex<Vec<Decoder<BufReader<File>>>> },
+    /// JPEG of YCbCr samples: libjpeg, to RGB.
+    LibJpeg,
     /// JPEG 2000: each chunk an area decoded by OpenJPEG, once (`spill`
     /// keeps it); `origin` is the image's on the codestream's reference grid.
     Jpeg2000 { origin: (u32, u32), spill: super::jpeg2000::Spill },
@@ -32,13 +34,9 @@ impl SourceImage {
         }
         let bytes = match coder {
             Coder::Own(codec, file) => self.decode_own(k, codec, file)?,
-            Coder::Tiff { decoders, ycbcr } => {
-                let mut bytes = self.decode_with_tiff(k, decoders)?;
-                if *ycbcr {
-                    ycbcr_to_rgb(&mut bytes);
-                }
-                bytes
-            }
+            Coder::Tiff { decoders } => self.decode_with_tiff(k, decoders)?,
+            // libjpeg's upsampling and colour conversion, as GDAL's.
+            Coder::LibJpeg => self.decode_with_libjpeg(k)?,
             Coder::Jpeg2000 { origin, spill } => spill.chunk(&self.path, k, || super::jpeg2000::decode_chunk(&self.path, &self.info, *origin, k))?,
         };
         let v = Arc::new(bytes);
@@ -86,6 +84,58 @@ impl SourceImage {
         Ok(padded)
     }
 
+    /// YCbCr JPEG chunk `k` decoded to RGB by libjpeg (as libtiff has GDAL
+    /// do it: the file's tables before the chunk's abbreviated stream),
+    /// re-padded to the full chunk size. The `tiff` crate's decoding with
+    /// libjpeg's colour arithmetic after it was 0.2–0.3 levels off in the
+    /// mean, from its chroma upsampling.
+    fn decode_with_libjpeg(&self, k: u32) -> Result<Vec<u8>> {
+        use std::os::unix::fs::FileExt;
+        let info = &self.info;
+        let (at, len) = (info.offsets[k as usize], info.byte_counts[k as usize]);
+        if len > info.chunk_plane_bytes() * 4 + (1 << 20) {
+            return Err(Error::format(&self.path, format!("JPEG chunk {k}: {len} bytes, more than its pixels could take")));
+        }
+        let mut chunk = vec![0u8; len as usize];
+        let file = File::open(&self.path).map_err(|e| Error::io(&self.path, e))?;
+        file.read_exact_at(&mut chunk, at).map_err(|e| Error::io(&self.path, e))?;
+        // The tables (SOI … EOI) without their EOI, then the chunk without its SOI.
+        let stream = match &info.jpeg_tables {
+            Some(t) if t.len() >= 4 && t.starts_with(&[0xFF, 0xD8]) && t.ends_with(&[0xFF, 0xD9]) && chunk.starts_with(&[0xFF, 0xD8]) => {
+                [&t[..t.len() - 2], &chunk[2..]].concat()
+            }
+            _ => chunk,
+        };
+        let (cw, ch) = info.chunk;
+        let want_rows = if info.tiled { ch } else { (info.chunk_data_bytes(k) / (cw as u64 * 3)) as u32 };
+        let jpeg_error = |e: std::io::Error| Error::format(&self.path, format!("JPEG chunk {k}: {e}"));
+        // libjpeg reports a fatal error by unwinding; caught here, it is the file's.
+        let decoded = std::panic::catch_unwind(|| -> std::result::Result<(usize, usize, Vec<u8>), std::io::Error> {
+            let mut rows = mozjpeg::Decompress::new_mem(&stream)?.rgb()?;
+            let (w, h) = (rows.width(), rows.height());
+            let bytes = rows.read_scanlines::<u8>()?;
+            rows.finish()?;
+            Ok((w, h, bytes))
+        });
+        let (w, h, bytes) = match decoded {
+            Ok(r) => r.map_err(jpeg_error)?,
+            Err(payload) => {
+                let why = payload.downcast_ref::<String>().cloned().or_else(|| payload.downcast_ref::<&str>().map(|s| s.to_string())).unwrap_or_default();
+                return Err(Error::format(&self.path, format!("JPEG chunk {k}: {}", why.trim_start_matches("libjpeg fatal error: "))));
+            }
+        };
+        if w < cw as usize && (info.tiled || w < info.width as usize) || bytes.len() < w * h * 3 {
+            return Err(Error::format(&self.path, format!("JPEG chunk {k} decodes to {w}×{h} pixels, fewer than its {cw} columns")));
+        }
+        // Rows of the chunk's width, as many as it holds (padded with zeros).
+        let (stride, row) = (cw as usize * 3, w * 3);
+        let mut out = vec![0u8; stride * want_rows as usize];
+        for (y, to) in out.chunks_exact_mut(stride).take(h).enumerate() {
+            to.copy_from_slice(&bytes[y * row..y * row + stride]);
+        }
+        Ok(out)
+    }
+
     /// Chunk `k` decoded by `chunk_codec`: tiles are stored whole, so the
     /// bytes come out at the chunk's full width and height already.
     fn decode_own(&self, k: u32, codec: &ChunkCodec, file: &File) -> Result<Vec<u8>> {
@@ -94,24 +144,6 @@ impl SourceImage {
         let rows = if info.tiled { ch } else { (info.height - k % info.chunks_per_plane() * ch).min(ch) };
         let stored = (info.offsets[k as usize], info.byte_counts[k as usize]);
         codec.read_chunk(file, &self.path, k as usize, stored, cw as usize, rows as usize, ch as usize)
-    }
-}
-
-/// JPEG's YCbCr (JFIF, full range) to RGB in place, three bytes a pixel,
-/// in libjpeg's fixed-point arithmetic (16 fraction bits, rounded), so that
-/// the pixels are those GDAL reads through libjpeg.
-pub(super) fn ycbcr_to_rgb(px: &mut [u8]) {
-    const ONE: i32 = 1 << 16;
-    let fix = |v: f64| (v * ONE as f64 + 0.5) as i32;
-    let (cr_r, cb_b, cb_g, cr_g) = (fix(1.402), fix(1.772), fix(0.34414), fix(0.71414));
-    for p in px.chunks_exact_mut(3) {
-        let (y, cb, cr) = (p[0] as i32, p[1] as i32 - 128, p[2] as i32 - 128);
-        let r = y + ((cr_r * cr + ONE / 2) >> 16);
-        let g = y + ((-cb_g * cb - cr_g * cr + ONE / 2) >> 16);
-        let b = y + ((cb_b * cb + ONE / 2) >> 16);
-        p[0] = r.clamp(0, 255) as u8;
-        p[1] = g.clamp(0, 255) as u8;
-        p[2] = b.clamp(0, 255) as u8;
     }
 }
 

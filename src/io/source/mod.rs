@@ -148,16 +148,17 @@ impl SourceImage {
                         ));
                     }
                 }
-                // YCbCr JPEG comes out of the decoder as full-resolution
-                // Y, Cb, Cr samples; the scan is RGB from here on.
-                let ycbcr = info.photometric == 6;
-                if ycbcr {
+                // YCbCr JPEG is decoded to RGB by libjpeg; the scan is RGB
+                // from here on.
+                if info.photometric == 6 {
                     if info.bands != 3 || info.sample != SampleType::U8 || info.planar {
                         return Err(Error::unsupported(path, format!("YCbCr JPEG of {} {:?} bands", info.bands, info.sample)));
                     }
                     info.photometric = 2;
+                    Coder::LibJpeg
+                } else {
+                    Coder::Tiff { decoders: Mutex::new(vec![dec]) }
                 }
-                Coder::Tiff { decoders: Mutex::new(vec![dec]), ycbcr }
             } else {
                 let codec = ChunkCodec {
                     compression: info.compression,
@@ -383,7 +384,6 @@ impl SourceImage {
 
 #[cfg(test)]
 mod tests {
-    use super::coded::ycbcr_to_rgb;
     use super::*;
     use crate::io::tiff_out::{write_raster, Chunking, Compression, OutputSpec};
 
@@ -425,16 +425,6 @@ mod tests {
         let mut win = Window::default();
         img.read_window(0, 0, img.info.width, img.info.height, &mut win).unwrap();
         win.bytes().to_vec()
-    }
-
-    #[test]
-    fn ycbcr_turns_into_rgb_as_libjpeg_turns_it() {
-        // Grey stays grey; a saturated red, green and blue (their JFIF
-        // YCbCr worked by hand from the BT.601 matrix, rounded; blue's Cb
-        // of 255.5 is clipped, so it comes back as 254).
-        let mut px = [128, 128, 128, 0, 128, 128, 255, 128, 128, 76, 85, 255, 150, 44, 21, 29, 255, 107];
-        ycbcr_to_rgb(&mut px);
-        assert_eq!(px, [128, 128, 128, 0, 0, 0, 255, 255, 255, 254, 0, 0, 0, 255, 1, 0, 0, 254]);
     }
 
     #[test]
