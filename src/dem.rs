@@ -344,9 +344,11 @@ impl GridDem {
         Ok(g)
     }
 
-    /// Finds the grid's [`Collar`] where its posts are in memory (read
-    /// whole, or an `.hgt` mapped): the nodata cut around a DSM's data.
-    /// (A grid read a chunk at a time keeps every nodata post a hole.)
+    /// Finds the grid's [`Collar`]: the nodata cut around a DSM's data.
+    /// A grid read a chunk at a time is read once for it, a band of chunk
+    /// rows at a time (a DSM warped to another CRS, past the in-memory
+    /// size, kept its collar as holes); a band that cannot be read leaves
+    /// every nodata post a hole, as the lookups there will say.
     fn find_collar(&mut self) {
         let collar = match &self.data {
             Samples::Memory(v) => Collar::find(self.width, self.height, |j, out| {
@@ -355,7 +357,32 @@ impl GridDem {
             Samples::Hgt(_) => {
                 Collar::find(self.width, self.height, |j, out| collar::runs_of((0..self.width).map(|i| self.sample(i, j)), |z| self.is_nodata(z), out))
             }
-            Samples::Chunked(_) | Samples::Window { .. } | Samples::Mosaic(_) => None,
+            Samples::Chunked(c) => {
+                let (w, h) = (self.width, self.height);
+                let ch = c.raster().chunk.1.max(1);
+                // A band of whole chunk rows where it fits 16 MB, else fewer rows.
+                let band = ch.min(((16usize << 20) / (w * 4).max(1)).max(1));
+                let (mut rows, mut first, mut failed) = (Vec::new(), usize::MAX, false);
+                let collar = Collar::find(w, h, |j, out| {
+                    if failed {
+                        return;
+                    }
+                    if !(first..first + band).contains(&j) {
+                        first = j;
+                        match c.read_window([0, j, w, band.min(h - j)]) {
+                            Ok(v) => rows = v,
+                            Err(_) => {
+                                failed = true;
+                                return;
+                            }
+                        }
+                    }
+                    let row = &rows[(j - first) * w..(j - first + 1) * w];
+                    collar::runs_of(row.iter().copied(), |z| self.is_nodata(z), out)
+                });
+                collar.filter(|_| !failed)
+            }
+            Samples::Window { .. } | Samples::Mosaic(_) => None,
         };
         self.collar = collar.map(std::sync::Arc::new);
     }
@@ -709,7 +736,7 @@ impl Dem {
             Samples::Chunked(c) => g.data = Samples::Chunked(Box::new(c.recached(0))),
             held @ (Samples::Memory(_) | Samples::Window { .. }) => {
                 g.data = held;
-                if let Samples::Chunked(c) = GridDem::read_within(&self.path, 0)?.data {
+                if let Samples::Chunked(c) = GridDem::read_posts(&self.path, 0)?.data {
                     g.data = Samples::Chunked(c);
                 }
             }
@@ -755,7 +782,7 @@ impl Dem {
             // Read whole, but its window past the budget: read again
             // through a cache of that size.
             Samples::Memory(_) if bytes > max_bytes || w < 2 || h < 2 => {
-                let Samples::Chunked(c) = GridDem::read_within(&self.path, 0)?.data else { return Ok(false) };
+                let Samples::Chunked(c) = GridDem::read_posts(&self.path, 0)?.data else { return Ok(false) };
                 g.data = Samples::Chunked(Box::new(c.recached((max_bytes as usize).min(16 << 20))));
                 Ok(false)
             }
@@ -1138,6 +1165,28 @@ mod tests {
             }
         })
         .unwrap()
+    }
+
+    #[test]
+    fn a_dem_read_in_chunks_finds_the_collar_one_read_whole_does() {
+        // NaN cut around the data (a corner's triangle and the right-hand
+        // columns, as a DSM warped to another CRS has) and a hole inside:
+        // the collar is the same read whole or a chunk at a time (tiles and
+        // strips), and the hole stays a hole.
+        use crate::io::tiff_out::Chunking;
+        let dir = tempfile::tempdir().unwrap();
+        let void = |i: usize, j: usize| i + j < 30 || i >= 90 || ((40..43).contains(&i) && (30..33).contains(&j));
+        let collar_posts = (0..70).flat_map(|j| (0..100).map(move |i| (i, j))).filter(|&(i, j)| i + j < 30 || i >= 90).count() as u64;
+        for (k, chunking) in [Chunking::Tiles(16), Chunking::Strips(3)].into_iter().enumerate() {
+            let path = dir.path().join(format!("dsm{k}.tif"));
+            write_test_grid(&path, chunking, true, |i, j| if void(i, j) { f32::NAN } else { test_z(i, j) });
+            let whole = GridDem::read(&path).unwrap();
+            let chunked = GridDem::read_within(&path, 4 * 16 * 16 * 4).unwrap();
+            assert!(chunked.is_chunked(), "{chunking:?}");
+            assert_eq!((whole.collar_posts(), chunked.collar_posts()), (collar_posts, collar_posts), "{chunking:?}");
+            let collar = chunked.collar.as_ref().unwrap();
+            assert!(collar.contains(0, 0) && collar.contains(95, 40) && !collar.contains(41, 31) && !collar.contains(50, 50), "{chunking:?}");
+        }
     }
 
     #[test]
