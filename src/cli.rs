@@ -343,7 +343,8 @@ pub struct SensorArgs {
     pub exterior: Option<PathBuf>,
     /// An RPC model instead of a camera file, in any supported format
     /// (GeoTIFF RPC tag, NITF, _RPC.TXT, RPB, OSSIM .geom, DIMAP or
-    /// WorldView XML, rpcm JSON); the image itself when it carries one.
+    /// WorldView XML, rpcm JSON, Orthority's YAML: the entry of the image's
+    /// name); the image itself when it carries one.
     #[arg(long)]
     pub rpc: Option<PathBuf>,
     /// With --rpc: the image is a crop starting at this column,row of the

@@ -18,7 +18,7 @@ fn ventoux(name: &str) -> PathBuf {
 /// The Pléiades crop's RPC camera (SRTM heights above EGM96).
 fn pleiades() -> Camera {
     let geom = ventoux("left_image.geom");
-    Camera::rpc_file(&geom, Some([5000.0, 5000.0]), Some(&ventoux("egm96_15_ventoux.gtx"))).build(&geom).unwrap()
+    Camera::rpc_file(&geom, Some([5000.0, 5000.0]), Some(&ventoux("egm96_15_ventoux.gtx")), None).build(&geom).unwrap()
 }
 
 /// The bias a real product might carry: 2.9, 2.0 px (Orthority's QuickBird

@@ -1114,3 +1114,62 @@ fn a_vertical_datum_named_only_by_its_citation_is_applied_or_its_grid_named() {
         assert!(!d.join("o.tif").exists());
     }
 }
+
+/// `rpc` written as Orthority writes `rpc_param.yaml`: image names, each
+/// with `im_size` and an `rpc` mapping of lower-case GDAL names, the
+/// coefficient lists wrapped over lines, integers where a value is whole,
+/// and Orthority's extra error terms.
+fn orthority_rpc_entry(name: &str, rpc: &Rpc) -> String {
+    let mut t = format!("{name}:\n    im_size: [1000, 1000]\n    rpc:\n");
+    for line in rpc.to_gdal_text().lines() {
+        let (key, value) = line.split_once(": ").unwrap();
+        if let Some((set, k)) = key.rsplit_once('_').filter(|(set, _)| set.ends_with("COEFF")) {
+            let sep = if k == "1" {
+                format!("        {}: [", set.to_lowercase())
+            } else if k == "11" {
+                ",\n            ".to_string()
+            } else {
+                ", ".to_string()
+            };
+            t += &format!("{sep}{value}{}", if k == "20" { "]\n" } else { "" });
+        } else {
+            let v: f64 = value.parse().unwrap();
+            let v = if v.fract() == 0.0 { format!("{}", v as i64) } else { value.to_string() };
+            t += &format!("        {}: {v}\n", key.to_lowercase());
+        }
+    }
+    t + "        err_bias: 12.15\n        err_rand: 0.3\n"
+}
+
+/// Orthority's `rpc_param.yaml`: the model read equals the file it was
+/// written from; of several images' entries, the image's own is taken
+/// (`--rpc` with `--image` of that name: the same orthophoto, byte for
+/// byte, as from the OSSIM `.geom`); without its name, refused listing them.
+#[test]
+fn orthority_rpc_yaml_reads_the_images_own_entry() {
+    let dir = tempfile::tempdir().unwrap();
+    let geom = ventoux("left_image.geom");
+    let rpc = Rpc::read(&geom).unwrap();
+    let other = rpc.cropped(10.0, 0.0);
+    let one = dir.path().join("one.yaml");
+    std::fs::write(&one, orthority_rpc_entry("anything.tif", &rpc)).unwrap();
+    assert_eq!(Rpc::read(&one).unwrap(), rpc);
+    let many = dir.path().join("rpc_param.yaml");
+    std::fs::write(&many, orthority_rpc_entry("other.tif", &other) + &orthority_rpc_entry("left_image.tif", &rpc)).unwrap();
+    assert_eq!(Rpc::read_for(&many, Some("left_image.tif")).unwrap(), rpc);
+    assert_eq!(Rpc::read_for(&many, Some("other.tif")).unwrap(), other);
+    let e = Rpc::read(&many).unwrap_err().to_string();
+    assert!(e.contains("rpc_param.yaml") && e.contains("2 images") && e.contains("other.tif, left_image.tif"), "{e}");
+    let e = Rpc::read_for(&many, Some("third.tif")).unwrap_err().to_string();
+    assert!(e.contains("none for third.tif"), "{e}");
+    let dem = ventoux("srtm_N44E005_crop.tif");
+    let (a, b) = (dir.path().join("a.tif"), dir.path().join("b.tif"));
+    let extra = ["--gsd", "4", "--compress", "none"];
+    for (rpc, out) in [(&many, &a), (&geom, &b)] {
+        let r = pleiades_rectify(rpc, &dem, out, &extra);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    }
+    // (The files differ in the source's identity, which names the RPC file.)
+    let ((pa, ia), (pb, ib)) = (whole_image(&a), whole_image(&b));
+    assert!((ia.width, ia.height) == (ib.width, ib.height) && pa == pb, "the orthophotos differ");
+}

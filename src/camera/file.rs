@@ -232,6 +232,10 @@ pub struct RpcSection {
     /// Geoid grid (PROJ `.gtx` or GeoTIFF): the DEM's heights are above this geoid.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub geoid: Option<String>,
+    /// Where `file` holds the RPCs of several images (Orthority's YAML):
+    /// this image's file name.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub image: Option<String>,
     #[serde(flatten)]
     pub inline: std::collections::BTreeMap<String, toml::Value>,
 }
@@ -398,7 +402,7 @@ impl CameraFile {
         let sec = self.rpc.clone().ok_or_else(|| err("rpc", "missing section".into()))?;
         let near = |f: &str| -> PathBuf { path.parent().unwrap_or(Path::new("")).join(f) };
         let mut rpc = match (&sec.file, sec.inline.is_empty()) {
-            (Some(f), true) => Rpc::read(&near(f))?,
+            (Some(f), true) => Rpc::read_for(&near(f), sec.image.as_deref())?,
             (None, false) => {
                 let get = |k: &str| -> Option<Vec<f64>> {
                     match sec.inline.get(&k.to_ascii_lowercase())? {
@@ -509,7 +513,8 @@ impl Camera {
     }
 
     /// The camera file for an RPC file given on the command line.
-    pub fn rpc_file(rpc: &Path, offset: Option<[f64; 2]>, geoid: Option<&Path>) -> CameraFile {
+    /// `image`: the image's file name, for a file of several images' RPCs.
+    pub fn rpc_file(rpc: &Path, offset: Option<[f64; 2]>, geoid: Option<&Path>, image: Option<&str>) -> CameraFile {
         let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()).to_string_lossy().into_owned();
         CameraFile {
             crs: "auto".into(),
@@ -518,7 +523,13 @@ impl Camera {
             distortion: None,
             exterior: None,
             corrections: CorrectionsSection::default(),
-            rpc: Some(RpcSection { file: Some(abs(rpc)), offset_px: offset, geoid: geoid.map(abs), inline: Default::default() }),
+            rpc: Some(RpcSection {
+                file: Some(abs(rpc)),
+                offset_px: offset,
+                geoid: geoid.map(abs),
+                image: image.map(str::to_string),
+                inline: Default::default(),
+            }),
             panoramic: None,
         }
     }

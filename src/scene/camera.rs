@@ -29,7 +29,7 @@ pub fn load(model: &ModelSource, image: &Path, origin: &Path, crs: Option<&Crs>)
                 let xml = crate::io::bounded_read::read_text_bounded(origin, "an RPC file", crate::io::bounded_read::SMALL).ok()?;
                 crate::camera::rpc::Rpc::tile_offset(&xml, image.file_name()?.to_str()?)
             });
-            Camera::rpc_file(origin, offset, geoid.as_deref()).build(origin)
+            Camera::rpc_file(origin, offset, geoid.as_deref(), image.file_name().and_then(|n| n.to_str())).build(origin)
         }
     }
 }

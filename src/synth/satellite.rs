@@ -158,7 +158,7 @@ pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progre
         distortion: None,
         exterior: None,
         corrections: CorrectionsSection::default(),
-        rpc: Some(RpcSection { file: Some("scan_RPC.TXT".into()), offset_px: None, geoid: None, inline: Default::default() }),
+        rpc: Some(RpcSection { file: Some("scan_RPC.TXT".into()), offset_px: None, geoid: None, image: None, inline: Default::default() }),
         panoramic: None,
     };
     std::fs::write(&cam_path, file.to_toml()).map_err(|e| Error::io(&cam_path, e))?;

@@ -13,6 +13,7 @@
 //! | Pléiades / SPOT DIMAP v2 XML | `<Inverse_Model>` | `<SAMP_NUM_COEFF_1>`…, 1-based pixels |
 //! | WorldView / DigitalGlobe XML | `<RPB>` | `<LINEOFFSET>`…, space-separated lists |
 //! | NITF | `NITF` magic | the RPC00B TRE, fixed-width text |
+//! | Orthority `rpc_param.yaml` | `line_num_coeff:` | image name → `rpc:` → lower-case GDAL names, lists |
 
 use super::Rpc;
 use crate::error::{Error, Result};
@@ -50,6 +51,13 @@ impl Rpc {
     /// Reads an RPC model from any supported file, recognising the format
     /// by its content (not its name).
     pub fn read(path: &Path) -> Result<Rpc> {
+        Rpc::read_for(path, None)
+    }
+
+    /// As [`Rpc::read`]; where the file holds the RPCs of several images
+    /// (Orthority's YAML), the one of the image named `image` (its file
+    /// name).
+    pub fn read_for(path: &Path, image: Option<&str>) -> Result<Rpc> {
         // An image carrying its RPC may be of any size: only its header is read.
         let head = read_head(path, 8)?;
         if head.starts_with(b"II*\0") || head.starts_with(b"MM\0*") || head.starts_with(b"II+\0") || head.starts_with(b"MM\0+") {
@@ -72,6 +80,9 @@ impl Rpc {
         }
         if text.contains("line_num_coeff_00") {
             return Rpc::parse_geom(text, path);
+        }
+        if text.contains("line_num_coeff:") {
+            return Rpc::parse_orthority_yaml(text, path, image);
         }
         Rpc::parse_text(text, path)
     }
@@ -125,6 +136,39 @@ impl Rpc {
                 None => continue,
             };
             map.insert(name.to_string(), numbers);
+        }
+        Rpc::from_numbers(&map, path)
+    }
+
+    /// Orthority's RPC parameters: a YAML mapping of image file names, each
+    /// with `im_size` and an `rpc` mapping of the GDAL names in lower case
+    /// (coefficient sets as lists of 20). The entry of `image` where the
+    /// file holds several; the only one otherwise.
+    pub fn parse_orthority_yaml(text: &str, path: &Path, image: Option<&str>) -> Result<Rpc> {
+        use serde_yaml_ng::Value;
+        let doc = crate::camera::formats::orthority::parse_yaml(text).map_err(|e| Error::format(path, format!("YAML: {e}")))?;
+        let Value::Mapping(images) = doc else { return Err(Error::format(path, "Orthority RPC YAML: not a mapping of image names")) };
+        let names: Vec<String> = images.keys().map(|k| k.as_str().map_or_else(|| format!("{k:?}"), str::to_string)).collect();
+        let entry = match (images.len(), image) {
+            (1, _) => images.values().next(),
+            (_, Some(name)) => images.get(name),
+            (_, None) => None,
+        };
+        let Some(entry) = entry else {
+            let listed = names.iter().take(5).cloned().collect::<Vec<_>>().join(", ");
+            let which = image.map_or_else(|| ": which is the image's is not known".to_string(), |n| format!(", none for {n}"));
+            return Err(Error::format(path, format!("holds the RPCs of {} images ({listed}){which}", names.len())));
+        };
+        let rpc = entry.get("rpc").ok_or_else(|| Error::format(path, "Orthority RPC YAML: an image without its `rpc` mapping"))?;
+        let Value::Mapping(fields) = rpc else { return Err(Error::format(path, "Orthority RPC YAML: `rpc` is not a mapping")) };
+        let mut map = Numbers::new();
+        for (key, value) in fields {
+            let Some(key) = key.as_str() else { continue };
+            let numbers = match value {
+                Value::Sequence(a) => a.iter().map(|v| v.as_f64().unwrap_or(f64::NAN)).collect(),
+                v => vec![v.as_f64().unwrap_or(f64::NAN)],
+            };
+            map.insert(key.to_ascii_uppercase(), numbers);
         }
         Rpc::from_numbers(&map, path)
     }
