@@ -341,6 +341,10 @@ pub struct SensorArgs {
     /// own is found by its file name; --camera gives the lens.
     #[arg(long, requires = "camera")]
     pub exterior: Option<PathBuf>,
+    /// The --exterior CSV's angles are in radians (default: degrees, as
+    /// Orthority reads them)
+    #[arg(long, requires = "exterior")]
+    pub radians: bool,
     /// An RPC model instead of a camera file, in any supported format
     /// (GeoTIFF RPC tag, NITF, _RPC.TXT, RPB, OSSIM .geom, DIMAP or
     /// WorldView XML, rpcm JSON, Orthority's YAML: the entry of the image's
@@ -359,6 +363,15 @@ pub struct SensorArgs {
     pub geoid: Option<PathBuf>,
 }
 
+/// The unit `--radians` says a pose CSV's angles are in.
+fn angle_unit(radians: bool) -> gcm_ortho::camera::formats::AngleUnit {
+    if radians {
+        gcm_ortho::camera::formats::AngleUnit::Radians
+    } else {
+        gcm_ortho::camera::formats::AngleUnit::Degrees
+    }
+}
+
 impl SensorArgs {
     /// The camera file or RPC file named, and how it becomes the sensor
     /// model. No
@@ -367,7 +380,10 @@ impl SensorArgs {
         match (&self.camera, &self.rpc) {
             (Some(_), None) if self.rpc_offset.is_some() => Err(gcm_ortho::Error::setting("rpc_offset", "goes with --rpc, not a camera file")),
             (Some(_), None) if self.geoid.is_some() => Err(gcm_ortho::Error::setting("geoid", "goes with --rpc, not a camera file")),
-            (Some(c), None) => Ok((c.clone(), self.exterior.clone().map_or(ModelSource::CameraFile, ModelSource::WithPoses))),
+            (Some(c), None) => Ok((
+                c.clone(),
+                self.exterior.clone().map_or(ModelSource::CameraFile, |poses| ModelSource::WithPoses { poses, angles: angle_unit(self.radians) }),
+            )),
             (None, Some(r)) => {
                 let offset = self.rpc_offset.as_deref().map(|o| parse_offset("rpc_offset", o)).transpose()?;
                 Ok((r.clone(), ModelSource::Rpc { offset, geoid: self.geoid.clone() }))
@@ -417,6 +433,9 @@ pub struct CamerasArgs {
     /// GeoJSON, our block CSV, a reconstruction.json).
     #[arg(long)]
     pub exterior: Option<PathBuf>,
+    /// The --exterior CSV's angles are in radians (default: degrees)
+    #[arg(long, requires = "exterior")]
+    pub radians: bool,
     /// Only these images' cameras, their sizes read from the files
     /// (default: every pose the files hold).
     pub images: Vec<PathBuf>,
@@ -467,6 +486,7 @@ impl CamerasArgs {
         Ok(ConvertOptions {
             camera: self.camera.clone(),
             exterior: self.exterior.clone(),
+            angles: angle_unit(self.radians),
             images: self.images.clone(),
             crs,
             out_dir: self.out_dir.clone(),

@@ -71,7 +71,7 @@ pub fn source_key(c: &RectifyOptions) -> String {
         g.file = PathBuf::new();
     }
     match &mut whole.model {
-        crate::options::ModelSource::WithPoses(p) => *p = PathBuf::new(),
+        crate::options::ModelSource::WithPoses { poses, .. } => *poses = PathBuf::new(),
         crate::options::ModelSource::Rpc { geoid: Some(g), .. } => *g = PathBuf::new(),
         _ => {}
     }

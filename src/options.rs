@@ -347,8 +347,8 @@ pub enum ModelSource {
     Inline(CameraFile),
     /// The camera file (any format `camera::formats` reads) with the
     /// exterior orientations of many images in this file: the image's own
-    /// is found by its name.
-    WithPoses(PathBuf),
+    /// is found by its name; `angles`: the unit of a CSV's angles.
+    WithPoses { poses: PathBuf, angles: crate::camera::formats::AngleUnit },
 }
 
 impl ModelSource {
@@ -605,8 +605,8 @@ impl RectifyOptions {
         if let ModelSource::Rpc { geoid: Some(g), .. } = &self.model {
             v.push(("geoid grid", g.clone()));
         }
-        if let ModelSource::WithPoses(p) = &self.model {
-            v.push(("exterior orientations", p.clone()));
+        if let ModelSource::WithPoses { poses, .. } = &self.model {
+            v.push(("exterior orientations", poses.clone()));
         }
         if let Some(g) = &self.gcps {
             v.push(("GCP file", g.file.clone()));

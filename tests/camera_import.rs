@@ -29,7 +29,8 @@ const PINHOLE_MM: [[f64; 2]; 4] =
     [[92.012332580039, 98.25926306718], [24.982255876275, 110.82622957381], [61.816249261672, 109.485019713817], [198.610695262985, 41.175239392837]];
 
 fn camera(image: &str, cameras: &str, poses: &str) -> Camera {
-    gcm_ortho::scene::camera::read_for(Path::new(image), &fixture(cameras), Some(&fixture(poses)), None).unwrap_or_else(|e| panic!("{image}: {e}"))
+    gcm_ortho::scene::camera::read_for(Path::new(image), &fixture(cameras), Some(&fixture(poses)), Default::default(), None)
+        .unwrap_or_else(|e| panic!("{image}: {e}"))
 }
 
 fn assert_projects(cam: &Camera, expected: &[[f64; 2]; 4], what: &str) {
@@ -166,7 +167,9 @@ fn bad_files_are_refused_by_name() {
     // when the camera is built, naming the ways to give it.
     let one = write("one.yaml", "cam:\n  type: pinhole\n  im_size: [640, 480]\n  focal_len: 0.8\n");
     let no_prj = write("noprj.csv", "filename,x,y,z,omega,phi,kappa\nimg1,500000,4100000,600,0,0,0\n");
-    let Err(e) = gcm_ortho::scene::camera::read_for(Path::new("img1.tif"), &one, Some(&no_prj), None) else { panic!("built without a CRS") };
+    let Err(e) = gcm_ortho::scene::camera::read_for(Path::new("img1.tif"), &one, Some(&no_prj), Default::default(), None) else {
+        panic!("built without a CRS")
+    };
     let e = e.to_string();
     assert!(e.contains("crs") && e.contains(".prj") && e.contains("--crs"), "{e}");
 
@@ -227,7 +230,7 @@ const DJI_PIXELS: [[f64; 2]; 3] = [[58.00579068376169, 31.5610853493057], [69.21
 fn a_dji_image_is_its_own_camera_as_orthority_reads_it() {
     // Gimbal pitch −60°, yaw 30.5°, roll 0; DewarpData (Brown); XMP position.
     let image = fixture("exif/dji_oblique.jpg");
-    let cam = gcm_ortho::scene::camera::read_for(&image, Path::new("exif"), None, None).unwrap();
+    let cam = gcm_ortho::scene::camera::read_for(&image, Path::new("exif"), None, Default::default(), None).unwrap();
     assert_eq!(cam.crs.epsg(), Some(32633), "the UTM zone of the position");
     for (p, e) in DJI_WORLD.iter().zip(DJI_PIXELS) {
         let (c, r) = cam.model().project(p[0], p[1], p[2]).unwrap();
@@ -298,7 +301,7 @@ fn an_image_without_camera_tags_is_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let tif = dir.path().join("plain.tif");
     common::f32_raster(&tif, (8, 8), (500000.0, 4100000.0, 1.0, 32633), |_, _| 7.0);
-    let Err(e) = gcm_ortho::scene::camera::read_for(&tif, Path::new("exif"), None, None) else { panic!("a camera from no tags") };
+    let Err(e) = gcm_ortho::scene::camera::read_for(&tif, Path::new("exif"), None, Default::default(), None) else { panic!("a camera from no tags") };
     let e = e.to_string();
     assert!(e.contains("plain.tif") && e.contains("focal length") && e.contains("camera file"), "{e}");
 }
@@ -562,4 +565,46 @@ fn cameras_quiet_keeps_only_the_warnings() {
     assert!(loud.status.success() && quiet.status.success(), "{}", String::from_utf8_lossy(&quiet.stderr));
     assert!(!loud.stdout.is_empty() && quiet.stdout.is_empty(), "{}", String::from_utf8_lossy(&quiet.stdout));
     assert!(String::from_utf8_lossy(&quiet.stderr).contains("wrong unit"), "{}", String::from_utf8_lossy(&quiet.stderr));
+}
+
+/// ODM's and Orthority's `odm_xyz_opk.csv` form: space-delimited, every
+/// field in single quotes (the camera id holding spaces), `easting northing
+/// altitude`, angles in radians. Read with `--radians` (as Orthority reads
+/// it), the poses are those of the same poses in degrees in a plain CSV;
+/// read without, the file is doubtful and said to be.
+#[test]
+fn odm_single_quoted_radians_csv_reads_with_radians() {
+    let dir = tempfile::tempdir().unwrap();
+    let poses = [
+        ("im_a", [292710.25, 2731048.75, 186.5], [0.5032, 0.0164, 0.0311]),
+        ("im_b", [292746.5, 2731093.5, 186.6], [-0.0476, -0.5250, -1.6359]),
+        ("im_c", [292742.0, 2731079.0, 186.7], [-0.5248, 0.0328, 3.0715]),
+    ];
+    let mut odm = "'filename' 'easting' 'northing' 'altitude' 'omega' 'phi' 'kappa' 'camera'\n".to_string();
+    let mut plain = "filename,x,y,z,omega,phi,kappa,camera\n".to_string();
+    for (name, p, a) in poses {
+        odm += &format!("'{name}' {} {} {} {} {} {} 'brown cam'\n", p[0], p[1], p[2], a[0], a[1], a[2]);
+        let d = a.map(f64::to_degrees);
+        plain += &format!("{name},{},{},{},{},{},{},brown cam\n", p[0], p[1], p[2], d[0], d[1], d[2]);
+    }
+    let (odm_path, plain_path) = (dir.path().join("odm_xyz_opk.csv"), dir.path().join("plain.csv"));
+    for (path, text) in [(&odm_path, &odm), (&plain_path, &plain)] {
+        std::fs::write(path, text).unwrap();
+        std::fs::write(path.with_extension("prj"), "EPSG:32735").unwrap();
+    }
+    let int = fixture("orthority/int_param.yaml");
+    let got = formats::read_with(&int, Some(&odm_path), None, formats::AngleUnit::Radians).unwrap();
+    let want = formats::read(&int, Some(&plain_path), None).unwrap();
+    assert_eq!(got.poses.len(), 3);
+    for (g, w) in got.poses.iter().zip(&want.poses) {
+        assert_eq!((&g.name, g.position, &g.camera), (&w.name, w.position, &w.camera));
+        assert!((g.r - w.r).abs().max() < 1e-12, "{}: {} against {}", g.name, g.r, w.r);
+    }
+    // (The interior file's own warning about its portrait camera aside.)
+    let about_angles = |w: &Vec<String>| w.iter().filter(|w| w.contains("--radians") || w.contains("past")).count();
+    assert_eq!(about_angles(&got.warnings), 0, "{:?}", got.warnings);
+    // Without --radians: read as degrees (as Orthority would), with a warning.
+    let doubtful = formats::read(&int, Some(&odm_path), None).unwrap();
+    assert!(doubtful.warnings.iter().any(|w| w.contains("odm_xyz_opk.csv") && w.contains("--radians")), "{:?}", doubtful.warnings);
+    assert_eq!(about_angles(&want.warnings), 0, "degrees past π are not doubtful: {:?}", want.warnings);
 }

@@ -37,7 +37,7 @@ fn convert(camera: &Path, image: &Path, out: &Path, target: &str) -> Vec<String>
 
 fn camera_of(image: &Path, args: &[String]) -> Camera {
     let exterior = args.get(3).map(PathBuf::from);
-    gcm_ortho::scene::camera::read_for(image, Path::new(&args[1]), exterior.as_deref(), None).unwrap_or_else(|e| panic!("{args:?}: {e}"))
+    gcm_ortho::scene::camera::read_for(image, Path::new(&args[1]), exterior.as_deref(), Default::default(), None).unwrap_or_else(|e| panic!("{args:?}: {e}"))
 }
 
 #[test]
@@ -282,7 +282,7 @@ fn a_metashape_export_reads_as_the_camera_it_describes() {
         std::fs::write(&xml, metashape_xml(&truth_file, (W, H), reference, label)).unwrap();
         let set = gcm_ortho::camera::formats::read(&xml, None, None).unwrap();
         assert!(set.warnings.iter().any(|w| w.contains("1 of 2 cameras are not aligned")), "{:?}", set.warnings);
-        let cam = gcm_ortho::scene::camera::read_for(&sc.scan, &xml, None, None).unwrap_or_else(|e| panic!("{e}"));
+        let cam = gcm_ortho::scene::camera::read_for(&sc.scan, &xml, None, Default::default(), None).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(cam.crs.epsg(), Some(32631), "a geographic chunk goes to its UTM zone");
         let mut worst = 0f64;
         for j in 0..=8 {

@@ -141,6 +141,9 @@ struct Block {
     /// The poses, in any form `camera::formats` reads.
     #[serde(alias = "exterior_csv")]
     exterior: Option<String>,
+    /// The unit of the exterior CSV's angles (`--radians`).
+    #[serde(default)]
+    radians: bool,
     images: String,
 }
 
@@ -366,7 +369,8 @@ pub fn load(path: &Path) -> Result<Vec<Job>, ManifestErrors> {
         let line = line_of(&text, b.span().start);
         let b = b.get_ref();
         let exterior = b.exterior.as_deref().map(&rel);
-        match crate::camera::formats::read(&rel(&b.interior), exterior.as_deref(), None).and_then(|set| set.all()) {
+        let angles = if b.radians { crate::camera::formats::AngleUnit::Radians } else { crate::camera::formats::AngleUnit::Degrees };
+        match crate::camera::formats::read_with(&rel(&b.interior), exterior.as_deref(), None, angles).and_then(|set| set.all()) {
             Ok(cams) => {
                 for (name, cam, origin) in cams {
                     let image = rel(&image_of(&b.images, &name));

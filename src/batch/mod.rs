@@ -85,8 +85,12 @@ pub fn job_key(c: &RectifyOptions) -> String {
     if let Some(g) = &c.gcps {
         file_stamp(&mut h, &g.file);
     }
-    if let crate::options::ModelSource::WithPoses(p) = &c.model {
-        file_stamp(&mut h, p);
+    if let crate::options::ModelSource::WithPoses { poses, angles } = &c.model {
+        file_stamp(&mut h, poses);
+        // (Degrees hash as before: a rerun of an earlier run is current.)
+        if *angles == crate::camera::formats::AngleUnit::Radians {
+            fnv(&mut h, b"angles in radians");
+        }
     }
     let mut params = c.clone();
     params.threads = 0;

@@ -5,7 +5,7 @@
 //! and is joined to it here.
 
 use crate::camera::file::Camera;
-use crate::camera::formats;
+use crate::camera::formats::{self, AngleUnit};
 use crate::error::Result;
 use crate::geodesy::Crs;
 use crate::options::ModelSource;
@@ -16,8 +16,8 @@ use std::path::Path;
 /// where the camera's files give none.
 pub fn load(model: &ModelSource, image: &Path, origin: &Path, crs: Option<&Crs>) -> Result<Camera> {
     match model {
-        ModelSource::CameraFile => read_for(image, origin, None, crs),
-        ModelSource::WithPoses(poses) => read_for(image, origin, Some(poses), crs),
+        ModelSource::CameraFile => read_for(image, origin, None, AngleUnit::Degrees, crs),
+        ModelSource::WithPoses { poses, angles } => read_for(image, origin, Some(poses), *angles, crs),
         ModelSource::Inline(f) => {
             let (file, found) = crate::fiducials::camera::measured(f.clone(), origin, image)?;
             let mut cam = file.build(origin)?;
@@ -38,9 +38,10 @@ pub fn load(model: &ModelSource, image: &Path, origin: &Path, crs: Option<&Crs>)
 /// [`formats::read_for`] reads, with the exterior orientations of many
 /// images in `poses` where given. Doubtful things the files hold are in
 /// [`Camera::warnings`].
-/// `crs`: the positions' CRS where the files give none.
-pub fn read_for(image: &Path, camera: &Path, poses: Option<&Path>, crs: Option<&Crs>) -> Result<Camera> {
-    let set = formats::read_for(image, camera, poses, crs)?;
+/// `crs`: the positions' CRS where the files give none; `angles`: the
+/// unit of a pose CSV's angles.
+pub fn read_for(image: &Path, camera: &Path, poses: Option<&Path>, angles: AngleUnit, crs: Option<&Crs>) -> Result<Camera> {
+    let set = formats::read_for_with(image, camera, poses, angles, crs)?;
     let (mut file, found) = crate::fiducials::camera::measured(set.camera_for(image)?, camera, image)?;
     if let (true, Some(c)) = (file.crs.trim().is_empty(), crs) {
         file.crs = c.epsg().map_or_else(|| c.proj4().to_string(), |e| format!("EPSG:{e}"));
@@ -61,7 +62,7 @@ pub fn check_for(image: &Path, camera: &Path) -> Result<()> {
     if set.camera_for(image)?.needs_marks() {
         return Ok(());
     }
-    read_for(image, camera, None, None).map(|_| ())
+    read_for(image, camera, None, AngleUnit::Degrees, None).map(|_| ())
 }
 
 /// The ground control points a run's options name, read for its image.

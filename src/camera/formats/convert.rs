@@ -30,6 +30,8 @@ pub enum Target {
 pub struct ConvertOptions {
     pub camera: PathBuf,
     pub exterior: Option<PathBuf>,
+    /// The unit of a pose CSV's angles.
+    pub angles: super::AngleUnit,
     /// Only these images' cameras, sized from the files; empty: every pose.
     pub images: Vec<PathBuf>,
     /// The positions' CRS where the files give none.
@@ -65,7 +67,7 @@ pub fn convert(o: &ConvertOptions) -> Result<Converted> {
     if exif && o.images.is_empty() {
         return Err(Error::Usage("--camera exif: name the images".into()));
     }
-    let mut set = if exif { Default::default() } else { super::read(&o.camera, o.exterior.as_deref(), o.images.first().map(PathBuf::as_path))? };
+    let mut set = if exif { Default::default() } else { super::read_with(&o.camera, o.exterior.as_deref(), o.images.first().map(PathBuf::as_path), o.angles)? };
     let mut entries = Vec::new();
     if !o.images.is_empty() {
         for image in &o.images {

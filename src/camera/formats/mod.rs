@@ -312,6 +312,16 @@ fn detect_json(path: &Path, v: &serde_json::Value) -> Result<Kind> {
     }
 }
 
+/// The unit of the angles in a CSV of exterior orientations: degrees,
+/// as Orthority reads them unless told (`--radians`), or radians.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AngleUnit {
+    #[default]
+    Degrees,
+    Radians,
+}
+
 /// `--camera exif`: the camera from the image's own tags.
 #[must_use]
 pub fn is_exif(camera: &Path) -> bool {
@@ -321,8 +331,13 @@ pub fn is_exif(camera: &Path) -> bool {
 /// The set for `image`: from its own tags where `camera` is `exif`
 /// (positions in `crs`, default their UTM zone), else [`read`].
 pub fn read_for(image: &Path, camera: &Path, exterior: Option<&Path>, crs: Option<&Crs>) -> Result<Imported> {
+    read_for_with(image, camera, exterior, AngleUnit::Degrees, crs)
+}
+
+/// As [`read_for`], a pose CSV's angles in `angles`.
+pub fn read_for_with(image: &Path, camera: &Path, exterior: Option<&Path>, angles: AngleUnit, crs: Option<&Crs>) -> Result<Imported> {
     if !is_exif(camera) {
-        return read(camera, exterior, Some(image));
+        return read_with(camera, exterior, Some(image), angles);
     }
     if let Some(e) = exterior {
         return Err(Error::unsupported(e, "--camera exif takes the position from the image: give a camera file with --exterior"));
@@ -334,9 +349,14 @@ pub fn read_for(image: &Path, camera: &Path, exterior: Option<&Path>, crs: Optio
 /// (`--exterior`) into one set; `image`, where known, gives the pixels of
 /// a lens given in mm only (Pix4D's `.cam`).
 pub fn read(camera: &Path, exterior: Option<&Path>, image: Option<&Path>) -> Result<Imported> {
-    let mut set = read_one(camera, exterior.is_some(), image)?;
+    read_with(camera, exterior, image, AngleUnit::Degrees)
+}
+
+/// As [`read`], a pose CSV's angles in `angles`.
+pub fn read_with(camera: &Path, exterior: Option<&Path>, image: Option<&Path>, angles: AngleUnit) -> Result<Imported> {
+    let mut set = read_one(camera, exterior.is_some(), image, angles)?;
     if let Some(e) = exterior {
-        let mut poses = read_one(e, false, image)?;
+        let mut poses = read_one(e, false, image, angles)?;
         let stem = |n: &str| Path::new(n).file_stem().and_then(|s| s.to_str()).unwrap_or(n).to_string();
         for p in poses.poses.iter_mut().filter(|p| p.camera.is_none()) {
             let named = set.lens_of_image.iter().find(|(n, _)| *n == p.name).or_else(|| set.lens_of_image.iter().find(|(n, _)| stem(n) == stem(&p.name)));
@@ -361,7 +381,7 @@ pub fn read(camera: &Path, exterior: Option<&Path>, image: Option<&Path>) -> Res
 }
 
 /// One file; `for_lenses` when another gives the poses.
-fn read_one(path: &Path, for_lenses: bool, image: Option<&Path>) -> Result<Imported> {
+fn read_one(path: &Path, for_lenses: bool, image: Option<&Path>, angles: AngleUnit) -> Result<Imported> {
     let text = read_text_bounded(path, "a camera or pose file", SMALL * 64)?;
     // A byte-order mark (Windows editors) is no part of any of these forms.
     let text = text.trim_start_matches('\u{feff}');
@@ -374,7 +394,7 @@ fn read_one(path: &Path, for_lenses: bool, image: Option<&Path>) -> Result<Impor
             Imported { base: Some(file), ..Default::default() }
         }
         Kind::OrthorityInterior => orthority::read_interior(path, text)?,
-        Kind::OrthorityCsv => orthority::read_csv(path, text)?,
+        Kind::OrthorityCsv => orthority::read_csv(path, text, angles)?,
         Kind::OrthorityGeoJson => orthority::read_geojson(path, text)?,
         Kind::OpenSfmReconstruction | Kind::OpenSfmCameras => opensfm::read(path, text)?,
         Kind::MetashapeXml => metashape::read(path, text)?,

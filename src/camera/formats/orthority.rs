@@ -8,9 +8,11 @@
 //! * exterior CSV: a header of `filename`, `x y z` or `latitude longitude
 //!   altitude`, `omega phi kappa` or `roll pitch yaw` (degrees), optional
 //!   `camera` (names in any case, other columns ignored; `name` also for
-//!   `filename`), or no header and the order `filename x y z omega phi
-//!   kappa`; the delimiter `,` `;` tab `:` or spaces; a `.prj` beside it
-//!   is the CRS;
+//!   `filename`, `easting northing altitude` for `x y z`), or no header
+//!   and the order `filename x y z omega phi kappa`; the delimiter `,` `;`
+//!   tab `:` or spaces; fields in double or single quotes; angles in
+//!   degrees unless `--radians` says otherwise; a `.prj` beside it is the
+//!   CRS;
 //! * exterior GeoJSON: `world_crs` and features with `filename`, `camera`,
 //!   `xyz` and `opk` (radians).
 //!
@@ -96,7 +98,12 @@ const DELIMITERS: [u8; 5] = [b',', b';', b'\t', b':', b' '];
 /// The fields of one CSV line with delimiter `d` (quotes kept together;
 /// spaces after a delimiter, and empty fields between spaces, dropped).
 fn fields(line: &str, d: u8) -> Vec<String> {
-    let mut r = csv::ReaderBuilder::new().delimiter(d).has_headers(false).flexible(true).trim(csv::Trim::All).from_reader(line.as_bytes());
+    fields_quoted(line, d, b'"')
+}
+
+/// [`fields`] with fields quoted by `quote`.
+fn fields_quoted(line: &str, d: u8, quote: u8) -> Vec<String> {
+    let mut r = csv::ReaderBuilder::new().delimiter(d).quote(quote).has_headers(false).flexible(true).trim(csv::Trim::All).from_reader(line.as_bytes());
     let Some(Ok(rec)) = r.records().next() else { return Vec::new() };
     rec.iter().filter(|f| d != b' ' || !f.is_empty()).map(str::to_string).collect()
 }
@@ -283,9 +290,14 @@ fn image_name(s: &str) -> String {
 }
 
 /// Orthority's exterior CSV (also the block CSV `name,X,Y,Z,omega,phi,kappa`).
-pub fn read_csv(path: &Path, text: &str) -> Result<Imported> {
+/// `unit`: the unit of its angles.
+pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit) -> Result<Imported> {
     let lines: Vec<(usize, &str)> = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#')).collect();
     let Some(&(_, first)) = lines.first() else { return Err(Error::format(path, "holds no exterior orientations")) };
+    // Single quotes where the first field opens with one (ODM's and
+    // Orthority's space-delimited files), else double quotes.
+    let quote = if first.trim_start().starts_with('\'') { b'\'' } else { b'"' };
+    let fields = |line: &str, d: u8| fields_quoted(line, d, quote);
     // The delimiter that gives the first line seven or more fields, and every line as many.
     let delimiter = DELIMITERS
         .into_iter()
@@ -301,18 +313,32 @@ pub fn read_csv(path: &Path, text: &str) -> Result<Imported> {
     // camera parameters: the same columns and ω, φ, κ) name the file too.
     let is_file_column = |f: &str| f == "filename" || f == "name" || f == "imagename";
     let has_header = head.iter().any(|f| is_file_column(f));
-    let names: Vec<String> = if has_header { head } else { ["filename", "x", "y", "z", "omega", "phi", "kappa"].iter().map(|s| s.to_string()).collect() };
+    // Easting, northing (ODM's name for them) are x, y; altitude beside them, z.
+    let projected = head.iter().any(|f| f == "easting") && head.iter().any(|f| f == "northing");
+    let synonym = |f: String| match f.as_str() {
+        "easting" => "x".to_string(),
+        "northing" => "y".to_string(),
+        "altitude" if projected => "z".to_string(),
+        _ => f,
+    };
+    let names: Vec<String> = if has_header {
+        head.into_iter().map(synonym).collect()
+    } else {
+        ["filename", "x", "y", "z", "omega", "phi", "kappa"].iter().map(|s| s.to_string()).collect()
+    };
     let col = |k: &str| names.iter().position(|n| n == k || (k == "filename" && is_file_column(n)));
     let need = |ks: [&str; 3]| -> Option<[usize; 3]> { Some([col(ks[0])?, col(ks[1])?, col(ks[2])?]) };
     let (xyz, lla) = (need(["x", "y", "z"]), need(["latitude", "longitude", "altitude"]));
     let (opk, rpy) = (need(["omega", "phi", "kappa"]), need(["roll", "pitch", "yaw"]));
     let file_col = col("filename").ok_or_else(|| Error::format(path, "line 1: no filename column"))?;
     let position = xyz.or(lla).ok_or_else(|| Error::format(path, "line 1: needs x, y, z or latitude, longitude, altitude columns"))?;
-    let angles = opk.or(rpy).ok_or_else(|| Error::format(path, "line 1: needs omega, phi, kappa or roll, pitch, yaw columns"))?;
+    let angle_cols = opk.or(rpy).ok_or_else(|| Error::format(path, "line 1: needs omega, phi, kappa or roll, pitch, yaw columns"))?;
     let camera_col = col("camera");
 
     let mut rows = Vec::new();
     let (mut warnings, mut past_a_turn) = (Vec::new(), false);
+    // Whether every angle lies within half a turn, and the largest.
+    let (mut within_half_turn, mut largest) = (true, 0f64);
     for &(n, line) in lines.iter().skip(usize::from(has_header)) {
         let f = fields(line, delimiter);
         let at = |k: usize| -> Result<f64> {
@@ -322,16 +348,29 @@ pub fn read_csv(path: &Path, text: &str) -> Result<Imported> {
                 .ok_or_else(|| Error::format(path, format!("line {}: {} is not a number", n + 1, names.get(k).map_or("a field", |s| s.as_str()))))
         };
         let p = [at(position[0])?, at(position[1])?, at(position[2])?];
-        let degrees = [at(angles[0])?, at(angles[1])?, at(angles[2])?];
+        let given = [at(angle_cols[0])?, at(angle_cols[1])?, at(angle_cols[2])?];
         // (Said once a file: every line of a wrong column would say it.)
-        if !past_a_turn && degrees.iter().any(|a| a.abs() > 360.0) {
+        let turn = if unit == super::AngleUnit::Radians { std::f64::consts::TAU } else { 360.0 };
+        if !past_a_turn && given.iter().any(|a| a.abs() > turn) {
             past_a_turn = true;
-            warnings.push(format!("{}: line {}: angles {degrees:?} past 360°: read as degrees, turned into one turn", path.display(), n + 1));
+            let what = if turn == 360.0 { "360°: read as degrees" } else { "2π: read as radians (--radians): degrees?" };
+            warnings.push(format!("{}: line {}: angles {given:?} past {what}", path.display(), n + 1));
         }
-        let a = degrees.map(f64::to_radians);
+        within_half_turn &= given.iter().all(|a| a.abs() <= std::f64::consts::PI + 1e-9);
+        largest = given.iter().fold(largest, |m, a| m.max(a.abs()));
+        let a = if unit == super::AngleUnit::Radians { given } else { given.map(f64::to_radians) };
         let camera = camera_col.and_then(|c| f.get(c)).filter(|c| !c.is_empty()).cloned();
         let file = f.get(file_col).ok_or_else(|| Error::format(path, format!("line {}: no filename", n + 1)))?;
         rows.push((n + 1, image_name(file), camera, p, a));
+    }
+    // Radians read as degrees turn a block's cameras by under 3.2°: every
+    // angle of several images within ±π, one past a few hundredths, is
+    // doubtful (a block flown north with level cameras may do it too).
+    if unit == super::AngleUnit::Degrees && rows.len() >= 3 && within_half_turn && largest > 0.05 {
+        warnings.push(format!(
+            "{}: every angle lies within ±π (the largest {largest}), read as degrees as Orthority reads them: if they are radians, give --radians",
+            path.display()
+        ));
     }
 
     // The CRS: a .prj beside the file; latitude/longitude with roll/pitch/yaw
