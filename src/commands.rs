@@ -21,7 +21,7 @@ use gcm_ortho::io::publish::write_file;
 use gcm_ortho::io::source::SourceImage;
 use gcm_ortho::options::{parse_bytes, parse_size, DemSource, RectifyOptions};
 use gcm_ortho::study::accuracy::evaluate_where;
-use gcm_ortho::study::compare::{compare, read_grey};
+use gcm_ortho::study::compare::compare_files;
 use gcm_ortho::synth::{synth, SynthOptions};
 use gcm_ortho::transform::footprint::{auto_grid, mean_gsd};
 use gcm_ortho::transform::{Approx, Transform, Trend};
@@ -1074,7 +1074,7 @@ fn run_demo(a: &DemoArgs, signals: &Signals) -> Result<()> {
     let report = rectify(&opts, &Bar::new(a.quiet), &signals.cancel)?;
     print_report(&report);
     let truth = scene.truth.ok_or_else(|| anyhow!("the demo scene has no truth image"))?;
-    let c = compare(&read_grey(&out, 0.0)?, &read_grey(&truth, 0.0)?, 48);
+    let c = compare_files(&out, &truth, 0.0, 48)?;
     say!(
         "  vs truth: mean |difference| {:.2} grey levels over {} pixels; offset by correlation in {} windows: mean {:.3} px, 95% under {:.3} px",
         c.mean_abs_diff,

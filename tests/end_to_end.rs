@@ -23,6 +23,9 @@ fn rectifies_onto_its_truth(size: u32, tweak: impl FnOnce(&mut gcm_ortho::synth:
     // No nodata value: an internal mask says where the image is.
     assert!(og.nodata.is_none() && o.info.mask.is_some(), "{og:?}");
     let c = compare(&read_grey(&out, 0.0).unwrap(), &read_grey(sc.truth.as_ref().unwrap(), 0.0).unwrap(), 48);
+    // Read a band of rows at a time (as `demo` compares), the same figures.
+    let streamed = gcm_ortho::study::compare::compare_files(&out, sc.truth.as_ref().unwrap(), 0.0, 48).unwrap();
+    assert_eq!(format!("{streamed:?}"), format!("{c:?}"));
     // Bilinear resampling of a scan at the orthophoto's own GSD smooths
     // only the 1-GSD ramps of edges and lines (a tenth of the pixels); the
     // texture between them is smooth. So the mean difference stays at a few
