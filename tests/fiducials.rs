@@ -301,3 +301,86 @@ fn a_mark_cut_off_by_the_scans_edge_is_said_to_be() {
     assert!(out.status.success(), "{err}");
     assert!(err.lines().any(|l| l.contains("mark 1 not found") && l.contains("scan's edge cuts it off")), "{err}");
 }
+
+/// Real side marks (a USGS EarthExplorer camera's notches, cut from a
+/// scanned film; fixtures/fiducial_chips) pasted whole into a textured,
+/// noisy scan at known places, one template a mark (its chip's middle 160
+/// px): every mark is found within half a pixel of where its template's
+/// centre was put, in the scan as it is, as a negative, and turned a
+/// quarter (the turn found, not given).
+#[test]
+fn real_notch_marks_pasted_into_a_scan_are_found_where_they_were_put() {
+    use gcm_ortho::camera::file::{MarkSetting, OneOrMany};
+    use gcm_ortho::io::source::SampleType;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let chips = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/fiducial_chips/ee_notch");
+    let (n, pixel_mm) = (4800usize, 0.05);
+    let sides = [("L", [-110.0, 0.0]), ("T", [0.0, 110.0]), ("R", [110.0, 0.0]), ("B", [0.0, -110.0])];
+    let px_of = |mm: [f64; 2]| [n as f64 / 2.0 + mm[0] / pixel_mm, n as f64 / 2.0 - mm[1] / pixel_mm];
+    // Texture and grain: a deterministic mix of waves and noise.
+    let mut seed = 7u64;
+    let mut noise = move || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((seed >> 33) % 17) as f64 - 8.0
+    };
+    let mut scan: Vec<u8> = (0..n * n).map(|i| (110.0 + 40.0 * ((i % n) as f64 * 0.013).sin() * ((i / n) as f64 * 0.021).cos()) as u8).collect();
+    let mut templates = Vec::new();
+    let mut truth = Vec::new();
+    for (k, (side, mm)) in sides.iter().enumerate() {
+        let (chip, info) = common::whole_image(&chips.join(format!("{side}.tif")));
+        let (w, h) = (info.width as usize, info.height as usize);
+        let at = px_of(*mm);
+        let (x0, y0) = (at[0] as usize - w / 2, at[1] as usize - h / 2);
+        for y in 0..h {
+            scan[(y0 + y) * n + x0..(y0 + y) * n + x0 + w].copy_from_slice(&chip[y * w..(y + 1) * w]);
+        }
+        // The template: the chip's middle 160 × 160.
+        let t = 160;
+        let crop: Vec<u8> = (0..t).flat_map(|y| chip[(h / 2 - t / 2 + y) * w + w / 2 - t / 2..][..t].to_vec()).collect();
+        let path = d.join(format!("template_{k}.tif"));
+        gcm_ortho::io::tiff_out::write_raster(&path, &common::plain_spec((t as u32, t as u32), 1, SampleType::U8, None), |y0, y1, buf| {
+            buf.copy_from_slice(&crop[y0 as usize * t..y1 as usize * t]);
+        })
+        .unwrap();
+        templates.push(path.file_name().unwrap().to_str().unwrap().to_string());
+        truth.push([(x0 + w / 2) as f64, (y0 + h / 2) as f64]);
+    }
+    for v in scan.iter_mut() {
+        *v = (*v as f64 + noise()).clamp(0.0, 255.0) as u8;
+    }
+    // A camera file with the marks' calibrated places and their templates.
+    let (_, base, _) = film(&d.join("base"), 400, 4, marks("cross"));
+    let mut file = CameraFile::read(&base).unwrap();
+    let interior = file.interior.as_mut().unwrap();
+    interior.fiducials_mm = Some(sides.iter().map(|s| s.1).collect());
+    interior.scan_pixel_mm = Some(pixel_mm);
+    interior.fiducial_mark = Some(MarkSetting { template: Some(OneOrMany::Many(templates)), template_pixel_mm: Some(pixel_mm), ..Default::default() });
+    let camera = d.join("camera.toml");
+    std::fs::write(&camera, file.to_toml()).unwrap();
+    let turned = |img: &[u8]| -> Vec<u8> { (0..n * n).map(|i| img[(i % n) * n + (n - 1 - i / n)]).collect() };
+    // A case's name, its scan's pixels, where its marks were put.
+    type Case = (&'static str, Vec<u8>, Vec<[f64; 2]>);
+    let cases: [Case; 3] = [
+        ("as cut", scan.clone(), truth.clone()),
+        ("negative", scan.iter().map(|v| 255 - v).collect(), truth.clone()),
+        // Turned a quarter: scan (x, y) shows the film's (n − 1 − y, x)
+        // pixel; a point (x, y) moves to (y, n − x).
+        ("turned a quarter", turned(&scan), truth.iter().map(|p| [p[1], n as f64 - p[0]]).collect()),
+    ];
+    for (name, pixels, want) in cases {
+        let path = d.join("scan.tif");
+        gcm_ortho::io::tiff_out::write_raster(&path, &common::plain_spec((n as u32, n as u32), 1, SampleType::U8, None), |y0, y1, buf| {
+            buf.copy_from_slice(&pixels[y0 as usize * n..y1 as usize * n]);
+        })
+        .unwrap();
+        let det = detect(&path, &camera, &Overrides::default()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(det.marks.len(), 4, "{name}");
+        for m in &det.marks {
+            let p = m.px.unwrap_or_else(|| panic!("{name}: mark {} not found: {:#?}", m.mark, det.marks));
+            let t = want[m.mark - 1];
+            let off = (p[0] - t[0]).hypot(p[1] - t[1]);
+            assert!(m.used && off < 0.5, "{name}: mark {} found {off:.3} px from where it was put ({p:?} against {t:?})", m.mark);
+        }
+    }
+}

@@ -83,10 +83,11 @@ pub struct MarkSetting {
     pub line_mm: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dot_mm: Option<f64>,
-    /// A small image of the mark (PNG or TIFF, the mark at its centre),
-    /// relative to the camera file.
+    /// A small image of the mark (PNG, JPEG or TIFF, the mark at its
+    /// centre), relative to the camera file; or one a mark, in the marks'
+    /// order (a film's side marks differ from side to side).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub template: Option<String>,
+    pub template: Option<OneOrMany>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub template_pixel_mm: Option<f64>,
     /// "light", "dark" or "auto" (default): the marks' tone on the film.
@@ -302,17 +303,17 @@ impl CameraFile {
         let Ok(file) = CameraFile::read(path) else { return Vec::new() };
         let near = |f: &String| path.parent().unwrap_or(Path::new("")).join(f);
         let rpc = file.rpc.as_ref();
-        let template = file.interior.as_ref().and_then(|i| i.fiducial_mark.as_ref()).and_then(|m| m.template.as_ref());
+        let templates = match file.interior.as_ref().and_then(|i| i.fiducial_mark.as_ref()).and_then(|m| m.template.as_ref()) {
+            Some(OneOrMany::One(t)) => vec![t],
+            Some(OneOrMany::Many(v)) => v.iter().collect(),
+            None => Vec::new(),
+        };
         let panoramic_geoid = file.panoramic.as_ref().and_then(|p| p.geoid.as_ref());
-        [
-            ("RPC file", rpc.and_then(|r| r.file.as_ref())),
-            ("geoid grid", rpc.and_then(|r| r.geoid.as_ref())),
-            ("geoid grid", panoramic_geoid),
-            ("fiducial template", template),
-        ]
-        .into_iter()
-        .filter_map(|(what, f)| Some((what, near(f?))))
-        .collect()
+        [("RPC file", rpc.and_then(|r| r.file.as_ref())), ("geoid grid", rpc.and_then(|r| r.geoid.as_ref())), ("geoid grid", panoramic_geoid)]
+            .into_iter()
+            .chain(templates.into_iter().map(|t| ("fiducial template", Some(t))))
+            .filter_map(|(what, f)| Some((what, near(f?))))
+            .collect()
     }
 
     pub fn read(path: &Path) -> Result<CameraFile> {

@@ -47,8 +47,12 @@ pub fn detect_for(file: &CameraFile, camera_path: &Path, src: &SourceImage, over
     let (shapes, shape_index) = match (&setting.template, &over.shape) {
         (Some(t), None) => {
             let px = setting.template_pixel_mm.ok_or_else(|| err("fiducial_mark.template_pixel_mm", "missing: the template image's pixel size, mm".into()))?;
-            let shape = Shape::from_picture(&camera_path.parent().unwrap_or(Path::new("")).join(t), px)?;
-            (vec![shape; marks.len()], vec![0; marks.len()])
+            let picture = |t: &String| Shape::from_picture(&camera_path.parent().unwrap_or(Path::new("")).join(t), px);
+            match t {
+                OneOrMany::One(t) => (vec![picture(t)?; marks.len()], vec![0; marks.len()]),
+                OneOrMany::Many(v) if v.len() == marks.len() => (v.iter().map(picture).collect::<Result<Vec<_>>>()?, (0..marks.len()).collect()),
+                OneOrMany::Many(v) => return Err(err("fiducial_mark.template", format!("{} templates for {} marks", v.len(), marks.len()))),
+            }
         }
         _ => {
             let names: Vec<String> = match (&over.shape, &setting.shape) {
