@@ -586,7 +586,9 @@ pub struct BatchArgs {
     /// more than the cores are cut to them, with a warning).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
-    /// Only validate the manifest and list the jobs of this shard.
+    /// Only check the jobs of this shard and list them: their files, and
+    /// each job's set-up (camera, DEM under the footprint, grid) short of
+    /// making pixels; exit 3 where one would fail
     #[arg(long)]
     pub dry_run: bool,
     /// No progress bar (there is none anyway when stderr is not a terminal)

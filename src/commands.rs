@@ -500,11 +500,24 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
             say!("{i:>5}  {}  {} -> {}", j.name, j.config.image.display(), j.config.output.display());
         }
         // A job that would fail is said now, and the check fails (exit 3):
-        // its files as the manifest names them, and each image's header
-        // (a truncated or foreign file).
+        // its files as the manifest names them, each image's header (a
+        // truncated or foreign file), and the run's whole set-up — the
+        // camera, the DEM under the footprint, the grid — short of making
+        // pixels; its warnings as the run would give them.
         let mut failing = 0;
         for (_, j) in &mine {
-            let problem = j.problem.clone().or_else(|| gcm_ortho::io::source::SourceImage::info_of(&j.config.image).err().map(|e| e.to_string()));
+            let recording = gcm_ortho::progress::Recording::new(&gcm_ortho::progress::NoProgress);
+            let problem = j.problem.clone().or_else(|| {
+                gcm_ortho::io::source::SourceImage::info_of(&j.config.image)
+                    .and_then(|_| j.config.validate())
+                    .and_then(|()| gcm_ortho::pipeline::RunPlan::new(&j.config, &recording))
+                    .and_then(|plan| plan.check_node_heights())
+                    .err()
+                    .map(|e| e.to_string())
+            });
+            for w in recording.said() {
+                eprintln!("gcm-ortho: warning: job {}: {w}", j.name);
+            }
             if let Some(p) = problem {
                 eprintln!("gcm-ortho: job {} will fail: {p}", j.name);
                 failing += 1;

@@ -606,3 +606,33 @@ fn the_same_image_twice_is_refused_naming_both_jobs() {
     assert!(err.contains("line 8: a second job for the image") && err.contains("./scans/s00.tif (the first at line 5)"), "{err}");
     assert!(err.contains("line 11: a second job for the image") && err.contains("scans/../scans/s00.tif (the first at line 5)"), "{err}");
 }
+
+/// A DEM with a hole under the footprint: `--dry-run` fails the job (exit
+/// 3) with the run's own message, where the set-up alone passed it; with
+/// `dem_hole = "nodata"` the dry run and the run both pass.
+#[test]
+fn a_dry_run_finds_the_dems_hole_the_run_would_fail_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene(&d.join("scene"), 400, |_| {});
+    let g = gcm_ortho::dem::GridDem::read_within(&sc.dem, u64::MAX).unwrap();
+    let (gw, gh, gt) = (g.width as u32, g.height as u32, g.transform);
+    let holed = d.join("holed.tif");
+    let hole = |c: u32, r: u32| c.abs_diff(gw / 2) < 4 && r.abs_diff(gh / 2) < 4;
+    common::f32_raster(&holed, (gw, gh), (gt[0], gt[3], gt[1], 32631), |c, r| if hole(c, r) { f32::NAN } else { g.sample(c as usize, r as usize) });
+    let job = |extra: &str| format!("[[job]]\nimage = {:?}\ncamera = {:?}\ndem = {:?}\noutput = \"out/o.tif\"\n{extra}", s(&sc.scan), s(&sc.camera), s(&holed));
+    std::fs::write(d.join("manifest.toml"), job("")).unwrap();
+    let dry = batch(d, &["--dry-run"]);
+    let dry_err = String::from_utf8_lossy(&dry.stderr).to_string();
+    assert_eq!(dry.status.code(), Some(3), "{dry_err}");
+    assert!(dry_err.contains("holed.tif") && dry_err.contains("a hole (nodata) in the DEM"), "{dry_err}");
+    let ran = batch(d, &[]);
+    let ran_err = String::from_utf8_lossy(&ran.stderr).to_string();
+    assert!(!ran.status.success() && !d.join("out/o.tif").exists(), "{ran_err}");
+    let point = |t: &str| t.split("ground point ").nth(1).map(|r| r.split(')').next().unwrap_or("").to_string());
+    assert_eq!(point(&dry_err), point(&ran_err), "the dry run names the run's point: {dry_err} / {ran_err}");
+    std::fs::write(d.join("manifest.toml"), job("dem_hole = \"nodata\"\n")).unwrap();
+    let dry = batch(d, &["--dry-run"]);
+    assert_eq!(dry.status.code(), Some(0), "{}", String::from_utf8_lossy(&dry.stderr));
+    assert!(batch(d, &[]).status.success());
+}

@@ -584,6 +584,30 @@ impl RunPlan {
     pub fn columns(&self) -> bool {
         self.band_order == BandOrder::Columns
     }
+
+    /// The heights the run will look up for its GCM, every one, as the run
+    /// walks them (the nodes, and the refined cells' own), short of making
+    /// pixels: the miss the DEM's policies make an error, as the run would
+    /// fail with it (a batch's dry run: the set-up alone passed jobs whose
+    /// DEM had a hole under the footprint).
+    pub fn check_node_heights(&self) -> Result<()> {
+        use crate::transform::Transform;
+        let model = self.camera.model();
+        let (t, approx) = match self.columns() {
+            true => (Transform::transposed(model, &self.dem, self.grid), self.approx.transposed()),
+            false => (Transform::new(model, &self.dem, self.grid), self.approx),
+        };
+        let t = t.with_scan((self.src.info.width, self.src.info.height));
+        let gcm = crate::gcm::Gcm::new(&t, approx, self.gcm);
+        // Bands of rows as the run's (its tiles'), one at a time.
+        let band = self.spec.chunk().1.max(1);
+        for y0 in (0..t.grid.height).step_by(band as usize) {
+            if let Some(m) = gcm.prepare(y0, (y0 + band).min(t.grid.height)).miss {
+                return Err(super::stages::gcm::dem_miss_error(&self.dem, m));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Which of an RPC's denominators takes both signs over `places` (lon,
