@@ -631,6 +631,12 @@ fn a_dry_run_finds_the_dems_hole_the_run_would_fail_on() {
     assert!(!ran.status.success() && !d.join("out/o.tif").exists(), "{ran_err}");
     let point = |t: &str| t.split("ground point ").nth(1).map(|r| r.split(')').next().unwrap_or("").to_string());
     assert_eq!(point(&dry_err), point(&ran_err), "the dry run names the run's point: {dry_err} / {ran_err}");
+    // A manifest naming itself as the DEM: the dry run reads it as the run would.
+    let own = format!("[[job]]\nimage = {:?}\ncamera = {:?}\ndem = \"manifest.toml\"\noutput = \"out/o.tif\"\n", s(&sc.scan), s(&sc.camera));
+    std::fs::write(d.join("manifest.toml"), own).unwrap();
+    let dry = batch(d, &["--dry-run"]);
+    let err = String::from_utf8_lossy(&dry.stderr);
+    assert!(dry.status.code() == Some(3) && err.contains("manifest.toml") && err.contains("will fail"), "{err}");
     std::fs::write(d.join("manifest.toml"), job("dem_hole = \"nodata\"\n")).unwrap();
     let dry = batch(d, &["--dry-run"]);
     assert_eq!(dry.status.code(), Some(0), "{}", String::from_utf8_lossy(&dry.stderr));
