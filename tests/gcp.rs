@@ -197,7 +197,7 @@ fn a_frame_cameras_pose_is_recovered_by_resection() {
     ext.position = [ext.position[0] + 3.0, ext.position[1] - 2.0, ext.position[2] + 1.5];
     ext.angles_deg = [ext.angles_deg[0] + 0.3, ext.angles_deg[1] - 0.2, ext.angles_deg[2] + 0.4];
     let crs = file.crs.clone();
-    let perturbed = file.build(&sc.camera).unwrap();
+    let perturbed = file.clone().build(&sc.camera).unwrap();
     // Eight points with ±0.05 px of measuring noise.
     let at = [(40.0, 30.0), (560.0, 40.0), (300.0, 200.0), (60.0, 370.0), (550.0, 360.0), (200.0, 120.0), (420.0, 280.0), (150.0, 300.0)];
     let noise = [(0.05, -0.03), (-0.04, 0.05), (0.02, 0.01), (-0.05, -0.04), (0.03, 0.05), (0.0, -0.05), (-0.02, 0.03), (0.05, 0.0)];
@@ -220,6 +220,27 @@ fn a_frame_cameras_pose_is_recovered_by_resection() {
     // Over the whole frame, from the ground to the roofs: within the noise.
     let worst = worst_over_frame(&truth, &cam);
     assert!(worst < 0.15, "{worst} px from the true camera");
+    assert!(fit.outlier.is_none(), "{fit:?}");
+    // Point 5 measured 2.5 px off: the fit keeps it under the 2 px limit
+    // (it pulls the pose its way), and the others, fitted without it,
+    // name it.
+    let off: String = std::fs::read_to_string(&gcp_file)
+        .unwrap()
+        .lines()
+        .map(|l| match l.split_once(',') {
+            Some(("5", rest)) => {
+                let (c, rest) = rest.split_once(',').unwrap();
+                format!("5,{},{rest}\n", c.parse::<f64>().unwrap() + 2.5)
+            }
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(&gcp_file, off).unwrap();
+    let gcps = gcm_ortho::camera::gcp::read(&gcp_file, &sc.scan).unwrap();
+    let mut cam = file.build(&sc.camera).unwrap();
+    let fit = refine(&mut cam, &gcps, BiasModel::Auto, 2.0, &gcp_file).unwrap();
+    let said = fit.outlier.clone().unwrap_or_default();
+    assert!(said.contains("GCP 5 ") && said.contains("outlier"), "{fit:?}");
 }
 
 #[test]

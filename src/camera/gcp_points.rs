@@ -37,6 +37,10 @@ pub struct GcpFit {
     /// The RPC's image-space correction (col' = a·col + b·row + c, row' = …),
     /// or the camera's new exterior orientation, as text.
     pub correction: String,
+    /// A point the others place far from where it was measured (a
+    /// mistyped coordinate, a point on the wrong feature), said by its id.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub outlier: Option<String>,
 }
 
 #[derive(Clone, Debug, serde::Serialize)]

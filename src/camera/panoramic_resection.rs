@@ -131,6 +131,7 @@ pub fn resection(cam: &PanoramicCamera, gcps: &[Gcp], dynamics: Option<bool>, so
         rms_before: rms(&before),
         rms_after: rms(&after),
         correction,
+        outlier: None,
     };
     Ok((bar, fit))
 }

@@ -93,6 +93,9 @@ pub fn of_run<'a>(
             ));
         }
         fit = Some(crate::camera::gcp::refine(&mut camera, points, g.model, g.max_residual, &g.file)?);
+        if let Some(w) = fit.as_ref().and_then(|f| f.outlier.as_ref()) {
+            progress.warn(&format!("{}: {w}", g.file.display()));
+        }
     }
     Ok((camera, gcps, fit))
 }
