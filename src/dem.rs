@@ -362,13 +362,14 @@ impl GridDem {
                 let ch = c.raster().chunk.1.max(1);
                 // A band of whole chunk rows where it fits 16 MB, else fewer rows.
                 let band = ch.min(((16usize << 20) / (w * 4).max(1)).max(1));
-                let (mut rows, mut first, mut failed) = (Vec::new(), usize::MAX, false);
+                // The band held: its first row, and its rows.
+                let (mut rows, mut first, mut failed) = (Vec::new(), None, false);
                 let collar = Collar::find(w, h, |j, out| {
                     if failed {
                         return;
                     }
-                    if !(first..first + band).contains(&j) {
-                        first = j;
+                    if !first.is_some_and(|f| (f..f + band).contains(&j)) {
+                        first = Some(j);
                         match c.read_window([0, j, w, band.min(h - j)]) {
                             Ok(v) => rows = v,
                             Err(_) => {
@@ -377,7 +378,8 @@ impl GridDem {
                             }
                         }
                     }
-                    let row = &rows[(j - first) * w..(j - first + 1) * w];
+                    let k = j - first.unwrap_or(j);
+                    let row = &rows[k * w..(k + 1) * w];
                     collar::runs_of(row.iter().copied(), |z| self.is_nodata(z), out)
                 });
                 collar.filter(|_| !failed)

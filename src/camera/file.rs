@@ -383,20 +383,27 @@ impl CameraFile {
         Ok(Camera { crs, sensor: Sensor::Frame(frame), file: self, warnings: Vec::new(), relative_altitude: None })
     }
 
+    /// Refuses, by name, a frame's sections and the other models' in the
+    /// file of a model whose own section is `own` (`what` names the model).
+    fn refuse_sections_but(&self, path: &Path, own: &str, what: &str) -> Result<()> {
+        let present = [
+            ("interior", self.interior.is_some()),
+            ("exterior", self.exterior.is_some()),
+            ("distortion", self.distortion.is_some()),
+            ("rpc", self.rpc.is_some()),
+            ("panoramic", self.panoramic.is_some()),
+        ];
+        match present.into_iter().find(|&(section, is)| is && section != own) {
+            Some((section, _)) => Err(Error::config(path, section, format!("not used by {what}"))),
+            None => Ok(()),
+        }
+    }
+
     /// `model = "rpc"`: the RPC from `[rpc]`, the ground CRS from `crs`
     /// (`"auto"`: the WGS84 UTM zone of the scene's centre).
     fn build_rpc(self, path: &Path) -> Result<Camera> {
         let err = |field: &str, msg: String| Error::config(path, field, msg);
-        for (section, present) in [
-            ("interior", self.interior.is_some()),
-            ("exterior", self.exterior.is_some()),
-            ("distortion", self.distortion.is_some()),
-            ("panoramic", self.panoramic.is_some()),
-        ] {
-            if present {
-                return Err(err(section, "not used by an RPC camera".into()));
-            }
-        }
+        self.refuse_sections_but(path, "rpc", "an RPC camera")?;
         if self.camera.focal_length_mm.is_some() {
             return Err(err("camera.focal_length_mm", "not used by an RPC camera".into()));
         }
@@ -470,16 +477,7 @@ impl CameraFile {
     /// camera's first position).
     fn build_panoramic(self, path: &Path) -> Result<Camera> {
         let err = |field: &str, msg: String| Error::config(path, field, msg);
-        for (section, present) in [
-            ("interior", self.interior.is_some()),
-            ("exterior", self.exterior.is_some()),
-            ("distortion", self.distortion.is_some()),
-            ("rpc", self.rpc.is_some()),
-        ] {
-            if present {
-                return Err(err(section, "not used by a panoramic camera".into()));
-            }
-        }
+        self.refuse_sections_but(path, "panoramic", "a panoramic camera")?;
         let sec = self.panoramic.clone().ok_or_else(|| err("panoramic", "missing section".into()))?;
         let f = self.camera.focal_length_mm.ok_or_else(|| err("camera.focal_length_mm", "missing".into()))?;
         let bar = sec.bar(f);

@@ -18,8 +18,8 @@ pub(super) enum Coder {
     /// JPEG of grey or RGB samples: `tiff` crate decoders, one per
     /// concurrent reader.
     Tiff { decoders: Mutex<Vec<Decoder<BufReader<File>>>> },
-    /// JPEG of YCbCr samples: libjpeg, to RGB.
-    LibJpeg,
+    /// JPEG of YCbCr samples: libjpeg, to RGB; the chunks read with `pread`.
+    LibJpeg(File),
     /// JPEG 2000: each chunk an area decoded by OpenJPEG, once (`spill`
     /// keeps it); `origin` is the image's on the codestream's reference grid.
     Jpeg2000 { origin: (u32, u32), spill: super::jpeg2000::Spill },
@@ -36,7 +36,7 @@ impl SourceImage {
             Coder::Own(codec, file) => self.decode_own(k, codec, file)?,
             Coder::Tiff { decoders } => self.decode_with_tiff(k, decoders)?,
             // libjpeg's upsampling and colour conversion, as GDAL's.
-            Coder::LibJpeg => self.decode_with_libjpeg(k)?,
+            Coder::LibJpeg(file) => self.decode_with_libjpeg(k, file)?,
             Coder::Jpeg2000 { origin, spill } => spill.chunk(&self.path, k, || super::jpeg2000::decode_chunk(&self.path, &self.info, *origin, k))?,
         };
         let v = Arc::new(bytes);
@@ -89,7 +89,7 @@ impl SourceImage {
     /// re-padded to the full chunk size. The `tiff` crate's decoding with
     /// libjpeg's colour arithmetic after it was 0.2–0.3 levels off in the
     /// mean, from its chroma upsampling.
-    fn decode_with_libjpeg(&self, k: u32) -> Result<Vec<u8>> {
+    fn decode_with_libjpeg(&self, k: u32, file: &File) -> Result<Vec<u8>> {
         use std::os::unix::fs::FileExt;
         let info = &self.info;
         let (at, len) = (info.offsets[k as usize], info.byte_counts[k as usize]);
@@ -97,7 +97,6 @@ impl SourceImage {
             return Err(Error::format(&self.path, format!("JPEG chunk {k}: {len} bytes, more than its pixels could take")));
         }
         let mut chunk = vec![0u8; len as usize];
-        let file = File::open(&self.path).map_err(|e| Error::io(&self.path, e))?;
         file.read_exact_at(&mut chunk, at).map_err(|e| Error::io(&self.path, e))?;
         // The tables (SOI … EOI) without their EOI, then the chunk without its SOI.
         let stream = match &info.jpeg_tables {

@@ -155,7 +155,7 @@ impl SourceImage {
                         return Err(Error::unsupported(path, format!("YCbCr JPEG of {} {:?} bands", info.bands, info.sample)));
                     }
                     info.photometric = 2;
-                    Coder::LibJpeg
+                    Coder::LibJpeg(file)
                 } else {
                     Coder::Tiff { decoders: Mutex::new(vec![dec]) }
                 }
