@@ -1162,6 +1162,12 @@ fn orthority_rpc_yaml_reads_the_images_own_entry() {
     assert!(e.contains("rpc_param.yaml") && e.contains("2 images") && e.contains("other.tif, left_image.tif"), "{e}");
     let e = Rpc::read_for(&many, Some("third.tif")).unwrap_err().to_string();
     assert!(e.contains("none for third.tif"), "{e}");
+    // A list of millions of numbers (its tree some 50 times the text) is
+    // refused by its size before it is parsed.
+    let huge = dir.path().join("huge.yaml");
+    std::fs::write(&huge, format!("a:\n  rpc:\n    line_num_coeff: [{}]\n", vec!["1.0"; 1_500_000].join(","))).unwrap();
+    let e = Rpc::read(&huge).unwrap_err().to_string();
+    assert!(e.contains("huge.yaml") && e.contains("Orthority RPC YAML of"), "{e}");
     let dem = ventoux("srtm_N44E005_crop.tif");
     let (a, b) = (dir.path().join("a.tif"), dir.path().join("b.tif"));
     let extra = ["--gsd", "4", "--compress", "none"];

@@ -146,6 +146,12 @@ impl Rpc {
     /// file holds several; the only one otherwise.
     pub fn parse_orthority_yaml(text: &str, path: &Path, image: Option<&str>) -> Result<Rpc> {
         use serde_yaml_ng::Value;
+        // A YAML tree takes tens of times its text: one image's RPC is some
+        // 3 KB, a file of a few hundred images under 4 MB.
+        const MOST: usize = 4 << 20;
+        if text.len() > MOST {
+            return Err(Error::format(path, format!("an Orthority RPC YAML of {} bytes: more than the {MOST} its images' RPCs could take", text.len())));
+        }
         let doc = crate::camera::formats::orthority::parse_yaml(text).map_err(|e| Error::format(path, format!("YAML: {e}")))?;
         let Value::Mapping(images) = doc else { return Err(Error::format(path, "Orthority RPC YAML: not a mapping of image names")) };
         let names: Vec<String> = images.keys().map(|k| k.as_str().map_or_else(|| format!("{k:?}"), str::to_string)).collect();
