@@ -20,6 +20,7 @@ pub mod geom;
 pub mod gridding;
 pub mod identity;
 pub mod io;
+pub mod keys;
 pub mod mosaic;
 pub mod options;
 pub mod overview;

@@ -135,6 +135,8 @@ pub struct MosaicReport {
     pub skipped: bool,
     /// The tiles rendered (all, or the window).
     pub window: [u32; 4],
+    /// The tiles' side, pixels (windows count in tiles).
+    pub tile: u32,
     pub width: u32,
     pub height: u32,
     pub gsd: Gsd,
@@ -491,6 +493,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             output: o.output.clone(),
             skipped: false,
             window,
+            tile,
             width: grid.width,
             height: grid.height,
             gsd: grid.gsd,
@@ -918,6 +921,7 @@ impl MosaicReport {
             output: Some(out.to_path_buf()),
             skipped: true,
             window: [0; 4],
+            tile: 0,
             width: 0,
             height: 0,
             gsd: Gsd::square(0.0),

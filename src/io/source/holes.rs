@@ -136,6 +136,14 @@ impl MaskRuns {
         i > 0 && runs[i - 1][1] > c1
     }
 
+    /// Row `r`'s half-open column ranges of image pixels, left to right.
+    pub fn row(&self, r: u32) -> &[[u32; 2]] {
+        match self.first.get(r as usize..r as usize + 2) {
+            Some(&[a, b]) => &self.runs[a as usize..b as usize],
+            _ => &[],
+        }
+    }
+
     /// Runs held (for the budget and tests).
     pub fn len(&self) -> usize {
         self.runs.len()

@@ -1,0 +1,710 @@
+//! Settings by key: the one table that turns keys into a run's options,
+//! for the batch manifest (`[defaults]` and each job) and for bindings
+//! that pass settings by name (Python's keyword arguments). Keys are the
+//! command line's option names with `_` for `-`.
+
+use crate::error::{Error, Result};
+use crate::gcm::GcmSpec;
+use crate::options::{parse_choice, parse_max_error, parse_miss, parse_nodata, parse_overviews, Nodata, RectifyOptions};
+use serde::Deserialize;
+use std::path::PathBuf;
+
+/// `max_error = 0.1`, or `max_error = "none"`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum MaxError {
+    Pixels(f64),
+    Word(String),
+}
+
+/// A number, or a word: `nodata` (`"auto"` / `"mask"`), `dem_hole` and
+/// `dem_outside` (a height, or `"error"` / `"nodata"`).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum NumberOrWord {
+    Value(f64),
+    Word(String),
+}
+
+impl NumberOrWord {
+    pub fn text(&self) -> String {
+        match self {
+            NumberOrWord::Value(v) => v.to_string(),
+            NumberOrWord::Word(w) => w.clone(),
+        }
+    }
+}
+
+/// Every rectify option a manifest may set, in `[defaults]` or per job.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Options {
+    pub dem: Option<String>,
+    pub height: Option<f64>,
+    pub dem_hole: Option<NumberOrWord>,
+    pub dem_outside: Option<NumberOrWord>,
+    /// A number, or `[x, y]` for non-square pixels.
+    pub gsd: Option<crate::geom::Gsd>,
+    pub bounds: Option<[f64; 4]>,
+    pub snap: Option<String>,
+    /// A raster whose grid the orthophoto takes (relative to the manifest).
+    pub like: Option<String>,
+    /// The orthophoto's CRS, as `--crs` takes it (a `.prj` relative to the manifest).
+    pub crs: Option<String>,
+    pub sparsity: Option<u32>,
+    pub max_error: Option<MaxError>,
+    pub corrections: Option<String>,
+    pub trend: Option<String>,
+    pub resample: Option<String>,
+    pub tile: Option<u32>,
+    pub compress: Option<String>,
+    pub level: Option<u8>,
+    /// The overview tiles' level.
+    pub overview_level: Option<u8>,
+    /// JPEG's quality (1–100).
+    pub quality: Option<u8>,
+    pub bigtiff: Option<String>,
+    /// `auto`, `none` or a list of factors.
+    pub overviews: Option<String>,
+    pub overview_resampling: Option<String>,
+    pub cog: Option<bool>,
+    pub nodata: Option<NumberOrWord>,
+    pub alpha: Option<bool>,
+    /// `none`, `nodata` or `mask` (a true orthophoto).
+    pub occlusion: Option<String>,
+    pub output_dir: Option<String>,
+    /// Ground control points (each job takes those of its image).
+    pub gcps: Option<String>,
+    pub gcp_refine: Option<String>,
+    pub gcp_max_residual: Option<f64>,
+}
+
+impl Options {
+    /// `self` with unset fields taken from `base`.
+    pub fn over(&self, base: &Options) -> Options {
+        macro_rules! pick { ($($f:ident),*) => { Options { $($f: self.$f.clone().or_else(|| base.$f.clone()),)* } } }
+        pick!(
+            dem,
+            height,
+            dem_hole,
+            dem_outside,
+            gsd,
+            bounds,
+            snap,
+            like,
+            crs,
+            sparsity,
+            max_error,
+            corrections,
+            trend,
+            resample,
+            tile,
+            compress,
+            level,
+            overview_level,
+            quality,
+            bigtiff,
+            overviews,
+            overview_resampling,
+            cog,
+            nodata,
+            alpha,
+            occlusion,
+            output_dir,
+            gcps,
+            gcp_refine,
+            gcp_max_residual
+        )
+    }
+}
+
+/// Sets on `c` every setting `o` gives (paths through `rel`); the DEM,
+/// the output and the sensor are the caller's. Ranges are checked by
+/// [`RectifyOptions::validate`].
+pub fn apply(o: &Options, c: &mut RectifyOptions, rel: &dyn Fn(&str) -> PathBuf) -> Result<()> {
+    if let Some(v) = &o.dem_hole {
+        c.dem_hole = parse_miss("dem_hole", &v.text())?;
+    }
+    if let Some(v) = &o.dem_outside {
+        c.dem_outside = parse_miss("dem_outside", &v.text())?;
+    }
+    c.gsd = o.gsd;
+    c.bounds = o.bounds;
+    if let Some(s) = &o.snap {
+        if o.like.is_some() {
+            return Err(Error::setting("snap", "places bounds on the GSD; the reference grid (like) is taken as it is"));
+        }
+        c.snap = parse_choice("snap", s)?;
+    }
+    c.like = o.like.as_deref().map(rel);
+    if let Some(t) = &o.crs {
+        c.crs = Some(crate::geodesy::Crs::parse(t, &rel(".")).map_err(|m| Error::setting("crs", m))?);
+    }
+    if let Some(g) = &o.gcps {
+        use crate::camera::gcp::BiasModel;
+        let model = match o.gcp_refine.as_deref().unwrap_or("auto") {
+            "auto" => BiasModel::Auto,
+            "shift" => BiasModel::Shift,
+            "affine" => BiasModel::Affine,
+            "interior" => BiasModel::Interior,
+            other => return Err(Error::setting("gcp_refine", format!("'{other}' (expected auto, shift, affine or interior)"))),
+        };
+        let max_residual = o.gcp_max_residual.unwrap_or(2.0);
+        if !(max_residual.is_finite() && max_residual > 0.0) {
+            return Err(Error::setting("gcp_max_residual", "must be a positive number of pixels"));
+        }
+        c.gcps = Some(crate::options::GcpOptions { file: rel(g), model, max_residual });
+    } else if o.gcp_refine.is_some() || o.gcp_max_residual.is_some() {
+        return Err(Error::setting("gcp_refine", "goes with gcps"));
+    }
+    let mode = match &o.corrections {
+        Some(m) => parse_choice("corrections", m)?,
+        None => c.gcm.mode,
+    };
+    let max_error = match &o.max_error {
+        Some(MaxError::Pixels(e)) => Some(*e),
+        Some(MaxError::Word(w)) => parse_max_error("max_error", w)?,
+        None => RectifyOptions::default_max_error(o.sparsity.is_some(), mode),
+    };
+    c.gcm = GcmSpec { k: o.sparsity.unwrap_or(16), mode, max_error };
+    c.auto_sparsity = o.sparsity.is_none();
+    if let Some(t) = &o.trend {
+        c.trend = parse_choice("trend", t)?;
+    }
+    if let Some(k) = &o.resample {
+        c.kernel = parse_choice("resample", k)?;
+    }
+    if let Some(t) = o.tile {
+        c.tile = t;
+    }
+    if let Some(z) = &o.compress {
+        c.compress = parse_choice("compress", z)?;
+    }
+    if o.level.is_some() {
+        c.level = o.level;
+    }
+    if o.overview_level.is_some() {
+        c.overview_level = o.overview_level;
+    }
+    if o.quality.is_some() {
+        c.quality = o.quality;
+    }
+    if let Some(b) = &o.bigtiff {
+        c.bigtiff = parse_choice("bigtiff", b)?;
+    }
+    if let Some(v) = &o.overviews {
+        c.overviews = parse_overviews("overviews", v)?;
+    }
+    if let Some(r) = &o.overview_resampling {
+        c.overview_resampling = parse_choice("overview_resampling", r)?;
+    }
+    c.cog = o.cog.unwrap_or(false);
+    match &o.nodata {
+        Some(NumberOrWord::Value(v)) => c.nodata = Nodata::Value(*v),
+        Some(NumberOrWord::Word(w)) => c.nodata = parse_nodata("nodata", w)?,
+        None => {}
+    }
+    c.alpha = o.alpha.unwrap_or(false);
+    if let Some(v) = &o.occlusion {
+        c.occlusion = parse_choice("occlusion", v)?;
+    }
+    Ok(())
+}
+
+/// `keys` as `T`, a key at a time first so that a problem names its key:
+/// `tile: invalid type: string "x", expected u32`; an unknown key with
+/// the keys there are (`also`: others the caller takes).
+fn by_key<T: serde::de::DeserializeOwned>(keys: serde_json::Map<String, serde_json::Value>, also: &[&str]) -> Result<T> {
+    for (k, v) in &keys {
+        let one = serde_json::Value::Object(std::iter::once((k.clone(), v.clone())).collect());
+        if let Err(e) = serde_json::from_value::<T>(one) {
+            let e = e.to_string();
+            if let Some(known) = e.strip_prefix(&format!("unknown field `{k}`, expected one of ")) {
+                let more: String = also.iter().map(|a| format!(", `{a}`")).collect();
+                return Err(Error::Usage(format!("{k}: not an option here (the options: {known}{more})")));
+            }
+            // A missing field is another key's problem; the whole says it.
+            if !e.starts_with("missing field") {
+                return Err(Error::Usage(format!("{k}: {e}")));
+            }
+        }
+    }
+    serde_json::from_value(serde_json::Value::Object(keys)).map_err(|e| Error::Usage(format!("options: {e}")))
+}
+
+/// A single run's keys beyond a manifest job's: its files, its sensor, the
+/// piece of the grid it makes and the resources it may take (a batch
+/// decides those for its jobs).
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunKeys {
+    pub image: Option<PathBuf>,
+    pub camera: Option<PathBuf>,
+    /// The poses of many images (with `camera`: the lens alone).
+    pub exterior: Option<PathBuf>,
+    /// The unit of `exterior`'s angles.
+    #[serde(default)]
+    pub radians: bool,
+    pub rpc: Option<PathBuf>,
+    /// `"col,row"` or `[col, row]`: the image's place in the RPC's scene.
+    pub rpc_offset: Option<[f64; 2]>,
+    pub geoid: Option<PathBuf>,
+    pub output: Option<PathBuf>,
+    /// Tiles `[col, row, width, height]` of the output grid.
+    pub window: Option<[u32; 4]>,
+    pub band_order: Option<String>,
+    pub threads: Option<usize>,
+    /// Bytes, or text as the command line takes it (`"512M"`).
+    pub memory: Option<NumberOrWord>,
+    pub max_output_pixels: Option<NumberOrWord>,
+    /// Put the output on disk before it gets its name (default true).
+    pub sync: Option<bool>,
+}
+
+/// Keys of [`RunKeys`], told apart from a job's ([`Options`]).
+const RUN_KEYS: [&str; 15] = [
+    "image",
+    "camera",
+    "exterior",
+    "radians",
+    "rpc",
+    "rpc_offset",
+    "geoid",
+    "output",
+    "window",
+    "band_order",
+    "threads",
+    "memory",
+    "max_output_pixels",
+    "sync",
+    "json",
+];
+
+/// A single run's options from keys (`{"image": …, "camera": …, "dem": …,
+/// "output": …, "sparsity": 8}`), relative paths as given: what a
+/// binding's keyword arguments become. Unknown keys and keys of a
+/// manifest only are refused by name; ranges are checked.
+pub fn rectify_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<RectifyOptions> {
+    let (mut run, mut job) = (serde_json::Map::new(), serde_json::Map::new());
+    for (k, v) in keys {
+        // None from a binding: the key is not set.
+        if v.is_null() {
+            continue;
+        }
+        if k == "output_dir" {
+            return Err(Error::setting("output_dir", "is a batch manifest's key: a single run takes output"));
+        }
+        if k == "json" {
+            continue;
+        }
+        if RUN_KEYS.contains(&k.as_str()) {
+            run.insert(k, v);
+        } else {
+            job.insert(k, v);
+        }
+    }
+    let r: RunKeys = by_key(run, &[])?;
+    let o: Options = by_key(job, &RUN_KEYS)?;
+    let image = r.image.clone().ok_or_else(|| Error::setting("image", "is needed: the scan or frame to rectify"))?;
+    let output = r.output.clone().ok_or_else(|| Error::setting("output", "is needed: the orthophoto's path"))?;
+    let (camera, model) = match (&r.camera, &r.rpc) {
+        (Some(_), None) if r.rpc_offset.is_some() => return Err(Error::setting("rpc_offset", "goes with rpc, not a camera file")),
+        (Some(_), None) if r.geoid.is_some() => return Err(Error::setting("geoid", "goes with rpc, not a camera file")),
+        (Some(c), None) => {
+            let angles = if r.radians { crate::camera::formats::AngleUnit::Radians } else { crate::camera::formats::AngleUnit::Degrees };
+            (c.clone(), r.exterior.clone().map_or(crate::options::ModelSource::CameraFile, |poses| crate::options::ModelSource::WithPoses { poses, angles }))
+        }
+        (None, Some(p)) => (p.clone(), crate::options::ModelSource::Rpc { offset: r.rpc_offset, geoid: r.geoid.clone() }),
+        (Some(_), Some(_)) => return Err(Error::setting("camera", "give a camera file or an RPC file, not both")),
+        (None, None) => return Err(Error::setting("camera", "give a camera file or an RPC file")),
+    };
+    if r.exterior.is_none() && r.radians {
+        return Err(Error::setting("radians", "goes with exterior"));
+    }
+    let dem = match (&o.dem, o.height) {
+        (Some(d), None) => crate::options::DemSource::File(PathBuf::from(d)),
+        (None, Some(h)) => crate::options::DemSource::Height(h),
+        (None, None) if r.rpc.is_some() => crate::options::DemSource::ModelHeight,
+        (Some(_), Some(_)) => return Err(Error::setting("dem", "give dem or height, not both")),
+        (None, None) => return Err(Error::setting("dem", "give a DEM file or a constant height")),
+    };
+    let mut c = RectifyOptions::new(image, camera, dem, output);
+    c.model = model;
+    apply(&o, &mut c, &|p| PathBuf::from(p))?;
+    c.window = r.window;
+    if let Some(b) = &r.band_order {
+        c.band_order = parse_choice("band_order", b)?;
+    }
+    if let Some(t) = r.threads {
+        c.threads = t;
+    }
+    if let Some(m) = &r.memory {
+        c.memory = crate::options::parse_bytes("memory", &m.text())?;
+    }
+    if let Some(m) = &r.max_output_pixels {
+        c.max_output_pixels = Some(crate::options::parse_count("max_output_pixels", &m.text())?);
+    }
+    c.sync = r.sync.unwrap_or(true);
+    c.validate()?;
+    Ok(c)
+}
+
+/// A mosaic's keys: the command line's `mosaic` options, `_` for `-`.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MosaicKeys {
+    manifest: Option<PathBuf>,
+    output: Option<PathBuf>,
+    plan_out: Option<PathBuf>,
+    plan: Option<PathBuf>,
+    window: Option<[u32; 4]>,
+    gsd: Option<crate::geom::Gsd>,
+    bounds: Option<[f64; 4]>,
+    crs: Option<String>,
+    like: Option<PathBuf>,
+    balance: Option<String>,
+    seams: Option<String>,
+    blend: Option<f64>,
+    seamlines_out: Option<PathBuf>,
+    seamlines: Option<PathBuf>,
+    cog: Option<bool>,
+    occlusion: Option<String>,
+    memory: Option<NumberOrWord>,
+    threads: Option<usize>,
+    force: Option<bool>,
+    json: Option<PathBuf>,
+    sync: Option<bool>,
+}
+
+/// A mosaic's options from keys, with the command line's defaults.
+pub fn mosaic_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<crate::mosaic::MosaicOptions> {
+    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
+    let k: MosaicKeys = by_key(keys, &[])?;
+    let manifest = k.manifest.ok_or_else(|| Error::setting("manifest", "is needed: the block's manifest"))?;
+    if k.output.is_none() && k.plan_out.is_none() {
+        return Err(Error::setting("output", "is needed (or plan_out for the plan alone)"));
+    }
+    if k.like.is_some() && (k.gsd.is_some() || k.bounds.is_some()) {
+        return Err(Error::setting("like", "gives the grid: drop the GSD and bounds"));
+    }
+    if k.plan.is_some() && (k.seamlines.is_some() || k.seams.is_some() || k.balance.is_some()) {
+        return Err(Error::setting("plan", "holds the seams and gains: drop seamlines, seams and balance"));
+    }
+    let least_cost = match k.seams.as_deref() {
+        None | Some("least-cost") | Some("least_cost") => true,
+        Some("voronoi") => false,
+        Some(other) => return Err(Error::setting("seams", format!("'{other}' (expected least-cost or voronoi)"))),
+    };
+    let crs = k.crs.as_deref().map(|c| crate::geodesy::Crs::parse(c, std::path::Path::new("."))).transpose().map_err(|m| Error::setting("crs", m))?;
+    Ok(crate::mosaic::MosaicOptions {
+        manifest,
+        output: k.output,
+        gsd: k.gsd,
+        bounds: k.bounds,
+        crs,
+        like: k.like,
+        balance: k.balance.as_deref().map(|b| parse_choice("balance", b)).transpose()?.unwrap_or(crate::mosaic::balance::Balance::GainOffset),
+        least_cost,
+        blend: k.blend.unwrap_or(8.0),
+        seamlines_out: k.seamlines_out,
+        seamlines_in: k.seamlines,
+        plan_out: k.plan_out,
+        plan_in: k.plan,
+        window: k.window,
+        memory: match &k.memory {
+            Some(m) => crate::options::parse_bytes("memory", &m.text())?,
+            None => 256 << 20,
+        },
+        threads: k.threads.unwrap_or(0),
+        cog: k.cog.filter(|&c| c),
+        overviews: None,
+        compress: None,
+        force: k.force.unwrap_or(false),
+        occlusion: k.occlusion.as_deref().map(|o| parse_choice("occlusion", o)).transpose()?,
+        sync: k.sync.unwrap_or(true),
+        report: k.json,
+    })
+}
+
+/// `assemble`'s keys: the layout of the whole (`overviews`,
+/// `overview_resampling`, `cog`, `level`, `overview_level`, `quality`) and
+/// `compress` to code the tiles anew.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AssembleKeys {
+    overviews: Option<String>,
+    overview_resampling: Option<String>,
+    cog: Option<bool>,
+    level: Option<u8>,
+    overview_level: Option<u8>,
+    quality: Option<u8>,
+    compress: Option<String>,
+}
+
+/// `assemble`'s options from keys.
+pub fn assemble_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<crate::assemble::AssembleOptions> {
+    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
+    let k: AssembleKeys = by_key(keys, &[])?;
+    Ok(crate::assemble::AssembleOptions {
+        overviews: k.overviews.as_deref().map(|o| parse_overviews("overviews", o)).transpose()?,
+        overview_resampling: k.overview_resampling.as_deref().map(|r| parse_choice("overview_resampling", r)).transpose()?,
+        cog: k.cog.filter(|&c| c),
+        level: k.level,
+        overview_level: k.overview_level,
+        quality: k.quality,
+        compress: k.compress.as_deref().map(|c| parse_choice("compress", c)).transpose()?,
+        ..Default::default()
+    })
+}
+
+/// `--threads 0`: every core (the commands that take all by default).
+fn every_core(asked: usize) -> usize {
+    match asked {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        t => t,
+    }
+}
+
+/// `blunders`: a number of robust sigmas, or `"none"`.
+fn blunders(v: Option<&NumberOrWord>, default: Option<f64>) -> Result<Option<f64>> {
+    match v {
+        None => Ok(default),
+        Some(NumberOrWord::Value(k)) => Ok(Some(*k)),
+        Some(NumberOrWord::Word(w)) => match w.trim() {
+            "none" | "off" => Ok(None),
+            k => k.parse().map(Some).map_err(|_| Error::setting("blunders", format!("'{k}' is not a number of sigmas or none"))),
+        },
+    }
+}
+
+fn crs_of(setting: &'static str, text: Option<&str>) -> Result<Option<crate::geodesy::Crs>> {
+    text.map(|c| crate::geodesy::Crs::parse(c, std::path::Path::new("."))).transpose().map_err(|m| Error::setting(setting, m))
+}
+
+/// `grid`'s keys: the command line's options, `_` for `-`.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GridKeys {
+    points: Option<Vec<PathBuf>>,
+    output: Option<PathBuf>,
+    gsd: Option<crate::geom::Gsd>,
+    bounds: Option<[f64; 4]>,
+    crs: Option<String>,
+    points_crs: Option<String>,
+    method: Option<String>,
+    max_edge: Option<f64>,
+    radius: Option<f64>,
+    power: Option<f64>,
+    neighbours: Option<usize>,
+    /// `"x,y,z"` or three names (or numbers from 1).
+    columns: Option<Vec<String>>,
+    class: Option<Vec<u8>>,
+    returns: Option<String>,
+    blunders: Option<NumberOrWord>,
+    memory: Option<NumberOrWord>,
+    threads: Option<usize>,
+    tile: Option<u32>,
+    block: Option<u32>,
+    compress: Option<String>,
+    level: Option<u8>,
+    overviews: Option<String>,
+    cog: Option<bool>,
+    window: Option<[u32; 4]>,
+    /// `[i, n]`: the i-th of n shares (from 1).
+    shard: Option<[u32; 2]>,
+    sync: Option<bool>,
+}
+
+/// `grid`'s options from keys, with the command line's defaults.
+pub fn grid_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<crate::gridding::GridOptions> {
+    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
+    let k: GridKeys = by_key(keys, &[])?;
+    let points = k.points.filter(|p| !p.is_empty()).ok_or_else(|| Error::setting("points", "is needed: the point files"))?;
+    let output = k.output.ok_or_else(|| Error::setting("output", "is needed: the DEM's path"))?;
+    let gsd = k.gsd.ok_or_else(|| Error::setting("gsd", "is needed: the DEM's cell size"))?;
+    let mut o = crate::gridding::GridOptions::new(points, output, gsd);
+    o.bounds = k.bounds;
+    o.crs = crs_of("crs", k.crs.as_deref())?;
+    o.points_crs = crs_of("points_crs", k.points_crs.as_deref())?;
+    if let Some(m) = &k.method {
+        o.method = parse_choice("method", m)?;
+    }
+    o.max_edge = k.max_edge;
+    o.radius = k.radius;
+    o.power = k.power.unwrap_or(2.0);
+    o.neighbours = k.neighbours;
+    if let Some(c) = k.columns {
+        let parts: Vec<String> = if c.len() == 1 { c[0].split(',').map(|s| s.trim().to_string()).collect() } else { c };
+        let n = parts.len();
+        let xyz: [String; 3] =
+            parts.try_into().map_err(|_| Error::setting("columns", format!("{n} columns: give three, x, y, z (names or numbers from 1)")))?;
+        o.columns = crate::points::Columns::Given(xyz);
+    }
+    o.filter = crate::points::Filter {
+        classes: k.class,
+        returns: k.returns.as_deref().map(|r| parse_choice("returns", r)).transpose()?.unwrap_or(crate::points::Returns::All),
+    };
+    o.blunders = blunders(k.blunders.as_ref(), Some(8.0))?;
+    o.memory = crate::options::parse_bytes("memory", &k.memory.map_or("512M".into(), |m| m.text()))?;
+    o.threads = every_core(k.threads.unwrap_or(0));
+    o.tile = k.tile.unwrap_or(256);
+    o.block = k.block;
+    if let Some(c) = &k.compress {
+        o.compress = parse_choice("compress", c)?;
+    }
+    o.level = k.level;
+    if let Some(v) = &k.overviews {
+        o.overviews = parse_overviews("overviews", v)?;
+    }
+    o.cog = k.cog.unwrap_or(false);
+    o.window = k.window;
+    o.shard = k.shard.map(|[i, n]| (i, n));
+    o.sync = k.sync.unwrap_or(true);
+    Ok(o)
+}
+
+/// `dem`'s keys (a stereo pair): the command line's options, `_` for `-`.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DemKeys {
+    left: Option<PathBuf>,
+    right: Option<PathBuf>,
+    left_camera: Option<PathBuf>,
+    right_camera: Option<PathBuf>,
+    left_rpc: Option<PathBuf>,
+    right_rpc: Option<PathBuf>,
+    left_rpc_offset: Option<[f64; 2]>,
+    right_rpc_offset: Option<[f64; 2]>,
+    geoid: Option<PathBuf>,
+    output: Option<PathBuf>,
+    gsd: Option<crate::geom::Gsd>,
+    crs: Option<String>,
+    heights: Option<[f64; 2]>,
+    dem_init: Option<PathBuf>,
+    matcher: Option<String>,
+    window: Option<usize>,
+    min_correlation: Option<f32>,
+    points: Option<PathBuf>,
+    quality: Option<PathBuf>,
+    blunders: Option<NumberOrWord>,
+    memory: Option<NumberOrWord>,
+    threads: Option<usize>,
+    cog: Option<bool>,
+}
+
+/// `dem`'s options from keys, with the command line's defaults.
+pub fn dem_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<crate::stereo::StereoOptions> {
+    use crate::options::ModelSource;
+    use crate::stereo::SideOptions;
+    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
+    let k: DemKeys = by_key(keys, &[])?;
+    let side =
+        |image: &Option<PathBuf>, camera: &Option<PathBuf>, rpc: &Option<PathBuf>, offset: Option<[f64; 2]>, which: &'static str| -> Result<SideOptions> {
+            let image = image.clone().ok_or_else(|| Error::Usage(format!("{which}: is needed: the {which} image")))?;
+            match (camera, rpc) {
+                (Some(_), None) if k.geoid.is_some() => Err(Error::setting("geoid", "goes with RPC files (left_rpc, right_rpc), not camera files")),
+                (Some(c), None) => Ok(SideOptions { image, model: ModelSource::CameraFile, camera: c.clone() }),
+                (None, Some(r)) => Ok(SideOptions { image, model: ModelSource::Rpc { offset, geoid: k.geoid.clone() }, camera: r.clone() }),
+                _ => Err(Error::Usage(format!("the {which} image needs {which}_camera or {which}_rpc"))),
+            }
+        };
+    let left = side(&k.left, &k.left_camera, &k.left_rpc, k.left_rpc_offset, "left")?;
+    let right = side(&k.right, &k.right_camera, &k.right_rpc, k.right_rpc_offset, "right")?;
+    let output = k.output.clone().ok_or_else(|| Error::setting("output", "is needed: the DSM's path"))?;
+    let gsd = k.gsd.ok_or_else(|| Error::setting("gsd", "is needed: the DSM's cell size"))?;
+    let mut o = crate::stereo::StereoOptions::new(left, right, output, gsd);
+    o.crs = crs_of("crs", k.crs.as_deref())?;
+    o.heights = k.heights;
+    o.dem_init = k.dem_init.clone();
+    let window = k.window.unwrap_or(9);
+    if !(3..=21).contains(&window) || window.is_multiple_of(2) {
+        return Err(Error::setting("window", format!("{window} is not an odd side from 3 to 21")));
+    }
+    if let Some(c) = k.min_correlation {
+        if !(-1.0..=1.0).contains(&c) {
+            return Err(Error::setting("min_correlation", format!("{c} is not a correlation, -1 to 1")));
+        }
+    }
+    let matcher = match k.matcher.as_deref() {
+        None | Some("sgm") => crate::stereo::matching::Matcher::Sgm,
+        Some("ncc") => crate::stereo::matching::Matcher::Ncc,
+        Some(other) => return Err(Error::setting("matcher", format!("'{other}' (expected sgm or ncc)"))),
+    };
+    o.matching = crate::stereo::matching::MatchParams { matcher, window, min_correlation: k.min_correlation };
+    o.points = k.points.clone();
+    o.quality = k.quality.clone();
+    o.blunders = blunders(k.blunders.as_ref(), None)?;
+    o.memory = crate::options::parse_bytes("memory", &k.memory.as_ref().map_or("512M".into(), |m| m.text()))?;
+    o.threads = every_core(k.threads.unwrap_or(0));
+    o.cog = k.cog.unwrap_or(false);
+    Ok(o)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn keys(v: serde_json::Value) -> serde_json::Map<String, serde_json::Value> {
+        v.as_object().expect("an object").clone()
+    }
+
+    #[test]
+    fn a_single_runs_keys_set_what_the_flags_set() {
+        let o = rectify_options(keys(json!({
+            "image": "scan.tif", "camera": "cam.toml", "dem": "dem.tif", "output": "o.tif",
+            "sparsity": 8, "max_error": "none", "gsd": [0.5, 0.25], "compress": "zstd", "level": 9,
+            "nodata": 0, "window": [1, 2, 3, 4], "memory": "512M", "threads": 1, "sync": false, "band_order": "columns",
+        })))
+        .expect("valid keys");
+        assert_eq!((o.gcm.k, o.gcm.max_error, o.auto_sparsity), (8, None, false));
+        assert_eq!((o.gsd.map(|g| (g.x, g.y)), o.level, o.window), (Some((0.5, 0.25)), Some(9), Some([1, 2, 3, 4])));
+        assert_eq!((o.memory, o.threads, o.sync), (512 << 20, 1, false));
+        assert!(matches!(o.nodata, Nodata::Value(v) if v == 0.0));
+        assert!(matches!(o.band_order, crate::options::BandOrder::Columns));
+        assert!(matches!(o.dem, crate::options::DemSource::File(ref p) if p == std::path::Path::new("dem.tif")));
+        // The defaults are RectifyOptions::new's.
+        let d = rectify_options(keys(json!({"image": "s.tif", "camera": "c.toml", "height": 310.0, "output": "o.tif"}))).expect("valid");
+        let n = RectifyOptions::new("s.tif".into(), "c.toml".into(), crate::options::DemSource::Height(310.0), "o.tif".into());
+        assert_eq!(serde_json::to_value(&d).expect("json"), serde_json::to_value(&n).expect("json"));
+    }
+
+    #[test]
+    fn an_rpc_without_a_dem_takes_its_own_height() {
+        let o = rectify_options(keys(json!({"image": "i.tif", "rpc": "i_RPC.TXT", "rpc_offset": [5000, 4000], "output": "o.tif"}))).expect("valid");
+        assert!(matches!(o.dem, crate::options::DemSource::ModelHeight));
+        assert!(matches!(o.model, crate::options::ModelSource::Rpc { offset: Some([5000.0, 4000.0]), .. }));
+    }
+
+    #[test]
+    fn a_problem_names_its_key() {
+        let bad = |v: serde_json::Value| rectify_options(keys(v)).expect_err("refused").to_string();
+        let base = json!({"image": "s.tif", "camera": "c.toml", "height": 0.0, "output": "o.tif"});
+        let with = |k: &str, v: serde_json::Value| {
+            let mut m = base.clone();
+            m[k] = v;
+            m
+        };
+        assert!(bad(with("sparsty", json!(8))).starts_with("sparsty: not an option here (the options: `dem`"), "{}", bad(with("sparsty", json!(8))));
+        assert!(bad(with("sparsity", json!("x"))).starts_with("sparsity: invalid type"));
+        assert!(bad(with("tile", json!(17))).starts_with("tile: 17 must be a multiple of 16"));
+        assert!(bad(with("output_dir", json!("o/"))).starts_with("output dir: is a batch manifest's key"));
+        assert!(bad(with("radians", json!(true))).starts_with("radians: goes with exterior"));
+        assert_eq!(bad(json!({"image": "s.tif", "camera": "c.toml", "output": "o.tif"})), "dem: give a DEM file or a constant height");
+    }
+
+    #[test]
+    fn mosaic_grid_and_dem_keys_take_the_commands_defaults() {
+        let m = mosaic_options(keys(json!({"manifest": "m.toml", "output": "o.tif"}))).expect("valid");
+        assert_eq!((m.blend, m.memory, m.least_cost, m.cog), (8.0, 256 << 20, true, None));
+        assert!(mosaic_options(keys(json!({"manifest": "m.toml"}))).is_err());
+        let g = grid_options(keys(json!({"points": ["p.las"], "output": "d.tif", "gsd": 2, "shard": [2, 4]}))).expect("valid");
+        assert_eq!((g.blunders, g.memory, g.shard, g.tile), (Some(8.0), 512 << 20, Some((2, 4)), 256));
+        let s = dem_options(keys(json!({"left": "l.tif", "right": "r.tif", "left_rpc": "l.txt", "right_rpc": "r.txt", "output": "d.tif", "gsd": 2})))
+            .expect("valid");
+        assert_eq!((s.blunders, s.matching.window), (None, 9));
+        let e =
+            dem_options(keys(json!({"left": "l.tif", "right": "r.tif", "left_camera": "l.toml", "output": "d.tif", "gsd": 2}))).expect_err("no right camera");
+        assert_eq!(e.to_string(), "the right image needs right_camera or right_rpc");
+    }
+}
