@@ -44,3 +44,15 @@ class CancelledError(GcmOrthoError):
 class GcmOrthoWarning(UserWarning):
     """Doubtful input met, and how it was taken (also in the report's
     ``warnings``)."""
+
+
+def _warn(message: str) -> None:
+    """Says ``message`` as a :class:`GcmOrthoWarning` attributed to the
+    caller's line, outside this package (called by the native runs)."""
+    import sys
+    import warnings
+
+    frame, level = sys._getframe(1), 2
+    while frame is not None and frame.f_globals.get("__name__", "").startswith("gcm_ortho"):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, GcmOrthoWarning, stacklevel=level)

@@ -45,10 +45,9 @@ impl Shared {
         if said.is_empty() {
             return Ok(());
         }
-        let category = py.import("gcm_ortho.errors")?.getattr("GcmOrthoWarning")?;
-        let warn = py.import("warnings")?.getattr("warn")?;
+        let warn = py.import("gcm_ortho.errors")?.getattr("_warn")?;
         for message in said {
-            warn.call1((message, &category, 2))?;
+            warn.call1((gcm_ortho::keys::flags_as_keys(&message),))?;
         }
         Ok(())
     }
