@@ -11,6 +11,7 @@
 pub mod assemble;
 pub mod batch;
 pub mod camera;
+pub mod command_keys;
 pub mod dem;
 pub mod error;
 pub mod fiducials;

@@ -115,7 +115,7 @@ fn plan(py: Python<'_>, options: &str) -> PyResult<String> {
 #[pyfunction]
 #[pyo3(signature = (options, progress=None, interval=0.5))]
 fn mosaic(py: Python<'_>, options: &str, progress: Option<Py<PyAny>>, interval: f64) -> PyResult<String> {
-    let opts = gcm_ortho::keys::mosaic_options(keys_of(options)?).map_err(|e| raise(py, e))?;
+    let opts = gcm_ortho::command_keys::mosaic_options(keys_of(options)?).map_err(|e| raise(py, e))?;
     let report = watched(py, progress, interval, |p: &dyn Progress, c: &Cancel| gcm_ortho::mosaic::mosaic(&opts, p, c))?;
     json_text(py, &report)
 }
@@ -124,7 +124,7 @@ fn mosaic(py: Python<'_>, options: &str, progress: Option<Py<PyAny>>, interval: 
 #[pyfunction]
 #[pyo3(signature = (options, progress=None, interval=0.5))]
 fn grid(py: Python<'_>, options: &str, progress: Option<Py<PyAny>>, interval: f64) -> PyResult<String> {
-    let opts = gcm_ortho::keys::grid_options(keys_of(options)?).map_err(|e| raise(py, e))?;
+    let opts = gcm_ortho::command_keys::grid_options(keys_of(options)?).map_err(|e| raise(py, e))?;
     let report = watched(py, progress, interval, |p: &dyn Progress, c: &Cancel| {
         warn_if_not_tiff(p, &opts.output);
         gcm_ortho::gridding::grid(&opts, p, c)
@@ -136,7 +136,7 @@ fn grid(py: Python<'_>, options: &str, progress: Option<Py<PyAny>>, interval: f6
 #[pyfunction]
 #[pyo3(signature = (options, progress=None, interval=0.5))]
 fn dem(py: Python<'_>, options: &str, progress: Option<Py<PyAny>>, interval: f64) -> PyResult<String> {
-    let opts = gcm_ortho::keys::dem_options(keys_of(options)?).map_err(|e| raise(py, e))?;
+    let opts = gcm_ortho::command_keys::dem_options(keys_of(options)?).map_err(|e| raise(py, e))?;
     let report = watched(py, progress, interval, |p: &dyn Progress, c: &Cancel| {
         warn_if_not_tiff(p, &opts.output);
         gcm_ortho::stereo::dem(&opts, p, c)
@@ -155,7 +155,7 @@ fn warn_if_not_tiff(p: &dyn Progress, output: &std::path::Path) -> Option<String
 /// `assemble(pieces, output, options_json)`: pieces of one grid into the whole.
 #[pyfunction]
 fn assemble(py: Python<'_>, pieces: Vec<PathBuf>, output: PathBuf, options: &str) -> PyResult<()> {
-    let opts = gcm_ortho::keys::assemble_options(keys_of(options)?).map_err(|e| raise(py, e))?;
+    let opts = gcm_ortho::command_keys::assemble_options(keys_of(options)?).map_err(|e| raise(py, e))?;
     watched(py, None, 0.5, |_p: &dyn Progress, c: &Cancel| gcm_ortho::assemble::assemble(&pieces, &output, &opts, c))
 }
 
@@ -206,6 +206,9 @@ fn command(py: Python<'_>, argv: Vec<std::ffi::OsString>) -> u8 {
 
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // A scan truncated underneath a run fails that run (its exception),
+    // not the interpreter.
+    gcm_ortho::io::mmap_guard::install_sigbus_handler();
     m.add_function(wrap_pyfunction!(rectify, m)?)?;
     m.add_function(wrap_pyfunction!(plan, m)?)?;
     m.add_function(wrap_pyfunction!(mosaic, m)?)?;

@@ -322,3 +322,30 @@ def test_a_dsm_from_a_stereo_pair_is_the_commands(tmp_path):
     assert report["matched_share"] > 0.8
     with pytest.raises(gcm_ortho.SettingError, match=r"^window: 4 is not an odd side"):
         gcm_ortho.dem(tmp_path / "left.tif", tmp_path / "right.tif", tmp_path / "x.tif", 2, window=4, **sides)
+
+
+def test_a_scan_truncated_underneath_fails_the_run_not_python(tmp_path):
+    r = command("synth", "--out", tmp_path, "--size", "5000x5000", "--seed", "6", "--quiet")
+    assert r.returncode == 0, r.stderr
+    scan, out = tmp_path / "scan.tif", tmp_path / "out.tif"
+    cut = []
+
+    def truncate_once_started(done, total, task):
+        if 0 < done < total and not cut:
+            with open(scan, "r+b") as f:
+                f.truncate(4096)
+            cut.append(done)
+
+    with pytest.raises(gcm_ortho.InputError, match="truncated") as e:
+        gcm_ortho.rectify(
+            scan, tmp_path / "camera.toml", tmp_path / "dem.tif", out,
+            progress=truncate_once_started, progress_interval=0.01, threads=1, compress="zstd", level=9,
+        )
+    assert cut, "the run ended before the scan was cut"
+    assert str(scan) in str(e.value)
+    assert not out.exists()
+    assert sorted(os.listdir(tmp_path)) == ["camera.toml", "checkpoints.csv", "dem.tif", "scan.tif", "truth.tif"]
+    # The interpreter goes on, and so do runs.
+    other = tmp_path / "again"
+    assert command("synth", "--out", other, "--size", "600x500", "--seed", "2", "--quiet").returncode == 0
+    gcm_ortho.rectify(other / "scan.tif", other / "camera.toml", other / "dem.tif", other / "o.tif")

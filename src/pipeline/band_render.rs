@@ -158,6 +158,8 @@ pub fn render_bands<T>(
                 chunks.push(made(&run, b, msg.chunk.x0, raw)?);
                 win = msg.win;
             }
+            // (Zeros read past a truncated scan's end make no band.)
+            run.inputs.src.check_intact()?;
             Ok(BandPixels { band: b, chunks, seen: gcm.seen.clone() })
         })();
         // Until its next turn the image holds no scan rows, no window and

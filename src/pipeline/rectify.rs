@@ -105,6 +105,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         return Err(Error::Cancelled);
     }
     let busy = result?;
+    src.check_intact()?;
     let nudged = run.counters.nudged.load(Ordering::Relaxed);
     if nudged > 0 {
         let v = plan.pixels.fill;

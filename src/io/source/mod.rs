@@ -36,7 +36,9 @@ use tiff::decoder::Decoder;
 enum Backend {
     /// Uncompressed: read in place from the mapping (or by `pread` where
     /// the file cannot be mapped).
-    Raw { map: Option<memmap2::Mmap>, file: File },
+    /// `guard`: the mapping's faults survived (a file truncated
+    /// underneath); first, so that it is forgotten before the unmapping.
+    Raw { guard: Option<crate::io::mmap_guard::Watched>, map: Option<memmap2::Mmap>, file: File },
     /// Compressed: how chunks are decoded, and a cache of decoded chunks.
     Coded { coder: Coder, cache: Mutex<ChunkCache<u8>> },
 }
@@ -111,7 +113,8 @@ impl SourceImage {
             let _ = m.advise(memmap2::Advice::Normal);
             crate::io::mmap_guard::watch_mapped(path);
         }
-        Backend::Raw { map, file }
+        let guard = map.as_deref().and_then(crate::io::mmap_guard::watch_range);
+        Backend::Raw { map, file, guard }
     }
 
     fn open_tiff(path: &Path, cache_bytes: usize) -> Result<SourceImage> {
@@ -214,6 +217,18 @@ impl SourceImage {
         self.mask_runs.get()
     }
 
+    /// An error naming the file where a read of its mapping met the end of
+    /// the file, truncated by another process (zeros were read from there
+    /// on): checked before an output made of it is published.
+    pub fn check_intact(&self) -> Result<()> {
+        match &self.backend {
+            Backend::Raw { guard: Some(g), .. } if g.truncated() => {
+                Err(Error::format(&self.path, "was truncated while being read (its memory map met the end of the file)"))
+            }
+            _ => Ok(()),
+        }
+    }
+
     pub fn is_mapped(&self) -> bool {
         matches!(self.backend, Backend::Raw { map: Some(_), .. })
     }
@@ -293,7 +308,7 @@ impl SourceImage {
     /// it)? Checked before each window of a mapped file, so that the map is
     /// never read past the file's end in the ordinary course.
     fn check_size(&self) -> Result<()> {
-        if let Backend::Raw { map: Some(m), file } = &self.backend {
+        if let Backend::Raw { map: Some(m), file, .. } = &self.backend {
             let now = file.metadata().map_err(|e| Error::io(&self.path, e))?.len();
             if now < m.len() as u64 {
                 return Err(Error::format(&self.path, format!("the input file was truncated while being read ({} bytes, was {})", now, m.len())));
@@ -360,7 +375,7 @@ impl SourceImage {
                 let len = info.byte_counts[k as usize] as usize;
                 put(&m[o..o + len]);
             }
-            Backend::Raw { map: None, file } => {
+            Backend::Raw { map: None, file, .. } => {
                 use std::os::unix::fs::FileExt;
                 // Read only the rows we need.
                 let o = info.offsets[k as usize];

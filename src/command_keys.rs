@@ -1,0 +1,325 @@
+//! Settings by key for the commands beyond a single run (`mosaic`,
+//! `assemble`, `grid`, `dem`): the command line's options, `_` for `-`,
+//! with its defaults; what a binding's keyword arguments become.
+
+use crate::error::{Error, Result};
+use crate::keys::{by_key, NumberOrWord};
+use crate::options::{parse_choice, parse_overviews};
+use serde::Deserialize;
+use std::path::PathBuf;
+
+/// A mosaic's keys: the command line's `mosaic` options, `_` for `-`.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MosaicKeys {
+    manifest: Option<PathBuf>,
+    output: Option<PathBuf>,
+    plan_out: Option<PathBuf>,
+    plan: Option<PathBuf>,
+    window: Option<[u32; 4]>,
+    gsd: Option<crate::geom::Gsd>,
+    bounds: Option<[f64; 4]>,
+    crs: Option<String>,
+    like: Option<PathBuf>,
+    balance: Option<String>,
+    seams: Option<String>,
+    blend: Option<f64>,
+    seamlines_out: Option<PathBuf>,
+    seamlines: Option<PathBuf>,
+    cog: Option<bool>,
+    occlusion: Option<String>,
+    memory: Option<NumberOrWord>,
+    threads: Option<usize>,
+    force: Option<bool>,
+    json: Option<PathBuf>,
+    sync: Option<bool>,
+}
+
+/// A mosaic's options from keys, with the command line's defaults.
+pub fn mosaic_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<crate::mosaic::MosaicOptions> {
+    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
+    let k: MosaicKeys = by_key(keys, &[])?;
+    let manifest = k.manifest.ok_or_else(|| Error::setting("manifest", "is needed: the block's manifest"))?;
+    if k.output.is_none() && k.plan_out.is_none() {
+        return Err(Error::setting("output", "is needed (or plan_out for the plan alone)"));
+    }
+    if k.like.is_some() && (k.gsd.is_some() || k.bounds.is_some()) {
+        return Err(Error::setting("like", "gives the grid: drop the GSD and bounds"));
+    }
+    if k.plan.is_some() && (k.seamlines.is_some() || k.seams.is_some() || k.balance.is_some()) {
+        return Err(Error::setting("plan", "holds the seams and gains: drop seamlines, seams and balance"));
+    }
+    let least_cost = match k.seams.as_deref() {
+        None | Some("least-cost") | Some("least_cost") => true,
+        Some("voronoi") => false,
+        Some(other) => return Err(Error::setting("seams", format!("'{other}' (expected least-cost or voronoi)"))),
+    };
+    let crs = k.crs.as_deref().map(|c| crate::geodesy::Crs::parse(c, std::path::Path::new("."))).transpose().map_err(|m| Error::setting("crs", m))?;
+    Ok(crate::mosaic::MosaicOptions {
+        manifest,
+        output: k.output,
+        gsd: k.gsd,
+        bounds: k.bounds,
+        crs,
+        like: k.like,
+        balance: k.balance.as_deref().map(|b| parse_choice("balance", b)).transpose()?.unwrap_or(crate::mosaic::balance::Balance::GainOffset),
+        least_cost,
+        blend: k.blend.unwrap_or(8.0),
+        seamlines_out: k.seamlines_out,
+        seamlines_in: k.seamlines,
+        plan_out: k.plan_out,
+        plan_in: k.plan,
+        window: k.window,
+        memory: match &k.memory {
+            Some(m) => crate::options::parse_bytes("memory", &m.text())?,
+            None => 256 << 20,
+        },
+        threads: k.threads.unwrap_or(0),
+        cog: k.cog.filter(|&c| c),
+        overviews: None,
+        compress: None,
+        force: k.force.unwrap_or(false),
+        occlusion: k.occlusion.as_deref().map(|o| parse_choice("occlusion", o)).transpose()?,
+        sync: k.sync.unwrap_or(true),
+        report: k.json,
+    })
+}
+
+/// `assemble`'s keys: the layout of the whole (`overviews`,
+/// `overview_resampling`, `cog`, `level`, `overview_level`, `quality`) and
+/// `compress` to code the tiles anew.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AssembleKeys {
+    overviews: Option<String>,
+    overview_resampling: Option<String>,
+    cog: Option<bool>,
+    level: Option<u8>,
+    overview_level: Option<u8>,
+    quality: Option<u8>,
+    compress: Option<String>,
+}
+
+/// `assemble`'s options from keys.
+pub fn assemble_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<crate::assemble::AssembleOptions> {
+    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
+    let k: AssembleKeys = by_key(keys, &[])?;
+    Ok(crate::assemble::AssembleOptions {
+        overviews: k.overviews.as_deref().map(|o| parse_overviews("overviews", o)).transpose()?,
+        overview_resampling: k.overview_resampling.as_deref().map(|r| parse_choice("overview_resampling", r)).transpose()?,
+        cog: k.cog.filter(|&c| c),
+        level: k.level,
+        overview_level: k.overview_level,
+        quality: k.quality,
+        compress: k.compress.as_deref().map(|c| parse_choice("compress", c)).transpose()?,
+        ..Default::default()
+    })
+}
+
+/// `--threads 0`: every core (the commands that take all by default).
+fn every_core(asked: usize) -> usize {
+    match asked {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        t => t,
+    }
+}
+
+/// `blunders`: a number of robust sigmas, or `"none"`.
+fn blunders(v: Option<&NumberOrWord>, default: Option<f64>) -> Result<Option<f64>> {
+    match v {
+        None => Ok(default),
+        Some(NumberOrWord::Value(k)) => Ok(Some(*k)),
+        Some(NumberOrWord::Word(w)) => match w.trim() {
+            "none" | "off" => Ok(None),
+            k => k.parse().map(Some).map_err(|_| Error::setting("blunders", format!("'{k}' is not a number of sigmas or none"))),
+        },
+    }
+}
+
+fn crs_of(setting: &'static str, text: Option<&str>) -> Result<Option<crate::geodesy::Crs>> {
+    text.map(|c| crate::geodesy::Crs::parse(c, std::path::Path::new("."))).transpose().map_err(|m| Error::setting(setting, m))
+}
+
+/// `grid`'s keys: the command line's options, `_` for `-`.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GridKeys {
+    points: Option<Vec<PathBuf>>,
+    output: Option<PathBuf>,
+    gsd: Option<crate::geom::Gsd>,
+    bounds: Option<[f64; 4]>,
+    crs: Option<String>,
+    points_crs: Option<String>,
+    method: Option<String>,
+    max_edge: Option<f64>,
+    radius: Option<f64>,
+    power: Option<f64>,
+    neighbours: Option<usize>,
+    /// `"x,y,z"` or three names (or numbers from 1).
+    columns: Option<Vec<String>>,
+    class: Option<Vec<u8>>,
+    returns: Option<String>,
+    blunders: Option<NumberOrWord>,
+    memory: Option<NumberOrWord>,
+    threads: Option<usize>,
+    tile: Option<u32>,
+    block: Option<u32>,
+    compress: Option<String>,
+    level: Option<u8>,
+    overviews: Option<String>,
+    cog: Option<bool>,
+    window: Option<[u32; 4]>,
+    /// `[i, n]`: the i-th of n shares (from 1).
+    shard: Option<[u32; 2]>,
+    sync: Option<bool>,
+}
+
+/// `grid`'s options from keys, with the command line's defaults.
+pub fn grid_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<crate::gridding::GridOptions> {
+    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
+    let k: GridKeys = by_key(keys, &[])?;
+    let points = k.points.filter(|p| !p.is_empty()).ok_or_else(|| Error::setting("points", "is needed: the point files"))?;
+    let output = k.output.ok_or_else(|| Error::setting("output", "is needed: the DEM's path"))?;
+    let gsd = k.gsd.ok_or_else(|| Error::setting("gsd", "is needed: the DEM's cell size"))?;
+    let mut o = crate::gridding::GridOptions::new(points, output, gsd);
+    o.bounds = k.bounds;
+    o.crs = crs_of("crs", k.crs.as_deref())?;
+    o.points_crs = crs_of("points_crs", k.points_crs.as_deref())?;
+    if let Some(m) = &k.method {
+        o.method = parse_choice("method", m)?;
+    }
+    o.max_edge = k.max_edge;
+    o.radius = k.radius;
+    o.power = k.power.unwrap_or(2.0);
+    o.neighbours = k.neighbours;
+    if let Some(c) = k.columns {
+        let parts: Vec<String> = if c.len() == 1 { c[0].split(',').map(|s| s.trim().to_string()).collect() } else { c };
+        let n = parts.len();
+        let xyz: [String; 3] =
+            parts.try_into().map_err(|_| Error::setting("columns", format!("{n} columns: give three, x, y, z (names or numbers from 1)")))?;
+        o.columns = crate::points::Columns::Given(xyz);
+    }
+    o.filter = crate::points::Filter {
+        classes: k.class,
+        returns: k.returns.as_deref().map(|r| parse_choice("returns", r)).transpose()?.unwrap_or(crate::points::Returns::All),
+    };
+    o.blunders = blunders(k.blunders.as_ref(), Some(8.0))?;
+    o.memory = crate::options::parse_bytes("memory", &k.memory.map_or("512M".into(), |m| m.text()))?;
+    o.threads = every_core(k.threads.unwrap_or(0));
+    o.tile = k.tile.unwrap_or(256);
+    o.block = k.block;
+    if let Some(c) = &k.compress {
+        o.compress = parse_choice("compress", c)?;
+    }
+    o.level = k.level;
+    if let Some(v) = &k.overviews {
+        o.overviews = parse_overviews("overviews", v)?;
+    }
+    o.cog = k.cog.unwrap_or(false);
+    o.window = k.window;
+    o.shard = k.shard.map(|[i, n]| (i, n));
+    o.sync = k.sync.unwrap_or(true);
+    Ok(o)
+}
+
+/// `dem`'s keys (a stereo pair): the command line's options, `_` for `-`.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DemKeys {
+    left: Option<PathBuf>,
+    right: Option<PathBuf>,
+    left_camera: Option<PathBuf>,
+    right_camera: Option<PathBuf>,
+    left_rpc: Option<PathBuf>,
+    right_rpc: Option<PathBuf>,
+    left_rpc_offset: Option<[f64; 2]>,
+    right_rpc_offset: Option<[f64; 2]>,
+    geoid: Option<PathBuf>,
+    output: Option<PathBuf>,
+    gsd: Option<crate::geom::Gsd>,
+    crs: Option<String>,
+    heights: Option<[f64; 2]>,
+    dem_init: Option<PathBuf>,
+    matcher: Option<String>,
+    window: Option<usize>,
+    min_correlation: Option<f32>,
+    points: Option<PathBuf>,
+    quality: Option<PathBuf>,
+    blunders: Option<NumberOrWord>,
+    memory: Option<NumberOrWord>,
+    threads: Option<usize>,
+    cog: Option<bool>,
+}
+
+/// `dem`'s options from keys, with the command line's defaults.
+pub fn dem_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<crate::stereo::StereoOptions> {
+    use crate::options::ModelSource;
+    use crate::stereo::SideOptions;
+    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
+    let k: DemKeys = by_key(keys, &[])?;
+    let side =
+        |image: &Option<PathBuf>, camera: &Option<PathBuf>, rpc: &Option<PathBuf>, offset: Option<[f64; 2]>, which: &'static str| -> Result<SideOptions> {
+            let image = image.clone().ok_or_else(|| Error::Usage(format!("{which}: is needed: the {which} image")))?;
+            match (camera, rpc) {
+                (Some(_), None) if k.geoid.is_some() => Err(Error::setting("geoid", "goes with RPC files (left_rpc, right_rpc), not camera files")),
+                (Some(c), None) => Ok(SideOptions { image, model: ModelSource::CameraFile, camera: c.clone() }),
+                (None, Some(r)) => Ok(SideOptions { image, model: ModelSource::Rpc { offset, geoid: k.geoid.clone() }, camera: r.clone() }),
+                _ => Err(Error::Usage(format!("the {which} image needs {which}_camera or {which}_rpc"))),
+            }
+        };
+    let left = side(&k.left, &k.left_camera, &k.left_rpc, k.left_rpc_offset, "left")?;
+    let right = side(&k.right, &k.right_camera, &k.right_rpc, k.right_rpc_offset, "right")?;
+    let output = k.output.clone().ok_or_else(|| Error::setting("output", "is needed: the DSM's path"))?;
+    let gsd = k.gsd.ok_or_else(|| Error::setting("gsd", "is needed: the DSM's cell size"))?;
+    let mut o = crate::stereo::StereoOptions::new(left, right, output, gsd);
+    o.crs = crs_of("crs", k.crs.as_deref())?;
+    o.heights = k.heights;
+    o.dem_init = k.dem_init.clone();
+    let window = k.window.unwrap_or(9);
+    if !(3..=21).contains(&window) || window.is_multiple_of(2) {
+        return Err(Error::setting("window", format!("{window} is not an odd side from 3 to 21")));
+    }
+    if let Some(c) = k.min_correlation {
+        if !(-1.0..=1.0).contains(&c) {
+            return Err(Error::setting("min_correlation", format!("{c} is not a correlation, -1 to 1")));
+        }
+    }
+    let matcher = match k.matcher.as_deref() {
+        None | Some("sgm") => crate::stereo::matching::Matcher::Sgm,
+        Some("ncc") => crate::stereo::matching::Matcher::Ncc,
+        Some(other) => return Err(Error::setting("matcher", format!("'{other}' (expected sgm or ncc)"))),
+    };
+    o.matching = crate::stereo::matching::MatchParams { matcher, window, min_correlation: k.min_correlation };
+    o.points = k.points.clone();
+    o.quality = k.quality.clone();
+    o.blunders = blunders(k.blunders.as_ref(), None)?;
+    o.memory = crate::options::parse_bytes("memory", &k.memory.as_ref().map_or("512M".into(), |m| m.text()))?;
+    o.threads = every_core(k.threads.unwrap_or(0));
+    o.cog = k.cog.unwrap_or(false);
+    Ok(o)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn keys(v: serde_json::Value) -> serde_json::Map<String, serde_json::Value> {
+        v.as_object().expect("an object").clone()
+    }
+
+    #[test]
+    fn mosaic_grid_and_dem_keys_take_the_commands_defaults() {
+        let m = mosaic_options(keys(json!({"manifest": "m.toml", "output": "o.tif"}))).expect("valid");
+        assert_eq!((m.blend, m.memory, m.least_cost, m.cog), (8.0, 256 << 20, true, None));
+        assert!(mosaic_options(keys(json!({"manifest": "m.toml"}))).is_err());
+        let g = grid_options(keys(json!({"points": ["p.las"], "output": "d.tif", "gsd": 2, "shard": [2, 4]}))).expect("valid");
+        assert_eq!((g.blunders, g.memory, g.shard, g.tile), (Some(8.0), 512 << 20, Some((2, 4)), 256));
+        let s = dem_options(keys(json!({"left": "l.tif", "right": "r.tif", "left_rpc": "l.txt", "right_rpc": "r.txt", "output": "d.tif", "gsd": 2})))
+            .expect("valid");
+        assert_eq!((s.blunders, s.matching.window), (None, 9));
+        let e =
+            dem_options(keys(json!({"left": "l.tif", "right": "r.tif", "left_camera": "l.toml", "output": "d.tif", "gsd": 2}))).expect_err("no right camera");
+        assert_eq!(e.to_string(), "the right image needs right_camera or right_rpc");
+    }
+}
