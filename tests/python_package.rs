@@ -57,8 +57,9 @@ fn the_python_package_builds_installs_and_passes_its_tests() {
     if !ran("pip install", &mut pip(&["maturin>=1.5,<2", "numpy", "pytest", "dask[distributed]"])) {
         return unavailable("the test's packages did not install from PyPI");
     }
-    // The wheel, as CI would publish it (its own target folder: this
-    // test's cargo holds the build folder's lock).
+    // The wheel, as CI would publish it, built in this build's target
+    // folder (cargo holds its lock while it builds, not while tests run):
+    // the library's dependencies are built once.
     let wheels = work.join("wheels");
     let built = ran(
         "maturin build",
@@ -67,7 +68,7 @@ fn the_python_package_builds_installs_and_passes_its_tests() {
             .arg(root().join("python").join("Cargo.toml"))
             .arg("--out")
             .arg(&wheels)
-            .env("CARGO_TARGET_DIR", root().join("target").join("python-build")),
+            .env("CARGO_TARGET_DIR", root().join("target")),
     );
     assert!(built, "the wheel builds");
     let wheel: Vec<PathBuf> = std::fs::read_dir(&wheels).expect("wheels").map(|e| e.expect("entry").path()).collect();
