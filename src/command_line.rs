@@ -94,6 +94,12 @@ pub fn run(args: Vec<std::ffi::OsString>) -> u8 {
         Ok(code) => code,
         Err(e) => {
             if let Some(code) = signals.exit_code() {
+                if !signals.claim_end() {
+                    // The watchdog is ending the process.
+                    loop {
+                        std::thread::park();
+                    }
+                }
                 eprintln!("gcm-ortho: interrupted; no unfinished output was left behind");
                 return code;
             }

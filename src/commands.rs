@@ -29,6 +29,7 @@ use gcm_ortho::{rectify, Cancel, Report};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
+use std::time::Duration;
 
 /// SIGINT / SIGTERM turn into the cancel flag the library polls; SIGBUS on
 /// a scan truncated under its memory map into one line and exit code 1.
@@ -36,26 +37,60 @@ pub struct Signals {
     pub cancel: Cancel,
     int: Arc<AtomicBool>,
     term: Arc<AtomicBool>,
+    /// Who says the run was interrupted and ends it: the command, or the
+    /// watchdog (once).
+    ending: Arc<AtomicBool>,
 }
+
+/// How long a command that polls the cancel flag has to wind down after a
+/// signal before the watchdog ends it: parsing and planning poll less
+/// often than rendering does, and a signal is honoured within a second
+/// in every phase.
+const GRACE: Duration = Duration::from_millis(700);
 
 impl Signals {
     /// `polls`: the command stops at the cancel flag (rectify, batch, demo),
-    /// cleaning up as it goes; a second signal then ends it at once. A
-    /// command that does not poll ends at the first (its temporary output
-    /// is removed by the next run in that folder).
+    /// cleaning up as it goes, within [`GRACE`]; a command that does not
+    /// poll, and one still busy after it, is ended by the watchdog, its
+    /// temporary outputs removed. A second signal ends it at once.
     pub fn install(polls: bool) -> std::io::Result<Signals> {
-        let s = Signals { cancel: Cancel::new(), int: Arc::default(), term: Arc::default() };
-        let now = Arc::new(AtomicBool::new(!polls));
+        let s = Signals { cancel: Cancel::new(), int: Arc::default(), term: Arc::default(), ending: Arc::default() };
         for (sig, flag, code) in [(signal_hook::consts::SIGINT, &s.int, 130), (signal_hook::consts::SIGTERM, &s.term, 143)] {
             // Before the flags are set: it sees whether one already was.
             signal_hook::flag::register_conditional_shutdown(sig, code, s.cancel.flag())?;
-            signal_hook::flag::register_conditional_shutdown(sig, code, now.clone())?;
             signal_hook::flag::register(sig, flag.clone())?;
             signal_hook::flag::register(sig, s.cancel.flag())?;
         }
         gcm_ortho::io::mmap_guard::install_sigbus_handler();
+        let watched = Signals { cancel: s.cancel.clone(), int: s.int.clone(), term: s.term.clone(), ending: s.ending.clone() };
+        let grace = if polls { GRACE } else { Duration::ZERO };
+        std::thread::Builder::new().name("signal watchdog".into()).spawn(move || watched.watch(grace))?;
         Ok(s)
     }
+
+    /// Waits for a signal; `grace` after it, ends a command still running:
+    /// its registered temporary outputs removed, one line, exit 130 or 143.
+    fn watch(&self, grace: Duration) {
+        let code = loop {
+            if let Some(code) = self.exit_code() {
+                break code;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        std::thread::sleep(grace);
+        if self.claim_end() {
+            gcm_ortho::io::mmap_guard::remove_registered_temporaries();
+            eprintln!("gcm-ortho: interrupted; no unfinished output was left behind");
+            std::process::exit(i32::from(code));
+        }
+    }
+
+    /// Whether the caller is the one to say the run was interrupted (the
+    /// command and the watchdog may both come to it).
+    pub fn claim_end(&self) -> bool {
+        self.ending.compare_exchange(false, true, Ordering::AcqRel, Ordering::Acquire).is_ok()
+    }
+
     pub fn exit_code(&self) -> Option<u8> {
         if self.int.load(Ordering::Relaxed) {
             Some(130)

@@ -44,6 +44,44 @@ fn sigint_mid_run_exits_130() {
     interrupt(2, 130);
 }
 
+/// SIGTERM while the run reads its inputs (2·10⁶ poses, a few seconds of
+/// parsing that polls no cancel flag): the command ends within a second,
+/// its temporary output removed, an older file at the output kept.
+#[test]
+fn sigterm_while_parsing_ends_the_run_within_a_second() {
+    use std::io::Write as _;
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene(&dir.path().join("scene"), 300, |_| {});
+    let poses = dir.path().join("poses.csv");
+    let mut w = std::io::BufWriter::new(std::fs::File::create(&poses).unwrap());
+    writeln!(w, "filename,x,y,z,omega,phi,kappa").unwrap();
+    for i in 0..2_000_000 {
+        writeln!(w, "img{i:07}.tif,{},{},1500.5,0.1,0.2,{}", 640000 + i % 1000, 4800000 + i / 1000, i % 360).unwrap();
+    }
+    w.flush().unwrap();
+    let image = dir.path().join("img1999999.tif");
+    std::fs::copy(&sc.scan, &image).unwrap();
+    let out = dir.path().join("ortho.tif");
+    std::fs::write(&out, b"an older orthophoto").unwrap();
+    let child = Command::new(bin())
+        .args(["rectify", "--image", s(&image), "--camera", s(&sc.camera), "--exterior", s(&poses), "--height", "0", "-o", s(&out), "--quiet"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let sent = std::time::Instant::now();
+    assert!(Command::new("kill").args(["-15", &child.id().to_string()]).status().unwrap().success());
+    let o = wait_deadline(child, 10);
+    let took = sent.elapsed();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(143), "{err}");
+    assert_eq!(err.trim(), "gcm-ortho: interrupted; no unfinished output was left behind");
+    // (A loaded machine wakes the watchdog late: a margin over the second.)
+    assert!(took < Duration::from_millis(1500), "SIGTERM took {took:?}");
+    assert_eq!(std::fs::read(&out).unwrap(), b"an older orthophoto");
+    assert!(files_containing(dir.path(), "partial").is_empty(), "temporary file left behind");
+}
+
 /// A full disk: a 2 MiB tmpfs, where root may mount one (CI runs as root).
 #[test]
 fn full_disk_is_a_clear_error_and_leaves_nothing() {

@@ -196,6 +196,21 @@ pub fn unregister_cleanup(path: &Path) {
     }
 }
 
+/// Removes the registered temporary files (a process ending on a signal
+/// before its run could clean up).
+pub fn remove_registered_temporaries() {
+    let mut buf = [0u8; LEN];
+    for slot in &CLEANUP {
+        if slot.used.load(Ordering::Acquire) {
+            let n = slot.copy(&mut buf);
+            if n > 0 {
+                use std::os::unix::ffi::OsStrExt as _;
+                let _ = std::fs::remove_file(std::ffi::OsStr::from_bytes(&buf[..n]));
+            }
+        }
+    }
+}
+
 extern "C" fn on_sigbus(_: libc::c_int, info: *mut libc::siginfo_t, _: *mut libc::c_void) {
     // SAFETY: the kernel passes a valid siginfo_t to an SA_SIGINFO handler;
     // a SIGBUS's names the faulting address.

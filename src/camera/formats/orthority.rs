@@ -103,6 +103,11 @@ fn fields(line: &str, d: u8) -> Vec<String> {
 
 /// [`fields`] with fields quoted by `quote`.
 fn fields_quoted(line: &str, d: u8, quote: u8) -> Vec<String> {
+    // A line without quotes splits at its delimiters: the CSV reader's
+    // set-up, a line at a time, made a file of 10⁶ poses take 18 s.
+    if !line.as_bytes().contains(&quote) {
+        return line.split(char::from(d)).map(str::trim).filter(|f| d != b' ' || !f.is_empty()).map(str::to_string).collect();
+    }
     let mut r = csv::ReaderBuilder::new().delimiter(d).quote(quote).has_headers(false).flexible(true).trim(csv::Trim::All).from_reader(line.as_bytes());
     let Some(Ok(rec)) = r.records().next() else { return Vec::new() };
     rec.iter().filter(|f| d != b' ' || !f.is_empty()).map(str::to_string).collect()
@@ -515,6 +520,22 @@ pub fn write_csv(poses: &[Pose], cameras: &[String]) -> String {
 
 #[cfg(test)]
 mod tests {
+    /// A line without quotes splits as the CSV reader splits it.
+    #[test]
+    fn unquoted_lines_split_as_the_csv_reader_does() {
+        let by_reader = |line: &str, d: u8| -> Vec<String> {
+            let mut r = csv::ReaderBuilder::new().delimiter(d).has_headers(false).flexible(true).trim(csv::Trim::All).from_reader(line.as_bytes());
+            let Some(Ok(rec)) = r.records().next() else { return Vec::new() };
+            rec.iter().filter(|f| d != b' ' || !f.is_empty()).map(str::to_string).collect()
+        };
+        for line in ["img_001.tif,640000.5, 4800000.25 ,1500,0.1,-0.2,91", "a;b;;c;", "0182.tif  652310.1   4830122.7 1820.0\t0.7 1.1 0.0", " x\ty\t z ", "one"]
+        {
+            for d in super::DELIMITERS {
+                assert_eq!(super::fields_quoted(line, d, b'"'), by_reader(line, d), "{line:?} split at {:?}", char::from(d));
+            }
+        }
+    }
+
     #[test]
     fn yaml_floats_read_as_floats_in_yaml_1_1() {
         assert_eq!(super::yaml_float(1e-5), "1.0e-5");
