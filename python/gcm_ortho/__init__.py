@@ -24,6 +24,7 @@ byte for byte. See docs/PYTHON.md.
 from __future__ import annotations
 
 import json as _json
+import numbers
 import os
 import tempfile
 from dataclasses import dataclass, field
@@ -76,16 +77,28 @@ ProgressCallback = Callable[[int, int, str], Any]
 
 
 def _value(v: Any) -> Any:
-    """A keyword argument's value as the key table takes it."""
+    """A keyword argument's value as the key table takes it: paths as
+    text, tuples and NumPy arrays as lists, NumPy scalars as numbers."""
     if isinstance(v, os.PathLike):
         return os.fspath(v)
     if isinstance(v, (tuple, list)):
         return [_value(x) for x in v]
+    if type(v).__module__ == "numpy":
+        return _value(v.tolist())
     return v
 
 
 def _keys(**keys: Any) -> str:
-    return _json.dumps({k: _value(v) for k, v in keys.items() if v is not None})
+    out = {}
+    for k, v in keys.items():
+        if v is None:
+            continue
+        out[k] = _value(v)
+        try:
+            _json.dumps(out[k])
+        except (TypeError, ValueError):
+            raise SettingError(f"{k}: {v!r} is not a value a setting takes (a number, text, a path, a list of them)") from None
+    return _json.dumps(out)
 
 
 def _write_report(path: PathLike, report: dict) -> None:
@@ -115,7 +128,7 @@ def _sensor_keys(camera: Optional[PathLike], dem: Union[PathLike, float, None], 
     if camera is not None:
         keys["camera"] = camera
     # A number is a constant height (the command line's --height).
-    if isinstance(dem, (int, float)) and not isinstance(dem, bool):
+    if isinstance(dem, numbers.Real) and not isinstance(dem, bool):
         keys["height"] = float(dem)
     elif dem is not None:
         keys["dem"] = dem
@@ -260,8 +273,7 @@ def plan(
 ) -> Plan:
     """The output grid :func:`rectify` makes with these settings, without
     rendering a pixel; the settings are kept to render its windows."""
-    keys = _sensor_keys(camera, dem, options)
-    keys = {k: _value(v) for k, v in dict(image=image, **keys).items() if v is not None}
+    keys = _json.loads(_keys(image=image, **_sensor_keys(camera, dem, options)))
     keys.pop("window", None)
     # A placeholder output: the plan writes nothing.
     grid = _json.loads(_native.plan(_json.dumps(dict(keys, output="plan.tif"))))
@@ -277,7 +289,7 @@ def mosaic_plan(manifest: PathLike, plan_out: PathLike, **options: Any) -> Plan:
     layout = {k: options[k] for k in ("cog",) if k in options}
     report = mosaic(manifest, None, plan_out=plan_out, **options)
     tile = report["tile"]
-    keys = {k: _value(v) for k, v in dict(manifest=manifest, plan=plan_out, **layout).items()}
+    keys = _json.loads(_keys(manifest=manifest, plan=plan_out, **layout))
     return Plan(
         options=keys,
         width=report["width"],
@@ -338,7 +350,7 @@ def render_window(
     its report. Without: returns the window as a :class:`Window` (NumPy
     arrays). ``options``: resources for this piece (``memory``,
     ``threads``)."""
-    keys = dict(plan.options, window=[col, row, width, height], **options)
+    keys = dict(plan.options, window=[col, row, width, height], **_json.loads(_keys(**options)))
     run = _native.mosaic if plan.kind == "mosaic" else _native.rectify
     if out is not None:
         return _json.loads(run(_json.dumps(dict(keys, output=os.fspath(out)))))

@@ -69,6 +69,18 @@ def test_settings_by_key_match_the_flags(scene, tmp_path):
     assert report["config"]["compress"] == "Zstd" or report["config"]["compress"].lower() == "zstd"
 
 
+def test_numpy_values_are_taken_and_other_objects_refused_by_key(scene, tmp_path):
+    cli = tmp_path / "cli.tif"
+    r = command("rectify", "--image", scene / "scan.tif", "--camera", scene / "camera.toml", "--height", "350", "--gsd", "2.5,3", "-o", cli, "--quiet")
+    assert r.returncode == 0, r.stderr
+    py = tmp_path / "py.tif"
+    gcm_ortho.rectify(scene / "scan.tif", scene / "camera.toml", np.float32(350), py, gsd=np.array([2.5, 3.0]))
+    assert filecmp.cmp(cli, py, shallow=False)
+    with pytest.raises(gcm_ortho.SettingError, match=r"^gsd: .* is not a value a setting takes"):
+        gcm_ortho.rectify(scene / "scan.tif", scene / "camera.toml", 350, tmp_path / "x.tif", gsd=object())
+    assert not (tmp_path / "x.tif").exists()
+
+
 def test_a_constant_height_is_a_number(scene, tmp_path):
     cli = tmp_path / "cli.tif"
     r = command("rectify", "--image", scene / "scan.tif", "--camera", scene / "camera.toml", "--height", "350", "-o", cli, "--quiet")
