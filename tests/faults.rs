@@ -44,7 +44,7 @@ fn sigint_mid_run_exits_130() {
     interrupt(2, 130);
 }
 
-/// SIGTERM while the run reads its inputs (2·10⁶ poses, a few seconds of
+/// SIGTERM while the run reads its inputs (4·10⁶ poses, two seconds of
 /// parsing that polls no cancel flag): the command ends within a second,
 /// its temporary output removed, an older file at the output kept.
 #[test]
@@ -55,11 +55,11 @@ fn sigterm_while_parsing_ends_the_run_within_a_second() {
     let poses = dir.path().join("poses.csv");
     let mut w = std::io::BufWriter::new(std::fs::File::create(&poses).unwrap());
     writeln!(w, "filename,x,y,z,omega,phi,kappa").unwrap();
-    for i in 0..2_000_000 {
+    for i in 0..4_000_000 {
         writeln!(w, "img{i:07}.tif,{},{},1500.5,0.1,0.2,{}", 640000 + i % 1000, 4800000 + i / 1000, i % 360).unwrap();
     }
     w.flush().unwrap();
-    let image = dir.path().join("img1999999.tif");
+    let image = dir.path().join("img3999999.tif");
     std::fs::copy(&sc.scan, &image).unwrap();
     let out = dir.path().join("ortho.tif");
     std::fs::write(&out, b"an older orthophoto").unwrap();

@@ -205,6 +205,16 @@ pub struct Imported {
     /// the lenses' file says so: poses from another file that name no
     /// camera take it by their image's name.
     pub lens_of_image: Vec<(String, String)>,
+    /// Poses the files list, where only those of one image were kept.
+    pub listed: usize,
+}
+
+/// Whether a pose named `name` may be `image`'s: the same file name, or
+/// the same name without its extension (see [`Imported::camera_for`]).
+pub fn may_name(name: &str, image: &Path) -> bool {
+    let file = image.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    let stem = image.file_stem().and_then(|n| n.to_str()).unwrap_or("");
+    name == file || name == stem || Path::new(name).file_stem().and_then(|s| s.to_str()).unwrap_or(name) == stem
 }
 
 /// What a file holds, by its content.
@@ -260,7 +270,11 @@ pub fn detect(path: &Path, text: &str) -> Result<Kind> {
     if crate::camera::panoramic_file::looks_like_asp(t) {
         return Ok(Kind::AspOpticalBar);
     }
-    if toml::from_str::<toml::Table>(t).is_ok_and(|table| table.contains_key("camera") || table.contains_key("crs")) {
+    // TOML opens with a table (`[camera]`) or a key (`crs = …`); its
+    // parser's error holds a copy of the whole text (a 10⁶-pose CSV's too).
+    let first = t.lines().map(str::trim).find(|l| !l.is_empty() && !l.starts_with('#'));
+    let may_be_toml = first.is_some_and(|l| l.starts_with('[') || l.contains('='));
+    if may_be_toml && toml::from_str::<toml::Table>(t).is_ok_and(|table| table.contains_key("camera") || table.contains_key("crs")) {
         return Ok(Kind::Ours);
     }
     if pix4d::looks_like_cam(t) {
@@ -337,7 +351,7 @@ pub fn read_for(image: &Path, camera: &Path, exterior: Option<&Path>, crs: Optio
 /// As [`read_for`], a pose CSV's angles in `angles`.
 pub fn read_for_with(image: &Path, camera: &Path, exterior: Option<&Path>, angles: AngleUnit, crs: Option<&Crs>) -> Result<Imported> {
     if !is_exif(camera) {
-        return read_with(camera, exterior, Some(image), angles);
+        return read_with_only(camera, exterior, Some(image), angles, true);
     }
     if let Some(e) = exterior {
         return Err(Error::unsupported(e, "--camera exif takes the position from the image: give a camera file with --exterior"));
@@ -354,21 +368,29 @@ pub fn read(camera: &Path, exterior: Option<&Path>, image: Option<&Path>) -> Res
 
 /// As [`read`], a pose CSV's angles in `angles`.
 pub fn read_with(camera: &Path, exterior: Option<&Path>, image: Option<&Path>, angles: AngleUnit) -> Result<Imported> {
-    let mut set = read_one(camera, exterior.is_some(), image, angles)?;
+    read_with_only(camera, exterior, image, angles, false)
+}
+
+/// As [`read_with`]; `only`: a pose CSV keeps only the poses that may be
+/// `image`'s (a block's file of 10⁶ poses for one image's run).
+fn read_with_only(camera: &Path, exterior: Option<&Path>, image: Option<&Path>, angles: AngleUnit, only: bool) -> Result<Imported> {
+    let only = image.filter(|_| only);
+    let mut set = read_one(camera, exterior.is_some(), image, angles, only)?;
     if let Some(e) = exterior {
-        let mut poses = read_one(e, false, image, angles)?;
+        let mut poses = read_one(e, false, image, angles, only)?;
         let stem = |n: &str| Path::new(n).file_stem().and_then(|s| s.to_str()).unwrap_or(n).to_string();
         for p in poses.poses.iter_mut().filter(|p| p.camera.is_none()) {
             let named = set.lens_of_image.iter().find(|(n, _)| *n == p.name).or_else(|| set.lens_of_image.iter().find(|(n, _)| stem(n) == stem(&p.name)));
             p.camera = named.map(|(_, id)| id.clone());
         }
-        if poses.poses.is_empty() {
+        if poses.poses.is_empty() && poses.listed == 0 {
             return Err(Error::format(e, "holds no exterior orientations"));
         }
-        if !set.poses.is_empty() {
+        if !set.poses.is_empty() || set.listed > 0 {
             return Err(Error::unsupported(e, format!("{} holds poses already: give one of the two", camera.display())));
         }
         set.poses = poses.poses;
+        set.listed = poses.listed;
         set.lenses.extend(poses.lenses);
         set.warnings.extend(poses.warnings);
         set.files.extend(poses.files);
@@ -380,8 +402,9 @@ pub fn read_with(camera: &Path, exterior: Option<&Path>, image: Option<&Path>, a
     Ok(set)
 }
 
-/// One file; `for_lenses` when another gives the poses.
-fn read_one(path: &Path, for_lenses: bool, image: Option<&Path>, angles: AngleUnit) -> Result<Imported> {
+/// One file; `for_lenses` when another gives the poses; `only`: see
+/// [`orthority::read_csv`].
+fn read_one(path: &Path, for_lenses: bool, image: Option<&Path>, angles: AngleUnit, only: Option<&Path>) -> Result<Imported> {
     let text = read_text_bounded(path, "a camera or pose file", SMALL * 64)?;
     // A byte-order mark (Windows editors) is no part of any of these forms.
     let text = text.trim_start_matches('\u{feff}');
@@ -394,7 +417,7 @@ fn read_one(path: &Path, for_lenses: bool, image: Option<&Path>, angles: AngleUn
             Imported { base: Some(file), ..Default::default() }
         }
         Kind::OrthorityInterior => orthority::read_interior(path, text)?,
-        Kind::OrthorityCsv => orthority::read_csv(path, text, angles)?,
+        Kind::OrthorityCsv => orthority::read_csv(path, text, angles, only)?,
         Kind::OrthorityGeoJson => orthority::read_geojson(path, text)?,
         Kind::OpenSfmReconstruction | Kind::OpenSfmCameras => opensfm::read(path, text)?,
         Kind::MetashapeXml => metashape::read(path, text)?,
@@ -457,7 +480,7 @@ impl Imported {
     /// by the names without their extensions. None or two: refused by name.
     pub fn camera_for(&self, image: &Path) -> Result<CameraFile> {
         let source = self.files.last().cloned().unwrap_or_default();
-        if self.poses.is_empty() {
+        if self.poses.is_empty() && self.listed == 0 {
             return match &self.base {
                 Some(b) => Ok(b.clone()),
                 None => Err(Error::unsupported(&source, "gives no exterior orientation: add --exterior with the poses")),
@@ -472,9 +495,10 @@ impl Imported {
         }
         match found.as_slice() {
             [one] => self.camera_file(one, &source),
-            [] => {
-                Err(Error::format(&source, format!("no exterior orientation for the image {file} ({} poses, none named {file} or {stem})", self.poses.len())))
-            }
+            [] => Err(Error::format(
+                &source,
+                format!("no exterior orientation for the image {file} ({} poses, none named {file} or {stem})", self.poses.len().max(self.listed)),
+            )),
             many => Err(Error::format(
                 &source,
                 format!(

@@ -72,6 +72,12 @@ pub fn parse_yaml(text: &str) -> std::result::Result<Value, String> {
 /// Does this YAML hold Orthority cameras (a mapping of mappings with
 /// `type` and `im_size`, or one such mapping)?
 pub fn looks_like_interior(text: &str) -> bool {
+    // A mapping's first line names a key (`id:`) or opens one (`{`, `?`);
+    // a CSV's header does not, and a CSV of 10⁶ poses parsed as YAML first.
+    let first = text.lines().map(str::trim).find(|l| !l.is_empty() && !l.starts_with('#'));
+    if !first.is_some_and(|l| l.contains(':') || l.starts_with('{') || l.starts_with('?')) {
+        return false;
+    }
     let Ok(Value::Mapping(root)) = parse_yaml(text) else { return false };
     // An Orthority camera: a `type` of its own or a `focal_len` (the reader
     // then names what else is missing).
@@ -295,10 +301,13 @@ fn image_name(s: &str) -> String {
 }
 
 /// Orthority's exterior CSV (also the block CSV `name,X,Y,Z,omega,phi,kappa`).
-/// `unit`: the unit of its angles.
-pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit) -> Result<Imported> {
-    let lines: Vec<(usize, &str)> = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#')).collect();
-    let Some(&(_, first)) = lines.first() else { return Err(Error::format(path, "holds no exterior orientations")) };
+/// `unit`: the unit of its angles. `only`: keep the poses that may be this
+/// image's (by name, or by name without extension) and count the others:
+/// a run of one image of a block holds one pose, not the block's.
+pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit, only: Option<&Path>) -> Result<Imported> {
+    // The lines with content, walked again rather than held (10⁶ poses).
+    let lines = || text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let Some((_, first)) = lines().next() else { return Err(Error::format(path, "holds no exterior orientations")) };
     // Single quotes where the first field opens with one (ODM's and
     // Orthority's space-delimited files), else double quotes.
     let quote = if first.trim_start().starts_with('\'') { b'\'' } else { b'"' };
@@ -310,7 +319,7 @@ pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit) -> Result<Impor
             let head = fields(first, d);
             let n = head.len();
             // (A header short of a column: the columns' check names it.)
-            (n >= 7 || has_file_column(&head)) && lines.iter().take(20).all(|(_, l)| fields(l, d).len() == n)
+            (n >= 7 || has_file_column(&head)) && lines().take(20).all(|(_, l)| fields(l, d).len() == n)
         })
         .ok_or_else(|| Error::format(path, "line 1: expected a header (filename, x, y, z, omega, phi, kappa, …) or seven fields, all lines alike"))?;
     let head: Vec<String> = fields(first, delimiter).iter().map(|f| f.to_ascii_lowercase()).collect();
@@ -341,10 +350,16 @@ pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit) -> Result<Impor
     let camera_col = col("camera");
 
     let mut rows = Vec::new();
+    let for_image = |name: &str| match only {
+        None => true,
+        Some(image) => super::may_name(name, image),
+    };
+    // Every row's, kept or not: their count and mean position.
+    let (mut listed, mut sum) = (0usize, [0.0f64; 2]);
     let (mut warnings, mut past_a_turn) = (Vec::new(), false);
     // Whether every angle lies within half a turn, and the largest.
     let (mut within_half_turn, mut largest) = (true, 0f64);
-    for &(n, line) in lines.iter().skip(usize::from(has_header)) {
+    for (n, line) in lines().skip(usize::from(has_header)) {
         let f = fields(line, delimiter);
         let at = |k: usize| -> Result<f64> {
             f.get(k)
@@ -366,12 +381,17 @@ pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit) -> Result<Impor
         let a = if unit == super::AngleUnit::Radians { given } else { given.map(f64::to_radians) };
         let camera = camera_col.and_then(|c| f.get(c)).filter(|c| !c.is_empty()).cloned();
         let file = f.get(file_col).ok_or_else(|| Error::format(path, format!("line {}: no filename", n + 1)))?;
-        rows.push((n + 1, image_name(file), camera, p, a));
+        listed += 1;
+        sum = [sum[0] + p[0], sum[1] + p[1]];
+        let name = image_name(file);
+        if for_image(&name) {
+            rows.push((n + 1, name, camera, p, a));
+        }
     }
     // Radians read as degrees turn a block's cameras by under 3.2°: every
     // angle of several images within ±π, one past a few hundredths, is
     // doubtful (a block flown north with level cameras may do it too).
-    if unit == super::AngleUnit::Degrees && rows.len() >= 3 && within_half_turn && largest > 0.05 {
+    if unit == super::AngleUnit::Degrees && listed >= 3 && within_half_turn && largest > 0.05 {
         warnings.push(format!(
             "{}: every angle lies within ±π (the largest {largest}), read as degrees as Orthority reads them: if they are radians, give --radians",
             path.display()
@@ -390,8 +410,8 @@ pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit) -> Result<Impor
         if opk.is_some() {
             return Err(Error::format(path, format!("latitude/longitude with omega/phi/kappa need the CRS the angles are in: put it in {}", prj.display())));
         }
-        let k = rows.len() as f64;
-        let (lat, lon) = rows.iter().fold((0.0, 0.0), |(a, b), r| (a + r.3[0] / k, b + r.3[1] / k));
+        let k = listed as f64;
+        let (lat, lon) = (sum[0] / k, sum[1] / k);
         crs_text = utm_zone(lon, lat).epsg().map(|c| format!("EPSG:{c}"));
     }
     let ground = match &crs_text {
@@ -402,7 +422,7 @@ pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit) -> Result<Impor
         None => None,
     };
     let crs_from = prj.is_file().then(|| prj.clone());
-    let mut set = Imported { crs: crs_text, crs_from, warnings, ..Default::default() };
+    let mut set = Imported { crs: crs_text, crs_from, warnings, listed, ..Default::default() };
     for (line, name, camera, p, a) in rows {
         let origin = format!("{}:{line}", path.display());
         let bad = |what: &str| Error::format(path, format!("line {line}: {what}"));
