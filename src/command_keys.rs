@@ -37,7 +37,6 @@ struct MosaicKeys {
 
 /// A mosaic's options from keys, with the command line's defaults.
 pub fn mosaic_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<crate::mosaic::MosaicOptions> {
-    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
     let k: MosaicKeys = by_key(keys, &[])?;
     let manifest = k.manifest.ok_or_else(|| Error::setting("manifest", "is needed: the block's manifest"))?;
     if k.output.is_none() && k.plan_out.is_none() {
@@ -102,7 +101,6 @@ struct AssembleKeys {
 
 /// `assemble`'s options from keys.
 pub fn assemble_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<crate::assemble::AssembleOptions> {
-    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
     let k: AssembleKeys = by_key(keys, &[])?;
     Ok(crate::assemble::AssembleOptions {
         overviews: k.overviews.as_deref().map(|o| parse_overviews("overviews", o)).transpose()?,
@@ -176,7 +174,6 @@ struct GridKeys {
 
 /// `grid`'s options from keys, with the command line's defaults.
 pub fn grid_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<crate::gridding::GridOptions> {
-    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
     let k: GridKeys = by_key(keys, &[])?;
     let points = k.points.filter(|p| !p.is_empty()).ok_or_else(|| Error::setting("points", "is needed: the point files"))?;
     let output = k.output.ok_or_else(|| Error::setting("output", "is needed: the DEM's path"))?;
@@ -255,7 +252,6 @@ struct DemKeys {
 pub fn dem_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<crate::stereo::StereoOptions> {
     use crate::options::ModelSource;
     use crate::stereo::SideOptions;
-    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
     let k: DemKeys = by_key(keys, &[])?;
     let side =
         |image: &Option<PathBuf>, camera: &Option<PathBuf>, rpc: &Option<PathBuf>, offset: Option<[f64; 2]>, which: &'static str| -> Result<SideOptions> {

@@ -211,10 +211,12 @@ pub fn apply(o: &Options, c: &mut RectifyOptions, rel: &dyn Fn(&str) -> PathBuf)
     Ok(())
 }
 
-/// `keys` as `T`, a key at a time first so that a problem names its key:
+/// `keys` (those not null) as `T`, a key at a time first so that a problem names its key:
 /// `tile: invalid type: string "x", expected u32`; an unknown key with
 /// the keys there are (`also`: others the caller takes).
 pub(crate) fn by_key<T: serde::de::DeserializeOwned>(keys: serde_json::Map<String, serde_json::Value>, also: &[&str]) -> Result<T> {
+    // None from a binding: the key is not set.
+    let keys: serde_json::Map<_, _> = keys.into_iter().filter(|(_, v)| !v.is_null()).collect();
     for (k, v) in &keys {
         let one = serde_json::Value::Object(std::iter::once((k.clone(), v.clone())).collect());
         if let Err(e) = serde_json::from_value::<T>(one) {
