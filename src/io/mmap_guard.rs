@@ -196,8 +196,8 @@ pub fn unregister_cleanup(path: &Path) {
     }
 }
 
-/// Removes the registered temporary files (a process ending on a signal
-/// before its run could clean up).
+/// Removes the registered temporary files and folders (a process ending
+/// on a signal before its run could clean up).
 pub fn remove_registered_temporaries() {
     let mut buf = [0u8; LEN];
     for slot in &CLEANUP {
@@ -205,7 +205,9 @@ pub fn remove_registered_temporaries() {
             let n = slot.copy(&mut buf);
             if n > 0 {
                 use std::os::unix::ffi::OsStrExt as _;
-                let _ = std::fs::remove_file(std::ffi::OsStr::from_bytes(&buf[..n]));
+                let path = std::path::Path::new(std::ffi::OsStr::from_bytes(&buf[..n]));
+                // A folder of an output's parts, or a file.
+                let _ = if path.is_dir() { std::fs::remove_dir_all(path) } else { std::fs::remove_file(path) };
             }
         }
     }

@@ -108,10 +108,29 @@ pub fn folder_of(target: &Path) -> PathBuf {
 /// A temporary folder beside `target` for the parts an output is made of
 /// before they are put together into it; named as temporary outputs are,
 /// so that one a killed run left is removed as theirs are. Dropped, it is
-/// removed.
-pub fn pending_dir(target: &Path) -> Result<tempfile::TempDir> {
+/// removed; a process ended by a signal's watchdog removes it too.
+pub fn pending_dir(target: &Path) -> Result<PendingDir> {
     let (dir, prefix) = temporary_beside(target);
-    tempfile::Builder::new().prefix(&prefix).suffix(SUFFIX).tempdir_in(&dir).map_err(|e| Error::io(&dir, e))
+    let parts = tempfile::Builder::new().prefix(&prefix).suffix(SUFFIX).tempdir_in(&dir).map_err(|e| Error::io(&dir, e))?;
+    crate::io::mmap_guard::register_cleanup(parts.path());
+    Ok(PendingDir(parts))
+}
+
+/// See [`pending_dir`].
+#[derive(Debug)]
+pub struct PendingDir(tempfile::TempDir);
+
+impl PendingDir {
+    pub fn path(&self) -> &Path {
+        self.0.path()
+    }
+}
+
+impl Drop for PendingDir {
+    fn drop(&mut self) {
+        // (Then the folder itself goes, with its field.)
+        crate::io::mmap_guard::unregister_cleanup(self.0.path());
+    }
 }
 
 /// The folder of `target`, cleared of dead temporaries, and the prefix of
