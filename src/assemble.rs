@@ -180,7 +180,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
         ];
         if let Some((_, what)) = unsaid.iter().find(|(differs, _)| *differs) {
             return Err(not_one(format!(
-                "its run asked for another {what} of the whole; say which to assemble (--cog, --overviews, --overview-resampling), or join pieces made alike"
+                "its run asked for another {what} of the whole; say which to assemble (‹cog›, ‹overviews›, ‹overview_resampling›), or join pieces made alike"
             )));
         }
         x_min = x_min.min(g.transform[0]);
@@ -307,7 +307,7 @@ pub fn assemble(pieces: &[PathBuf], out: &Path, opts: &AssembleOptions, cancel: 
         spec.level = level;
     }
     if recode {
-        spec.check_codec().map_err(|m| Error::Usage(format!("--compress: {m}")))?;
+        spec.check_codec().map_err(|m| Error::Usage(format!("‹compress›: {m}")))?;
     }
     // What the user does not say, as the pieces' run had it.
     let (o, r, c) = geo0.source.as_deref().and_then(crate::io::geotiff::whole_layout).map_or((None, None, None), read_layout);

@@ -34,6 +34,30 @@ fn at_least_one(s: &str) -> std::result::Result<usize, String> {
     }
 }
 
+/// A command's arguments as the library's keys: each field is named as
+/// its key, so `grid` and `dem` read the command line as Python's keyword
+/// arguments are read.
+pub fn keys_of(args: &impl serde::Serialize) -> Result<serde_json::Map<String, serde_json::Value>> {
+    match serde_json::to_value(args) {
+        Ok(serde_json::Value::Object(keys)) => Ok(keys),
+        Ok(_) => Err(gcm_ortho::Error::Internal("the arguments are not an object of keys".into())),
+        // (A path that is not UTF-8 has no key's text.)
+        Err(e) => Err(gcm_ortho::Error::Usage(format!("the arguments: {e}"))),
+    }
+}
+
+/// A choice said by its name, as its key takes it.
+fn by_name<T: Choice + PartialEq, S: serde::Serializer>(v: &T, s: S) -> std::result::Result<S::Ok, S::Error> {
+    s.serialize_str(T::NAMES.iter().copied().find(|n| T::from_name(n).as_ref() == Some(v)).unwrap_or_default())
+}
+
+fn by_name_if_given<T: Choice + PartialEq, S: serde::Serializer>(v: &Option<T>, s: S) -> std::result::Result<S::Ok, S::Error> {
+    match v {
+        Some(v) => by_name(v, s),
+        None => s.serialize_none(),
+    }
+}
+
 /// The flag of a setting named by its key (`dem_hole` → `--dem-hole`).
 pub fn flag(setting: &str) -> String {
     format!("--{}", setting.replace('_', "-"))
@@ -99,7 +123,7 @@ pub enum Command {
     Dem(Box<DemArgs>),
 }
 
-#[derive(Args, Debug)]
+#[derive(Args, Debug, serde::Serialize)]
 pub struct DemArgs {
     /// The left image of the pair
     #[arg(long)]
@@ -179,13 +203,15 @@ pub struct DemArgs {
     pub cog: bool,
     /// A JSON report of the run here
     #[arg(long)]
+    #[serde(skip)]
     pub json: Option<PathBuf>,
     /// No progress bar
     #[arg(long)]
+    #[serde(skip)]
     pub quiet: bool,
 }
 
-#[derive(Args, Debug)]
+#[derive(Args, Debug, serde::Serialize)]
 pub struct GridArgs {
     /// The point files: CSV or XYZ text (a header `x,y,z` or
     /// easting/northing/height needs nothing more), LAS or LAZ.
@@ -213,6 +239,7 @@ pub struct GridArgs {
     /// neighbour), idw (inverse distance), nearest, or max, min, mean (of
     /// the points in each cell: max makes a DSM from a point cloud)
     #[arg(long, default_value = "tin", value_parser = choice::<gcm_ortho::gridding::Method>())]
+    #[serde(serialize_with = "by_name")]
     pub method: gcm_ortho::gridding::Method,
     /// The longest triangle side gridded across (tin, natural): cells in
     /// larger gaps get no height (default: ten times the points' typical
@@ -238,6 +265,7 @@ pub struct GridArgs {
     pub class: Option<Vec<u8>>,
     /// Returns kept: all, first (a DSM) or last
     #[arg(long, default_value = "all", value_parser = choice::<gcm_ortho::points::Returns>())]
+    #[serde(serialize_with = "by_name")]
     pub returns: gcm_ortho::points::Returns,
     /// Drop points whose height lies outside their Delaunay neighbours' by
     /// more than this many robust sigmas, or none
@@ -258,6 +286,7 @@ pub struct GridArgs {
     pub block: Option<u32>,
     /// Compression: none, deflate, lzw, zstd
     #[arg(long, default_value = "deflate", value_parser = choice::<Compression>())]
+    #[serde(serialize_with = "by_name")]
     pub compress: Compression,
     /// Only these tiles: col,row,width,height (a piece for `assemble`)
     #[arg(long, conflicts_with = "shard")]
@@ -266,12 +295,15 @@ pub struct GridArgs {
     #[arg(long)]
     pub shard: Option<String>,
     #[command(flatten)]
+    #[serde(flatten)]
     pub layout: LayoutArgs,
     /// Write the report (JSON) here
     #[arg(long)]
+    #[serde(skip)]
     pub json: Option<PathBuf>,
     /// No progress bar, no summary (warnings still show)
     #[arg(long)]
+    #[serde(skip)]
     pub quiet: bool,
 }
 
@@ -513,7 +545,7 @@ pub struct AssembleArgs {
 }
 
 /// The output's overviews and layout (rectify and assemble).
-#[derive(Args, Debug)]
+#[derive(Args, Debug, serde::Serialize)]
 pub struct LayoutArgs {
     /// Internal overviews: auto (2×, 4×, … until one tile holds the
     /// level; one at least on an image over 512 px), none (or 0), or the
@@ -526,6 +558,7 @@ pub struct LayoutArgs {
     /// frequent), the last two for classified data. Default: average
     /// (assemble: as the pieces' run)
     #[arg(long, value_parser = choice::<OverviewResampling>())]
+    #[serde(serialize_with = "by_name_if_given")]
     pub overview_resampling: Option<OverviewResampling>,
     /// Cloud-Optimized GeoTIFF (GDAL's COG layout: directories first,
     /// overviews before the full resolution; assemble: also where the

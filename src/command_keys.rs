@@ -3,7 +3,7 @@
 //! with its defaults; what a binding's keyword arguments become.
 
 use crate::error::{Error, Result};
-use crate::keys::{by_key, NumberOrWord};
+use crate::keys::{by_key, NumberOrWord, OrText};
 use crate::options::{parse_choice, parse_overviews};
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -134,6 +134,16 @@ fn blunders(v: Option<&NumberOrWord>, default: Option<f64>) -> Result<Option<f64
     }
 }
 
+/// `LOWEST,HIGHEST`: the heights a stereo search spans.
+fn parse_heights(setting: &'static str, text: &str) -> Result<[f64; 2]> {
+    let bad = || Error::setting(setting, format!("'{text}' is not LOWEST,HIGHEST"));
+    let v: Vec<f64> = text.split(',').map(|s| s.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|_| bad())?;
+    match v[..] {
+        [lo, hi] => Ok([lo, hi]),
+        _ => Err(bad()),
+    }
+}
+
 fn crs_of(setting: &'static str, text: Option<&str>) -> Result<Option<crate::geodesy::Crs>> {
     text.map(|c| crate::geodesy::Crs::parse(c, std::path::Path::new("."))).transpose().map_err(|m| Error::setting(setting, m))
 }
@@ -145,7 +155,7 @@ struct GridKeys {
     points: Option<Vec<PathBuf>>,
     output: Option<PathBuf>,
     gsd: Option<crate::geom::Gsd>,
-    bounds: Option<[f64; 4]>,
+    bounds: Option<OrText<[f64; 4]>>,
     crs: Option<String>,
     points_crs: Option<String>,
     method: Option<String>,
@@ -154,7 +164,7 @@ struct GridKeys {
     power: Option<f64>,
     neighbours: Option<usize>,
     /// `"x,y,z"` or three names (or numbers from 1).
-    columns: Option<Vec<String>>,
+    columns: Option<OrText<Vec<String>>>,
     class: Option<Vec<u8>>,
     returns: Option<String>,
     blunders: Option<NumberOrWord>,
@@ -165,10 +175,14 @@ struct GridKeys {
     compress: Option<String>,
     level: Option<u8>,
     overviews: Option<String>,
+    /// Taken to say what a DEM's overviews cannot be.
+    overview_resampling: Option<String>,
+    overview_level: Option<u8>,
+    quality: Option<u8>,
     cog: Option<bool>,
-    window: Option<[u32; 4]>,
-    /// `[i, n]`: the i-th of n shares (from 1).
-    shard: Option<[u32; 2]>,
+    window: Option<OrText<[u32; 4]>>,
+    /// `[i, n]` or `"i/n"`: the i-th of n shares (from 1).
+    shard: Option<OrText<[u32; 2]>>,
     sync: Option<bool>,
 }
 
@@ -179,7 +193,7 @@ pub fn grid_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<
     let output = k.output.ok_or_else(|| Error::setting("output", "is needed: the DEM's path"))?;
     let gsd = k.gsd.ok_or_else(|| Error::setting("gsd", "is needed: the DEM's cell size"))?;
     let mut o = crate::gridding::GridOptions::new(points, output, gsd);
-    o.bounds = k.bounds;
+    o.bounds = k.bounds.map(|b| b.read(|t| crate::options::parse_bounds("bounds", t))).transpose()?.flatten();
     o.crs = crs_of("crs", k.crs.as_deref())?;
     o.points_crs = crs_of("points_crs", k.points_crs.as_deref())?;
     if let Some(m) = &k.method {
@@ -190,7 +204,7 @@ pub fn grid_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<
     o.power = k.power.unwrap_or(2.0);
     o.neighbours = k.neighbours;
     if let Some(c) = k.columns {
-        let parts: Vec<String> = if c.len() == 1 { c[0].split(',').map(|s| s.trim().to_string()).collect() } else { c };
+        let parts: Vec<String> = c.read(|t| Ok(t.split(',').map(|s| s.trim().to_string()).collect()))?;
         let n = parts.len();
         let xyz: [String; 3] =
             parts.try_into().map_err(|_| Error::setting("columns", format!("{n} columns: give three, x, y, z (names or numbers from 1)")))?;
@@ -212,9 +226,23 @@ pub fn grid_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<
     if let Some(v) = &k.overviews {
         o.overviews = parse_overviews("overviews", v)?;
     }
+    // A DEM's overviews are averages of its cells, coded as the DEM is.
+    if let Some(r) = k.overview_resampling.filter(|r| r != "average") {
+        return Err(Error::setting("overview_resampling", format!("{r}: a DEM's overviews are averages of its heights")));
+    }
+    if k.overview_level.is_some() {
+        return Err(Error::setting("overview_level", "a DEM's overviews take its own level"));
+    }
+    if k.quality.is_some() {
+        return Err(Error::setting("quality", "a DEM's heights are not coded as JPEG"));
+    }
     o.cog = k.cog.unwrap_or(false);
-    o.window = k.window;
-    o.shard = k.shard.map(|[i, n]| (i, n));
+    o.window = k.window.map(|w| w.read(|t| crate::options::parse_window("window", t))).transpose()?;
+    o.shard = match k.shard {
+        Some(OrText::Value([i, n])) => Some((i, n)),
+        Some(OrText::Text(t)) => Some(crate::options::parse_shard("shard", &t)?),
+        None => None,
+    };
     o.sync = k.sync.unwrap_or(true);
     Ok(o)
 }
@@ -229,13 +257,13 @@ struct DemKeys {
     right_camera: Option<PathBuf>,
     left_rpc: Option<PathBuf>,
     right_rpc: Option<PathBuf>,
-    left_rpc_offset: Option<[f64; 2]>,
-    right_rpc_offset: Option<[f64; 2]>,
+    left_rpc_offset: Option<OrText<[f64; 2]>>,
+    right_rpc_offset: Option<OrText<[f64; 2]>>,
     geoid: Option<PathBuf>,
     output: Option<PathBuf>,
     gsd: Option<crate::geom::Gsd>,
     crs: Option<String>,
-    heights: Option<[f64; 2]>,
+    heights: Option<OrText<[f64; 2]>>,
     dem_init: Option<PathBuf>,
     matcher: Option<String>,
     window: Option<usize>,
@@ -253,23 +281,30 @@ pub fn dem_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<c
     use crate::options::ModelSource;
     use crate::stereo::SideOptions;
     let k: DemKeys = by_key(keys, &[])?;
-    let side =
-        |image: &Option<PathBuf>, camera: &Option<PathBuf>, rpc: &Option<PathBuf>, offset: Option<[f64; 2]>, which: &'static str| -> Result<SideOptions> {
-            let image = image.clone().ok_or_else(|| Error::Usage(format!("{which}: is needed: the {which} image")))?;
-            match (camera, rpc) {
-                (Some(_), None) if k.geoid.is_some() => Err(Error::setting("geoid", "goes with RPC files (left_rpc, right_rpc), not camera files")),
-                (Some(c), None) => Ok(SideOptions { image, model: ModelSource::CameraFile, camera: c.clone() }),
-                (None, Some(r)) => Ok(SideOptions { image, model: ModelSource::Rpc { offset, geoid: k.geoid.clone() }, camera: r.clone() }),
-                _ => Err(Error::Usage(format!("the {which} image needs {which}_camera or {which}_rpc"))),
+    let side = |image: &Option<PathBuf>,
+                camera: &Option<PathBuf>,
+                rpc: &Option<PathBuf>,
+                offset: &Option<OrText<[f64; 2]>>,
+                [which, offset_key]: [&'static str; 2]|
+     -> Result<SideOptions> {
+        let image = image.clone().ok_or_else(|| Error::setting(which, format!("is needed: the {which} image")))?;
+        match (camera, rpc) {
+            (Some(_), None) if k.geoid.is_some() => Err(Error::setting("geoid", "goes with RPC files (‹left_rpc›, ‹right_rpc›), not camera files")),
+            (Some(c), None) => Ok(SideOptions { image, model: ModelSource::CameraFile, camera: c.clone() }),
+            (None, Some(r)) => {
+                let offset = offset.as_ref().map(|o| o.read(|t| crate::options::parse_offset(offset_key, t))).transpose()?;
+                Ok(SideOptions { image, model: ModelSource::Rpc { offset, geoid: k.geoid.clone() }, camera: r.clone() })
             }
-        };
-    let left = side(&k.left, &k.left_camera, &k.left_rpc, k.left_rpc_offset, "left")?;
-    let right = side(&k.right, &k.right_camera, &k.right_rpc, k.right_rpc_offset, "right")?;
+            _ => Err(Error::Usage(format!("the {which} image needs ‹{which}_camera› or ‹{which}_rpc›"))),
+        }
+    };
+    let left = side(&k.left, &k.left_camera, &k.left_rpc, &k.left_rpc_offset, ["left", "left_rpc_offset"])?;
+    let right = side(&k.right, &k.right_camera, &k.right_rpc, &k.right_rpc_offset, ["right", "right_rpc_offset"])?;
     let output = k.output.clone().ok_or_else(|| Error::setting("output", "is needed: the DSM's path"))?;
     let gsd = k.gsd.ok_or_else(|| Error::setting("gsd", "is needed: the DSM's cell size"))?;
     let mut o = crate::stereo::StereoOptions::new(left, right, output, gsd);
     o.crs = crs_of("crs", k.crs.as_deref())?;
-    o.heights = k.heights;
+    o.heights = k.heights.as_ref().map(|h| h.read(|t| parse_heights("heights", t))).transpose()?;
     o.dem_init = k.dem_init.clone();
     let window = k.window.unwrap_or(9);
     if !(3..=21).contains(&window) || window.is_multiple_of(2) {
@@ -317,5 +352,37 @@ mod tests {
         let e =
             dem_options(keys(json!({"left": "l.tif", "right": "r.tif", "left_camera": "l.toml", "output": "d.tif", "gsd": 2}))).expect_err("no right camera");
         assert_eq!(e.to_string(), "the right image needs right_camera or right_rpc");
+    }
+
+    /// The command line's text for a setting (`"1,2"`) is read as its
+    /// value (`[1, 2]`) is, by the same parser: the CLI passes its
+    /// arguments through these keys.
+    #[test]
+    fn text_and_value_forms_are_one_setting() {
+        let grid = |extra: serde_json::Value| {
+            let mut k = keys(json!({"points": ["p.las"], "output": "d.tif", "gsd": 2}));
+            k.extend(keys(extra));
+            grid_options(k)
+        };
+        let by_text = grid(json!({"bounds": "0,0,100,50", "window": "1,2,3,4", "columns": "e,n,h"})).expect("valid");
+        let by_value = grid(json!({"bounds": [0, 0, 100, 50], "window": [1, 2, 3, 4], "columns": ["e", "n", "h"]})).expect("valid");
+        assert_eq!((by_text.bounds, by_text.window), (Some([0.0, 0.0, 100.0, 50.0]), Some([1, 2, 3, 4])));
+        assert_eq!((by_value.bounds, by_value.window), (by_text.bounds, by_text.window));
+        assert_eq!(grid(json!({"shard": "2/4"})).expect("valid").shard, Some((2, 4)));
+        // Checked alike: min above max, either way.
+        for bad in [json!({"bounds": "100,0,0,50"}), json!({"bounds": [100, 0, 0, 50]})] {
+            assert!(grid(bad).expect_err("min > max").to_string().starts_with("bounds: "));
+        }
+        assert!(grid(json!({"quality": 80})).expect_err("no jpeg DEM").to_string().starts_with("quality: "));
+        let pair = |extra: serde_json::Value| {
+            let mut k = keys(json!({"left": "l.tif", "right": "r.tif", "left_rpc": "l.txt", "right_rpc": "r.txt", "output": "d.tif", "gsd": 2}));
+            k.extend(keys(extra));
+            dem_options(k)
+        };
+        let s = pair(json!({"heights": "-10,250", "left_rpc_offset": "5,7"})).expect("valid");
+        assert_eq!(s.heights, Some([-10.0, 250.0]));
+        assert!(matches!(s.left.model, crate::options::ModelSource::Rpc { offset: Some([5.0, 7.0]), .. }));
+        assert_eq!(pair(json!({"heights": [-10, 250]})).expect("valid").heights, s.heights);
+        assert!(pair(json!({"heights": "x"})).expect_err("not two heights").to_string().starts_with("heights: "));
     }
 }

@@ -63,6 +63,21 @@ fn usage_error(e: clap::Error) -> u8 {
     2
 }
 
+/// The subcommand this process runs, set once by [`run`].
+static COMMAND: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+
+/// A text of the library (a warning, a report) with each setting it names
+/// said as this command's flag (`‹dem_hole›` → `--dem-hole`).
+pub fn with_flags(text: &str) -> String {
+    let command = COMMAND.get().map(String::as_str).unwrap_or_default();
+    gcm_ortho::setting_names::name_settings(text, &|key| crate::cli::flag_of(command, key))
+}
+
+/// Says a warning of the library on standard error, its settings as flags.
+pub fn warn(text: &str) {
+    eprintln!("gcm-ortho: warning: {}", with_flags(text));
+}
+
 /// Runs the command line `args` (the program's name first); its exit code: 0
 /// success, 1 bad input or failure, 2 usage, 3 a batch in which some jobs
 /// failed, 130 SIGINT, 143 SIGTERM.
@@ -74,6 +89,7 @@ pub fn run(args: Vec<std::ffi::OsString>) -> u8 {
     };
     // Which subcommand ran, to name a setting by its flag where it has one.
     let command = args.get(1).map(|a| a.to_string_lossy().into_owned()).unwrap_or_default();
+    let _ = COMMAND.set(command.clone());
     let polls = matches!(
         cli.command,
         crate::cli::Command::Rectify(_)
@@ -117,8 +133,8 @@ pub fn run(args: Vec<std::ffi::OsString>) -> u8 {
                 }
                 cause_said = matches!(c.downcast_ref::<gcm_ortho::Error>(), Some(gcm_ortho::Error::Io { .. }));
                 let part = match c.downcast_ref::<gcm_ortho::Error>() {
-                    Some(gcm_ortho::Error::Setting { setting, msg }) => format!("{}: {msg}", crate::cli::flag_of(&command, setting)),
-                    _ => c.to_string(),
+                    Some(e) => e.naming_settings(&|key| crate::cli::flag_of(&command, key)),
+                    None => c.to_string(),
                 };
                 // A cause its error already quotes is said once.
                 if !parts.last().is_some_and(|p| p.ends_with(&part)) {

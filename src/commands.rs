@@ -127,14 +127,6 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
     }
 }
 
-/// `--blunders`: a number of robust sigmas, or none.
-fn parse_blunders(text: &str) -> Result<Option<f64>> {
-    Ok(match text.trim() {
-        "none" | "off" => None,
-        k => Some(k.parse::<f64>().map_err(|_| gcm_ortho::Error::setting("blunders", format!("'{k}' is not a number of sigmas or none")))?),
-    })
-}
-
 /// `--threads`: 0 is every core.
 fn worker_threads(asked: usize) -> usize {
     match asked {
@@ -144,73 +136,19 @@ fn worker_threads(asked: usize) -> usize {
 }
 
 fn run_dem(a: &crate::cli::DemArgs, signals: &Signals) -> Result<()> {
-    use gcm_ortho::options::{parse_offset, ModelSource};
-    use gcm_ortho::stereo::{dem, SideOptions, StereoOptions};
+    use gcm_ortho::stereo::dem;
     warn_if_not_tiff(&a.output);
-    let side = |image: &PathBuf,
-                camera: &Option<PathBuf>,
-                rpc: &Option<PathBuf>,
-                offset: &Option<String>,
-                which: &'static str,
-                key: &'static str|
-     -> Result<SideOptions> {
-        match (camera, rpc) {
-            (Some(c), None) => {
-                if a.geoid.is_some() {
-                    return Err(gcm_ortho::Error::setting("geoid", "goes with RPC files (--left-rpc, --right-rpc), not camera files").into());
-                }
-                Ok(SideOptions { image: image.clone(), model: ModelSource::CameraFile, camera: c.clone() })
-            }
-            (None, Some(r)) => {
-                let offset = offset.as_deref().map(|o| parse_offset(key, o)).transpose()?;
-                Ok(SideOptions { image: image.clone(), model: ModelSource::Rpc { offset, geoid: a.geoid.clone() }, camera: r.clone() })
-            }
-            _ => Err(gcm_ortho::Error::Usage(format!("the {which} image needs --{which}-camera or --{which}-rpc")).into()),
-        }
-    };
-    let left = side(&a.left, &a.left_camera, &a.left_rpc, &a.left_rpc_offset, "left", "left_rpc_offset")?;
-    let right = side(&a.right, &a.right_camera, &a.right_rpc, &a.right_rpc_offset, "right", "right_rpc_offset")?;
-    let mut o = StereoOptions::new(left, right, a.output.clone(), a.gsd);
-    o.crs = a.crs.as_deref().map(|c| gcm_ortho::geodesy::Crs::parse(c, Path::new("."))).transpose().map_err(|m| gcm_ortho::Error::setting("crs", m))?;
-    o.heights = match &a.heights {
-        None => None,
-        Some(h) => {
-            let v: Vec<f64> = h
-                .split(',')
-                .map(|s| s.trim().parse::<f64>())
-                .collect::<std::result::Result<_, _>>()
-                .map_err(|_| gcm_ortho::Error::setting("heights", format!("'{h}' is not LOWEST,HIGHEST")))?;
-            match v[..] {
-                [lo, hi] => Some([lo, hi]),
-                _ => return Err(gcm_ortho::Error::setting("heights", format!("'{h}' is not LOWEST,HIGHEST")).into()),
-            }
-        }
-    };
-    o.dem_init = a.dem_init.clone();
-    if !(3..=21).contains(&a.window) || a.window.is_multiple_of(2) {
-        return Err(gcm_ortho::Error::setting("window", format!("{} is not an odd side from 3 to 21", a.window)).into());
-    }
-    if let Some(c) = a.min_correlation {
-        if !(-1.0..=1.0).contains(&c) {
-            return Err(gcm_ortho::Error::setting("min_correlation", format!("{c} is not a correlation, -1 to 1")).into());
-        }
-    }
-    o.matching = gcm_ortho::stereo::matching::MatchParams { matcher: a.matcher, window: a.window, min_correlation: a.min_correlation };
-    o.points = a.points.clone();
-    o.quality = a.quality.clone();
-    o.blunders = parse_blunders(&a.blunders)?;
-    o.memory = parse_bytes("memory", &a.memory)?;
+    let mut o = gcm_ortho::command_keys::dem_options(crate::cli::keys_of(a)?)?;
     o.threads = worker_threads(a.threads);
-    o.cog = a.cog;
     if let Some(j) = &a.json {
         check_writable(Role::new("report", j))?;
     }
     let report = dem(&o, &Bar::new(a.quiet), &signals.cancel)?;
     if let Some(w) = past_budget(&a.memory, o.memory) {
-        eprintln!("gcm-ortho: warning: {w}");
+        crate::command_line::warn(&w);
     }
     if let Some(j) = &a.json {
-        write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
+        write_file(j, crate::command_line::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
     }
     if !a.quiet {
         eprintln!(
@@ -229,60 +167,20 @@ fn run_dem(a: &crate::cli::DemArgs, signals: &Signals) -> Result<()> {
 }
 
 fn run_grid(a: &crate::cli::GridArgs, signals: &Signals) -> Result<()> {
-    use gcm_ortho::gridding::{grid, GridOptions};
-    use gcm_ortho::points::{Columns, Filter};
+    use gcm_ortho::gridding::grid;
     warn_if_not_tiff(&a.output);
     inputs_exist(&a.points.iter().map(|p| ("points", Some(p.as_path()))).collect::<Vec<_>>())?;
-    let parse_crs = |setting: &'static str, c: &Option<String>| {
-        c.as_deref().map(|c| gcm_ortho::geodesy::Crs::parse(c, Path::new("."))).transpose().map_err(|m| gcm_ortho::Error::setting(setting, m))
-    };
-    let mut o = GridOptions::new(a.points.clone(), a.output.clone(), a.gsd);
-    o.bounds = match &a.bounds {
-        Some(b) => gcm_ortho::options::parse_bounds("bounds", b)?,
-        None => None,
-    };
-    o.crs = parse_crs("crs", &a.crs)?;
-    o.points_crs = parse_crs("points_crs", &a.points_crs)?;
-    o.method = a.method;
-    o.max_edge = a.max_edge;
-    o.radius = a.radius;
-    o.power = a.power;
-    o.neighbours = a.neighbours;
-    if let Some(c) = &a.columns {
-        let parts: Vec<String> = c.split(',').map(|s| s.trim().to_string()).collect();
-        let [x, y, z]: [String; 3] =
-            parts.try_into().map_err(|_| gcm_ortho::Error::setting("columns", format!("'{c}' is not three columns: x,y,z (names or numbers from 1)")))?;
-        o.columns = Columns::Given([x, y, z]);
-    }
-    o.filter = Filter { classes: a.class.clone(), returns: a.returns };
-    o.blunders = parse_blunders(&a.blunders)?;
-    o.memory = parse_bytes("memory", &a.memory)?;
+    let mut o = gcm_ortho::command_keys::grid_options(crate::cli::keys_of(a)?)?;
     o.threads = worker_threads(a.threads);
-    o.tile = a.tile;
-    o.block = a.block;
-    o.window = a.window.as_deref().map(|w| gcm_ortho::options::parse_window("window", w)).transpose()?;
-    o.shard = match &a.shard {
-        None => None,
-        Some(t) => {
-            let bad = || gcm_ortho::Error::setting("shard", format!("'{t}' is not I/N"));
-            let (i, n) = t.split_once('/').ok_or_else(bad)?;
-            Some((i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?))
-        }
-    };
-    o.compress = a.compress;
-    let layout = a.layout.options()?;
-    o.level = layout.level;
-    o.overviews = layout.overviews.unwrap_or_default();
-    o.cog = a.layout.cog;
     if let Some(j) = &a.json {
         check_writable(Role::new("report", j))?;
     }
     let report = grid(&o, &Bar::new(a.quiet), &signals.cancel)?;
     if let Some(w) = past_budget(&a.memory, o.memory) {
-        eprintln!("gcm-ortho: warning: {w}");
+        crate::command_line::warn(&w);
     }
     if let Some(j) = &a.json {
-        write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
+        write_file(j, crate::command_line::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
     }
     if !a.quiet {
         eprintln!(
@@ -343,13 +241,13 @@ fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {
         fiducials::sheet::write(s, fiducials::sheet::render(&src, &det)?)?;
     }
     for w in &det.warnings {
-        eprintln!("gcm-ortho: warning: {}: {w}", a.image.display());
+        crate::command_line::warn(&format!("{}: {w}", a.image.display()));
     }
     if det.turn_ambiguous && turn.is_none() {
         eprintln!("gcm-ortho: note: the marks look the same turned; the scan is taken as it lies (--turn if the film was turned)");
     }
     if a.json {
-        say!("{}", serde_json::to_string_pretty(&det)?);
+        say!("{}", crate::command_line::with_flags(&serde_json::to_string_pretty(&det)?));
         return Ok(());
     }
     say!("{:>4} {:>10} {:>10} {:>11} {:>11} {:>6} {:>6} {:>8} {:>8}  used", "mark", "x mm", "y mm", "column", "row", "score", "centre", "res px", "res µm");
@@ -391,7 +289,7 @@ fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {
 fn run_cameras(a: &crate::cli::CamerasArgs) -> Result<()> {
     let done = gcm_ortho::camera::formats::convert::convert(&a.options()?)?;
     for w in &done.warnings {
-        eprintln!("gcm-ortho: warning: {w}");
+        crate::command_line::warn(w);
     }
     if a.quiet {
         return Ok(());
@@ -451,7 +349,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         None => mosaic(&o, &Bar::new(a.quiet), &signals.cancel)?,
     };
     if let Some(w) = past_budget(&a.memory, memory) {
-        eprintln!("gcm-ortho: warning: {w}");
+        crate::command_line::warn(&w);
     }
     if let Some(j) = &a.json {
         // A rerun that finds its output current made nothing: it says so,
@@ -460,7 +358,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
             true => serde_json::to_string_pretty(&serde_json::json!({ "output": report.output, "skipped": true, "output_bytes": report.output_bytes }))?,
             false => serde_json::to_string_pretty(&report)?,
         };
-        write_file(j, text.as_bytes())?;
+        write_file(j, crate::command_line::with_flags(&text).as_bytes())?;
     }
     if report.skipped {
         if !a.quiet {
@@ -551,7 +449,7 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
                     .map(|e| e.to_string())
             });
             for w in recording.said() {
-                eprintln!("gcm-ortho: warning: job {}: {w}", j.name);
+                crate::command_line::warn(&format!("job {}: {w}", j.name));
             }
             if let Some(p) = problem {
                 eprintln!("gcm-ortho: job {} will fail: {p}", j.name);
@@ -568,7 +466,7 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
     let results = batch::run_jobs(&jobs, &o, &signals.cancel, &|r| {
         report.push(r);
         for w in &r.warnings {
-            eprintln!("gcm-ortho: warning: job {}: {w}", r.job);
+            crate::command_line::warn(&format!("job {}: {w}", r.job));
         }
         // A failed job's error, and a job left to another run, are shown
         // even when quiet: quiet hides progress, not what was not made.
@@ -603,7 +501,7 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
         );
     }
     if let Some(w) = past_budget(&a.memory, memory) {
-        eprintln!("gcm-ortho: warning: {w}");
+        crate::command_line::warn(&w);
     }
     if signals.exit_code().is_some() {
         return Err(anyhow::Error::new(gcm_ortho::Error::Cancelled));
@@ -764,7 +662,7 @@ fn past_budget(given: &str, budget: u64) -> Option<String> {
 /// stderr, even with --quiet.
 fn warn_if_not_tiff(output: &Path) -> Option<String> {
     let w = gcm_ortho::io::tiff_out::named_as_other_format(output)?;
-    eprintln!("gcm-ortho: warning: {w}");
+    crate::command_line::warn(&w);
     Some(w)
 }
 
@@ -780,7 +678,7 @@ fn threads_within_cores(asked: usize, at_once: usize) -> (usize, Option<String>)
     let fit = (cores / at_once).max(1);
     let jobs = if at_once > 1 { format!(" for each of {at_once} jobs at once") } else { String::new() };
     let w = format!("--threads {asked}{jobs} is more than the {cores} cores here: running {fit} a job");
-    eprintln!("gcm-ortho: warning: {w}");
+    crate::command_line::warn(&w);
     (fit, Some(w))
 }
 
@@ -810,11 +708,11 @@ fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
     report.warnings.extend(too_many);
     report.warnings.extend(not_tiff);
     if let Some(w) = past_budget(&a.memory, opts.memory) {
-        eprintln!("gcm-ortho: warning: {w}");
+        crate::command_line::warn(&w);
         report.warnings.push(w);
     }
     if let Some(j) = &a.json {
-        write_file(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
+        write_file(j, crate::command_line::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
     }
     if !a.quiet {
         print_report(&report);
@@ -1006,7 +904,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         gcm_ortho::study::maps::write_gcm_png(p, &gcm)?;
     }
     if let Some(j) = &a.json {
-        write_file(j, serde_json::to_string_pretty(&serde_json::json!({"grid": grid, "rows": rows}))?.as_bytes())?;
+        write_file(j, crate::command_line::with_flags(&serde_json::to_string_pretty(&serde_json::json!({"grid": grid, "rows": rows}))?).as_bytes())?;
     }
     Ok(())
 }
@@ -1094,7 +992,7 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
             rows.push(acc);
         }
         if let Some(j) = &a.json {
-            write_file(j, serde_json::to_string_pretty(&rows)?.as_bytes())?;
+            write_file(j, crate::command_line::with_flags(&serde_json::to_string_pretty(&rows)?).as_bytes())?;
         }
     }
     Ok(())

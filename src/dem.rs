@@ -52,12 +52,12 @@ enum Samples {
     Mosaic(mosaic::Mosaic),
     /// An SRTM `.hgt` tile: big-endian Int16 in the mapped file, so that
     /// a folder of them holds only the pages lookups touch.
-    Hgt(std::sync::Arc<memmap2::Mmap>),
+    Hgt(std::sync::Arc<crate::io::mapped_file::MappedFile>),
 }
 
 /// Sample `k` of a mapped `.hgt` tile.
 #[inline]
-fn hgt_at(m: &memmap2::Mmap, k: usize) -> f32 {
+fn hgt_at(m: &[u8], k: usize) -> f32 {
     i16::from_be_bytes([m[2 * k], m[2 * k + 1]]) as f32
 }
 
@@ -81,6 +81,16 @@ pub struct GridDem {
 }
 
 impl GridDem {
+    /// An error naming a mapped file (an `.hgt` tile) truncated while it
+    /// was read: checked before an output made of its heights is published.
+    pub fn check_intact(&self) -> Result<()> {
+        match &self.data {
+            Samples::Hgt(m) => m.check_intact(),
+            Samples::Mosaic(m) => m.check_intact(),
+            _ => Ok(()),
+        }
+    }
+
     pub fn new(width: usize, height: usize, data: Vec<f32>, transform: [f64; 6], nodata: Option<f64>, crs: Option<Crs>) -> GridDem {
         assert_eq!(data.len(), width * height);
         GridDem { width, height, data: Samples::Memory(data), transform, nodata, crs, inv_step: (1.0 / transform[1], 1.0 / transform[5]), collar: None }
@@ -570,16 +580,7 @@ fn read_hgt(path: &Path) -> Result<GridDem> {
     };
     let (lat, lon) = parse().ok_or_else(|| Error::format(path, "an .hgt file must be named like N44E005.hgt"))?;
     let d = 1.0 / (n - 1) as f64;
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    // SAFETY: read-only map of a file whose length was checked above to be
-    // n² samples, so no lookup reads past its end. Another process
-    // truncating it meanwhile raises SIGBUS, which the binary's guard
-    // reports naming it.
-    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(path, e))?;
-    if map.len() as u64 != len {
-        return Err(Error::format(path, "the tile changed size while it was opened"));
-    }
-    crate::io::mmap_guard::watch_also(path);
+    let map = crate::io::mapped_file::MappedFile::open(path, len)?;
     let t = [lon - 0.5 * d, d, 0.0, lat + 1.0 + 0.5 * d, 0.0, -d];
     Ok(GridDem {
         width: n,
@@ -646,6 +647,14 @@ pub enum Height {
 }
 
 impl Dem {
+    /// See [`GridDem::check_intact`].
+    pub fn check_intact(&self) -> Result<()> {
+        match &self.model {
+            HeightModel::Grid(g) => g.check_intact(),
+            HeightModel::Flat(_) => Ok(()),
+        }
+    }
+
     /// The most its heights hold in memory, bytes.
     pub fn held_bytes(&self) -> u64 {
         match &self.model {

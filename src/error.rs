@@ -1,51 +1,81 @@
 //! Typed errors of the library. Every variant that concerns a file names it, so
 //! the binary can print one readable line; the binary maps them to exit codes.
 
+use crate::setting_names::name_settings;
 use std::path::{Path, PathBuf};
 
-/// Everything that can go wrong inside gcm-ortho.
-#[derive(Debug, thiserror::Error)]
+/// Everything that can go wrong inside gcm-ortho. A message names a
+/// setting by its key between ‹ and › ([`crate::setting_names`]): shown as
+/// the key (`Display`), or as its caller gives it ([`Error::naming_settings`]).
+#[derive(Debug)]
+#[non_exhaustive]
 pub enum Error {
     /// The operating system refused a read or a write.
-    #[error("{path}: {}", in_words(source))]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    Io { path: PathBuf, source: std::io::Error },
     /// A file is not what its format promises (truncated, inconsistent, corrupt).
-    #[error("{path}: {msg}")]
     Format { path: PathBuf, msg: String },
     /// A well-formed file uses a feature we do not support.
-    #[error("{path}: unsupported: {msg}")]
     Unsupported { path: PathBuf, msg: String },
     /// A configuration file (camera, manifest) has a bad or missing field.
-    #[error("{path}: {field}: {msg}")]
     Config { path: PathBuf, field: String, msg: String },
     /// A size or count is beyond what we accept (protects memory).
-    #[error("{path}: limit exceeded: {msg}")]
     Limits { path: PathBuf, msg: String },
     /// The geometry cannot be solved (degenerate camera, empty footprint, ...).
-    #[error("geometry: {0}")]
     Geometry(String),
     /// A setting out of range or contradicting another, named by its key
     /// (`tile`, `dem_hole`: the manifest's key; the binary prints the flag).
-    #[error("{}: {msg}", setting.replace('_', " "))]
     Setting { setting: &'static str, msg: String },
     /// Arguments that contradict each other or are out of range.
-    #[error("{0}")]
     Usage(String),
     /// Problems of a file whose message names it (a manifest's, each with
     /// its line).
-    #[error("{0}")]
     Named(String),
     /// A fault of gcm-ortho itself, not of any input or setting (a bug to
     /// report).
-    #[error("internal error (a fault of gcm-ortho, not of the inputs): {0}")]
     Internal(String),
     /// The run was cancelled (signal, or another stage failed first).
-    #[error("cancelled")]
     Cancelled,
+}
+
+impl Error {
+    /// The message, each setting it names said by `name` (given its key):
+    /// the command line says `--dem-hole` where Python says `dem_hole`.
+    pub fn naming_settings(&self, name: &dyn Fn(&str) -> String) -> String {
+        let said = |msg: &str| name_settings(msg, name);
+        match self {
+            Error::Io { path, source } => format!("{}: {}", path.display(), in_words(source)),
+            Error::Format { path, msg } => format!("{}: {}", path.display(), said(msg)),
+            Error::Unsupported { path, msg } => format!("{}: unsupported: {}", path.display(), said(msg)),
+            Error::Config { path, field, msg } => format!("{}: {field}: {}", path.display(), said(msg)),
+            Error::Limits { path, msg } => format!("{}: limit exceeded: {}", path.display(), said(msg)),
+            Error::Geometry(msg) => format!("geometry: {}", said(msg)),
+            Error::Setting { setting, msg } => format!("{}: {}", name(setting), said(msg)),
+            Error::Usage(msg) | Error::Named(msg) => said(msg),
+            Error::Internal(msg) => format!("internal error (a fault of gcm-ortho, not of the inputs): {}", said(msg)),
+            Error::Cancelled => "cancelled".into(),
+        }
+    }
+
+    /// The message with its settings still marked, for a message of the
+    /// library that quotes it: its caller then names them.
+    pub fn marked(&self) -> String {
+        self.naming_settings(&|key| format!("‹{key}›"))
+    }
+}
+
+impl std::fmt::Display for Error {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.naming_settings(&|key| key.to_string()))
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

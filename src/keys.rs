@@ -35,6 +35,44 @@ impl NumberOrWord {
     }
 }
 
+/// A setting given as its value (`[1.5, 2.0]`) or as the command line's
+/// text for it (`"1.5,2"`): read by the command line's own parser either
+/// way, so that both are checked alike.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum OrText<T> {
+    Value(T),
+    Text(String),
+}
+
+impl<T: AsText> OrText<T> {
+    /// The setting read by `parse` from its text (a value written as the
+    /// command line would).
+    pub fn read<R>(&self, parse: impl Fn(&str) -> Result<R>) -> Result<R> {
+        match self {
+            OrText::Text(t) => parse(t),
+            OrText::Value(v) => parse(&v.as_text()),
+        }
+    }
+}
+
+/// A value as the command line writes it: its items joined by `,`.
+pub trait AsText {
+    fn as_text(&self) -> String;
+}
+
+impl<T: ToString, const N: usize> AsText for [T; N] {
+    fn as_text(&self) -> String {
+        self.iter().map(T::to_string).collect::<Vec<_>>().join(",")
+    }
+}
+
+impl AsText for Vec<String> {
+    fn as_text(&self) -> String {
+        self.join(",")
+    }
+}
+
 /// Every rectify option a manifest may set, in `[defaults]` or per job.
 #[derive(Clone, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -351,31 +389,6 @@ pub fn rectify_options(keys: serde_json::Map<String, serde_json::Value>) -> Resu
     Ok(c)
 }
 
-/// A message for callers who pass settings by key (Python's keyword
-/// arguments): a setting named as the command line's flag
-/// (`--dem-outside`) is named by its key (`dem_outside`).
-pub fn flags_as_keys(message: &str) -> String {
-    let mut out = String::with_capacity(message.len());
-    let mut rest = message;
-    while let Some(at) = rest.find("--") {
-        let (before, flag) = rest.split_at(at);
-        out.push_str(before);
-        let name_len = flag[2..].find(|c: char| !(c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-')).unwrap_or(flag.len() - 2);
-        let name = &flag[2..2 + name_len];
-        // A flag starts a word and its name with a letter.
-        let starts_word = before.chars().next_back().is_none_or(|c| c.is_whitespace() || "(`'\"".contains(c));
-        if starts_word && name.starts_with(|c: char| c.is_ascii_lowercase()) {
-            out.push_str(&name.trim_end_matches('-').replace('-', "_"));
-            out.push_str(&"-".repeat(name.len() - name.trim_end_matches('-').len()));
-        } else {
-            out.push_str(&flag[..2 + name_len]);
-        }
-        rest = &flag[2 + name_len..];
-    }
-    out.push_str(rest);
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -424,17 +437,8 @@ mod tests {
         assert!(bad(with("sparsty", json!(8))).starts_with("sparsty: not an option here (the options: `dem`"), "{}", bad(with("sparsty", json!(8))));
         assert!(bad(with("sparsity", json!("x"))).starts_with("sparsity: invalid type"));
         assert!(bad(with("tile", json!(17))).starts_with("tile: 17 must be a multiple of 16"));
-        assert!(bad(with("output_dir", json!("o/"))).starts_with("output dir: is a batch manifest's key"));
+        assert!(bad(with("output_dir", json!("o/"))).starts_with("output_dir: is a batch manifest's key"));
         assert!(bad(with("radians", json!(true))).starts_with("radians: goes with exterior"));
         assert_eq!(bad(json!({"image": "s.tif", "camera": "c.toml", "output": "o.tif"})), "dem: give a DEM file or a constant height");
-    }
-
-    #[test]
-    fn flags_become_keys() {
-        assert_eq!(flags_as_keys("points.las: give --crs"), "points.las: give crs");
-        assert_eq!(flags_as_keys("23 points dropped (--blunders none keeps them)"), "23 points dropped (blunders none keeps them)");
-        assert_eq!(flags_as_keys("drop --nodata VALUE, or take --dem-outside nodata"), "drop nodata VALUE, or take dem_outside nodata");
-        // Not flags: a path's dashes, a bare "--".
-        assert_eq!(flags_as_keys("/data/a--b.tif: -- bad"), "/data/a--b.tif: -- bad");
     }
 }

@@ -31,6 +31,7 @@ pub mod progress;
 pub mod resample;
 pub mod rpcgrid;
 pub mod scene;
+pub mod setting_names;
 pub mod stereo;
 pub mod study;
 pub mod synth;

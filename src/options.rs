@@ -247,7 +247,7 @@ pub fn overview_codec_level(compression: Compression, level: Option<u8>) -> Resu
     let Some(l) = level else { return Ok(None) };
     let name = format!("{compression:?}").to_lowercase();
     let why = match compression.levels() {
-        _ if compression == Compression::Jpeg => "jpeg overviews take the full level's quality (--quality)".to_string(),
+        _ if compression == Compression::Jpeg => "jpeg overviews take the full level's quality (‹quality›)".to_string(),
         None => format!("{name} compression has no levels"),
         Some((r, _)) if !r.contains(&l) => format!("{name} takes {} to {}", r.start(), r.end()),
         Some(_) => return Ok(Some(l)),
@@ -309,6 +309,13 @@ pub fn parse_offset(setting: &'static str, s: &str) -> Result<[f64; 2]> {
         [c, r] if c.is_finite() && r.is_finite() => Ok([c, r]),
         _ => Err(bad()),
     }
+}
+
+/// `I/N`: the I-th of N shares, I from 1 to N.
+pub fn parse_shard(setting: &'static str, s: &str) -> Result<(u32, u32)> {
+    let bad = || Error::setting(setting, format!("'{s}' is not I/N"));
+    let (i, n) = s.split_once(['/', ',']).ok_or_else(bad)?;
+    Ok((i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?))
 }
 
 /// `WxH` in pixels.
@@ -560,7 +567,7 @@ impl RectifyOptions {
             return Err(Error::setting("like", "gives the grid: drop the GSD and bounds"));
         }
         if self.like.is_some() && self.snap != Snap::Tap {
-            return Err(Error::setting("snap", "places bounds on the GSD; the reference grid (--like) is taken as it is"));
+            return Err(Error::setting("snap", "places bounds on the GSD; the reference grid (‹like›) is taken as it is"));
         }
         self.codec_level()?;
         self.overview_codec_level()?;
@@ -570,7 +577,7 @@ impl RectifyOptions {
         if self.occlusion == Occlusion::Mask && !self.alpha && matches!(self.nodata, Nodata::Value(_)) {
             return Err(Error::setting(
                 "occlusion",
-                "mask keeps hidden pixels' values and marks them in the internal mask or alpha: drop --nodata VALUE, or take --occlusion nodata",
+                "mask keeps hidden pixels' values and marks them in the internal mask or alpha: drop ‹nodata› VALUE, or take ‹occlusion› nodata",
             ));
         }
         if let Some([_, _, w, h]) = self.window {

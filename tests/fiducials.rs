@@ -139,7 +139,7 @@ fn films_turned_a_few_degrees_by_quarter_turns_or_mirrored_are_found_and_said() 
     // A turned film whose marks look alike: refused, not guessed; told, it is found.
     let (scan, camera, truth) = film(&dir.path().join("alike"), 4000, 4, FilmMarks { quarters: 1, ..marks("circle-dot,cross,cross,cross") });
     let e = detect(&scan, &camera, &Overrides::default()).unwrap_err().to_string();
-    assert!(e.contains("give --turn"), "{e}");
+    assert!(e.contains("give turn"), "{e}");
     let told = Overrides { turn: Some(Turn { quarters: 1, mirrored: false }), ..Default::default() };
     assert_found("told", &detect(&scan, &camera, &told).unwrap(), &truth, 4);
 }

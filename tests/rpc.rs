@@ -160,7 +160,7 @@ fn rpb_sidecar_equals_the_geotiff_tag() {
     std::fs::copy(Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/mini/scan.tif"), &bare).unwrap();
     std::fs::copy(fx("PHR1B_P_201709281038393_SEN_PRG_FC_178609-001.RPB"), dir.path().join("bare.RPB")).unwrap();
     let e = Rpc::read(&bare).unwrap_err().to_string();
-    assert!(e.contains("no RPC tag") && e.contains("give --rpc") && e.contains("bare.RPB"), "{e}");
+    assert!(e.contains("no RPC tag") && e.contains("give rpc ") && e.contains("bare.RPB"), "{e}");
 }
 
 /// The NITF RPC00B TRE, against GDAL's RPC transformer on the same file

@@ -50,22 +50,23 @@ fn raise(py: Python<'_>, e: Error) -> PyErr {
         Error::Setting { .. } | Error::Usage(_) => "SettingError",
         Error::Internal(_) => "InternalError",
         Error::Cancelled => "CancelledError",
+        _ => "GcmOrthoError",
     };
-    let message = gcm_ortho::keys::flags_as_keys(&e.to_string().replace('\n', " "));
+    let message = e.to_string().replace('\n', " ");
     match py.import("gcm_ortho.errors").and_then(|m| m.getattr(kind)).and_then(|class| class.call1((message.clone(),))) {
         Ok(exception) => PyErr::from_value(exception),
         Err(_) => pyo3::exceptions::PyRuntimeError::new_err(message),
     }
 }
 
-/// A report as JSON, its warnings in keys.
+/// A report as JSON, the settings its warnings name said as keys.
 fn json_text(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<String> {
     let internal = |e: serde_json::Error| raise(py, Error::Internal(format!("the report does not serialize: {e}")));
     let mut v = serde_json::to_value(value).map_err(internal)?;
     if let Some(serde_json::Value::Array(ws)) = v.get_mut("warnings") {
         for w in ws.iter_mut() {
             if let serde_json::Value::String(text) = w {
-                *text = gcm_ortho::keys::flags_as_keys(text);
+                *text = gcm_ortho::setting_names::as_keys(text);
             }
         }
     }

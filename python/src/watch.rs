@@ -47,7 +47,7 @@ impl Shared {
         }
         let warn = py.import("gcm_ortho.errors")?.getattr("_warn")?;
         for message in said {
-            warn.call1((gcm_ortho::keys::flags_as_keys(&message),))?;
+            warn.call1((gcm_ortho::setting_names::as_keys(&message),))?;
         }
         Ok(())
     }

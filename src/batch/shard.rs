@@ -23,7 +23,7 @@ fn resolve_inner(explicit: Option<&str>, shard_count: Option<usize>, env: &dyn F
     if let Some(s) = explicit {
         let bad = || (Some("shard"), format!("'{s}' is not I/N with I in 1..=N"));
         if shard_count.is_some() {
-            return Err((Some("shard_count"), format!("goes with an index the scheduler sets (JOB_COMPLETION_INDEX), but --shard {s} gives both")));
+            return Err((Some("shard_count"), format!("goes with an index the scheduler sets (JOB_COMPLETION_INDEX), but ‹shard› {s} gives both")));
         }
         let (i, n) = s.split_once('/').ok_or_else(bad)?;
         let (i, n) = (i.trim().parse::<usize>().map_err(|_| bad())?, n.trim().parse::<usize>().map_err(|_| bad())?);
@@ -41,7 +41,7 @@ fn resolve_inner(explicit: Option<&str>, shard_count: Option<usize>, env: &dyn F
         };
         let min = env("SLURM_ARRAY_TASK_MIN").map(|m| num(m, "SLURM_ARRAY_TASK_MIN")).transpose()?.unwrap_or(0);
         let i = id.checked_sub(min).filter(|&i| i < count).ok_or_else(|| {
-            (None, format!("SLURM_ARRAY_TASK_ID {id} is not one of the array's {count} tasks, {min} to {} (SLURM_ARRAY_TASK_MIN, and SLURM_ARRAY_TASK_COUNT or --shard-count)", min + count - 1))
+            (None, format!("SLURM_ARRAY_TASK_ID {id} is not one of the array's {count} tasks, {min} to {} (SLURM_ARRAY_TASK_MIN, and SLURM_ARRAY_TASK_COUNT or ‹shard_count›)", min + count - 1))
         })?;
         return Ok((i, count));
     }
@@ -58,7 +58,7 @@ fn resolve_inner(explicit: Option<&str>, shard_count: Option<usize>, env: &dyn F
     if let Some(n) = shard_count {
         return Err((
             Some("shard_count"),
-            format!("{n} shares, but neither JOB_COMPLETION_INDEX (a Kubernetes Indexed Job) nor SLURM_ARRAY_TASK_ID is set: this process would run every job; run it as an indexed job, or give --shard I/{n}"),
+            format!("{n} shares, but neither JOB_COMPLETION_INDEX (a Kubernetes Indexed Job) nor SLURM_ARRAY_TASK_ID is set: this process would run every job; run it as an indexed job, or give ‹shard› I/{n}"),
         ));
     }
     Ok((0, 1))
@@ -92,7 +92,7 @@ mod tests {
     #[test]
     fn a_count_without_an_index_and_an_index_out_of_range_are_refused() {
         let err = resolve(None, Some(3), &env(&[])).unwrap_err().to_string();
-        assert!(err.contains("neither JOB_COMPLETION_INDEX") && err.contains("--shard I/3"), "{err}");
+        assert!(err.contains("neither JOB_COMPLETION_INDEX") && err.contains("give shard I/3"), "{err}");
         assert!(resolve(Some("1/3"), Some(3), &env(&[])).is_err());
         let err = resolve(None, None, &env(&[("SLURM_ARRAY_TASK_ID", "3"), ("SLURM_ARRAY_TASK_COUNT", "3")])).unwrap_err();
         assert!(matches!(&err, crate::Error::Usage(m) if m.contains("not one of the array's 3 tasks, 0 to 2")), "{err}");

@@ -350,7 +350,7 @@ impl CameraFile {
             other => return Err(err("camera.model", format!("unknown model '{other}' (expected \"frame\", \"rpc\" or \"panoramic\")"))),
         }
         if self.crs.trim().is_empty() {
-            return Err(err("crs", "the CRS of the positions is not given: give crs here, a .prj beside the exterior orientations, or --crs".into()));
+            return Err(err("crs", "the CRS of the positions is not given: give crs here, a .prj beside the exterior orientations, or ‹crs›".into()));
         }
         let crs = Crs::parse(&self.crs, path.parent().unwrap_or(Path::new(""))).map_err(|m| err("crs", m))?;
         for (section, present, model) in [("rpc", self.rpc.is_some(), "rpc"), ("panoramic", self.panoramic.is_some(), "panoramic")] {
@@ -507,6 +507,15 @@ impl CameraFile {
 }
 
 impl Camera {
+    /// An error naming a mapped file of the camera's (an RPC's geoid grid)
+    /// truncated while it was read.
+    pub fn check_intact(&self) -> Result<()> {
+        match &self.sensor {
+            Sensor::Rpc(r) => r.geoid.as_ref().map_or(Ok(()), |g| g.check_intact()),
+            _ => Ok(()),
+        }
+    }
+
     pub fn read(path: &Path) -> Result<Camera> {
         CameraFile::read(path)?.build(path)
     }

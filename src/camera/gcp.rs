@@ -184,7 +184,7 @@ pub fn refine(camera: &mut Camera, gcps: &[Gcp], model: BiasModel, max_residual:
             return Err(Error::format(
                 source,
                 format!(
-                    "GCP {} is {r:.2} px off the refined model (at most {max_residual} px: --gcp-max-residual); RMS {:.2} px before, {:.2} px after",
+                    "GCP {} is {r:.2} px off the refined model (at most {max_residual} px: ‹gcp_max_residual›); RMS {:.2} px before, {:.2} px after",
                     worst.id, fit.rms_before, fit.rms_after
                 ),
             ));
@@ -211,7 +211,7 @@ fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasMo
         BiasModel::Auto | BiasModel::Interior => gcps.len() >= 3,
     };
     if affine && gcps.len() < 3 {
-        return Err(Error::format(source, format!("{} GCPs: an affine bias needs 3 or more (or --gcp-refine shift)", gcps.len())));
+        return Err(Error::format(source, format!("{} GCPs: an affine bias needs 3 or more (or ‹gcp_refine› shift)", gcps.len())));
     }
     let bias = if affine {
         Affine2::fit(&predicted, &observed).ok_or_else(|| Error::format(source, "the GCPs lie on one line: no affine bias can be fitted"))?
@@ -393,7 +393,7 @@ fn fixes_interior(j: &DMatrix<f64>, source: &Path) -> Result<()> {
     Err(Error::format(
         source,
         format!(
-            "the GCPs do not fix the focal length and principal point apart from the pose (condition {:.0e}): they need to spread in height over the frame (or keep the interior fixed: --gcp-refine auto)",
+            "the GCPs do not fix the focal length and principal point apart from the pose (condition {:.0e}): they need to spread in height over the frame (or keep the interior fixed: ‹gcp_refine› auto)",
             1.0 / ratio
         ),
     ))

@@ -109,7 +109,7 @@ pub fn resection(cam: &PanoramicCamera, gcps: &[Gcp], dynamics: Option<bool>, so
             return Err(Error::format(
                 source,
                 format!(
-                    "the GCPs do not tell the motion compensation from the pose (condition {:.0e}): spread them along the whole scan and across the film (or --gcp-refine auto)",
+                    "the GCPs do not tell the motion compensation from the pose (condition {:.0e}): spread them along the whole scan and across the film (or ‹gcp_refine› auto)",
                     1.0 / cond
                 ),
             ));

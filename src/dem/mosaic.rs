@@ -43,6 +43,10 @@ pub(super) struct MosaicGrid {
 }
 
 impl Mosaic {
+    pub(super) fn check_intact(&self) -> Result<()> {
+        self.tiles.iter().try_for_each(|t| t.grid.check_intact())
+    }
+
     /// The most its tiles hold in memory, bytes.
     pub fn held_bytes(&self) -> u64 {
         self.tiles.iter().map(|t| t.grid.held_bytes()).sum()
@@ -385,7 +389,7 @@ fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
                 }
             }
         }
-        let grid = GridDem::read_posts(&tile_path, share).map_err(|e| bad(format!("its source: {e}")))?;
+        let grid = GridDem::read_posts(&tile_path, share).map_err(|e| bad(format!("its source: {}", e.marked())))?;
         let rect = |tag: &str, default: [f64; 4]| -> Result<[f64; 4]> {
             let Some(r) = child(s, tag) else { return Ok(default) };
             let a = |k: &str| r.attribute(k).and_then(|v| v.trim().parse::<f64>().ok()).ok_or_else(|| bad(format!("{tag} of {name} without {k}")));

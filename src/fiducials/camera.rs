@@ -153,7 +153,7 @@ pub fn measured(file: CameraFile, camera_path: &Path, image: &Path) -> Result<(C
     let src = SourceImage::open(image, 16 << 20)?;
     // The camera file is named first: its marks are what is missing.
     let det = detect_for(&file, camera_path, &src, &Overrides::default())
-        .map_err(|e| Error::config(camera_path, "interior.fiducials_px", format!("not given, and not found in the scan: {e}")))?;
+        .map_err(|e| Error::config(camera_path, "interior.fiducials_px", format!("not given, and not found in the scan: {}", e.marked())))?;
     let mut notes: Vec<String> = det.warnings.iter().map(|w| format!("{}: {w}", image.display())).collect();
     if det.turn_ambiguous {
         // Identical marks cannot tell a film scanned turned: said, not guessed.

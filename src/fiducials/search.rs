@@ -227,7 +227,7 @@ pub fn coarse(req: &Request<'_>, src: &SourceImage, scale: ScaleRange) -> Result
         ways.dedup();
         return Err(crate::error::Error::format(
             &src.path,
-            format!("the film lies turned on the scanner, but its marks fit it {}: give --turn (marks that differ from each other tell it)", ways.join(" or ")),
+            format!("the film lies turned on the scanner, but its marks fit it {}: give ‹turn› (marks that differ from each other tell it)", ways.join(" or ")),
         ));
     }
     Ok(coarse)

@@ -39,7 +39,7 @@ pub struct Geoid {
 #[derive(Clone, Debug)]
 enum Samples {
     Owned(Vec<f32>),
-    Mapped(std::sync::Arc<memmap2::Mmap>),
+    Mapped(std::sync::Arc<crate::io::mapped_file::MappedFile>),
     Raster(Raster),
 }
 
@@ -66,6 +66,14 @@ impl Samples {
 }
 
 impl Geoid {
+    /// An error naming a mapped `.gtx` grid truncated while it was read.
+    pub fn check_intact(&self) -> crate::error::Result<()> {
+        match &self.n {
+            Samples::Mapped(m) => m.check_intact(),
+            _ => Ok(()),
+        }
+    }
+
     /// A `.gtx` or GeoTIFF geoid grid.
     pub fn read(path: &Path) -> Result<Geoid> {
         let head = crate::io::bounded_read::read_head(path, 40)?;
@@ -86,13 +94,7 @@ impl Geoid {
         if head.len() < 40 {
             return Err(Error::format(path, "not a .gtx geoid grid: shorter than its 40-byte header"));
         }
-        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-        // SAFETY: read-only map of a file whose length was checked against
-        // its header above (and is again in `parse_header`), so no sample
-        // read lies past the end. Another process truncating it meanwhile
-        // raises SIGBUS, which the binary's guard reports naming it.
-        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(path, e))?;
-        crate::io::mmap_guard::watch_also(path);
+        let map = crate::io::mapped_file::MappedFile::open(path, len)?;
         let mut g = Geoid::parse_header(&map, path)?;
         g.n = Samples::Mapped(std::sync::Arc::new(map));
         Ok(g)

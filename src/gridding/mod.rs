@@ -94,7 +94,7 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
         // Points that make no grid at this cell size are named as the cause.
         None => output_grid([x0, y0, x1, y1], o.gsd).map_err(|_| {
             Error::Named(format!(
-                "{files}: the points span {x0:e}…{x1:e} × {y0:e}…{y1:e}: at --gsd {} × {} that is no grid (a point far from the others, or the wrong CRS?)",
+                "{files}: the points span {x0:e}…{x1:e} × {y0:e}…{y1:e}: at ‹gsd› {} × {} that is no grid (a point far from the others, or the wrong CRS?)",
                 o.gsd.x, o.gsd.y
             ))
         })?,
@@ -113,7 +113,7 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     let ring_bins = (ring / side_x.min(side_y)).ceil() as u32 + 1;
     let (bc, br) = (w.div_ceil(block) + 2 * ring_bins, h.div_ceil(block) + 2 * ring_bins);
     if bc as u64 * br as u64 > 1 << 26 {
-        return Err(Error::setting("gsd", format!("{w}×{h} cells are too many for the memory given: a coarser --gsd, smaller --bounds or more --memory")));
+        return Err(Error::setting("gsd", format!("{w}×{h} cells are too many for the memory given: a coarser ‹gsd›, smaller ‹bounds› or more ‹memory›")));
     }
     let top = ring_bins as f64 * side_y;
     let bin_grid = BinGrid { x0: -(ring_bins as f64) * side_x, y0: top - br as f64 * side_y, side_x, side_y, cols: bc, rows: br };
@@ -296,10 +296,10 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     written?;
     let unsettled = unsettled.into_inner();
     if with == 0 {
-        warnings.push("no cell has a height: the points are farther apart than --max-edge (or --radius) everywhere".into());
+        warnings.push("no cell has a height: the points are farther apart than ‹max_edge› (or ‹radius›) everywhere".into());
     }
     if blunders > 0 {
-        warnings.push(format!("{blunders} points dropped as blunders (--blunders none keeps them)"));
+        warnings.push(format!("{blunders} points dropped as blunders (‹blunders› none keeps them)"));
     }
     for wmsg in &warnings {
         progress.warn(wmsg);
@@ -442,12 +442,12 @@ fn open<'a>(o: &'a GridOptions, cancel: &'a Cancel, warnings: &mut Vec<String>) 
         .clone()
         .or_else(|| o.points_crs.clone())
         .or(first_said)
-        .ok_or_else(|| Error::Named(format!("{}: the points' CRS is not said (no .prj, no CRS in the LAS header): give --crs", o.inputs[0].display())))?;
+        .ok_or_else(|| Error::Named(format!("{}: the points' CRS is not said (no .prj, no CRS in the LAS header): give ‹crs›", o.inputs[0].display())))?;
     let mut out = Vec::new();
     for (f, s) in files.into_iter().zip(said) {
         let from = match (s, &o.points_crs) {
             (Some(s), Some(given)) if s != *given => {
-                warnings.push(format!("{}: its points are in {s}, not --points-crs {given}: taken as the file says", f.path.display()));
+                warnings.push(format!("{}: its points are in {s}, not ‹points_crs› {given}: taken as the file says", f.path.display()));
                 s
             }
             (Some(s), _) => s,
@@ -467,10 +467,10 @@ fn open<'a>(o: &'a GridOptions, cancel: &'a Cancel, warnings: &mut Vec<String>) 
 fn plausible(crs: &Crs, [x0, y0, x1, y1]: [f64; 4], files: &str) -> Result<()> {
     if crs.is_geographic() {
         if x0 < -540.0 || x1 > 540.0 || y0 < -90.5 || y1 > 90.5 {
-            return Err(Error::Named(format!("{files}: the points ({x0:.1}…{x1:.1}, {y0:.1}…{y1:.1}) are not longitudes and latitudes, but their CRS ({crs}) is geographic: give --points-crs")));
+            return Err(Error::Named(format!("{files}: the points ({x0:.1}…{x1:.1}, {y0:.1}…{y1:.1}) are not longitudes and latitudes, but their CRS ({crs}) is geographic: give ‹points_crs›")));
         }
     } else if x0 >= -180.0 && x1 <= 180.0 && y0 >= -90.0 && y1 <= 90.0 && (x1 - x0) < 2.0 && (y1 - y0) < 2.0 && (x0.fract() != 0.0 || y0.fract() != 0.0) {
-        return Err(Error::Named(format!("{files}: the points ({x0}…{x1}, {y0}…{y1}) look like longitudes and latitudes, but their CRS ({crs}) is projected: give --points-crs EPSG:4326 (or theirs)")));
+        return Err(Error::Named(format!("{files}: the points ({x0}…{x1}, {y0}…{y1}) look like longitudes and latitudes, but their CRS ({crs}) is projected: give ‹points_crs› EPSG:4326 (or theirs)")));
     }
     Ok(())
 }
@@ -485,7 +485,7 @@ fn output_grid(bounds: [f64; 4], gsd: Gsd) -> Result<OutputGrid> {
     let grid = OutputGrid::from_bounds([x0, y0, x1, y1], gsd, Snap::Tap)
         .ok_or_else(|| Error::setting("bounds", format!("{x0},{y0},{x1},{y1} at {} × {} makes no grid", gsd.x, gsd.y)))?;
     if grid.width as u64 * grid.height as u64 > 1 << 40 {
-        return Err(Error::setting("gsd", format!("{} × {} cells are too many: a coarser --gsd or smaller --bounds", grid.width, grid.height)));
+        return Err(Error::setting("gsd", format!("{} × {} cells are too many: a coarser ‹gsd› or smaller ‹bounds›", grid.width, grid.height)));
     }
     Ok(grid)
 }

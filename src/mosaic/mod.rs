@@ -263,7 +263,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
     }
     if o.blend > MOST_BLEND_PX {
         progress.warn(&format!(
-            "--blend {} px: a ramp that wide mixes two images over their whole overlap (anything that moved or stands up shows twice); a few pixels hide a seam",
+            "‹blend› {} px: a ramp that wide mixes two images over their whole overlap (anything that moved or stands up shows twice); a few pixels hide a seam",
             o.blend
         ));
     }
@@ -273,7 +273,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         return Err(Error::Named(bad));
     }
     if o.output.is_none() && o.plan_out.is_none() {
-        return Err(Error::Usage("mosaic: give -o (the mosaic or a piece) or --plan-out (the plan)".into()));
+        return Err(Error::Usage("mosaic: give ‹output› (the mosaic or a piece) or ‹plan_out› (the plan)".into()));
     }
     let given = o;
     let o = &with_manifest_settings(o, &jobs)?;
@@ -301,7 +301,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;
 
         // A shard that takes a plan needs only where each image sees.
-        let like = o.like.as_deref().map(crate::pipeline::reference_grid).transpose()?;
+        let like = o.like.as_deref().map(crate::scene::grid::reference_grid).transpose()?;
         let crs = match (&o.crs, &like) {
             (Some(c), Some((_, l))) if c != l => {
                 let path = o.like.as_deref().unwrap_or(Path::new("")).display();
@@ -532,7 +532,7 @@ fn coarse_plan(plan: &Plan, o: &MosaicOptions) -> Option<String> {
     let cells = px.div_ceil(finest as u64 * finest as u64);
     let more = (cells * plan::BUDGET_PER_CELL).next_multiple_of(1 << 20) >> 20;
     Some(format!(
-        "--memory {} MiB: the plan's cells are {} px, {} px from --memory {more}M: the seams and the balance follow the ground more coarsely",
+        "‹memory› {} MiB: the plan's cells are {} px, {} px from ‹memory› {more}M: the seams and the balance follow the ground more coarsely",
         o.memory >> 20,
         plan.cell,
         finest

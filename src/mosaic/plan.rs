@@ -314,31 +314,20 @@ impl Plan {
             let (camera, _, _) = crate::scene::camera::of_run(&opts, s.crs.as_ref(), progress)?;
             let ground = crs.get_or_insert_with(|| camera.crs.clone()).clone();
             let camera = camera.in_crs(&ground).map_err(|m| Error::setting("crs", format!("{name}: {m}")))?;
-            let dem = match &opts.dem {
-                DemSource::File(p) => match dem_of.get(p) {
-                    Some(&k) => k,
-                    None => {
-                        // Read whole only when small: of a larger DEM only
-                        // the posts under the mosaic, once its grid is known
-                        // (before, the footprints look it up through a
-                        // cache).
-                        let mut d = Dem::open_within(p, &ground, plan_posts(s.memory))?;
-                        for w in &d.warnings {
-                            progress.warn(w);
-                        }
-                        d.on_hole = opts.dem_hole;
-                        d.on_outside = opts.dem_outside;
-                        dems.push(std::sync::Arc::new(d));
+            // Read whole only when small: of a larger DEM only the posts
+            // under the mosaic, once its grid is known (before, the
+            // footprints look it up through a cache). One file, read once.
+            let file = match &opts.dem {
+                DemSource::File(p) => Some(p),
+                _ => None,
+            };
+            let dem = match file.and_then(|p| dem_of.get(p)) {
+                Some(&k) => k,
+                None => {
+                    dems.push(crate::scene::terrain::dem_of_run(&opts, &camera, None, plan_posts(s.memory), progress)?);
+                    if let Some(p) = file {
                         dem_of.insert(p.clone(), dems.len() - 1);
-                        dems.len() - 1
                     }
-                },
-                DemSource::Height(h) => {
-                    dems.push(std::sync::Arc::new(Dem::flat(*h)));
-                    dems.len() - 1
-                }
-                DemSource::ModelHeight => {
-                    dems.push(std::sync::Arc::new(Dem::flat(camera.height_hint())));
                     dems.len() - 1
                 }
             };
@@ -482,10 +471,7 @@ impl Plan {
         let sampled: Vec<PlanImage> = images
             .into_par_iter()
             .map(|(mut im, fp)| {
-                let camera = im
-                    .camera
-                    .take()
-                    .ok_or_else(|| Error::Geometry(format!("{}: its camera was let go before the plan sampled it (please report it)", im.name)))?;
+                let camera = im.camera.take().ok_or_else(|| Error::Internal(format!("{}: its camera was let go before the plan sampled it", im.name)))?;
                 let Some(fp) = fp else {
                     progress.advance(1);
                     return Ok(im);

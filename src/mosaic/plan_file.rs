@@ -143,14 +143,14 @@ pub fn read(plan: &mut Plan, source: &str, path: &Path) -> Result<Vec<Correction
     if file.grid != plan.grid || (file.cell, file.cw, file.ch) != (plan.cell, plan.cw, plan.ch) || file.crs != plan.crs.to_string() {
         return Err(Error::format(
             path,
-            "was planned on another grid (other --gsd, --bounds, --crs or DEMs): give the settings it was made with, or plan again",
+            "was planned on another grid (other ‹gsd›, ‹bounds›, ‹crs› or DEMs): give the settings it was made with, or plan again",
         ));
     }
     // Pieces of other inputs would not join: refused before the render.
     if file.source.as_deref().is_some_and(|s| s != source) {
         return Err(Error::format(
             path,
-            "was planned from other images, cameras or DEMs (their contents), or other --blend, --occlusion, --gsd, --bounds or --crs: give what it was made from, or plan again",
+            "was planned from other images, cameras or DEMs (their contents), or other ‹blend›, ‹occlusion›, ‹gsd›, ‹bounds› or ‹crs›: give what it was made from, or plan again",
         ));
     }
     let cells = plan.cw * plan.ch;

@@ -166,7 +166,7 @@ impl From<Short> for Error {
         Error::setting(
             "memory",
             format!(
-                "the mosaic's bands, its plan and the images at work take {} MiB, and a render needs {} MiB more: give --memory {}M or more",
+                "the mosaic's bands, its plan and the images at work take {} MiB, and a render needs {} MiB more: give ‹memory› {}M or more",
                 s.fixed.div_ceil(1 << 20),
                 s.share.div_ceil(1 << 20),
                 s.enough.div_ceil(1 << 20)
@@ -725,8 +725,7 @@ impl<'scope, 'env> Feeds<'scope, 'env> {
             if !w.bands.contains_key(&b) {
                 continue;
             }
-            let rx =
-                self.receivers[k].as_ref().ok_or_else(|| Error::Geometry("an image's band was asked before its thread started (please report it)".into()))?;
+            let rx = self.receivers[k].as_ref().ok_or_else(|| Error::Internal("an image's band was asked before its thread started".into()))?;
             let band = rx.recv().map_err(|_| Error::Cancelled)??;
             got.push((k, band));
             if w.bands.keys().last() == Some(&b) {

@@ -21,9 +21,9 @@ const PIECES: u32 = 16;
 /// The mosaic `o` asks for (the whole of it, into `o.output`), by pieces
 /// in `dir`; see the module doc.
 pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel: &Cancel) -> Result<MosaicReport> {
-    let out = o.output.clone().ok_or_else(|| Error::Usage("mosaic --resume-dir: give -o, the mosaic".into()))?;
+    let out = o.output.clone().ok_or_else(|| Error::Usage("‹resume_dir›: give ‹output›, the mosaic".into()))?;
     if o.window.is_some() || o.plan_in.is_some() || o.plan_out.is_some() {
-        return Err(Error::setting("resume_dir", "renders the whole mosaic from a plan of its own: drop --window, --plan and --plan-out"));
+        return Err(Error::setting("resume_dir", "renders the whole mosaic from a plan of its own: drop ‹window›, ‹plan› and ‹plan_out›"));
     }
     let jobs = crate::batch::manifest::load(&o.manifest).map_err(|e| e.into_error())?;
     let first = jobs.first().map(|j| j.config.clone()).ok_or_else(|| Error::format(&o.manifest, "no image"))?;

@@ -160,6 +160,7 @@ pub fn render_bands<T>(
             }
             // (Zeros read past a truncated scan's end make no band.)
             run.inputs.src.check_intact()?;
+            run.inputs.dem.check_intact()?;
             Ok(BandPixels { band: b, chunks, seen: gcm.seen.clone() })
         })();
         // Until its next turn the image holds no scan rows, no window and

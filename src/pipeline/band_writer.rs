@@ -107,7 +107,7 @@ pub fn write_bands(
         }
     })?;
     if pyramid.as_ref().is_some_and(|p| !p.lock().is_ok_and(|p| p.is_complete())) {
-        return Err(Error::Geometry("an overview tile was left unfinished (please report it)".into()));
+        return Err(Error::Internal("an overview tile was left unfinished".into()));
     }
     verify(pending.path(), spec)?;
     pending.publish_synced(w.sync)?;

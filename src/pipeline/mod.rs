@@ -26,12 +26,12 @@ mod rectify;
 mod report;
 mod sequential;
 mod setup;
-pub(crate) use setup::reference_grid;
 mod stages;
 mod threaded;
 
+pub use crate::io::os_memory::{peak_rss_mib, release_free_memory};
 pub use budget::MemoryBudget;
 pub use rectify::rectify;
-pub use report::{peak_rss_mib, release_free_memory, Hidden, Report, StageTimes};
+pub use report::{Hidden, Report, StageTimes};
 pub use setup::{tiles_memory, RunPlan};
 pub use stages::resample::{Made, Raw};

@@ -2,7 +2,7 @@
 //! publish the output, report.
 
 use super::context::{Counters, Inputs, Run, Stop, Walk};
-use super::report::{peak_rss_mib, Hidden, Report, ScanInfo, StageTimes, UNBOUNDED_WARNING_PX};
+use super::report::{Hidden, Report, ScanInfo, StageTimes, UNBOUNDED_WARNING_PX};
 use super::sequential::run_sequential;
 use super::setup::RunPlan;
 use super::threaded::run_threaded;
@@ -105,12 +105,16 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         return Err(Error::Cancelled);
     }
     let busy = result?;
+    // Zeros read past the end of a file truncated under its map make no
+    // output.
     src.check_intact()?;
+    plan.dem.check_intact()?;
+    plan.camera.check_intact()?;
     let nudged = run.counters.nudged.load(Ordering::Relaxed);
     if nudged > 0 {
         let v = plan.pixels.fill;
         progress.warn(&format!(
-            "{nudged} samples of pixels with a value held the nodata value {v} and were made {} (as GDAL's warper does), so that they do not read as holes; the default internal mask (--nodata auto) keeps every value",
+            "{nudged} samples of pixels with a value held the nodata value {v} and were made {} (as GDAL's warper does), so that they do not read as holes; the default internal mask (‹nodata› auto) keeps every value",
             super::stages::resample::off_nodata(v, src.info.sample)
         ));
     }
@@ -119,12 +123,12 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     let stats = run.statistics.lock().map(|s| s.total()).unwrap_or_default();
     if opts.window.is_none() && stats.pixels > 0 && !stats.bands.is_empty() && stats.bands.iter().all(|b| b.count == 0) {
         progress.warn(&format!(
-            "{}: no pixel of it has a value: the scan's ground lies outside the grid, in the DEM's holes or off it (--dem-hole, --dem-outside), or the scan holds no image there",
+            "{}: no pixel of it has a value: the scan's ground lies outside the grid, in the DEM's holes or off it (‹dem_hole›, ‹dem_outside›), or the scan holds no image there",
             opts.output.display()
         ));
     }
     if run.pyramid.as_ref().is_some_and(|p| !p.lock().is_ok_and(|p| p.is_complete())) {
-        return Err(Error::Geometry("an overview tile was left unfinished (please report it)".into()));
+        return Err(Error::Internal("an overview tile was left unfinished".into()));
     }
     times.dem = busy.dem.as_secs_f64();
     times.gcm = busy.gcm.as_secs_f64();
@@ -151,7 +155,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         let w = match error_bound {
             Some(b) => format!("the GCM missed its bound of {b} px: {:.3} px at output pixel {:?} (please report it)", estimate.max, estimate.argmax),
             None => format!(
-                "the GCM is up to {:.2} px off the exact model (sampled, at output pixel {:?}); --max-error 0.1 holds it within 0.1 px",
+                "the GCM is up to {:.2} px off the exact model (sampled, at output pixel {:?}); ‹max_error› 0.1 holds it within 0.1 px",
                 estimate.max, estimate.argmax
             ),
         };
@@ -181,7 +185,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         wall_seconds: wall_s,
         input_mb_per_s: src.info.data_bytes() as f64 / 1e6 / wall_s,
         output_mpx_per_s: spec.width as f64 * spec.height as f64 / 1e6 / wall_s,
-        peak_rss_mib: peak_rss_mib(),
+        peak_rss_mib: crate::io::os_memory::peak_rss_mib(),
         gcm: gcm_stats,
         accuracy_estimate: estimate,
         error_bound,

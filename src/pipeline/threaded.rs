@@ -196,7 +196,7 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
 /// panic's message (the hook has printed where).
 fn panicked(what: &str, payload: &(dyn std::any::Any + Send)) -> Error {
     let msg = payload.downcast_ref::<String>().map(String::as_str).or_else(|| payload.downcast_ref::<&str>().copied()).unwrap_or("no message");
-    Error::Geometry(format!("internal error in {what} (a bug; please report it): {msg}"))
+    Error::Internal(format!("{what}: {msg}"))
 }
 
 /// A chunk resampled by a pool worker, with its number in the band order

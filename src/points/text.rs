@@ -48,7 +48,7 @@ fn resolve(path: &Path, header: Option<&[&str]>, columns: &Columns) -> Result<[u
                 (Some(x), Some(y), Some(z)) => Ok([x, y, z]),
                 _ => Err(Error::Format {
                     path: path.into(),
-                    msg: format!("the header ({}) names no x, y and z columns: name them (x/easting, y/northing, z/height) or give --columns", h.join(", ")),
+                    msg: format!("the header ({}) names no x, y and z columns: name them (x/easting, y/northing, z/height) or give ‹columns›", h.join(", ")),
                 }),
             },
         },

@@ -526,7 +526,7 @@ fn cameras(o: &StereoOptions) -> Result<(Camera, Camera, Crs)> {
             let frames = !matches!(l.sensor, Rpc(_) | Panoramic(_)) && !matches!(r.sensor, Rpc(_) | Panoramic(_));
             if frames && lc != rc {
                 return Err(Error::Named(format!(
-                    "{} and {}: the cameras' positions are in different CRSs ({} and {}): give --crs for the DSM and both are brought into it",
+                    "{} and {}: the cameras' positions are in different CRSs ({} and {}): give ‹crs› for the DSM and both are brought into it",
                     o.left.camera.display(),
                     o.right.camera.display(),
                     crs_name(&lc),
@@ -588,12 +588,12 @@ fn search_heights(o: &StereoOptions, l: &Camera, r: &Camera, crs: &Crs) -> Resul
                 Sensor::Rpc(_) | Sensor::Panoramic(_) => None,
             };
             let (Some(ca), Some(cb)) = (centre(a), centre(b)) else {
-                return Err(Error::setting("heights", "two cameras of different kinds: give --heights LOWEST,HIGHEST or --dem-init"));
+                return Err(Error::setting("heights", "two cameras of different kinds: give ‹heights› LOWEST,HIGHEST or ‹dem_init›"));
             };
             let base = (ca - cb).norm();
             let top = ca.z.min(cb.z);
             if !(base > 0.0) || l.crs.is_geographic() {
-                return Err(Error::setting("heights", "the two cameras' positions give no base: give --heights LOWEST,HIGHEST or --dem-init"));
+                return Err(Error::setting("heights", "the two cameras' positions give no base: give ‹heights› LOWEST,HIGHEST or ‹dem_init›"));
             }
             Ok([top - 10.0 * base, top - base])
         }

@@ -40,7 +40,7 @@ pub struct Exposure {
 
 pub fn synth_block(o: &SynthOptions, cols: u32, rows: u32, progress: &dyn Progress) -> Result<BlockReport> {
     if !matches!(o.camera, CameraKind::Digital | CameraKind::Drone) || cols == 0 || rows == 0 || cols * rows > 400 {
-        return Err(Error::setting("block", "a block is 1 to 400 digital or drone frames (--camera digital|drone)"));
+        return Err(Error::setting("block", "a block is 1 to 400 digital or drone frames (‹camera› digital|drone)"));
     }
     std::fs::create_dir_all(o.out.join("scans")).map_err(|e| Error::io(&o.out, e))?;
     // The first frame's camera gives the footprint's size on the ground.

@@ -53,7 +53,7 @@ impl Footprint {
         Err(Error::format(
             &dem.path,
             format!(
-                "covers only part of {} ({} % of its edge meets it), and --dem-outside error (in a manifest dem_outside = \"error\") asks for heights under all of it: give a DEM that covers it, or --dem-outside nodata to stop the orthophoto at the DEM's edge, or --dem-outside HEIGHT to go on at a height",
+                "covers only part of {} ({} % of its edge meets it), and ‹dem_outside› error asks for heights under all of it: give a DEM that covers it, or ‹dem_outside› nodata to stop the orthophoto at the DEM's edge, or ‹dem_outside› HEIGHT to go on at a height",
                 image.display(),
                 100 * (self.edge_points - self.past_edge - self.on_holes) / self.edge_points.max(1)
             ),
@@ -71,24 +71,24 @@ impl Footprint {
         // What the policy does there: under `error` the run stops at the
         // first output pixel that needs such a height.
         let (edge, hole) = match (dem.on_outside, dem.on_hole) {
-            (Miss::Error, _) if outside => ("the orthophoto stops at the DEM's edge, and where its extent reaches past it (given --bounds) the run fails", ""),
-            (_, Miss::Error) if holes && !outside => ("", "the orthophoto stops there, and where its extent still meets them (a gap between tiles, given --bounds) the run fails (--dem-hole nodata leaves them empty; "),
+            (Miss::Error, _) if outside => ("the orthophoto stops at the DEM's edge, and where its extent reaches past it (given ‹bounds›) the run fails", ""),
+            (_, Miss::Error) if holes && !outside => ("", "the orthophoto stops there, and where its extent still meets them (a gap between tiles, given ‹bounds›) the run fails (‹dem_hole› nodata leaves them empty; "),
             _ => ("the orthophoto stops at the DEM's edge", "the orthophoto stops there ("),
         };
         match (outside, holes) {
             (true, _) => Some(format!(
-                "{image}: the DEM {path} covers only part of the image ({} % of its edge meets it): {edge} (--dem-outside HEIGHT, in a manifest dem_outside = HEIGHT, goes on at that height)",
+                "{image}: the DEM {path} covers only part of the image ({} % of its edge meets it): {edge} (‹dem_outside› HEIGHT goes on at that height)",
                 share(self.past_edge + self.on_holes)
             )),
             (false, true) => Some(format!(
-                "{image}: the DEM {path} has no heights (nodata) under part of the image ({} % of its edge meets heights): {hole}--dem-hole HEIGHT, in a manifest dem_hole = HEIGHT, goes on at that height)",
+                "{image}: the DEM {path} has no heights (nodata) under part of the image ({} % of its edge meets heights): {hole}‹dem_hole› HEIGHT goes on at that height)",
                 share(self.on_holes)
             )),
             // Holes inside the ground alone, left empty as asked: how much.
             (false, false) if self.inner_holes > 0 && dem.on_hole == Miss::Nodata => {
                 let share = 100.0 * self.inner_holes as f64 / self.inner_points.max(1) as f64;
                 Some(format!(
-                    "{image}: the DEM {path} has no heights (nodata) under about {share:.0} % of the image's ground, inside its edges: the orthophoto is empty there (--dem-hole HEIGHT, in a manifest dem_hole = HEIGHT, goes on at that height)"
+                    "{image}: the DEM {path} has no heights (nodata) under about {share:.0} % of the image's ground, inside its edges: the orthophoto is empty there (‹dem_hole› HEIGHT goes on at that height)"
                 ))
             }
             (false, false) => None,
@@ -159,7 +159,7 @@ pub fn footprint_on(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32,
         let past = (past.0 - in_collar.min(past.0), past.1 + in_collar);
         let why = if past.1 > past.0 {
             format!(
-                "{} of them fall in its nodata (holes, or the void around its data): no heights under the scan; --dem-hole HEIGHT (--dem-outside HEIGHT around the data) goes on at that height",
+                "{} of them fall in its nodata (holes, or the void around its data): no heights under the scan; ‹dem_hole› HEIGHT (‹dem_outside› HEIGHT around the data) goes on at that height",
                 past.1
             )
         } else {

@@ -65,7 +65,7 @@ pub struct Converted {
 pub fn convert(o: &ConvertOptions) -> Result<Converted> {
     let exif = super::is_exif(&o.camera);
     if exif && o.images.is_empty() {
-        return Err(Error::Usage("--camera exif: name the images".into()));
+        return Err(Error::Usage("‹camera› exif: name the images".into()));
     }
     let mut set = if exif { Default::default() } else { super::read_with(&o.camera, o.exterior.as_deref(), o.images.first().map(PathBuf::as_path), o.angles)? };
     let mut entries = Vec::new();
@@ -92,7 +92,7 @@ pub fn convert(o: &ConvertOptions) -> Result<Converted> {
         entries.push(Entry { name, file: base.clone(), size: None, origin: o.camera.display().to_string() });
     }
     if entries.is_empty() {
-        return Err(Error::format(&o.camera, "holds no camera with an exterior orientation: add --exterior with the poses"));
+        return Err(Error::format(&o.camera, "holds no camera with an exterior orientation: add ‹exterior› with the poses"));
     }
     let dir = o.camera.parent().unwrap_or(Path::new("")).to_path_buf();
     for e in &mut entries {
@@ -121,7 +121,7 @@ pub fn convert(o: &ConvertOptions) -> Result<Converted> {
         if e.file.crs.trim().is_empty() {
             match &o.crs {
                 Some(c) => e.file.crs = c.epsg().map_or_else(|| c.proj4().to_string(), |n| format!("EPSG:{n}")),
-                None => return Err(Error::at(&o.camera, &e.origin, "the CRS of the positions is not given: a .prj beside the poses, or --crs")),
+                None => return Err(Error::at(&o.camera, &e.origin, "the CRS of the positions is not given: a .prj beside the poses, or ‹crs›")),
             }
         }
         let interior = e.file.interior.get_or_insert_with(Default::default);
@@ -149,7 +149,7 @@ pub fn convert(o: &ConvertOptions) -> Result<Converted> {
 
 fn write(entries: &[Entry], dir: &Path, o: &ConvertOptions) -> Result<Vec<PathBuf>> {
     if dir.exists() && !dir.is_dir() {
-        return Err(Error::Usage(format!("--out-dir {}: not a folder", dir.display())));
+        return Err(Error::Usage(format!("‹out_dir› {}: not a folder", dir.display())));
     }
     let files: Vec<(PathBuf, String)> = match o.target {
         Target::Toml => {
@@ -173,7 +173,7 @@ fn write(entries: &[Entry], dir: &Path, o: &ConvertOptions) -> Result<Vec<PathBu
         }
         Target::Orthority | Target::OpenSfm => {
             if entries.iter().any(|e| e.file.panoramic.is_some()) {
-                return Err(Error::unsupported(&o.camera, "a panoramic camera has no form in Orthority's or OpenSfM's files (--to toml)"));
+                return Err(Error::unsupported(&o.camera, "a panoramic camera has no form in Orthority's or OpenSfM's files (‹to› toml)"));
             }
             let (lenses, poses) = lenses_and_poses(entries, &o.camera)?;
             let (unique, ids) = distinct_lenses(&lenses);

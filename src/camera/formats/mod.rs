@@ -354,7 +354,7 @@ pub fn read_for_with(image: &Path, camera: &Path, exterior: Option<&Path>, angle
         return read_with_only(camera, exterior, Some(image), angles, true);
     }
     if let Some(e) = exterior {
-        return Err(Error::unsupported(e, "--camera exif takes the position from the image: give a camera file with --exterior"));
+        return Err(Error::unsupported(e, "‹camera› exif takes the position from the image: give a camera file with ‹exterior›"));
     }
     exif::read(image, crs)
 }
@@ -483,7 +483,7 @@ impl Imported {
         if self.poses.is_empty() && self.listed == 0 {
             return match &self.base {
                 Some(b) => Ok(b.clone()),
-                None => Err(Error::unsupported(&source, "gives no exterior orientation: add --exterior with the poses")),
+                None => Err(Error::unsupported(&source, "gives no exterior orientation: add ‹exterior› with the poses")),
             };
         }
         let file = image.file_name().and_then(|n| n.to_str()).unwrap_or("");
@@ -561,7 +561,7 @@ impl Imported {
             }),
             None => match self.lenses.as_slice() {
                 [(_, one)] => Ok(one),
-                [] => Err(Error::at(source, &p.origin, "no interior parameters: give them with --camera")),
+                [] => Err(Error::at(source, &p.origin, "no interior parameters: give them with ‹camera›")),
                 _ => Err(Error::at(source, &p.origin, format!("names no camera, and there are {} interior parameter sets", self.lenses.len()))),
             },
         }

@@ -373,7 +373,7 @@ pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit, only: Option<&P
         let turn = if unit == super::AngleUnit::Radians { std::f64::consts::TAU } else { 360.0 };
         if !past_a_turn && given.iter().any(|a| a.abs() > turn) {
             past_a_turn = true;
-            let what = if turn == 360.0 { "360°: read as degrees" } else { "2π: read as radians (--radians): degrees?" };
+            let what = if turn == 360.0 { "360°: read as degrees" } else { "2π: read as radians (‹radians›): degrees?" };
             warnings.push(format!("{}: line {}: angles {given:?} past {what}", path.display(), n + 1));
         }
         within_half_turn &= given.iter().all(|a| a.abs() <= std::f64::consts::PI + 1e-9);
@@ -393,7 +393,7 @@ pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit, only: Option<&P
     // doubtful (a block flown north with level cameras may do it too).
     if unit == super::AngleUnit::Degrees && listed >= 3 && within_half_turn && largest > 0.05 {
         warnings.push(format!(
-            "{}: every angle lies within ±π (the largest {largest}), read as degrees as Orthority reads them: if they are radians, give --radians",
+            "{}: every angle lies within ±π (the largest {largest}), read as degrees as Orthority reads them: if they are radians, give ‹radians›",
             path.display()
         ));
     }

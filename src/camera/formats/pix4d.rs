@@ -153,7 +153,7 @@ fn offset_beside(path: &Path) -> Result<[f64; 3]> {
     let Some(xyz) = found else {
         return Err(Error::format(
             path,
-            "holds positions relative to the project's offset, and no <project>_offset.xyz is beside it: put it there, or give the poses with --exterior <project>_calibrated_external_camera_parameters.txt",
+            "holds positions relative to the project's offset, and no <project>_offset.xyz is beside it: put it there, or give the poses with ‹exterior› <project>_calibrated_external_camera_parameters.txt",
         ));
     };
     let text = crate::io::bounded_read::read_text_bounded(&xyz, "a Pix4D offset", 4096)?;

@@ -340,7 +340,7 @@ fn no_tag(path: &Path) -> Error {
         .chain(["_RPC.TXT", "_rpc.txt"].iter().map(|t| PathBuf::from(format!("{}{t}", stem.display()))))
         .find(|p| p.is_file());
     match beside {
-        Some(p) => Error::format(path, format!("no RPC tag (50844); its RPC is beside it: give --rpc {}", p.display())),
+        Some(p) => Error::format(path, format!("no RPC tag (50844); its RPC is beside it: give ‹rpc› {}", p.display())),
         None => Error::format(path, "no RPC tag (50844)"),
     }
 }

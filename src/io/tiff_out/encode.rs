@@ -41,7 +41,7 @@ pub fn encode_tile(spec: &OutputSpec, l: u32, mut tile: Vec<u8>, valid: Option<&
             SampleType::F32 => unreachable!("no predictor for floats"),
         }
     }
-    let io = |e: std::io::Error| Error::Usage(format!("tile compression failed: {e}"));
+    let io = |e: std::io::Error| Error::Internal(format!("tile compression failed: {e}"));
     let level = spec.level_of(l);
     Ok(match spec.compression {
         Compression::None => tile,
@@ -86,7 +86,7 @@ pub fn encode_tile(spec: &OutputSpec, l: u32, mut tile: Vec<u8>, valid: Option<&
 /// ones would differ from tile to tile and cost a second pass.
 fn jpeg(spec: &OutputSpec, tile: &[u8], quality: u8) -> Result<Vec<u8>> {
     let whole = jpeg_stream(spec, tile, quality)?;
-    let (_, coded) = split_jpeg(&whole).ok_or_else(|| Error::Usage("jpeg coding made a stream without a scan".into()))?;
+    let (_, coded) = split_jpeg(&whole).ok_or_else(|| Error::Internal("jpeg coding made a stream without a scan".into()))?;
     Ok(coded)
 }
 
@@ -97,7 +97,7 @@ pub fn jpeg_tables(spec: &OutputSpec) -> Result<Vec<u8>> {
     let probe = OutputSpec { chunking: super::Chunking::Tiles(16), ..spec.clone() };
     let pixels = vec![0u8; probe.tile_bytes()];
     let whole = jpeg_stream(&probe, &pixels, quality)?;
-    let (tables, _) = split_jpeg(&whole).ok_or_else(|| Error::Usage("jpeg coding made a stream without a scan".into()))?;
+    let (tables, _) = split_jpeg(&whole).ok_or_else(|| Error::Internal("jpeg coding made a stream without a scan".into()))?;
     Ok(tables)
 }
 
@@ -146,14 +146,14 @@ fn jpeg_stream(spec: &OutputSpec, tile: &[u8], quality: u8) -> Result<Vec<u8>> {
     let colour = match spec.bands {
         1 => jpeg_encoder::ColorType::Luma,
         3 => jpeg_encoder::ColorType::Rgb,
-        b => return Err(Error::Usage(format!("jpeg: {b} bands"))),
+        b => return Err(Error::setting("compress", format!("jpeg holds 1 or 3 bands, not {b}"))),
     };
     let (w, h) = (u16::try_from(w), u16::try_from(h));
-    let (Ok(w), Ok(h)) = (w, h) else { return Err(Error::Usage("jpeg: a chunk wider or taller than 65535 pixels".into())) };
+    let (Ok(w), Ok(h)) = (w, h) else { return Err(Error::setting("compress", "jpeg: a chunk wider or taller than 65535 pixels")) };
     let mut out = Vec::with_capacity(tile.len() / 8);
     let mut e = jpeg_encoder::Encoder::new(&mut out, quality);
     e.set_sampling_factor(jpeg_encoder::SamplingFactor::R_4_2_0);
-    e.encode(tile, w, h, colour).map_err(|e| Error::Usage(format!("jpeg coding failed: {e}")))?;
+    e.encode(tile, w, h, colour).map_err(|e| Error::Internal(format!("jpeg coding failed: {e}")))?;
     Ok(out)
 }
 

@@ -280,10 +280,10 @@ impl OutputSpec {
             return Err(format!("jpeg holds 8-bit samples, these are {}: take deflate or zstd", self.sample.describe()));
         }
         if self.alpha {
-            return Err("jpeg holds no alpha band (lossy coding would blur its edges): the internal mask says which pixels have a value; drop --alpha, or take deflate or zstd".into());
+            return Err("jpeg holds no alpha band (lossy coding would blur its edges): the internal mask says which pixels have a value; drop ‹alpha›, or take deflate or zstd".into());
         }
         if let Some(v) = self.geo.as_ref().and_then(|g| g.nodata) {
-            return Err(format!("jpeg does not keep a nodata value ({v}) exact: the internal mask says which pixels have a value; drop --nodata VALUE"));
+            return Err(format!("jpeg does not keep a nodata value ({v}) exact: the internal mask says which pixels have a value; drop ‹nodata› VALUE"));
         }
         match (self.bands, self.photometric) {
             (1, _) | (3, 2) => Ok(()),

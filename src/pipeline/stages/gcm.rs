@@ -73,11 +73,9 @@ fn seen(run: &Run, band: &BandGcm, b: u32, vis: &Visibility) -> Seen {
 /// The error of a ground point where the DEM has no height and the policy
 /// for it is `error`.
 pub fn dem_miss_error(dem: &Dem, (x, y, l): (f64, f64, Lookup)) -> Error {
-    // Named as the flag and as the manifest's key: the library does not
-    // know which of the two set it.
     let (what, setting) = match l {
-        Lookup::Hole => ("a hole (nodata) in the DEM", "--dem-hole (dem_hole)"),
-        _ => ("outside the DEM", "--dem-outside (dem_outside)"),
+        Lookup::Hole => ("a hole (nodata) in the DEM", "‹dem_hole›"),
+        _ => ("outside the DEM", "‹dem_outside›"),
     };
     Error::format(&dem.path, format!("no height at ground point ({x:.2}, {y:.2}), {what}; {setting} is error: nodata or a height would go on"))
 }
