@@ -110,23 +110,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     src.check_intact()?;
     plan.dem.check_intact()?;
     plan.camera.check_intact()?;
-    let nudged = run.counters.nudged.load(Ordering::Relaxed);
-    if nudged > 0 {
-        let v = plan.pixels.fill;
-        progress.warn(&format!(
-            "{nudged} samples of pixels with a value held the nodata value {v} and were made {} (as GDAL's warper does), so that they do not read as holes; the default internal mask (‹nodata› auto) keeps every value",
-            super::stages::resample::off_nodata(v, src.info.sample)
-        ));
-    }
-    // An orthophoto without one pixel of image is a mistake to say (a
-    // piece of a window may be empty beside the footprint).
-    let stats = run.statistics.lock().map(|s| s.total()).unwrap_or_default();
-    if opts.window.is_none() && stats.pixels > 0 && !stats.bands.is_empty() && stats.bands.iter().all(|b| b.count == 0) {
-        progress.warn(&format!(
-            "{}: no pixel of it has a value: the scan's ground lies outside the grid, in the DEM's holes or off it (‹dem_hole›, ‹dem_outside›), or the scan holds no image there",
-            opts.output.display()
-        ));
-    }
+    say_what_the_pixels_hold(opts, &run, progress);
     if run.pyramid.as_ref().is_some_and(|p| !p.lock().is_ok_and(|p| p.is_complete())) {
         return Err(Error::Internal("an overview tile was left unfinished".into()));
     }
@@ -140,27 +124,9 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     pending.publish_synced(opts.sync)?;
     let wall_s = wall.elapsed().as_secs_f64();
     times.write = (wall_s - times.setup).max(0.0);
-    // On the run's own workers: one thread stays one thread to the end.
-    let sampled = run.counters.sampled.as_ref().map(|s| *s.lock().expect("sample")).unwrap_or_default();
-    let mut estimate = self_check::ErrorStats::of(&sampled, self_check::run_sample_steps(&t.grid).1);
-    if columns {
-        // Where the largest error is, on the output grid.
-        estimate.argmax.swap(0, 1);
-    }
-    let gcm_stats = GcmStats { exact_pixels: run.counters.exact_pixels.load(Ordering::Relaxed), ..*run.counters.gcm.lock().expect("stats") };
     let error_bound = plan.gcm.max_error;
-    // The bound holds by construction at every pixel; the sample checks it.
-    let error_within = estimate.max <= error_bound.map_or(UNBOUNDED_WARNING_PX, |b| b * 1.000_001);
-    if !error_within {
-        let w = match error_bound {
-            Some(b) => format!("the GCM missed its bound of {b} px: {:.3} px at output pixel {:?} (please report it)", estimate.max, estimate.argmax),
-            None => format!(
-                "the GCM is up to {:.2} px off the exact model (sampled, at output pixel {:?}); ‹max_error› 0.1 holds it within 0.1 px",
-                estimate.max, estimate.argmax
-            ),
-        };
-        progress.warn(&w);
-    }
+    let (estimate, error_within) = checked_error(&run, &t.grid, columns, error_bound, progress);
+    let gcm_stats = GcmStats { exact_pixels: run.counters.exact_pixels.load(Ordering::Relaxed), ..*run.counters.gcm.lock().expect("stats") };
     // Everything the run warned of, the DEM's doubts among them.
     let warnings = recording.said();
     Ok(Report {
@@ -168,16 +134,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         grid: plan.grid,
         crs: plan.camera.crs.to_string(),
         geographic: plan.camera.crs.is_geographic(),
-        scan: ScanInfo {
-            width: src.info.width,
-            height: src.info.height,
-            bands: src.info.bands,
-            sample: src.info.sample,
-            tiled: src.info.tiled,
-            compression: src.info.compression,
-            memory_mapped: src.is_mapped(),
-            bytes: src.info.data_bytes(),
-        },
+        scan: ScanInfo::of(src),
         bands: wr1 - wr0,
         chunks: run.counters.chunks_done.load(Ordering::Relaxed),
         chunks_in_place: run.counters.chunks_in_place.load(Ordering::Relaxed),
@@ -195,4 +152,73 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         gcps: plan.gcp_fit.clone(),
         occlusion: visibility.is_some().then(|| Hidden::new(run.counters.imaged.load(Ordering::Relaxed), run.counters.hidden.load(Ordering::Relaxed))),
     })
+}
+
+/// What the run's pixels hold that its user should hear of: samples moved
+/// off the nodata value, or no pixel with a value at all.
+fn say_what_the_pixels_hold(opts: &RectifyOptions, run: &Run, progress: &dyn Progress) {
+    let src = run.inputs.src;
+    let nudged = run.counters.nudged.load(Ordering::Relaxed);
+    if nudged > 0 {
+        let v = run.inputs.pixels.fill;
+        progress.warn(&format!(
+            "{nudged} samples of pixels with a value held the nodata value {v} and were made {} (as GDAL's warper does), so that they do not read as holes; the default internal mask (‹nodata› auto) keeps every value",
+            super::stages::resample::off_nodata(v, src.info.sample)
+        ));
+    }
+    // An orthophoto without one pixel of image is a mistake to say (a
+    // piece of a window may be empty beside the footprint).
+    let stats = run.statistics.lock().map(|s| s.total()).unwrap_or_default();
+    if opts.window.is_none() && stats.pixels > 0 && !stats.bands.is_empty() && stats.bands.iter().all(|b| b.count == 0) {
+        progress.warn(&format!(
+            "{}: no pixel of it has a value: the scan's ground lies outside the grid, in the DEM's holes or off it (‹dem_hole›, ‹dem_outside›), or the scan holds no image there",
+            opts.output.display()
+        ));
+    }
+}
+
+/// The GCM's error against the exact model on the run's sample, with
+/// whether it is within the bound (or, unbounded, within what passes
+/// unsaid); said when it is not.
+fn checked_error(
+    run: &Run,
+    grid: &crate::geom::OutputGrid,
+    columns: bool,
+    error_bound: Option<f64>,
+    progress: &dyn Progress,
+) -> (self_check::ErrorStats, bool) {
+    let sampled = run.counters.sampled.as_ref().map(|s| *s.lock().expect("sample")).unwrap_or_default();
+    let mut estimate = self_check::ErrorStats::of(&sampled, self_check::run_sample_steps(grid).1);
+    if columns {
+        // Where the largest error is, on the output grid.
+        estimate.argmax.swap(0, 1);
+    }
+    // The bound holds by construction at every pixel; the sample checks it.
+    let error_within = estimate.max <= error_bound.map_or(UNBOUNDED_WARNING_PX, |b| b * 1.000_001);
+    if !error_within {
+        let w = match error_bound {
+            Some(b) => format!("the GCM missed its bound of {b} px: {:.3} px at output pixel {:?} (please report it)", estimate.max, estimate.argmax),
+            None => format!(
+                "the GCM is up to {:.2} px off the exact model (sampled, at output pixel {:?}); ‹max_error› 0.1 holds it within 0.1 px",
+                estimate.max, estimate.argmax
+            ),
+        };
+        progress.warn(&w);
+    }
+    (estimate, error_within)
+}
+
+impl ScanInfo {
+    fn of(src: &crate::io::source::SourceImage) -> ScanInfo {
+        ScanInfo {
+            width: src.info.width,
+            height: src.info.height,
+            bands: src.info.bands,
+            sample: src.info.sample,
+            tiled: src.info.tiled,
+            compression: src.info.compression,
+            memory_mapped: src.is_mapped(),
+            bytes: src.info.data_bytes(),
+        }
+    }
 }

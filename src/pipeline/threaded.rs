@@ -13,7 +13,7 @@ use super::stages::{timed, Busy, SharedRows};
 use crate::error::{Error, Result};
 use crate::gcm::BandGcm;
 use crate::io::source::{SourceImage, Window};
-use crossbeam_channel::bounded;
+use crossbeam_channel::{bounded, Receiver, Sender};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -21,7 +21,6 @@ use std::time::{Duration, Instant};
 /// The error is the root cause: the first that is not a consequence of
 /// another's cancelling the run.
 pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::File) -> Result<Busy> {
-    let src = run.inputs.src;
     let (tx_dem, rx_dem) = bounded::<DemMsg>(2);
     let (tx_gcm, rx_gcm) = bounded::<Arc<BandGcm>>(2);
     let (tx_read, rx_read) = bounded::<ReadMsg>(1);
@@ -84,68 +83,7 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
             drop(tx_read);
             Ok(reader.busy)
         });
-        let h_resample = s.spawn(|| {
-            let rx_read = rx_read;
-            // Two chunks are resampled at once: when a worker runs out of
-            // rows of the older one it starts on the newer one instead of
-            // waiting for the other worker to finish (and for the pool to be
-            // woken again). Three in bands of tile columns, where a chunk is
-            // only two tasks: a worker done with both of the newer chunk's
-            // while the older one's slower task runs has something to take.
-            let in_flight: usize = if run.walk.columns { 3 } else { 2 };
-            let row_bytes = src.info.width as u64 * src.info.pixel_bytes() as u64;
-            let (tx_done, rx_done) = crossbeam_channel::unbounded::<Resampled>();
-            let mut chunks = InFlight::default();
-            let result = run.pool.in_place_scope(|scope| -> Result<()> {
-                // Waits for the oldest chunk in flight and passes it on.
-                let forward_oldest = |chunks: &mut InFlight| -> Result<()> {
-                    let done = chunks.finish_oldest(&rx_done)?;
-                    let _ = tx_free_win.try_send(done.win);
-                    let made = made(run, done.band, done.x0, done.raw)?;
-                    tx_raw.send(made).map_err(|_| Error::Cancelled)
-                };
-                for (seq, msg) in rx_read.iter().enumerate() {
-                    let seq = seq as u64;
-                    if run.stop.now() {
-                        return Err(Error::Cancelled);
-                    }
-                    let rows_now = msg.in_place.map(|_| (msg.win.y0, msg.win.y0 + msg.win.h));
-                    // Mapped rows stay within eight shares (the windows' four,
-                    // unused when chunks are read in place, and four of the
-                    // budget's slack): where the chunks in flight and this
-                    // one would map more together (the first chunk of a band
-                    // beside the last of the one before), the older ones are
-                    // finished first, and the workers idle through the
-                    // older one's last rows (eight shares, not the six of
-                    // one chunk, so that this is rare at band edges).
-                    while !chunks.is_empty() && chunks.rows_hull(rows_now).is_some_and(|(a, b)| (b - a) as u64 * row_bytes > run.budget.mapped_rows()) {
-                        forward_oldest(&mut chunks)?;
-                    }
-                    chunks.release_finished_rows(src, rows_now);
-                    let spare = rx_free_raw.try_recv().ok();
-                    let tx_done = tx_done.clone();
-                    chunks.start(seq, rows_now);
-                    scope.spawn(move |_| {
-                        // A panic (a bug) must still report the chunk: the
-                        // stage waits for it, and the run would hang.
-                        let raw = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| resample(run, &msg, spare)))
-                            .unwrap_or_else(|p| Err(super::stages::resample::Failed::Read(panicked("resampling", p.as_ref()))));
-                        let _ = tx_done.send(Resampled { seq, raw, win: msg.win, band: msg.band, x0: msg.chunk.x0 });
-                    });
-                    while chunks.len() >= in_flight {
-                        forward_oldest(&mut chunks)?;
-                    }
-                }
-                while !chunks.is_empty() {
-                    forward_oldest(&mut chunks)?;
-                }
-                Ok(())
-            });
-            chunks.release_finished_rows(src, None);
-            result?;
-            drop(tx_raw);
-            Ok(chunks.busy)
-        });
+        let h_resample = s.spawn(|| resample_stage(run, rx_read, tx_raw, tx_free_win, rx_free_raw));
         let h_encode = s.spawn(|| {
             let rx_raw = rx_raw;
             let mut busy = Duration::ZERO;
@@ -171,6 +109,77 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
             .map(|h| h.join().unwrap_or_else(|p| Err(panicked("a pipeline stage", p.as_ref()))))
             .collect()
     });
+    busy_of(results)
+}
+
+/// Stage 4 on the pool: each chunk's pixels, two or three chunks at once,
+/// passed on in order; the mapped scan rows of chunks done let go.
+fn resample_stage(run: &Run, rx_read: Receiver<ReadMsg>, tx_raw: Sender<Made>, tx_free_win: Sender<Window>, rx_free_raw: Receiver<Raw>) -> Result<Duration> {
+    let src = run.inputs.src;
+    // Two chunks are resampled at once: when a worker runs out of
+    // rows of the older one it starts on the newer one instead of
+    // waiting for the other worker to finish (and for the pool to be
+    // woken again). Three in bands of tile columns, where a chunk is
+    // only two tasks: a worker done with both of the newer chunk's
+    // while the older one's slower task runs has something to take.
+    let in_flight: usize = if run.walk.columns { 3 } else { 2 };
+    let row_bytes = src.info.width as u64 * src.info.pixel_bytes() as u64;
+    let (tx_done, rx_done) = crossbeam_channel::unbounded::<Resampled>();
+    let mut chunks = InFlight::default();
+    let result = run.pool.in_place_scope(|scope| -> Result<()> {
+        // Waits for the oldest chunk in flight and passes it on.
+        let forward_oldest = |chunks: &mut InFlight| -> Result<()> {
+            let done = chunks.finish_oldest(&rx_done)?;
+            let _ = tx_free_win.try_send(done.win);
+            let made = made(run, done.band, done.x0, done.raw)?;
+            tx_raw.send(made).map_err(|_| Error::Cancelled)
+        };
+        for (seq, msg) in rx_read.iter().enumerate() {
+            let seq = seq as u64;
+            if run.stop.now() {
+                return Err(Error::Cancelled);
+            }
+            let rows_now = msg.in_place.map(|_| (msg.win.y0, msg.win.y0 + msg.win.h));
+            // Mapped rows stay within eight shares (the windows' four,
+            // unused when chunks are read in place, and four of the
+            // budget's slack): where the chunks in flight and this
+            // one would map more together (the first chunk of a band
+            // beside the last of the one before), the older ones are
+            // finished first, and the workers idle through the
+            // older one's last rows (eight shares, not the six of
+            // one chunk, so that this is rare at band edges).
+            while !chunks.is_empty() && chunks.rows_hull(rows_now).is_some_and(|(a, b)| (b - a) as u64 * row_bytes > run.budget.mapped_rows()) {
+                forward_oldest(&mut chunks)?;
+            }
+            chunks.release_finished_rows(src, rows_now);
+            let spare = rx_free_raw.try_recv().ok();
+            let tx_done = tx_done.clone();
+            chunks.start(seq, rows_now);
+            scope.spawn(move |_| {
+                // A panic (a bug) must still report the chunk: the
+                // stage waits for it, and the run would hang.
+                let raw = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| resample(run, &msg, spare)))
+                    .unwrap_or_else(|p| Err(super::stages::resample::Failed::Read(panicked("resampling", p.as_ref()))));
+                let _ = tx_done.send(Resampled { seq, raw, win: msg.win, band: msg.band, x0: msg.chunk.x0 });
+            });
+            while chunks.len() >= in_flight {
+                forward_oldest(&mut chunks)?;
+            }
+        }
+        while !chunks.is_empty() {
+            forward_oldest(&mut chunks)?;
+        }
+        Ok(())
+    });
+    chunks.release_finished_rows(src, None);
+    result?;
+    drop(tx_raw);
+    Ok(chunks.busy)
+}
+
+/// The stages' busy times; or the first error that was not a stop (a
+/// stage that saw the others stop says Cancelled, not why).
+fn busy_of(results: Vec<Result<Duration>>) -> Result<Busy> {
     let mut times = Vec::with_capacity(results.len());
     let mut cancelled = false;
     let mut root = None;

@@ -16,6 +16,7 @@ pub mod gcm;
 mod holes;
 pub mod read;
 pub mod resample;
+mod resample_row;
 mod transpose;
 pub mod write;
 

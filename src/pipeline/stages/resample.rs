@@ -3,14 +3,13 @@
 
 use super::holes::ScanHoles;
 use super::read::ReadMsg;
+use super::resample_row::{RowMaker, RowScratch};
 use crate::dem::Lookup;
 use crate::error::Result;
 use crate::gcm::Gcm;
 use crate::io::source::{SampleType, SourceImage, SourceInfo, Window};
-use crate::options::Occlusion;
 use crate::pipeline::context::{PixelOptions, Run};
-use crate::resample::area::{area_pixel, footprint_window, pixel_quad, AreaKind, AreaScratch, Covered};
-use crate::resample::{resample_row, resample_spans, span_bounds, span_position, Kernel, Sample, SpanOutcome, View};
+use crate::resample::{Sample, View};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -221,10 +220,6 @@ pub fn resample_chunk<T: Sample + Recycle>(
     }
     let direct = bo == bands_in;
     let holes = ScanHoles::of(src, opts.holes, opts.kernel);
-    // Row `r` of the chunk into `px` (and `valid`, where the alpha band
-    // needs it); scan positions (`cols`, `rws`) only where a row is not all
-    // stepped spans: made on first need, not zeroed for every split of the
-    // chunk.
     // The scan windows the rows are made from: the chunk's own, read by the
     // read stage; or, for a chunk whose window would pass the budget (an
     // output pixel far larger than a scan pixel), one a strip of its rows,
@@ -254,167 +249,8 @@ pub fn resample_chunk<T: Sample + Recycle>(
             if c1 == info.width { f64::INFINITY } else { c1 as f64 - r },
             if r1 == info.height { f64::INFINITY } else { r1 as f64 - r },
         ];
-        // Row `r`'s pixels `cx` (chunk columns) into those of `px` and `valid`.
-        let make_row = |r: usize,
-                        cx: std::ops::Range<usize>,
-                        cols: &mut Vec<f64>,
-                        rws: &mut Vec<f64>,
-                        px: &mut [T],
-                        valid: &mut [bool],
-                        spans: &mut Vec<crate::geom::Span>,
-                        feet: &mut Footprints,
-                        miss: &mut Option<Miss>| {
-            let (px, valid) = (&mut px[cx.start * bands_in..cx.end * bands_in], &mut valid[cx.clone()]);
-            let (x0, w) = (x0 + cx.start as u32, cx.len());
-            let positions = |cols: &mut Vec<f64>, rws: &mut Vec<f64>| {
-                cols.resize(w, 0.0);
-                rws.resize(w, 0.0);
-            };
-            let y = y0 + r as u32;
-            // Pixels whose kernel would leave the window: read their
-            // neighbourhood on their own (rare; the plan adds a margin).
-            let is_safe = |(c, rr): (f64, f64)| c >= safe[0] && rr >= safe[1] && c < safe[2] && rr < safe[3];
-            let is_safe_box = |b: [f64; 4]| is_safe((b[0], b[1])) && is_safe((b[2], b[3]));
-            let reread = |at: (f64, f64), out: &mut [T]| {
-                if !is_safe(at) {
-                    single_pixel(src, opts.kernel, at.0, at.1, out, fill);
-                }
-            };
-            let x0 = x0 as usize;
-            let by_spans = opts.kernel == Kernel::Bilinear && !view.is_empty() && gcm.row_spans(&msg.gcm, y, x0 as u32, w, spans);
-            if by_spans {
-                // Stepped spans: positions step in fixed point, runs
-                // of them in one call; the rest (refined cells) pixel
-                // by pixel.
-                for run in spans.chunk_by(|p, q| p.stepped == q.stepped) {
-                    let (first, end) = (run[0].first, run[run.len() - 1].end);
-                    let (a, b) = (first - x0, end - x0);
-                    let out: &mut [T] = &mut px[a * bands_in..b * bands_in];
-                    let valid = &mut valid[a..b];
-                    let stepped = run[0].stepped;
-                    let outcome = if stepped {
-                        resample_spans(&view, run, out, valid, fill)
-                    } else {
-                        positions(cols, rws);
-                        let n = gcm.fill_exact(&msg.gcm, y, first as u32, &mut cols[a..b], &mut rws[a..b], miss);
-                        exact.fetch_add(n, Ordering::Relaxed);
-                        SpanOutcome::Checked { clamped: resample_row(opts.kernel, &view, &cols[a..b], &rws[a..b], out, valid, fill) }
-                    };
-                    if outcome == SpanOutcome::Inside && (!direct || opts.mask || holes.is_some() || opts.nudge) {
-                        // The alpha band or the mask below reads it.
-                        valid.fill(true);
-                    }
-                    if outcome == (SpanOutcome::Checked { clamped: true }) {
-                        for s in run {
-                            // A stepped span whose bounds are safe is safe throughout.
-                            if stepped && is_safe_box(span_bounds(s)) {
-                                continue;
-                            }
-                            for x in s.first..s.end {
-                                let j = x - first;
-                                if valid[j] {
-                                    let at = if stepped { span_position(s, x) } else { (cols[x - x0], rws[x - x0]) };
-                                    reread(at, &mut out[j * bands_in..(j + 1) * bands_in]);
-                                }
-                            }
-                        }
-                    }
-                }
-            } else if let Some(kind) = opts.kernel.area() {
-                positions(cols, rws);
-                exact.fetch_add(gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, miss), Ordering::Relaxed);
-                feet.corners(gcm, &msg.gcm, y, x0, w, miss);
-                for (i, p) in px.chunks_exact_mut(bands_in).enumerate() {
-                    valid[i] = view.has_value(cols[i], rws[i]) && {
-                        let quad = pixel_quad((&feet.top.0, &feet.top.1), (&feet.bottom.0, &feet.bottom.1), i);
-                        let at = (cols[i], rws[i]);
-                        let (covered, read) = match area_pixel(kind, &view, &quad, p, &mut feet.scratch) {
-                            Covered::Value => (true, Some(&quad)),
-                            Covered::LeavesWindow => (single_footprint(src, kind, &quad, opts.area, p, &mut feet.scratch, at), Some(&quad)),
-                            // No area (a degenerate corner): the scan at the centre.
-                            Covered::Nothing => (nearest_at(&view, at, p, fill), None),
-                        };
-                        covered
-                            && holes.as_ref().is_none_or(|h| match read {
-                                Some(quad) => h.clear_quad(&view, quad),
-                                None => h.clear_pixel(&view, at),
-                            })
-                    };
-                    if !valid[i] {
-                        p.fill(fill);
-                    }
-                }
-            } else {
-                positions(cols, rws);
-                exact.fetch_add(gcm.fill_row(&msg.gcm, y, x0 as u32, cols, rws, miss), Ordering::Relaxed);
-                if resample_row(opts.kernel, &view, cols, rws, px, valid, fill) {
-                    for (i, p) in px.chunks_exact_mut(bands_in).enumerate().filter(|(i, _)| valid[*i]) {
-                        reread((cols[i], rws[i]), p);
-                    }
-                }
-            }
-            if let (Some(h), None) = (&holes, opts.kernel.area()) {
-                // Pixels whose kernel reads the scan's holes: none.
-                let mut clear = |i: usize, at: (f64, f64)| {
-                    if valid[i] && !h.clear_at(&view, at) {
-                        valid[i] = false;
-                        px[i * bands_in..(i + 1) * bands_in].fill(fill);
-                    }
-                };
-                if by_spans {
-                    for s in spans.iter() {
-                        for x in s.first..s.end {
-                            clear(x - x0, if s.stepped { span_position(s, x) } else { (cols[x - x0], rws[x - x0]) });
-                        }
-                    }
-                } else {
-                    (0..w).for_each(|i| clear(i, (cols[i], rws[i])));
-                }
-            }
-            if let Some(seen) = &msg.gcm.seen {
-                // Ground the sensor does not see: no value (and, unless
-                // asked to keep them, not the occluder's pixels either).
-                let keep = opts.occlusion == Occlusion::Mask;
-                for (i, p) in px.chunks_exact_mut(bands_in).enumerate() {
-                    if !seen.at((x0 + i) as u32, y) {
-                        valid[i] = false;
-                        if !keep {
-                            p.fill(fill);
-                        }
-                    }
-                }
-            }
-            if opts.nudge {
-                let mut moved = 0;
-                let off = T::from_f32(off_nodata(f64::from(fill.to_f32()), T::TYPE) as f32);
-                // Each run of pixels with a value looked at whole (a compare
-                // without a branch, which the compiler vectorises; a whole
-                // row found at memchr's speed); the rare run that holds the
-                // value, sample by sample.
-                let mut nudge = |run: &mut [T]| {
-                    if run.iter().fold(false, |hit, &s| hit | (s == fill)) {
-                        for s in run.iter_mut().filter(|s| **s == fill) {
-                            *s = off;
-                            moved += 1;
-                        }
-                    }
-                };
-                let flags: &[u8] = bytemuck::cast_slice(valid);
-                if !flags.contains(&0) {
-                    nudge(px);
-                } else {
-                    let mut x = 0;
-                    while let Some(start) = valid[x..].iter().position(|&v| v).map(|p| x + p) {
-                        let end = valid[start..].iter().position(|&v| !v).map_or(valid.len(), |p| start + p);
-                        nudge(&mut px[start * bands_in..end * bands_in]);
-                        x = end;
-                    }
-                }
-                if moved > 0 {
-                    nudged.fetch_add(moved, Ordering::Relaxed);
-                }
-            }
-        };
+        let placing = Placing { group, rows, stride, w, t, bo, bands_in, direct, opaque };
+        let maker = RowMaker { gcm, band: &msg.gcm, src, view, opts: &opts, holes: holes.as_ref(), safe, fill, bands_in, direct, x0, y0, exact, nudged };
         let misses: Vec<Option<Miss>> = pieces
             .par_iter_mut()
             .zip(mask_pieces.par_iter_mut())
@@ -422,98 +258,17 @@ pub fn resample_chunk<T: Sample + Recycle>(
             .enumerate()
             .map_init(
                 // The rows of a task, one after the other.
-                || (Vec::new(), Vec::new(), vec![T::default(); group * stride * bands_in], vec![false; group * w], Vec::new(), Footprints::default()),
-                |(cols, rws, block, valid_block, spans, feet), (g, (row_pieces, mask_pieces))| {
-                    let mut miss = None;
+                || (RowScratch::default(), vec![T::default(); group * stride * bands_in], vec![false; group * w]),
+                |(scratch, block, valid_block), (g, (row_pieces, mask_pieces))| {
                     // (Rows of other strips are theirs; one a task then.)
                     if g * group < rows && !range.contains(&(g * group)) {
                         return None;
                     }
                     if transposed {
-                        for j in 0..group {
-                            let at = j * stride * bands_in;
-                            let (px, valid) = (&mut block[at..at + w * bands_in], &mut valid_block[j * w..(j + 1) * w]);
-                            if g * group + j < rows {
-                                make_row(g * group + j, cx.clone(), cols, rws, px, valid, spans, feet, &mut miss);
-                            } else {
-                                // Beyond the grid's edge: zero.
-                                px.fill(T::default());
-                                valid.fill(false);
-                            }
-                        }
-                        // Piece x takes pixel x of each row made (those of
-                        // columns `cx`; the pieces past the grid's edge zero).
-                        // Where every pixel of the block has a value (nearly
-                        // every block), whole pieces at once: byte by byte,
-                        // this took 0.28 s of a 1 GiB scan's 4.6 s.
-                        let all_valid = !mask_pieces.is_empty()
-                            && (0..group).all(|j| {
-                                let row: &[u8] = bytemuck::cast_slice(&valid_block[j * w + cx.start..j * w + cx.end]);
-                                !row.contains(&0)
-                            });
-                        for (x, piece) in mask_pieces.iter_mut().enumerate().filter(|(x, _)| cx.contains(x) || *x >= w) {
-                            if x >= w || all_valid {
-                                piece.fill(u8::from(x < w));
-                                continue;
-                            }
-                            for (j, to) in piece.iter_mut().enumerate() {
-                                *to = u8::from(valid_block[j * w + x]);
-                            }
-                        }
-                        let (seen, pad) = row_pieces.split_at_mut(w);
-                        let seen = &mut seen[cx.clone()];
-                        if direct {
-                            let px_bytes = bands_in * std::mem::size_of::<T>();
-                            let from: &[u8] = bytemuck::cast_slice(block);
-                            super::transpose::gather(&from[cx.start * px_bytes..], group, stride, px_bytes, seen);
-                        } else {
-                            for (x, piece) in seen.iter_mut().enumerate().map(|(i, p)| (i + cx.start, p)) {
-                                for (j, to) in piece.chunks_exact_mut(bo).enumerate() {
-                                    let at = (j * stride + x) * bands_in;
-                                    to[..bands_in].copy_from_slice(&block[at..at + bands_in]);
-                                    to[bands_in] = if valid_block[j * w + x] { opaque } else { T::default() };
-                                }
-                            }
-                        }
-                        pad.iter_mut().for_each(|p| p.fill(T::default()));
-                        return miss;
+                        placing.transposed(&maker, g, cx.clone(), scratch, block, valid_block, row_pieces, mask_pieces)
+                    } else {
+                        placing.rows(&maker, g, cx.clone(), scratch, block, valid_block, row_pieces, mask_pieces)
                     }
-                    let (px, valid) = (block, valid_block);
-                    for j in 0..group {
-                        let r = g * group + j;
-                        if r >= rows {
-                            // Below the grid's edge.
-                            row_pieces.iter_mut().for_each(|p| p.fill(T::default()));
-                            mask_pieces.iter_mut().for_each(|p| p.fill(0));
-                            continue;
-                        }
-                        make_row(r, cx.clone(), cols, rws, px, valid, spans, feet, &mut miss);
-                        // Each tile's stretch of the row: of it, the columns `cx`.
-                        let part = |tx: usize| {
-                            let (xs, n) = (tx * t, t.min(w - tx * t));
-                            (xs, n, cx.start.clamp(xs, xs + n) - xs..cx.end.clamp(xs, xs + n) - xs)
-                        };
-                        for (tx, piece) in mask_pieces.iter_mut().enumerate() {
-                            let (xs, n, own) = part(tx);
-                            piece[own.clone()].copy_from_slice(bytemuck::cast_slice(&valid[xs + own.start..xs + own.end]));
-                            piece[n..].fill(0);
-                        }
-                        for (tx, piece) in row_pieces.iter_mut().enumerate() {
-                            let (xs, n, own) = part(tx);
-                            let (seg_out, pad) = piece.split_at_mut(n * bo);
-                            pad.fill(T::default());
-                            if direct {
-                                seg_out[own.start * bo..own.end * bo].copy_from_slice(&px[(xs + own.start) * bands_in..(xs + own.end) * bands_in]);
-                            } else {
-                                for i in own {
-                                    let s = (xs + i) * bands_in;
-                                    seg_out[i * bo..i * bo + bands_in].copy_from_slice(&px[s..s + bands_in]);
-                                    seg_out[i * bo + bands_in] = if valid[xs + i] { opaque } else { T::default() };
-                                }
-                            }
-                        }
-                    }
-                    miss
                 },
             )
             .collect();
@@ -524,6 +279,145 @@ pub fn resample_chunk<T: Sample + Recycle>(
         None => Ok((out, opts.mask.then_some(mask))),
     }
 }
+/// How a chunk's rows go into its tiles: what every task of it shares.
+struct Placing<T> {
+    /// Rows a task makes.
+    group: usize,
+    /// The chunk's rows and width, the tile's side.
+    rows: usize,
+    w: usize,
+    t: usize,
+    /// Pixels apart, the rows a transposed task makes.
+    stride: usize,
+    bands_in: usize,
+    bo: usize,
+    direct: bool,
+    /// The alpha band's value of a pixel with a value.
+    opaque: T,
+}
+
+impl<T: Sample> Placing<T> {
+    /// Task `g` of a chunk walked transposed (bands of tile columns): its
+    /// rows are the tiles' columns, made into `block` and gathered, pixel
+    /// by pixel, into the pieces of every tile row.
+    #[allow(clippy::too_many_arguments)] // the task and its buffers
+    fn transposed(
+        &self,
+        maker: &RowMaker<'_, T>,
+        g: usize,
+        cx: std::ops::Range<usize>,
+        scratch: &mut RowScratch,
+        block: &mut [T],
+        valid_block: &mut [bool],
+        row_pieces: &mut [&mut [T]],
+        mask_pieces: &mut [&mut [u8]],
+    ) -> Option<Miss> {
+        let Placing { group, rows, w, stride, bands_in, bo, direct, opaque, .. } = *self;
+        let mut miss = None;
+        for j in 0..group {
+            let at = j * stride * bands_in;
+            let (px, valid) = (&mut block[at..at + w * bands_in], &mut valid_block[j * w..(j + 1) * w]);
+            if g * group + j < rows {
+                maker.make(g * group + j, cx.clone(), scratch, px, valid, &mut miss);
+            } else {
+                // Beyond the grid's edge: zero.
+                px.fill(T::default());
+                valid.fill(false);
+            }
+        }
+        // Piece x takes pixel x of each row made (those of
+        // columns `cx`; the pieces past the grid's edge zero).
+        // Where every pixel of the block has a value (nearly
+        // every block), whole pieces at once: byte by byte,
+        // this took 0.28 s of a 1 GiB scan's 4.6 s.
+        let all_valid = !mask_pieces.is_empty()
+            && (0..group).all(|j| {
+                let row: &[u8] = bytemuck::cast_slice(&valid_block[j * w + cx.start..j * w + cx.end]);
+                !row.contains(&0)
+            });
+        for (x, piece) in mask_pieces.iter_mut().enumerate().filter(|(x, _)| cx.contains(x) || *x >= w) {
+            if x >= w || all_valid {
+                piece.fill(u8::from(x < w));
+                continue;
+            }
+            for (j, to) in piece.iter_mut().enumerate() {
+                *to = u8::from(valid_block[j * w + x]);
+            }
+        }
+        let (seen, pad) = row_pieces.split_at_mut(w);
+        let seen = &mut seen[cx.clone()];
+        if direct {
+            let px_bytes = bands_in * std::mem::size_of::<T>();
+            let from: &[u8] = bytemuck::cast_slice(block);
+            super::transpose::gather(&from[cx.start * px_bytes..], group, stride, px_bytes, seen);
+        } else {
+            for (x, piece) in seen.iter_mut().enumerate().map(|(i, p)| (i + cx.start, p)) {
+                for (j, to) in piece.chunks_exact_mut(bo).enumerate() {
+                    let at = (j * stride + x) * bands_in;
+                    to[..bands_in].copy_from_slice(&block[at..at + bands_in]);
+                    to[bands_in] = if valid_block[j * w + x] { opaque } else { T::default() };
+                }
+            }
+        }
+        pad.iter_mut().for_each(|p| p.fill(T::default()));
+        miss
+    }
+
+    /// Task `g` of a chunk walked in bands of tile rows: each row made,
+    /// then its stretch in each tile copied into that tile's piece.
+    #[allow(clippy::too_many_arguments)] // the task and its buffers
+    fn rows(
+        &self,
+        maker: &RowMaker<'_, T>,
+        g: usize,
+        cx: std::ops::Range<usize>,
+        scratch: &mut RowScratch,
+        block: &mut [T],
+        valid_block: &mut [bool],
+        row_pieces: &mut [&mut [T]],
+        mask_pieces: &mut [&mut [u8]],
+    ) -> Option<Miss> {
+        let Placing { group, rows, w, t, bands_in, bo, direct, opaque, .. } = *self;
+        let mut miss = None;
+        let (px, valid) = (block, valid_block);
+        for j in 0..group {
+            let r = g * group + j;
+            if r >= rows {
+                // Below the grid's edge.
+                row_pieces.iter_mut().for_each(|p| p.fill(T::default()));
+                mask_pieces.iter_mut().for_each(|p| p.fill(0));
+                continue;
+            }
+            maker.make(r, cx.clone(), scratch, px, valid, &mut miss);
+            // Each tile's stretch of the row: of it, the columns `cx`.
+            let part = |tx: usize| {
+                let (xs, n) = (tx * t, t.min(w - tx * t));
+                (xs, n, cx.start.clamp(xs, xs + n) - xs..cx.end.clamp(xs, xs + n) - xs)
+            };
+            for (tx, piece) in mask_pieces.iter_mut().enumerate() {
+                let (xs, n, own) = part(tx);
+                piece[own.clone()].copy_from_slice(bytemuck::cast_slice(&valid[xs + own.start..xs + own.end]));
+                piece[n..].fill(0);
+            }
+            for (tx, piece) in row_pieces.iter_mut().enumerate() {
+                let (xs, n, own) = part(tx);
+                let (seg_out, pad) = piece.split_at_mut(n * bo);
+                pad.fill(T::default());
+                if direct {
+                    seg_out[own.start * bo..own.end * bo].copy_from_slice(&px[(xs + own.start) * bands_in..(xs + own.end) * bands_in]);
+                } else {
+                    for i in own {
+                        let s = (xs + i) * bands_in;
+                        seg_out[i * bo..i * bo + bands_in].copy_from_slice(&px[s..s + bands_in]);
+                        seg_out[i * bo + bands_in] = if valid[xs + i] { opaque } else { T::default() };
+                    }
+                }
+            }
+        }
+        miss
+    }
+}
+
 /// The value a sample holding the nodata value `v` is moved to: GDAL's
 /// warper's choice, one up (one down at the top of the type; a float's
 /// next one up).
@@ -543,99 +437,4 @@ pub fn off_nodata(v: f64, sample: SampleType) -> f64 {
         }
         _ => v + 1.0,
     }
-}
-
-/// The corners of a row's output pixels in the scan, along its top and
-/// bottom edges, for the area kernels; and their scratch buffers.
-#[derive(Default)]
-struct Footprints {
-    top: (Vec<f64>, Vec<f64>),
-    bottom: (Vec<f64>, Vec<f64>),
-    centres: (Vec<f64>, Vec<f64>),
-    scratch: AreaScratch,
-}
-
-impl Footprints {
-    /// Corners `x0..=x0 + w` of output row `y`: on each edge, half-way
-    /// between the neighbouring pixels' positions on it (the same whatever
-    /// the chunk, so results do not depend on where chunks begin); past the
-    /// grid's first and last pixel, carried on straight.
-    fn corners(&mut self, gcm: &Gcm<'_>, band: &crate::gcm::BandGcm, y: u32, x0: usize, w: usize, miss: &mut Option<Miss>) {
-        let width = gcm.t.grid.width as usize;
-        let (a, b) = (x0.saturating_sub(1), (x0 + w + 1).min(width));
-        let (cc, cr) = &mut self.centres;
-        for (v, (oc, or)) in [(y as f64, &mut self.top), (y as f64 + 1.0, &mut self.bottom)] {
-            cc.resize(b - a, 0.0);
-            cr.resize(b - a, 0.0);
-            gcm.fill_exact_at(band, y, v, a as u32, cc, cr, miss);
-            let p = |x: usize| (cc[x - a], cr[x - a]);
-            oc.clear();
-            or.clear();
-            for x in x0..=x0 + w {
-                let (c, r) = if x == 0 || x == width {
-                    // An end: one pixel's centre and half its step on.
-                    let (e, n) = if x == 0 { (0, 1) } else { (width - 1, width.saturating_sub(2)) };
-                    let (pe, pn) = (p(e), if n < width && n != e { p(n) } else { p(e) });
-                    (pe.0 + 0.5 * (pe.0 - pn.0), pe.1 + 0.5 * (pe.1 - pn.1))
-                } else {
-                    let (l, r) = (p(x - 1), p(x));
-                    (0.5 * (l.0 + r.0), 0.5 * (l.1 + r.1))
-                };
-                oc.push(c);
-                or.push(r);
-            }
-        }
-    }
-}
-
-/// An area kernel's pixel from a window read just for its footprint;
-/// whether it has a value.
-fn single_footprint<T: Sample>(
-    src: &SourceImage,
-    kind: AreaKind,
-    quad: &[[f64; 2]; 4],
-    area: Option<crate::geom::ImageArea>,
-    out: &mut [T],
-    scratch: &mut AreaScratch,
-    centre: (f64, f64),
-) -> bool {
-    let info = &src.info;
-    let Some([c0, r0, c1, r1]) = footprint_window(quad, info.width as f64, info.height as f64) else {
-        return false;
-    };
-    let mut win = Window::default();
-    if src.read_window(c0 as u32, r0 as u32, (c1 - c0) as u32, (r1 - r0) as u32, &mut win).is_err() {
-        return false;
-    }
-    let view = View::<T>::new(&win, info.bands, info.width, info.height).with_area(area);
-    match area_pixel(kind, &view, quad, out, scratch) {
-        Covered::Value => true,
-        _ => nearest_at(&view, centre, out, T::default()),
-    }
-}
-
-/// The scan pixel at `at` (a footprint without area); whether it has a value.
-fn nearest_at<T: Sample>(view: &View<'_, T>, at: (f64, f64), out: &mut [T], fill: T) -> bool {
-    let mut valid = [false];
-    resample_row(Kernel::Nearest, view, &[at.0], &[at.1], out, &mut valid, fill);
-    valid[0]
-}
-
-/// Resamples one pixel from a window read just for it.
-fn single_pixel<T: Sample>(src: &SourceImage, kernel: Kernel, c: f64, r: f64, out: &mut [T], fill: T) {
-    let info = &src.info;
-    let rad = kernel.radius() as i64 + 1;
-    let (ci, ri) = (c.floor() as i64, r.floor() as i64);
-    let c0 = (ci - rad).clamp(0, info.width as i64) as u32;
-    let r0 = (ri - rad).clamp(0, info.height as i64) as u32;
-    let c1 = (ci + rad + 1).clamp(0, info.width as i64) as u32;
-    let r1 = (ri + rad + 1).clamp(0, info.height as i64) as u32;
-    let mut win = Window::default();
-    if src.read_window(c0, r0, c1 - c0, r1 - r0, &mut win).is_err() {
-        out.fill(fill);
-        return;
-    }
-    let view = View::<T>::new(&win, info.bands, info.width, info.height);
-    let mut valid = [false];
-    resample_row(kernel, &view, &[c], &[r], out, &mut valid, fill);
 }
