@@ -81,6 +81,60 @@ impl FrameCamera {
         if !(pc > -0.5 * w && pc < 1.5 * w && pr > -0.5 * h && pr < 1.5 * h) {
             return Err(Error::config(path, "interior", format!("the principal point falls at pixel ({pc:.0}, {pr:.0}), far outside the {w}×{h} image")));
         }
+        // A lens model that folds back inside the image would leave all
+        // past the fold unimaged (k1 = 1e6: a disc of a few pixels): terms
+        // in the wrong unit or sign, not a lens. (A circular fisheye's
+        // circle reaches the nearest edge; its model may fold beyond it.)
+        if self.fold_mm.is_finite() {
+            let (dx, dy) = self.distortion.apply(self.fold_mm, 0.0, self.focal_mm);
+            let (fc, fr) = self.interior.mm_to_px(dx, dy);
+            let reach = (fc - pc).hypot(fr - pr);
+            let edge = pc.min(w - pc).min(pr).min(h - pr);
+            if reach < 0.9 * edge {
+                return Err(Error::config(
+                    path,
+                    "distortion",
+                    format!(
+                        "the lens model folds back {reach:.0} px from the principal point, inside the image (its nearest edge is {edge:.0} px away), so nothing past it is imaged: these terms are not this lens's (their unit or sign?)"
+                    ),
+                ));
+            }
+        }
+        // Terms that shrink the view many times (k1 = 1e6: the whole image
+        // within half a degree of the axis) are not a lens's either: real
+        // ones move a point by tens of per cent, a fisheye outward.
+        let edge = pc.min(w - pc).min(pr).min(h - pr);
+        let (ex, ey) = self.interior.px_to_mm(pc + edge, pr);
+        let distorted = ex.hypot(ey);
+        // The ideal radius imaged at the edge, found from the axis out
+        // (the model grows up to its fold; past it lie other roots).
+        let along = |t: f64| {
+            let (x, y) = self.distortion.apply(t * ex / distorted, t * ey / distorted, self.focal_mm);
+            x.hypot(y)
+        };
+        let (mut lo, mut hi) = (0.0, if self.fold_mm.is_finite() { self.fold_mm } else { 4.0 * self.focal_mm });
+        if distorted > 0.0 && along(hi) >= distorted {
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                if along(mid) < distorted {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let ideal = 0.5 * (lo + hi);
+            if ideal < distorted / 3.0 {
+                return Err(Error::config(
+                    path,
+                    "distortion",
+                    format!(
+                        "the lens terms put the image's nearest edge {:.2}° off the axis, where its focal length puts it {:.1}°: these terms are not this lens's (their unit or sign?)",
+                        (ideal / self.focal_mm).atan().to_degrees(),
+                        (distorted / self.focal_mm).atan().to_degrees()
+                    ),
+                ));
+            }
+        }
         let (x0, y0) = self.interior.px_to_mm(0.0, 0.0);
         let (x1, y1) = self.interior.px_to_mm(w, h);
         let diagonal = (x1 - x0).hypot(y1 - y0);
@@ -364,6 +418,31 @@ mod tests {
         cam.project_many(&[900.0, 1300.0], &[0.0, 0.0], &[0.0, 0.0], &mut c, &mut r);
         assert_eq!((c[0], r[0]), near);
         assert!(c[1].is_nan() && r[1].is_nan());
+    }
+
+    /// Lens terms that fold back inside the image, or shrink its view many
+    /// times, are refused by name; a lens whose fold lies past the image
+    /// (and a barrel of tens of per cent) is not.
+    #[test]
+    fn lens_terms_that_fold_inside_the_image_or_shrink_it_are_refused() {
+        let camera = |d: Distortion| {
+            let io = InteriorOrientation::digital(0.01, [5000.0, 5000.0]).unwrap();
+            FrameCamera::new(50.0, Vector3::new(0.0, 0.0, 1000.0), Matrix3::identity(), io, d, Refraction::None, false)
+        };
+        let brown = |k1: f64| Distortion::Brown(crate::camera::distortion::Brown { k1, k2: 0.0, k3: 0.0, p1: 0.0, p2: 0.0 });
+        let path = std::path::Path::new("cam.toml");
+        // The 10000 px image reaches 1 focal length from its centre. k1 =
+        // -0.1 folds at 1.78 focal lengths, its image there 1.22 out: past
+        // the edge. k1 = -0.3 folds where its image is 0.70 out, and k1 = -3
+        // at 0.22: inside.
+        camera(brown(-0.1)).check_sees_ground(10_000, 10_000, 0.0, path).unwrap();
+        assert!(camera(brown(-0.3)).check_sees_ground(10_000, 10_000, 0.0, path).is_err());
+        let e = camera(brown(-3.0)).check_sees_ground(10_000, 10_000, 0.0, path).unwrap_err().to_string();
+        assert!(e.starts_with("cam.toml: distortion: the lens model folds back") && e.contains("inside the image"), "{e}");
+        let fisheye = |k1: f64, k2: f64| Distortion::Fisheye(crate::camera::distortion::Fisheye { k1, k2, k3: 0.0, k4: 0.0 });
+        camera(fisheye(-0.05, 0.01)).check_sees_ground(10_000, 10_000, 0.0, path).unwrap();
+        let e = camera(fisheye(1e6, -1e6)).check_sees_ground(10_000, 10_000, 0.0, path).unwrap_err().to_string();
+        assert!(e.starts_with("cam.toml: distortion: the lens terms put the image's nearest edge"), "{e}");
     }
 
     #[test]
