@@ -264,10 +264,11 @@ pub fn resample_chunk<T: Sample + Recycle>(
                     if g * group < rows && !range.contains(&(g * group)) {
                         return None;
                     }
+                    let task = Task { g, cx: cx.clone(), scratch, block, valid_block, row_pieces, mask_pieces };
                     if transposed {
-                        placing.transposed(&maker, g, cx.clone(), scratch, block, valid_block, row_pieces, mask_pieces)
+                        placing.transposed(&maker, task)
                     } else {
-                        placing.rows(&maker, g, cx.clone(), scratch, block, valid_block, row_pieces, mask_pieces)
+                        placing.rows(&maker, task)
                     }
                 },
             )
@@ -296,22 +297,24 @@ struct Placing<T> {
     opaque: T,
 }
 
+/// One task of a chunk: its index, the columns it makes, its buffers, and
+/// the pieces of the tiles it fills.
+struct Task<'t, 'p, T> {
+    g: usize,
+    cx: std::ops::Range<usize>,
+    scratch: &'t mut RowScratch,
+    block: &'t mut [T],
+    valid_block: &'t mut [bool],
+    row_pieces: &'t mut [&'p mut [T]],
+    mask_pieces: &'t mut [&'p mut [u8]],
+}
+
 impl<T: Sample> Placing<T> {
     /// Task `g` of a chunk walked transposed (bands of tile columns): its
     /// rows are the tiles' columns, made into `block` and gathered, pixel
     /// by pixel, into the pieces of every tile row.
-    #[allow(clippy::too_many_arguments)] // the task and its buffers
-    fn transposed(
-        &self,
-        maker: &RowMaker<'_, T>,
-        g: usize,
-        cx: std::ops::Range<usize>,
-        scratch: &mut RowScratch,
-        block: &mut [T],
-        valid_block: &mut [bool],
-        row_pieces: &mut [&mut [T]],
-        mask_pieces: &mut [&mut [u8]],
-    ) -> Option<Miss> {
+    fn transposed(&self, maker: &RowMaker<'_, T>, task: Task<'_, '_, T>) -> Option<Miss> {
+        let Task { g, cx, scratch, block, valid_block, row_pieces, mask_pieces } = task;
         let Placing { group, rows, w, stride, bands_in, bo, direct, opaque, .. } = *self;
         let mut miss = None;
         for j in 0..group {
@@ -365,18 +368,8 @@ impl<T: Sample> Placing<T> {
 
     /// Task `g` of a chunk walked in bands of tile rows: each row made,
     /// then its stretch in each tile copied into that tile's piece.
-    #[allow(clippy::too_many_arguments)] // the task and its buffers
-    fn rows(
-        &self,
-        maker: &RowMaker<'_, T>,
-        g: usize,
-        cx: std::ops::Range<usize>,
-        scratch: &mut RowScratch,
-        block: &mut [T],
-        valid_block: &mut [bool],
-        row_pieces: &mut [&mut [T]],
-        mask_pieces: &mut [&mut [u8]],
-    ) -> Option<Miss> {
+    fn rows(&self, maker: &RowMaker<'_, T>, task: Task<'_, '_, T>) -> Option<Miss> {
+        let Task { g, cx, scratch, block, valid_block, row_pieces, mask_pieces } = task;
         let Placing { group, rows, w, t, bands_in, bo, direct, opaque, .. } = *self;
         let mut miss = None;
         let (px, valid) = (block, valid_block);
