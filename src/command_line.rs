@@ -63,21 +63,6 @@ fn usage_error(e: clap::Error) -> u8 {
     2
 }
 
-/// The subcommand this process runs, set once by [`run`].
-static COMMAND: std::sync::OnceLock<String> = std::sync::OnceLock::new();
-
-/// A text of the library (a warning, a report) with each setting it names
-/// said as this command's flag (`‹dem_hole›` → `--dem-hole`).
-pub fn with_flags(text: &str) -> String {
-    let command = COMMAND.get().map(String::as_str).unwrap_or_default();
-    gcm_ortho::setting_names::name_settings(text, &|key| crate::cli::flag_of(command, key))
-}
-
-/// Says a warning of the library on standard error, its settings as flags.
-pub fn warn(text: &str) {
-    eprintln!("gcm-ortho: warning: {}", with_flags(text));
-}
-
 /// Runs the command line `args` (the program's name first); its exit code: 0
 /// success, 1 bad input or failure, 2 usage, 3 a batch in which some jobs
 /// failed, 130 SIGINT, 143 SIGTERM.
@@ -89,7 +74,7 @@ pub fn run(args: Vec<std::ffi::OsString>) -> u8 {
     };
     // Which subcommand ran, to name a setting by its flag where it has one.
     let command = args.get(1).map(|a| a.to_string_lossy().into_owned()).unwrap_or_default();
-    let _ = COMMAND.set(command.clone());
+    crate::flag_names::set_command(&command);
     let polls = matches!(
         cli.command,
         crate::cli::Command::Rectify(_)

@@ -145,10 +145,10 @@ fn run_dem(a: &crate::cli::DemArgs, signals: &Signals) -> Result<()> {
     }
     let report = dem(&o, &Bar::new(a.quiet), &signals.cancel)?;
     if let Some(w) = past_budget(&a.memory, o.memory) {
-        crate::command_line::warn(&w);
+        crate::flag_names::warn(&w);
     }
     if let Some(j) = &a.json {
-        write_file(j, crate::command_line::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
+        write_file(j, crate::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
     }
     if !a.quiet {
         eprintln!(
@@ -177,10 +177,10 @@ fn run_grid(a: &crate::cli::GridArgs, signals: &Signals) -> Result<()> {
     }
     let report = grid(&o, &Bar::new(a.quiet), &signals.cancel)?;
     if let Some(w) = past_budget(&a.memory, o.memory) {
-        crate::command_line::warn(&w);
+        crate::flag_names::warn(&w);
     }
     if let Some(j) = &a.json {
-        write_file(j, crate::command_line::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
+        write_file(j, crate::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
     }
     if !a.quiet {
         eprintln!(
@@ -241,13 +241,13 @@ fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {
         fiducials::sheet::write(s, fiducials::sheet::render(&src, &det)?)?;
     }
     for w in &det.warnings {
-        crate::command_line::warn(&format!("{}: {w}", a.image.display()));
+        crate::flag_names::warn(&format!("{}: {w}", a.image.display()));
     }
     if det.turn_ambiguous && turn.is_none() {
         eprintln!("gcm-ortho: note: the marks look the same turned; the scan is taken as it lies (--turn if the film was turned)");
     }
     if a.json {
-        say!("{}", crate::command_line::with_flags(&serde_json::to_string_pretty(&det)?));
+        say!("{}", crate::flag_names::with_flags(&serde_json::to_string_pretty(&det)?));
         return Ok(());
     }
     say!("{:>4} {:>10} {:>10} {:>11} {:>11} {:>6} {:>6} {:>8} {:>8}  used", "mark", "x mm", "y mm", "column", "row", "score", "centre", "res px", "res µm");
@@ -289,7 +289,7 @@ fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {
 fn run_cameras(a: &crate::cli::CamerasArgs) -> Result<()> {
     let done = gcm_ortho::camera::formats::convert::convert(&a.options()?)?;
     for w in &done.warnings {
-        crate::command_line::warn(w);
+        crate::flag_names::warn(w);
     }
     if a.quiet {
         return Ok(());
@@ -349,7 +349,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         None => mosaic(&o, &Bar::new(a.quiet), &signals.cancel)?,
     };
     if let Some(w) = past_budget(&a.memory, memory) {
-        crate::command_line::warn(&w);
+        crate::flag_names::warn(&w);
     }
     if let Some(j) = &a.json {
         // A rerun that finds its output current made nothing: it says so,
@@ -358,7 +358,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
             true => serde_json::to_string_pretty(&serde_json::json!({ "output": report.output, "skipped": true, "output_bytes": report.output_bytes }))?,
             false => serde_json::to_string_pretty(&report)?,
         };
-        write_file(j, crate::command_line::with_flags(&text).as_bytes())?;
+        write_file(j, crate::flag_names::with_flags(&text).as_bytes())?;
     }
     if report.skipped {
         if !a.quiet {
@@ -449,7 +449,7 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
                     .map(|e| e.to_string())
             });
             for w in recording.said() {
-                crate::command_line::warn(&format!("job {}: {w}", j.name));
+                crate::flag_names::warn(&format!("job {}: {w}", j.name));
             }
             if let Some(p) = problem {
                 eprintln!("gcm-ortho: job {} will fail: {p}", j.name);
@@ -466,7 +466,7 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
     let results = batch::run_jobs(&jobs, &o, &signals.cancel, &|r| {
         report.push(r);
         for w in &r.warnings {
-            crate::command_line::warn(&format!("job {}: {w}", r.job));
+            crate::flag_names::warn(&format!("job {}: {w}", r.job));
         }
         // A failed job's error, and a job left to another run, are shown
         // even when quiet: quiet hides progress, not what was not made.
@@ -501,7 +501,7 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
         );
     }
     if let Some(w) = past_budget(&a.memory, memory) {
-        crate::command_line::warn(&w);
+        crate::flag_names::warn(&w);
     }
     if signals.exit_code().is_some() {
         return Err(anyhow::Error::new(gcm_ortho::Error::Cancelled));
@@ -662,7 +662,7 @@ fn past_budget(given: &str, budget: u64) -> Option<String> {
 /// stderr, even with --quiet.
 fn warn_if_not_tiff(output: &Path) -> Option<String> {
     let w = gcm_ortho::io::tiff_out::named_as_other_format(output)?;
-    crate::command_line::warn(&w);
+    crate::flag_names::warn(&w);
     Some(w)
 }
 
@@ -678,7 +678,7 @@ fn threads_within_cores(asked: usize, at_once: usize) -> (usize, Option<String>)
     let fit = (cores / at_once).max(1);
     let jobs = if at_once > 1 { format!(" for each of {at_once} jobs at once") } else { String::new() };
     let w = format!("--threads {asked}{jobs} is more than the {cores} cores here: running {fit} a job");
-    crate::command_line::warn(&w);
+    crate::flag_names::warn(&w);
     (fit, Some(w))
 }
 
@@ -708,11 +708,11 @@ fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
     report.warnings.extend(too_many);
     report.warnings.extend(not_tiff);
     if let Some(w) = past_budget(&a.memory, opts.memory) {
-        crate::command_line::warn(&w);
+        crate::flag_names::warn(&w);
         report.warnings.push(w);
     }
     if let Some(j) = &a.json {
-        write_file(j, crate::command_line::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
+        write_file(j, crate::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
     }
     if !a.quiet {
         print_report(&report);
@@ -904,7 +904,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         gcm_ortho::study::maps::write_gcm_png(p, &gcm)?;
     }
     if let Some(j) = &a.json {
-        write_file(j, crate::command_line::with_flags(&serde_json::to_string_pretty(&serde_json::json!({"grid": grid, "rows": rows}))?).as_bytes())?;
+        write_file(j, crate::flag_names::with_flags(&serde_json::to_string_pretty(&serde_json::json!({"grid": grid, "rows": rows}))?).as_bytes())?;
     }
     Ok(())
 }
@@ -992,7 +992,7 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
             rows.push(acc);
         }
         if let Some(j) = &a.json {
-            write_file(j, crate::command_line::with_flags(&serde_json::to_string_pretty(&rows)?).as_bytes())?;
+            write_file(j, crate::flag_names::with_flags(&serde_json::to_string_pretty(&rows)?).as_bytes())?;
         }
     }
     Ok(())

@@ -5,6 +5,7 @@ mod quiet_print;
 mod cli;
 mod command_line;
 mod commands;
+mod flag_names;
 mod progress_bar;
 
 fn main() -> std::process::ExitCode {

@@ -42,7 +42,7 @@ impl Progress for Bar {
     }
     fn warn(&self, message: &str) {
         // Quiet hides progress, not warnings.
-        let line = format!("gcm-ortho: warning: {}", crate::command_line::with_flags(message));
+        let line = format!("gcm-ortho: warning: {}", crate::flag_names::with_flags(message));
         match self.bar.lock().expect("progress bar").as_ref() {
             Some(b) if self.shown => b.suspend(|| eprintln!("{line}")),
             _ => eprintln!("{line}"),

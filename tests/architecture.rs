@@ -10,7 +10,7 @@ const FOUNDATION: [&str; 4] = ["error", "geom", "progress", "setting_names"];
 
 /// The binary's files (compiled into the Python module too): the
 /// command line, which alone names settings by their flags.
-const BINARY: [&str; 6] = ["main.rs", "cli.rs", "commands.rs", "command_line.rs", "progress_bar.rs", "quiet_print.rs"];
+const BINARY: [&str; 7] = ["main.rs", "cli.rs", "commands.rs", "command_line.rs", "flag_names.rs", "progress_bar.rs", "quiet_print.rs"];
 
 /// Files at the OS boundary, where `unsafe` may be (each with `// SAFETY:`).
 const UNSAFE_AT: [&str; 5] = ["src/io/source/", "src/io/mmap_guard.rs", "src/io/mapped_file.rs", "src/io/os_memory.rs", "src/command_line.rs"];

@@ -18,6 +18,8 @@ mod cli;
 mod command_line;
 #[path = "../../src/commands.rs"]
 mod commands;
+#[path = "../../src/flag_names.rs"]
+mod flag_names;
 #[path = "../../src/progress_bar.rs"]
 mod progress_bar;
 

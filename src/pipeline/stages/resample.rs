@@ -3,8 +3,8 @@
 
 use super::holes::ScanHoles;
 use super::read::ReadMsg;
+pub use super::resample_row::{off_nodata, Miss};
 use super::resample_row::{RowMaker, RowScratch};
-use crate::dem::Lookup;
 use crate::error::Result;
 use crate::gcm::Gcm;
 use crate::io::source::{SampleType, SourceImage, SourceInfo, Window};
@@ -25,9 +25,6 @@ pub struct Made {
 
 /// A chunk's pixels, and under a mask which of them have a value.
 pub type Pixels = (Raw, Option<Vec<u8>>);
-
-/// A ground point where the DEM had no height (under the `error` policy).
-pub type Miss = (f64, f64, Lookup);
 
 /// Why a chunk could not be made: a DEM miss under the `error` policy, or
 /// a strip's window that could not be read.
@@ -408,26 +405,5 @@ impl<T: Sample> Placing<T> {
             }
         }
         miss
-    }
-}
-
-/// The value a sample holding the nodata value `v` is moved to: GDAL's
-/// warper's choice, one up (one down at the top of the type; a float's
-/// next one up).
-pub fn off_nodata(v: f64, sample: SampleType) -> f64 {
-    match sample {
-        SampleType::U8 if v >= 255.0 => 254.0,
-        SampleType::U16 if v >= 65535.0 => 65534.0,
-        SampleType::F32 => {
-            // f32::next_up, newer than the crate's Rust.
-            let x = v as f32;
-            f64::from(match x {
-                _ if x.is_nan() || x == f32::INFINITY => x,
-                0.0 => f32::from_bits(1),
-                _ if x > 0.0 => f32::from_bits(x.to_bits() + 1),
-                _ => f32::from_bits(x.to_bits() - 1),
-            })
-        }
-        _ => v + 1.0,
     }
 }

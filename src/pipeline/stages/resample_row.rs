@@ -5,16 +5,40 @@
 //! real samples.
 
 use super::holes::ScanHoles;
-use super::resample::{off_nodata, Miss};
+use crate::dem::Lookup;
 use crate::gcm::{BandGcm, Gcm};
 use crate::geom::Span;
-use crate::io::source::{SourceImage, Window};
+use crate::io::source::{SampleType, SourceImage, Window};
 use crate::options::Occlusion;
 use crate::pipeline::context::PixelOptions;
 use crate::resample::area::{area_pixel, footprint_window, pixel_quad, AreaKind, AreaScratch, Covered};
 use crate::resample::{resample_row, resample_spans, span_bounds, span_position, Kernel, Sample, SpanOutcome, View};
 use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
+
+/// A ground point where the DEM had no height (under the `error` policy).
+pub type Miss = (f64, f64, Lookup);
+
+/// The value a sample holding the nodata value `v` is moved to: GDAL's
+/// warper's choice, one up (one down at the top of the type; a float's
+/// next one up).
+pub fn off_nodata(v: f64, sample: SampleType) -> f64 {
+    match sample {
+        SampleType::U8 if v >= 255.0 => 254.0,
+        SampleType::U16 if v >= 65535.0 => 65534.0,
+        SampleType::F32 => {
+            // f32::next_up, newer than the crate's Rust.
+            let x = v as f32;
+            f64::from(match x {
+                _ if x.is_nan() || x == f32::INFINITY => x,
+                0.0 => f32::from_bits(1),
+                _ if x > 0.0 => f32::from_bits(x.to_bits() + 1),
+                _ => f32::from_bits(x.to_bits() - 1),
+            })
+        }
+        _ => v + 1.0,
+    }
+}
 
 /// Makes the rows of one scan window (a chunk's, or a strip's of it).
 pub(super) struct RowMaker<'a, T: Sample> {
