@@ -384,5 +384,8 @@ mod tests {
         assert!(matches!(s.left.model, crate::options::ModelSource::Rpc { offset: Some([5.0, 7.0]), .. }));
         assert_eq!(pair(json!({"heights": [-10, 250]})).expect("valid").heights, s.heights);
         assert!(pair(json!({"heights": "x"})).expect_err("not two heights").to_string().starts_with("heights: "));
+        // A value of the wrong shape says what is wrong with it.
+        let e = grid(json!({"bounds": [0, 0, 100]})).expect_err("three numbers").to_string();
+        assert!(e.starts_with("bounds: invalid length 3, expected an array of length 4"), "{e}");
     }
 }

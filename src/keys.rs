@@ -38,11 +38,23 @@ impl NumberOrWord {
 /// A setting given as its value (`[1.5, 2.0]`) or as the command line's
 /// text for it (`"1.5,2"`): read by the command line's own parser either
 /// way, so that both are checked alike.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(untagged)]
+#[derive(Clone, Debug)]
 pub enum OrText<T> {
     Value(T),
     Text(String),
+}
+
+impl<'de, T: serde::de::DeserializeOwned> Deserialize<'de> for OrText<T> {
+    /// A string is the text; anything else the value, whose own error says
+    /// what is wrong with it (`invalid length 3, expected an array of
+    /// length 4`), where an untagged enum would say only that it matched
+    /// no variant.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        match serde_json::Value::deserialize(d)? {
+            serde_json::Value::String(t) => Ok(OrText::Text(t)),
+            v => serde_json::from_value(v).map(OrText::Value).map_err(serde::de::Error::custom),
+        }
+    }
 }
 
 impl<T: AsText> OrText<T> {
