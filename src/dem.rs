@@ -96,6 +96,7 @@ impl GridDem {
         GridDem { width, height, data: Samples::Memory(data), transform, nodata, crs, inv_step: (1.0 / transform[1], 1.0 / transform[5]), collar: None }
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// Is the grid read a chunk at a time?
     pub fn is_chunked(&self) -> bool {
         matches!(self.data, Samples::Chunked(_))
@@ -342,6 +343,7 @@ impl GridDem {
 
     /// Reads a single-band GeoTIFF (Int16, UInt16, Int32, Float32, Float64, ...),
     /// an SRTM `.hgt` tile, or tiles of these: a GDAL VRT mosaic or a folder.
+    #[cfg(any(test, feature = "internals"))]
     pub fn read(path: &Path) -> Result<GridDem> {
         GridDem::read_within(path, IN_MEMORY_LIMIT)
     }
@@ -399,6 +401,7 @@ impl GridDem {
         self.collar = collar.map(std::sync::Arc::new);
     }
 
+    #[cfg(test)]
     /// How many nodata posts are joined to the grid's edge (outside the
     /// DEM's data, not holes in it).
     pub fn collar_posts(&self) -> u64 {

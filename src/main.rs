@@ -1,13 +1,5 @@
-//! The binary: the command line (`command_line`) over the library.
-
-#[macro_use]
-mod quiet_print;
-mod cli;
-mod command_line;
-mod commands;
-mod flag_names;
-mod progress_bar;
+//! The binary: the library's command line.
 
 fn main() -> std::process::ExitCode {
-    std::process::ExitCode::from(command_line::run(std::env::args_os().collect()))
+    std::process::ExitCode::from(gcm_ortho::run_command_line(std::env::args_os().collect()))
 }

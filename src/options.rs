@@ -5,17 +5,22 @@
 //! setting by its manifest key (`tile`, `dem_hole`); the binary turns the
 //! key into its flag.
 
-use crate::camera::CameraFile;
-use crate::dem::Miss;
 use crate::error::{Error, Result};
-use crate::gcm::{CorrectionMode, GcmSpec};
-use crate::geom::Snap;
 use crate::io::overwrite::{check_outputs, check_writable, Role};
 use crate::io::source::SampleType;
-use crate::io::tiff_out::Compression;
-use crate::overview::OverviewResampling;
-use crate::resample::Kernel;
-use crate::transform::Trend;
+
+// The types of the options' fields, for a caller who sets them.
+pub use crate::camera::formats::AngleUnit;
+pub use crate::camera::gcp::BiasModel;
+pub use crate::camera::CameraFile;
+pub use crate::dem::Miss;
+pub use crate::gcm::{CorrectionMode, GcmSpec};
+pub use crate::geodesy::Crs;
+pub use crate::geom::{Gsd, Snap};
+pub use crate::io::tiff_out::Compression;
+pub use crate::overview::OverviewResampling;
+pub use crate::resample::Kernel;
+pub use crate::transform::Trend;
 use std::path::PathBuf;
 
 /// A setting chosen by name from a fixed list.

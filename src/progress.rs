@@ -30,6 +30,32 @@ pub trait Progress: Sync {
     /// Something doubtful was met (and how it was taken): to be shown even
     /// where progress is not. The run's report lists them too.
     fn warn(&self, _message: &str) {}
+    /// The process's peak resident memory so far, MiB, for the run's
+    /// report: the host's to tell, where it owns the process and the
+    /// figure means something (the command line does); `None` otherwise.
+    fn peak_memory_mib(&self) -> Option<f64> {
+        None
+    }
+    /// Much of what the run held was just freed (between a mosaic's
+    /// phases and strips): a host may hand free pages back to the system
+    /// (the command line trims glibc's heap, which never does by itself).
+    fn memory_freed(&self) {}
+}
+
+/// Only the host's side of a progress (its memory): the steps of work
+/// nobody watches (a batch job's).
+pub struct HostOnly<'a>(pub &'a dyn Progress);
+
+impl Progress for HostOnly<'_> {
+    fn start(&self, _: &Task) {}
+    fn advance(&self, _: u64) {}
+    fn finish(&self) {}
+    fn peak_memory_mib(&self) -> Option<f64> {
+        self.0.peak_memory_mib()
+    }
+    fn memory_freed(&self) {
+        self.0.memory_freed();
+    }
 }
 
 /// Passes progress on and keeps every warning: what a run said on its way
@@ -77,6 +103,12 @@ impl Progress for Recording<'_> {
             s.push(message.to_string());
         }
         self.inner.warn(message);
+    }
+    fn peak_memory_mib(&self) -> Option<f64> {
+        self.inner.peak_memory_mib()
+    }
+    fn memory_freed(&self) {
+        self.inner.memory_freed();
     }
 }
 

@@ -8,21 +8,30 @@ use std::path::{Path, PathBuf};
 /// Modules every module may use; the table gives their own imports.
 const FOUNDATION: [&str; 4] = ["error", "geom", "progress", "setting_names"];
 
-/// The binary's files (compiled into the Python module too): the
-/// command line, which alone names settings by their flags.
-const BINARY: [&str; 7] = ["main.rs", "cli.rs", "commands.rs", "command_line.rs", "flag_names.rs", "progress_bar.rs", "quiet_print.rs"];
+/// The command line (the binary's `main.rs` and the library's
+/// `command_line/`, which the Python package's command runs too): alone
+/// names settings by their flags.
+const COMMAND_LINE: [&str; 2] = ["src/main.rs", "src/command_line/"];
 
 /// Files at the OS boundary, where `unsafe` may be (each with `// SAFETY:`).
-const UNSAFE_AT: [&str; 5] = ["src/io/source/", "src/io/mmap_guard.rs", "src/io/mapped_file.rs", "src/io/os_memory.rs", "src/command_line.rs"];
+const UNSAFE_AT: [&str; 5] = ["src/io/source/", "src/io/mmap_guard.rs", "src/io/mapped_file.rs", "src/command_line/mod.rs", "src/command_line/os_memory.rs"];
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// The library's modules, as lib.rs declares them.
+/// The library's modules, as lib.rs declares them: the inner ones in
+/// `inner_modules!`, the others one a line (`mod m;`, `pub mod m;`).
 fn modules() -> Vec<String> {
     let lib = std::fs::read_to_string(root().join("src/lib.rs")).unwrap();
-    lib.lines().filter_map(|l| l.strip_prefix("pub mod ").or_else(|| l.strip_prefix("pub(crate) mod "))).map(|m| m.trim_end_matches(';').to_string()).collect()
+    let inner = lib.split("inner_modules! {").nth(1).expect("the inner modules").split('}').next().unwrap();
+    let mut modules: Vec<String> = inner.split(',').map(|m| m.trim().to_string()).filter(|m| !m.is_empty()).collect();
+    for line in lib.lines() {
+        if let Some(m) = line.strip_prefix("pub mod ").or_else(|| line.strip_prefix("mod ")).and_then(|m| m.strip_suffix(';')) {
+            modules.push(m.to_string());
+        }
+    }
+    modules
 }
 
 fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
@@ -242,8 +251,8 @@ fn no_message_of_the_library_names_a_flag() {
     rust_files(&root().join("src"), &mut files);
     let mut wrong = Vec::new();
     for f in files {
-        let name = f.file_name().unwrap().to_string_lossy().to_string();
-        if f.parent() == Some(&root().join("src")) && BINARY.contains(&name.as_str()) {
+        let rel = f.strip_prefix(root()).unwrap().to_string_lossy().replace('\\', "/");
+        if COMMAND_LINE.iter().any(|c| rel.starts_with(c)) {
             continue;
         }
         for (n, line) in code_of(&f).lines().enumerate() {
@@ -262,4 +271,20 @@ fn flags_are_told_from_other_dashes() {
     assert!(!names_a_flag("give ‹memory› 512M"));
     assert!(!names_a_flag("/data/a--b.tif: -- bad"));
     assert!(!names_a_flag("measure them with `gcm-ortho fiducials --turn 90`"));
+}
+
+/// The API is what lib.rs exports: besides the inner modules (public only
+/// under the `internals` feature) it opens only `options` and `by_key`.
+#[test]
+fn the_library_opens_only_its_api() {
+    let lib = std::fs::read_to_string(root().join("src/lib.rs")).unwrap();
+    let outside_the_macro =
+        lib.split("macro_rules! inner_modules").next().unwrap().to_string() + lib.split("inner_modules! {").nth(1).unwrap().split_once('}').unwrap().1;
+    let open: Vec<&str> = outside_the_macro.lines().filter_map(|l| l.strip_prefix("pub mod ")).map(|m| m.trim_end_matches([';', ' ', '{'])).collect();
+    assert_eq!(open, ["options", "by_key"]);
+    let inner = lib.split("macro_rules! inner_modules").nth(1).unwrap().split("inner_modules! {").next().unwrap();
+    assert!(
+        inner.contains("#[cfg(feature = \"internals\")]\n        pub mod $module;")
+            && inner.contains("#[cfg(not(feature = \"internals\"))]\n        pub(crate) mod $module;")
+    );
 }

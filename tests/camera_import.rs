@@ -270,7 +270,7 @@ fn a_nadir_dji_frame_tagged_roll_180_looks_down() {
     assert!(pose.r[(2, 2)] > 0.999, "photo z (back from the view) is up: the camera looks down");
     // EXIF GPS (DMS rationals) when the XMP has no position.
     assert!((pose.position[2] - 350.5).abs() < 1e-9);
-    let (x, y) = ground.from_lonlat(lon, lat).unwrap();
+    let (x, y) = ground.lonlat_to_ground(lon, lat).unwrap();
     assert!((pose.position[0] - x).abs() < 0.01 && (pose.position[1] - y).abs() < 0.01, "{:?}", pose.position);
     // The 35 mm equivalent is by the diagonal: 24 mm · 150 px / 43.27 mm.
     let f = set.lenses[0].1.focal_px[0];

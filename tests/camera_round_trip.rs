@@ -193,7 +193,7 @@ fn metashape_xml(truth: &gcm_ortho::camera::CameraFile, size: (u32, u32), refere
     let c = to_ecef(lon, lat, ext.position[2]);
     // Grid → geocentric directions: east-north-up turned by the grid's
     // convergence θ (true north is θ east of grid north).
-    let (n1, n2) = (ground.from_lonlat(lon, lat + 1e-5).unwrap(), ground.from_lonlat(lon, lat - 1e-5).unwrap());
+    let (n1, n2) = (ground.lonlat_to_ground(lon, lat + 1e-5).unwrap(), ground.lonlat_to_ground(lon, lat - 1e-5).unwrap());
     let theta = (n1.0 - n2.0).atan2(n1.1 - n2.1);
     let q = Matrix3::new(theta.cos(), -theta.sin(), 0.0, theta.sin(), theta.cos(), 0.0, 0.0, 0.0, 1.0);
     let r_photo = ext.convention.matrix(ext.angles_deg.map(f64::to_radians));

@@ -83,7 +83,7 @@ fn lattice((lon0, lon1, lat0, lat1): (f64, f64, f64, f64)) -> Vec<(f64, f64)> {
 fn worst_against_gdal(dir: &Path, ours: &Crs, gdal_definition: &str, points: &[(f64, f64)]) -> f64 {
     let g = GroundCrs::new(ours).unwrap();
     let want = gdal_project(dir, gdal_definition, points);
-    points.iter().zip(&want).map(|(&(lon, lat), &(x, y))| g.from_lonlat(lon, lat).map_or(f64::INFINITY, |(a, b)| (a - x).hypot(b - y))).fold(0.0, f64::max)
+    points.iter().zip(&want).map(|(&(lon, lat), &(x, y))| g.lonlat_to_ground(lon, lat).map_or(f64::INFINITY, |(a, b)| (a - x).hypot(b - y))).fold(0.0, f64::max)
 }
 
 #[test]
@@ -201,7 +201,7 @@ fn user_defined_geotiff_keys_read_back_in_gdal_and_gdals_here() {
         let got = python(GDAL_FILE_PROJECT, &all);
         for (line, &(lon, lat)) in got.lines().zip(&pts) {
             let v: Vec<f64> = line.split_whitespace().map(|x| x.parse().unwrap()).collect();
-            let (x, y) = ground.from_lonlat(lon, lat).unwrap();
+            let (x, y) = ground.lonlat_to_ground(lon, lat).unwrap();
             assert!((v[0] - x).hypot(v[1] - y) < 0.01, "{definition}: GDAL reads our keys as another CRS: ({}, {}) vs ({x}, {y})", v[0], v[1]);
         }
         // GDAL written, ours reading (GDAL 3.6 writes no keys for Equal
@@ -218,7 +218,7 @@ fn user_defined_geotiff_keys_read_back_in_gdal_and_gdals_here() {
             .unwrap_or_else(|| panic!("{definition}: GDAL's keys read as no CRS"));
         let g2 = GroundCrs::new(&read).unwrap();
         for &(lon, lat) in &pts {
-            let (a, b) = (ground.from_lonlat(lon, lat).unwrap(), g2.from_lonlat(lon, lat).unwrap());
+            let (a, b) = (ground.lonlat_to_ground(lon, lat).unwrap(), g2.lonlat_to_ground(lon, lat).unwrap());
             assert!((a.0 - b.0).hypot(a.1 - b.1) < 0.01, "{definition}: GDAL's keys read as {} ({})", read, read.proj4());
         }
     }

@@ -69,7 +69,7 @@ fn like_takes_a_reference_rasters_grid_pixel_for_pixel() {
     // by name; with --gsd, refused.
     let (u31, u32) = (gcm_ortho::geodesy::GroundCrs::from_epsg(32631).unwrap(), gcm_ortho::geodesy::GroundCrs::from_epsg(32632).unwrap());
     let (lon, lat) = u31.to_lonlat(gt[0], gt[3]).unwrap();
-    let (x, y) = u32.from_lonlat(lon, lat).unwrap();
+    let (x, y) = u32.lonlat_to_ground(lon, lat).unwrap();
     let gt32 = [x.round(), 1.7, 0.0, y.round(), 0.0, -1.7];
     let other = d.join("other.tif");
     reference(&other, gt32, 517, 389, 32632);

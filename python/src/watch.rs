@@ -2,8 +2,8 @@
 //! while it works; progress, warnings and pending signals (Ctrl-C) handled
 //! on the calling thread between naps.
 
-use gcm_ortho::progress::{Progress, Task};
 use gcm_ortho::{Cancel, Error};
+use gcm_ortho::{Progress, Task};
 use pyo3::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
@@ -47,7 +47,7 @@ impl Shared {
         }
         let warn = py.import("gcm_ortho.errors")?.getattr("_warn")?;
         for message in said {
-            warn.call1((gcm_ortho::setting_names::as_keys(&message),))?;
+            warn.call1((gcm_ortho::settings_said_as_keys(&message),))?;
         }
         Ok(())
     }

@@ -13,7 +13,7 @@ use crate::identity::{file_stamp, fnv};
 
 use crate::options::{DemSource, RectifyOptions};
 use crate::pipeline::rectify;
-use crate::progress::{Cancel, NoProgress};
+use crate::progress::{Cancel, HostOnly, Progress};
 use manifest::Job;
 use serde::Serialize;
 use std::io::Write;
@@ -24,13 +24,11 @@ use std::time::Instant;
 
 #[derive(Clone, Debug)]
 pub struct BatchOptions {
-    pub manifest: PathBuf,
     /// Jobs at a time.
     pub jobs: usize,
     /// Memory budget of the whole batch, bytes.
     pub memory: u64,
     pub force: bool,
-    pub report: Option<PathBuf>,
     /// (index, count), 0-based.
     pub shard: (usize, usize),
     pub threads: usize,
@@ -138,7 +136,8 @@ pub fn jobs_within(memory: u64, jobs: usize) -> usize {
 }
 
 /// Runs the share of `jobs` chosen by the shard; results in job order.
-pub fn run_jobs(jobs: &[Job], o: &BatchOptions, cancel: &Cancel, on_done: &(dyn Fn(&JobResult) + Sync)) -> Vec<JobResult> {
+/// `host` answers for the process (its peak memory in the records).
+pub fn run_jobs(jobs: &[Job], o: &BatchOptions, host: &dyn Progress, cancel: &Cancel, on_done: &(dyn Fn(&JobResult) + Sync)) -> Vec<JobResult> {
     let mine: Vec<&Job> = jobs.iter().enumerate().filter(|(i, _)| i % o.shard.1 == o.shard.0).map(|(_, j)| j).collect();
     let workers = jobs_within(o.memory, o.jobs).min(mine.len().max(1));
     let per_job_memory = (o.memory / workers as u64).max(RectifyOptions::MIN_MEMORY);
@@ -154,7 +153,7 @@ pub fn run_jobs(jobs: &[Job], o: &BatchOptions, cancel: &Cancel, on_done: &(dyn 
                     break;
                 }
                 let job = mine[i];
-                let r = run_one(job, o.force, per_job_memory, threads, cancel);
+                let r = run_one(job, o.force, per_job_memory, threads, host, cancel);
                 on_done(&r);
                 results.lock().expect("results")[i] = Some(r);
             });
@@ -163,7 +162,7 @@ pub fn run_jobs(jobs: &[Job], o: &BatchOptions, cancel: &Cancel, on_done: &(dyn 
     results.into_inner().expect("results").into_iter().flatten().collect()
 }
 
-fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel) -> JobResult {
+fn run_one(job: &Job, force: bool, memory: u64, threads: usize, host: &dyn Progress, cancel: &Cancel) -> JobResult {
     let t = Instant::now();
     let mut res = JobResult {
         job: job.name.clone(),
@@ -241,7 +240,8 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, cancel: &Cancel)
     let mut cfg = job.config.clone();
     cfg.memory = memory;
     cfg.threads = threads;
-    match rectify(&cfg, &NoProgress, cancel) {
+    // Nobody watches a job's steps; its warnings go to its record.
+    match rectify(&cfg, &HostOnly(host), cancel) {
         Ok(r) => {
             res.status = Status::Done;
             res.input_mb_per_s = Some(r.input_mb_per_s);
@@ -302,13 +302,13 @@ mod tests {
         // Made from these inputs (its record says so): a forced rerun that
         // fails leaves it, and says nothing of it being stale.
         write_sidecar(&out, &job_key(&config)).unwrap();
-        assert_eq!(run_one(&job, false, 1 << 30, 1, &Cancel::default()).status, Status::Skipped);
-        let r = run_one(&job, true, 1 << 30, 1, &Cancel::default());
+        assert_eq!(run_one(&job, false, 1 << 30, 1, &crate::progress::NoProgress, &Cancel::default()).status, Status::Skipped);
+        let r = run_one(&job, true, 1 << 30, 1, &crate::progress::NoProgress, &Cancel::default());
         assert_eq!(r.status, Status::Failed);
         assert!(r.error.as_ref().is_some_and(|e| e.contains("gone") && !e.contains("earlier run")), "{:?}", r.error);
         // Not made from these inputs (another record): said, record removed.
         write_sidecar(&out, "0123456789abcdef").unwrap();
-        let r = run_one(&job, false, 1 << 30, 1, &Cancel::default());
+        let r = run_one(&job, false, 1 << 30, 1, &crate::progress::NoProgress, &Cancel::default());
         assert!(
             r.error.as_ref().is_some_and(|e| e.contains("left from an earlier run, not made from these inputs; its .done record is removed")),
             "{:?}",

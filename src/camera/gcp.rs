@@ -200,7 +200,7 @@ fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasMo
     let mut predicted = Vec::new();
     for g in gcps {
         let z = if g.ellipsoidal { rpc.dem_height(g.lon, g.lat, g.height) } else { Some(g.height) };
-        let (x, y) = rpc.crs.from_lonlat(g.lon, g.lat).ok_or_else(|| Error::format(source, format!("GCP {}: outside the CRS", g.id)))?;
+        let (x, y) = rpc.crs.lonlat_to_ground(g.lon, g.lat).ok_or_else(|| Error::format(source, format!("GCP {}: outside the CRS", g.id)))?;
         let p = z.and_then(|z| rpc.project(x, y, z)).ok_or_else(|| Error::format(source, format!("GCP {}: outside the RPC's domain", g.id)))?;
         predicted.push([p.0, p.1]);
     }
@@ -291,7 +291,7 @@ fn resection(f: &FrameCamera, gcps: &[Gcp], crs: &Crs, interior: bool, source: &
         .iter()
         .map(|g| {
             ground
-                .from_lonlat(g.lon, g.lat)
+                .lonlat_to_ground(g.lon, g.lat)
                 .map(|(x, y)| Vector3::new(x, y, g.height))
                 .ok_or_else(|| Error::format(source, format!("GCP {}: outside {crs}", g.id)))
         })

@@ -343,7 +343,7 @@ impl SensorModel for PanoramicCamera {
             return None;
         }
         let (lon, lat, _) = from_ecef(c + t * d);
-        self.crs.from_lonlat(lon, lat)
+        self.crs.lonlat_to_ground(lon, lat)
     }
 
     fn plane_homography(&self, grid: &OutputGrid, plane: &Plane) -> Option<Matrix3<f64>> {

@@ -49,7 +49,7 @@ pub fn resection(cam: &PanoramicCamera, gcps: &[Gcp], dynamics: Option<bool>, so
             _ => 0.0,
         };
         points.push(to_ecef(g.lon, g.lat, g.height + n));
-        let (x, y) = cam.crs.from_lonlat(g.lon, g.lat).ok_or_else(|| Error::format(source, format!("GCP {}: outside the CRS", g.id)))?;
+        let (x, y) = cam.crs.lonlat_to_ground(g.lon, g.lat).ok_or_else(|| Error::format(source, format!("GCP {}: outside the CRS", g.id)))?;
         local.push(Vector3::new(x, y, g.height));
     }
     refuse_collinear(&local, source)?;

@@ -98,7 +98,7 @@ impl SensorModel for RpcCamera {
         let n = self.geoid.as_ref().and_then(|g| g.undulation(self.rpc.long_off, self.rpc.lat_off)).unwrap_or(0.0);
         let (col, row) = self.unbias.apply(col, row);
         let (lon, lat) = self.rpc.locate(col, row, z + n, 0.01)?;
-        self.crs.from_lonlat(lon, lat)
+        self.crs.lonlat_to_ground(lon, lat)
     }
 
     fn plane_homography(&self, grid: &OutputGrid, plane: &Plane) -> Option<Matrix3<f64>> {

@@ -88,6 +88,7 @@ impl Collar {
         row.get(k).is_some_and(|r| r.0 as usize <= i)
     }
 
+    #[cfg(test)]
     /// How many posts the collar holds.
     pub fn posts(&self) -> u64 {
         self.runs.iter().map(|r| u64::from(r.1 - r.0)).sum()

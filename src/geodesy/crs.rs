@@ -257,7 +257,7 @@ impl Crs {
             return true;
         }
         let (Ok(a), Ok(b)) = (super::GroundCrs::new(self), super::GroundCrs::new(other)) else { return false };
-        let back = a.to_lonlat(x, y).and_then(|(lon, lat)| b.from_lonlat(lon, lat));
+        let back = a.to_lonlat(x, y).and_then(|(lon, lat)| b.lonlat_to_ground(lon, lat));
         let tolerance = if self.is_geographic() { 1e-8 } else { 1e-3 };
         back.is_some_and(|(u, v)| (u - x).abs() < tolerance && (v - y).abs() < tolerance)
     }

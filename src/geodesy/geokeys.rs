@@ -290,6 +290,7 @@ pub fn keys_of(crs: &Crs) -> Result<GeoKeys, String> {
     Ok(keys)
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// The GeoTIFF keys of an EPSG code.
 pub fn keys_of_epsg(code: u32) -> Result<GeoKeys, String> {
     keys_of(&Crs::from_epsg(code)?)
@@ -542,8 +543,8 @@ mod tests {
     fn same_geometry(a: &Crs, b: &Crs, points: &[(f64, f64)]) {
         let (ga, gb) = (super::super::GroundCrs::new(a).unwrap(), super::super::GroundCrs::new(b).unwrap());
         for &(lon, lat) in points {
-            let (x, y) = ga.from_lonlat(lon, lat).unwrap();
-            let (x2, y2) = gb.from_lonlat(lon, lat).unwrap();
+            let (x, y) = ga.lonlat_to_ground(lon, lat).unwrap();
+            let (x2, y2) = gb.lonlat_to_ground(lon, lat).unwrap();
             assert!((x - x2).abs() < 1e-6 && (y - y2).abs() < 1e-6, "{a} vs {b}: ({x}, {y}) vs ({x2}, {y2})");
         }
     }

@@ -17,8 +17,8 @@ mod projection;
 mod vertical;
 mod wkt;
 
-pub use crs::{Crs, ACCEPTED};
+pub use crs::Crs;
 pub use geoid::Geoid;
+#[cfg(feature = "internals")]
 pub use proj_data::find_grid as find_proj_grid;
-pub use projection::{utm_zone, utm_zone_epsg, GroundCrs, Reprojection};
-pub use vertical::Vertical;
+pub use projection::{utm_zone, GroundCrs, Reprojection};

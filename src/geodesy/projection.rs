@@ -44,7 +44,7 @@ impl GroundCrs {
 
     /// WGS84 (longitude °, latitude °) → ground (X, Y).
     #[inline]
-    pub fn from_lonlat(&self, lon: f64, lat: f64) -> Option<(f64, f64)> {
+    pub fn lonlat_to_ground(&self, lon: f64, lat: f64) -> Option<(f64, f64)> {
         let Some(p) = &self.proj else { return Some((lon, lat)) };
         let mut pt = (lon.to_radians(), lat.to_radians(), 0.0);
         proj4rs::transform::transform(&self.wgs84, p, &mut pt).ok()?;
@@ -104,7 +104,7 @@ impl Reprojection {
             return Some((x, y));
         }
         let (lon, lat) = self.from.to_lonlat(x, y)?;
-        self.to.from_lonlat(lon, lat)
+        self.to.lonlat_to_ground(lon, lat)
     }
 }
 
@@ -120,7 +120,7 @@ mod tests {
         for ((lon, lat), (x, y)) in
             [((5.2786, 44.1741), (682_151.139_274_756, 4_893_734.670_923_61)), ((0.5, 45.2), (303_648.799_038_255, 5_008_208.824_334_69))]
         {
-            let (px, py) = utm.from_lonlat(lon, lat).unwrap();
+            let (px, py) = utm.lonlat_to_ground(lon, lat).unwrap();
             assert!((px - x).abs() < 1e-3 && (py - y).abs() < 1e-3, "({px}, {py}) vs ({x}, {y})");
             let (l, p) = utm.to_lonlat(x, y).unwrap();
             assert!((l - lon).abs() < 1e-9 && (p - lat).abs() < 1e-9);

@@ -67,15 +67,6 @@ impl Rect {
     pub fn around(c: u32, r: u32, m: u32, grid: &BinGrid) -> Rect {
         Rect { c0: c.saturating_sub(m), r0: r.saturating_sub(m), c1: (c + m).min(grid.cols - 1), r1: (r + m).min(grid.rows - 1) }
     }
-    pub fn union(self, o: Rect) -> Rect {
-        Rect { c0: self.c0.min(o.c0), r0: self.r0.min(o.r0), c1: self.c1.max(o.c1), r1: self.r1.max(o.r1) }
-    }
-    pub fn contains(&self, o: &Rect) -> bool {
-        o.c0 >= self.c0 && o.r0 >= self.r0 && o.c1 <= self.c1 && o.r1 <= self.r1
-    }
-    pub fn holds(&self, c: u32, r: u32) -> bool {
-        c >= self.c0 && c <= self.c1 && r >= self.r0 && r <= self.r1
-    }
     pub fn bins(&self) -> u64 {
         (self.c1 - self.c0 + 1) as u64 * (self.r1 - self.r0 + 1) as u64
     }

@@ -13,7 +13,7 @@ pub mod methods;
 pub mod neighbourhood;
 mod options;
 
-pub use options::{GridOptions, GridReport, Method, DEFAULT_BLUNDER_SIGMAS, NODATA};
+pub use options::{GridOptions, GridReport, Method, NODATA};
 
 use crate::error::{Error, Result};
 use crate::geodesy::Crs;
@@ -68,7 +68,7 @@ impl Reader<'_> {
 /// Makes the DEM `o.output` from the points of `o.inputs`.
 pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result<GridReport> {
     let started = std::time::Instant::now();
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<String> = crate::io::tiff_out::named_as_other_format(&o.output).into_iter().collect();
     check(o)?;
     let (reader, crs) = open(o, cancel, &mut warnings)?;
     let input_bytes: u64 = o.inputs.iter().filter_map(|p| std::fs::metadata(p).ok()).map(|m| m.len()).sum();

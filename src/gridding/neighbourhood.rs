@@ -31,7 +31,6 @@ pub type Tin = DelaunayTriangulation<Post>;
 /// included), in one order whatever the order they were read in, points at
 /// one place merged (their mean height).
 pub struct Loaded {
-    pub region: [f64; 4],
     pub posts: Vec<Post>,
 }
 
@@ -47,7 +46,7 @@ impl Loaded {
             bins.read(rect, &mut raw)?;
         }
         raw.retain(|p| holds(&region, p[0], p[1]));
-        Ok(Loaded { region, posts: merged(raw) })
+        Ok(Loaded { posts: merged(raw) })
     }
 
     /// The Delaunay triangulation of the posts (`None` where they are fewer

@@ -54,6 +54,21 @@ impl ChunkCodec {
         }
     }
 
+    /// The chunk's pixels: `rows` rows of `width` pixels, native-endian.
+    /// `coded` is the chunk's bytes as stored in the file; it may decode to
+    /// up to `full_rows` rows (a last strip written at full height), and a
+    /// stream that runs on past them, or ends before `rows`, is an error.
+    #[cfg(test)]
+    pub fn decode(&self, coded: &[u8], width: usize, rows: usize, full_rows: usize) -> Result<Vec<u8>, String> {
+        let row_bytes = self.stored_row_bytes(width);
+        let want = row_bytes * rows;
+        let allowed = row_bytes * full_rows.max(rows);
+        let mut out = Vec::new();
+        self.decompress(coded, want, allowed, &mut out)?;
+        self.finish(&mut out, row_bytes, rows, full_rows)?;
+        Ok(if self.packed_bits != 0 { self.widened(&out, width, rows) } else { out })
+    }
+
     /// Chunk `k` of the file at `path`, stored as `count` bytes from
     /// `offset`, read with `pread` and decoded: `rows` rows of `width`
     /// pixels, native-endian, of a chunk `full_rows` high (a last strip may
@@ -141,20 +156,6 @@ impl ChunkCodec {
             }
         }
         out
-    }
-
-    /// The chunk's pixels: `rows` rows of `width` pixels, native-endian.
-    /// `coded` is the chunk's bytes as stored in the file; it may decode to
-    /// up to `full_rows` rows (a last strip written at full height), and a
-    /// stream that runs on past them, or ends before `rows`, is an error.
-    pub fn decode(&self, coded: &[u8], width: usize, rows: usize, full_rows: usize) -> Result<Vec<u8>, String> {
-        let row_bytes = self.stored_row_bytes(width);
-        let want = row_bytes * rows;
-        let allowed = row_bytes * full_rows.max(rows);
-        let mut out = Vec::new();
-        self.decompress(coded, want, allowed, &mut out)?;
-        self.finish(&mut out, row_bytes, rows, full_rows)?;
-        Ok(if self.packed_bits != 0 { self.widened(&out, width, rows) } else { out })
     }
 
     /// Decompressed bytes `out` checked against the chunk's size (`rows`

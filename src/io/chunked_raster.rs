@@ -170,6 +170,7 @@ impl ChunkedRaster {
         Ok(bytes)
     }
 
+    #[cfg(test)]
     /// Chunks decoded so far.
     pub fn chunks_decoded(&self) -> usize {
         self.decoded.load(std::sync::atomic::Ordering::Relaxed)

@@ -67,10 +67,6 @@ impl GeoKeys {
         self.0.retain(|(k, _)| *k != id);
         self.0.push((id, value));
     }
-
-    pub fn is_empty(&self) -> bool {
-        self.0.is_empty()
-    }
 }
 
 /// Georeferencing of a raster, in GDAL's terms.

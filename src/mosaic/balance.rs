@@ -91,6 +91,7 @@ impl Sums {
         (sa > least && sb > least).then(|| ((self.ab / self.n - ma * mb) / (sa * sb)).clamp(-1.0, 1.0))
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn cells(&self) -> f64 {
         self.n
     }

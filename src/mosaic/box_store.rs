@@ -125,6 +125,7 @@ impl Seen {
         self.bits.get(k / 64).is_some_and(|b| b >> (k % 64) & 1 == 1)
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// Cells it sees.
     pub fn count(&self) -> usize {
         self.bits.iter().map(|b| b.count_ones() as usize).sum()

@@ -314,7 +314,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         let settings = PlanSettings { gsd: o.gsd, bounds: o.bounds, crs, grid: like.map(|(g, _)| g), memory: o.memory, cell, thumbnails: o.plan_in.is_none() };
         let mut plan = Plan::make(jobs.into_iter().map(|j| (j.name, j.config)).collect(), &settings, progress)?;
         let t_plan = wall.elapsed().as_secs_f64();
-        crate::pipeline::release_free_memory();
+        progress.memory_freed();
         if cancel.is_cancelled() {
             return Err(Error::Cancelled);
         }
@@ -417,7 +417,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
                 RectifyOptions { threads, sync: false, occlusion: o.occlusion.unwrap_or(own.occlusion), ..own.clone() }
             };
             works = within(&render::work(&plan, &weights, tile, prone.as_deref(), opts_of), window);
-            crate::pipeline::release_free_memory();
+            progress.memory_freed();
 
             let t = Instant::now();
             let (fill, _) = fill_of(plan.images[0].sample, first.nodata)?;
@@ -511,7 +511,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             unseen,
             seconds: PhaseSeconds { plan: t_plan, balance: t_balance, seams: t_seams, render: t_render },
             wall_seconds: wall.elapsed().as_secs_f64(),
-            peak_rss_mib: crate::pipeline::peak_rss_mib(),
+            peak_rss_mib: progress.peak_memory_mib(),
             output_bytes: o.output.as_deref().and_then(|p| std::fs::metadata(p).ok()).map_or(0, |m| m.len()),
             pieces_reused: None,
             strips: strips_made,
@@ -796,7 +796,7 @@ impl PieceRender<'_> {
                 if feeds.as_ref().is_none_or(|(j, _, _, _)| *j != k) {
                     // The strip before is done: its images' threads have ended.
                     feeds = None;
-                    crate::pipeline::release_free_memory();
+                    progress.memory_freed();
                     let (works, heights) = works_of(&strips[k]);
                     let n = works.len();
                     // No more images make a band at once than there are

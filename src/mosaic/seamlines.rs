@@ -278,7 +278,7 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
                         _ => return Err(Error::config(path, field("geometry.coordinates"), "expected [x, y] numbers")),
                     };
                     let (x, y) = match &to_plan {
-                        Some(t) => t.from_lonlat(x, y).ok_or_else(|| Error::config(path, field("geometry.coordinates"), "outside the mosaic's CRS"))?,
+                        Some(t) => t.lonlat_to_ground(x, y).ok_or_else(|| Error::config(path, field("geometry.coordinates"), "outside the mosaic's CRS"))?,
                         None => (x, y),
                     };
                     pts.push(((x - g.x0) / g.gsd.x / c, (g.y0 - y) / g.gsd.y / c));

@@ -12,7 +12,7 @@ mod reduce;
 mod statistics;
 
 pub use reduce::{fill_pixel, reduce, OverviewResampling, Quarter, TileLayout, ValidBy};
-pub use statistics::{BandStats, ByTileRow, Statistics};
+pub use statistics::{ByTileRow, Statistics};
 
 use crate::io::tiff_out::OutputSpec;
 use std::collections::HashMap;

@@ -71,6 +71,12 @@ impl Progress for ImageWarnings<'_> {
             self.to.warn(&format!("{name}: {message}"));
         }
     }
+    fn peak_memory_mib(&self) -> Option<f64> {
+        self.to.peak_memory_mib()
+    }
+    fn memory_freed(&self) {
+        self.to.memory_freed();
+    }
 }
 
 /// What the images of a mosaic share: the workers they resample on (so

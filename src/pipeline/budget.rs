@@ -54,11 +54,6 @@ impl MemoryBudget {
         self.total / 8
     }
 
-    /// What the node rows of the bands in flight may hold.
-    pub fn node_share(&self) -> u64 {
-        3 * self.share()
-    }
-
     /// The most the node rows of a spacing the user chose may hold: their
     /// share and three more of the slack (a quarter of the budget); past
     /// it, the peak passes the budget.

@@ -22,8 +22,6 @@ pub struct PixelOptions {
     pub tile: u32,
     /// Written where there is no image (0 under an alpha band).
     pub fill: f64,
-    /// An alpha band is added after the scan's bands.
-    pub alpha: bool,
     /// Bands written: the scan's, and the alpha band.
     pub bands_out: u32,
     /// The part of the scan that holds the image, where less than all of it

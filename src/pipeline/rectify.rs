@@ -25,6 +25,11 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     let wall = Instant::now();
     let recording = crate::progress::Recording::new(progress);
     let progress: &dyn Progress = &recording;
+    // Every output is a GeoTIFF: a name that says another format misleads
+    // whoever opens it by its name.
+    if let Some(w) = crate::io::tiff_out::named_as_other_format(&opts.output) {
+        progress.warn(&w);
+    }
     opts.validate()?;
     opts.check_outputs(&[])?;
     // The output folder must take a file before any work starts.
@@ -142,7 +147,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         wall_seconds: wall_s,
         input_mb_per_s: src.info.data_bytes() as f64 / 1e6 / wall_s,
         output_mpx_per_s: spec.width as f64 * spec.height as f64 / 1e6 / wall_s,
-        peak_rss_mib: crate::io::os_memory::peak_rss_mib(),
+        peak_rss_mib: progress.peak_memory_mib(),
         gcm: gcm_stats,
         accuracy_estimate: estimate,
         error_bound,

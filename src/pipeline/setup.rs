@@ -296,7 +296,6 @@ fn pixel_options(
         kernel: opts.kernel,
         tile: opts.tile,
         fill: nodata.unwrap_or(0.0),
-        alpha: opts.alpha,
         bands_out: spec.bands,
         area,
         mask: spec.mask,

@@ -121,16 +121,6 @@ impl PointFile {
         }
     }
 
-    /// The files this one's reading depends on besides itself.
-    pub fn sidecars(&self) -> Vec<PathBuf> {
-        let prj = self.path.with_extension("prj");
-        if self.kind == Kind::Text && prj.is_file() {
-            vec![prj]
-        } else {
-            Vec::new()
-        }
-    }
-
     /// Reads every point `filter` keeps, in the file's order, handing them
     /// to `each` in batches with the bytes read so far; returns the number
     /// of points the file holds (kept or not).

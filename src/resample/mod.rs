@@ -696,6 +696,7 @@ pub fn span_bounds(span: &Span) -> [f64; 4] {
     [b[0] - e, b[1] - e, b[2] + e, b[3] + e]
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// [`bilinear_span`] for 1 to 4 bands.
 pub fn resample_span<T: Sample>(view: &View<'_, T>, span: &Span, out: &mut [T], valid: &mut [bool], fill: T) -> SpanOutcome {
     resample_spans(view, std::slice::from_ref(span), out, valid, fill)

@@ -142,7 +142,8 @@ pub struct StereoReport {
 /// Makes the DSM. See the module doc.
 pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Result<StereoReport> {
     let started = std::time::Instant::now();
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<String> = crate::io::tiff_out::named_as_other_format(&o.output).into_iter().collect();
+    warnings.iter().for_each(|w| progress.warn(w));
     check_files(o)?;
     let (left_cam, right_cam, crs) = cameras(o)?;
     for w in left_cam.warnings.iter().chain(&right_cam.warnings) {

@@ -3,7 +3,7 @@
 //! publish it (mean abs, RMS, max, share of pixels under 0.1 / 0.25 / 0.5
 //! / 1 px), with the time the GCM took.
 
-pub use crate::gcm::self_check::{run_sample_steps, sample_band, Acc, ErrorStats, THRESHOLDS};
+pub use crate::gcm::self_check::{Acc, ErrorStats};
 use crate::gcm::{Gcm, GcmStats};
 use crate::transform::Mapped;
 use rayon::prelude::*;
@@ -20,6 +20,7 @@ pub struct Evaluation {
     pub fill: Duration,
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// Compares `A + c` with `T` on every `step`-th row and column. `error_map`,
 /// when given, receives the per-pixel error of the sampled pixels (NaN
 /// elsewhere), row-major over the sampled grid ⌈W/step⌉ × ⌈H/step⌉.

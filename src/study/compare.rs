@@ -9,12 +9,16 @@ use std::path::Path;
 /// A whole raster as grey f32 (band mean), with validity (non-nodata).
 pub struct Grey {
     pub width: usize,
+    // Read by the project's tests through `read_grey`.
+    #[cfg_attr(not(feature = "internals"), allow(dead_code))]
     pub height: usize,
     pub v: Vec<f32>,
     pub valid: Vec<bool>,
+    #[cfg_attr(not(feature = "internals"), allow(dead_code))]
     pub georef: Option<crate::io::geotiff::GeoRef>,
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// Reads a raster (up to ~200 Mpx) as grey values; pixels whose every band
 /// equals `nodata` are invalid.
 pub fn read_grey(path: &Path, nodata: f64) -> Result<Grey> {
@@ -69,6 +73,7 @@ pub struct Comparison {
 /// Half the side of the correlation's search, in pixels.
 const SEARCH: usize = 3;
 
+#[cfg(any(test, feature = "internals"))]
 /// Compares `a` (measured) with `b` (reference) on the same grid.
 pub fn compare(a: &Grey, b: &Grey, window: usize) -> Comparison {
     assert_eq!((a.width, a.height), (b.width, b.height));

@@ -243,7 +243,7 @@ pub fn synth_rpc_pair(o: &SynthOptions, base_to_height: f64, progress: &dyn crat
         tex.rgb(x, y)
     };
     let (lake_lon, lake_lat) = s0.lonlat(lake.0, lake.1);
-    let (lx, ly) = utm.from_lonlat(lake_lon, lake_lat).ok_or_else(|| Error::Geometry("the lake's centre".into()))?;
+    let (lx, ly) = utm.lonlat_to_ground(lake_lon, lake_lat).ok_or_else(|| Error::Geometry("the lake's centre".into()))?;
     let lake_path = out("lake.csv");
     std::fs::write(&lake_path, format!("x,y,radius\n{lx:.3},{ly:.3},{:.3}\n", lake.2)).map_err(|e| Error::io(&lake_path, e))?;
     let (w, h) = (o.width as f64, o.height as f64);

@@ -193,6 +193,7 @@ impl<'a> Transform<'a> {
         }
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// `T` over one output row `v` for the columns `u0 + i` (i < out.len()),
     /// scan columns/rows into `cols`/`rows`, NaN where there is no value.
     /// Returns the first DEM miss, if any.

@@ -287,7 +287,7 @@ pub fn read(image: &Path, crs: Option<&Crs>) -> Result<Imported> {
     };
     let crs = crs.cloned().unwrap_or_else(|| utm_zone(lon, lat));
     let ground = GroundCrs::new(&crs).map_err(|m| Error::format(image, m))?;
-    let (x, y) = ground.from_lonlat(lon, lat).ok_or_else(|| Error::format(image, format!("its position ({lat}, {lon}) is outside {crs}")))?;
+    let (x, y) = ground.lonlat_to_ground(lon, lat).ok_or_else(|| Error::format(image, format!("its position ({lat}, {lon}) is outside {crs}")))?;
     let r = attitude(image, &tags, (lon, lat), &ground)?;
     let name = image.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
     set.poses.push(Pose { name, camera: Some(id), position: [x, y, alt], r, origin: format!("{}: EXIF/XMP", image.display()) });

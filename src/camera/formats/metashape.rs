@@ -185,7 +185,7 @@ fn similarity(path: &Path, t: Node, field: &str) -> Result<Matrix4<f64>> {
 fn geocentric_to_ground(p: Vector3<f64>, ground: &GroundCrs) -> Option<([f64; 3], Matrix3<f64>)> {
     let at = |q: Vector3<f64>| -> Option<Vector3<f64>> {
         let (lon, lat, h) = from_ecef(q);
-        let (x, y) = ground.from_lonlat(lon, lat)?;
+        let (x, y) = ground.lonlat_to_ground(lon, lat)?;
         Some(Vector3::new(x, y, h))
     };
     let here = at(p)?;

@@ -235,22 +235,6 @@ pub enum Kind {
 }
 
 impl Kind {
-    /// What the format is called in messages.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            Kind::Ours => "gcm-ortho camera file",
-            Kind::OrthorityInterior => "Orthority interior parameters",
-            Kind::OrthorityCsv => "exterior orientations (CSV)",
-            Kind::OrthorityGeoJson => "Orthority exterior parameters (GeoJSON)",
-            Kind::OpenSfmReconstruction => "OpenSfM reconstruction",
-            Kind::OpenSfmCameras => "OpenSfM cameras",
-            Kind::MetashapeXml => "Metashape cameras (XML)",
-            Kind::Pix4dCalibrated => "Pix4D calibrated camera parameters",
-            Kind::Pix4dCam => "Pix4D internal camera parameters (.cam)",
-            Kind::AspOpticalBar => "Ames Stereo Pipeline optical-bar camera",
-        }
-    }
 }
 
 /// The forms of camera file read, as a refusal lists them.
@@ -359,6 +343,7 @@ pub fn read_for_with(image: &Path, camera: &Path, exterior: Option<&Path>, angle
     exif::read(image, crs)
 }
 
+#[cfg(feature = "internals")]
 /// Reads a camera file (`--camera`) and, where given, a pose file
 /// (`--exterior`) into one set; `image`, where known, gives the pixels of
 /// a lens given in mm only (Pix4D's `.cam`).

@@ -128,7 +128,7 @@ impl Frame<'_> {
     /// The world position (X, Y, h) of a point at `p` in the reconstruction.
     fn at(&self, p: Vector3<f64>) -> Option<Vector3<f64>> {
         let (lon, lat, h) = from_ecef(to_ecef(self.lon, self.lat, self.alt) + enu_axes(self.lon, self.lat) * p);
-        let (x, y) = self.ground.from_lonlat(lon, lat)?;
+        let (x, y) = self.ground.lonlat_to_ground(lon, lat)?;
         Some(Vector3::new(x, y, h))
     }
 
@@ -142,7 +142,7 @@ impl Frame<'_> {
     /// world: position, rotation photo → world.
     fn world(&self, c: Vector3<f64>, r: Matrix3<f64>) -> Option<([f64; 3], Matrix3<f64>)> {
         if self.geocoded {
-            let (x0, y0) = self.ground.from_lonlat(self.lon, self.lat)?;
+            let (x0, y0) = self.ground.lonlat_to_ground(self.lon, self.lat)?;
             return Some(([x0 + c.x, y0 + c.y, self.alt + c.z], r));
         }
         let here = self.at(c)?;

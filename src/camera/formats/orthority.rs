@@ -277,8 +277,8 @@ pub fn ned_to_ground(lonlat: (f64, f64), crs: &GroundCrs) -> Option<Matrix3<f64>
     // About a metre: far above the projection's rounding, the meridian's
     // curvature cancels in the central difference.
     let d = 1e-5;
-    let (x1, y1) = crs.from_lonlat(lonlat.0, lonlat.1 + d)?;
-    let (x2, y2) = crs.from_lonlat(lonlat.0, lonlat.1 - d)?;
+    let (x1, y1) = crs.lonlat_to_ground(lonlat.0, lonlat.1 + d)?;
+    let (x2, y2) = crs.lonlat_to_ground(lonlat.0, lonlat.1 - d)?;
     let north = Vector3::new(x1 - x2, y1 - y2, 0.0).try_normalize(0.0)?;
     let down = Vector3::new(0.0, 0.0, -1.0);
     Some(Matrix3::from_columns(&[north, down.cross(&north), down]))
@@ -428,7 +428,7 @@ pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit, only: Option<&P
         let bad = |what: &str| Error::format(path, format!("line {line}: {what}"));
         let (position, lonlat) = match (&ground, is_lla) {
             (Some(g), true) => {
-                let (x, y) = g.from_lonlat(p[1], p[0]).ok_or_else(|| bad("the position is outside the CRS"))?;
+                let (x, y) = g.lonlat_to_ground(p[1], p[0]).ok_or_else(|| bad("the position is outside the CRS"))?;
                 ([x, y, p[2]], Some((p[1], p[0])))
             }
             (Some(g), false) => (p, g.to_lonlat(p[0], p[1])),

@@ -144,14 +144,6 @@ impl MaskRuns {
         }
     }
 
-    /// Runs held (for the budget and tests).
-    pub fn len(&self) -> usize {
-        self.runs.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.runs.is_empty()
-    }
 }
 
 #[cfg(test)]

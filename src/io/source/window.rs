@@ -15,6 +15,7 @@ pub struct Window {
 
 impl Window {
     /// A window holding `bytes` (for tests and small rasters).
+    #[cfg(any(test, feature = "internals"))]
     pub fn from_bytes(x0: u32, y0: u32, w: u32, h: u32, bytes: &[u8]) -> Window {
         let mut win = Window { x0, y0, w, h, ..Default::default() };
         win.resize(bytes.len());
@@ -33,9 +34,5 @@ impl Window {
     }
     pub fn bytes_mut(&mut self) -> &mut [u8] {
         &mut bytemuck::cast_slice_mut(&mut self.buf[..])[..self.len]
-    }
-    /// Bytes held (for memory accounting).
-    pub fn capacity_bytes(&self) -> usize {
-        self.buf.capacity() * 8
     }
 }

@@ -15,9 +15,11 @@ mod writer;
 
 pub use crate::io::publish::{folder_of, reserve, PendingFile};
 pub use directory::Value as TagValue;
-pub use encode::{decode_mask, encode_mask, encode_tile, jpeg_quality_of, jpeg_tables, zlib};
+pub use encode::{decode_mask, encode_mask, encode_tile, jpeg_quality_of, jpeg_tables};
+#[cfg(feature = "internals")]
+pub use encode::zlib;
 pub use verify::verify;
-pub use writer::{page_padding, tiff_write_error, write_placed, write_raster, write_tiled, TileWriter, WriteError};
+pub use writer::{page_padding, tiff_write_error, write_raster, TileWriter};
 
 use crate::io::format::SampleType;
 
@@ -315,7 +317,7 @@ pub fn named_as_other_format(output: &std::path::Path) -> Option<String> {
 
 #[cfg(test)]
 mod tests {
-    use super::writer::PAGE;
+    use super::writer::{write_placed, PAGE};
     use super::*;
     use std::io::Read;
     use tiff::tags::Tag;

@@ -1,4 +1,5 @@
-//! The process's memory as the operating system sees it: free pages handed
+//! The process's memory as the operating system sees it (the command
+//! line owns the process; the library asks it through `Progress`): free pages handed
 //! back, the peak resident size read.
 
 /// Hands the allocator's free pages back to the system: memory freed

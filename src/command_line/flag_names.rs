@@ -8,7 +8,7 @@ static COMMAND: std::sync::OnceLock<String> = std::sync::OnceLock::new();
 /// said as this command's flag (`‹dem_hole›` → `--dem-hole`).
 pub fn with_flags(text: &str) -> String {
     let command = COMMAND.get().map(String::as_str).unwrap_or_default();
-    gcm_ortho::setting_names::name_settings(text, &|key| crate::cli::flag_of(command, key))
+    crate::setting_names::name_settings(text, &|key| super::cli::flag_of(command, key))
 }
 
 /// Says a warning of the library on standard error, its settings as flags.

@@ -10,22 +10,22 @@ macro_rules! say {
     }};
 }
 
-use crate::cli::{AccuracyArgs, BatchArgs, Cli, Command, DemoArgs, MosaicArgs, RectifyArgs, SynthArgs};
-use crate::progress_bar::Bar;
+use super::cli::{AccuracyArgs, BatchArgs, Cli, Command, DemoArgs, MosaicArgs, RectifyArgs, SynthArgs};
+use super::progress_bar::Bar;
+use crate::camera::file::Camera;
+use crate::dem::Dem;
+use crate::gcm::{CorrectionMode, Gcm, GcmSpec};
+use crate::io::overwrite::{check_outputs, check_writable, Role};
+use crate::io::publish::write_file;
+use crate::io::source::SourceImage;
+use crate::options::{parse_bytes, parse_size, DemSource, RectifyOptions};
+use crate::study::accuracy::evaluate_where;
+use crate::study::compare::compare_files;
+use crate::synth::{synth, SynthOptions};
+use crate::transform::footprint::{auto_grid, mean_gsd};
+use crate::transform::{Approx, Transform, Trend};
+use crate::{rectify, Cancel, Report};
 use anyhow::{anyhow, Context, Result};
-use gcm_ortho::camera::file::Camera;
-use gcm_ortho::dem::Dem;
-use gcm_ortho::gcm::{CorrectionMode, Gcm, GcmSpec};
-use gcm_ortho::io::overwrite::{check_outputs, check_writable, Role};
-use gcm_ortho::io::publish::write_file;
-use gcm_ortho::io::source::SourceImage;
-use gcm_ortho::options::{parse_bytes, parse_size, DemSource, RectifyOptions};
-use gcm_ortho::study::accuracy::evaluate_where;
-use gcm_ortho::study::compare::compare_files;
-use gcm_ortho::synth::{synth, SynthOptions};
-use gcm_ortho::transform::footprint::{auto_grid, mean_gsd};
-use gcm_ortho::transform::{Approx, Transform, Trend};
-use gcm_ortho::{rectify, Cancel, Report};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -61,7 +61,7 @@ impl Signals {
             signal_hook::flag::register(sig, flag.clone())?;
             signal_hook::flag::register(sig, s.cancel.flag())?;
         }
-        gcm_ortho::io::mmap_guard::install_sigbus_handler();
+        crate::io::mmap_guard::install_sigbus_handler();
         let watched = Signals { cancel: s.cancel.clone(), int: s.int.clone(), term: s.term.clone(), ending: s.ending.clone() };
         let grace = if polls { GRACE } else { Duration::ZERO };
         std::thread::Builder::new().name("signal watchdog".into()).spawn(move || watched.watch(grace))?;
@@ -79,7 +79,7 @@ impl Signals {
         };
         std::thread::sleep(grace);
         if self.claim_end() {
-            gcm_ortho::io::mmap_guard::remove_registered_temporaries();
+            crate::io::mmap_guard::remove_registered_temporaries();
             eprintln!("gcm-ortho: interrupted; no unfinished output was left behind");
             std::process::exit(i32::from(code));
         }
@@ -120,8 +120,8 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Assemble(a) => {
             warn_if_not_tiff(&a.output);
             inputs_exist(&a.pieces.iter().map(|p| ("piece", Some(p.as_path()))).collect::<Vec<_>>())?;
-            let opts = gcm_ortho::assemble::AssembleOptions { compress: a.compress, ..a.layout.options()? };
-            gcm_ortho::assemble::assemble(&a.pieces, &a.output, &opts, &signals.cancel)?;
+            let opts = crate::assemble::AssembleOptions { compress: a.compress, ..a.layout.options()? };
+            crate::assemble::assemble(&a.pieces, &a.output, &opts, &signals.cancel)?;
             Ok(0)
         }
     }
@@ -135,20 +135,19 @@ fn worker_threads(asked: usize) -> usize {
     }
 }
 
-fn run_dem(a: &crate::cli::DemArgs, signals: &Signals) -> Result<()> {
-    use gcm_ortho::stereo::dem;
-    warn_if_not_tiff(&a.output);
-    let mut o = gcm_ortho::command_keys::dem_options(crate::cli::keys_of(a)?)?;
+fn run_dem(a: &super::cli::DemArgs, signals: &Signals) -> Result<()> {
+    use crate::stereo::dem;
+    let mut o = crate::command_keys::dem_options(super::cli::keys_of(a)?)?;
     o.threads = worker_threads(a.threads);
     if let Some(j) = &a.json {
         check_writable(Role::new("report", j))?;
     }
     let report = dem(&o, &Bar::new(a.quiet), &signals.cancel)?;
     if let Some(w) = past_budget(&a.memory, o.memory) {
-        crate::flag_names::warn(&w);
+        super::flag_names::warn(&w);
     }
     if let Some(j) = &a.json {
-        write_file(j, crate::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
+        write_file(j, super::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
     }
     if !a.quiet {
         eprintln!(
@@ -166,21 +165,20 @@ fn run_dem(a: &crate::cli::DemArgs, signals: &Signals) -> Result<()> {
     Ok(())
 }
 
-fn run_grid(a: &crate::cli::GridArgs, signals: &Signals) -> Result<()> {
-    use gcm_ortho::gridding::grid;
-    warn_if_not_tiff(&a.output);
+fn run_grid(a: &super::cli::GridArgs, signals: &Signals) -> Result<()> {
+    use crate::gridding::grid;
     inputs_exist(&a.points.iter().map(|p| ("points", Some(p.as_path()))).collect::<Vec<_>>())?;
-    let mut o = gcm_ortho::command_keys::grid_options(crate::cli::keys_of(a)?)?;
+    let mut o = crate::command_keys::grid_options(super::cli::keys_of(a)?)?;
     o.threads = worker_threads(a.threads);
     if let Some(j) = &a.json {
         check_writable(Role::new("report", j))?;
     }
     let report = grid(&o, &Bar::new(a.quiet), &signals.cancel)?;
     if let Some(w) = past_budget(&a.memory, o.memory) {
-        crate::flag_names::warn(&w);
+        super::flag_names::warn(&w);
     }
     if let Some(j) = &a.json {
-        write_file(j, crate::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
+        write_file(j, super::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
     }
     if !a.quiet {
         eprintln!(
@@ -200,9 +198,9 @@ fn run_grid(a: &crate::cli::GridArgs, signals: &Signals) -> Result<()> {
     Ok(())
 }
 
-fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {
-    use gcm_ortho::fiducials::{self, camera::Overrides, Turn};
-    use gcm_ortho::io::overwrite::{check_outputs, Role};
+fn run_fiducials(a: &super::cli::FiducialsArgs) -> Result<()> {
+    use crate::fiducials::{self, camera::Overrides, Turn};
+    use crate::io::overwrite::{check_outputs, Role};
     let turn = match a.turn.as_deref() {
         None => None,
         Some(t) => {
@@ -212,7 +210,7 @@ fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {
                 "90" => 1,
                 "180" => 2,
                 "270" => 3,
-                _ => return Err(gcm_ortho::Error::setting("turn", format!("'{t}' is not 0, 90, 180 or 270 (with m after it for a mirrored scan)")).into()),
+                _ => return Err(crate::Error::setting("turn", format!("'{t}' is not 0, 90, 180 or 270 (with m after it for a mirrored scan)")).into()),
             };
             Some(Turn { quarters, mirrored })
         }
@@ -225,9 +223,9 @@ fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {
         outputs.push(Role::new("--sheet", s));
     }
     check_outputs(&[Role::new("--image", &a.image), Role::new("--camera", &a.camera)], &outputs)?;
-    let text = gcm_ortho::io::bounded_read::read_text_bounded(&a.camera, "a camera file", gcm_ortho::io::bounded_read::SMALL)?;
-    let file = gcm_ortho::camera::file::CameraFile::parse(&text, &a.camera)?;
-    let src = gcm_ortho::io::source::SourceImage::open(&a.image, 16 << 20)?;
+    let text = crate::io::bounded_read::read_text_bounded(&a.camera, "a camera file", crate::io::bounded_read::SMALL)?;
+    let file = crate::camera::file::CameraFile::parse(&text, &a.camera)?;
+    let src = crate::io::source::SourceImage::open(&a.image, 16 << 20)?;
     let over = Overrides { shape: a.shape.clone(), size_mm: a.size_mm, polarity: a.polarity, turn, pixel_mm: a.scan_pixel_mm, limit_px: a.max_residual_px };
     let det = fiducials::camera::detect_for(&file, &a.camera, &src, &over)?;
     if let Some(w) = &a.write {
@@ -235,19 +233,19 @@ fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {
         // The file must still make a camera.
         measured.clone().build(&a.camera)?;
         let edited = fiducials::camera::edit_toml(&text, &measured, &a.camera)?;
-        gcm_ortho::io::publish::write_file(w, edited.as_bytes())?;
+        crate::io::publish::write_file(w, edited.as_bytes())?;
     }
     if let Some(s) = &a.sheet {
         fiducials::sheet::write(s, fiducials::sheet::render(&src, &det)?)?;
     }
     for w in &det.warnings {
-        crate::flag_names::warn(&format!("{}: {w}", a.image.display()));
+        super::flag_names::warn(&format!("{}: {w}", a.image.display()));
     }
     if det.turn_ambiguous && turn.is_none() {
         eprintln!("gcm-ortho: note: the marks look the same turned; the scan is taken as it lies (--turn if the film was turned)");
     }
     if a.json {
-        say!("{}", crate::flag_names::with_flags(&serde_json::to_string_pretty(&det)?));
+        say!("{}", super::flag_names::with_flags(&serde_json::to_string_pretty(&det)?));
         return Ok(());
     }
     say!("{:>4} {:>10} {:>10} {:>11} {:>11} {:>6} {:>6} {:>8} {:>8}  used", "mark", "x mm", "y mm", "column", "row", "score", "centre", "res px", "res µm");
@@ -286,15 +284,15 @@ fn run_fiducials(a: &crate::cli::FiducialsArgs) -> Result<()> {
     Ok(())
 }
 
-fn run_cameras(a: &crate::cli::CamerasArgs) -> Result<()> {
-    let done = gcm_ortho::camera::formats::convert::convert(&a.options()?)?;
+fn run_cameras(a: &super::cli::CamerasArgs) -> Result<()> {
+    let done = crate::camera::formats::convert::convert(&a.options()?)?;
     for w in &done.warnings {
-        crate::flag_names::warn(w);
+        super::flag_names::warn(w);
     }
     if a.quiet {
         return Ok(());
     }
-    say!("{}", gcm_ortho::camera::formats::convert::table(&done.entries).trim_end_matches('\n'));
+    say!("{}", crate::camera::formats::convert::table(&done.entries).trim_end_matches('\n'));
     for p in &done.written {
         say!("wrote {}", p.display());
     }
@@ -302,7 +300,7 @@ fn run_cameras(a: &crate::cli::CamerasArgs) -> Result<()> {
 }
 
 fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
-    use gcm_ortho::mosaic::{mosaic, MosaicOptions};
+    use crate::mosaic::{mosaic, MosaicOptions};
     inputs_exist(&[
         ("manifest", Some(a.manifest.as_path())),
         ("--seamlines", a.seamlines.as_deref()),
@@ -311,14 +309,14 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
     ])?;
     let memory = parse_bytes("memory", &a.memory)?;
     let bounds = match &a.bounds {
-        Some(b) => gcm_ortho::options::parse_bounds("bounds", b)?,
+        Some(b) => crate::options::parse_bounds("bounds", b)?,
         None => None,
     };
-    let crs = a.crs.as_deref().map(|c| gcm_ortho::geodesy::Crs::parse(c, Path::new("."))).transpose().map_err(|m| gcm_ortho::Error::setting("crs", m))?;
+    let crs = a.crs.as_deref().map(|c| crate::geodesy::Crs::parse(c, Path::new("."))).transpose().map_err(|m| crate::Error::setting("crs", m))?;
     if let Some(j) = &a.json {
         check_writable(Role::new("report", j))?;
     }
-    let window = a.window.as_deref().map(|w| gcm_ortho::options::parse_window("window", w)).transpose()?;
+    let window = a.window.as_deref().map(|w| crate::options::parse_window("window", w)).transpose()?;
     let o = MosaicOptions {
         manifest: a.manifest.clone(),
         output: a.output.clone(),
@@ -345,11 +343,11 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
         report: a.json.clone(),
     };
     let report = match &a.resume_dir {
-        Some(dir) => gcm_ortho::mosaic::resume::resumable(&o, dir, &Bar::new(a.quiet), &signals.cancel)?,
+        Some(dir) => crate::mosaic::resume::resumable(&o, dir, &Bar::new(a.quiet), &signals.cancel)?,
         None => mosaic(&o, &Bar::new(a.quiet), &signals.cancel)?,
     };
     if let Some(w) = past_budget(&a.memory, memory) {
-        crate::flag_names::warn(&w);
+        super::flag_names::warn(&w);
     }
     if let Some(j) = &a.json {
         // A rerun that finds its output current made nothing: it says so,
@@ -358,7 +356,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
             true => serde_json::to_string_pretty(&serde_json::json!({ "output": report.output, "skipped": true, "output_bytes": report.output_bytes }))?,
             false => serde_json::to_string_pretty(&report)?,
         };
-        write_file(j, crate::flag_names::with_flags(&text).as_bytes())?;
+        write_file(j, super::flag_names::with_flags(&text).as_bytes())?;
     }
     if report.skipped {
         if !a.quiet {
@@ -399,11 +397,11 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
 }
 
 fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
-    use gcm_ortho::batch::{self, BatchOptions, ReportWriter, Status};
+    use crate::batch::{self, BatchOptions, ReportWriter, Status};
     let shard = batch::shard::resolve(a.shard.as_deref(), a.shard_count, &|k| std::env::var(k).ok())?;
     let memory = parse_bytes("memory", &a.memory)?;
     if memory < RectifyOptions::MIN_MEMORY {
-        return Err(gcm_ortho::Error::setting("memory", "must be at least 16M").into());
+        return Err(crate::Error::setting("memory", "must be at least 16M").into());
     }
     let jobs = batch::manifest::load(&a.manifest).map_err(|e| e.into_error())?;
     if let Some(report) = &a.report {
@@ -426,7 +424,7 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
         );
     }
     let threads = threads_within_cores(a.threads, at_once).0;
-    let o = BatchOptions { manifest: a.manifest.clone(), jobs: at_once, memory, force: a.force, report: a.report.clone(), shard, threads };
+    let o = BatchOptions { jobs: at_once, memory, force: a.force, shard, threads };
     if a.dry_run {
         let mine: Vec<_> = jobs.iter().enumerate().filter(|(i, _)| i % shard.1 == shard.0).collect();
         for (i, j) in &mine {
@@ -439,17 +437,17 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
         // pixels; its warnings as the run would give them.
         let mut failing = 0;
         for (_, j) in &mine {
-            let recording = gcm_ortho::progress::Recording::new(&gcm_ortho::progress::NoProgress);
+            let recording = crate::progress::Recording::new(&crate::progress::NoProgress);
             let problem = j.problem.clone().or_else(|| {
-                gcm_ortho::io::source::SourceImage::info_of(&j.config.image)
+                crate::io::source::SourceImage::info_of(&j.config.image)
                     .and_then(|_| j.config.validate())
-                    .and_then(|()| gcm_ortho::pipeline::RunPlan::new(&j.config, &recording))
+                    .and_then(|()| crate::pipeline::RunPlan::new(&j.config, &recording))
                     .and_then(|plan| plan.check_node_heights())
                     .err()
                     .map(|e| e.to_string())
             });
             for w in recording.said() {
-                crate::flag_names::warn(&format!("job {}: {w}", j.name));
+                super::flag_names::warn(&format!("job {}: {w}", j.name));
             }
             if let Some(p) = problem {
                 eprintln!("gcm-ortho: job {} will fail: {p}", j.name);
@@ -463,10 +461,10 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
     }
     let report = ReportWriter::create(a.report.as_deref()).with_context(|| format!("{:?}", a.report))?;
     let quiet = a.quiet;
-    let results = batch::run_jobs(&jobs, &o, &signals.cancel, &|r| {
+    let results = batch::run_jobs(&jobs, &o, &Bar::new(true), &signals.cancel, &|r| {
         report.push(r);
         for w in &r.warnings {
-            crate::flag_names::warn(&format!("job {}: {w}", r.job));
+            super::flag_names::warn(&format!("job {}: {w}", r.job));
         }
         // A failed job's error, and a job left to another run, are shown
         // even when quiet: quiet hides progress, not what was not made.
@@ -501,16 +499,16 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
         );
     }
     if let Some(w) = past_budget(&a.memory, memory) {
-        crate::flag_names::warn(&w);
+        super::flag_names::warn(&w);
     }
     if signals.exit_code().is_some() {
-        return Err(anyhow::Error::new(gcm_ortho::Error::Cancelled));
+        return Err(anyhow::Error::new(crate::Error::Cancelled));
     }
     Ok(if results.iter().any(|r| r.status == Status::Failed) { 3 } else { 0 })
 }
 
 fn usage(msg: String) -> anyhow::Error {
-    anyhow::Error::new(gcm_ortho::Error::Usage(msg))
+    anyhow::Error::new(crate::Error::Usage(msg))
 }
 
 fn run_synth(a: &SynthArgs) -> Result<()> {
@@ -524,7 +522,7 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
         } else {
             "points.las"
         });
-        let side = gcm_ortho::synth::points::write_points(&path, n, a.points_density, a.seed, &Bar::new(a.quiet))?;
+        let side = crate::synth::points::write_points(&path, n, a.points_density, a.seed, &Bar::new(a.quiet))?;
         if !a.quiet {
             say!("synth: {n} points on {side:.0} m × {side:.0} m from (500000, 4000000), EPSG:32631, {:.1} s\n  {}", t.elapsed().as_secs_f64(), path.display());
         }
@@ -533,14 +531,14 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
     let o = a.options()?;
     if let Some(bh) = a.stereo {
         let r = match o.camera {
-            gcm_ortho::synth::CameraKind::Rpc => gcm_ortho::synth::satellite::synth_rpc_pair(&o, bh, &Bar::new(a.quiet))?,
-            gcm_ortho::synth::CameraKind::Panoramic => gcm_ortho::synth::panoramic::synth_panoramic_pair(&o, bh, &Bar::new(a.quiet))?,
+            crate::synth::CameraKind::Rpc => crate::synth::satellite::synth_rpc_pair(&o, bh, &Bar::new(a.quiet))?,
+            crate::synth::CameraKind::Panoramic => crate::synth::panoramic::synth_panoramic_pair(&o, bh, &Bar::new(a.quiet))?,
             _ => return Err(usage("--stereo: only for --camera rpc or panoramic (a frame pair: --block 2x1)".into())),
         };
         if !a.quiet {
             say!(
                 "synth: a{} stereo pair of {}x{} at B/H {}, relief {:.0} to {:.0} m, {:.1} s\n  {}\n  {}\n  {}",
-                if o.camera == gcm_ortho::synth::CameraKind::Rpc { "n RPC" } else { " panoramic" },
+                if o.camera == crate::synth::CameraKind::Rpc { "n RPC" } else { " panoramic" },
                 o.width,
                 o.height,
                 r.base_to_height,
@@ -556,7 +554,7 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
     }
     if let Some(b) = &a.block {
         let (cols, rows) = parse_size("block", b)?;
-        let r = gcm_ortho::synth::block::synth_block(&o, cols, rows, &Bar::new(a.quiet))?;
+        let r = crate::synth::block::synth_block(&o, cols, rows, &Bar::new(a.quiet))?;
         if !a.quiet {
             say!(
                 "synth: a block of {} frames of {}x{}, mosaic grid {}x{} at {} m, {:.1} s",
@@ -573,10 +571,10 @@ fn run_synth(a: &SynthArgs) -> Result<()> {
         return Ok(());
     }
     if a.marks_only {
-        if o.camera != gcm_ortho::synth::CameraKind::Film {
+        if o.camera != crate::synth::CameraKind::Film {
             return Err(anyhow!("--marks-only: only for --camera film"));
         }
-        let (scan, camera) = gcm_ortho::synth::film_marks::marks_only(&o)?;
+        let (scan, camera) = crate::synth::film_marks::marks_only(&o)?;
         if !a.quiet {
             say!(
                 "synth: {}x{} film scan of {} marks, {:.1} s\n  {}\n  {}",
@@ -647,7 +645,7 @@ fn print_report(r: &Report) {
 /// budget holds what the run allocates, not the program's code nor the
 /// input pages it maps (resident too, 10–25 MiB on a drone frame).
 fn past_budget(given: &str, budget: u64) -> Option<String> {
-    let peak = gcm_ortho::pipeline::peak_rss_mib()?;
+    let peak = super::os_memory::peak_rss_mib()?;
     let mib = budget as f64 / f64::from(1 << 20);
     (peak > mib).then(|| {
         format!(
@@ -661,8 +659,8 @@ fn past_budget(given: &str, budget: u64) -> Option<String> {
 /// `.jpg`, `.vrt`) would mislead whoever opens it by its name. Said on
 /// stderr, even with --quiet.
 fn warn_if_not_tiff(output: &Path) -> Option<String> {
-    let w = gcm_ortho::io::tiff_out::named_as_other_format(output)?;
-    crate::flag_names::warn(&w);
+    let w = crate::io::tiff_out::named_as_other_format(output)?;
+    super::flag_names::warn(&w);
     Some(w)
 }
 
@@ -678,7 +676,7 @@ fn threads_within_cores(asked: usize, at_once: usize) -> (usize, Option<String>)
     let fit = (cores / at_once).max(1);
     let jobs = if at_once > 1 { format!(" for each of {at_once} jobs at once") } else { String::new() };
     let w = format!("--threads {asked}{jobs} is more than the {cores} cores here: running {fit} a job");
-    crate::flag_names::warn(&w);
+    super::flag_names::warn(&w);
     (fit, Some(w))
 }
 
@@ -703,16 +701,14 @@ fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
     }
     let too_many;
     (opts.threads, too_many) = threads_within_cores(opts.threads, 1);
-    let not_tiff = warn_if_not_tiff(&opts.output);
     let mut report = rectify(&opts, &Bar::new(a.quiet), &signals.cancel)?;
     report.warnings.extend(too_many);
-    report.warnings.extend(not_tiff);
     if let Some(w) = past_budget(&a.memory, opts.memory) {
-        crate::flag_names::warn(&w);
+        super::flag_names::warn(&w);
         report.warnings.push(w);
     }
     if let Some(j) = &a.json {
-        write_file(j, crate::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
+        write_file(j, super::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
     }
     if !a.quiet {
         print_report(&report);
@@ -731,7 +727,7 @@ fn inputs_exist(inputs: &[(&str, Option<&Path>)]) -> Result<()> {
             } else {
                 ""
             };
-            return Err(gcm_ortho::Error::Named(format!("{flag} {}: no such file or folder{tiles}", p.display())).into());
+            return Err(crate::Error::Named(format!("{flag} {}: no such file or folder{tiles}", p.display())).into());
         }
     }
     Ok(())
@@ -750,7 +746,7 @@ fn scene_inputs(a: &AccuracyArgs) -> Result<(PathBuf, PathBuf, PathBuf)> {
 }
 
 fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
-    use gcm_ortho::Error;
+    use crate::Error;
     let max_k = RectifyOptions::MAX_SPARSITY;
     if let Some(k) = a.sparsity.iter().find(|&&k| k == 0 || k > max_k) {
         return Err(Error::setting("sparsity", format!("{k} is not 1 to {max_k}")).into());
@@ -792,7 +788,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     let dem = Dem::open(&dem_path, &cam.crs)?;
     let z0 = dem.mean_height().unwrap_or_else(|| cam.height_hint());
     let gsd = mean_gsd(cam.model(), &dem, w, h, z0)?;
-    let (grid, _) = auto_grid(cam.model(), &dem, w, h, z0, gcm_ortho::geom::Gsd::square(gsd))?;
+    let (grid, _) = auto_grid(cam.model(), &dem, w, h, z0, crate::geom::Gsd::square(gsd))?;
     let area = grid.bounds();
     let plane =
         if a.trend == Trend::Mean { dem.mean_plane(area) } else { dem.trend_plane(area) }.ok_or_else(|| anyhow!("no DEM heights in the output area"))?;
@@ -870,9 +866,9 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     }
     let cp_path = a.scene.as_ref().map(|d| d.join("checkpoints.csv")).filter(|p| p.exists());
     if let Some(cp_path) = cp_path {
-        let cps = gcm_ortho::study::accuracy::read_checkpoints(&cp_path)?;
+        let cps = crate::study::accuracy::read_checkpoints(&cp_path)?;
         let gcm = Gcm::new(&t, approx, GcmSpec { k: a.map_sparsity, mode: CorrectionMode::Bilinear, max_error: None });
-        let offs = gcm_ortho::study::accuracy::checkpoint_offsets(&gcm, &cps);
+        let offs = crate::study::accuracy::checkpoint_offsets(&gcm, &cps);
         let n = offs.len().max(1) as f64;
         let rms = (offs.iter().map(|(_, d)| d[0] * d[0] + d[1] * d[1]).sum::<f64>() / n).sqrt();
         let max = offs.iter().map(|(_, d)| d[0].hypot(d[1])).fold(0.0, f64::max);
@@ -893,27 +889,27 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
         evaluate_where(&gcm, a.step, None, Some((w, h)), Some(&mut map));
         let (mw, mh) = (grid.width.div_ceil(a.step), grid.height.div_ceil(a.step));
         if let Some(p) = &a.error_map {
-            gcm_ortho::study::maps::write_error_map(p, &map, mw, mh, &grid, a.step, &cam.crs)?;
+            crate::study::maps::write_error_map(p, &map, mw, mh, &grid, a.step, &cam.crs)?;
         }
         if let Some(p) = &a.png {
-            gcm_ortho::study::maps::write_error_png(p, &map, mw, mh)?;
+            crate::study::maps::write_error_png(p, &map, mw, mh)?;
         }
     }
     if let Some(p) = &a.gcm_png {
         let gcm = Gcm::new(&t, approx, GcmSpec { k: a.map_sparsity, mode: CorrectionMode::Cell, max_error: None });
-        gcm_ortho::study::maps::write_gcm_png(p, &gcm)?;
+        crate::study::maps::write_gcm_png(p, &gcm)?;
     }
     if let Some(j) = &a.json {
-        write_file(j, crate::flag_names::with_flags(&serde_json::to_string_pretty(&serde_json::json!({"grid": grid, "rows": rows}))?).as_bytes())?;
+        write_file(j, super::flag_names::with_flags(&serde_json::to_string_pretty(&serde_json::json!({"grid": grid, "rows": rows}))?).as_bytes())?;
     }
     Ok(())
 }
 
-fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
-    use gcm_ortho::camera::file::Sensor;
-    use gcm_ortho::camera::RpcCamera;
-    use gcm_ortho::geodesy::GroundCrs;
-    use gcm_ortho::rpcgrid;
+fn run_rpc_grid(a: &super::cli::RpcGridArgs) -> Result<()> {
+    use crate::camera::file::Sensor;
+    use crate::camera::RpcCamera;
+    use crate::geodesy::GroundCrs;
+    use crate::rpcgrid;
     let (origin, model) = a.sensor.model()?;
     let vrt_path = a.output.with_extension("vrt");
     {
@@ -927,30 +923,30 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
         }
         check_outputs(&ins, &outs)?;
     }
-    let cam = gcm_ortho::scene::camera::load(&model, &a.sensor.image, &origin, None)?;
+    let cam = crate::scene::camera::load(&model, &a.sensor.image, &origin, None)?;
     let Sensor::Rpc(r) = &cam.sensor else {
-        return Err(gcm_ortho::error::Error::unsupported(&origin, "rpc-grid needs an RPC model (camera.model = \"rpc\")").into());
+        return Err(crate::error::Error::unsupported(&origin, "rpc-grid needs an RPC model (camera.model = \"rpc\")").into());
     };
     // The grid is in longitude/latitude: the model and the DEM in EPSG:4326.
     let model = RpcCamera::new(r.rpc.clone(), GroundCrs::from_epsg(4326).map_err(|m| anyhow!(m))?, r.geoid.clone());
     let dem = match (&a.dem, a.height) {
-        (Some(p), _) => Dem::open(p, &gcm_ortho::geodesy::Crs::wgs84())?,
+        (Some(p), _) => Dem::open(p, &crate::geodesy::Crs::wgs84())?,
         (None, Some(h)) if h.is_finite() => Dem::flat(h),
         _ => return Err(usage("give --dem or a finite --height".to_string())),
     };
     let info = SourceImage::info_of(&a.sensor.image)?;
     let (w, h) = (info.width, info.height);
     let z0 = dem.mean_height().unwrap_or_else(|| model.height_hint());
-    let on_dem = |e: gcm_ortho::error::Error| match (e, &a.dem) {
-        (gcm_ortho::error::Error::Geometry(m), Some(d)) => gcm_ortho::error::Error::format(d, m),
+    let on_dem = |e: crate::error::Error| match (e, &a.dem) {
+        (crate::error::Error::Geometry(m), Some(d)) => crate::error::Error::format(d, m),
         (e, _) => e,
     };
     let grid = rpcgrid::build(&model, &dem, w, h, a.step, z0).map_err(on_dem)?;
     grid.write(&a.output)?;
     let data_type = match info.sample {
-        gcm_ortho::io::source::SampleType::U8 => "Byte",
-        gcm_ortho::io::source::SampleType::U16 => "UInt16",
-        gcm_ortho::io::source::SampleType::F32 => "Float32",
+        crate::io::source::SampleType::U8 => "Byte",
+        crate::io::source::SampleType::U16 => "UInt16",
+        crate::io::source::SampleType::F32 => "Float32",
     };
     let abs = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
     let vrt = rpcgrid::geolocation_vrt(&abs(&a.sensor.image), &abs(&a.output), w, h, info.bands, data_type, a.step);
@@ -976,7 +972,7 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
         let mut rows = Vec::new();
         for s in steps {
             let g = rpcgrid::build(&model, &dem, w, h, s, z0).map_err(on_dem)?;
-            let acc = gcm_ortho::study::rpc_grid::accuracy(&g, &model, &dem, w, h, a.sample, z0);
+            let acc = crate::study::rpc_grid::accuracy(&g, &model, &dem, w, h, a.sample, z0);
             say!(
                 "{:>5} | {:>9.4} {:>9.4} {:>9.4} | {:>6.1} {:>6.1} {:>6.1} {:>6.1} | {:>9}",
                 s,
@@ -992,7 +988,7 @@ fn run_rpc_grid(a: &crate::cli::RpcGridArgs) -> Result<()> {
             rows.push(acc);
         }
         if let Some(j) = &a.json {
-            write_file(j, crate::flag_names::with_flags(&serde_json::to_string_pretty(&rows)?).as_bytes())?;
+            write_file(j, super::flag_names::with_flags(&serde_json::to_string_pretty(&rows)?).as_bytes())?;
         }
     }
     Ok(())
@@ -1010,7 +1006,7 @@ fn run_demo(a: &DemoArgs, signals: &Signals) -> Result<()> {
     let (width, height) = parse_size("size", &a.size)?;
     let opts = SynthOptions { out: dir.join("scene"), width, height, kappa_deg: 30.0, ..Default::default() };
     // Refused before the work is announced.
-    gcm_ortho::synth::check(&opts)?;
+    crate::synth::check(&opts)?;
     say!("demo: generating a {width}x{height} hilly film scene (swing 30°) in {}", opts.out.display());
     let t = std::time::Instant::now();
     let scene = synth(&opts, &Bar::new(a.quiet))?;
@@ -1034,7 +1030,7 @@ fn run_demo(a: &DemoArgs, signals: &Signals) -> Result<()> {
 }
 
 /// "N images", or "N of M images" where the mosaic takes nothing of some.
-fn taken_of(images: &[gcm_ortho::mosaic::ImageReport]) -> String {
+fn taken_of(images: &[crate::mosaic::ImageReport]) -> String {
     let taken = images.iter().filter(|i| i.share > 0.0).count();
     if taken == images.len() {
         format!("{taken} images")

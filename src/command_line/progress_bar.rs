@@ -1,7 +1,7 @@
 //! Progress on a terminal: an indicatif bar with rate and ETA, drawn only
 //! when standard error is a terminal and the user did not ask for quiet.
 
-use gcm_ortho::progress::{Progress, Task};
+use crate::progress::{Progress, Task};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle};
 use std::fmt::Write;
 use std::io::IsTerminal;
@@ -40,9 +40,15 @@ impl Progress for Bar {
             b.finish_and_clear();
         }
     }
+    fn peak_memory_mib(&self) -> Option<f64> {
+        super::os_memory::peak_rss_mib()
+    }
+    fn memory_freed(&self) {
+        super::os_memory::release_free_memory();
+    }
     fn warn(&self, message: &str) {
         // Quiet hides progress, not warnings.
-        let line = format!("gcm-ortho: warning: {}", crate::flag_names::with_flags(message));
+        let line = format!("gcm-ortho: warning: {}", super::flag_names::with_flags(message));
         match self.bar.lock().expect("progress bar").as_ref() {
             Some(b) if self.shown => b.suspend(|| eprintln!("{line}")),
             _ => eprintln!("{line}"),

@@ -3,6 +3,14 @@
 //! the commands. Built into the binary and into the Python package's
 //! `gcm-ortho` command.
 
+#[macro_use]
+mod quiet_print;
+mod cli;
+mod commands;
+mod flag_names;
+mod os_memory;
+mod progress_bar;
+
 use clap::Parser;
 
 /// glibc gives threads that allocate arenas of their own, up to eight a
@@ -68,30 +76,25 @@ fn usage_error(e: clap::Error) -> u8 {
 /// failed, 130 SIGINT, 143 SIGTERM.
 pub fn run(args: Vec<std::ffi::OsString>) -> u8 {
     few_malloc_arenas();
-    let cli = match crate::cli::Cli::try_parse_from(&args) {
+    let cli = match cli::Cli::try_parse_from(&args) {
         Ok(cli) => cli,
         Err(e) => return usage_error(e),
     };
     // Which subcommand ran, to name a setting by its flag where it has one.
     let command = args.get(1).map(|a| a.to_string_lossy().into_owned()).unwrap_or_default();
-    crate::flag_names::set_command(&command);
+    flag_names::set_command(&command);
     let polls = matches!(
         cli.command,
-        crate::cli::Command::Rectify(_)
-            | crate::cli::Command::Batch(_)
-            | crate::cli::Command::Demo(_)
-            | crate::cli::Command::Mosaic(_)
-            | crate::cli::Command::Grid(_)
-            | crate::cli::Command::Dem(_)
+        cli::Command::Rectify(_) | cli::Command::Batch(_) | cli::Command::Demo(_) | cli::Command::Mosaic(_) | cli::Command::Grid(_) | cli::Command::Dem(_)
     );
-    let signals = match crate::commands::Signals::install(polls) {
+    let signals = match commands::Signals::install(polls) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("gcm-ortho: cannot install signal handlers: {e}");
             return 1;
         }
     };
-    match crate::commands::run(cli, &signals) {
+    match commands::run(cli, &signals) {
         Ok(code) => code,
         Err(e) => {
             if let Some(code) = signals.exit_code() {
@@ -116,9 +119,9 @@ pub fn run(args: Vec<std::ffi::OsString>) -> u8 {
                 if std::mem::take(&mut cause_said) {
                     continue;
                 }
-                cause_said = matches!(c.downcast_ref::<gcm_ortho::Error>(), Some(gcm_ortho::Error::Io { .. }));
-                let part = match c.downcast_ref::<gcm_ortho::Error>() {
-                    Some(e) => e.naming_settings(&|key| crate::cli::flag_of(&command, key)),
+                cause_said = matches!(c.downcast_ref::<crate::Error>(), Some(crate::Error::Io { .. }));
+                let part = match c.downcast_ref::<crate::Error>() {
+                    Some(e) => e.naming_settings(&|key| cli::flag_of(&command, key)),
                     None => c.to_string(),
                 };
                 // A cause its error already quotes is said once.
@@ -128,7 +131,7 @@ pub fn run(args: Vec<std::ffi::OsString>) -> u8 {
             }
             let msg = parts.join(": ");
             eprintln!("gcm-ortho: error: {}", msg.replace('\n', " "));
-            let usage = e.chain().any(|c| matches!(c.downcast_ref::<gcm_ortho::Error>(), Some(gcm_ortho::Error::Usage(_) | gcm_ortho::Error::Setting { .. })));
+            let usage = e.chain().any(|c| matches!(c.downcast_ref::<crate::Error>(), Some(crate::Error::Usage(_) | crate::Error::Setting { .. })));
             if usage {
                 2
             } else {

@@ -3,21 +3,21 @@
 //! library (`RectifyOptions::validate`), whose errors name the setting by
 //! its key, which `flag` turns back into the flag. Raw flags stop here.
 
-use clap::builder::{PossibleValuesParser, TypedValueParser};
-use clap::{Args, Parser, Subcommand};
-use gcm_ortho::gcm::GcmSpec;
-use gcm_ortho::geom::Snap;
-use gcm_ortho::io::tiff_out::Compression;
-use gcm_ortho::mosaic::balance::Balance;
-use gcm_ortho::options::{
+use crate::gcm::GcmSpec;
+use crate::geom::Snap;
+use crate::io::tiff_out::Compression;
+use crate::mosaic::balance::Balance;
+use crate::options::{
     parse_bounds, parse_bytes, parse_count, parse_max_error, parse_miss, parse_nodata, parse_offset, parse_overviews, parse_size, parse_window, BandOrder,
     BigTiff, Choice, DemSource, ModelSource, Occlusion, RectifyOptions,
 };
-use gcm_ortho::overview::OverviewResampling;
-use gcm_ortho::resample::Kernel;
-use gcm_ortho::synth::{CameraKind, Relief, SynthOptions};
-use gcm_ortho::transform::Trend;
-use gcm_ortho::Result;
+use crate::overview::OverviewResampling;
+use crate::resample::Kernel;
+use crate::synth::{CameraKind, Relief, SynthOptions};
+use crate::transform::Trend;
+use crate::Result;
+use clap::builder::{PossibleValuesParser, TypedValueParser};
+use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 
 /// A flag taking one of `T`'s names, parsed into `T` (clap lists the names
@@ -40,9 +40,9 @@ fn at_least_one(s: &str) -> std::result::Result<usize, String> {
 pub fn keys_of(args: &impl serde::Serialize) -> Result<serde_json::Map<String, serde_json::Value>> {
     match serde_json::to_value(args) {
         Ok(serde_json::Value::Object(keys)) => Ok(keys),
-        Ok(_) => Err(gcm_ortho::Error::Internal("the arguments are not an object of keys".into())),
+        Ok(_) => Err(crate::Error::Internal("the arguments are not an object of keys".into())),
         // (A path that is not UTF-8 has no key's text.)
-        Err(e) => Err(gcm_ortho::Error::Usage(format!("the arguments: {e}"))),
+        Err(e) => Err(crate::Error::Usage(format!("the arguments: {e}"))),
     }
 }
 
@@ -158,7 +158,7 @@ pub struct DemArgs {
     pub output: PathBuf,
     /// The DSM's cell size: X, or X,Y
     #[arg(long, allow_negative_numbers = true)]
-    pub gsd: gcm_ortho::geom::Gsd,
+    pub gsd: crate::geom::Gsd,
     /// The DSM's CRS (default: the cameras', or the UTM zone of an RPC pair)
     #[arg(long)]
     pub crs: Option<String>,
@@ -172,7 +172,7 @@ pub struct DemArgs {
     /// sgm (semi-global matching of census costs) or ncc (the thesis's
     /// sequential similarity search accepted by normalised correlation)
     #[arg(long, value_enum, default_value = "sgm")]
-    pub matcher: gcm_ortho::stereo::matching::Matcher,
+    pub matcher: crate::stereo::matching::Matcher,
     /// Correlation window side, pixels (odd, 3 to 21)
     #[arg(long, default_value_t = 9)]
     pub window: usize,
@@ -222,7 +222,7 @@ pub struct GridArgs {
     pub output: PathBuf,
     /// Cell size: X, or X,Y
     #[arg(long, allow_negative_numbers = true)]
-    pub gsd: gcm_ortho::geom::Gsd,
+    pub gsd: crate::geom::Gsd,
     /// The DEM's extent: minx,miny,maxx,maxy, snapped outward to the cell
     /// size (default: the points')
     #[arg(long, allow_hyphen_values = true)]
@@ -238,9 +238,9 @@ pub struct GridArgs {
     /// tin (linear in each Delaunay triangle), natural (natural
     /// neighbour), idw (inverse distance), nearest, or max, min, mean (of
     /// the points in each cell: max makes a DSM from a point cloud)
-    #[arg(long, default_value = "tin", value_parser = choice::<gcm_ortho::gridding::Method>())]
+    #[arg(long, default_value = "tin", value_parser = choice::<crate::gridding::Method>())]
     #[serde(serialize_with = "by_name")]
-    pub method: gcm_ortho::gridding::Method,
+    pub method: crate::gridding::Method,
     /// The longest triangle side gridded across (tin, natural): cells in
     /// larger gaps get no height (default: ten times the points' typical
     /// spacing, at least four cells)
@@ -264,9 +264,9 @@ pub struct GridArgs {
     #[arg(long, value_delimiter = ',')]
     pub class: Option<Vec<u8>>,
     /// Returns kept: all, first (a DSM) or last
-    #[arg(long, default_value = "all", value_parser = choice::<gcm_ortho::points::Returns>())]
+    #[arg(long, default_value = "all", value_parser = choice::<crate::points::Returns>())]
     #[serde(serialize_with = "by_name")]
-    pub returns: gcm_ortho::points::Returns,
+    pub returns: crate::points::Returns,
     /// Drop points whose height lies outside their Delaunay neighbours' by
     /// more than this many robust sigmas, or none
     #[arg(long, default_value = "8")]
@@ -325,8 +325,8 @@ pub struct FiducialsArgs {
     #[arg(long)]
     pub size_mm: Option<f64>,
     /// The marks' tone on the film: light, dark, or auto (found).
-    #[arg(long, value_parser = choice::<gcm_ortho::fiducials::Polarity>())]
-    pub polarity: Option<gcm_ortho::fiducials::Polarity>,
+    #[arg(long, value_parser = choice::<crate::fiducials::Polarity>())]
+    pub polarity: Option<crate::fiducials::Polarity>,
     /// How the film lay on the scanner, where the marks cannot tell (a
     /// layout that looks the same turned): 0, 90, 180 or 270 (degrees
     /// counter-clockwise), "m" after it for a mirrored scan (90m).
@@ -396,11 +396,11 @@ pub struct SensorArgs {
 }
 
 /// The unit `--radians` says a pose CSV's angles are in.
-fn angle_unit(radians: bool) -> gcm_ortho::camera::formats::AngleUnit {
+fn angle_unit(radians: bool) -> crate::camera::formats::AngleUnit {
     if radians {
-        gcm_ortho::camera::formats::AngleUnit::Radians
+        crate::camera::formats::AngleUnit::Radians
     } else {
-        gcm_ortho::camera::formats::AngleUnit::Degrees
+        crate::camera::formats::AngleUnit::Degrees
     }
 }
 
@@ -410,8 +410,8 @@ impl SensorArgs {
     /// file is read here: the library does that when it sets up the run.
     pub fn model(&self) -> Result<(PathBuf, ModelSource)> {
         match (&self.camera, &self.rpc) {
-            (Some(_), None) if self.rpc_offset.is_some() => Err(gcm_ortho::Error::setting("rpc_offset", "goes with --rpc, not a camera file")),
-            (Some(_), None) if self.geoid.is_some() => Err(gcm_ortho::Error::setting("geoid", "goes with --rpc, not a camera file")),
+            (Some(_), None) if self.rpc_offset.is_some() => Err(crate::Error::setting("rpc_offset", "goes with --rpc, not a camera file")),
+            (Some(_), None) if self.geoid.is_some() => Err(crate::Error::setting("geoid", "goes with --rpc, not a camera file")),
             (Some(c), None) => Ok((
                 c.clone(),
                 self.exterior.clone().map_or(ModelSource::CameraFile, |poses| ModelSource::WithPoses { poses, angles: angle_unit(self.radians) }),
@@ -420,7 +420,7 @@ impl SensorArgs {
                 let offset = self.rpc_offset.as_deref().map(|o| parse_offset("rpc_offset", o)).transpose()?;
                 Ok((r.clone(), ModelSource::Rpc { offset, geoid: self.geoid.clone() }))
             }
-            _ => Err(gcm_ortho::Error::setting("camera", "give a camera file or an RPC file")),
+            _ => Err(crate::Error::setting("camera", "give a camera file or an RPC file")),
         }
     }
 }
@@ -503,13 +503,10 @@ pub enum CameraTarget {
 }
 
 impl CamerasArgs {
-    pub fn options(&self) -> Result<gcm_ortho::camera::formats::convert::ConvertOptions> {
-        use gcm_ortho::camera::formats::convert::{ConvertOptions, Target};
-        let crs = self
-            .crs
-            .as_deref()
-            .map(|c| gcm_ortho::geodesy::Crs::parse(c, std::path::Path::new("")).map_err(|m| gcm_ortho::Error::setting("crs", m)))
-            .transpose()?;
+    pub fn options(&self) -> Result<crate::camera::formats::convert::ConvertOptions> {
+        use crate::camera::formats::convert::{ConvertOptions, Target};
+        let crs =
+            self.crs.as_deref().map(|c| crate::geodesy::Crs::parse(c, std::path::Path::new("")).map_err(|m| crate::Error::setting("crs", m))).transpose()?;
         let target = match self.to {
             CameraTarget::Toml => Target::Toml,
             CameraTarget::Orthority => Target::Orthority,
@@ -579,8 +576,8 @@ pub struct LayoutArgs {
 }
 
 impl LayoutArgs {
-    pub fn options(&self) -> Result<gcm_ortho::assemble::AssembleOptions> {
-        Ok(gcm_ortho::assemble::AssembleOptions {
+    pub fn options(&self) -> Result<crate::assemble::AssembleOptions> {
+        Ok(crate::assemble::AssembleOptions {
             overviews: self.overviews.as_deref().map(|o| parse_overviews("overviews", o)).transpose()?,
             overview_resampling: self.overview_resampling,
             cog: self.cog.then_some(true),
@@ -665,7 +662,7 @@ pub struct MosaicArgs {
     /// Pixel size of the mosaic: X, or X,Y for non-square pixels (default:
     /// the images' median, square)
     #[arg(long, allow_negative_numbers = true)]
-    pub gsd: Option<gcm_ortho::geom::Gsd>,
+    pub gsd: Option<crate::geom::Gsd>,
     /// The mosaic's extent: minx,miny,maxx,maxy (default: all footprints)
     #[arg(long, allow_hyphen_values = true)]
     pub bounds: Option<String>,
@@ -851,7 +848,7 @@ impl SynthArgs {
             off_nadir_deg: self.off_nadir,
             seed: self.seed,
             no_scan: self.no_scan,
-            marks: gcm_ortho::synth::film_marks::FilmMarks {
+            marks: crate::synth::film_marks::FilmMarks {
                 shape: self.mark.clone(),
                 negative: self.negative,
                 scan_turn_deg: self.scan_turn,
@@ -922,7 +919,7 @@ pub struct RectifyArgs {
     /// Output pixel size in ground units: X, or X,Y for pixels X wide and
     /// Y tall (default: the scan's mean GSD, square).
     #[arg(long, allow_negative_numbers = true)]
-    pub gsd: Option<gcm_ortho::geom::Gsd>,
+    pub gsd: Option<crate::geom::Gsd>,
     /// minx,miny,maxx,maxy or auto (the scan's footprint on the DEM).
     #[arg(long, default_value = "auto", allow_hyphen_values = true)]
     pub bounds: String,
@@ -951,8 +948,8 @@ pub struct RectifyArgs {
     pub max_error: Option<String>,
     /// How the corrections between GCM nodes are found: interpolated
     /// bilinearly from the four nodes around, or one per cell (as in Beloshapkin's thesis)
-    #[arg(long, default_value = "bilinear", value_parser = choice::<gcm_ortho::gcm::CorrectionMode>())]
-    pub corrections: gcm_ortho::gcm::CorrectionMode,
+    #[arg(long, default_value = "bilinear", value_parser = choice::<crate::gcm::CorrectionMode>())]
+    pub corrections: crate::gcm::CorrectionMode,
     /// The terrain plane of the approximation A: the DEM's least-squares
     /// trend plane over the output area, or its mean height
     #[arg(long, default_value = "plane", value_parser = choice::<Trend>())]
@@ -1028,20 +1025,17 @@ impl RectifyArgs {
             (None, Some(h)) => DemSource::Height(h),
             // An RPC has a height of its own (HEIGHT_OFF).
             (None, None) if self.sensor.rpc.is_some() => DemSource::ModelHeight,
-            _ => return Err(gcm_ortho::Error::setting("dem", "give a DEM file or a constant height")),
+            _ => return Err(crate::Error::setting("dem", "give a DEM file or a constant height")),
         };
-        let crs = self
-            .crs
-            .as_deref()
-            .map(|c| gcm_ortho::geodesy::Crs::parse(c, std::path::Path::new("")).map_err(|m| gcm_ortho::Error::setting("crs", m)))
-            .transpose()?;
+        let crs =
+            self.crs.as_deref().map(|c| crate::geodesy::Crs::parse(c, std::path::Path::new("")).map_err(|m| crate::Error::setting("crs", m))).transpose()?;
         let (camera, model) = self.sensor.model()?;
         let mut o = RectifyOptions::new(self.sensor.image.clone(), camera, dem, self.output.clone());
         o.model = model;
         if let Some(file) = &self.gcps {
-            use gcm_ortho::camera::gcp::BiasModel;
+            use crate::camera::gcp::BiasModel;
             if !(self.gcp_max_residual.is_finite() && self.gcp_max_residual > 0.0) {
-                return Err(gcm_ortho::Error::setting("gcp_max_residual", "must be a positive number of pixels"));
+                return Err(crate::Error::setting("gcp_max_residual", "must be a positive number of pixels"));
             }
             let model = match self.gcp_refine {
                 GcpRefine::Auto => BiasModel::Auto,
@@ -1049,14 +1043,14 @@ impl RectifyArgs {
                 GcpRefine::Affine => BiasModel::Affine,
                 GcpRefine::Interior => BiasModel::Interior,
             };
-            o.gcps = Some(gcm_ortho::options::GcpOptions { file: file.clone(), model, max_residual: self.gcp_max_residual });
+            o.gcps = Some(crate::options::GcpOptions { file: file.clone(), model, max_residual: self.gcp_max_residual });
         }
         o.dem_hole = parse_miss("dem_hole", &self.dem_hole)?;
         o.dem_outside = parse_miss("dem_outside", &self.dem_outside)?;
         o.gsd = self.gsd;
         o.bounds = parse_bounds("bounds", &self.bounds)?;
         if self.like.is_some() && self.snap.is_some() {
-            return Err(gcm_ortho::Error::setting("snap", "places bounds on the GSD; the reference grid (--like) is taken as it is"));
+            return Err(crate::Error::setting("snap", "places bounds on the GSD; the reference grid (--like) is taken as it is"));
         }
         o.snap = self.snap.unwrap_or(Snap::Tap);
         o.like = self.like.clone();
