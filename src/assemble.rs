@@ -20,7 +20,8 @@ use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 
 /// How the whole is written.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
 pub struct AssembleOptions {
     /// Overviews, their resampling and the Cloud-Optimized layout; `None`:
     /// as the pieces record their whole's (see [`layout_record`]), else

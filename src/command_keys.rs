@@ -16,9 +16,9 @@ struct MosaicKeys {
     output: Option<PathBuf>,
     plan_out: Option<PathBuf>,
     plan: Option<PathBuf>,
-    window: Option<[u32; 4]>,
+    window: Option<OrText<[u32; 4]>>,
     gsd: Option<crate::geom::Gsd>,
-    bounds: Option<[f64; 4]>,
+    bounds: Option<OrText<[f64; 4]>>,
     crs: Option<String>,
     like: Option<PathBuf>,
     balance: Option<String>,
@@ -58,7 +58,7 @@ pub fn mosaic_options(keys: serde_json::Map<String, serde_json::Value>) -> Resul
         manifest,
         output: k.output,
         gsd: k.gsd,
-        bounds: k.bounds,
+        bounds: k.bounds.as_ref().map(|b| b.read(|t| crate::options::parse_bounds("bounds", t))).transpose()?.flatten(),
         crs,
         like: k.like,
         balance: k.balance.as_deref().map(|b| parse_choice("balance", b)).transpose()?.unwrap_or(crate::mosaic::balance::Balance::GainOffset),
@@ -68,7 +68,7 @@ pub fn mosaic_options(keys: serde_json::Map<String, serde_json::Value>) -> Resul
         seamlines_in: k.seamlines,
         plan_out: k.plan_out,
         plan_in: k.plan,
-        window: k.window,
+        window: k.window.as_ref().map(|w| w.read(|t| crate::options::parse_window("window", t))).transpose()?,
         memory: match &k.memory {
             Some(m) => crate::options::parse_bytes("memory", &m.text())?,
             None => 256 << 20,
@@ -337,6 +337,30 @@ mod tests {
 
     fn keys(v: serde_json::Value) -> serde_json::Map<String, serde_json::Value> {
         v.as_object().expect("an object").clone()
+    }
+
+    /// `o` serialized, read back and serialized again: the same text.
+    fn round_trip<T: serde::Serialize + serde::de::DeserializeOwned>(o: &T) -> String {
+        let text = serde_json::to_string(o).expect("serialized");
+        let back: T = serde_json::from_str(&text).expect("read back");
+        assert_eq!(serde_json::to_string(&back).expect("serialized"), text);
+        text
+    }
+
+    #[test]
+    fn each_commands_options_read_back_from_their_serialized_form() {
+        let m = mosaic_options(keys(json!({"manifest": "m.toml", "output": "o.tif", "crs": "EPSG:32631", "balance": "gain", "window": "0,0,2,2"})))
+            .expect("valid");
+        assert!(round_trip(&m).contains("\"crs\":\"EPSG:32631\""));
+        let g = grid_options(keys(json!({"points": ["p.las"], "output": "d.tif", "gsd": [2, 1], "class": [2, 6], "columns": "e,n,h", "method": "idw"})))
+            .expect("valid");
+        round_trip(&g);
+        let s = dem_options(keys(json!({"left": "l.tif", "right": "r.tif", "left_rpc": "l.txt", "right_rpc": "r.txt", "output": "d.tif", "gsd": 2})))
+            .expect("valid");
+        round_trip(&s);
+        let a = assemble_options(keys(json!({"overviews": "2,4", "compress": "zstd", "cog": true}))).expect("valid");
+        round_trip(&a);
+        round_trip(&crate::synth::SynthOptions::default());
     }
 
     #[test]

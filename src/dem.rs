@@ -27,7 +27,7 @@ pub enum Lookup {
 }
 
 /// What to do when a lookup finds no height.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Miss {
     /// Stop the run with an error naming the point.
     Error,
@@ -379,6 +379,16 @@ pub enum Height {
     Missing(Lookup),
 }
 
+
+/// Refuses a DEM whose grid is not north-up (rows along the easting, the
+/// first row the northernmost): its tiles and lookups assume it.
+fn check_north_up(geo: &crate::io::geotiff::GeoRef, path: &std::path::Path) -> Result<()> {
+    let gt = geo.transform;
+    if gt[2] != 0.0 || gt[4] != 0.0 || !(gt[1] > 0.0) || !(gt[5] < 0.0) {
+        return Err(crate::error::Error::unsupported(path, format!("only north-up DEMs are supported (geotransform {gt:?})")));
+    }
+    Ok(())
+}
 
 #[cfg(test)]
 mod tests {

@@ -31,7 +31,7 @@ use crate::dem::{Height, Lookup};
 use crate::transform::{Approx, Mapped, Transform};
 use quadtree::{Frame, Node};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CorrectionMode {
     Cell,
@@ -39,7 +39,7 @@ pub enum CorrectionMode {
 }
 
 /// What the caller chose: sparsity, mode, optional error bound (source px).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GcmSpec {
     pub k: u32,
     pub mode: CorrectionMode,

@@ -5,7 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::gcm::GcmSpec;
-use crate::options::{parse_choice, parse_max_error, parse_miss, parse_nodata, parse_overviews, Nodata, RectifyOptions};
+use crate::options::{parse_bounds, parse_choice, parse_max_error, parse_miss, parse_nodata, parse_overviews, Nodata, RectifyOptions};
 use serde::Deserialize;
 use std::path::PathBuf;
 
@@ -95,7 +95,8 @@ pub struct Options {
     pub dem_outside: Option<NumberOrWord>,
     /// A number, or `[x, y]` for non-square pixels.
     pub gsd: Option<crate::geom::Gsd>,
-    pub bounds: Option<[f64; 4]>,
+    /// `[minx, miny, maxx, maxy]`, or `"auto"`.
+    pub bounds: Option<OrText<[f64; 4]>>,
     pub snap: Option<String>,
     /// A raster whose grid the orthophoto takes (relative to the manifest).
     pub like: Option<String>,
@@ -173,90 +174,84 @@ impl Options {
 /// [`RectifyOptions::validate`].
 pub fn apply(o: &Options, c: &mut RectifyOptions, rel: &dyn Fn(&str) -> PathBuf) -> Result<()> {
     if let Some(v) = &o.dem_hole {
-        c.dem_hole = parse_miss("dem_hole", &v.text())?;
+        c.inputs.dem_hole = parse_miss("dem_hole", &v.text())?;
     }
     if let Some(v) = &o.dem_outside {
-        c.dem_outside = parse_miss("dem_outside", &v.text())?;
+        c.inputs.dem_outside = parse_miss("dem_outside", &v.text())?;
     }
-    c.gsd = o.gsd;
-    c.bounds = o.bounds;
+    c.grid.gsd = o.gsd;
+    c.grid.bounds = o.bounds.as_ref().map(|b| b.read(|t| parse_bounds("bounds", t))).transpose()?.flatten();
     if let Some(s) = &o.snap {
         if o.like.is_some() {
-            return Err(Error::setting("snap", "places bounds on the GSD; the reference grid (like) is taken as it is"));
+            return Err(Error::setting("snap", "places bounds on the GSD; the reference grid (‹like›) is taken as it is"));
         }
-        c.snap = parse_choice("snap", s)?;
+        c.grid.snap = parse_choice("snap", s)?;
     }
-    c.like = o.like.as_deref().map(rel);
+    c.grid.like = o.like.as_deref().map(rel);
     if let Some(t) = &o.crs {
-        c.crs = Some(crate::geodesy::Crs::parse(t, &rel(".")).map_err(|m| Error::setting("crs", m))?);
+        // (A .prj relative to the manifest, or as given.)
+        c.grid.crs = Some(crate::geodesy::Crs::parse(t, &rel("")).map_err(|m| Error::setting("crs", m))?);
     }
     if let Some(g) = &o.gcps {
-        use crate::camera::gcp::BiasModel;
-        let model = match o.gcp_refine.as_deref().unwrap_or("auto") {
-            "auto" => BiasModel::Auto,
-            "shift" => BiasModel::Shift,
-            "affine" => BiasModel::Affine,
-            "interior" => BiasModel::Interior,
-            other => return Err(Error::setting("gcp_refine", format!("'{other}' (expected auto, shift, affine or interior)"))),
-        };
+        let model = parse_choice("gcp_refine", o.gcp_refine.as_deref().unwrap_or("auto"))?;
         let max_residual = o.gcp_max_residual.unwrap_or(2.0);
         if !(max_residual.is_finite() && max_residual > 0.0) {
             return Err(Error::setting("gcp_max_residual", "must be a positive number of pixels"));
         }
-        c.gcps = Some(crate::options::GcpOptions { file: rel(g), model, max_residual });
+        c.inputs.gcps = Some(crate::options::GcpOptions { file: rel(g), model, max_residual });
     } else if o.gcp_refine.is_some() || o.gcp_max_residual.is_some() {
-        return Err(Error::setting("gcp_refine", "goes with gcps"));
+        return Err(Error::setting("gcp_refine", "goes with ‹gcps›"));
     }
     let mode = match &o.corrections {
         Some(m) => parse_choice("corrections", m)?,
-        None => c.gcm.mode,
+        None => c.geometry.gcm.mode,
     };
     let max_error = match &o.max_error {
         Some(MaxError::Pixels(e)) => Some(*e),
         Some(MaxError::Word(w)) => parse_max_error("max_error", w)?,
         None => RectifyOptions::default_max_error(o.sparsity.is_some(), mode),
     };
-    c.gcm = GcmSpec { k: o.sparsity.unwrap_or(16), mode, max_error };
-    c.auto_sparsity = o.sparsity.is_none();
+    c.geometry.gcm = GcmSpec { k: o.sparsity.unwrap_or(16), mode, max_error };
+    c.geometry.auto_sparsity = o.sparsity.is_none();
     if let Some(t) = &o.trend {
-        c.trend = parse_choice("trend", t)?;
+        c.geometry.trend = parse_choice("trend", t)?;
     }
     if let Some(k) = &o.resample {
-        c.kernel = parse_choice("resample", k)?;
+        c.pixels.kernel = parse_choice("resample", k)?;
     }
     if let Some(t) = o.tile {
-        c.tile = t;
+        c.file.tile = t;
     }
     if let Some(z) = &o.compress {
-        c.compress = parse_choice("compress", z)?;
+        c.file.compress = parse_choice("compress", z)?;
     }
     if o.level.is_some() {
-        c.level = o.level;
+        c.file.level = o.level;
     }
     if o.overview_level.is_some() {
-        c.overview_level = o.overview_level;
+        c.file.overview_level = o.overview_level;
     }
     if o.quality.is_some() {
-        c.quality = o.quality;
+        c.file.quality = o.quality;
     }
     if let Some(b) = &o.bigtiff {
-        c.bigtiff = parse_choice("bigtiff", b)?;
+        c.file.bigtiff = parse_choice("bigtiff", b)?;
     }
     if let Some(v) = &o.overviews {
-        c.overviews = parse_overviews("overviews", v)?;
+        c.file.overviews = parse_overviews("overviews", v)?;
     }
     if let Some(r) = &o.overview_resampling {
-        c.overview_resampling = parse_choice("overview_resampling", r)?;
+        c.file.overview_resampling = parse_choice("overview_resampling", r)?;
     }
-    c.cog = o.cog.unwrap_or(false);
+    c.file.cog = o.cog.unwrap_or(false);
     match &o.nodata {
-        Some(NumberOrWord::Value(v)) => c.nodata = Nodata::Value(*v),
-        Some(NumberOrWord::Word(w)) => c.nodata = parse_nodata("nodata", w)?,
+        Some(NumberOrWord::Value(v)) => c.pixels.nodata = Nodata::Value(*v),
+        Some(NumberOrWord::Word(w)) => c.pixels.nodata = parse_nodata("nodata", w)?,
         None => {}
     }
-    c.alpha = o.alpha.unwrap_or(false);
+    c.pixels.alpha = o.alpha.unwrap_or(false);
     if let Some(v) = &o.occlusion {
-        c.occlusion = parse_choice("occlusion", v)?;
+        c.pixels.occlusion = parse_choice("occlusion", v)?;
     }
     Ok(())
 }
@@ -299,11 +294,11 @@ pub struct RunKeys {
     pub radians: bool,
     pub rpc: Option<PathBuf>,
     /// `"col,row"` or `[col, row]`: the image's place in the RPC's scene.
-    pub rpc_offset: Option<[f64; 2]>,
+    pub rpc_offset: Option<OrText<[f64; 2]>>,
     pub geoid: Option<PathBuf>,
     pub output: Option<PathBuf>,
     /// Tiles `[col, row, width, height]` of the output grid.
-    pub window: Option<[u32; 4]>,
+    pub window: Option<OrText<[u32; 4]>>,
     pub band_order: Option<String>,
     pub threads: Option<usize>,
     /// Bytes, or text as the command line takes it (`"512M"`).
@@ -360,18 +355,21 @@ pub fn rectify_options(keys: serde_json::Map<String, serde_json::Value>) -> Resu
     let image = r.image.clone().ok_or_else(|| Error::setting("image", "is needed: the scan or frame to rectify"))?;
     let output = r.output.clone().ok_or_else(|| Error::setting("output", "is needed: the orthophoto's path"))?;
     let (camera, model) = match (&r.camera, &r.rpc) {
-        (Some(_), None) if r.rpc_offset.is_some() => return Err(Error::setting("rpc_offset", "goes with rpc, not a camera file")),
-        (Some(_), None) if r.geoid.is_some() => return Err(Error::setting("geoid", "goes with rpc, not a camera file")),
+        (Some(_), None) if r.rpc_offset.is_some() => return Err(Error::setting("rpc_offset", "goes with ‹rpc›, not a camera file")),
+        (Some(_), None) if r.geoid.is_some() => return Err(Error::setting("geoid", "goes with ‹rpc›, not a camera file")),
         (Some(c), None) => {
             let angles = if r.radians { crate::camera::formats::AngleUnit::Radians } else { crate::camera::formats::AngleUnit::Degrees };
             (c.clone(), r.exterior.clone().map_or(crate::options::ModelSource::CameraFile, |poses| crate::options::ModelSource::WithPoses { poses, angles }))
         }
-        (None, Some(p)) => (p.clone(), crate::options::ModelSource::Rpc { offset: r.rpc_offset, geoid: r.geoid.clone() }),
+        (None, Some(p)) => {
+            let offset = r.rpc_offset.as_ref().map(|o| o.read(|t| crate::options::parse_offset("rpc_offset", t))).transpose()?;
+            (p.clone(), crate::options::ModelSource::Rpc { offset, geoid: r.geoid.clone() })
+        }
         (Some(_), Some(_)) => return Err(Error::setting("camera", "give a camera file or an RPC file, not both")),
         (None, None) => return Err(Error::setting("camera", "give a camera file or an RPC file")),
     };
     if r.exterior.is_none() && r.radians {
-        return Err(Error::setting("radians", "goes with exterior"));
+        return Err(Error::setting("radians", "goes with ‹exterior›"));
     }
     let dem = match (&o.dem, o.height) {
         (Some(d), None) => crate::options::DemSource::File(PathBuf::from(d)),
@@ -381,22 +379,22 @@ pub fn rectify_options(keys: serde_json::Map<String, serde_json::Value>) -> Resu
         (None, None) => return Err(Error::setting("dem", "give a DEM file or a constant height")),
     };
     let mut c = RectifyOptions::new(image, camera, dem, output);
-    c.model = model;
+    c.inputs.model = model;
     apply(&o, &mut c, &|p| PathBuf::from(p))?;
-    c.window = r.window;
+    c.grid.window = r.window.as_ref().map(|w| w.read(|t| crate::options::parse_window("window", t))).transpose()?;
     if let Some(b) = &r.band_order {
-        c.band_order = parse_choice("band_order", b)?;
+        c.resources.band_order = parse_choice("band_order", b)?;
     }
     if let Some(t) = r.threads {
-        c.threads = t;
+        c.resources.threads = t;
     }
     if let Some(m) = &r.memory {
-        c.memory = crate::options::parse_bytes("memory", &m.text())?;
+        c.resources.memory = crate::options::parse_bytes("memory", &m.text())?;
     }
     if let Some(m) = &r.max_output_pixels {
-        c.max_output_pixels = Some(crate::options::parse_count("max_output_pixels", &m.text())?);
+        c.grid.max_output_pixels = Some(crate::options::parse_count("max_output_pixels", &m.text())?);
     }
-    c.sync = r.sync.unwrap_or(true);
+    c.file.sync = r.sync.unwrap_or(true);
     c.validate()?;
     Ok(c)
 }
@@ -418,12 +416,12 @@ mod tests {
             "nodata": 0, "window": [1, 2, 3, 4], "memory": "512M", "threads": 1, "sync": false, "band_order": "columns",
         })))
         .expect("valid keys");
-        assert_eq!((o.gcm.k, o.gcm.max_error, o.auto_sparsity), (8, None, false));
-        assert_eq!((o.gsd.map(|g| (g.x, g.y)), o.level, o.window), (Some((0.5, 0.25)), Some(9), Some([1, 2, 3, 4])));
-        assert_eq!((o.memory, o.threads, o.sync), (512 << 20, 1, false));
-        assert!(matches!(o.nodata, Nodata::Value(v) if v == 0.0));
-        assert!(matches!(o.band_order, crate::options::BandOrder::Columns));
-        assert!(matches!(o.dem, crate::options::DemSource::File(ref p) if p == std::path::Path::new("dem.tif")));
+        assert_eq!((o.geometry.gcm.k, o.geometry.gcm.max_error, o.geometry.auto_sparsity), (8, None, false));
+        assert_eq!((o.grid.gsd.map(|g| (g.x, g.y)), o.file.level, o.grid.window), (Some((0.5, 0.25)), Some(9), Some([1, 2, 3, 4])));
+        assert_eq!((o.resources.memory, o.resources.threads, o.file.sync), (512 << 20, 1, false));
+        assert!(matches!(o.pixels.nodata, Nodata::Value(v) if v == 0.0));
+        assert!(matches!(o.resources.band_order, crate::options::BandOrder::Columns));
+        assert!(matches!(o.inputs.dem, crate::options::DemSource::File(ref p) if p == std::path::Path::new("dem.tif")));
         // The defaults are RectifyOptions::new's.
         let d = rectify_options(keys(json!({"image": "s.tif", "camera": "c.toml", "height": 310.0, "output": "o.tif"}))).expect("valid");
         let n = RectifyOptions::new("s.tif".into(), "c.toml".into(), crate::options::DemSource::Height(310.0), "o.tif".into());
@@ -433,8 +431,8 @@ mod tests {
     #[test]
     fn an_rpc_without_a_dem_takes_its_own_height() {
         let o = rectify_options(keys(json!({"image": "i.tif", "rpc": "i_RPC.TXT", "rpc_offset": [5000, 4000], "output": "o.tif"}))).expect("valid");
-        assert!(matches!(o.dem, crate::options::DemSource::ModelHeight));
-        assert!(matches!(o.model, crate::options::ModelSource::Rpc { offset: Some([5000.0, 4000.0]), .. }));
+        assert!(matches!(o.inputs.dem, crate::options::DemSource::ModelHeight));
+        assert!(matches!(o.inputs.model, crate::options::ModelSource::Rpc { offset: Some([5000.0, 4000.0]), .. }));
     }
 
     #[test]

@@ -52,6 +52,7 @@ choice!(BandOrder: "auto" => BandOrder::Auto, "rows" => BandOrder::Rows, "column
 choice!(BigTiff: "auto" => BigTiff::Auto, "yes" => BigTiff::Yes, "no" => BigTiff::No);
 choice!(Snap: "tap" => Snap::Tap, "outward" => Snap::Outward, "none" => Snap::None);
 choice!(Occlusion: "none" => Occlusion::None, "nodata" => Occlusion::Nodata, "mask" => Occlusion::Mask);
+choice!(BiasModel: "auto" => BiasModel::Auto, "shift" => BiasModel::Shift, "affine" => BiasModel::Affine, "interior" => BiasModel::Interior);
 choice!(OverviewResampling: "average" => OverviewResampling::Average, "nearest" => OverviewResampling::Nearest, "mode" => OverviewResampling::Mode);
 
 /// `name` as one of `T`'s choices.
@@ -62,7 +63,7 @@ pub fn parse_choice<T: Choice>(setting: &'static str, name: &str) -> Result<T> {
 /// What becomes of output pixels the sensor does not see on the DSM (a
 /// true orthophoto): ground hidden behind a building otherwise takes the
 /// building's pixels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Occlusion {
     /// Not looked for: every pixel takes what the scan shows there.
@@ -75,7 +76,7 @@ pub enum Occlusion {
 }
 
 /// How the output marks pixels without a value.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Nodata {
     /// A value outside the data's range where the samples have one (NaN
@@ -86,7 +87,34 @@ pub enum Nodata {
     Mask,
     /// This value, tagged as the nodata value (a sample of the image that
     /// holds it is made the next value, as GDAL's warper does).
-    Value(f64),
+    Value(#[serde(with = "number_or_nan")] f64),
+}
+
+/// A number that may be NaN, serialized as `"nan"` then (JSON has no NaN).
+mod number_or_nan {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+        if v.is_nan() {
+            s.serialize_str("nan")
+        } else {
+            s.serialize_f64(*v)
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Said {
+            Number(f64),
+            Text(String),
+        }
+        match Said::deserialize(d)? {
+            Said::Number(v) => Ok(v),
+            Said::Text(t) if t.eq_ignore_ascii_case("nan") => Ok(f64::NAN),
+            Said::Text(t) => Err(serde::de::Error::custom(format!("'{t}' is neither a number nor nan"))),
+        }
+    }
 }
 
 impl Nodata {
@@ -261,7 +289,7 @@ pub fn overview_codec_level(compression: Compression, level: Option<u8>) -> Resu
 }
 
 /// Which overview levels a tiled output gets.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Overviews {
     /// 2×, 4×, … until one tile holds the level (GDAL's rule).
@@ -339,7 +367,8 @@ pub fn physical_memory() -> Option<u64> {
 }
 
 /// How the `camera` path of a run becomes its sensor model.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 #[allow(clippy::large_enum_variant)] // one a run
 pub enum ModelSource {
     /// A camera file (TOML).
@@ -355,7 +384,9 @@ pub enum ModelSource {
         geoid: Option<PathBuf>,
     },
     /// Built already (a block's interior file with one row of exterior
-    /// orientations); `camera` names where it came from.
+    /// orientations); `camera` names where it came from. A mosaic's own:
+    /// not serialized (the block's files say it).
+    #[serde(skip)]
     Inline(CameraFile),
     /// The camera file (any format `camera::formats` reads) with the
     /// exterior orientations of many images in this file: the image's own
@@ -373,7 +404,7 @@ impl ModelSource {
     }
 }
 
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub enum DemSource {
     File(PathBuf),
     /// A constant height, metres.
@@ -384,7 +415,7 @@ pub enum DemSource {
     ModelHeight,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum BigTiff {
     Auto,
@@ -397,7 +428,7 @@ pub enum BigTiff {
 /// read the scan rows it crosses; bands along the scan's rows read fewer of
 /// them, in place from the mapped file, where bands across them (a scan
 /// turned ~90° against the output) would copy tall windows a row at a time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum BandOrder {
     /// Whichever of the two crosses fewer scan rows a band.
@@ -406,8 +437,8 @@ pub enum BandOrder {
     Columns,
 }
 
-/// `--gcps`: ground control points that refine the sensor model.
-#[derive(Clone, Debug, serde::Serialize)]
+/// Ground control points that refine the sensor model.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct GcpOptions {
     pub file: PathBuf,
     pub model: crate::camera::gcp::BiasModel,
@@ -415,24 +446,59 @@ pub struct GcpOptions {
     pub max_residual: f64,
 }
 
-#[derive(Clone, Debug, serde::Serialize)]
+/// What a run is asked to do, in groups by what each setting decides.
+/// Built by [`RectifyOptions::new`] with the documented defaults (or by
+/// key, [`crate::by_key::rectify_options`]), then set field by field;
+/// [`RectifyOptions::validate`] checks the ranges. Serialized (serde) the
+/// groups are flattened into one object, as a run's report has it; read
+/// back it is the same run.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
 pub struct RectifyOptions {
+    /// The files read and how they become the sensor and the terrain.
+    #[serde(flatten)]
+    pub inputs: Inputs,
+    /// Where the orthophoto's pixels lie on the ground.
+    #[serde(flatten)]
+    pub grid: Grid,
+    /// How closely the sensor model is followed.
+    #[serde(flatten)]
+    pub geometry: Geometry,
+    /// How each output pixel's value is made.
+    #[serde(flatten)]
+    pub pixels: Pixels,
+    /// The output file: its path, layout and codec.
+    #[serde(flatten)]
+    pub file: OutputFile,
+    /// What the run may take of the machine.
+    #[serde(flatten)]
+    pub resources: Resources,
+}
+
+/// The files a run reads and how they become its sensor and terrain.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
+pub struct Inputs {
     pub image: PathBuf,
     /// The camera file, the RPC file, or where an inline camera came from
     /// (named in messages).
     pub camera: PathBuf,
     /// How `camera` becomes the sensor model.
-    #[serde(skip)]
     pub model: ModelSource,
     /// Ground control points refining the model.
     pub gcps: Option<GcpOptions>,
     pub dem: DemSource,
     pub dem_hole: Miss,
     pub dem_outside: Miss,
-    pub output: PathBuf,
+}
+
+/// Where the orthophoto's pixels lie: its CRS, pixel size and extent.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
+pub struct Grid {
     /// Output pixel size, ground units (across, down); `None`: the scan's
     /// mean GSD, square.
-    pub gsd: Option<crate::geom::Gsd>,
+    pub gsd: Option<Gsd>,
     /// `[minx, miny, maxx, maxy]`; `None`: the scan's footprint on the DEM.
     pub bounds: Option<[f64; 4]>,
     /// How the bounds become a grid.
@@ -442,18 +508,50 @@ pub struct RectifyOptions {
     pub like: Option<PathBuf>,
     /// The orthophoto's CRS; `None`: the reference grid's (`like`), else
     /// the camera's (an RPC's: its scene's UTM zone).
-    pub crs: Option<crate::geodesy::Crs>,
+    #[serde(with = "crate::geodesy::optional_crs_definition")]
+    pub crs: Option<Crs>,
     /// Only this piece of the output grid, in tiles: `[col, row, w, h]`.
     /// Pieces made separately assemble into the whole, pixel for pixel.
     pub window: Option<[u32; 4]>,
+    /// The most output pixels the run may make; `None`: 16 times the
+    /// scan's pixels (at least 2²⁸), which a GSD or bounds typo passes.
+    pub max_output_pixels: Option<u64>,
+}
+
+/// How closely the sensor model is followed: the GCM's node spacing,
+/// its corrections and error bound, and the approximation's trend.
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
+pub struct Geometry {
     pub gcm: GcmSpec,
     /// Choose `gcm.k` from the DEM (see `rectify`); off when the user gives
-    /// `--sparsity`.
+    /// the sparsity.
     pub auto_sparsity: bool,
     pub trend: Trend,
+}
+
+/// How each output pixel's value is made, and how pixels without one are
+/// marked.
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
+pub struct Pixels {
     pub kernel: Kernel,
+    /// How pixels without a value are marked (ignored with `alpha`).
+    pub nodata: Nodata,
+    /// An alpha band instead of nodata or the mask.
+    pub alpha: bool,
+    /// Pixels the sensor does not see on the DSM.
+    pub occlusion: Occlusion,
+}
+
+/// The output file: its path, tiles, codec and overviews.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
+pub struct OutputFile {
+    /// The orthophoto (`output`).
+    #[serde(rename = "output")]
+    pub path: PathBuf,
     pub tile: u32,
-    pub band_order: BandOrder,
     pub compress: Compression,
     /// The codec's level (`None`: its default).
     pub level: Option<u8>,
@@ -467,11 +565,17 @@ pub struct RectifyOptions {
     pub overview_resampling: OverviewResampling,
     /// The Cloud-Optimized layout (GDAL's COG).
     pub cog: bool,
-    /// How pixels without a value are marked (ignored with `alpha`).
-    pub nodata: Nodata,
-    /// Pixels the sensor does not see on the DSM.
-    pub occlusion: Occlusion,
-    pub alpha: bool,
+    /// Put the output on disk (fsync) before it gets its name, so that not
+    /// even a power failure leaves an incomplete file under that name. Off
+    /// (`no_sync`): the kernel writes it back in its own time, as after
+    /// `cat` or `gdalwarp`.
+    pub sync: bool,
+}
+
+/// What the run may take of the machine, and the order it works in.
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
+pub struct Resources {
     /// Worker threads (0 = all cores; 1 = every step one after the other).
     pub threads: usize,
     /// Memory budget, bytes.
@@ -479,16 +583,9 @@ pub struct RectifyOptions {
     /// The budget the geometry's choices are made for, where not `memory`
     /// (a mosaic's images get shares that differ from window to window;
     /// their node spacing must not, or pieces would differ from the whole).
-    #[serde(skip)]
+    #[serde(default)]
     pub geometry_memory: Option<u64>,
-    /// The most output pixels the run may make; `None`: 16 times the
-    /// scan's pixels (at least 2²⁸), which a GSD or bounds typo passes.
-    pub max_output_pixels: Option<u64>,
-    /// Put the output on disk (fsync) before it gets its name, so that not
-    /// even a power failure leaves an incomplete file under that name. Off
-    /// (`--no-sync`): the kernel writes it back in its own time, as after
-    /// `cat` or `gdalwarp`.
-    pub sync: bool,
+    pub band_order: BandOrder,
 }
 
 impl RectifyOptions {
@@ -516,76 +613,76 @@ impl RectifyOptions {
     /// Checks every setting's range and the settings against each other;
     /// the first problem, named by its setting.
     pub fn validate(&self) -> Result<()> {
-        if self.tile == 0 || !self.tile.is_multiple_of(16) || self.tile > Self::MAX_TILE {
-            return Err(Error::setting("tile", format!("{} must be a multiple of 16 up to {}", self.tile, Self::MAX_TILE)));
+        if self.file.tile == 0 || !self.file.tile.is_multiple_of(16) || self.file.tile > Self::MAX_TILE {
+            return Err(Error::setting("tile", format!("{} must be a multiple of 16 up to {}", self.file.tile, Self::MAX_TILE)));
         }
-        if self.gcm.k == 0 || self.gcm.k > Self::MAX_SPARSITY {
-            return Err(Error::setting("sparsity", format!("{} is not 1 to {}", self.gcm.k, Self::MAX_SPARSITY)));
+        if self.geometry.gcm.k == 0 || self.geometry.gcm.k > Self::MAX_SPARSITY {
+            return Err(Error::setting("sparsity", format!("{} is not 1 to {}", self.geometry.gcm.k, Self::MAX_SPARSITY)));
         }
-        if self.threads > Self::MAX_THREADS {
-            return Err(Error::setting("threads", format!("{} is more than {} (0 takes every core)", self.threads, Self::MAX_THREADS)));
+        if self.resources.threads > Self::MAX_THREADS {
+            return Err(Error::setting("threads", format!("{} is more than {} (0 takes every core)", self.resources.threads, Self::MAX_THREADS)));
         }
-        if let Some(e) = self.gcm.max_error {
+        if let Some(e) = self.geometry.gcm.max_error {
             if !(e > 0.0) || !e.is_finite() {
                 return Err(Error::setting("max_error", format!("{e} must be a positive number")));
             }
-            if self.gcm.mode == CorrectionMode::Cell {
+            if self.geometry.gcm.mode == CorrectionMode::Cell {
                 return Err(Error::setting("max_error", "works with bilinear corrections, not cell"));
             }
         }
-        if self.memory < Self::MIN_MEMORY {
+        if self.resources.memory < Self::MIN_MEMORY {
             return Err(Error::setting("memory", "must be at least 16M"));
         }
-        if let Some(ram) = physical_memory().filter(|&ram| self.memory > ram) {
-            return Err(Error::setting("memory", format!("{} MiB is more than this machine's {} MiB", self.memory >> 20, ram >> 20)));
+        if let Some(ram) = physical_memory().filter(|&ram| self.resources.memory > ram) {
+            return Err(Error::setting("memory", format!("{} MiB is more than this machine's {} MiB", self.resources.memory >> 20, ram >> 20)));
         }
-        if let Nodata::Value(v) = self.nodata {
+        if let Nodata::Value(v) = self.pixels.nodata {
             if !v.is_finite() && !v.is_nan() {
                 return Err(Error::setting("nodata", format!("{v} is not a number a raster can hold")));
             }
         }
-        if let DemSource::Height(h) = self.dem {
+        if let DemSource::Height(h) = self.inputs.dem {
             // The deepest trench to the highest peak, with a margin.
             if !(h.abs() <= 12_000.0) {
                 return Err(Error::setting("height", format!("{h} m is not a height of the earth's surface (−12 000 to 12 000 m)")));
             }
         }
-        if self.max_output_pixels == Some(0) {
+        if self.grid.max_output_pixels == Some(0) {
             return Err(Error::setting("max_output_pixels", "must be at least 1"));
         }
-        if let Some(g) = self.gsd {
+        if let Some(g) = self.grid.gsd {
             if !g.is_valid() {
                 return Err(Error::setting("gsd", format!("{g} must be positive")));
             }
         }
-        if let DemSource::Height(h) = self.dem {
+        if let DemSource::Height(h) = self.inputs.dem {
             if !h.is_finite() {
                 return Err(Error::setting("height", format!("{h} is not a finite number")));
             }
         }
-        if let Some(b) = self.bounds {
+        if let Some(b) = self.grid.bounds {
             if !(b.iter().all(|x| x.is_finite()) && b[2] > b[0] && b[3] > b[1]) {
                 return Err(Error::setting("bounds", format!("{b:?} is not minx,miny,maxx,maxy with min < max")));
             }
         }
-        if self.like.is_some() && (self.gsd.is_some() || self.bounds.is_some()) {
+        if self.grid.like.is_some() && (self.grid.gsd.is_some() || self.grid.bounds.is_some()) {
             return Err(Error::setting("like", "gives the grid: drop the GSD and bounds"));
         }
-        if self.like.is_some() && self.snap != Snap::Tap {
+        if self.grid.like.is_some() && self.grid.snap != Snap::Tap {
             return Err(Error::setting("snap", "places bounds on the GSD; the reference grid (‹like›) is taken as it is"));
         }
         self.codec_level()?;
         self.overview_codec_level()?;
-        if self.occlusion != Occlusion::None && !matches!(self.dem, DemSource::File(_)) {
+        if self.pixels.occlusion != Occlusion::None && !matches!(self.inputs.dem, DemSource::File(_)) {
             return Err(Error::setting("occlusion", "needs a DSM to see buildings on (a constant height hides nothing)"));
         }
-        if self.occlusion == Occlusion::Mask && !self.alpha && matches!(self.nodata, Nodata::Value(_)) {
+        if self.pixels.occlusion == Occlusion::Mask && !self.pixels.alpha && matches!(self.pixels.nodata, Nodata::Value(_)) {
             return Err(Error::setting(
                 "occlusion",
                 "mask keeps hidden pixels' values and marks them in the internal mask or alpha: drop ‹nodata› VALUE, or take ‹occlusion› nodata",
             ));
         }
-        if let Some([_, _, w, h]) = self.window {
+        if let Some([_, _, w, h]) = self.grid.window {
             if w == 0 || h == 0 {
                 return Err(Error::setting("window", "width and height must be above zero"));
             }
@@ -595,39 +692,39 @@ impl RectifyOptions {
 
     /// The output codec's level or quality (`None`: its default), checked.
     pub fn codec_level(&self) -> Result<Option<u8>> {
-        codec_level(self.compress, self.level, self.quality)
+        codec_level(self.file.compress, self.file.level, self.file.quality)
     }
 
     /// The overview tiles' codec level (`None`: see `overview_level`), checked.
     pub fn overview_codec_level(&self) -> Result<Option<u8>> {
-        overview_codec_level(self.compress, self.overview_level)
+        overview_codec_level(self.file.compress, self.file.overview_level)
     }
 
     /// The files the run reads, each with what it is.
     pub fn inputs(&self) -> Vec<(&'static str, PathBuf)> {
-        let mut v = vec![("image", self.image.clone())];
-        let what = match self.model {
+        let mut v = vec![("image", self.inputs.image.clone())];
+        let what = match self.inputs.model {
             ModelSource::Rpc { .. } => "RPC file",
             _ => "camera file",
         };
-        v.push((what, self.camera.clone()));
-        if matches!(self.model, ModelSource::CameraFile) {
-            v.extend(crate::camera::file::CameraFile::files_named_in(&self.camera));
+        v.push((what, self.inputs.camera.clone()));
+        if matches!(self.inputs.model, ModelSource::CameraFile) {
+            v.extend(crate::camera::file::CameraFile::files_named_in(&self.inputs.camera));
         }
-        if let ModelSource::Rpc { geoid: Some(g), .. } = &self.model {
+        if let ModelSource::Rpc { geoid: Some(g), .. } = &self.inputs.model {
             v.push(("geoid grid", g.clone()));
         }
-        if let ModelSource::WithPoses { poses, .. } = &self.model {
+        if let ModelSource::WithPoses { poses, .. } = &self.inputs.model {
             v.push(("exterior orientations", poses.clone()));
         }
-        if let Some(g) = &self.gcps {
+        if let Some(g) = &self.inputs.gcps {
             v.push(("GCP file", g.file.clone()));
         }
-        if let DemSource::File(d) = &self.dem {
+        if let DemSource::File(d) = &self.inputs.dem {
             v.push(("DEM", d.clone()));
             v.extend(crate::dem::Dem::tile_files(d).into_iter().map(|t| ("DEM tile", t)));
         }
-        if let Some(l) = &self.like {
+        if let Some(l) = &self.grid.like {
             v.push(("reference grid", l.clone()));
         }
         // What other tools keep beside them (a CSV's .prj, an image's
@@ -642,7 +739,7 @@ impl RectifyOptions {
     pub fn check_outputs(&self, also: &[Role]) -> Result<()> {
         let inputs = self.inputs();
         let ins: Vec<Role> = inputs.iter().map(|(w, p)| Role::new(w, p)).collect();
-        let mut outs = vec![Role::new("output", &self.output)];
+        let mut outs = vec![Role::new("output", &self.file.path)];
         outs.extend_from_slice(also);
         for o in &outs {
             check_writable(*o)?;
@@ -653,42 +750,28 @@ impl RectifyOptions {
     /// A configuration with the documented defaults.
     pub fn new(image: PathBuf, camera: PathBuf, dem: DemSource, output: PathBuf) -> RectifyOptions {
         RectifyOptions {
-            image,
-            camera,
-            model: ModelSource::CameraFile,
-            gcps: None,
-            dem,
-            dem_hole: Miss::Error,
-            dem_outside: Miss::Nodata,
-            output,
-            gsd: None,
-            bounds: None,
-            snap: Snap::Tap,
-            like: None,
-            crs: None,
-            window: None,
-            gcm: GcmSpec { k: 16, mode: CorrectionMode::Bilinear, max_error: Some(Self::DEFAULT_MAX_ERROR) },
-            auto_sparsity: true,
-            trend: Trend::Plane,
-            kernel: Kernel::Bilinear,
-            tile: 256,
-            band_order: BandOrder::Auto,
-            compress: Compression::Deflate,
-            level: None,
-            overview_level: None,
-            quality: None,
-            bigtiff: BigTiff::Auto,
-            overviews: Overviews::Auto,
-            overview_resampling: OverviewResampling::Average,
-            cog: false,
-            nodata: Nodata::Auto,
-            occlusion: Occlusion::None,
-            alpha: false,
-            threads: 0,
-            memory: 128 << 20,
-            geometry_memory: None,
-            max_output_pixels: None,
-            sync: true,
+            inputs: Inputs { image, camera, model: ModelSource::CameraFile, gcps: None, dem, dem_hole: Miss::Error, dem_outside: Miss::Nodata },
+            grid: Grid { gsd: None, bounds: None, snap: Snap::Tap, like: None, crs: None, window: None, max_output_pixels: None },
+            geometry: Geometry {
+                gcm: GcmSpec { k: 16, mode: CorrectionMode::Bilinear, max_error: Some(Self::DEFAULT_MAX_ERROR) },
+                auto_sparsity: true,
+                trend: Trend::Plane,
+            },
+            pixels: Pixels { kernel: Kernel::Bilinear, nodata: Nodata::Auto, alpha: false, occlusion: Occlusion::None },
+            file: OutputFile {
+                path: output,
+                tile: 256,
+                compress: Compression::Deflate,
+                level: None,
+                overview_level: None,
+                quality: None,
+                bigtiff: BigTiff::Auto,
+                overviews: Overviews::Auto,
+                overview_resampling: OverviewResampling::Average,
+                cog: false,
+                sync: true,
+            },
+            resources: Resources { threads: 0, memory: 128 << 20, geometry_memory: None, band_order: BandOrder::Auto },
         }
     }
 }
@@ -726,8 +809,43 @@ mod tests {
         }
         let mut o = RectifyOptions::new("s".into(), "c".into(), DemSource::Height(0.0), "o".into());
         o.validate().unwrap();
-        o.tile = 100;
+        o.file.tile = 100;
         assert!(o.validate().unwrap_err().to_string().starts_with("tile: 100"));
+    }
+
+    #[test]
+    fn options_read_back_from_their_serialized_form_are_the_same_run() {
+        let mut o = RectifyOptions::new("s.tif".into(), "c.txt".into(), DemSource::ModelHeight, "o.tif".into());
+        o.inputs.model = ModelSource::Rpc { offset: Some([5000.0, 4000.0]), geoid: Some("g.gtx".into()) };
+        o.inputs.gcps = Some(GcpOptions { file: "g.csv".into(), model: BiasModel::Affine, max_residual: 1.5 });
+        o.inputs.dem_hole = Miss::Height(12.5);
+        o.grid.gsd = Some(Gsd { x: 0.5, y: 0.25 });
+        o.grid.bounds = Some([1.0, 2.0, 3.0, 4.0]);
+        o.grid.crs = Some(Crs::parse("EPSG:32633+5773", std::path::Path::new("")).expect("a CRS"));
+        o.geometry.gcm = GcmSpec { k: 8, mode: CorrectionMode::Bilinear, max_error: None };
+        o.pixels.nodata = Nodata::Value(0.0);
+        o.pixels.occlusion = Occlusion::Mask;
+        o.file.overviews = Overviews::Levels(3);
+        o.file.compress = Compression::Zstd;
+        o.resources.band_order = BandOrder::Columns;
+        let text = serde_json::to_string(&o).expect("serialized");
+        let back: RectifyOptions = serde_json::from_str(&text).expect("read back");
+        assert_eq!(serde_json::to_string(&back).expect("serialized"), text);
+        assert_eq!(back.grid.crs.as_ref().and_then(Crs::epsg), Some(32633));
+        assert!(back.grid.crs.as_ref().and_then(Crs::vertical).is_some_and(|v| v.epsg == Some(5773)));
+        assert!(matches!(back.inputs.model, ModelSource::Rpc { offset: Some([c, r]), .. } if (c, r) == (5000.0, 4000.0)));
+        assert!(matches!(back.pixels.nodata, Nodata::Value(v) if v == 0.0));
+        // A CRS without a code goes as its PROJ string.
+        o.grid.crs = Some(Crs::parse("+proj=tmerc +lat_0=0 +lon_0=39 +k=1 +x_0=500000 +y_0=0 +ellps=krass +units=m", std::path::Path::new("")).expect("a CRS"));
+        let back: RectifyOptions = serde_json::from_str(&serde_json::to_string(&o).expect("serialized")).expect("read back");
+        assert_eq!(back.grid.crs, o.grid.crs);
+        // A mistyped choice is refused by name.
+        // NaN, which JSON has no number for.
+        o.pixels.nodata = Nodata::Value(f64::NAN);
+        let back: RectifyOptions = serde_json::from_str(&serde_json::to_string(&o).expect("serialized")).expect("read back");
+        assert!(matches!(back.pixels.nodata, Nodata::Value(v) if v.is_nan()));
+        let bad = text.replace("\"zstd\"", "\"zstdd\"");
+        assert!(serde_json::from_str::<RectifyOptions>(&bad).expect_err("no such codec").to_string().contains("zstdd"));
     }
 
     #[test]

@@ -26,7 +26,8 @@ fn film(dir: &Path, size: u32, fiducials: u32, marks: FilmMarks) -> (PathBuf, Pa
 
 /// [`film`] with samples of `bits`.
 fn film_of_bits(dir: &Path, size: u32, fiducials: u32, marks: FilmMarks, bits: u32) -> (PathBuf, PathBuf, Vec<[f64; 2]>) {
-    let o = SynthOptions { out: dir.to_path_buf(), width: size, height: size, bands: 1, bits, fiducials, marks, ..Default::default() };
+    let mut o = SynthOptions::default();
+    (o.out, o.width, o.height, o.bands, o.bits, o.fiducials, o.marks) = (dir.to_path_buf(), size, size, 1, bits, fiducials, marks);
     let (scan, camera) = marks_only(&o).expect("synth works");
     let mut file = CameraFile::read(&camera).unwrap();
     let truth = file.interior.as_mut().unwrap().fiducials_px.take().unwrap();

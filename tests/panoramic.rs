@@ -163,16 +163,9 @@ fn the_motion_compensation_moves_the_image_along_the_film_with_the_scan_s_sign()
 
 /// A KH-4B-like strip (70° scan) over `relief`, DEM posted every 300 m (about 4 output px).
 fn strip(dir: &Path, relief: gcm_ortho::synth::Relief) -> gcm_ortho::synth::SynthReport {
-    let o = gcm_ortho::synth::SynthOptions {
-        out: dir.to_path_buf(),
-        width: 2400,
-        height: 200,
-        bands: 1,
-        relief,
-        camera: gcm_ortho::synth::CameraKind::Panoramic,
-        dem_posting: 300.0,
-        ..Default::default()
-    };
+    let mut o = gcm_ortho::synth::SynthOptions::default();
+    (o.out, o.width, o.height, o.bands, o.relief) = (dir.to_path_buf(), 2400, 200, 1, relief);
+    (o.camera, o.dem_posting) = (gcm_ortho::synth::CameraKind::Panoramic, 300.0);
     gcm_ortho::synth::synth(&o, &gcm_ortho::progress::NoProgress).unwrap()
 }
 

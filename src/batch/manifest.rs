@@ -375,8 +375,8 @@ pub fn files(jobs: &[Job]) -> (Files, Files) {
         for (what, p) in j.config.inputs() {
             ins.push((format!("{what} of job {}", j.name), p));
         }
-        outs.push((format!("output of job {}", j.name), j.config.output.clone()));
-        outs.push((format!("record of job {}", j.name), super::sidecar(&j.config.output)));
+        outs.push((format!("output of job {}", j.name), j.config.file.path.clone()));
+        outs.push((format!("record of job {}", j.name), super::sidecar(&j.config.file.path)));
     }
     (ins, outs)
 }
@@ -429,7 +429,7 @@ fn config(
     };
     let output = output_of(name, output, o, rel);
     let mut c = RectifyOptions::new(image, camera, dem, output);
-    c.model = inline.map_or(ModelSource::CameraFile, ModelSource::Inline);
+    c.inputs.model = inline.map_or(ModelSource::CameraFile, ModelSource::Inline);
     crate::keys::apply(o, &mut c, rel).and_then(|()| c.validate()).map_err(|e| match e {
         // The manifest's own key, as written.
         Error::Setting { setting, msg } => format!("{setting}: {msg}"),
@@ -471,7 +471,7 @@ mod tests {
                 format!("[defaults]\ndem = \"dem.tif\"\ndem_outside = {value}\ndem_hole = {value}\n[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\n");
             std::fs::write(&m, text).unwrap();
             let jobs = load(&m).unwrap_or_else(|e| panic!("{value}: {:?}", e.problems));
-            assert_eq!((jobs[0].config.dem_outside, jobs[0].config.dem_hole), (want, want), "{value}: {:?}", jobs[0].problem);
+            assert_eq!((jobs[0].config.inputs.dem_outside, jobs[0].config.inputs.dem_hole), (want, want), "{value}: {:?}", jobs[0].problem);
         }
         // A bad value in [defaults]: the manifest refused once, at the key's
         // own line (not each job's, at the job's line); in a job, that job's.

@@ -71,19 +71,19 @@ pub struct JobResult {
 /// and every parameter that changes the output.
 pub fn job_key(c: &RectifyOptions) -> String {
     let mut h = 0xcbf2_9ce4_8422_2325u64;
-    file_stamp(&mut h, &c.image);
-    match c.model.inline() {
+    file_stamp(&mut h, &c.inputs.image);
+    match c.inputs.model.inline() {
         Some(f) => fnv(&mut h, f.to_toml().as_bytes()),
-        None => fnv(&mut h, &crate::io::bounded_read::read_bounded(&c.camera, "a camera file", crate::io::bounded_read::SMALL).unwrap_or_default()),
+        None => fnv(&mut h, &crate::io::bounded_read::read_bounded(&c.inputs.camera, "a camera file", crate::io::bounded_read::SMALL).unwrap_or_default()),
     }
-    if let DemSource::File(p) = &c.dem {
+    if let DemSource::File(p) = &c.inputs.dem {
         file_stamp(&mut h, p);
     }
     // What else refines the model: a new GCP or pose file redoes the job.
-    if let Some(g) = &c.gcps {
+    if let Some(g) = &c.inputs.gcps {
         file_stamp(&mut h, &g.file);
     }
-    if let crate::options::ModelSource::WithPoses { poses, angles } = &c.model {
+    if let crate::options::ModelSource::WithPoses { poses, angles } = &c.inputs.model {
         file_stamp(&mut h, poses);
         // (Degrees hash as before: a rerun of an earlier run is current.)
         if *angles == crate::camera::formats::AngleUnit::Radians {
@@ -91,8 +91,8 @@ pub fn job_key(c: &RectifyOptions) -> String {
         }
     }
     let mut params = c.clone();
-    params.threads = 0;
-    params.memory = 0;
+    params.resources.threads = 0;
+    params.resources.memory = 0;
     fnv(&mut h, serde_json::to_string(&params).unwrap_or_default().as_bytes());
     format!("{h:016x}")
 }
@@ -114,7 +114,7 @@ fn record(output: &Path, key: &str) -> Option<String> {
 }
 
 fn is_current(c: &RectifyOptions, key: &str) -> bool {
-    output_is_current(&c.output, key)
+    output_is_current(&c.file.path, key)
 }
 
 /// Whether `output` is whole and was made for `key` (its record says so).
@@ -168,7 +168,7 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, host: &dyn Progr
         job: job.name.clone(),
         status: Status::Cancelled,
         error: None,
-        output: job.config.output.clone(),
+        output: job.config.file.path.clone(),
         seconds: 0.0,
         input_mb_per_s: None,
         peak_rss_mib: None,
@@ -187,14 +187,14 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, host: &dyn Progr
     // (its record no longer says what it is made of), and says it is there
     // where it was not made from these inputs (`current`: it was, and a
     // forced run failed to remake it).
-    let earlier = job.config.output.exists();
+    let earlier = job.config.file.path.exists();
     let failed = |res: &mut JobResult, e: String, current: bool| {
         res.status = Status::Failed;
-        let record = sidecar(&job.config.output);
+        let record = sidecar(&job.config.file.path);
         let removed = std::fs::remove_file(&record).is_ok() || !record.exists();
-        let stale = if earlier && !current && job.config.output.exists() {
+        let stale = if earlier && !current && job.config.file.path.exists() {
             let removed = if removed { "; its .done record is removed" } else { "" };
-            format!(" ({} is left from an earlier run, not made from these inputs{removed})", job.config.output.display())
+            format!(" ({} is left from an earlier run, not made from these inputs{removed})", job.config.file.path.display())
         } else {
             String::new()
         };
@@ -204,7 +204,7 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, host: &dyn Progr
         failed(&mut res, p.clone(), false);
         return res;
     }
-    if let Some(dir) = job.config.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+    if let Some(dir) = job.config.file.path.parent().filter(|d| !d.as_os_str().is_empty()) {
         if let Err(e) = std::fs::create_dir_all(dir) {
             res.status = Status::Failed;
             res.error = Some(format!("{}: {}", dir.display(), crate::error::in_words(&e)));
@@ -213,16 +213,16 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, host: &dyn Progr
     }
     // Held until the job is made (or not): another run of this manifest
     // leaves it alone meanwhile.
-    let _lock = match lock::JobLock::take(&job.config.output) {
+    let _lock = match lock::JobLock::take(&job.config.file.path) {
         Ok(Some(l)) => l,
         Ok(None) => {
             res.status = Status::Busy;
-            res.error = Some(format!("another run is making it (it holds {})", lock::lock_path(&job.config.output).display()));
+            res.error = Some(format!("another run is making it (it holds {})", lock::lock_path(&job.config.file.path).display()));
             return res;
         }
         Err(e) => {
             // Its folder's fault (not writable, say), not the lock's.
-            let dir = crate::io::publish::folder_of(&job.config.output);
+            let dir = crate::io::publish::folder_of(&job.config.file.path);
             res.status = Status::Failed;
             res.error = Some(format!("{}: {} (the folder of its output, where its lock is written)", dir.display(), crate::error::in_words(&e)));
             return res;
@@ -236,10 +236,10 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, host: &dyn Progr
     }
     // The earlier record goes before the work: a run killed meanwhile
     // leaves no output marked finished for inputs it was not made from.
-    let _ = std::fs::remove_file(sidecar(&job.config.output));
+    let _ = std::fs::remove_file(sidecar(&job.config.file.path));
     let mut cfg = job.config.clone();
-    cfg.memory = memory;
-    cfg.threads = threads;
+    cfg.resources.memory = memory;
+    cfg.resources.threads = threads;
     // Nobody watches a job's steps; its warnings go to its record.
     match rectify(&cfg, &HostOnly(host), cancel) {
         Ok(r) => {
@@ -253,7 +253,7 @@ fn run_one(job: &Job, force: bool, memory: u64, threads: usize, host: &dyn Progr
             res.warnings = r.warnings;
             res.gcps = r.gcps;
             res.occlusion = r.occlusion;
-            if let Err(e) = write_sidecar(&cfg.output, &key) {
+            if let Err(e) = write_sidecar(&cfg.file.path, &key) {
                 res.status = Status::Failed;
                 res.error = Some(e.to_string());
             }

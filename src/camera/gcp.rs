@@ -29,7 +29,7 @@ use nalgebra::{DMatrix, DVector, Vector3};
 use std::path::Path;
 
 /// How an RPC's bias is modelled.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum BiasModel {
     /// An affine map with three points or more, else a shift.
     Auto,

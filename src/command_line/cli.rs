@@ -3,14 +3,10 @@
 //! library (`RectifyOptions::validate`), whose errors name the setting by
 //! its key, which `flag` turns back into the flag. Raw flags stop here.
 
-use crate::gcm::GcmSpec;
 use crate::geom::Snap;
 use crate::io::tiff_out::Compression;
 use crate::mosaic::balance::Balance;
-use crate::options::{
-    parse_bounds, parse_bytes, parse_count, parse_max_error, parse_miss, parse_nodata, parse_offset, parse_overviews, parse_size, parse_window, BandOrder,
-    BigTiff, Choice, DemSource, ModelSource, Occlusion, RectifyOptions,
-};
+use crate::options::{parse_offset, parse_overviews, parse_size, BandOrder, BiasModel, BigTiff, Choice, ModelSource, Occlusion, RectifyOptions};
 use crate::overview::OverviewResampling;
 use crate::resample::Kernel;
 use crate::synth::{CameraKind, Relief, SynthOptions};
@@ -49,6 +45,11 @@ pub fn keys_of(args: &impl serde::Serialize) -> Result<serde_json::Map<String, s
 /// A choice said by its name, as its key takes it.
 fn by_name<T: Choice + PartialEq, S: serde::Serializer>(v: &T, s: S) -> std::result::Result<S::Ok, S::Error> {
     s.serialize_str(T::NAMES.iter().copied().find(|n| T::from_name(n).as_ref() == Some(v)).unwrap_or_default())
+}
+
+/// A flag that says no (`--no-sync`) as the key that says yes (`sync`).
+fn not<S: serde::Serializer>(v: &bool, s: S) -> std::result::Result<S::Ok, S::Error> {
+    s.serialize_bool(!v)
 }
 
 fn by_name_if_given<T: Choice + PartialEq, S: serde::Serializer>(v: &Option<T>, s: S) -> std::result::Result<S::Ok, S::Error> {
@@ -354,7 +355,7 @@ pub struct FiducialsArgs {
 
 /// The image and its sensor model: a camera file, or an RPC file with
 /// what goes with it (shared by `rectify` and `rpc-grid`).
-#[derive(Args, Debug)]
+#[derive(Args, Debug, serde::Serialize)]
 pub struct SensorArgs {
     /// The scan or image: TIFF or BigTIFF (any layout), JPEG, PNG or JPEG 2000.
     #[arg(long)]
@@ -488,14 +489,6 @@ pub struct CamerasArgs {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum GcpRefine {
-    Auto,
-    Shift,
-    Affine,
-    Interior,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum CameraTarget {
     Toml,
     Orthority,
@@ -626,7 +619,9 @@ pub struct BatchArgs {
     pub quiet: bool,
 }
 
-#[derive(Args, Debug)]
+/// `mosaic`'s arguments, each field named as its key (read by the
+/// library's key table, as a binding's keyword arguments are).
+#[derive(Args, Debug, serde::Serialize)]
 pub struct MosaicArgs {
     /// The batch manifest of the block (jobs or a block, one DEM or per-job
     /// DEMs); its [defaults] give the output's tile, compression and
@@ -658,6 +653,7 @@ pub struct MosaicArgs {
     /// the mosaic is made, and the folder where that leaves it empty; it
     /// holds about the mosaic's size meanwhile)
     #[arg(long, requires = "output", conflicts_with_all = ["window", "plan", "plan_out"])]
+    #[serde(skip)]
     pub resume_dir: Option<PathBuf>,
     /// Pixel size of the mosaic: X, or X,Y for non-square pixels (default:
     /// the images' median, square)
@@ -676,13 +672,16 @@ pub struct MosaicArgs {
     pub crs: Option<String>,
     /// Radiometric balancing from the overlaps: none, gain, gain-offset, or
     /// gain-offset-vignetting (also each image's radial falloff)
-    #[arg(long, default_value = "gain-offset", value_parser = choice::<Balance>())]
-    pub balance: Balance,
+    /// [default: gain-offset]
+    #[arg(long, value_parser = choice::<Balance>())]
+    #[serde(serialize_with = "by_name_if_given")]
+    pub balance: Option<Balance>,
     /// Seamlines: least-cost (moved onto the cheapest path through the
     /// overlap, around buildings) or voronoi (the first partition, each
     /// ground point from the image that sees it nearest its centre)
-    #[arg(long, default_value = "least-cost", value_parser = ["least-cost", "voronoi"], conflicts_with = "seamlines")]
-    pub seams: String,
+    /// [default: least-cost]
+    #[arg(long, value_parser = ["least-cost", "voronoi"], conflicts_with = "seamlines")]
+    pub seams: Option<String>,
     /// Width of the blend across a seam, pixels (0: a sharp cut; never
     /// across a height edge of the DSM)
     #[arg(long, default_value_t = 8.0, allow_hyphen_values = true)]
@@ -701,6 +700,7 @@ pub struct MosaicArgs {
     /// from another image that sees it, and what no image sees has no value
     /// (`nodata` and `mask` alike; else as each job's `occlusion`)
     #[arg(long, value_parser = choice::<Occlusion>())]
+    #[serde(serialize_with = "by_name_if_given")]
     pub occlusion: Option<Occlusion>,
     /// Memory budget
     #[arg(long, default_value = "256M")]
@@ -714,6 +714,7 @@ pub struct MosaicArgs {
     pub json: Option<PathBuf>,
     /// No progress bar (warnings still show)
     #[arg(long)]
+    #[serde(skip)]
     pub quiet: bool,
 }
 
@@ -875,9 +876,13 @@ pub struct DemoArgs {
     pub quiet: bool,
 }
 
-#[derive(Args, Debug)]
+/// `rectify`'s arguments, each field named as its key: the run's options
+/// are read from them by the library's key table, as a manifest's job's
+/// and a binding's keyword arguments are.
+#[derive(Args, Debug, serde::Serialize)]
 pub struct RectifyArgs {
     #[command(flatten)]
+    #[serde(flatten)]
     pub sensor: SensorArgs,
     /// The orthophoto's CRS: EPSG:<code>, a PROJ string, WKT or a .prj
     /// file (default: the camera file's; an RPC's: the WGS84 UTM zone of
@@ -896,12 +901,14 @@ pub struct RectifyArgs {
     /// (RPC); interior: a frame camera's pose, focal length and principal
     /// point (5 or more GCPs spread in height), a panoramic camera's pose
     /// and motion compensation (6 or more).
-    #[arg(long, value_enum, default_value_t = GcpRefine::Auto, requires = "gcps")]
-    pub gcp_refine: GcpRefine,
+    /// [default: auto]
+    #[arg(long, value_parser = choice::<BiasModel>(), requires = "gcps")]
+    #[serde(serialize_with = "by_name_if_given")]
+    pub gcp_refine: Option<BiasModel>,
     /// The most any GCP may sit off the refined model, image pixels: past
-    /// it the fit is refused.
-    #[arg(long, default_value_t = 2.0, requires = "gcps")]
-    pub gcp_max_residual: f64,
+    /// it the fit is refused. [default: 2]
+    #[arg(long, requires = "gcps")]
+    pub gcp_max_residual: Option<f64>,
     /// DEM: a GeoTIFF, an SRTM .hgt, a GDAL VRT, or a folder or list of
     /// tiles; in the orthophoto's CRS or any other (it is then reprojected
     /// on the fly).
@@ -928,6 +935,7 @@ pub struct RectifyArgs {
     /// (the origin as given, the nearest whole number of pixels).
     /// [default: tap]
     #[arg(long, value_parser = choice::<Snap>())]
+    #[serde(serialize_with = "by_name_if_given")]
     pub snap: Option<Snap>,
     /// The grid of this raster (CRS, origin, pixel size and size), so the
     /// orthophoto lands pixel for pixel on it; instead of --gsd and --bounds.
@@ -949,13 +957,16 @@ pub struct RectifyArgs {
     /// How the corrections between GCM nodes are found: interpolated
     /// bilinearly from the four nodes around, or one per cell (as in Beloshapkin's thesis)
     #[arg(long, default_value = "bilinear", value_parser = choice::<crate::gcm::CorrectionMode>())]
+    #[serde(serialize_with = "by_name")]
     pub corrections: crate::gcm::CorrectionMode,
     /// The terrain plane of the approximation A: the DEM's least-squares
     /// trend plane over the output area, or its mean height
     #[arg(long, default_value = "plane", value_parser = choice::<Trend>())]
+    #[serde(serialize_with = "by_name")]
     pub trend: Trend,
     /// Resampling kernel
     #[arg(long, default_value = "bilinear", value_parser = choice::<Kernel>())]
+    #[serde(serialize_with = "by_name")]
     pub resample: Kernel,
     /// Output tile size in pixels (a multiple of 16)
     #[arg(long, default_value_t = 256)]
@@ -964,16 +975,20 @@ pub struct RectifyArgs {
     /// one that reads the scan along its rows; columns for a scan turned
     /// ~90°). The pixels agree to the GCM's accuracy either way.
     #[arg(long, default_value = "auto", value_parser = choice::<BandOrder>())]
+    #[serde(serialize_with = "by_name")]
     pub band_order: BandOrder,
     /// Tile compression: lossless (with the horizontal predictor for
     /// integer samples), or jpeg for 8-bit grey or RGB (YCbCr, the
     /// internal mask for pixels without a value)
     #[arg(long, default_value = "deflate", value_parser = choice::<Compression>())]
+    #[serde(serialize_with = "by_name")]
     pub compress: Compression,
     /// BigTIFF output (auto: when the output may pass 4 GB)
     #[arg(long, default_value = "auto", value_parser = choice::<BigTiff>())]
+    #[serde(serialize_with = "by_name")]
     pub bigtiff: BigTiff,
     #[command(flatten)]
+    #[serde(flatten)]
     pub layout: LayoutArgs,
     /// Pixels without a value: auto (NaN for floating-point samples, else
     /// the internal mask), mask (a 1-bit internal mask, GDAL's), or a
@@ -988,6 +1003,7 @@ pub struct RectifyArgs {
     /// buildings, trees, steep slopes) becomes nodata, or with `mask` keeps
     /// the scan's pixels but is marked in the internal mask (or alpha)
     #[arg(long, default_value = "none", value_parser = choice::<Occlusion>())]
+    #[serde(serialize_with = "by_name")]
     pub occlusion: Occlusion,
     /// Worker threads (0: all cores; 1: every step one after the other,
     /// one processor busy; more than the cores are cut to them, with a
@@ -1003,14 +1019,17 @@ pub struct RectifyArgs {
     pub max_output_pixels: Option<String>,
     /// No progress bar (there is none anyway when stderr is not a terminal)
     #[arg(long)]
+    #[serde(skip)]
     pub quiet: bool,
     /// Do not wait for the output to reach the disk before renaming it into
     /// place (faster where the disk is slower than the run; a power failure
     /// soon after may leave an incomplete file under the output's name).
     #[arg(long)]
+    #[serde(rename = "sync", serialize_with = "not")]
     pub no_sync: bool,
     /// Write the run report here as JSON.
     #[arg(long)]
+    #[serde(skip)]
     pub json: Option<PathBuf>,
     /// The output orthophoto.
     #[arg(short = 'o', long = "output")]
@@ -1018,71 +1037,10 @@ pub struct RectifyArgs {
 }
 
 impl RectifyArgs {
-    /// The run's options; the library checks their ranges when it runs.
+    /// The run's options, read by the library's key table (as a
+    /// manifest's job's are); it checks their ranges.
     pub fn options(&self) -> Result<RectifyOptions> {
-        let dem = match (&self.dem, self.height) {
-            (Some(p), None) => DemSource::File(p.clone()),
-            (None, Some(h)) => DemSource::Height(h),
-            // An RPC has a height of its own (HEIGHT_OFF).
-            (None, None) if self.sensor.rpc.is_some() => DemSource::ModelHeight,
-            _ => return Err(crate::Error::setting("dem", "give a DEM file or a constant height")),
-        };
-        let crs =
-            self.crs.as_deref().map(|c| crate::geodesy::Crs::parse(c, std::path::Path::new("")).map_err(|m| crate::Error::setting("crs", m))).transpose()?;
-        let (camera, model) = self.sensor.model()?;
-        let mut o = RectifyOptions::new(self.sensor.image.clone(), camera, dem, self.output.clone());
-        o.model = model;
-        if let Some(file) = &self.gcps {
-            use crate::camera::gcp::BiasModel;
-            if !(self.gcp_max_residual.is_finite() && self.gcp_max_residual > 0.0) {
-                return Err(crate::Error::setting("gcp_max_residual", "must be a positive number of pixels"));
-            }
-            let model = match self.gcp_refine {
-                GcpRefine::Auto => BiasModel::Auto,
-                GcpRefine::Shift => BiasModel::Shift,
-                GcpRefine::Affine => BiasModel::Affine,
-                GcpRefine::Interior => BiasModel::Interior,
-            };
-            o.gcps = Some(crate::options::GcpOptions { file: file.clone(), model, max_residual: self.gcp_max_residual });
-        }
-        o.dem_hole = parse_miss("dem_hole", &self.dem_hole)?;
-        o.dem_outside = parse_miss("dem_outside", &self.dem_outside)?;
-        o.gsd = self.gsd;
-        o.bounds = parse_bounds("bounds", &self.bounds)?;
-        if self.like.is_some() && self.snap.is_some() {
-            return Err(crate::Error::setting("snap", "places bounds on the GSD; the reference grid (--like) is taken as it is"));
-        }
-        o.snap = self.snap.unwrap_or(Snap::Tap);
-        o.like = self.like.clone();
-        o.crs = crs;
-        o.window = self.window.as_deref().map(|w| parse_window("window", w)).transpose()?;
-        let max_error = match &self.max_error {
-            Some(e) => parse_max_error("max_error", e)?,
-            None => RectifyOptions::default_max_error(self.sparsity.is_some(), self.corrections),
-        };
-        o.gcm = GcmSpec { k: self.sparsity.unwrap_or(16), mode: self.corrections, max_error };
-        o.auto_sparsity = self.sparsity.is_none();
-        o.trend = self.trend;
-        o.kernel = self.resample;
-        o.tile = self.tile;
-        o.band_order = self.band_order;
-        o.compress = self.compress;
-        o.bigtiff = self.bigtiff;
-        let layout = self.layout.options()?;
-        o.overviews = layout.overviews.unwrap_or_default();
-        o.overview_resampling = layout.overview_resampling.unwrap_or_default();
-        o.cog = layout.cog.unwrap_or(false);
-        o.level = layout.level;
-        o.overview_level = layout.overview_level;
-        o.quality = layout.quality;
-        o.nodata = parse_nodata("nodata", &self.nodata)?;
-        o.alpha = self.alpha;
-        o.occlusion = self.occlusion;
-        o.threads = self.threads;
-        o.memory = parse_bytes("memory", &self.memory)?;
-        o.max_output_pixels = self.max_output_pixels.as_deref().map(|m| parse_count("max_output_pixels", m)).transpose()?;
-        o.sync = !self.no_sync;
-        Ok(o)
+        crate::by_key::rectify_options(keys_of(self)?)
     }
 }
 

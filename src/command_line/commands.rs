@@ -300,48 +300,19 @@ fn run_cameras(a: &super::cli::CamerasArgs) -> Result<()> {
 }
 
 fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
-    use crate::mosaic::{mosaic, MosaicOptions};
+    use crate::mosaic::mosaic;
     inputs_exist(&[
         ("manifest", Some(a.manifest.as_path())),
         ("--seamlines", a.seamlines.as_deref()),
         ("--plan", a.plan.as_deref()),
         ("--like", a.like.as_deref()),
     ])?;
-    let memory = parse_bytes("memory", &a.memory)?;
-    let bounds = match &a.bounds {
-        Some(b) => crate::options::parse_bounds("bounds", b)?,
-        None => None,
-    };
-    let crs = a.crs.as_deref().map(|c| crate::geodesy::Crs::parse(c, Path::new("."))).transpose().map_err(|m| crate::Error::setting("crs", m))?;
     if let Some(j) = &a.json {
         check_writable(Role::new("report", j))?;
     }
-    let window = a.window.as_deref().map(|w| crate::options::parse_window("window", w)).transpose()?;
-    let o = MosaicOptions {
-        manifest: a.manifest.clone(),
-        output: a.output.clone(),
-        gsd: a.gsd,
-        bounds,
-        crs,
-        like: a.like.clone(),
-        balance: a.balance,
-        least_cost: a.seams == "least-cost",
-        blend: a.blend,
-        seamlines_out: a.seamlines_out.clone(),
-        seamlines_in: a.seamlines.clone(),
-        plan_out: a.plan_out.clone(),
-        plan_in: a.plan.clone(),
-        window,
-        memory,
-        threads: threads_within_cores(a.threads, 1).0,
-        cog: a.cog.then_some(true),
-        overviews: None,
-        compress: None,
-        force: a.force,
-        occlusion: a.occlusion,
-        sync: true,
-        report: a.json.clone(),
-    };
+    let mut o = crate::command_keys::mosaic_options(super::cli::keys_of(a)?)?;
+    o.threads = threads_within_cores(a.threads, 1).0;
+    let memory = o.memory;
     let report = match &a.resume_dir {
         Some(dir) => crate::mosaic::resume::resumable(&o, dir, &Bar::new(a.quiet), &signals.cancel)?,
         None => mosaic(&o, &Bar::new(a.quiet), &signals.cancel)?,
@@ -428,7 +399,7 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
     if a.dry_run {
         let mine: Vec<_> = jobs.iter().enumerate().filter(|(i, _)| i % shard.1 == shard.0).collect();
         for (i, j) in &mine {
-            say!("{i:>5}  {}  {} -> {}", j.name, j.config.image.display(), j.config.output.display());
+            say!("{i:>5}  {}  {} -> {}", j.name, j.config.inputs.image.display(), j.config.file.path.display());
         }
         // A job that would fail is said now, and the check fails (exit 3):
         // its files as the manifest names them, each image's header (a
@@ -439,7 +410,7 @@ fn run_batch(a: &BatchArgs, signals: &Signals) -> Result<u8> {
         for (_, j) in &mine {
             let recording = crate::progress::Recording::new(&crate::progress::NoProgress);
             let problem = j.problem.clone().or_else(|| {
-                crate::io::source::SourceImage::info_of(&j.config.image)
+                crate::io::source::SourceImage::info_of(&j.config.inputs.image)
                     .and_then(|_| j.config.validate())
                     .and_then(|()| crate::pipeline::RunPlan::new(&j.config, &recording))
                     .and_then(|plan| plan.check_node_heights())
@@ -627,7 +598,13 @@ fn print_report(r: &Report) {
     say!("  stages (busy s): setup {:.2}, dem {:.2}, gcm {:.2}, read {:.2}, resample {:.2}, encode {:.2}", s.setup, s.dem, s.gcm, s.read, s.resample, s.encode);
     let e = &r.accuracy_estimate;
     let bound = r.error_bound.map(|b| format!(", bound {b} px {}", if r.error_within { "held" } else { "MISSED" })).unwrap_or_default();
-    say!("  GCM (node spacing {} px) vs exact model (sampled): RMS {:.4} px, max {:.4} px over {} pixels{bound}", r.config.gcm.k, e.rms, e.max, e.count);
+    say!(
+        "  GCM (node spacing {} px) vs exact model (sampled): RMS {:.4} px, max {:.4} px over {} pixels{bound}",
+        r.config.geometry.gcm.k,
+        e.rms,
+        e.max,
+        e.count
+    );
     if let Some(h) = &r.occlusion {
         say!("  occlusion: {} of {} imaged pixels hidden from the sensor ({:.2} %)", h.hidden_px, h.imaged_px, 100.0 * h.share);
     }
@@ -682,17 +659,17 @@ fn threads_within_cores(asked: usize, at_once: usize) -> (usize, Option<String>)
 
 fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
     let mut opts = a.options()?;
-    let dem = match &opts.dem {
+    let dem = match &opts.inputs.dem {
         DemSource::File(p) => Some(p.as_path()),
         _ => None,
     };
     inputs_exist(&[
-        ("--image", Some(opts.image.as_path())),
-        (if a.sensor.rpc.is_some() { "--rpc" } else { "--camera" }, Some(opts.camera.as_path()).filter(|c| *c != Path::new("exif"))),
+        ("--image", Some(opts.inputs.image.as_path())),
+        (if a.sensor.rpc.is_some() { "--rpc" } else { "--camera" }, Some(opts.inputs.camera.as_path()).filter(|c| *c != Path::new("exif"))),
         ("--exterior", a.sensor.exterior.as_deref()),
         ("--dem", dem),
-        ("--like", opts.like.as_deref()),
-        ("--gcps", opts.gcps.as_ref().map(|g| g.file.as_path())),
+        ("--like", opts.grid.like.as_deref()),
+        ("--gcps", opts.inputs.gcps.as_ref().map(|g| g.file.as_path())),
     ])?;
     let json: Vec<Role> = a.json.iter().map(|j| Role::new("report", j)).collect();
     opts.check_outputs(&json)?;
@@ -700,10 +677,10 @@ fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
         check_writable(*j)?;
     }
     let too_many;
-    (opts.threads, too_many) = threads_within_cores(opts.threads, 1);
+    (opts.resources.threads, too_many) = threads_within_cores(opts.resources.threads, 1);
     let mut report = rectify(&opts, &Bar::new(a.quiet), &signals.cancel)?;
     report.warnings.extend(too_many);
-    if let Some(w) = past_budget(&a.memory, opts.memory) {
+    if let Some(w) = past_budget(&a.memory, opts.resources.memory) {
         super::flag_names::warn(&w);
         report.warnings.push(w);
     }

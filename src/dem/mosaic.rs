@@ -7,8 +7,7 @@
 //! of the mosaic is looked up in the tile that holds it, never copied into
 //! one grid.
 
-use super::read::check_north_up;
-use super::GridDem;
+use super::{check_north_up, GridDem};
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 

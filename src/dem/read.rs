@@ -2,7 +2,7 @@
 //! its tags, GDAL's `.aux.xml` or a `.prj` beside it), an SRTM `.hgt` tile,
 //! or tiles of these; the collar of nodata around a DSM's data found.
 
-use super::{collar, mosaic, Collar, GridDem, Samples};
+use super::{check_north_up, collar, mosaic, Collar, GridDem, Samples};
 use crate::error::{Error, Result};
 use crate::geodesy::Crs;
 use crate::io::cached_raster::{CachedRaster, Rescale};
@@ -214,14 +214,6 @@ fn prj_beside(path: &Path) -> Result<Option<Crs>> {
         return Ok(None);
     }
     Crs::parse(&prj.to_string_lossy(), Path::new("")).map(Some).map_err(|m| Error::format(&prj, m))
-}
-
-pub(super) fn check_north_up(geo: &GeoRef, path: &Path) -> Result<()> {
-    let gt = geo.transform;
-    if gt[2] != 0.0 || gt[4] != 0.0 || !(gt[1] > 0.0) || !(gt[5] < 0.0) {
-        return Err(Error::unsupported(path, format!("only north-up DEMs are supported (geotransform {gt:?})")));
-    }
-    Ok(())
 }
 
 /// An SRTM `.hgt` tile: big-endian Int16, 1201² (3″) or 3601² (1″) samples on

@@ -49,6 +49,27 @@ impl serde::Serialize for Crs {
     }
 }
 
+/// An optional CRS as its [`Crs::definition`], for settings that are read
+/// back: `#[serde(with = "crate::geodesy::optional_crs_definition")]`.
+pub mod optional_definition {
+    use super::Crs;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(crs: &Option<Crs>, s: S) -> Result<S::Ok, S::Error> {
+        match crs {
+            Some(c) => s.serialize_some(&c.definition()),
+            None => s.serialize_none(),
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Crs>, D::Error> {
+        match Option::<String>::deserialize(d)? {
+            Some(t) => Crs::parse(&t, std::path::Path::new("")).map(Some).map_err(serde::de::Error::custom),
+            None => Ok(None),
+        }
+    }
+}
+
 impl std::fmt::Display for Crs {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match (self.def.epsg, &self.def.vertical) {
@@ -224,6 +245,16 @@ impl Crs {
             unknown_datum: self.def.unknown_datum.clone(),
         };
         Crs { def: Arc::new(d) }
+    }
+
+    /// Text that [`Crs::parse`] reads back as this CRS: `EPSG:h` (with
+    /// `+v`, its vertical code) where it has a code, else its PROJ string.
+    pub fn definition(&self) -> String {
+        match (self.def.epsg, &self.def.vertical) {
+            (Some(h), Some(Vertical { epsg: Some(v), .. })) => format!("EPSG:{h}+{v}"),
+            (Some(h), _) => format!("EPSG:{h}"),
+            (None, _) => self.def.proj4.clone(),
+        }
     }
 
     pub fn epsg(&self) -> Option<u32> {

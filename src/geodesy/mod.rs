@@ -17,7 +17,7 @@ mod projection;
 mod vertical;
 mod wkt;
 
-pub use crs::Crs;
+pub use crs::{optional_definition as optional_crs_definition, Crs};
 pub use geoid::Geoid;
 #[cfg(feature = "internals")]
 pub use proj_data::find_grid as find_proj_grid;

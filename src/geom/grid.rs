@@ -140,7 +140,7 @@ impl<'de> Deserialize<'de> for Gsd {
 }
 
 /// How bounds become a grid.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Snap {
     /// Edges outward to multiples of the GSD, covering the bounds

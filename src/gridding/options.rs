@@ -8,7 +8,7 @@ use crate::points::{Columns, Filter};
 use std::path::PathBuf;
 
 /// How cells get their heights.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
     /// Linear in each Delaunay triangle.
@@ -43,8 +43,9 @@ impl crate::options::Choice for Method {
     }
 }
 
-/// What `grid` is asked to do.
-#[derive(Clone, Debug)]
+/// What `grid` is asked to do (serde: the same object read back).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
 pub struct GridOptions {
     pub inputs: Vec<PathBuf>,
     pub output: PathBuf,
@@ -53,8 +54,10 @@ pub struct GridOptions {
     /// snapped outward to multiples of the GSD.
     pub bounds: Option<[f64; 4]>,
     /// The DEM's CRS (default: the points').
+    #[serde(with = "crate::geodesy::optional_crs_definition")]
     pub crs: Option<Crs>,
     /// The points' CRS where their files say none (default: `crs`).
+    #[serde(with = "crate::geodesy::optional_crs_definition")]
     pub points_crs: Option<Crs>,
     pub method: Method,
     /// The longest triangle side (tin, natural) gridded across; beyond it,

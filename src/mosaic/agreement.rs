@@ -35,7 +35,7 @@ pub fn doubted(plan: &Plan, pairs: &[Pair]) -> Vec<String> {
             }
         }
     }
-    let name = |k: usize| plan.images[k].opts.image.display().to_string();
+    let name = |k: usize| plan.images[k].opts.inputs.image.display().to_string();
     best.iter()
         .enumerate()
         .filter_map(|(k, b)| {

@@ -37,7 +37,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 use strip_heights::StripHeights;
 
-#[derive(Clone, Debug)]
+/// What `mosaic` is asked to do (serde: the same object read back).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
 pub struct MosaicOptions {
     pub manifest: PathBuf,
     /// The mosaic, or a piece of it (`window`); `None`: the plan only.
@@ -51,6 +53,7 @@ pub struct MosaicOptions {
     pub window: Option<[u32; 4]>,
     pub gsd: Option<Gsd>,
     pub bounds: Option<[f64; 4]>,
+    #[serde(with = "crate::geodesy::optional_crs_definition")]
     pub crs: Option<Crs>,
     /// The grid (CRS, origin, pixel size, size) of this raster, instead of
     /// `gsd` and `bounds`.
@@ -189,7 +192,7 @@ pub(crate) fn with_manifest_settings(o: &MosaicOptions, jobs: &[crate::batch::ma
             false => Err(Error::config(&o.manifest, key, format!("differs between images; a mosaic has one {key}: give it once, in [defaults]"))),
         }
     }
-    let alpha: Vec<&str> = jobs.iter().filter(|j| j.config.alpha).map(|j| j.name.as_str()).collect();
+    let alpha: Vec<&str> = jobs.iter().filter(|j| j.config.pixels.alpha).map(|j| j.name.as_str()).collect();
     if !alpha.is_empty() {
         let whose = if alpha.len() == jobs.len() { "every job (in [defaults]?)".to_string() } else { format!("job {}", alpha.join(", ")) };
         return Err(Error::config(
@@ -198,19 +201,19 @@ pub(crate) fn with_manifest_settings(o: &MosaicOptions, jobs: &[crate::batch::ma
             format!("{whose}: a mosaic marks pixels without a value with an internal mask (or nodata = V); drop alpha"),
         ));
     }
-    one(o, "nodata", jobs.iter().map(|j| j.config.nodata))?;
+    one(o, "nodata", jobs.iter().map(|j| j.config.pixels.nodata))?;
     let mut o = o.clone();
     if o.gsd.is_none() && o.like.is_none() {
-        o.gsd = one(&o, "gsd", jobs.iter().map(|j| j.config.gsd))?;
+        o.gsd = one(&o, "gsd", jobs.iter().map(|j| j.config.grid.gsd))?;
     }
     if o.bounds.is_none() && o.like.is_none() {
-        o.bounds = one(&o, "bounds", jobs.iter().map(|j| j.config.bounds))?;
+        o.bounds = one(&o, "bounds", jobs.iter().map(|j| j.config.grid.bounds))?;
     }
     if o.crs.is_none() {
-        o.crs = one(&o, "crs", jobs.iter().map(|j| j.config.crs.clone()))?;
+        o.crs = one(&o, "crs", jobs.iter().map(|j| j.config.grid.crs.clone()))?;
     }
     if o.like.is_none() && o.gsd.is_none() && o.bounds.is_none() {
-        o.like = one(&o, "like", jobs.iter().map(|j| j.config.like.clone()))?;
+        o.like = one(&o, "like", jobs.iter().map(|j| j.config.grid.like.clone()))?;
     }
     Ok(o)
 }
@@ -381,13 +384,13 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
         let weights = weights::Weights::new(&plan, o.blend, &edges);
         drop(edges);
         let grid = plan.grid;
-        let (tx_all, ty_all) = (grid.width.div_ceil(first.tile), grid.height.div_ceil(first.tile));
+        let (tx_all, ty_all) = (grid.width.div_ceil(first.file.tile), grid.height.div_ceil(first.file.tile));
         let window = crate::geom::cut_window(o.window.unwrap_or([0, 0, tx_all, ty_all]), (tx_all, ty_all))
             .map_err(|w| Error::setting("window", format!("{w} does not start inside the mosaic's {tx_all}×{ty_all} tiles")))?;
 
         // The output: the first job's format settings, the plan's grid.
-        let tile = first.tile;
-        let layout = (o.overviews.unwrap_or(first.overviews), o.cog.unwrap_or(first.cog));
+        let tile = first.file.tile;
+        let layout = (o.overviews.unwrap_or(first.file.overviews), o.cog.unwrap_or(first.file.cog));
         let spec = piece_spec(&plan, &first, window, layout, o.compress)?;
 
         // The report's counts, while the plan has its labels cell by cell.
@@ -407,20 +410,23 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
                 0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
                 n => n,
             };
-            let true_ortho = plan.images.iter().any(|im| o.occlusion.unwrap_or(im.opts.occlusion) != Occlusion::None);
+            let true_ortho = plan.images.iter().any(|im| o.occlusion.unwrap_or(im.opts.pixels.occlusion) != Occlusion::None);
             // Where an image may not see the ground, every image that sees the
             // cell is made there, so that another can fill what it hides.
             let prone = true_ortho.then(|| render::occlusion_prone(&plan));
             plan.forget_for_render()?;
             let opts_of = |i: usize| {
                 let own = &plan.images[i].opts;
-                RectifyOptions { threads, sync: false, occlusion: o.occlusion.unwrap_or(own.occlusion), ..own.clone() }
+                let mut opts = own.clone();
+                (opts.resources.threads, opts.file.sync) = (threads, false);
+                opts.pixels.occlusion = o.occlusion.unwrap_or(own.pixels.occlusion);
+                opts
             };
             works = within(&render::work(&plan, &weights, tile, prone.as_deref(), opts_of), window);
             progress.memory_freed();
 
             let t = Instant::now();
-            let (fill, _) = fill_of(plan.images[0].sample, first.nodata)?;
+            let (fill, _) = fill_of(plan.images[0].sample, first.pixels.nodata)?;
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| Error::setting("threads", e.to_string()))?;
             let compose = render::Compose {
                 plan: &plan,
@@ -435,7 +441,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             // A piece also names the whole it is a piece of.
             let piece_source = match o.window {
                 Some(_) => {
-                    crate::io::geotiff::piece_source(&source, &plan.grid, &crate::assemble::layout_record(layout.0, first.overview_resampling, layout.1))
+                    crate::io::geotiff::piece_source(&source, &plan.grid, &crate::assemble::layout_record(layout.0, first.file.overview_resampling, layout.1))
                 }
                 None => source.clone(),
             };
@@ -482,7 +488,7 @@ pub fn mosaic(o: &MosaicOptions, progress: &dyn Progress, cancel: &Cancel) -> Re
             .enumerate()
             .map(|(k, im)| ImageReport {
                 name: im.name.clone(),
-                image: im.opts.image.clone(),
+                image: im.opts.inputs.image.clone(),
                 share: cells.of_image[k] as f64 / covered.max(1) as f64,
                 correction: corrections[k].clone(),
                 grid: works.iter().find(|w| w.image == k).map(|w| w.grid),
@@ -556,8 +562,8 @@ fn manifest_gave(given: &MosaicOptions, taken: &MosaicOptions, setting: &str) ->
 /// layout.
 fn piece_spec(plan: &Plan, first: &RectifyOptions, window: [u32; 4], layout: (Overviews, bool), compress: Option<Compression>) -> Result<OutputSpec> {
     let [tc0, tr0, tcw, trh] = window;
-    let (grid, tile, im0) = (plan.grid, first.tile, &plan.images[0]);
-    let (fill, mask) = fill_of(im0.sample, first.nodata)?;
+    let (grid, tile, im0) = (plan.grid, first.file.tile, &plan.images[0]);
+    let (fill, mask) = fill_of(im0.sample, first.pixels.nodata)?;
     let (x0, y0) = grid.ground((tc0 * tile) as f64, (tr0 * tile) as f64);
     let (width, height) = (((tc0 + tcw) * tile).min(grid.width) - tc0 * tile, ((tr0 + trh) * tile).min(grid.height) - tr0 * tile);
     let mut spec = OutputSpec {
@@ -568,9 +574,9 @@ fn piece_spec(plan: &Plan, first: &RectifyOptions, window: [u32; 4], layout: (Ov
         bands: im0.bands,
         sample: im0.sample,
         chunking: Chunking::Tiles(tile),
-        compression: compress.unwrap_or(first.compress),
+        compression: compress.unwrap_or(first.file.compress),
         level: match compress {
-            Some(c) if c != first.compress => crate::options::codec_level(c, None, None)?,
+            Some(c) if c != first.file.compress => crate::options::codec_level(c, None, None)?,
             _ => first.codec_level()?,
         },
         overview_level: first.overview_codec_level()?,
@@ -589,7 +595,7 @@ fn piece_spec(plan: &Plan, first: &RectifyOptions, window: [u32; 4], layout: (Ov
     spec.check_codec().map_err(|m| Error::setting("compress", m))?;
     spec.overviews = layout.0.levels(width, height, tile);
     spec.cog = layout.1;
-    spec.bigtiff = bigtiff(first.bigtiff).unwrap_or_else(|| spec.needs_bigtiff());
+    spec.bigtiff = bigtiff(first.file.bigtiff).unwrap_or_else(|| spec.needs_bigtiff());
     Ok(spec)
 }
 
@@ -616,17 +622,17 @@ fn fill_of(sample: crate::io::source::SampleType, nodata: Nodata) -> Result<(f64
 /// single run writes: its layout, its codec levels, its `fill`.
 fn assembly(layout: (Overviews, bool), first: &RectifyOptions, fill: f64, sync: bool) -> AssembleOptions {
     AssembleOptions {
-        compress: Some(first.compress),
+        compress: Some(first.file.compress),
         partial: false,
         fill: Some(fill),
         sync,
         overviews: Some(layout.0),
-        overview_resampling: Some(first.overview_resampling),
+        overview_resampling: Some(first.file.overview_resampling),
         cog: Some(layout.1),
-        level: first.level,
-        overview_level: first.overview_level,
-        quality: first.quality,
-        bigtiff: bigtiff(first.bigtiff),
+        level: first.file.level,
+        overview_level: first.file.overview_level,
+        quality: first.file.quality,
+        bigtiff: bigtiff(first.file.bigtiff),
     }
 }
 
@@ -762,8 +768,8 @@ impl PieceRender<'_> {
         let works_of = |&(strip, (_, share)): &StripPlan| -> (Vec<render::ImageWork>, StripHeights) {
             let mut works = within(self.works, strip);
             for w in &mut works {
-                w.opts.memory = share;
-                w.opts.geometry_memory = Some(render::least_share(spec));
+                w.opts.resources.memory = share;
+                w.opts.resources.geometry_memory = Some(render::least_share(spec));
             }
             let mut heights = StripHeights::new(&works);
             heights.settle(self.plan, tile, self.memory);
@@ -782,7 +788,7 @@ impl PieceRender<'_> {
             spec,
             path,
             threads: self.threads,
-            overview_resampling: self.first.overview_resampling,
+            overview_resampling: self.first.file.overview_resampling,
             fill: self.fill,
             sync,
             progress,
@@ -867,14 +873,15 @@ impl CellCounts {
 fn source_key(o: &MosaicOptions, jobs: &[crate::batch::manifest::Job]) -> String {
     // What the pixels depend on beyond the plan the pieces share: the
     // blend, the occlusion, each image by its contents (see
-    // `identity::source_key`).
+    // `scene::made_from::source_key`).
     // The grid is the mosaic's, whether the manifest or the flags give it.
     let settings = format!("{} {:?} {:?} {:?} {:?}", o.blend, o.occlusion, o.gsd, o.bounds, o.crs.as_ref().map(ToString::to_string));
     let job_keys: Vec<String> = jobs
         .iter()
         .map(|j| {
-            let config = RectifyOptions { gsd: None, bounds: None, crs: None, like: None, ..j.config.clone() };
-            format!("{}={}", j.name, crate::identity::source_key(&config))
+            let mut config = j.config.clone();
+            (config.grid.gsd, config.grid.bounds, config.grid.crs, config.grid.like) = (None, None, None, None);
+            format!("{}={}", j.name, crate::scene::made_from::source_key(&config))
         })
         .collect();
     let like: Vec<&std::path::Path> = o.like.iter().map(PathBuf::as_path).collect();

@@ -317,7 +317,7 @@ impl Plan {
             // Read whole only when small: of a larger DEM only the posts
             // under the mosaic, once its grid is known (before, the
             // footprints look it up through a cache). One file, read once.
-            let file = match &opts.dem {
+            let file = match &opts.inputs.dem {
                 DemSource::File(p) => Some(p),
                 _ => None,
             };
@@ -331,25 +331,25 @@ impl Plan {
                     dems.len() - 1
                 }
             };
-            let info = SourceImage::info_of(&opts.image)?;
+            let info = SourceImage::info_of(&opts.inputs.image)?;
             let d = &dems[dem];
             let z = d.mean_height().unwrap_or_else(|| camera.height_hint());
             let on_dem = |e: Error| match e {
-                Error::Geometry(m) => Error::format(&opts.image, m),
+                Error::Geometry(m) => Error::format(&opts.inputs.image, m),
                 e => e,
             };
             // An image wholly off its DEM gives nothing (said once the plan
             // is made), unless the manifest makes that an error.
             let (fp, gsd) = match footprint_on(camera.model(), d, info.width, info.height, z) {
-                Err(Error::Geometry(_)) if opts.dem_outside != crate::dem::Miss::Error => (None, f64::NAN),
+                Err(Error::Geometry(_)) if opts.inputs.dem_outside != crate::dem::Miss::Error => (None, f64::NAN),
                 fp => {
                     let fp = fp.map_err(on_dem)?;
                     // Within bounds, an image past the DEM may still give
                     // only ground on it (refused where it does not).
                     if s.bounds.is_none() && s.grid.is_none() {
-                        fp.check_covered(&opts.image, d)?;
+                        fp.check_covered(&opts.inputs.image, d)?;
                     }
-                    if let Some(w) = fp.partial_warning(&opts.image, d) {
+                    if let Some(w) = fp.partial_warning(&opts.inputs.image, d) {
                         progress.warn(&w);
                     }
                     (Some(fp), mean_gsd(camera.model(), d, info.width, info.height, z).map_err(on_dem)?)
@@ -381,7 +381,7 @@ impl Plan {
             for (im, _) in &images {
                 if (im.bands, im.sample) != (first.0, first.1) {
                     return Err(Error::format(
-                        &im.opts.image,
+                        &im.opts.inputs.image,
                         format!(
                             "{} band(s) of {:?}, but {} has {} of {:?}: a mosaic's images share bands and sample type",
                             im.bands, im.sample, first.2, first.0, first.1
@@ -563,7 +563,7 @@ impl Plan {
                     by[l as usize] += 1;
                 }
             }
-            let other = (0..by.len()).filter(|&j| by[j] > 0).max_by_key(|&j| by[j]).map(|j| self.images[j].opts.image.display().to_string());
+            let other = (0..by.len()).filter(|&j| by[j] > 0).max_by_key(|&j| by[j]).map(|j| self.images[j].opts.inputs.image.display().to_string());
             let dem = self.dems[im.dem].path.display();
             // An image a cell or two across at this GSD: the grid is coarse
             // for it, whatever else is true.
@@ -580,13 +580,13 @@ impl Plan {
                 }
             };
             let what = format!("the mosaic takes nothing of it: {why}");
-            if partial_dem[k] && im.opts.dem_outside == crate::dem::Miss::Error {
-                return Err(Error::format(&im.opts.image, format!("{what} (dem_outside = \"error\")")));
+            if partial_dem[k] && im.opts.inputs.dem_outside == crate::dem::Miss::Error {
+                return Err(Error::format(&im.opts.inputs.image, format!("{what} (dem_outside = \"error\")")));
             }
             if (1..=2).contains(&across.min(down)) {
-                coarse.push((im.opts.image.display().to_string(), what));
+                coarse.push((im.opts.inputs.image.display().to_string(), what));
             } else {
-                progress.warn(&format!("{}: {what}", im.opts.image.display()));
+                progress.warn(&format!("{}: {what}", im.opts.inputs.image.display()));
             }
         }
         // Images a grid too coarse for them gives nothing: one line for
@@ -632,7 +632,7 @@ fn sample_image(plan: &Plan, im: &mut PlanImage, camera: &Camera, memory: u64, t
     // another image's pixels fill them.
     let mut holed = vec![false; tw * th];
     let mut win = Window::default();
-    let src = if thumbnails { Some(SourceImage::open_within(&im.opts.image, (memory / 8) as usize, memory)?) } else { None };
+    let src = if thumbnails { Some(SourceImage::open_within(&im.opts.inputs.image, (memory / 8) as usize, memory)?) } else { None };
     let mark = src.as_ref().map(|s| s.hole_mark()).transpose()?.flatten();
     for tr in 0..th * usize::from(src.is_some()) {
         let Some(src) = &src else { break };

@@ -135,16 +135,17 @@ pub fn work(plan: &Plan, weights: &Weights, tile: u32, prone: Option<&[bool]>, o
             let (x0, y0) = g.ground((c0 * tile) as f64, (r0 * tile) as f64);
             let (w, h) = (((c1 * tile).min(g.width) - c0 * tile) as f64, ((r1 * tile).min(g.height) - r0 * tile) as f64);
             let bounds = [x0, y0 - h * g.gsd.y, x0 + w * g.gsd.x, y0];
-            let opts = RectifyOptions {
+            let mut opts = opts_of(i);
+            opts.grid = crate::options::Grid {
                 gsd: Some(g.gsd),
                 bounds: Some(bounds),
                 snap: Snap::None,
                 like: None,
                 crs: Some(plan.crs.clone()),
-                tile,
+                window: opts.grid.window,
                 max_output_pixels: Some(u64::MAX),
-                ..opts_of(i)
             };
+            opts.file.tile = tile;
             let grid = crate::geom::OutputGrid { x0, y0, gsd: g.gsd, width: w as u32, height: h as u32 };
             ImageWork { image: i, origin: (c0, r0), bands, opts, grid, dem: Some((plan.dems[plan.images[i].dem].clone(), plan.crs.clone())) }
         })

@@ -66,7 +66,7 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
         crate::batch::write_sidecar(&plan, &plan_key)?;
     }
     let grid = plan_file::grid_of(&plan)?;
-    let (across, down) = (grid.width.div_ceil(first.tile), grid.height.div_ceil(first.tile));
+    let (across, down) = (grid.width.div_ceil(first.file.tile), grid.height.div_ceil(first.file.tile));
     let rows = down.div_ceil(PIECES);
 
     // The pieces: bands of tile rows, without overviews (the whole's are
@@ -88,7 +88,7 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
             overviews: Some(Overviews::None),
             // A lossy mosaic's pieces losslessly: coded once, at the
             // assembly, from the pixels a single run codes.
-            compress: first.compress.is_lossy().then_some(Compression::Deflate),
+            compress: first.file.compress.is_lossy().then_some(Compression::Deflate),
             force: false,
             ..o.clone()
         };
@@ -96,8 +96,8 @@ pub fn resumable(o: &MosaicOptions, dir: &Path, progress: &dyn Progress, cancel:
         pieces.push(piece);
     }
 
-    let (fill, _) = super::fill_of(crate::io::source::SourceImage::open(&pieces[0], 1 << 20)?.info.sample, first.nodata)?;
-    let layout = super::assembly((o.overviews.unwrap_or(first.overviews), o.cog.unwrap_or(first.cog)), &first, fill, o.sync);
+    let (fill, _) = super::fill_of(crate::io::source::SourceImage::open(&pieces[0], 1 << 20)?.info.sample, first.pixels.nodata)?;
+    let layout = super::assembly((o.overviews.unwrap_or(first.file.overviews), o.cog.unwrap_or(first.file.cog)), &first, fill, o.sync);
     assemble(&pieces, &out, &layout, cancel)?;
     crate::batch::write_sidecar(&out, &key)?;
     for p in pieces.iter().chain([&plan]) {

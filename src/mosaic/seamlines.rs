@@ -35,7 +35,7 @@ pub fn write(plan: &Plan, path: &std::path::Path) -> Result<Option<crate::io::pu
             .collect();
         features.push(serde_json::json!({
             "type": "Feature",
-            "properties": { "image": im.name, "index": k + 1, "file": im.opts.image.display().to_string() },
+            "properties": { "image": im.name, "index": k + 1, "file": im.opts.inputs.image.display().to_string() },
             "geometry": { "type": "MultiPolygon", "coordinates": coords },
         }));
     }
@@ -254,8 +254,8 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
         if let Some(i) = props.get("index").and_then(|v| v.as_u64()).filter(|&i| i as usize != image + 1) {
             doubts.push(format!("features[{k}]: index {i} is not image '{}' (its index is {}): taken as '{}'", taken.name, image + 1, taken.name));
         }
-        if let Some(file) = props.get("file").and_then(|v| v.as_str()).filter(|&f| std::path::Path::new(f) != taken.opts.image) {
-            doubts.push(format!("features[{k}]: file {file} is not image '{}' ({}): taken as '{}'", taken.name, taken.opts.image.display(), taken.name));
+        if let Some(file) = props.get("file").and_then(|v| v.as_str()).filter(|&f| std::path::Path::new(f) != taken.opts.inputs.image) {
+            doubts.push(format!("features[{k}]: file {file} is not image '{}' ({}): taken as '{}'", taken.name, taken.opts.inputs.image.display(), taken.name));
         }
         // A feature whose parts were all deleted in a GIS gives nothing.
         let Some(geometry) = f.get("geometry").filter(|g| !g.is_null()) else { continue };

@@ -4,7 +4,7 @@
 use crate::io::format::SampleType;
 
 /// How an overview pixel is made of the four below it.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum OverviewResampling {
     /// The mean of those that have a value (rounded to the nearest integer

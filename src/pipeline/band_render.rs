@@ -47,7 +47,14 @@ pub type SharedDem = Option<(Arc<crate::dem::Dem>, crate::geodesy::Crs)>;
 /// mosaic's bands), every pixel's validity (a mask), nothing of the output
 /// file's own (no overviews: the mosaic's writer makes its own).
 pub fn in_memory(opts: &RectifyOptions) -> RectifyOptions {
-    RectifyOptions { band_order: BandOrder::Rows, nodata: Nodata::Mask, alpha: false, window: None, cog: false, overviews: Overviews::None, ..opts.clone() }
+    let mut o = opts.clone();
+    o.resources.band_order = BandOrder::Rows;
+    o.pixels.nodata = Nodata::Mask;
+    o.pixels.alpha = false;
+    o.grid.window = None;
+    o.file.cog = false;
+    o.file.overviews = Overviews::None;
+    o
 }
 
 /// An image's set-up warnings (aliasing, a datum, the camera), said to
@@ -103,7 +110,7 @@ pub fn render_bands<T>(
 ) -> Result<()> {
     let Shared { pool, cancel, warn } = *with;
     let opts = in_memory(opts);
-    let setup = match RunPlan::with_dem(&opts, &ImageWarnings { to: warn, image: &opts.image, camera: &opts.camera }, dem) {
+    let setup = match RunPlan::with_dem(&opts, &ImageWarnings { to: warn, image: &opts.inputs.image, camera: &opts.inputs.camera }, dem) {
         Ok(p) => p,
         Err(e) => {
             sink(Err(e));
@@ -112,9 +119,9 @@ pub fn render_bands<T>(
     };
     let t = Transform::new(setup.camera.model(), &setup.dem, setup.grid).with_scan((setup.src.info.width, setup.src.info.height));
     let gcm = Gcm::new(&t, setup.approx, setup.gcm);
-    let visibility = (opts.occlusion != Occlusion::None).then(|| Visibility::new(&t, setup.occlusion_tolerance()));
-    let (tx, ty) = (setup.grid.width.div_ceil(opts.tile), setup.grid.height.div_ceil(opts.tile));
-    let walk = Walk { grid: t.grid, tile: opts.tile, bands: (0, ty), cols: (0, tx), columns: false, piece: (0, 0, tx) };
+    let visibility = (opts.pixels.occlusion != Occlusion::None).then(|| Visibility::new(&t, setup.occlusion_tolerance()));
+    let (tx, ty) = (setup.grid.width.div_ceil(opts.file.tile), setup.grid.height.div_ceil(opts.file.tile));
+    let walk = Walk { grid: t.grid, tile: opts.file.tile, bands: (0, ty), cols: (0, tx), columns: false, piece: (0, 0, tx) };
     let mut run = Run {
         // Into memory, not a file: nothing to name.
         source: None,
@@ -124,7 +131,7 @@ pub fn render_bands<T>(
             dem: &setup.dem,
             spec: &setup.spec,
             pixels: setup.pixels,
-            output: &opts.output,
+            output: &opts.file.path,
             sync: false,
             visibility: visibility.as_ref(),
         },
@@ -195,8 +202,12 @@ mod tests {
     #[test]
     fn an_image_in_a_mosaic_makes_no_file_of_its_own() {
         let base = RectifyOptions::new("s.tif".into(), "s.toml".into(), crate::options::DemSource::Height(0.0), "o.tif".into());
-        let opts = RectifyOptions { overviews: Overviews::Auto, cog: true, alpha: true, ..base };
+        let mut opts = base;
+        (opts.file.overviews, opts.file.cog, opts.pixels.alpha) = (Overviews::Auto, true, true);
         let m = in_memory(&opts);
-        assert_eq!((m.overviews, m.cog, m.alpha, m.band_order, m.nodata), (Overviews::None, false, false, BandOrder::Rows, Nodata::Mask));
+        assert_eq!(
+            (m.file.overviews, m.file.cog, m.pixels.alpha, m.resources.band_order, m.pixels.nodata),
+            (Overviews::None, false, false, BandOrder::Rows, Nodata::Mask)
+        );
     }
 }

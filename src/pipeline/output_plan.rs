@@ -27,10 +27,10 @@ pub struct OutputPlan {
 /// The grid `opts` make, the whole of it (any `window` aside).
 pub fn plan(opts: &RectifyOptions, progress: &dyn Progress) -> Result<OutputPlan> {
     let mut whole = opts.clone();
-    whole.window = None;
+    whole.grid.window = None;
     let plan = RunPlan::new(&whole, progress)?;
     let g = plan.grid;
-    let t = whole.tile;
+    let t = whole.file.tile;
     Ok(OutputPlan {
         width: g.width,
         height: g.height,

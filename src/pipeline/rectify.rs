@@ -27,24 +27,24 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     let progress: &dyn Progress = &recording;
     // Every output is a GeoTIFF: a name that says another format misleads
     // whoever opens it by its name.
-    if let Some(w) = crate::io::tiff_out::named_as_other_format(&opts.output) {
+    if let Some(w) = crate::io::tiff_out::named_as_other_format(&opts.file.path) {
         progress.warn(&w);
     }
     opts.validate()?;
     opts.check_outputs(&[])?;
     // The output folder must take a file before any work starts.
-    let pending = PendingFile::create(&opts.output)?;
+    let pending = PendingFile::create(&opts.file.path)?;
     if cancel.is_cancelled() {
         return Err(Error::Cancelled);
     }
     // One thread: the steps one after the other (resampling and encoding
     // on the pool's one worker, while this thread waits), so that one
     // thread keeps one processor busy, not one and a half.
-    let sequential = opts.threads == 1;
+    let sequential = opts.resources.threads == 1;
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(opts.threads)
+        .num_threads(opts.resources.threads)
         .build()
-        .map_err(|e| Error::setting("threads", format!("cannot start {} threads: {e}", opts.threads)))?;
+        .map_err(|e| Error::setting("threads", format!("cannot start {} threads: {e}", opts.resources.threads)))?;
     // The set-up's parallel parts (reading the DEM) on the run's own workers too.
     let plan = pool.install(|| RunPlan::new(opts, progress))?;
     if cancel.is_cancelled() {
@@ -59,14 +59,14 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         if columns { (Transform::transposed(model, dem, plan.grid), plan.approx.transposed()) } else { (Transform::new(model, dem, plan.grid), plan.approx) };
     let t = t.with_scan((src.info.width, src.info.height));
     let gcm = Gcm::new(&t, approx, plan.gcm);
-    let visibility = (opts.occlusion != Occlusion::None).then(|| Visibility::new(&t, plan.occlusion_tolerance()));
+    let visibility = (opts.pixels.occlusion != Occlusion::None).then(|| Visibility::new(&t, plan.occlusion_tolerance()));
 
     // The piece as walked: bands `wr0..wr1` of tile columns `wc0..wc1`
     // (transposed, bands of the output's tile columns).
     let [tc0, tr0, tcw, trh] = plan.piece;
     let (tc1, tr1) = (tc0 + tcw, tr0 + trh);
     let (wc0, wc1, wr0, wr1) = if columns { (tr0, tr1, tc0, tc1) } else { (tc0, tc1, tr0, tr1) };
-    let walk = Walk { grid: t.grid, tile: opts.tile, bands: (wr0, wr1), cols: (wc0, wc1), columns, piece: (tc0, tr0, tcw) };
+    let walk = Walk { grid: t.grid, tile: opts.file.tile, bands: (wr0, wr1), cols: (wc0, wc1), columns, piece: (tc0, tr0, tcw) };
 
     let mut times = StageTimes { setup: wall.elapsed().as_secs_f64(), ..Default::default() };
     let (lines, line_name) = if columns { (spec.width, "columns") } else { (spec.height, "rows") };
@@ -76,7 +76,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     // A second handle to the output, to start its write-back while tiles
     // are still being made.
     let flush_file = out_file.try_clone().map_err(|e| Error::io(pending.path(), e))?;
-    if opts.compress == Compression::None && !spec.cog {
+    if opts.file.compress == Compression::None && !spec.cog {
         // The padding before the tiles and the tiles' bytes (all levels'),
         // all of which the file will hold.
         let pad = page_padding(spec).unwrap_or(0) as u64;
@@ -85,7 +85,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     }
 
     let run = Run {
-        inputs: Inputs { gcm: &gcm, src, dem, spec, pixels: plan.pixels, output: &opts.output, sync: opts.sync, visibility: visibility.as_ref() },
+        inputs: Inputs { gcm: &gcm, src, dem, spec, pixels: plan.pixels, output: &opts.file.path, sync: opts.file.sync, visibility: visibility.as_ref() },
         walk,
         budget: plan.budget,
         counters: Counters { sampled: Some(Default::default()), ..Default::default() },
@@ -93,13 +93,13 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         pool: &pool,
         progress,
         spare_masks: crossbeam_channel::bounded(4),
-        pyramid: Pyramid::new(spec, opts.overview_resampling, ValidBy::of(spec), plan.pixels.fill).map(std::sync::Mutex::new),
+        pyramid: Pyramid::new(spec, opts.file.overview_resampling, ValidBy::of(spec), plan.pixels.fill).map(std::sync::Mutex::new),
         valid_by: ValidBy::of(spec),
         statistics: Default::default(),
         // A piece also names the whole it is a piece of.
-        source: Some(match (opts.window, crate::identity::source_key(opts)) {
+        source: Some(match (opts.grid.window, crate::scene::made_from::source_key(opts)) {
             (Some(_), key) => {
-                crate::io::geotiff::piece_source(&key, &plan.grid, &crate::assemble::layout_record(opts.overviews, opts.overview_resampling, opts.cog))
+                crate::io::geotiff::piece_source(&key, &plan.grid, &crate::assemble::layout_record(opts.file.overviews, opts.file.overview_resampling, opts.file.cog))
             }
             (None, key) => key,
         }),
@@ -126,7 +126,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     times.encode = busy.encode.as_secs_f64();
     verify(pending.path(), spec)?;
     let output_bytes = std::fs::metadata(pending.path()).map(|m| m.len()).unwrap_or(0);
-    pending.publish_synced(opts.sync)?;
+    pending.publish_synced(opts.file.sync)?;
     let wall_s = wall.elapsed().as_secs_f64();
     times.write = (wall_s - times.setup).max(0.0);
     let error_bound = plan.gcm.max_error;
@@ -135,7 +135,11 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     // Everything the run warned of, the DEM's doubts among them.
     let warnings = recording.said();
     Ok(Report {
-        config: RectifyOptions { gcm: plan.gcm, auto_sparsity: false, band_order: plan.band_order, ..opts.clone() },
+        config: {
+            let mut c = opts.clone();
+            (c.geometry.gcm, c.geometry.auto_sparsity, c.resources.band_order) = (plan.gcm, false, plan.band_order);
+            c
+        },
         grid: plan.grid,
         crs: plan.camera.crs.to_string(),
         geographic: plan.camera.crs.is_geographic(),
@@ -174,10 +178,10 @@ fn say_what_the_pixels_hold(opts: &RectifyOptions, run: &Run, progress: &dyn Pro
     // An orthophoto without one pixel of image is a mistake to say (a
     // piece of a window may be empty beside the footprint).
     let stats = run.statistics.lock().map(|s| s.total()).unwrap_or_default();
-    if opts.window.is_none() && stats.pixels > 0 && !stats.bands.is_empty() && stats.bands.iter().all(|b| b.count == 0) {
+    if opts.grid.window.is_none() && stats.pixels > 0 && !stats.bands.is_empty() && stats.bands.iter().all(|b| b.count == 0) {
         progress.warn(&format!(
             "{}: no pixel of it has a value: the scan's ground lies outside the grid, in the DEM's holes or off it (‹dem_hole›, ‹dem_outside›), or the scan holds no image there",
-            opts.output.display()
+            opts.file.path.display()
         ));
     }
 }

@@ -61,22 +61,22 @@ impl RunPlan {
     /// [`RunPlan::new`] taking `shared` for the DEM where it is the one the
     /// options name, opened in the camera's CRS with the same policies.
     pub fn with_dem(opts: &RectifyOptions, progress: &dyn Progress, shared: super::band_render::SharedDem) -> Result<RunPlan> {
-        let mut budget = MemoryBudget::new(opts.memory);
-        let like = opts.like.as_deref().map(grid::reference_grid).transpose()?;
+        let mut budget = MemoryBudget::new(opts.resources.memory);
+        let like = opts.grid.like.as_deref().map(grid::reference_grid).transpose()?;
         // GCPs refine a frame camera's pose in its own CRS, before anything
         // else uses it (an RPC's bias once its heights' geoid is known, below).
-        let (camera, gcps, mut gcp_fit) = crate::scene::camera::of_run(opts, opts.crs.as_ref(), progress)?;
+        let (camera, gcps, mut gcp_fit) = crate::scene::camera::of_run(opts, opts.grid.crs.as_ref(), progress)?;
         let ground = grid::output_crs(opts, like.as_ref().map(|(_, crs)| crs), &camera, progress)?;
         let camera = camera.in_crs(&ground).map_err(|m| Error::setting("crs", m))?;
-        let src = SourceImage::open_within(&opts.image, budget.scan_cache() as usize, budget.total())?;
+        let src = SourceImage::open_within(&opts.inputs.image, budget.scan_cache() as usize, budget.total())?;
         let decoding = reserve_decoders(opts, &src, &mut budget)?;
         let shared = shared.filter(|(d, crs)| terrain::is_dem_of(opts, d, crs, &camera)).map(|(d, _)| d);
         let dem = terrain::dem_of_run(opts, &camera, shared, budget.dem(), progress)?;
         let mut camera = camera;
         if let Sensor::Rpc(r) = &camera.sensor {
-            checks::check_denominators_in_box(r, &opts.camera)?;
+            checks::check_denominators_in_box(r, &opts.inputs.camera)?;
         }
-        terrain::geoid_for_camera(&mut camera, &dem, opts.crs.as_ref(), progress)?;
+        terrain::geoid_for_camera(&mut camera, &dem, opts.grid.crs.as_ref(), progress)?;
         if let (Some((g, points)), Sensor::Rpc(_)) = (&gcps, &camera.sensor) {
             gcp_fit = Some(crate::camera::gcp::refine(&mut camera, points, g.model, g.max_residual, &g.file)?);
         }
@@ -86,26 +86,26 @@ impl RunPlan {
         checks::camera_meets_scan(opts, &camera, &src.info, &dem, z_guess, progress)?;
         let grid = grid::output_grid(opts, like.map(|(g, _)| g), &camera, &dem, (sw, sh), z_guess, progress)?;
         if let Sensor::Rpc(r) = &camera.sensor {
-            checks::check_denominators(r, &grid, &dem, &opts.camera)?;
+            checks::check_denominators(r, &grid, &dem, &opts.inputs.camera)?;
         }
         let plane = grid::terrain_plane(opts, &camera.crs, &dem, &grid)?;
         let approx = Approx::new(model, &grid, plane).ok_or_else(|| Error::Geometry("the terrain plane is not in front of the camera".into()))?;
-        let band_order = match opts.band_order {
-            BandOrder::Auto => fewer_scan_rows(&approx, &grid, opts.tile),
+        let band_order = match opts.resources.band_order {
+            BandOrder::Auto => fewer_scan_rows(&approx, &grid, opts.file.tile),
             order => order,
         };
         let gcm = node_spacing(opts, &dem, &grid, &camera.crs, budget, decoding)?;
 
         // The piece of the grid to make, in tiles (everything by default).
         // All geometry stays that of the whole grid, so pieces equal the whole.
-        let tile = opts.tile;
+        let tile = opts.file.tile;
         let (tx_all, ty_all) = (grid.width.div_ceil(tile), grid.height.div_ceil(tile));
-        let [tc0, tr0, tcw, trh] = crate::geom::cut_window(opts.window.unwrap_or([0, 0, tx_all, ty_all]), (tx_all, ty_all))
+        let [tc0, tr0, tcw, trh] = crate::geom::cut_window(opts.grid.window.unwrap_or([0, 0, tx_all, ty_all]), (tx_all, ty_all))
             .map_err(|w| Error::setting("window", format!("{w} does not start inside the output's {tx_all}×{ty_all} tiles")))?;
         let mut spec = output_spec(opts, &src.info, &grid, &camera.crs, [tc0, tr0, tcw, trh], progress)?;
         let band_tiles = if band_order == BandOrder::Columns { trh } else { tcw };
         check_output_memory(&spec, tile, band_tiles, tcw as u64 * trh as u64, budget, decoding)?;
-        spec.bigtiff = match opts.bigtiff {
+        spec.bigtiff = match opts.file.bigtiff {
             BigTiff::Yes => true,
             BigTiff::No => false,
             BigTiff::Auto => spec.needs_bigtiff(),
@@ -164,15 +164,15 @@ fn output_spec(
     [tc0, tr0, tcw, trh]: [u32; 4],
     progress: &dyn Progress,
 ) -> Result<OutputSpec> {
-    let tile = opts.tile;
+    let tile = opts.file.tile;
     let (tc1, tr1) = (tc0 + tcw, tr0 + trh);
     let piece_w = (tc1 * tile).min(grid.width) - tc0 * tile;
     let piece_h = (tr1 * tile).min(grid.height) - tr0 * tile;
     // A nodata value, or the mask: then the resampler says which pixels
     // have a value, and the encoder makes the mask's tiles of it.
     // Hidden pixels that keep their values need the mask to say so.
-    let asked = if opts.occlusion == Occlusion::Mask && opts.nodata == Nodata::Auto { Nodata::Mask } else { opts.nodata };
-    if opts.alpha && info.sample == crate::io::source::SampleType::F32 {
+    let asked = if opts.pixels.occlusion == Occlusion::Mask && opts.pixels.nodata == Nodata::Auto { Nodata::Mask } else { opts.pixels.nodata };
+    if opts.pixels.alpha && info.sample == crate::io::source::SampleType::F32 {
         // GDAL takes an alpha band for a mask only of 8 or 16 bits: of
         // floats its 0s would read as values.
         return Err(Error::setting(
@@ -180,7 +180,7 @@ fn output_spec(
             "a Float32 orthophoto marks pixels without a value with NaN, its nodata (GDAL reads an alpha band as a mask only of 8 or 16 bits): leave out ‹alpha›, or give ‹nodata› mask for an internal mask",
         ));
     }
-    let (nodata, mask) = match (opts.alpha, asked.resolved(info.sample)) {
+    let (nodata, mask) = match (opts.pixels.alpha, asked.resolved(info.sample)) {
         (true, _) => (None, false),
         (false, Nodata::Value(v)) => {
             Nodata::check_value(v, info.sample)?;
@@ -189,7 +189,7 @@ fn output_spec(
         (false, _) => (None, true),
     };
     let bands_in = info.bands;
-    let bands_out = bands_in + u32::from(opts.alpha);
+    let bands_out = bands_in + u32::from(opts.pixels.alpha);
     let photometric = if info.photometric == 2 && bands_in >= 3 { 2 } else { 1 };
     let mut spec = OutputSpec {
         overviews: 0,
@@ -199,12 +199,12 @@ fn output_spec(
         bands: bands_out,
         sample: info.sample,
         chunking: Chunking::Tiles(tile),
-        compression: opts.compress,
+        compression: opts.file.compress,
         level: opts.codec_level()?,
         overview_level: opts.overview_codec_level()?,
         bigtiff: false,
         photometric,
-        alpha: opts.alpha || info.has_alpha,
+        alpha: opts.pixels.alpha || info.has_alpha,
         mask,
         geo: Some(GeoTags {
             x0: grid.x0 + (tc0 * tile) as f64 * grid.gsd.x,
@@ -215,9 +215,9 @@ fn output_spec(
         }),
     };
     spec.check_codec().map_err(|m| Error::setting("compress", m))?;
-    spec.overviews = opts.overviews.levels(piece_w, piece_h, tile);
-    spec.cog = opts.cog;
-    if opts.cog && opts.overviews == crate::options::Overviews::None && opts.window.is_none() {
+    spec.overviews = opts.file.overviews.levels(piece_w, piece_h, tile);
+    spec.cog = opts.file.cog;
+    if opts.file.cog && opts.file.overviews == crate::options::Overviews::None && opts.grid.window.is_none() {
         progress.warn("‹cog› with ‹overviews› none: a Cloud-Optimized GeoTIFF without overviews is read whole to be seen whole (GDAL's validator warns of it); leave out ‹overviews› none");
     }
     Ok(spec)
@@ -281,25 +281,25 @@ fn pixel_options(
 ) -> Result<PixelOptions> {
     let nodata = spec.geo.as_ref().and_then(|g| g.nodata);
     let area = camera.model().image_area();
-    let footprint = if opts.kernel.area().is_some() { footprint_reach(approx, grid) } else { 0 };
+    let footprint = if opts.pixels.kernel.area().is_some() { footprint_reach(approx, grid) } else { 0 };
     // A point kernel on output pixels several scan pixels wide reads a
     // few of the pixels under each: the texture aliases.
-    if let (None, Some(e)) = (opts.kernel.area(), pixel_extent(approx, grid.width as f64 / 2.0, grid.height as f64 / 2.0, 1.0 / 64.0)) {
+    if let (None, Some(e)) = (opts.pixels.kernel.area(), pixel_extent(approx, grid.width as f64 / 2.0, grid.height as f64 / 2.0, 1.0 / 64.0)) {
         if e >= ALIASING_EXTENT {
             progress.warn(&format!(
                 "output pixels span about {e:.0} scan pixels: ‹resample› {} reads a few of them under each, so fine texture aliases; ‹resample› average takes them all",
-                format!("{:?}", opts.kernel).to_lowercase()
+                format!("{:?}", opts.pixels.kernel).to_lowercase()
             ));
         }
     }
     let pixels = PixelOptions {
-        kernel: opts.kernel,
-        tile: opts.tile,
+        kernel: opts.pixels.kernel,
+        tile: opts.file.tile,
         fill: nodata.unwrap_or(0.0),
         bands_out: spec.bands,
         area,
         mask: spec.mask,
-        occlusion: opts.occlusion,
+        occlusion: opts.pixels.occlusion,
         footprint,
         holes: src.hole_mark()?,
         nudge: nodata.is_some_and(f64::is_finite),
@@ -311,7 +311,7 @@ fn pixel_options(
 /// of `budget` (the shares are then of what is left): as many decoders as
 /// threads, within half the budget, one at least. What they hold, bytes.
 fn reserve_decoders(opts: &RectifyOptions, src: &SourceImage, budget: &mut MemoryBudget) -> Result<u64> {
-    let threads = match opts.threads {
+    let threads = match opts.resources.threads {
         0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
         n => n,
     };
@@ -325,7 +325,7 @@ fn reserve_decoders(opts: &RectifyOptions, src: &SourceImage, budget: &mut Memor
                 "memory",
                 format!(
                     "{}: decoding one of its {}×{} chunks holds about {} MiB, more than half the memory budget: give {}M or more",
-                    opts.image.display(),
+                    opts.inputs.image.display(),
                     src.info.chunk.0,
                     src.info.chunk.1,
                     one.div_ceil(1 << 20),
@@ -345,8 +345,8 @@ fn reserve_decoders(opts: &RectifyOptions, src: &SourceImage, budget: &mut Memor
 /// within the memory the node rows in flight may take); a spacing given so
 /// fine that its node rows pass the budget is refused, with what it takes.
 fn node_spacing(opts: &RectifyOptions, dem: &Dem, grid: &OutputGrid, ground: &Crs, budget: MemoryBudget, decoding: u64) -> Result<GcmSpec> {
-    let mut gcm = opts.gcm;
-    if opts.auto_sparsity {
+    let mut gcm = opts.geometry.gcm;
+    if opts.geometry.auto_sparsity {
         gcm.k = auto_sparsity(dem, grid, ground);
         // Fine node spacing on a wide output: the node rows of the bands
         // in flight would outgrow what the plan can give them; the error
@@ -355,16 +355,16 @@ fn node_spacing(opts: &RectifyOptions, dem: &Dem, grid: &OutputGrid, ground: &Cr
         // kept: the refinement it spares holds more (a 31,000 px wide
         // film scan on a DEM 13 px apart, at 128M: k = 16 refined a
         // third of its cells, 178 MiB, 11 s; k = 13 none, 127 MiB, 9 s).
-        let geometry = opts.geometry_memory.map_or(budget, MemoryBudget::new);
-        if geometry.node_rows(gcm.k, opts.tile, grid.width.max(grid.height), 100) > geometry.node_limit() {
+        let geometry = opts.resources.geometry_memory.map_or(budget, MemoryBudget::new);
+        if geometry.node_rows(gcm.k, opts.file.tile, grid.width.max(grid.height), 100) > geometry.node_limit() {
             gcm.k = 16;
         }
     }
     // A spacing the user chose so fine that its node rows would pass
     // what the plan can give them (`--sparsity 1` on a wide output):
     // refused, with what it would take.
-    let nodes = budget.node_rows(gcm.k, opts.tile, grid.width.max(grid.height), 60);
-    if !opts.auto_sparsity && nodes > budget.node_limit() {
+    let nodes = budget.node_rows(gcm.k, opts.file.tile, grid.width.max(grid.height), 60);
+    if !opts.geometry.auto_sparsity && nodes > budget.node_limit() {
         return Err(Error::setting(
             "sparsity",
             format!(

@@ -19,7 +19,8 @@ pub struct Point {
 }
 
 /// Which returns of a point cloud are kept.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Returns {
     #[default]
     All,
@@ -43,7 +44,7 @@ impl crate::options::Choice for Returns {
 
 /// Which points of a point cloud take part; text files have no classes
 /// or returns, and every point of theirs does.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Filter {
     /// ASPRS classes kept (2 ground: a DTM); `None`: every class but noise
     /// (7 low noise, 18 high noise) and withheld points.
@@ -67,7 +68,8 @@ impl Filter {
 }
 
 /// How a text file's columns are found.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Columns {
     /// From the header (x/easting/lon…, y/northing/lat…, z/height/elevation…),
     /// else the first three.

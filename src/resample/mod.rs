@@ -20,7 +20,7 @@ use crate::io::source::{SampleType, Window};
 pub use spans::resample_span;
 pub use spans::{resample_spans, span_bounds, span_position, Fixed, SpanOutcome};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Kernel {
     Nearest,

@@ -79,11 +79,11 @@ pub fn of_run<'a>(
     crs: Option<&Crs>,
     progress: &dyn crate::progress::Progress,
 ) -> Result<(Camera, Option<Control<'a>>, Option<crate::camera::gcp::GcpFit>)> {
-    let mut camera = load(&opts.model, &opts.image, &opts.camera, crs)?;
+    let mut camera = load(&opts.inputs.model, &opts.inputs.image, &opts.inputs.camera, crs)?;
     for w in &camera.warnings {
         progress.warn(w);
     }
-    let gcps = opts.gcps.as_ref().map(|g| crate::camera::gcp::read(&g.file, &opts.image).map(|p| (g, p))).transpose()?;
+    let gcps = opts.inputs.gcps.as_ref().map(|g| crate::camera::gcp::read(&g.file, &opts.inputs.image).map(|p| (g, p))).transpose()?;
     let mut fit = None;
     if let (Some((g, points)), crate::camera::file::Sensor::Frame(_) | crate::camera::file::Sensor::Panoramic(_)) = (&gcps, &camera.sensor) {
         if points.iter().any(|p| p.ellipsoidal) {

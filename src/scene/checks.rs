@@ -24,7 +24,7 @@ pub fn camera_meets_scan(opts: &RectifyOptions, camera: &Camera, info: &SourceIn
         Sensor::Rpc(_) | Sensor::Panoramic(_) => None,
     };
     if let Some((f, _)) = frame {
-        if let Some(w) = crate::camera::file::narrow_view(&opts.camera, &camera.file, (sw, sh), f.centre.z - z_guess) {
+        if let Some(w) = crate::camera::file::narrow_view(&opts.inputs.camera, &camera.file, (sw, sh), f.centre.z - z_guess) {
             progress.warn(&w);
         }
     }
@@ -34,7 +34,7 @@ pub fn camera_meets_scan(opts: &RectifyOptions, camera: &Camera, info: &SourceIn
     };
     if let Some((field, [w, h])) = sized {
         if [w, h] != [sw, sh] {
-            return Err(Error::config(&opts.camera, field, format!("the camera is for {w}×{h} images, but {} is {sw}×{sh}", opts.image.display())));
+            return Err(Error::config(&opts.inputs.camera, field, format!("the camera is for {w}×{h} images, but {} is {sw}×{sh}", opts.inputs.image.display())));
         }
     }
     if let Some(r) = match &camera.sensor {
@@ -66,7 +66,7 @@ pub fn camera_meets_scan(opts: &RectifyOptions, camera: &Camera, info: &SourceIn
             {
                 progress.warn(&format!(
                     "{}: its GeoTIFF origin ({}, {}) in pixels of 1 without a CRS looks like a crop's offset in the scene its RPC was fitted over: if it is, give ‹rpc_offset› {},{} (in a camera file rpc.offset_px), or the orthophoto lands that far off (an RPC already shifted to the crop: ‹rpc_offset› 0,0 says so)",
-                    opts.image.display(),
+                    opts.inputs.image.display(),
                     t[0],
                     t[3],
                     t[0],
@@ -86,7 +86,7 @@ pub fn camera_meets_scan(opts: &RectifyOptions, camera: &Camera, info: &SourceIn
         if !(out <= 1.1) {
             progress.warn(&format!(
                 "{}: the image ({sw}×{sh}) reaches {:.1} times the half-size of the scene its RPC was fitted over: beyond it the RPC is extrapolated; check the crop's offset (‹rpc_offset›, rpc.offset_px)",
-                opts.image.display(),
+                opts.inputs.image.display(),
                 out
             ));
         }
@@ -97,7 +97,7 @@ pub fn camera_meets_scan(opts: &RectifyOptions, camera: &Camera, info: &SourceIn
         if !((z_guess - r.height_off).abs() <= 2.0 * r.height_scale.abs() + 200.0) {
             progress.warn(&format!(
                 "{}: the ground is at {z_guess:.0} m, but its RPC was fitted over heights {:.0} ± {:.0} m: far beyond them the RPC is extrapolated; check the DEM (or ‹height›) and that the RPC is this scene's",
-                opts.image.display(),
+                opts.inputs.image.display(),
                 r.height_off,
                 r.height_scale.abs()
             ));
@@ -109,7 +109,7 @@ pub fn camera_meets_scan(opts: &RectifyOptions, camera: &Camera, info: &SourceIn
             Some(crate::dem::Height::Value(z)) => z,
             _ => z_guess,
         };
-        f.check_sees_ground(sw, sh, below, &opts.camera)?;
+        f.check_sees_ground(sw, sh, below, &opts.inputs.camera)?;
         // A camera made for another image (another size, another scan)
         // puts its principal point far from this one's centre.
         let (pc, pr) = f.interior.mm_to_px(0.0, 0.0);
@@ -117,9 +117,9 @@ pub fn camera_meets_scan(opts: &RectifyOptions, camera: &Camera, info: &SourceIn
         if !(off <= PRINCIPAL_POINT_OFF_CENTRE) {
             progress.warn(&format!(
                 "{}: the camera puts the principal point at ({pc:.0}, {pr:.0}) px, {:.0} % of the image off the centre of {} ({sw}×{sh}): is it this image's camera?",
-                opts.camera.display(),
+                opts.inputs.camera.display(),
                 off * 100.0,
-                opts.image.display()
+                opts.inputs.image.display()
             ));
         }
         // A drone that says how high it flew over its take-off point:
@@ -130,7 +130,7 @@ pub fn camera_meets_scan(opts: &RectifyOptions, camera: &Camera, info: &SourceIn
             if (above - rel).abs() > (0.3 * rel.abs()).max(20.0) {
                 progress.warn(&format!(
                     "{}: the camera is {above:.1} m above the DEM below it, but the drone's tags say it flew {rel:.1} m above its take-off point: its absolute height may be on another datum (ellipsoid vs geoid) or wrong; fix it with a camera file (gcm-ortho cameras --camera exif … --out-dir)",
-                    opts.image.display()
+                    opts.inputs.image.display()
                 ));
             }
         }

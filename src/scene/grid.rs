@@ -17,9 +17,9 @@ use crate::transform::Trend;
 /// The orthophoto's CRS: as given, else the reference grid's (`like`),
 /// else the camera's; a datum without a shift to WGS84 warned of.
 pub fn output_crs(opts: &RectifyOptions, like: Option<&Crs>, camera: &Camera, progress: &dyn Progress) -> Result<Crs> {
-    let ground = match (&opts.crs, like) {
+    let ground = match (&opts.grid.crs, like) {
         (Some(c), Some(l)) if c != l => {
-            let path = opts.like.as_deref().unwrap_or(std::path::Path::new("")).display();
+            let path = opts.grid.like.as_deref().unwrap_or(std::path::Path::new("")).display();
             return Err(Error::setting("crs", format!("{c}, but the reference grid {path} is in {l}: give one of the two")));
         }
         (Some(c), _) => c.clone(),
@@ -30,7 +30,7 @@ pub fn output_crs(opts: &RectifyOptions, like: Option<&Crs>, camera: &Camera, pr
         if let Some(d) = ground.unknown_datum().or(camera.crs.unknown_datum()) {
             progress.warn(&format!(
                 "{}: the datum '{d}' has no shift to WGS84 this build knows; it is taken as WGS84 between the camera's CRS ({}) and the orthophoto's ({ground}), which may place the orthophoto up to hundreds of metres off",
-                opts.camera.display(),
+                opts.inputs.camera.display(),
                 camera.crs
             ));
         }
@@ -59,7 +59,7 @@ pub fn output_grid(
     let grid = match like {
         Some(grid) => grid,
         None => {
-            let gsd = match opts.gsd {
+            let gsd = match opts.grid.gsd {
                 Some(g) => {
                     // A pixel wider than the scan's whole ground makes
                     // an orthophoto of less than a pixel: said as the
@@ -79,13 +79,13 @@ pub fn output_grid(
                 }
                 None => Gsd::square(mean_gsd(model, dem, sw, sh, z_guess).map_err(on_dem)?),
             };
-            match opts.bounds {
-                Some(b) => OutputGrid::from_bounds(b, gsd, opts.snap)
+            match opts.grid.bounds {
+                Some(b) => OutputGrid::from_bounds(b, gsd, opts.grid.snap)
                     .ok_or_else(|| Error::setting("bounds", format!("{b:?} at GSD {gsd} {}", OutputGrid::no_grid_because(b, gsd))))?,
                 None => {
                     let (grid, fp) = auto_grid(model, dem, sw, sh, z_guess, gsd).map_err(on_dem)?;
-                    fp.check_covered(&opts.image, dem)?;
-                    if let Some(w) = fp.partial_warning(&opts.image, dem) {
+                    fp.check_covered(&opts.inputs.image, dem)?;
+                    if let Some(w) = fp.partial_warning(&opts.inputs.image, dem) {
                         progress.warn(&w);
                     }
                     grid
@@ -95,7 +95,7 @@ pub fn output_grid(
     };
     let gsd = grid.gsd;
     // Metres given for a CRS in degrees: pixels tens of kilometres wide.
-    if let (Some(g), true) = (opts.gsd, camera.crs.is_geographic()) {
+    if let (Some(g), true) = (opts.grid.gsd, camera.crs.is_geographic()) {
         if g.max() > MAX_GSD_DEGREES {
             return Err(Error::setting(
                 "gsd",
@@ -113,7 +113,7 @@ pub fn output_grid(
     }
     // A GSD or bounds typo makes an output of days; refused before any work.
     let pixels = grid.width as u64 * grid.height as u64;
-    let limit = opts.max_output_pixels.unwrap_or_else(|| (16 * sw as u64 * sh as u64).max(1 << 28));
+    let limit = opts.grid.max_output_pixels.unwrap_or_else(|| (16 * sw as u64 * sh as u64).max(1 << 28));
     if pixels > limit {
         return Err(Error::setting(
             "max_output_pixels",
@@ -132,24 +132,24 @@ pub fn output_grid(
 /// The plane `A` is fitted to: the DEM's trend (or mean) over the grid;
 /// none there is said as the bounds' fault where they were given.
 pub fn terrain_plane(opts: &RectifyOptions, crs: &Crs, dem: &Dem, grid: &OutputGrid) -> Result<Plane> {
-    match opts.trend {
+    match opts.geometry.trend {
         Trend::Plane => dem.trend_plane(grid.bounds()),
         Trend::Mean => dem.mean_plane(grid.bounds()),
     }
     .ok_or_else(|| {
         // Bounds in degrees under a CRS in metres land near its origin.
         let degrees = opts
-            .bounds
+            .grid.bounds
             .is_some_and(|[x0, y0, x1, y1]| !crs.is_geographic() && [x0, x1].iter().all(|x| x.abs() <= 180.0) && [y0, y1].iter().all(|y| y.abs() <= 90.0));
         // Northing first: the box given with X and Y swapped lies on the DEM.
-        let swapped = match (opts.bounds, &dem.model) {
+        let swapped = match (opts.grid.bounds, &dem.model) {
             (Some([x0, y0, x1, y1]), crate::dem::HeightModel::Grid(g)) if dem.to_dem.is_none() => {
                 let [a0, b0, a1, b1] = g.bounds();
                 y0 < a1 && y1 > a0 && x0 < b1 && x1 > b0
             }
             _ => false,
         };
-        match (degrees, swapped, opts.bounds.is_some()) {
+        match (degrees, swapped, opts.grid.bounds.is_some()) {
             (true, _, _) => Error::setting(
                 "bounds",
                 format!("no height of {} anywhere inside them: they look like degrees; the output's CRS, {}, is in its own units", dem.path.display(), crs),

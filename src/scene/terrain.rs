@@ -17,7 +17,7 @@ pub fn dem_of_run(opts: &RectifyOptions, camera: &Camera, shared: Option<Arc<Dem
     if let Some(d) = shared {
         return Ok(d);
     }
-    let mut dem = match &opts.dem {
+    let mut dem = match &opts.inputs.dem {
         DemSource::File(p) => Dem::open_within(p, &camera.crs, max_bytes)?,
         DemSource::Height(h) => Dem::flat(*h),
         DemSource::ModelHeight => match &camera.sensor {
@@ -29,15 +29,15 @@ pub fn dem_of_run(opts: &RectifyOptions, camera: &Camera, shared: Option<Arc<Dem
     for w in &dem.warnings {
         progress.warn(w);
     }
-    dem.on_hole = opts.dem_hole;
-    dem.on_outside = opts.dem_outside;
+    dem.on_hole = opts.inputs.dem_hole;
+    dem.on_outside = opts.inputs.dem_outside;
     Ok(Arc::new(dem))
 }
 
 /// Whether `dem`, opened in `crs`, is the one `opts` name, with their
 /// policies: a caller's DEM taken instead of opening it again.
 pub fn is_dem_of(opts: &RectifyOptions, dem: &Dem, crs: &Crs, camera: &Camera) -> bool {
-    matches!(&opts.dem, DemSource::File(p) if *p == dem.path) && dem.on_hole == opts.dem_hole && dem.on_outside == opts.dem_outside && camera.crs == *crs
+    matches!(&opts.inputs.dem, DemSource::File(p) if *p == dem.path) && dem.on_hole == opts.inputs.dem_hole && dem.on_outside == opts.inputs.dem_outside && camera.crs == *crs
 }
 
 /// Gives the camera the geoid the DEM's heights are above, where it

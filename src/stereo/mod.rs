@@ -38,7 +38,8 @@ const MARGIN: i64 = 64;
 
 /// One image of the pair and how its model is given (as `rectify` takes
 /// them).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
 pub struct SideOptions {
     pub image: PathBuf,
     pub model: ModelSource,
@@ -47,7 +48,9 @@ pub struct SideOptions {
     pub camera: PathBuf,
 }
 
-#[derive(Clone, Debug)]
+/// What `dem` is asked to do (serde: the same object read back).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
 pub struct StereoOptions {
     pub left: SideOptions,
     pub right: SideOptions,
@@ -55,6 +58,7 @@ pub struct StereoOptions {
     /// The DSM's cell size.
     pub gsd: Gsd,
     /// The DSM's CRS (default: the cameras', or an RPC's UTM zone).
+    #[serde(with = "crate::geodesy::optional_crs_definition")]
     pub crs: Option<Crs>,
     /// Heights searched, `[lowest, highest]` (default: `dem_init`'s, else
     /// the RPCs' range).

@@ -17,7 +17,7 @@ use nalgebra::Vector2;
 use std::path::PathBuf;
 
 /// How the film's marks and margin are drawn.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct FilmMarks {
     /// The marks' shape (a name `fiducials` knows), or one a mark
     /// separated by commas.

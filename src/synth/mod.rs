@@ -31,7 +31,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use texture::Texture;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Relief {
     Flat,
@@ -42,7 +42,7 @@ pub enum Relief {
     Urban,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CameraKind {
     Film,
@@ -74,7 +74,9 @@ impl crate::options::Choice for CameraKind {
     }
 }
 
-#[derive(Clone, Debug)]
+/// What `synth` is asked to make (serde: the same object read back).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[non_exhaustive]
 pub struct SynthOptions {
     pub out: PathBuf,
     pub width: u32,

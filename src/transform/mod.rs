@@ -221,7 +221,7 @@ impl<'a> Transform<'a> {
 }
 
 /// How the plane of `A` is chosen.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Trend {
     /// Least-squares trend plane of the DEM (thesis 2.4.8–2.4.12).

@@ -36,7 +36,8 @@ pub fn drone_scene_posted(dir: &Path, (w, h): (u32, u32), scale: f64, posting: f
 
 /// A small film scene (hilly, swing 30°) in `dir`.
 pub fn scene(dir: &Path, size: u32, f: impl FnOnce(&mut SynthOptions)) -> SynthReport {
-    let mut o = SynthOptions { out: dir.to_path_buf(), width: size, height: size, kappa_deg: 30.0, ..Default::default() };
+    let mut o = SynthOptions::default();
+    (o.out, o.width, o.height, o.kappa_deg) = (dir.to_path_buf(), size, size, 30.0);
     f(&mut o);
     synth(&o, &gcm_ortho::NoProgress).expect("synth works")
 }

@@ -23,7 +23,7 @@ pub use writer::{page_padding, tiff_write_error, write_raster, TileWriter};
 
 use crate::io::format::SampleType;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Compression {
     None,

@@ -18,7 +18,7 @@ mod sgm;
 use super::resample::Img;
 
 /// The search at each level.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum Matcher {
     /// Semi-global matching (census, eight paths).
@@ -28,7 +28,7 @@ pub enum Matcher {
 }
 
 /// How matching is done.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 pub struct MatchParams {
     pub matcher: Matcher,
     /// Side of the correlation window, pixels (odd).
