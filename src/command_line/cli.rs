@@ -6,7 +6,7 @@
 use crate::geom::Snap;
 use crate::io::tiff_out::Compression;
 use crate::mosaic::balance::Balance;
-use crate::options::{parse_offset, parse_overviews, parse_size, BandOrder, BiasModel, BigTiff, Choice, ModelSource, Occlusion, RectifyOptions};
+use crate::options::{parse_offset, parse_size, BandOrder, BiasModel, BigTiff, Choice, ModelSource, Occlusion, RectifyOptions};
 use crate::overview::OverviewResampling;
 use crate::resample::Kernel;
 use crate::synth::{CameraKind, Relief, SynthOptions};
@@ -517,20 +517,26 @@ impl CamerasArgs {
     }
 }
 
-#[derive(Args, Debug)]
+/// `assemble`'s arguments: the pieces and the output, and the layout's
+/// settings named as their keys (read by the library's key table).
+#[derive(Args, Debug, serde::Serialize)]
 pub struct AssembleArgs {
     /// The pieces (GeoTIFFs written by `rectify --window` or `mosaic --window`).
     #[arg(required = true)]
+    #[serde(skip)]
     pub pieces: Vec<PathBuf>,
     /// The assembled orthophoto (its overviews made anew)
     #[arg(short = 'o', long = "output")]
+    #[serde(skip)]
     pub output: PathBuf,
     /// Code the tiles anew in this codec (default: the pieces' own, whose
     /// tiles are copied as they are). Lossless pieces assembled into jpeg
     /// give the bytes of a single run in jpeg, overviews included.
     #[arg(long, value_parser = choice::<Compression>())]
+    #[serde(serialize_with = "by_name_if_given")]
     pub compress: Option<Compression>,
     #[command(flatten)]
+    #[serde(flatten)]
     pub layout: LayoutArgs,
 }
 
@@ -566,20 +572,6 @@ pub struct LayoutArgs {
     /// JPEG's quality, 1–100 (default 75, as GDAL's)
     #[arg(long)]
     pub quality: Option<u8>,
-}
-
-impl LayoutArgs {
-    pub fn options(&self) -> Result<crate::assemble::AssembleOptions> {
-        Ok(crate::assemble::AssembleOptions {
-            overviews: self.overviews.as_deref().map(|o| parse_overviews("overviews", o)).transpose()?,
-            overview_resampling: self.overview_resampling,
-            cog: self.cog.then_some(true),
-            level: self.level,
-            overview_level: self.overview_level,
-            quality: self.quality,
-            ..Default::default()
-        })
-    }
 }
 
 #[derive(Args, Debug)]

@@ -120,7 +120,7 @@ pub fn run(cli: Cli, signals: &Signals) -> Result<u8> {
         Command::Assemble(a) => {
             warn_if_not_tiff(&a.output);
             inputs_exist(&a.pieces.iter().map(|p| ("piece", Some(p.as_path()))).collect::<Vec<_>>())?;
-            let opts = crate::assemble::AssembleOptions { compress: a.compress, ..a.layout.options()? };
+            let opts = crate::command_keys::assemble_options(super::cli::keys_of(&a)?)?;
             crate::assemble::assemble(&a.pieces, &a.output, &opts, &signals.cancel)?;
             Ok(0)
         }
@@ -136,64 +136,84 @@ fn worker_threads(asked: usize) -> usize {
 }
 
 fn run_dem(a: &super::cli::DemArgs, signals: &Signals) -> Result<()> {
-    use crate::stereo::dem;
     let mut o = crate::command_keys::dem_options(super::cli::keys_of(a)?)?;
     o.threads = worker_threads(a.threads);
-    if let Some(j) = &a.json {
-        check_writable(Role::new("report", j))?;
-    }
-    let report = dem(&o, &Bar::new(a.quiet), &signals.cancel)?;
-    if let Some(w) = past_budget(&a.memory, o.memory) {
-        super::flag_names::warn(&w);
-    }
-    if let Some(j) = &a.json {
-        write_file(j, super::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
-    }
-    if !a.quiet {
-        eprintln!(
-            "{}: {} × {} cells; {:.1} % of the overlap matched, residual parallax {:.3} px (median), B/H {:.2}, height precision {:.2} m; {:.1} s",
-            report.output.display(),
-            report.dsm.width,
-            report.dsm.height,
-            100.0 * report.matched_share,
-            report.residual_parallax_px.median,
-            report.epipolar.base_to_height,
-            report.height_precision_m,
-            report.seconds
-        );
-    }
-    Ok(())
+    let run = || crate::stereo::dem(&o, &Bar::new(a.quiet), &signals.cancel);
+    run_reported(
+        a.json.as_deref(),
+        (&a.memory, o.memory),
+        a.quiet,
+        run,
+        |r| &mut r.warnings,
+        |r| {
+            format!(
+                "{}: {} × {} cells; {:.1} % of the overlap matched, residual parallax {:.3} px (median), B/H {:.2}, height precision {:.2} m; {:.1} s",
+                r.output.display(),
+                r.dsm.width,
+                r.dsm.height,
+                100.0 * r.matched_share,
+                r.residual_parallax_px.median,
+                r.epipolar.base_to_height,
+                r.height_precision_m,
+                r.seconds
+            )
+        },
+    )
 }
 
 fn run_grid(a: &super::cli::GridArgs, signals: &Signals) -> Result<()> {
-    use crate::gridding::grid;
     inputs_exist(&a.points.iter().map(|p| ("points", Some(p.as_path()))).collect::<Vec<_>>())?;
     let mut o = crate::command_keys::grid_options(super::cli::keys_of(a)?)?;
     o.threads = worker_threads(a.threads);
-    if let Some(j) = &a.json {
+    let run = || crate::gridding::grid(&o, &Bar::new(a.quiet), &signals.cancel);
+    run_reported(
+        a.json.as_deref(),
+        (&a.memory, o.memory),
+        a.quiet,
+        run,
+        |r| &mut r.warnings,
+        |r| {
+            format!(
+                "{}: {}×{} cells at {} from {} points ({} blunders dropped); {:.1} % with a height; typical spacing {:.3}, longest side {:.3}; {:.1} s",
+                r.output.display(),
+                r.width,
+                r.height,
+                r.gsd[0],
+                r.points_used,
+                r.blunders,
+                100.0 * r.cells_with_height as f64 / (r.cells_with_height + r.cells_without).max(1) as f64,
+                r.spacing,
+                r.max_edge,
+                r.seconds
+            )
+        },
+    )
+}
+
+/// What `grid` and `dem` do once their options are read: the report's
+/// path checked before the run, the run, the memory warning (said, and
+/// kept in the report's `warnings`), the report written, the summary line.
+fn run_reported<R: serde::Serialize>(
+    json: Option<&Path>,
+    (memory_given, memory): (&str, u64),
+    quiet: bool,
+    run: impl FnOnce() -> crate::Result<R>,
+    warnings: impl Fn(&mut R) -> &mut Vec<String>,
+    summary: impl Fn(&R) -> String,
+) -> Result<()> {
+    if let Some(j) = json {
         check_writable(Role::new("report", j))?;
     }
-    let report = grid(&o, &Bar::new(a.quiet), &signals.cancel)?;
-    if let Some(w) = past_budget(&a.memory, o.memory) {
+    let mut report = run()?;
+    if let Some(w) = past_budget(memory_given, memory) {
         super::flag_names::warn(&w);
+        warnings(&mut report).push(w);
     }
-    if let Some(j) = &a.json {
+    if let Some(j) = json {
         write_file(j, super::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
     }
-    if !a.quiet {
-        eprintln!(
-            "{}: {}×{} cells at {} from {} points ({} blunders dropped); {:.1} % with a height; typical spacing {:.3}, longest side {:.3}; {:.1} s",
-            report.output.display(),
-            report.width,
-            report.height,
-            report.gsd[0],
-            report.points_used,
-            report.blunders,
-            100.0 * report.cells_with_height as f64 / (report.cells_with_height + report.cells_without).max(1) as f64,
-            report.spacing,
-            report.max_edge,
-            report.seconds
-        );
+    if !quiet {
+        eprintln!("{}", summary(&report));
     }
     Ok(())
 }
@@ -635,10 +655,10 @@ fn past_budget(given: &str, budget: u64) -> Option<String> {
 /// Every output is a GeoTIFF: a name that says another format (`.png`,
 /// `.jpg`, `.vrt`) would mislead whoever opens it by its name. Said on
 /// stderr, even with --quiet.
-fn warn_if_not_tiff(output: &Path) -> Option<String> {
-    let w = crate::io::tiff_out::named_as_other_format(output)?;
-    super::flag_names::warn(&w);
-    Some(w)
+fn warn_if_not_tiff(output: &Path) {
+    if let Some(w) = crate::io::tiff_out::named_as_other_format(output) {
+        super::flag_names::warn(&w);
+    }
 }
 
 /// `--threads` within this machine's cores (`at_once` jobs sharing them):
