@@ -143,6 +143,66 @@ fn a_vrt_with_an_xml_declaration_is_a_vrt() {
     assert_eq!(whole_image(&a).0, whole_image(&b).0, "the VRT's heights are the file's");
 }
 
+/// A VRT of `copies` × the mini DEM's 8×8-sample windows, each a source
+/// of its own (the same file): the DEM's heights, in many tiles.
+fn dem_in_windows(d: &Path, dem: &Path, copies: usize) -> PathBuf {
+    let g = gcm_ortho::dem::GridDem::read(dem).unwrap();
+    let t = g.transform;
+    let mut sources = String::new();
+    for _ in 0..copies {
+        for y in (0..g.height).step_by(8) {
+            for x in (0..g.width).step_by(8) {
+                let (w, h) = (8.min(g.width - x), 8.min(g.height - y));
+                sources.push_str(&format!(
+                    "<SimpleSource><SourceFilename relativeToVRT=\"1\">dem.tif</SourceFilename><SourceBand>1</SourceBand><SrcRect xOff=\"{x}\" yOff=\"{y}\" xSize=\"{w}\" ySize=\"{h}\"/><DstRect xOff=\"{x}\" yOff=\"{y}\" xSize=\"{w}\" ySize=\"{h}\"/></SimpleSource>\n"
+                ));
+            }
+        }
+    }
+    let vrt = format!(
+        "<VRTDataset rasterXSize=\"{}\" rasterYSize=\"{}\"><SRS>EPSG:32631</SRS><GeoTransform>{},{},0,{},0,{}</GeoTransform><VRTRasterBand dataType=\"Float32\" band=\"1\">\n{sources}</VRTRasterBand></VRTDataset>\n",
+        g.width, g.height, t[0], t[1], t[3], t[5]
+    );
+    let path = d.join(format!("windows{copies}.vrt"));
+    std::fs::write(&path, vrt).unwrap();
+    path
+}
+
+/// A DEM of more tiles than a process may hold files open (each read a
+/// chunk at a time) is read through a few handles at once, its heights
+/// the file's; one of more tiles than the budget holds is refused by
+/// name before a tile is opened.
+#[test]
+fn a_dem_of_many_tiles_holds_few_files_open_and_one_past_the_budget_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = mini(d);
+    // 2 × 144 sources, each of which held a handle; 256 handles at most.
+    let many = dem_in_windows(d, &dem, 2);
+    let (a, b) = (d.join("a.tif"), d.join("b.tif"));
+    for (dem, out) in [(&dem, &a), (&many, &b)] {
+        let cmd = format!(
+            "ulimit -n 256 && exec '{}' rectify --image '{}' --camera '{}' --dem '{}' --memory 32M --quiet -o '{}'",
+            s(&bin()),
+            s(&scan),
+            s(&camera),
+            s(dem),
+            s(out)
+        );
+        let r = std::process::Command::new("bash").arg("-c").arg(cmd).output().unwrap();
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    }
+    assert_eq!(whole_image(&a).0, whole_image(&b).0, "the tiles' heights are the file's");
+    // 140 × 144 sources: under 16M refused before a tile is read; under
+    // 512M once the tiles opened hold twice the DEM's share (each keeps two
+    // chunks whatever its share).
+    let past = dem_in_windows(d, &dem, 140);
+    let e = refused(d, &["--dem", s(&past), "--memory", "16M"], &["windows140.vrt", "20160 tiles", "--memory"], &[]);
+    assert!(e.contains("before a height is read"), "{e}");
+    let e = refused(d, &["--dem", s(&past), "--memory", "512M"], &["windows140.vrt", "of its 20160 tiles hold", "--memory"], &[]);
+    assert!(e.contains("past twice the DEM's share"), "{e}");
+}
+
 /// One point under several ids would weigh the fit as several: refused,
 /// naming them; points on one line cannot fix a pose: refused as such.
 #[test]

@@ -225,7 +225,7 @@ fn open_folder(dir: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
     if files.is_empty() {
         return Err(Error::format(dir, "is a folder without DEM tiles (.tif, .tiff or .hgt)"));
     }
-    open_tiles(files, max_bytes)
+    open_tiles(dir, files, max_bytes)
 }
 
 /// A list of tiles: a path a line (relative to the list's folder), blank
@@ -248,7 +248,7 @@ fn open_list(list: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
     if files.is_empty() {
         return Err(Error::format(list, "read as a list of DEM tiles (a path a line): it names none"));
     }
-    open_tiles(files, max_bytes)
+    open_tiles(list, files, max_bytes)
 }
 
 /// A list's lines that name tiles: their index, text and path.
@@ -266,9 +266,16 @@ fn list_lines(list: &Path) -> Result<Vec<(usize, String, PathBuf)>> {
 
 /// Tiles on one grid: the same CRS and pixel size, each placed a whole
 /// number of samples from the others.
-fn open_tiles(files: Vec<PathBuf>, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
+fn open_tiles(mosaic: &Path, files: Vec<PathBuf>, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
+    tiles_within(mosaic, files.len(), 0, max_bytes)?;
     let share = max_bytes / files.len() as u64;
-    let grids: Vec<GridDem> = files.iter().map(|f| GridDem::read_posts(f, share)).collect::<Result<_>>()?;
+    let mut held = Held::new(mosaic, files.len(), max_bytes);
+    let mut grids = Vec::with_capacity(files.len());
+    for f in &files {
+        let g = GridDem::read_posts(f, share)?;
+        held.add(&g)?;
+        grids.push(g);
+    }
     let (step_x, step_y, first_epsg) = (grids[0].transform[1], grids[0].transform[5], grids[0].crs.clone());
     let x_min = grids.iter().map(|g| g.transform[0]).fold(f64::INFINITY, f64::min);
     let y_max = grids.iter().map(|g| g.transform[3]).fold(f64::NEG_INFINITY, f64::max);
@@ -299,6 +306,68 @@ fn open_tiles(files: Vec<PathBuf>, max_bytes: u64) -> Result<(Mosaic, MosaicGrid
     }
     let grid = MosaicGrid { width, height, transform: [x_min, step_x, 0.0, y_max, 0.0, step_y], crs: first_epsg };
     Ok((Mosaic::new(width, height, tiles), grid))
+}
+
+/// What a tile costs held open beside its heights (its chunk table, the
+/// cache's bookkeeping, its place in the bins), bytes, with room.
+const PER_TILE: u64 = 2 << 10;
+/// A VRT's parsed tree over its text's size.
+const XML_TREE_PER_BYTE: u64 = 4;
+
+/// Refuses, before any tile is opened, a DEM of more tiles than the
+/// budget holds: each tile costs [`PER_TILE`] of its own whatever its
+/// size, so that 10⁶ tiles would take gigabytes before a height is read.
+fn tiles_within(mosaic: &Path, tiles: usize, xml_bytes: usize, max_bytes: u64) -> Result<()> {
+    let need = (tiles as u64).saturating_mul(PER_TILE).saturating_add((xml_bytes as u64).saturating_mul(XML_TREE_PER_BYTE));
+    // As the tiles opened are held: the share and its slack.
+    if need <= 2 * max_bytes {
+        return Ok(());
+    }
+    Err(Error::limits(
+        mosaic,
+        format!(
+            "a DEM of {tiles} tiles takes about {} MiB before a height is read, past twice the DEM's share of ‹memory› (2 × {} MiB): join the tiles into one tiled GeoTIFF (gdal_translate of the VRT), or give a larger ‹memory›",
+            need.div_ceil(1 << 20),
+            max_bytes >> 20
+        ),
+    ))
+}
+
+/// What the tiles opened so far hold, against the budget: a tile read a
+/// chunk at a time keeps at least a few chunks, whatever its share, so
+/// that many small shares can pass the whole (20 160 tiles of 95 × 16-row
+/// strips held 300 MB where their share was 64 MiB).
+struct Held<'a> {
+    mosaic: &'a Path,
+    tiles: usize,
+    opened: usize,
+    bytes: u64,
+    max_bytes: u64,
+}
+
+impl<'a> Held<'a> {
+    fn new(mosaic: &'a Path, tiles: usize, max_bytes: u64) -> Held<'a> {
+        Held { mosaic, tiles, opened: 0, bytes: 0, max_bytes }
+    }
+
+    fn add(&mut self, tile: &GridDem) -> Result<()> {
+        self.opened += 1;
+        self.bytes += tile.held_bytes() + PER_TILE;
+        // The share, and as much again of the budget's slack.
+        if self.bytes <= 2 * self.max_bytes {
+            return Ok(());
+        }
+        Err(Error::limits(
+            self.mosaic,
+            format!(
+                "{} of its {} tiles hold {} MiB already (each read a chunk at a time keeps a few chunks), past twice the DEM's share of ‹memory› (2 × {} MiB): join the tiles into one tiled GeoTIFF (gdal_translate of the VRT), or give a larger ‹memory›",
+                self.opened,
+                self.tiles,
+                self.bytes.div_ceil(1 << 20),
+                self.max_bytes >> 20
+            ),
+        ))
+    }
 }
 
 fn same(a: f64, b: f64) -> bool {
@@ -344,6 +413,9 @@ pub fn vrt_grid(path: &Path) -> Result<(usize, usize, [f64; 6], Option<crate::ge
 
 fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
     let text = crate::io::bounded_read::read_text_bounded(path, "VRT", 64 << 20)?;
+    // Counted before the document is parsed: its tree is what costs.
+    let sources = text.matches("<SimpleSource").count() + text.matches("<ComplexSource").count();
+    tiles_within(path, sources, text.len(), max_bytes)?;
     let doc = roxmltree::Document::parse(&text).map_err(|e| Error::format(path, format!("VRT: {e}")))?;
     let root = doc.root_element();
     let bad = |m: String| Error::format(path, format!("VRT: {m}"));
@@ -367,6 +439,7 @@ fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
         return Err(bad("a band without sources".into()));
     }
     let share = max_bytes / sources.len() as u64;
+    let mut held = Held::new(path, sources.len(), max_bytes);
     let mut tiles = Vec::new();
     let mut crs: Option<crate::geodesy::Crs> = None;
     for s in sources {
@@ -390,6 +463,7 @@ fn open_vrt(path: &Path, max_bytes: u64) -> Result<(Mosaic, MosaicGrid)> {
             }
         }
         let grid = GridDem::read_posts(&tile_path, share).map_err(|e| bad(format!("its source: {}", e.marked())))?;
+        held.add(&grid)?;
         let rect = |tag: &str, default: [f64; 4]| -> Result<[f64; 4]> {
             let Some(r) = child(s, tag) else { return Ok(default) };
             let a = |k: &str| r.attribute(k).and_then(|v| v.trim().parse::<f64>().ok()).ok_or_else(|| bad(format!("{tag} of {name} without {k}")));

@@ -5,9 +5,10 @@
 
 use crate::error::{Error, Result};
 use crate::io::chunk_codec::{file_is_big_endian, ChunkCodec};
+use crate::io::file_pool::PooledFile;
 use std::fs::File;
 use std::io::BufReader;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use tiff::decoder::Decoder;
 use tiff::tags::Tag;
 
@@ -56,8 +57,8 @@ impl Sample {
 
 /// A single-band raster's chunk table and coding.
 pub struct ChunkedRaster {
-    path: PathBuf,
-    file: File,
+    /// Through the pool: a DEM of many tiles holds few handles.
+    file: PooledFile,
     pub width: usize,
     pub height: usize,
     /// (width, height) of a chunk: a tile, or a strip (image width × rows).
@@ -118,8 +119,11 @@ impl ChunkedRaster {
         }
         let offsets = dec.get_tag_u64_vec(ot).map_err(tf)?;
         let counts = dec.get_tag_u64_vec(ct).map_err(tf)?;
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
-        let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        let file = PooledFile::open(path)?;
+        let (len, big_endian) = file.with(|f| {
+            let len = f.metadata().map_err(|e| Error::io(path, e))?.len();
+            Ok((len, file_is_big_endian(f).map_err(|e| Error::io(path, e))?))
+        })?;
         let want = width.div_ceil(chunk.0) * height.div_ceil(chunk.1);
         if offsets.len() != want || counts.len() != want {
             return Err(Error::format(path, format!("{} chunk offsets and {} byte counts, the raster needs {want}", offsets.len(), counts.len())));
@@ -133,11 +137,11 @@ impl ChunkedRaster {
             sample_bytes: sample.bytes(),
             float: matches!(sample, Sample::F32 | Sample::F64),
             samples: 1,
-            big_endian: file_is_big_endian(&file).map_err(|e| Error::io(path, e))?,
+            big_endian,
             packed_bits: 0,
         };
         codec.check().map_err(|what| Error::unsupported(path, what))?;
-        Ok(ChunkedRaster { path: path.to_path_buf(), file, width, height, chunk, tiled, offsets, counts, codec, sample, decoded: Default::default() })
+        Ok(ChunkedRaster { file, width, height, chunk, tiled, offsets, counts, codec, sample, decoded: Default::default() })
     }
 
     /// Chunks across the raster (1 for strips).
@@ -180,7 +184,7 @@ impl ChunkedRaster {
         self.decoded.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let (cw, ch) = self.chunk;
         let rows = if self.tiled { ch } else { ch.min(self.height - k * ch) };
-        self.codec.read_chunk_into(&self.file, &self.path, k, (self.offsets[k], self.counts[k]), (cw, rows, ch), bytes)
+        self.file.with(|f| self.codec.read_chunk_into(f, self.file.path(), k, (self.offsets[k], self.counts[k]), (cw, rows, ch), bytes))
     }
 
     /// Samples `[i0, i0 + w) × [j0, j0 + h)` (inside the raster),

@@ -5,6 +5,7 @@ pub mod cached_raster;
 pub mod chunk_cache;
 pub mod chunk_codec;
 pub mod chunked_raster;
+pub mod file_pool;
 pub mod format;
 pub mod geotiff;
 pub mod mapped_file;
