@@ -9,6 +9,11 @@ use libfuzzer_sys::fuzz_target;
 fuzz_target!(|data: &[u8]| {
     let Some((&pick, body)) = data.split_first() else { return };
     let dir = tempfile::tempdir().expect("a temporary folder");
+    // A real tile beside it, under the names the seeds give their sources.
+    let tile = concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/mini/dem.tif");
+    for name in ["a.tif", "b.tif"] {
+        std::fs::copy(tile, dir.path().join(name)).expect("the tile copied");
+    }
     let file = dir.path().join(if pick % 2 == 0 { "dem.vrt" } else { "tiles.txt" });
     std::fs::write(&file, body).expect("the file written");
     let ground = Crs::from_epsg(32631).expect("UTM 31N");
