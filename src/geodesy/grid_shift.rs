@@ -85,6 +85,30 @@ fn check_ntv2_sizes(path: &std::path::Path) -> Result<(), String> {
         if count < 0 {
             return Err(bad(format!("its subgrid {} says no GS_COUNT", k + 1)));
         }
+        // Its extent and spacing must give those nodes: the reader walks
+        // the rows and columns they give (a damaged header spun it for good).
+        let real = |key: &[u8]| {
+            sub.chunks_exact(16).find(|r| r[..8].starts_with(key)).map(|r| {
+                let v: [u8; 8] = r[8..16].try_into().expect("8 bytes");
+                if little {
+                    f64::from_le_bytes(v)
+                } else {
+                    f64::from_be_bytes(v)
+                }
+            })
+        };
+        let lines = |lo: &[u8], hi: &[u8], step: &[u8]| -> Option<f64> {
+            let (lo, hi, step) = (real(lo)?, real(hi)?, real(step)?);
+            let n = (hi - lo) / step + 1.0;
+            (step > 0.0 && n.is_finite() && n >= 1.0 && (n - n.round()).abs() < 1e-6).then_some(n.round())
+        };
+        match (lines(b"S_LAT", b"N_LAT", b"LAT_INC"), lines(b"E_LONG", b"W_LONG", b"LONG_INC")) {
+            (Some(rows), Some(cols)) if rows * cols == count as f64 => {}
+            (Some(rows), Some(cols)) => {
+                return Err(bad(format!("its subgrid {}: its extent and spacing give {rows} × {cols} nodes, its GS_COUNT {count}: damaged, or not an NTv2 grid", k + 1)));
+            }
+            _ => return Err(bad(format!("its subgrid {}: no whole number of rows and columns in its extent and spacing (S_LAT … LONG_INC): damaged, or not an NTv2 grid", k + 1))),
+        }
         at += srec as u64 * 16 + count as u64 * 16;
         if at > len {
             return Err(bad(format!(
@@ -111,8 +135,18 @@ mod tests {
         };
         let mut f: Vec<u8> = [rec(b"NUM_OREC", 11), rec(b"NUM_SREC", 11), rec(b"NUM_FILE", subgrids.len() as i32)].concat();
         f.resize(11 * 16, b' ');
+        let real = |key: &[u8], v: f64| {
+            let mut r = key.to_vec();
+            r.resize(8, b' ');
+            r.extend_from_slice(&v.to_le_bytes());
+            r
+        };
         for &count in subgrids {
-            let mut h = vec![b' '; 10 * 16];
+            // One row of `count` nodes, an arc-second apart.
+            let mut h = vec![b' '; 4 * 16];
+            for (key, v) in [(&b"S_LAT"[..], 0.0), (b"N_LAT", 0.0), (b"E_LONG", 0.0), (b"W_LONG", f64::from(count - 1)), (b"LAT_INC", 1.0), (b"LONG_INC", 1.0)] {
+                h.extend(real(key, v));
+            }
             h.extend(rec(b"GS_COUNT", count));
             f.extend(h);
             f.extend(vec![0u8; nodes_written * 16]);
@@ -134,6 +168,14 @@ mod tests {
         check_ntv2_sizes(&path).unwrap();
         std::fs::write(&path, ntv2(&[4, 5], 4)).unwrap();
         assert!(check_ntv2_sizes(&path).unwrap_err().contains("subgrid 2 claims 5 nodes"));
+        // A damaged extent: its nodes are not what GS_COUNT says (the
+        // reader spun on such a header, found by fuzzing).
+        let mut f = ntv2(&[4], 4);
+        let w_long = 11 * 16 + 7 * 16 + 8;
+        f[w_long..w_long + 8].copy_from_slice(&1e9f64.to_le_bytes());
+        std::fs::write(&path, f).unwrap();
+        let e = check_ntv2_sizes(&path).unwrap_err();
+        assert!(e.contains("subgrid 1: its extent and spacing give 1 × 1000000001 nodes, its GS_COUNT 4"), "{e}");
         // Through a definition naming it: said by name, nothing read.
         std::fs::write(&path, ntv2(&[537_000_000], 4)).unwrap();
         let e = load_for(&format!("+proj=longlat +ellps=intl +nadgrids={}", path.display())).unwrap_err();
