@@ -51,7 +51,7 @@ def test_rectify_writes_the_commands_file_byte_for_byte(scene, single, tmp_path)
     assert filecmp.cmp(single, out, shallow=False)
     with open(tmp_path / "r.json") as f:
         assert json.load(f) == report
-    assert report["grid"]["width"] == 1434 and report["grid"]["height"] == 1201
+    assert report["grid"]["width"] == 1460 and report["grid"]["height"] == 1222
     assert report["error_within"] is True
     assert report["output_bytes"] == os.path.getsize(out)
 
@@ -211,10 +211,10 @@ def test_the_gil_is_released_while_a_run_works(scene, tmp_path):
 
 def test_a_window_is_the_single_runs_pixels(scene, single):
     plan = gcm_ortho.plan(scene / "scan.tif", scene / "camera.toml", scene / "dem.tif")
-    assert (plan.width, plan.height, plan.tile, plan.tiles_across, plan.tiles_down) == (1434, 1201, 256, 6, 5)
+    assert (plan.width, plan.height, plan.tile, plan.tiles_across, plan.tiles_down) == (1460, 1222, 256, 6, 5)
     assert plan.crs.startswith("EPSG:")
     whole = gcm_ortho.read(single)
-    assert whole.data.shape == (3, 1201, 1434)
+    assert whole.data.shape == (3, 1222, 1460)
     # An inner window, and one at the grid's right and bottom edges.
     for col, row, w, h in [(2, 1, 2, 3), (4, 3, 2, 2)]:
         win = gcm_ortho.render_window(plan, col, row, w, h)

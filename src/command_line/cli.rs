@@ -648,7 +648,7 @@ pub struct MosaicArgs {
     #[serde(skip)]
     pub resume_dir: Option<PathBuf>,
     /// Pixel size of the mosaic: X, or X,Y for non-square pixels (default:
-    /// the images' median, square)
+    /// the median of the images' mean GSDs over their footprints, square)
     #[arg(long, allow_negative_numbers = true)]
     pub gsd: Option<crate::geom::Gsd>,
     /// The mosaic's extent: minx,miny,maxx,maxy (default: all footprints)
@@ -916,7 +916,8 @@ pub struct RectifyArgs {
     #[arg(long, default_value = "nodata", allow_negative_numbers = true)]
     pub dem_outside: String,
     /// Output pixel size in ground units: X, or X,Y for pixels X wide and
-    /// Y tall (default: the scan's mean GSD, square).
+    /// Y tall (default: the scan's mean GSD over its footprint, square: the
+    /// square root of the ground area it covers over its pixel count).
     #[arg(long, allow_negative_numbers = true)]
     pub gsd: Option<crate::geom::Gsd>,
     /// minx,miny,maxx,maxy or auto (the scan's footprint on the DEM).

@@ -22,7 +22,7 @@ use crate::options::{parse_bytes, parse_size, DemSource, RectifyOptions};
 use crate::study::accuracy::evaluate_where;
 use crate::study::compare::compare_files;
 use crate::synth::{synth, SynthOptions};
-use crate::transform::footprint::{auto_grid, mean_gsd};
+use crate::transform::footprint::{auto_grid, footprint_gsd};
 use crate::transform::{Approx, Transform, Trend};
 use crate::{rectify, Cancel, Report};
 use anyhow::{anyhow, Context, Result};
@@ -784,7 +784,7 @@ fn run_accuracy(a: &AccuracyArgs) -> Result<()> {
     };
     let dem = Dem::open(&dem_path, &cam.crs)?;
     let z0 = dem.mean_height().unwrap_or_else(|| cam.height_hint());
-    let gsd = mean_gsd(cam.model(), &dem, w, h, z0)?;
+    let gsd = footprint_gsd(cam.model(), &dem, w, h, z0)?;
     let (grid, _) = auto_grid(cam.model(), &dem, w, h, z0, crate::geom::Gsd::square(gsd))?;
     let area = grid.bounds();
     let plane =

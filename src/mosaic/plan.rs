@@ -14,7 +14,7 @@ use crate::geom::{Gsd, OutputGrid, Snap};
 use crate::io::source::{HoleMark, SampleType, SourceImage, Window};
 use crate::options::{DemSource, RectifyOptions};
 use crate::progress::{Progress, Task};
-use crate::transform::footprint::{footprint_on, mean_gsd};
+use crate::transform::footprint::{footprint_gsd, footprint_on};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -352,7 +352,7 @@ impl Plan {
                     if let Some(w) = fp.partial_warning(&opts.inputs.image, d) {
                         progress.warn(&w);
                     }
-                    (Some(fp), mean_gsd(camera.model(), d, info.width, info.height, z).map_err(on_dem)?)
+                    (Some(fp), footprint_gsd(camera.model(), d, info.width, info.height, z).map_err(on_dem)?)
                 }
             };
             images.push((

@@ -11,7 +11,7 @@ use crate::geom::{Gsd, OutputGrid, Plane};
 use crate::io::source::SourceImage;
 use crate::options::RectifyOptions;
 use crate::progress::Progress;
-use crate::transform::footprint::{auto_grid, mean_gsd};
+use crate::transform::footprint::{auto_grid, centre_gsd, footprint_gsd};
 use crate::transform::Trend;
 
 /// The orthophoto's CRS: as given, else the reference grid's (`like`),
@@ -64,7 +64,7 @@ pub fn output_grid(
                     // A pixel wider than the scan's whole ground makes
                     // an orthophoto of less than a pixel: said as the
                     // GSD's fault, not the DEM's it then fails to meet.
-                    if let Ok(own) = mean_gsd(model, dem, sw, sh, z_guess) {
+                    if let Ok(own) = centre_gsd(model, dem, sw, sh, z_guess) {
                         let across = own * f64::from(sw.max(sh));
                         // (Metres given in a CRS of degrees are said so below.)
                         let metres_in_degrees = camera.crs.is_geographic() && g.max() > MAX_GSD_DEGREES;
@@ -77,7 +77,7 @@ pub fn output_grid(
                     }
                     g
                 }
-                None => Gsd::square(mean_gsd(model, dem, sw, sh, z_guess).map_err(on_dem)?),
+                None => Gsd::square(footprint_gsd(model, dem, sw, sh, z_guess).map_err(on_dem)?),
             };
             match opts.grid.bounds {
                 Some(b) => OutputGrid::from_bounds(b, gsd, opts.grid.snap)

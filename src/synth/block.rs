@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::geom::OutputGrid;
 use crate::io::tiff_out::write_raster;
 use crate::progress::Progress;
-use crate::transform::footprint::{footprint, mean_gsd};
+use crate::transform::footprint::{centre_gsd, footprint, footprint_gsd};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -62,7 +62,7 @@ pub fn synth_block(o: &SynthOptions, cols: u32, rows: u32, progress: &dyn Progre
     let dem = Dem::grid(grid_dem, &dem_path);
     let mid_z = dem.mean_height().unwrap_or(BASE_HEIGHT);
 
-    let gsd0 = mean_gsd(cam0, &dem, o.width, o.height, mid_z)?;
+    let gsd0 = centre_gsd(cam0, &dem, o.width, o.height, mid_z)?;
     let tex = super::texture::Texture::new(o.seed, gsd0, mx, my, 2.0 * half);
     let colour = |x: f64, y: f64| tex.rgb(x, y);
     let spec = scan_spec(o);
@@ -97,7 +97,7 @@ pub fn synth_block(o: &SynthOptions, cols: u32, rows: u32, progress: &dyn Progre
             let scene = Scene { model: cam, dem: &dem, colour: &colour, inside: &inside, margin: &|_, _| [0.0; 3], shade: &shade, mid_z };
             let scan_path = o.out.join(format!("scans/{name}.tif"));
             render_scan(o, &scene, &spec, &scan_path, progress)?;
-            gsds.push(mean_gsd(cam, &dem, o.width, o.height, mid_z)?);
+            gsds.push(footprint_gsd(cam, &dem, o.width, o.height, mid_z)?);
             let f = footprint(cam, &dem, o.width, o.height, mid_z)?;
             bounds = [bounds[0].min(f[0]), bounds[1].min(f[1]), bounds[2].max(f[2]), bounds[3].max(f[3])];
             let _ = writeln!(manifest, "[[job]]\nimage = \"scans/{name}.tif\"\ncamera = \"scans/{name}.toml\"\n");

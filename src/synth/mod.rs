@@ -24,7 +24,7 @@ use crate::error::{Error, Result};
 use crate::io::source::SampleType;
 use crate::io::tiff_out::{write_raster, Chunking, Compression, GeoTags, OutputSpec};
 use crate::progress::Progress;
-use crate::transform::footprint::{auto_grid, mean_gsd};
+use crate::transform::footprint::{auto_grid, centre_gsd, footprint_gsd};
 use rayon::prelude::*;
 use render::render_scan;
 use std::io::Write;
@@ -533,8 +533,7 @@ pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
     let mid_z = (zlo + zhi) / 2.0;
 
     // The scan.
-    let gsd = mean_gsd(cam, &dem, o.width, o.height, mid_z)?;
-    let tex = Texture::new(o.seed, gsd, cam.centre.x, cam.centre.y, 2.0 * half);
+    let tex = Texture::new(o.seed, centre_gsd(cam, &dem, o.width, o.height, mid_z)?, cam.centre.x, cam.centre.y, 2.0 * half);
     let inside = |c: f64, r: f64| in_image(o, cam, c, r);
     let colour = |x: f64, y: f64| tex.rgb(x, y);
     let film = (o.camera == CameraKind::Film).then(|| film_marks::Margin::new(o, &file, &cam.interior)).transpose()?;
@@ -545,6 +544,7 @@ pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
         render_scan(o, &scene, &scan_spec, &scan_path, progress)?;
     }
     // The truth orthophoto on the grid rectify chooses by default.
+    let gsd = footprint_gsd(cam, &dem, o.width, o.height, mid_z)?;
     let (grid, _) = auto_grid(cam, &dem, o.width, o.height, mid_z, crate::geom::Gsd::square(gsd))?;
     let measures = Measures { gsd, flying_height: flying, relief_range: [zlo, zhi], max_slope_deg: slope };
     finish(o, &scene.as_dyn(), &scan_spec, &grid, measures)

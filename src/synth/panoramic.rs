@@ -23,7 +23,7 @@ use crate::dem::Dem;
 use crate::error::{Error, Result};
 use crate::geodesy::ecef::{enu_axes, to_ecef};
 use crate::geodesy::GroundCrs;
-use crate::transform::footprint::{auto_grid, mean_gsd};
+use crate::transform::footprint::{auto_grid, footprint_gsd};
 use nalgebra::{Matrix3, Vector3};
 
 const METRES_PER_DEGREE: f64 = 111_194.93;
@@ -177,7 +177,7 @@ pub(super) fn synth_panoramic(o: &SynthOptions, progress: &dyn crate::progress::
     let utm = GroundCrs::from_epsg(EPSG).map_err(Error::Geometry)?;
     let model = PanoramicCamera::new(bar, utm, None);
     let dem = Dem::open(&dem_path, &crate::geodesy::Crs::from_epsg(EPSG).map_err(Error::Geometry)?)?;
-    let gsd = mean_gsd(&model, &dem, o.width, o.height, mid_z)?;
+    let gsd = footprint_gsd(&model, &dem, o.width, o.height, mid_z)?;
     let (grid, _) = auto_grid(&model, &dem, o.width, o.height, mid_z, crate::geom::Gsd::square(gsd))?;
     let gsd_nadir = ALTITUDE * model.bar.pitch / model.bar.focal;
     let tex = Texture::new(o.seed, gsd_nadir, 0.0, 0.0, f64::from(o.width) * gsd_nadir * 1.5);

@@ -19,7 +19,7 @@ use crate::camera::RpcCamera;
 use crate::dem::Dem;
 use crate::error::{Error, Result};
 use crate::geodesy::GroundCrs;
-use crate::transform::footprint::{auto_grid, mean_gsd};
+use crate::transform::footprint::{auto_grid, footprint_gsd};
 
 /// Metres per degree of latitude on the sphere of the scene's local frame.
 const METRES_PER_DEGREE: f64 = 111_194.93;
@@ -183,7 +183,7 @@ pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progre
     // Truth and checkpoints in UTM, on the grid rectify chooses by default.
     let model = RpcCamera::new(rpc, utm, None);
     let dem = Dem::open(&dem_path, &crate::geodesy::Crs::from_epsg(EPSG).map_err(Error::Geometry)?)?;
-    let gsd = mean_gsd(&model, &dem, o.width, o.height, mid_z)?;
+    let gsd = footprint_gsd(&model, &dem, o.width, o.height, mid_z)?;
     let (grid, _) = auto_grid(&model, &dem, o.width, o.height, mid_z, crate::geom::Gsd::square(gsd))?;
     let colour = |x: f64, y: f64| match model.crs.to_lonlat(x, y) {
         Some((lon, lat)) => colour_geo(lon, lat),

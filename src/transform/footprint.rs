@@ -1,7 +1,7 @@
 //! The default output grid of a scan: its footprint on the DEM (thesis
 //! 2.4.3–2.4.4: corners and points along the edges intersected with the
 //! terrain) snapped outward to the GSD, and the scan's mean ground sample
-//! distance at its centre.
+//! distance over that footprint.
 
 use super::inverse::RayCaster;
 use crate::camera::SensorModel;
@@ -127,6 +127,7 @@ pub fn footprint_on(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32,
     // partials of its last ray, so what it finds (where a lens folds, which
     // of two solutions) must not depend on which points a thread took
     // before (a folding fisheye once met the DEM in 2 runs of 30).
+    let centre = (f64::from(w) / 2.0, f64::from(h) / 2.0);
     let (b, hits, past) = outline
         .par_chunks(OUTLINE_RUN)
         .flat_map_iter(|run| {
@@ -138,6 +139,10 @@ pub fn footprint_on(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32,
                     let past = past_edge(c, r);
                     return match flat.as_mut().and_then(|f| f.cast(c, r, None, z_guess, 1e-3)) {
                         Some(p) => ([p[0], p[1], p[0], p[1]], 0, past),
+                        None if past != (0, 0) => match inward_edge(&mut caster, (c, r), centre, z_guess) {
+                            Some(p) => ([p[0], p[1], p[0], p[1]], 0, past),
+                            None => (none, 0, past),
+                        },
                         None => (none, 0, past),
                     };
                 };
@@ -204,6 +209,39 @@ pub fn footprint_on(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32,
         .collect();
     let inner_holes = inner.par_iter().filter(|&&(c, r)| past_edge(c, r).1 == 1).count();
     Ok(Footprint { bounds: b, past_edge: past.0, on_holes: past.1, edge_points: outline.len(), inner_holes, inner_points: inner.len() })
+}
+
+/// Steps of [`inward_edge`]'s walk towards the scan's centre, and halvings
+/// after it: the DEM's edge to 1/16384 of the way.
+const INWARD_STEPS: usize = 16;
+const INWARD_HALVINGS: usize = 10;
+
+/// Where the ray of outline point `(c, r)` meets no height (past the
+/// DEM's edge, in the nodata collar of a DSM cut to its data), the ground
+/// nearest it on the way to the scan's centre `(cc, rc)` that the DEM
+/// does hold: where the DEM's edge crosses the scan. The hits on the
+/// outline alone bound the footprint short of the data that bulges past
+/// the line between them (a frame lost 1.9 % of its ground on ODM's own
+/// DSM).
+fn inward_edge<M: SensorModel + ?Sized>(caster: &mut RayCaster<'_, M>, (c, r): (f64, f64), (cc, rc): (f64, f64), z_guess: f64) -> Option<[f64; 3]> {
+    let mut cast = |t: f64| caster.cast(c + t * (cc - c), r + t * (rc - r), None, z_guess, 1e-3);
+    let mut miss = 0.0;
+    let (mut hit, mut p) = (1..=INWARD_STEPS).find_map(|k| {
+        let t = k as f64 / INWARD_STEPS as f64;
+        let p = cast(t);
+        if p.is_none() {
+            miss = t;
+        }
+        p.map(|p| (t, p))
+    })?;
+    for _ in 0..INWARD_HALVINGS {
+        let t = (miss + hit) / 2.0;
+        match cast(t) {
+            Some(q) => (hit, p) = (t, q),
+            None => miss = t,
+        }
+    }
+    Some(p)
 }
 
 /// Where the ray of scan point `(c, r)`, beyond its ground point `hit`,
@@ -284,9 +322,68 @@ fn image_outline(area: Option<ImageArea>, w: f64, h: f64) -> Vec<(f64, f64)> {
     points
 }
 
+/// Cells a side of the lattice over which [`footprint_gsd`] measures the
+/// ground: 33² rays, a fraction of what the footprint's outline casts.
+const GSD_CELLS: usize = 32;
+
+/// The scan's mean ground sample distance over its footprint: the square
+/// root of the ground area its image covers over the number of its
+/// pixels, rounded to 4 significant digits. The area is summed over a
+/// 32 × 32 lattice of scan cells whose corners' rays reach the DEM (cells
+/// past its edge or outside a film's format count neither ground nor
+/// pixels); signed, so that on a DSM the strips a roof's displacement
+/// adds on one side and hides on the other cancel, and the sum is the
+/// area inside the outline. One point under the scan's centre (a roof, a
+/// valley) no longer sets the GSD of the whole scan. Where no cell meets
+/// the DEM, the GSD at the centre ([`centre_gsd`]).
+pub fn footprint_gsd(model: &(dyn SensorModel + Sync), dem: &Dem, w: u32, h: u32, z_guess: f64) -> Result<f64> {
+    use rayon::prelude::*;
+    let n = GSD_CELLS;
+    let (cw, ch) = (f64::from(w) / n as f64, f64::from(h) / n as f64);
+    let at = |i: usize, j: usize| (j as f64 * cw, i as f64 * ch);
+    // A caster a row of points: what a ray finds may not depend on which
+    // rows a thread cast before. A ray that finds no single ground point
+    // over the DEM (a wall, a hole) still counts, at the guessed height:
+    // a point inside the counted cells cancels from the sum, so where it
+    // lies matters not, but a cell left out would take its share with it.
+    let ground: Vec<Vec<Option<(f64, f64)>>> = (0..=n)
+        .into_par_iter()
+        .map(|i| {
+            let mut caster = RayCaster::new(model, dem);
+            (0..=n)
+                .map(|j| {
+                    let (c, r) = at(i, j);
+                    caster.cast(c, r, None, z_guess, 1e-4).map(|p| (p[0], p[1])).or_else(|| {
+                        let (x, y) = model.locate_approx(c, r, z_guess)?;
+                        (!matches!(dem.lookup(x, y), Lookup::Outside)).then_some((x, y))
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    let area = model.image_area();
+    let (mut signed, mut cells) = (0.0, 0usize);
+    for i in 0..n {
+        for j in 0..n {
+            let corners = [(i, j), (i, j + 1), (i + 1, j + 1), (i + 1, j)];
+            if area.is_some_and(|a| corners.iter().any(|&(i, j)| !a.contains(at(i, j).0, at(i, j).1))) {
+                continue;
+            }
+            let Some(q) = corners.iter().map(|&(i, j)| ground[i][j]).collect::<Option<Vec<_>>>() else { continue };
+            signed += (0..4).map(|k| q[k].0 * q[(k + 1) % 4].1 - q[(k + 1) % 4].0 * q[k].1).sum::<f64>() / 2.0;
+            cells += 1;
+        }
+    }
+    if cells == 0 {
+        return centre_gsd(model, dem, w, h, z_guess);
+    }
+    rounded_gsd((signed.abs() / (cells as f64 * cw * ch)).sqrt())
+}
+
 /// The scan's ground sample distance at its centre, rounded to 4
-/// significant digits.
-pub fn mean_gsd(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64) -> Result<f64> {
+/// significant digits: the scale of a synthetic scene's texture, and what
+/// a given GSD is held against before the footprint is known.
+pub fn centre_gsd(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64) -> Result<f64> {
     let (c, r) = (w as f64 / 2.0, h as f64 / 2.0);
     let d = 8.0;
     let three = |dem: &Dem| {
@@ -305,11 +402,15 @@ pub fn mean_gsd(model: &dyn SensorModel, dem: &Dem, w: u32, h: u32, z_guess: f64
         },
     };
     let area = ((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])).abs() / (d * d);
-    let gsd = area.sqrt();
+    rounded_gsd(area.sqrt())
+}
+
+/// A GSD to 4 significant digits, through decimal text so that 11.54 is
+/// the double nearest 11.54; refused where not a positive number.
+fn rounded_gsd(gsd: f64) -> Result<f64> {
     if !(gsd > 0.0) || !gsd.is_finite() {
         return Err(Error::Geometry("cannot compute the scan's ground sample distance".into()));
     }
-    // Through decimal text, so that 11.54 is the double nearest 11.54.
     Ok(format!("{gsd:.3e}").parse().expect("a formatted float parses"))
 }
 
