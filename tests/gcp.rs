@@ -77,6 +77,20 @@ fn an_rpc_bias_is_recovered_in_image_space() {
     let fit = refine(&mut cam, &gcps, BiasModel::Shift, 2.0, Path::new("gcps.csv")).unwrap();
     assert_eq!(fit.method, "rpc shift");
     assert!(fit.rms_after > 0.01 && fit.rms_after < 0.3, "{fit:?}");
+    assert!(fit.outlier.is_none(), "{fit:?}");
+    // Of six points, one measured 3 px off: the bias the other five give
+    // names it, with an affine bias and with a shift alike.
+    let mut six = gcps_of(&truth, &points(&truth, &bias, &[(30.0, 40.0), (450.0, 60.0), (250.0, 250.0), (75.0, 440.0), (435.0, 425.0), (240.0, 30.0)]));
+    for model in [BiasModel::Auto, BiasModel::Shift] {
+        let fit = refine(&mut pleiades(), &six, model, 2.0, Path::new("gcps.csv")).unwrap();
+        assert!(fit.outlier.is_none(), "{fit:?}");
+    }
+    six[2].row += 3.0;
+    for model in [BiasModel::Auto, BiasModel::Shift] {
+        let fit = refine(&mut pleiades(), &six, model, 3.0, Path::new("gcps.csv")).unwrap();
+        let said = fit.outlier.clone().unwrap_or_default();
+        assert!(said.contains("GCP g2 ") && said.contains("outlier"), "{model:?}: {fit:?}");
+    }
     // Two points cannot fix an affine bias.
     let mut cam = pleiades();
     let e = refine(&mut cam, &gcps[..2], BiasModel::Affine, 2.0, Path::new("gcps.csv")).unwrap_err().to_string();

@@ -226,7 +226,8 @@ fn a_kh4b_like_strip_is_within_the_bound_at_every_pixel_and_on_the_truth() {
     let sc = strip(dir.path(), gcm_ortho::synth::Relief::Hilly);
     let (m, report) = coordinate_runs(dir.path(), &sc, &sc.camera);
     eprintln!("panoramic strip over hills: {} px, max {:.4} px, mean {:.5} px; gcm {}", m.pixels, m.max, m.mean, report["gcm"]);
-    assert!(m.pixels > 500_000, "{} px compared", m.pixels);
+    // (At the strip's mean GSD: its ends, seen slant, are coarser than its middle.)
+    assert!(m.pixels > 400_000, "{} px compared", m.pixels);
     assert!(m.max <= 0.1, "max {} px", m.max);
     assert_eq!(report["error_within"], true, "{}", report["error_within"]);
 
@@ -337,6 +338,25 @@ fn a_resection_from_ten_noisy_gcps_recovers_the_strip_s_camera() {
     let m = coordinate_map_difference(&fitted, &right, 2400, 200);
     eprintln!("fitted against the true camera: {} px, mean {:.3} px, max {:.3} px", m.pixels, m.mean, m.max);
     assert!(m.pixels > 300_000 && m.mean < 0.3 && m.max < 1.5, "mean {} max {}", m.mean, m.max);
+    assert!(g.get("outlier").is_none(), "{g}");
+    // Point 4 measured 3 px off along the scan: the others, fitted
+    // without it, name it (in the report and on stderr, even quiet).
+    let moved: String = std::fs::read_to_string(&gcps)
+        .unwrap()
+        .lines()
+        .map(|l| match l.split_once(',') {
+            Some(("4", rest)) => {
+                let (c, rest) = rest.split_once(',').unwrap();
+                format!("4,{},{rest}\n", c.parse::<f64>().unwrap() + 3.0)
+            }
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(&gcps, moved).unwrap();
+    let (off, r) = go(&bad_path, "off.tif", &["--gcps", s(&gcps), "--gcp-refine", "interior", "--gcp-max-residual", "5"]);
+    let said = report_of(&off, &r)["gcps"]["outlier"].as_str().unwrap_or_default().to_string();
+    assert!(said.contains("GCP 4 ") && said.contains("outlier"), "{said}");
+    assert!(String::from_utf8_lossy(&r.stderr).contains("GCP 4 "), "{}", String::from_utf8_lossy(&r.stderr));
     // Three GCPs cannot fix the dynamics: asked for, refused by name.
     let three: String = std::fs::read_to_string(&gcps).unwrap().lines().take(4).map(|l| format!("{l}\n")).collect();
     std::fs::write(&gcps, three).unwrap();

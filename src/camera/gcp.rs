@@ -17,7 +17,7 @@
 
 use super::file::{Camera, Sensor};
 use super::frame::FrameCamera;
-use super::gcp_points::{condition, refuse_collinear, rms};
+use super::gcp_points::{condition, left_out_outlier, refuse_collinear, rms};
 pub use super::gcp_points::{Gcp, GcpFit, GcpResidual};
 use super::rotation::AngleConvention;
 use super::SensorModel;
@@ -173,7 +173,8 @@ pub fn refine(camera: &mut Camera, gcps: &[Gcp], model: BiasModel, max_residual:
                 BiasModel::Interior => Some(true),
                 BiasModel::Auto => None,
             };
-            let (bar, fit) = super::panoramic_resection::resection(p, gcps, dynamics, source)?;
+            let (bar, mut fit) = super::panoramic_resection::resection(p, gcps, dynamics, source)?;
+            fit.outlier = super::panoramic_resection::outlier(p, gcps, dynamics, source);
             p.bar = bar;
             fit
         }
@@ -213,13 +214,28 @@ fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasMo
     if affine && gcps.len() < 3 {
         return Err(Error::format(source, format!("{} GCPs: an affine bias needs 3 or more (or ‹gcp_refine› shift)", gcps.len())));
     }
-    let bias = if affine {
-        Affine2::fit(&predicted, &observed).ok_or_else(|| Error::format(source, "the GCPs lie on one line: no affine bias can be fitted"))?
-    } else {
-        let k = predicted.len() as f64;
-        let t = predicted.iter().zip(&observed).fold([0.0, 0.0], |a, (p, o)| [a[0] + (o[0] - p[0]) / k, a[1] + (o[1] - p[1]) / k]);
-        Affine2 { m: nalgebra::Matrix2::identity(), t: nalgebra::Vector2::new(t[0], t[1]) }
+    let fit_bias = |predicted: &[[f64; 2]], observed: &[[f64; 2]]| {
+        if affine {
+            Affine2::fit(predicted, observed)
+        } else {
+            let k = predicted.len() as f64;
+            let t = predicted.iter().zip(observed).fold([0.0, 0.0], |a, (p, o)| [a[0] + (o[0] - p[0]) / k, a[1] + (o[1] - p[1]) / k]);
+            Some(Affine2 { m: nalgebra::Matrix2::identity(), t: nalgebra::Vector2::new(t[0], t[1]) })
+        }
     };
+    let bias = fit_bias(&predicted, &observed).ok_or_else(|| Error::format(source, "the GCPs lie on one line: no affine bias can be fitted"))?;
+    // Each point against the bias the others give.
+    let off = |bias: &Affine2, i: usize| {
+        let (c, r) = bias.apply(predicted[i][0], predicted[i][1]);
+        (observed[i][0] - c).hypot(observed[i][1] - r)
+    };
+    let outlier = left_out_outlier(gcps, if affine { 3 } else { 1 }, |i| {
+        let keep = |v: &[[f64; 2]]| -> Vec<[f64; 2]> { v.iter().enumerate().filter(|(k, _)| *k != i).map(|(_, p)| *p).collect() };
+        let others = fit_bias(&keep(&predicted), &keep(&observed))?;
+        let rms = (gcps.len() - 1) as f64;
+        let rms = ((0..gcps.len()).filter(|&k| k != i).map(|k| off(&others, k).powi(2)).sum::<f64>() / rms).sqrt();
+        Some((off(&others, i), rms))
+    });
     let before: Vec<[f64; 2]> = predicted.iter().zip(&observed).map(|(p, o)| [o[0] - p[0], o[1] - p[1]]).collect();
     let after: Vec<[f64; 2]> = predicted
         .iter()
@@ -241,36 +257,20 @@ fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasMo
         rms_before: rms(&before),
         rms_after: rms(&after),
         correction,
-        outlier: None,
+        outlier,
     };
     Ok(fit)
 }
 
 /// Leave-one-out over a frame's GCPs: each point against the camera the
-/// others give. A point whose own fits far worse than the others do
-/// (over a pixel, and five times their RMS) is an outlier the fit with it
-/// hides (it pulls the pose to itself: one of eight moved 2.5 px stayed
-/// 1.93 px off, under the 2 px limit). Forty points at most (twice as many
-/// resections).
+/// others give (twice as many resections).
 fn frame_outlier(f: &FrameCamera, gcps: &[Gcp], crs: &Crs, interior: bool, source: &Path) -> Option<String> {
-    let least = if interior { 5 } else { 3 };
-    if gcps.len() <= least || gcps.len() > 40 {
-        return None;
-    }
-    let mut worst: Option<(f64, f64, f64, &str)> = None;
-    for (i, g) in gcps.iter().enumerate() {
+    left_out_outlier(gcps, if interior { 5 } else { 3 }, |i| {
         let rest: Vec<Gcp> = gcps.iter().enumerate().filter(|(k, _)| *k != i).map(|(_, g)| g.clone()).collect();
-        let Ok((without, fit)) = resection(f, &rest, crs, interior, source) else { continue };
+        let (without, fit) = resection(f, &rest, crs, interior, source).ok()?;
         // Its residual under that camera: the `before` of a fit from it.
-        let Ok((_, from)) = resection(&without, gcps, crs, interior, source) else { continue };
-        let off = from.points[i].before[0].hypot(from.points[i].before[1]);
-        let ratio = off / fit.rms_after.max(0.05);
-        if off > 1.0 && ratio > 5.0 && worst.is_none_or(|w| ratio > w.0) {
-            worst = Some((ratio, off, fit.rms_after, &g.id));
-        }
-    }
-    worst.map(|(_, off, rms, id)| {
-        format!("GCP {id} is {off:.2} px from where the other points place it (they fit to {rms:.2} px RMS): an outlier? (a coordinate or a point mistaken)")
+        let (_, from) = resection(&without, gcps, crs, interior, source).ok()?;
+        Some((from.points[i].before[0].hypot(from.points[i].before[1]), fit.rms_after))
     })
 }
 

@@ -19,7 +19,7 @@
 //! all three on ten GCPs of a synthetic strip put the tilt at 72° with
 //! 0.17 px residuals), so the one separable term stands for them.
 
-use super::gcp_points::{condition, refuse_collinear, rms, Gcp, GcpFit, GcpResidual};
+use super::gcp_points::{condition, left_out_outlier, refuse_collinear, rms, Gcp, GcpFit, GcpResidual};
 use super::panoramic::{OpticalBar, PanoramicCamera};
 use crate::error::{Error, Result};
 use crate::geodesy::ecef::{nearest_rotation, to_ecef};
@@ -36,6 +36,11 @@ const CONDITION: f64 = 1e-5;
 /// Fits `cam` to `gcps`; `dynamics`: `Some(true)` the scan's dynamics must
 /// be fitted, `Some(false)` never, `None` where the points fix them.
 pub fn resection(cam: &PanoramicCamera, gcps: &[Gcp], dynamics: Option<bool>, source: &Path) -> Result<(OpticalBar, GcpFit)> {
+    resection_from(cam, &cam.bar, gcps, dynamics, source)
+}
+
+/// [`resection`] from the optical bar `start` (in `cam`'s CRS and geoid).
+fn resection_from(cam: &PanoramicCamera, start: &OpticalBar, gcps: &[Gcp], dynamics: Option<bool>, source: &Path) -> Result<(OpticalBar, GcpFit)> {
     let least = if dynamics == Some(true) { DYNAMICS } else { POSE };
     if gcps.len() < least {
         let what = if dynamics == Some(true) { "a panoramic resection with the scan's dynamics" } else { "a panoramic resection" };
@@ -56,7 +61,6 @@ pub fn resection(cam: &PanoramicCamera, gcps: &[Gcp], dynamics: Option<bool>, so
     let residuals =
         |bar: &OpticalBar| -> Option<Vec<[f64; 2]>> { points.iter().zip(gcps).map(|(p, g)| bar.image_of(p).map(|(c, r)| [g.col - c, g.row - r])).collect() };
     let left_view = || Error::format(source, "the panoramic resection left the GCPs' view");
-    let start = &cam.bar;
     let before = residuals(start).ok_or_else(|| Error::format(source, "a GCP is behind the panoramic camera"))?;
     let moved = |b: &OpticalBar, d: &[f64]| {
         let mut b = b.clone();
@@ -134,6 +138,19 @@ pub fn resection(cam: &PanoramicCamera, gcps: &[Gcp], dynamics: Option<bool>, so
         outlier: None,
     };
     Ok((bar, fit))
+}
+
+/// Leave-one-out over the GCPs: each point against the camera the others
+/// give (twice as many resections), as a frame's.
+pub fn outlier(cam: &PanoramicCamera, gcps: &[Gcp], dynamics: Option<bool>, source: &Path) -> Option<String> {
+    let least = if dynamics == Some(true) { DYNAMICS } else { POSE };
+    left_out_outlier(gcps, least, |i| {
+        let rest: Vec<Gcp> = gcps.iter().enumerate().filter(|(k, _)| *k != i).map(|(_, g)| g.clone()).collect();
+        let (bar, fit) = resection(cam, &rest, dynamics, source).ok()?;
+        // Its residual under that camera: the `before` of a fit from it.
+        let (_, from) = resection_from(cam, &bar, gcps, dynamics, source).ok()?;
+        Some((from.points[i].before[0].hypot(from.points[i].before[1]), fit.rms_after))
+    })
 }
 
 fn rot_y(a: f64) -> nalgebra::Matrix3<f64> {
