@@ -182,7 +182,7 @@ impl ProjectedLattice {
     /// are placed in the scan by the affine map through the cell's four
     /// projected nodes (which bend, so they span 3-D): over a cell, a
     /// camera's projection departs from affine by far less than a pixel.
-    pub(super) fn split(&self, k: usize, cell: (i32, i32), zb: &mut ZBuffer) {
+    fn split(&self, k: usize, cell: (i32, i32), zb: &mut ZBuffer) {
         let ks = [k, k + 1, k + self.ni, k + self.ni + 1];
         let (x0, y0, z0) = (self.xs[k], self.ys[k], self.zs[k]);
         let d = |q: usize| nalgebra::Vector3::new(self.xs[q] - x0, self.ys[q] - y0, self.zs[q] - z0);

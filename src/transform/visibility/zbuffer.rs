@@ -11,15 +11,15 @@ pub(super) type Projected = (f64, f64, f64);
 pub(super) struct ZBuffer {
     /// Scan → samples, and the first sample's place in that frame.
     pub(super) frame: SampleFrame,
-    pub(super) u0: f64,
-    pub(super) v0: f64,
+    u0: f64,
+    v0: f64,
     pub(super) w: usize,
     pub(super) h: usize,
     pub(super) z: Vec<f32>,
     /// The triangle seen at each sample, in `tris`.
-    pub(super) tri: Vec<u32>,
+    tri: Vec<u32>,
     /// Each triangle drawn: d z / d (buffer column, row), and its lattice cell.
-    pub(super) tris: Vec<([f32; 2], (i32, i32))>,
+    tris: Vec<([f32; 2], (i32, i32))>,
 }
 
 impl ZBuffer {
@@ -57,7 +57,7 @@ impl ZBuffer {
 
     /// Every sample inside the triangle keeps the higher of its height and
     /// the triangle's there (linear in the scan), with the slope of its own.
-    pub(super) fn triangle(&mut self, a: Projected, b: Projected, c: Projected, cell: (i32, i32)) {
+    fn triangle(&mut self, a: Projected, b: Projected, c: Projected, cell: (i32, i32)) {
         let (ax, ay) = self.at(a.0, a.1);
         let (bx, by) = self.at(b.0, b.1);
         let (cx, cy) = self.at(c.0, c.1);
