@@ -270,6 +270,7 @@ struct DemKeys {
     min_correlation: Option<f32>,
     points: Option<PathBuf>,
     quality: Option<PathBuf>,
+    shard: Option<OrText<[u32; 2]>>,
     blunders: Option<NumberOrWord>,
     memory: Option<NumberOrWord>,
     threads: Option<usize>,
@@ -323,6 +324,11 @@ pub fn dem_options(keys: serde_json::Map<String, serde_json::Value>) -> Result<c
     o.matching = crate::stereo::matching::MatchParams { matcher, window, min_correlation: k.min_correlation };
     o.points = k.points.clone();
     o.quality = k.quality.clone();
+    o.shard = match &k.shard {
+        Some(OrText::Value([i, n])) => Some((*i, *n)),
+        Some(OrText::Text(t)) => Some(crate::options::parse_shard("shard", t)?),
+        None => None,
+    };
     o.blunders = blunders(k.blunders.as_ref(), None)?;
     o.memory = crate::options::parse_bytes("memory", &k.memory.as_ref().map_or("512M".into(), |m| m.text()))?;
     o.threads = every_core(k.threads.unwrap_or(0));

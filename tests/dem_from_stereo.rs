@@ -314,3 +314,53 @@ fn stopped_run_leaves_nothing() {
     let left: Vec<_> = std::fs::read_dir(&outdir).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert!(left.is_empty(), "left behind: {left:?}");
 }
+
+/// `dem --shard I/N` matches the I-th share of the epipolar tiles' rows and
+/// writes their points; `grid` of the pieces' points in shard order, as
+/// the report says, is the whole run's DSM value for value (for N
+/// machines: matching is nearly all of the work). A shard past N, or one
+/// asked for the DSM's quality raster, is refused by name.
+#[test]
+fn shards_points_gridded_together_are_the_whole_runs_dsm() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    pair(d, 0.5, 1200);
+    let single = d.join("single.tif");
+    let o = dem_of_pair(d, &single, &["--gsd", "2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut pieces = Vec::new();
+    let mut then = String::new();
+    for i in 1..=3 {
+        let piece = d.join(format!("piece_{i}.las"));
+        let json = d.join(format!("piece_{i}.json"));
+        let o = dem_of_pair(d, &piece, &["--gsd", "2", "--shard", &format!("{i}/3"), "--json", s(&json)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let r = report(&json);
+        assert!(r["dsm"].is_null() && r["points_written"].as_u64().unwrap() > 1000, "{r}");
+        then = r["then"].as_str().unwrap().to_string();
+        pieces.push(piece);
+    }
+    // The command the report gives, with the pieces for PIECE_1 … PIECE_3.
+    assert!(then.starts_with("gcm-ortho grid PIECE_1 … PIECE_3 (in shard order) "), "{then}");
+    let (_, options) = then.split_once("(in shard order) ").unwrap();
+    let gridded = d.join("gridded.tif");
+    let mut args: Vec<String> = vec!["grid".into()];
+    args.extend(pieces.iter().map(|p| s(p).to_string()));
+    args.extend(options.split_whitespace().map(|w| w.trim_matches('\'').to_string()).filter(|w| w != "-o" && w != "DSM"));
+    args.extend(["-o".into(), s(&gridded).into(), "--quiet".into()]);
+    let o = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (a, b) = (read_f32(&single).3, read_f32(&gridded).3);
+    assert_eq!(a.len(), b.len());
+    assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()), "the pieces' DSM differs from the whole run's");
+    assert!(a.iter().filter(|v| **v != -9999.0).count() > 50_000);
+    for (extra, named) in [(&["--shard", "4/3"][..], "--shard"), (&["--shard", "1/3", "--quality", "q.tif"][..], "--quality")] {
+        let out = d.join("refused.las");
+        let mut e = vec!["--gsd", "2"];
+        e.extend_from_slice(extra);
+        let o = dem_of_pair(d, &out, &e);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(named), "{err}");
+        assert!(!out.exists());
+    }
+}

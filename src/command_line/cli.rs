@@ -184,6 +184,11 @@ pub struct DemArgs {
     /// Also write the matched points (LAS) here
     #[arg(long)]
     pub points: Option<PathBuf>,
+    /// Match only this share of the pair, I/N (rows of epipolar tiles, for
+    /// N machines): -o is then the piece's matched points (LAS), and
+    /// `grid` makes the DSM of all the pieces' points (the report says how)
+    #[arg(long, conflicts_with_all = ["points", "quality", "cog"])]
+    pub shard: Option<String>,
     /// Also write each cell's mean residual parallax of its matches
     /// (pixels; a GeoTIFF on the DSM's grid) here
     #[arg(long)]

@@ -146,11 +146,13 @@ fn run_dem(a: &super::cli::DemArgs, signals: &Signals) -> Result<()> {
         run,
         |r| &mut r.warnings,
         |r| {
+            let made = match (&r.dsm, &r.then) {
+                (Some(d), _) => format!("{} × {} cells", d.width, d.height),
+                (None, then) => format!("{} points of this shard (the DSM: {})", r.points_written, then.as_deref().unwrap_or("")),
+            };
             format!(
-                "{}: {} × {} cells; {:.1} % of the overlap matched, residual parallax {:.3} px (median), B/H {:.2}, height precision {:.2} m; {:.1} s",
+                "{}: {made}; {:.1} % of the overlap matched, residual parallax {:.3} px (median), B/H {:.2}, height precision {:.2} m; {:.1} s",
                 r.output.display(),
-                r.dsm.width,
-                r.dsm.height,
                 100.0 * r.matched_share,
                 r.residual_parallax_px.median,
                 r.epipolar.base_to_height,

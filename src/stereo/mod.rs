@@ -71,6 +71,9 @@ pub struct StereoOptions {
     /// The residual parallax of the matches, gridded as the DSM (pixels).
     pub quality: Option<PathBuf>,
     pub blunders: Option<f64>,
+    /// Match only rows of epipolar tiles `(I, N)`: the I-th of N shares;
+    /// `output` is then the piece's matched points (LAS), no DSM is made.
+    pub shard: Option<(u32, u32)>,
     pub memory: u64,
     pub threads: usize,
     pub cog: bool,
@@ -93,6 +96,7 @@ impl StereoOptions {
             // check, the correlation, the neighbourhood's median): the
             // grid's own search costs six times the gridding.
             blunders: None,
+            shard: None,
             memory: 512 << 20,
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             cog: false,
@@ -138,7 +142,12 @@ pub struct StereoReport {
     pub heights: &'static str,
     pub points: Option<PathBuf>,
     pub quality: Option<PathBuf>,
-    pub dsm: GridReport,
+    /// The DSM gridded (none for a shard: its output is its points).
+    pub dsm: Option<GridReport>,
+    /// For a shard: how the pieces' points make the DSM the whole run
+    /// makes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub then: Option<String>,
     pub seconds: f64,
     pub warnings: Vec<String>,
 }
@@ -146,9 +155,11 @@ pub struct StereoReport {
 /// Makes the DSM. See the module doc.
 pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Result<StereoReport> {
     let started = std::time::Instant::now();
-    let mut warnings: Vec<String> = crate::io::tiff_out::named_as_other_format(&o.output).into_iter().collect();
+    // (A shard's output is its points, a LAS file.)
+    let mut warnings: Vec<String> = if o.shard.is_some() { vec![] } else { crate::io::tiff_out::named_as_other_format(&o.output).into_iter().collect() };
     warnings.iter().for_each(|w| progress.warn(w));
     check_files(o)?;
+    check_shard(o)?;
     let (left_cam, right_cam, crs) = cameras(o)?;
     for w in left_cam.warnings.iter().chain(&right_cam.warnings) {
         progress.warn(w);
@@ -215,13 +226,21 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
 
     // Tiles of the epipolar grid, row by row.
     let (tw, th) = ((frame.width as i64).div_euclid(TILE) + 1, (frame.height as i64).div_euclid(TILE) + 1);
-    let tiles: Vec<(i64, i64)> = (0..th).flat_map(|j| (0..tw).map(move |i| (i * TILE, j * TILE))).collect();
+    // A shard's rows of tiles: the same tiles, in the same order, as the
+    // whole run matches them, so that the pieces' points gridded together
+    // are the whole run's.
+    let rows = match o.shard {
+        Some((i, n)) => (th * i64::from(i - 1) / i64::from(n))..(th * i64::from(i) / i64::from(n)),
+        None => 0..th,
+    };
+    let tiles: Vec<(i64, i64)> = rows.flat_map(|j| (0..tw).map(move |i| (i * TILE, j * TILE))).collect();
     let (dlo, dhi) = (frame.disparity[0], frame.disparity[1]);
     let per_tile = tile_bytes(dhi - dlo);
     let at_once = ((o.memory / 2) / per_tile).clamp(1, 4 * o.threads.max(1) as u64) as usize;
 
     let pending = crate::io::publish::pending_dir(&o.output)?;
-    let points_path = pending.path().join("points.las");
+    let shard_points = o.shard.map(|_| crate::io::publish::PendingFile::create(&o.output)).transpose()?;
+    let points_path = shard_points.as_ref().map_or_else(|| pending.path().join("points.las"), |p| p.path().to_path_buf());
     let quality_path = pending.path().join("quality.las");
     let mut pw = points_out::PointWriter::create(&points_path, frame.origin, frame.pixel)?;
     let mut qw = points_out::PointWriter::create(&quality_path, frame.origin, frame.pixel)?;
@@ -265,7 +284,7 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
     let points_written = pw.count();
     pw.close()?;
     qw.close()?;
-    if matched == 0 {
+    if matched == 0 && o.shard.is_none() {
         return Err(Error::Named(format!(
             "{} and {}: no point matched (no texture in the overlap, or the images do not show the same ground at the heights {zlo:.0} to {zhi:.0})",
             o.left.image.display(),
@@ -273,16 +292,24 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
         )));
     }
 
-    // The DSM: the matches gridded.
-    let mut g = GridOptions::new(vec![points_path.clone()], o.output.clone(), o.gsd);
-    g.crs = Some(crs.clone());
-    g.points_crs = Some(crs.clone());
-    g.blunders = o.blunders;
-    g.memory = o.memory;
-    g.threads = o.threads;
-    g.cog = o.cog;
-    let dsm = crate::gridding::grid(&g, progress, cancel)?;
-    if let Some(q) = &o.quality {
+    let crs_text = crs.epsg().map_or_else(|| crs.proj4().to_string(), |e| format!("EPSG:{e}"));
+    // A shard: its points are its output.
+    let then = o.shard.map(|(_, n)| {
+        format!(
+            "gcm-ortho grid PIECE_1 … PIECE_{n} (in shard order) --points-crs '{crs_text}' --crs '{crs_text}' --gsd {},{} --blunders {} -o DSM",
+            o.gsd.x,
+            o.gsd.y,
+            o.blunders.map_or("none".to_string(), |b| b.to_string())
+        )
+    });
+    let dsm = match shard_points {
+        Some(p) => {
+            p.publish()?;
+            None
+        }
+        None => Some(grid_dsm(o, &crs, &points_path, progress, cancel)?),
+    };
+    if let (Some(q), Some(dsm)) = (&o.quality, &dsm) {
         let mut g = GridOptions::new(vec![quality_path.clone()], q.clone(), o.gsd);
         g.crs = Some(crs.clone());
         g.points_crs = Some(crs.clone());
@@ -305,7 +332,7 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
     };
     Ok(StereoReport {
         output: o.output.clone(),
-        crs: crs.epsg().map_or_else(|| crs.proj4().to_string(), |e| format!("EPSG:{e}")),
+        crs: crs_text,
         heights_searched: [zlo, zhi],
         matcher: o.matching.matcher,
         tiles: tiles.len(),
@@ -324,9 +351,22 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
         epipolar: frame,
         pointing,
         dsm,
+        then,
         seconds: started.elapsed().as_secs_f64(),
         warnings,
     })
+}
+
+/// The DSM: the matches at `points` gridded by `grid`'s TIN.
+fn grid_dsm(o: &StereoOptions, crs: &Crs, points: &std::path::Path, progress: &dyn Progress, cancel: &Cancel) -> Result<GridReport> {
+    let mut g = GridOptions::new(vec![points.to_path_buf()], o.output.clone(), o.gsd);
+    g.crs = Some(crs.clone());
+    g.points_crs = Some(crs.clone());
+    g.blunders = o.blunders;
+    g.memory = o.memory;
+    g.threads = o.threads;
+    g.cog = o.cog;
+    crate::gridding::grid(&g, progress, cancel)
 }
 
 /// Where the heights are measured from.
@@ -514,6 +554,20 @@ fn check_files(o: &StereoOptions) -> Result<()> {
         outputs.push(Role::new("points file", p));
     }
     check_outputs(&inputs, &outputs)
+}
+
+/// A shard names one of its N shares, and asks nothing of the DSM it
+/// does not make.
+fn check_shard(o: &StereoOptions) -> Result<()> {
+    let Some((i, n)) = o.shard else { return Ok(()) };
+    if !(1..=n).contains(&i) {
+        return Err(Error::setting("shard", format!("{i}/{n}: give I/N with 1 ≤ I ≤ N")));
+    }
+    let with = [("points", o.points.is_some()), ("quality", o.quality.is_some()), ("cog", o.cog)];
+    match with.iter().find(|w| w.1) {
+        Some((name, _)) => Err(Error::setting(name, "goes with the DSM, which a shard does not make (its output is its matched points)")),
+        None => Ok(()),
+    }
 }
 
 /// Both cameras, in one ground CRS: `--crs`, else the left's (the right's
