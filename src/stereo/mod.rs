@@ -239,8 +239,11 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
     let at_once = ((o.memory / 2) / per_tile).clamp(1, 4 * o.threads.max(1) as u64) as usize;
 
     let pending = crate::io::publish::pending_dir(&o.output)?;
-    let shard_points = o.shard.map(|_| crate::io::publish::PendingFile::create(&o.output)).transpose()?;
-    let points_path = shard_points.as_ref().map_or_else(|| pending.path().join("points.las"), |p| p.path().to_path_buf());
+    // Points kept (a shard's output, or `points`) are written under a
+    // temporary name beside where they go, and renamed there at the end.
+    let kept = if o.shard.is_some() { Some(&o.output) } else { o.points.as_ref() };
+    let kept_points = kept.map(|p| crate::io::publish::PendingFile::create(p)).transpose()?;
+    let points_path = kept_points.as_ref().map_or_else(|| pending.path().join("points.las"), |p| p.path().to_path_buf());
     let quality_path = pending.path().join("quality.las");
     let mut pw = points_out::PointWriter::create(&points_path, frame.origin, frame.pixel)?;
     let mut qw = points_out::PointWriter::create(&quality_path, frame.origin, frame.pixel)?;
@@ -302,11 +305,8 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
             o.blunders.map_or("none".to_string(), |b| b.to_string())
         )
     });
-    let dsm = match shard_points {
-        Some(p) => {
-            p.publish()?;
-            None
-        }
+    let dsm = match o.shard {
+        Some(_) => None,
         None => Some(grid_dsm(o, &crs, &points_path, progress, cancel)?),
     };
     if let (Some(q), Some(dsm)) = (&o.quality, &dsm) {
@@ -320,8 +320,8 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
         g.threads = o.threads;
         crate::gridding::grid(&g, progress, cancel)?;
     }
-    if let Some(p) = &o.points {
-        std::fs::rename(&points_path, p).or_else(|_| std::fs::copy(&points_path, p).map(|_| ())).map_err(|e| Error::io(p, e))?;
+    if let Some(p) = kept_points {
+        p.publish()?;
     }
     let q = |v: &mut Vec<f32>, f: f64| -> f64 {
         if v.is_empty() {
