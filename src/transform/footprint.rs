@@ -224,11 +224,14 @@ const INWARD_HALVINGS: usize = 10;
 /// the line between them (a frame lost 1.9 % of its ground on ODM's own
 /// DSM).
 fn inward_edge<M: SensorModel + ?Sized>(caster: &mut RayCaster<'_, M>, (c, r): (f64, f64), (cc, rc): (f64, f64), z_guess: f64) -> Option<[f64; 3]> {
-    let mut cast = |t: f64| caster.cast(c + t * (cc - c), r + t * (rc - r), None, z_guess, 1e-3);
+    // Near the edge a ray started at the guessed height steps off the
+    // DEM before it meets the ground there (tens of metres on a DSM's
+    // roofs and trees): the halvings start from the last ground found.
+    let mut cast = |t: f64, from: Option<[f64; 3]>| caster.cast(c + t * (cc - c), r + t * (rc - r), from.map(|p| (p[0], p[1])), z_guess, 1e-3);
     let mut miss = 0.0;
     let (mut hit, mut p) = (1..=INWARD_STEPS).find_map(|k| {
         let t = k as f64 / INWARD_STEPS as f64;
-        let p = cast(t);
+        let p = cast(t, None);
         if p.is_none() {
             miss = t;
         }
@@ -236,7 +239,7 @@ fn inward_edge<M: SensorModel + ?Sized>(caster: &mut RayCaster<'_, M>, (c, r): (
     })?;
     for _ in 0..INWARD_HALVINGS {
         let t = (miss + hit) / 2.0;
-        match cast(t) {
+        match cast(t, Some(p)) {
             Some(q) => (hit, p) = (t, q),
             None => miss = t,
         }
