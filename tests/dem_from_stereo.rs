@@ -160,6 +160,11 @@ fn ventoux_pair_agrees_with_srtm() {
         "-o", s(&out), "--gsd", "2", "--json", s(&json), "--quiet"]);
     assert!(o.status.success(), "dem: {}", String::from_utf8_lossy(&o.stderr));
     let rep = report(&json);
+    // Heights above EGM96 (the geoid given), and the file says so.
+    assert_eq!(rep["crs"], "EPSG:32631+5773");
+    let keys = gcm_ortho::io::source::SourceImage::open(&out, 1 << 20).unwrap().info.georef.unwrap().keys;
+    let crs = gcm_ortho::geodesy::geokeys::crs_of(&keys).unwrap().unwrap();
+    assert_eq!(crs.vertical().and_then(|v| v.epsg), Some(5773), "{crs}");
     let shift = rep["pointing"]["row_shift"].as_f64().unwrap();
     assert!((shift - 4.84).abs() < 0.3, "the pair's rows {shift} px apart");
     assert!(rep["matched_share"].as_f64().unwrap() > 0.8, "matched {}", rep["matched_share"]);

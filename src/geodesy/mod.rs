@@ -22,3 +22,4 @@ pub use geoid::Geoid;
 #[cfg(feature = "internals")]
 pub use proj_data::find_grid as find_proj_grid;
 pub use projection::{utm_zone, GroundCrs, Reprojection};
+pub use vertical::Vertical;

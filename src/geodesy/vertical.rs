@@ -84,6 +84,16 @@ impl Vertical {
         Vertical::from_epsg(*code).ok()
     }
 
+    /// The height system whose geoid a grid file gives, by the name PROJ
+    /// gives that grid (a crop that keeps the name's start too:
+    /// `egm96_15_ventoux.gtx`); `None` for a grid it does not know.
+    pub fn of_grid_file(path: &std::path::Path) -> Option<Vertical> {
+        let name = path.file_name()?.to_str()?.to_ascii_lowercase();
+        let stem = |g: &str| g.rsplit_once('.').map_or(g, |(s, _)| s).to_string();
+        let (code, ..) = KNOWN.iter().find(|(_, _, grids)| grids.iter().any(|g| name.starts_with(&stem(g))))?;
+        Vertical::from_epsg(*code).ok()
+    }
+
     /// Whether this code is a vertical CRS this build names.
     pub fn is_known(code: u32) -> bool {
         KNOWN.iter().any(|(c, ..)| *c == code)
@@ -146,6 +156,15 @@ impl std::fmt::Display for Vertical {
 #[cfg(test)]
 mod tests {
     use super::Vertical;
+
+    #[test]
+    fn a_geoid_grid_names_its_height_system_by_its_file_name() {
+        let code = |n: &str| Vertical::of_grid_file(std::path::Path::new(n)).and_then(|v| v.epsg);
+        assert_eq!(code("/g/egm96_15.gtx"), Some(5773));
+        assert_eq!(code("egm96_15_ventoux.gtx"), Some(5773));
+        assert_eq!(code("us_nga_egm08_25.tif"), Some(3855));
+        assert_eq!(code("my_geoid.gtx"), None);
+    }
 
     #[test]
     fn a_height_system_is_told_by_its_name() {

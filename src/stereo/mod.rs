@@ -295,7 +295,9 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
         )));
     }
 
-    let crs_text = crs.epsg().map_or_else(|| crs.proj4().to_string(), |e| format!("EPSG:{e}"));
+    // The DSM's file says the height system of a geoid the run was given.
+    let dsm_crs = with_heights_system(o, crs.clone());
+    let crs_text = dsm_crs.definition();
     // A shard: its points are its output.
     let then = o.shard.map(|(_, n)| {
         format!(
@@ -307,7 +309,7 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
     });
     let dsm = match o.shard {
         Some(_) => None,
-        None => Some(grid_dsm(o, &crs, &points_path, progress, cancel)?),
+        None => Some(grid_dsm(o, &dsm_crs, &points_path, progress, cancel)?),
     };
     if let (Some(q), Some(dsm)) = (&o.quality, &dsm) {
         let mut g = GridOptions::new(vec![quality_path.clone()], q.clone(), o.gsd);
@@ -367,6 +369,21 @@ fn grid_dsm(o: &StereoOptions, crs: &Crs, points: &std::path::Path, progress: &d
     g.threads = o.threads;
     g.cog = o.cog;
     crate::gridding::grid(&g, progress, cancel)
+}
+
+/// The DSM's CRS with the height system of the geoid its heights are
+/// above (a geoid grid PROJ names, by its file's name), so that GDAL and
+/// the DSM's next user read what its heights are; as it is where the CRS
+/// says its heights already, or the grid is not one PROJ names.
+fn with_heights_system(o: &StereoOptions, crs: Crs) -> Crs {
+    let geoid = match &o.left.model {
+        ModelSource::Rpc { geoid: Some(g), .. } if crs.vertical().is_none() => g,
+        _ => return crs,
+    };
+    match crate::geodesy::Vertical::of_grid_file(geoid) {
+        Some(v) => crs.with_vertical(Some(v)),
+        None => crs,
+    }
 }
 
 /// Where the heights are measured from.
