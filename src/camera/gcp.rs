@@ -224,27 +224,21 @@ fn refine_rpc(rpc: &mut super::satellite::RpcCamera, gcps: &[Gcp], model: BiasMo
         }
     };
     let bias = fit_bias(&predicted, &observed).ok_or_else(|| Error::format(source, "the GCPs lie on one line: no affine bias can be fitted"))?;
-    // Each point against the bias the others give.
-    let off = |bias: &Affine2, i: usize| {
-        let (c, r) = bias.apply(predicted[i][0], predicted[i][1]);
-        (observed[i][0] - c).hypot(observed[i][1] - r)
+    // Point k's residual (image − model) under a bias.
+    let residual = |bias: &Affine2, k: usize| {
+        let (c, r) = bias.apply(predicted[k][0], predicted[k][1]);
+        [observed[k][0] - c, observed[k][1] - r]
     };
+    // Each point against the bias the others give.
     let outlier = left_out_outlier(gcps, if affine { 3 } else { 1 }, |i| {
         let keep = |v: &[[f64; 2]]| -> Vec<[f64; 2]> { v.iter().enumerate().filter(|(k, _)| *k != i).map(|(_, p)| *p).collect() };
         let others = fit_bias(&keep(&predicted), &keep(&observed))?;
-        let rms = (gcps.len() - 1) as f64;
-        let rms = ((0..gcps.len()).filter(|&k| k != i).map(|k| off(&others, k).powi(2)).sum::<f64>() / rms).sqrt();
-        Some((off(&others, i), rms))
+        let rest: Vec<[f64; 2]> = (0..gcps.len()).filter(|&k| k != i).map(|k| residual(&others, k)).collect();
+        let own = residual(&others, i);
+        Some((own[0].hypot(own[1]), rms(&rest)))
     });
     let before: Vec<[f64; 2]> = predicted.iter().zip(&observed).map(|(p, o)| [o[0] - p[0], o[1] - p[1]]).collect();
-    let after: Vec<[f64; 2]> = predicted
-        .iter()
-        .zip(&observed)
-        .map(|(p, o)| {
-            let (c, r) = bias.apply(p[0], p[1]);
-            [o[0] - c, o[1] - r]
-        })
-        .collect();
+    let after: Vec<[f64; 2]> = (0..gcps.len()).map(|k| residual(&bias, k)).collect();
     let m = bias.m;
     let correction =
         format!("col' = {:.6}·col + {:.6}·row + {:.3}, row' = {:.6}·col + {:.6}·row + {:.3}", m[(0, 0)], m[(0, 1)], bias.t.x, m[(1, 0)], m[(1, 1)], bias.t.y);
