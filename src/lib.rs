@@ -41,6 +41,7 @@ inner_modules! {
     overview,
     pipeline,
     points,
+    processor,
     progress,
     resample,
     rpcgrid,

@@ -6,15 +6,25 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// Modules every module may use; the table gives their own imports.
-const FOUNDATION: [&str; 4] = ["error", "geom", "progress", "setting_names"];
+const FOUNDATION: [&str; 5] = ["error", "geom", "processor", "progress", "setting_names"];
 
 /// The command line (the binary's `main.rs` and the library's
 /// `command_line/`, which the Python package's command runs too): alone
 /// names settings by their flags.
 const COMMAND_LINE: [&str; 2] = ["src/main.rs", "src/command_line/"];
 
-/// Files at the OS boundary, where `unsafe` may be (each with `// SAFETY:`).
-const UNSAFE_AT: [&str; 5] = ["src/io/source/", "src/io/mmap_guard.rs", "src/io/mapped_file.rs", "src/command_line/mod.rs", "src/command_line/os_memory.rs"];
+/// Files at the OS boundary, where `unsafe` may be (each with `// SAFETY:`),
+/// and the processor's: the one place kernels compiled for instructions
+/// the processor is asked about at run time are called.
+const UNSAFE_AT: [&str; 7] = [
+    "src/io/source/",
+    "src/io/mmap_guard.rs",
+    "src/io/mapped_file.rs",
+    "src/command_line/mod.rs",
+    "src/command_line/os_memory.rs",
+    "src/processor.rs",
+    "src/resample/bilinear_u8/dispatch.rs",
+];
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

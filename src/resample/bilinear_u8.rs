@@ -9,6 +9,15 @@
 //!
 //! The one intermediate rounding moves the result by at most 1/128 of a
 //! grey level before the final rounding.
+//!
+//! The kernels for particular instruction sets are in `x86`, the choice
+//! among them at run time in `dispatch`.
+
+mod dispatch;
+#[cfg(target_arch = "x86_64")]
+mod x86;
+
+use super::Fixed;
 
 /// One band: `p00 p10` (upper row, left and right), `p01 p11` (lower row).
 #[inline]
@@ -35,88 +44,20 @@ const WEIGHT_PAIRS: [u32; 1025] = {
 /// of each row, `upper` and `lower`: each slice starts at the left pixel
 /// and holds at least 8 bytes. Returns the bands in the low bytes.
 ///
-/// The SSSE3 + SSE4.1 kernel where the build has them (x86-64-v2, what
-/// the project builds for: `.cargo/config.toml`), else the SSE2 one, else
-/// band by band. All give the same bytes.
+/// The kernel every build has (SSE2 on x86-64, band by band elsewhere),
+/// for the spans the checked path takes; the spans inside a window go
+/// through [`span_inside_any`], which runs the best kernel the processor
+/// has. All give the same bytes.
 #[inline(always)]
 pub fn bilerp_pixel<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32) -> u32 {
-    #[cfg(all(target_arch = "x86_64", target_feature = "ssse3", target_feature = "sse4.1"))]
-    return bilerp_pixel_ssse3::<B>(upper, lower, wx, wy);
-    #[cfg(all(target_arch = "x86_64", not(all(target_feature = "ssse3", target_feature = "sse4.1"))))]
-    return bilerp_pixel_sse2::<B>(upper, lower, wx, wy);
+    #[cfg(target_arch = "x86_64")]
+    return x86::bilerp_pixel_sse2::<B>(upper, lower, wx, wy);
     #[cfg(not(target_arch = "x86_64"))]
     return bilerp_pixel_scalar::<B>(upper, lower, wx, wy);
 }
 
-/// [`bilerp_pixel`] with SSSE3 and SSE4.1: byte shuffles put each band's
-/// left and right samples side by side in 16-bit lanes, a blend pairs the
-/// rows' sums, and one shuffle takes the results out: 17 vector steps
-/// where plain SSE2 takes 25.
-#[cfg(all(target_arch = "x86_64", target_feature = "ssse3", target_feature = "sse4.1"))]
-#[inline(always)]
-fn bilerp_pixel_ssse3<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32) -> u32 {
-    use safe_arch::*;
-    let word = |s: &[u8]| i64::from_le_bytes(s[..8].try_into().expect("8 bytes"));
-    // Upper row in the low 8 bytes, lower row in the high 8: [a0 a1 a2 b0 …].
-    let v = set_i64_m128i(word(lower), word(upper));
-    // Lane k (16-bit pairs): band k of the left pixel, band k of the right
-    // one (3 or 4 bytes on), zero-extended; -1 gives a zero byte.
-    const fn pairs(b: i8, row: i8) -> [i8; 16] {
-        let mut t = [-1i8; 16];
-        let mut k = 0;
-        while k < b {
-            t[4 * k as usize] = row + k;
-            t[4 * k as usize + 2] = row + b + k;
-            k += 1;
-        }
-        t
-    }
-    let (pu, pl) = if B == 3 { (pairs(3, 0), pairs(3, 8)) } else { (pairs(4, 0), pairs(4, 8)) };
-    let u = shuffle_av_i8z_all_m128i(v, m128i::from(pu));
-    let l = shuffle_av_i8z_all_m128i(v, m128i::from(pl));
-    let wx2 = set_splat_i32_m128i(WEIGHT_PAIRS[(wx as usize).min(1024)] as i32);
-    let eight = set_splat_i32_m128i(8);
-    let top = shr_imm_u32_m128i::<4>(add_i32_m128i(mul_i16_horizontal_add_m128i(u, wx2), eight));
-    // (bot + 8) >> 4 in the high half of each lane: bits 16 and up of
-    // (bot + 8) << 12; the low half from `top` (below 2¹⁵).
-    let bot = shl_imm_u32_m128i::<12>(add_i32_m128i(mul_i16_horizontal_add_m128i(l, wx2), eight));
-    let tb = blend_imm_i16_m128i::<0b1010_1010>(top, bot);
-    let wy2 = set_splat_i32_m128i(WEIGHT_PAIRS[(wy as usize).min(1024)] as i32);
-    let r = add_i32_m128i(mul_i16_horizontal_add_m128i(tb, wy2), set_splat_i32_m128i(1 << 15));
-    // The result is bits 16–23 of each lane (below 2²⁴ all told).
-    const OUT: [i8; 16] = [2, 6, 10, 14, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1];
-    get_i32_from_m128i_s(shuffle_av_i8z_all_m128i(r, m128i::from(OUT))) as u32
-}
-
-/// [`bilerp_pixel`] with plain SSE2 (any x86-64).
-#[cfg(target_arch = "x86_64")]
-#[cfg_attr(all(target_feature = "ssse3", target_feature = "sse4.1"), allow(dead_code))]
-#[inline(always)]
-fn bilerp_pixel_sse2<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32) -> u32 {
-    use safe_arch::*;
-    let word = |s: &[u8]| i64::from_le_bytes(s[..8].try_into().expect("8 bytes"));
-    // Upper row in the low 8 bytes, lower row in the high 8: [a0 a1 a2 b0 …].
-    let v = set_i64_m128i(word(lower), word(upper));
-    // Each row shifted by one pixel, so that interleaving the bytes pairs
-    // every band of the left pixel with the same band of the right one:
-    // [a0 b0 a1 b1 a2 b2 …], then widened to 16-bit lanes (a_k, b_k).
-    let right = if B == 3 { shr_imm_u64_m128i::<24>(v) } else { shr_imm_u64_m128i::<32>(v) };
-    let zero = zeroed_m128i();
-    let u = unpack_low_i8_m128i(unpack_low_i8_m128i(v, right), zero);
-    let l = unpack_low_i8_m128i(unpack_high_i8_m128i(v, right), zero);
-    let wx2 = set_splat_i32_m128i(WEIGHT_PAIRS[(wx as usize).min(1024)] as i32);
-    let eight = set_splat_i32_m128i(8);
-    let top = shr_imm_u32_m128i::<4>(add_i32_m128i(mul_i16_horizontal_add_m128i(u, wx2), eight));
-    let bot = shr_imm_u32_m128i::<4>(add_i32_m128i(mul_i16_horizontal_add_m128i(l, wx2), eight));
-    // Both below 2¹⁵: one 32-bit lane holds the pair (top, bot).
-    let tb = bitor_m128i(top, shl_imm_u32_m128i::<16>(bot));
-    let wy2 = set_splat_i32_m128i(WEIGHT_PAIRS[(wy as usize).min(1024)] as i32);
-    let r = shr_imm_u32_m128i::<16>(add_i32_m128i(mul_i16_horizontal_add_m128i(tb, wy2), set_splat_i32_m128i(1 << 15)));
-    let r16 = pack_i32_to_i16_m128i(r, r);
-    get_i32_from_m128i_s(pack_i16_to_u8_m128i(r16, r16)) as u32
-}
-
-/// [`bilerp_pixel`] band by band (other architectures).
+/// [`bilerp_pixel`] band by band (other architectures, and the tests'
+/// reference).
 #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
 #[inline(always)]
 fn bilerp_pixel_scalar<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: u32) -> u32 {
@@ -127,53 +68,44 @@ fn bilerp_pixel_scalar<const B: usize>(upper: &[u8], lower: &[u8], wx: u32, wy: 
     r
 }
 
-/// A straight run of `out.len() / B` pixels whose four neighbours all lie
-/// inside `bytes` (rows `row` bytes apart): pixel `i` at fixed-point
-/// position `q + i·dq` (32 fractional bits, the kernel's origin: position
-/// − ½), less the window's origin `origin` in whole pixels. The caller has
-/// checked that the span's bounds lie inside. Same arithmetic as
-/// [`bilerp_pixel`].
-#[inline(always)]
-pub fn span_inside<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), q: (i64, i64), dq: (i64, i64), out: &mut [u8]) {
-    let (mut qc, mut qr) = (window_fixed(q.0, origin.0), window_fixed(q.1, origin.1));
-    let pixel = |qc: i64, qr: i64| pixel_at::<B>(bytes, row, qc, qr);
-    // Four bytes a pixel, also for three bands (the fourth is written over
-    // by the next pixel), but for the last pixel.
-    let body = out.len().saturating_sub(B);
-    let mut o = 0;
-    while o < body {
-        out[o..o + 4].copy_from_slice(&pixel(qc, qr).to_le_bytes());
-        qc = qc.wrapping_add(dq.0);
-        qr = qr.wrapping_add(dq.1);
-        o += B;
-    }
-    if let Some(last) = out.get_mut(o..o + B) {
-        last.copy_from_slice(&pixel(qc, qr).to_le_bytes()[..B]);
-    }
+/// The loop over a run of `out.len() / B` pixels whose four neighbours all
+/// lie inside `bytes` (rows `row` bytes apart), each made by the kernel
+/// `$kernel` (as [`bilerp_pixel`]): pixel `i` at fixed-point position
+/// `q + i·dq` (32 fractional bits, the kernel's origin: position − ½),
+/// less the window's origin `origin` in whole pixels; where `$quadratic`,
+/// the step `dq` itself steps by `ddq`. The caller has checked that the
+/// span's bounds lie inside. A macro, written out in each kernel's own
+/// function, so that a kernel compiled for other instructions inlines into
+/// its loop (through a generic loop taking a closure it stayed a call a
+/// pixel: 3.5 times slower).
+macro_rules! span_loop {
+    ($kernel:path, $b:ident, $bytes:expr, $row:expr, $origin:expr, $f:expr, $out:expr, $quadratic:expr) => {{
+        let (bytes, row, f, out): (&[u8], usize, &Fixed, &mut [u8]) = ($bytes, $row, $f, $out);
+        let (mut qc, mut qr) = (window_fixed(f.q[0], $origin.0), window_fixed(f.q[1], $origin.1));
+        let ([mut dqc, mut dqr], [ddqc, ddqr]) = (f.dq, if $quadratic { f.ddq } else { [0, 0] });
+        // Four bytes a pixel, also for three bands (the fourth is written
+        // over by the next pixel), but for the last pixel.
+        let body = out.len().saturating_sub($b);
+        let mut o = 0;
+        while o < body {
+            let (s, wx, wy) = corner::<$b>(row, qc, qr);
+            // Both rows' 8 bytes under one bounds check.
+            let both = &bytes[s..s + row + 8];
+            out[o..o + 4].copy_from_slice(&$kernel(&both[..8], &both[row..], wx, wy).to_le_bytes());
+            qc = qc.wrapping_add(dqc);
+            qr = qr.wrapping_add(dqr);
+            dqc = dqc.wrapping_add(ddqc);
+            dqr = dqr.wrapping_add(ddqr);
+            o += $b;
+        }
+        if let Some(last) = out.get_mut(o..o + $b) {
+            let (s, wx, wy) = corner::<$b>(row, qc, qr);
+            let both = &bytes[s..s + row + 8];
+            last.copy_from_slice(&$kernel(&both[..8], &both[row..], wx, wy).to_le_bytes()[..$b]);
+        }
+    }};
 }
-
-/// [`span_inside`] for a quadratic span: the step `dq` itself steps by
-/// `ddq` from one pixel to the next (a separate loop: the straight one,
-/// which nearly every span takes, keeps its registers).
-#[inline(never)]
-pub fn span_inside_quadratic<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), f: &super::Fixed, out: &mut [u8]) {
-    let (mut qc, mut qr) = (window_fixed(f.q[0], origin.0), window_fixed(f.q[1], origin.1));
-    let ([mut dqc, mut dqr], [ddqc, ddqr]) = (f.dq, f.ddq);
-    let pixel = |qc: i64, qr: i64| pixel_at::<B>(bytes, row, qc, qr);
-    let body = out.len().saturating_sub(B);
-    let mut o = 0;
-    while o < body {
-        out[o..o + 4].copy_from_slice(&pixel(qc, qr).to_le_bytes());
-        qc = qc.wrapping_add(dqc);
-        qr = qr.wrapping_add(dqr);
-        dqc = dqc.wrapping_add(ddqc);
-        dqr = dqr.wrapping_add(ddqr);
-        o += B;
-    }
-    if let Some(last) = out.get_mut(o..o + B) {
-        last.copy_from_slice(&pixel(qc, qr).to_le_bytes()[..B]);
-    }
-}
+use span_loop;
 
 /// A fixed-point position `q` counted from the window's origin `o` (whole
 /// pixels: the fractions, and so the weights, stay as they are), plus half
@@ -184,30 +116,44 @@ fn window_fixed(q: i64, o: i64) -> i64 {
     q.wrapping_sub(o << 32).wrapping_add(1 << 21)
 }
 
-/// The pixel at window-relative fixed-point position (qc, qr)
-/// ([`window_fixed`]): whole pixels above the 32 fractional bits, the
-/// weights (1/1024 pixel) the fraction's top 10 bits.
+/// At window-relative fixed-point position (qc, qr) ([`window_fixed`]):
+/// the byte of the upper-left neighbour (whole pixels above the 32
+/// fractional bits) and the weights (1/1024 pixel: the fraction's top 10
+/// bits).
 #[inline(always)]
-fn pixel_at<const B: usize>(bytes: &[u8], row: usize, qc: i64, qr: i64) -> u32 {
-    let s = (qr >> 32) as usize * row + (qc >> 32) as usize * B;
-    let (wx, wy) = (qc as u32 >> 22, qr as u32 >> 22);
-    // Both rows' 8 bytes under one bounds check.
-    let both = &bytes[s..s + row + 8];
-    bilerp_pixel::<B>(&both[..8], &both[row..], wx, wy)
+fn corner<const B: usize>(row: usize, qc: i64, qr: i64) -> (usize, u32, u32) {
+    ((qr >> 32) as usize * row + (qc >> 32) as usize * B, qc as u32 >> 22, qr as u32 >> 22)
 }
 
-/// [`span_inside`] or [`span_inside_quadratic`], as the span is.
+/// A span of 8-bit pixels wholly inside the window's `bytes` (see
+/// [`span_loop`]; straight or quadratic as `f` is), by the best kernel
+/// the processor has ([`crate::processor`]).
 #[inline(always)]
-pub fn span_inside_any<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), f: &super::Fixed, out: &mut [u8]) {
+pub fn span_inside_any<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), f: &Fixed, out: &mut [u8]) {
+    dispatch::span_inside::<B>(crate::processor::chosen(), bytes, row, origin, f, out)
+}
+
+/// [`span_inside_any`] with the kernel every build has.
+#[inline(always)]
+fn span_inside_portable<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), f: &Fixed, out: &mut [u8]) {
     if f.ddq == [0, 0] {
-        span_inside::<B>(bytes, row, origin, (f.q[0], f.q[1]), (f.dq[0], f.dq[1]), out)
+        span_loop!(bilerp_pixel::<B>, B, bytes, row, origin, f, out, false)
     } else {
-        span_inside_quadratic::<B>(bytes, row, origin, f, out)
+        quadratic_portable::<B>(bytes, row, origin, f, out)
     }
+}
+
+/// The quadratic span's loop apart (the straight one, which nearly every
+/// span takes, keeps its registers).
+#[inline(never)]
+fn quadratic_portable<const B: usize>(bytes: &[u8], row: usize, origin: (i64, i64), f: &Fixed, out: &mut [u8]) {
+    span_loop!(bilerp_pixel::<B>, B, bytes, row, origin, f, out, true)
 }
 
 #[cfg(test)]
 mod tests {
+    use super::dispatch;
+    use crate::processor::{self, Kernels};
     use super::*;
 
     /// The exact bilinear value, for the bound on the one intermediate rounding.
@@ -235,20 +181,8 @@ mod tests {
         assert_eq!(bilerp(0, 255, 0, 255, 512, 0), 128);
     }
 
-    /// A kernel for one band count: (upper, lower, wx, wy) → bands.
-    type Kernel = fn(&[u8], &[u8], u32, u32) -> u32;
-
-    /// Every kernel this build compiles, for 3 and 4 bands.
-    fn kernels() -> Vec<(&'static str, Kernel, Kernel)> {
-        let mut k: Vec<(&'static str, Kernel, Kernel)> =
-            vec![("scalar", bilerp_pixel_scalar::<3>, bilerp_pixel_scalar::<4>), ("chosen", bilerp_pixel::<3>, bilerp_pixel::<4>)];
-        #[cfg(target_arch = "x86_64")]
-        k.push(("sse2", bilerp_pixel_sse2::<3>, bilerp_pixel_sse2::<4>));
-        #[cfg(all(target_arch = "x86_64", target_feature = "ssse3", target_feature = "sse4.1"))]
-        k.push(("ssse3", bilerp_pixel_ssse3::<3>, bilerp_pixel_ssse3::<4>));
-        k
-    }
-
+    /// `bilerp_pixel` (SSE2 on x86-64) against the band-by-band kernel,
+    /// whole weights and the largest sums among the cases.
     #[test]
     fn all_bands_at_once_equal_band_by_band() {
         let mut seed = 99u64;
@@ -266,17 +200,60 @@ mod tests {
             cases.push(([[255; 8], [255; 8]], w1, w2));
             cases.push(([[0, 0, 0, 255, 255, 255, 255, 0], [255, 255, 255, 0, 0, 0, 0, 255]], w1, w2));
         }
-        for (name, k3, k4) in kernels() {
-            for &(row, wx, wy) in &cases {
-                let three = k3(&row[0], &row[1], wx, wy).to_le_bytes();
-                let four = k4(&row[0], &row[1], wx, wy).to_le_bytes();
-                for k in 0..3 {
-                    assert_eq!(three[k], bilerp(row[0][k], row[0][3 + k], row[1][k], row[1][3 + k], wx, wy), "{name} {row:?} {wx} {wy}");
-                }
-                for k in 0..4 {
-                    assert_eq!(four[k], bilerp(row[0][k], row[0][4 + k], row[1][k], row[1][4 + k], wx, wy), "{name} {row:?} {wx} {wy}");
-                }
+        for &(row, wx, wy) in &cases {
+            let three = bilerp_pixel::<3>(&row[0], &row[1], wx, wy).to_le_bytes();
+            let four = bilerp_pixel::<4>(&row[0], &row[1], wx, wy).to_le_bytes();
+            assert_eq!(bilerp_pixel_scalar::<3>(&row[0], &row[1], wx, wy).to_le_bytes()[..3], three[..3]);
+            assert_eq!(bilerp_pixel_scalar::<4>(&row[0], &row[1], wx, wy).to_le_bytes(), four);
+            for k in 0..3 {
+                assert_eq!(three[k], bilerp(row[0][k], row[0][3 + k], row[1][k], row[1][3 + k], wx, wy), "{row:?} {wx} {wy}");
             }
         }
+    }
+
+    /// Random spans (straight and quadratic, 1 to 40 pixels, 3 and 4
+    /// bands) over random bytes with runs of 0 and 255, through each kernel
+    /// this processor has: the bytes of the band-by-band loops.
+    fn every_kernel_gives_the_scalar_bytes<const B: usize>() {
+        let (w, h) = (64usize, 16usize);
+        let row = w * B;
+        let mut seed = 2024u64 + B as u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed >> 11
+        };
+        let bytes: Vec<u8> = (0..h * row + 8)
+            .map(|i| match (i / 97) % 5 {
+                0 => 255,
+                1 => 0,
+                _ => (i as u64).wrapping_mul(2654435761) as u8,
+            })
+            .collect();
+        let origin = (5i64, 3i64);
+        let kernels: Vec<Kernels> = [Kernels::Portable, Kernels::Ssse3, Kernels::Avx2].into_iter().filter(|&k| k <= processor::best()).collect();
+        if kernels.len() < 3 {
+            eprintln!("this processor runs only {kernels:?}: the others not tried");
+        }
+        for case in 0..20_000 {
+            let n = 1 + (next() % 40) as usize;
+            let frac = |v: u64| (v % (1 << 32)) as i64;
+            let q = [((origin.0 + 1 + (next() % 20) as i64) << 32) + frac(next()), ((origin.1 + 3 + (next() % 6) as i64) << 32) + frac(next())];
+            let dq = [frac(next()), frac(next()) / 10 - (1 << 32) / 20];
+            let ddq = if case % 3 == 0 { [frac(next()) / 2000 - (1 << 32) / 4000, frac(next()) / 2000 - (1 << 32) / 4000] } else { [0, 0] };
+            let f = Fixed { q, dq, ddq };
+            let mut want = vec![0u8; n * B];
+            span_loop!(bilerp_pixel_scalar::<B>, B, &bytes, row, origin, &f, &mut want, true);
+            for &k in &kernels {
+                let mut got = vec![0u8; n * B];
+                dispatch::span_inside::<B>(k, &bytes, row, origin, &f, &mut got);
+                assert_eq!(got, want, "{k:?}, {B} bands, case {case}: {f:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn every_kernel_gives_the_scalar_bytes_for_three_and_four_bands() {
+        every_kernel_gives_the_scalar_bytes::<3>();
+        every_kernel_gives_the_scalar_bytes::<4>();
     }
 }
