@@ -404,6 +404,20 @@ impl Dem {
         }
     }
 
+    /// The height [`Dem::height_gradient`] gives, without its gradient:
+    /// one conversion into the DEM's CRS where that takes three more (a
+    /// ray walked across the DEM asks only whether it is above or below).
+    #[inline]
+    pub fn surface_height(&self, x: f64, y: f64) -> Option<f64> {
+        match &self.model {
+            HeightModel::Flat(z) => Some(*z),
+            HeightModel::Grid(g) => {
+                let (px, py) = self.in_grid_crs(x, y)?;
+                g.lookup_gradient(px, py).map(|(z, _, _)| z)
+            }
+        }
+    }
+
     /// `height_gradient` for many points (see `GridDem::lookup_gradient_many`):
     /// Z NaN where that gives `None`.
     pub fn height_gradient_many(&self, x: &[f64], y: &[f64], out: &mut [(f64, f64, f64)]) {

@@ -264,7 +264,7 @@ fn other_crossings<M: SensorModel + ?Sized>(caster: &mut RayCaster<'_, M>, (c, r
     let n = (2.0 * (s1.0 - s0.0).abs().max((s1.1 - s0.1).abs())).ceil().clamp(1.0, 4096.0) as usize;
     let at = |t: f64| (hit[0] + t * (end.0 - hit[0]), hit[1] + t * (end.1 - hit[1]), hit[2] + t * (low - hit[2]));
     // Above the surface (+) or below (−), by how much.
-    let above = |(x, y, z): (f64, f64, f64)| dem.height_gradient(x, y).map(|(h, _, _)| z - h);
+    let above = |(x, y, z): (f64, f64, f64)| dem.surface_height(x, y).map(|h| z - h);
     let mut before = (0.0, f64::NAN);
     for k in 1..=n {
         let t = k as f64 / n as f64;
