@@ -463,8 +463,16 @@ impl<'a> Gcm<'a> {
                 _ => f64::NAN,
             })
             .collect();
-        let dp =
-            if self.spec.max_error.is_some() && self.dem_sampling.is_some() { self.xs.iter().map(|&u| self.dem_coords(u, v)).collect() } else { Vec::new() };
+        let dp = match (&nodes.lonlat, self.spec.max_error.is_some() && self.dem_sampling.is_some()) {
+            (_, false) => Vec::new(),
+            // The DEM's own coordinates of each node, converted once for
+            // its height (one transverse Mercator inverse a node, not two).
+            (Some(lonlat), true) => lonlat
+                .iter()
+                .map(|ll| ll.and_then(|(lon, lat)| self.t.dem.sample_coords_of_grid_point(lon, lat)).map_or([f64::NAN; 2], |(c, r)| [c, r]))
+                .collect(),
+            (None, true) => self.xs.iter().map(|&u| self.dem_coords(u, v)).collect(),
+        };
         NodeRow { j, dc, dr, z, tz, dp }
     }
 

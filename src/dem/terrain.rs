@@ -321,6 +321,15 @@ impl Dem {
         }
     }
 
+    /// [`Dem::sample_coords`] of a point already in the grid's CRS (as
+    /// [`Dem::height_and_lonlat`] gives it back).
+    pub fn sample_coords_of_grid_point(&self, gx: f64, gy: f64) -> Option<(f64, f64)> {
+        match &self.model {
+            HeightModel::Grid(g) => Some(g.sample_coords(gx, gy)),
+            HeightModel::Flat(_) => None,
+        }
+    }
+
     /// What a lookup at ground (X, Y) finds, before the hole/outside
     /// policy.
     pub fn lookup(&self, x: f64, y: f64) -> Lookup {
