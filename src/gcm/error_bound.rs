@@ -217,16 +217,21 @@ impl<'a> Gcm<'a> {
         if ((i1 - i0 + 1).max(0) * (j1 - j0 + 1).max(0)) as f64 > q.du * q.dv {
             return None;
         }
+        // at(fu, fv) = p0 + fu·du0 + fv·dv0 + fu·fv·twist.
+        let du0 = [p[1][0] - p[0][0], p[1][1] - p[0][1]];
+        let dv0 = [p[2][0] - p[0][0], p[2][1] - p[0][1]];
+        let twist = [p[3][0] - p[2][0] - du0[0], p[3][1] - p[2][1] - du0[1]];
         for j in j0..=j1 {
             for i in i0..=i1 {
                 let target = [i as f64, j as f64];
                 let (mut fu, mut fv) = (0.5, 0.5);
                 for _ in 0..4 {
                     let c = at(fu, fv);
-                    let (e, h) = (1e-3, 1e-3);
-                    let (cu, cv) = (at(fu + e, fv), at(fu, fv + h));
-                    let (a11, a21) = ((cu[0] - c[0]) / e, (cu[1] - c[1]) / e);
-                    let (a12, a22) = ((cv[0] - c[0]) / h, (cv[1] - c[1]) / h);
+                    // The map's Jacobian, exactly (it is bilinear): what
+                    // differences over 1/1000 of the cell gave, without
+                    // their two more evaluations.
+                    let (a11, a21) = (du0[0] + fv * twist[0], du0[1] + fv * twist[1]);
+                    let (a12, a22) = (dv0[0] + fu * twist[0], dv0[1] + fu * twist[1]);
                     let det = a11 * a22 - a12 * a21;
                     if det == 0.0 {
                         break;
