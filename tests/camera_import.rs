@@ -608,3 +608,33 @@ fn odm_single_quoted_radians_csv_reads_with_radians() {
     assert!(doubtful.warnings.iter().any(|w| w.contains("odm_xyz_opk.csv") && w.contains("give ‹radians›")), "{:?}", doubtful.warnings);
     assert_eq!(about_angles(&want.warnings), 0, "degrees past π are not doubtful: {:?}", want.warnings);
 }
+
+/// simple-ortho's `config.yaml` (what NGI hands out beside its aerial
+/// scans, which Orthority still reads): its one camera under `camera`,
+/// the CRS of the positions under `ortho.crs`, the poses in a text file
+/// without a header (`name x y z omega phi kappa`, degrees). The camera
+/// and pose give Orthority's projections of the same lens; its other run
+/// settings are named in a warning, not taken.
+#[test]
+fn a_simple_ortho_config_and_its_pose_file_project_as_orthority_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("config.yaml");
+    std::fs::write(
+        &config,
+        "# Legacy simple-ortho configuration\ncamera:\n  name: brown cam\n  type: brown\n  im_size: [ 640, 480 ]\n  focal_len: 0.8333\n  cx: -0.01\n  cy: 0.02\n  k1: -0.25\n  k2: 0.2\n  p1: 0.01\n  p2: 0.01\n  k3: -0.1\n\northo:\n  crs: EPSG:32633\n  dem_interp: cubic\n  interp: cubic\n  resolution: [ 5., 5. ]\n  compress:\n",
+    )
+    .unwrap();
+    let ori = dir.path().join("camera_pos_ori.txt");
+    std::fs::write(&ori, "img_a 500100.0 4100200.0 700.0 2.5 -1.5 30.0\nimg_b 500000.0 4100000.0 600.0 0.0 0.0 0.0\n").unwrap();
+    let cam = gcm_ortho::scene::camera::read_for(Path::new("img_a.tif"), &config, Some(&ori), Default::default(), None).unwrap_or_else(|e| panic!("{e}"));
+    assert_projects(&cam, &BROWN, "simple-ortho");
+    assert_eq!(cam.crs.epsg(), Some(32633));
+    let set = formats::read(&config, Some(&ori), None).unwrap();
+    let warned: Vec<&String> = set.warnings.iter().filter(|w| w.contains("simple-ortho's run settings")).collect();
+    assert_eq!(warned.len(), 1, "{:?}", set.warnings);
+    assert!(
+        warned[0].contains("ortho.resolution") && warned[0].contains("ortho.interp") && !warned[0].contains("ortho.crs") && !warned[0].contains("compress"),
+        "{}",
+        warned[0]
+    );
+}

@@ -367,7 +367,8 @@ pub struct SensorArgs {
     pub image: PathBuf,
     /// The camera file: ours (TOML; a frame camera, model = "rpc", which
     /// rpc-grid needs, or model = "panoramic"), Orthority's interior
-    /// parameters (YAML), an OpenSfM / OpenDroneMap reconstruction.json or a
+    /// parameters (YAML) or simple-ortho's config.yaml, an OpenSfM /
+    /// OpenDroneMap reconstruction.json or a
     /// Metashape camera export (XML) (lenses and poses), Ames Stereo
     /// Pipeline's OPTICAL_BAR camera (Corona, KH-9 panoramic film), or
     /// "exif": the image's own EXIF/XMP tags. A satellite image gives its

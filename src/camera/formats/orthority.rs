@@ -84,8 +84,14 @@ pub fn looks_like_interior(text: &str) -> bool {
     let is_camera = |v: &Value| {
         v.get("focal_len").is_some() || v.get("type").and_then(Value::as_str).is_some_and(|t| ["pinhole", "brown", "fisheye", "opencv"].contains(&t))
     };
-    is_camera(&Value::Mapping(root.clone())) || (!root.is_empty() && root.values().all(is_camera))
+    is_camera(&Value::Mapping(root.clone())) || root.get(LEGACY_CAMERA).is_some_and(is_camera) || (!root.is_empty() && root.values().all(is_camera))
 }
+
+/// The section of simple-ortho's `config.yaml` (Orthority's forerunner,
+/// still what national archives hand out beside their scans) holding its
+/// one camera; its other sections (`ortho`, …) are that tool's run
+/// settings.
+const LEGACY_CAMERA: &str = "camera";
 
 /// Does this text look like a list of exterior orientations?
 pub fn looks_like_csv(text: &str) -> bool {
@@ -124,11 +130,28 @@ pub fn read_interior(path: &Path, text: &str) -> Result<Imported> {
     let root: Value = parse_yaml(text).map_err(|e| Error::format(path, format!("YAML: {e}")))?;
     let Value::Mapping(map) = root else { return Err(Error::format(path, "expected camera ids, each with its parameters")) };
     let mut set = Imported::default();
-    // The legacy form: one camera's keys at the top (its id under `name`).
+    // The legacy forms: one camera's keys at the top, or under `camera`
+    // beside simple-ortho's run settings (its id under `name`).
     let flat = map.values().next().is_some_and(|v| !v.is_mapping());
+    let legacy = map.get(LEGACY_CAMERA).filter(|c| c.get("type").is_some() || c.get("focal_len").is_some());
+    let named = |m: &Value| m.get("name").and_then(Value::as_str).unwrap_or("unknown").to_string();
     let cameras: Vec<(String, Value)> = if flat {
-        let id = map.get("name").and_then(Value::as_str).unwrap_or("unknown").to_string();
-        vec![(id, Value::Mapping(map.clone()))]
+        vec![(named(&Value::Mapping(map.clone())), Value::Mapping(map.clone()))]
+    } else if let Some(camera) = legacy {
+        // Its CRS of the positions and the orthophoto, where given, is the
+        // poses' (as simple-ortho takes it).
+        let crs = map.get("ortho").and_then(|o| o.get("crs")).filter(|c| !c.is_null());
+        if let Some(c) = crs {
+            let text = match c {
+                Value::String(t) => t.clone(),
+                Value::Number(n) => format!("EPSG:{n}"),
+                _ => return Err(Error::config(path, "ortho.crs", "expected an EPSG code or a WKT or PROJ string")),
+            };
+            set.crs = Some(text);
+            set.crs_from = Some(path.to_path_buf());
+        }
+        set.warnings.extend(legacy_settings_left(path, &map));
+        vec![(named(camera), camera.clone())]
     } else {
         map.iter().map(|(k, v)| (key_text(k), v.clone())).collect()
     };
@@ -138,6 +161,38 @@ pub fn read_interior(path: &Path, text: &str) -> Result<Imported> {
         set.lenses.push((id, lens));
     }
     Ok(set)
+}
+
+/// A warning naming the run settings of a simple-ortho `config.yaml`
+/// that have a value (its `ortho` section's resolution, resampling…; its
+/// CRS is read): they are that tool's, and a run here takes its own
+/// options.
+fn legacy_settings_left(path: &Path, map: &serde_yaml_ng::Mapping) -> Option<String> {
+    let given: Vec<String> = map
+        .iter()
+        .filter(|(k, _)| key_text(k) != LEGACY_CAMERA)
+        .flat_map(|(section, v)| {
+            let section = key_text(section);
+            let settings: Vec<String> = match v {
+                Value::Mapping(m) => m
+                    .iter()
+                    // The CRS is read (above).
+                    .filter(|(k, v)| !(v.is_null() || section == "ortho" && key_text(k) == "crs"))
+                    .map(|(k, _)| format!("{section}.{}", key_text(k)))
+                    .collect(),
+                Value::Null => Vec::new(),
+                _ => vec![section],
+            };
+            settings
+        })
+        .collect();
+    (!given.is_empty()).then(|| {
+        format!(
+            "{}: simple-ortho's run settings are not read, only its camera and CRS ({}): the run's own options decide the grid and resampling",
+            path.display(),
+            given.join(", ")
+        )
+    })
 }
 
 fn key_text(k: &Value) -> String {
