@@ -637,4 +637,21 @@ fn a_simple_ortho_config_and_its_pose_file_project_as_orthority_does() {
         "{}",
         warned[0]
     );
+    // An empty `ortho.crs` (NGI's): the image's own CRS, as the file's
+    // comment says simple-ortho took it; an image without one: refused
+    // naming the CRS.
+    let text = std::fs::read_to_string(&config).unwrap().replace("crs: EPSG:32633", "crs:");
+    std::fs::write(&config, text).unwrap();
+    let image = dir.path().join("img_a.tif");
+    common::f32_raster(&image, (640, 480), (500000.0, 4100500.0, 1.0, 32633), |_, _| 0.0);
+    let cam = gcm_ortho::scene::camera::read_for(&image, &config, Some(&ori), Default::default(), None).unwrap_or_else(|e| panic!("{e}"));
+    assert_projects(&cam, &BROWN, "simple-ortho, the image's CRS");
+    assert_eq!(cam.crs.epsg(), Some(32633));
+    let bare = dir.path().join("img_b.tif");
+    write_blank_tiff(&bare, 640, 480);
+    let err = match gcm_ortho::scene::camera::read_for(&bare, &config, Some(&ori), Default::default(), None) {
+        Ok(_) => panic!("an image without a CRS took one"),
+        Err(e) => e.to_string(),
+    };
+    assert!(err.contains("crs") && err.contains("not given"), "{err}");
 }

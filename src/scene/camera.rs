@@ -43,8 +43,14 @@ pub fn load(model: &ModelSource, image: &Path, origin: &Path, crs: Option<&Crs>)
 pub fn read_for(image: &Path, camera: &Path, poses: Option<&Path>, angles: AngleUnit, crs: Option<&Crs>) -> Result<Camera> {
     let set = formats::read_for_with(image, camera, poses, angles, crs)?;
     let (mut file, found) = crate::fiducials::camera::measured(set.camera_for(image)?, camera, image)?;
+    let crs_text = |c: &Crs| c.epsg().map_or_else(|| c.proj4().to_string(), |e| format!("EPSG:{e}"));
     if let (true, Some(c)) = (file.crs.trim().is_empty(), crs) {
-        file.crs = c.epsg().map_or_else(|| c.proj4().to_string(), |e| format!("EPSG:{e}"));
+        file.crs = crs_text(c);
+    }
+    if file.crs.trim().is_empty() && set.crs_of_image {
+        if let Some(c) = image_crs(image)? {
+            file.crs = crs_text(&c);
+        }
     }
     let origin = if formats::is_exif(camera) { image } else { poses.unwrap_or(camera) };
     let mut cam = file.build(origin)?;
@@ -52,6 +58,13 @@ pub fn read_for(image: &Path, camera: &Path, poses: Option<&Path>, angles: Angle
     cam.warnings.extend(found);
     cam.relative_altitude = set.relative_altitude;
     Ok(cam)
+}
+
+/// The CRS `image`'s GeoTIFF keys name, if any.
+fn image_crs(image: &Path) -> Result<Option<Crs>> {
+    let info = crate::io::source::SourceImage::info_of(image)?;
+    let Some(g) = info.georef else { return Ok(None) };
+    crate::geodesy::geokeys::crs_of(&g.keys).map_err(|m| crate::error::Error::format(image, format!("its GeoTIFF keys: {m}")))
 }
 
 /// What [`read_for`] would refuse, short of finding fiducial marks in the

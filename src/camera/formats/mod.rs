@@ -207,6 +207,9 @@ pub struct Imported {
     pub lens_of_image: Vec<(String, String)>,
     /// Poses the files list, where only those of one image were kept.
     pub listed: usize,
+    /// Where no file gives the poses' CRS, the image's own is theirs
+    /// (simple-ortho's `config.yaml` says so of an empty `ortho.crs`).
+    pub crs_of_image: bool,
 }
 
 /// Whether a pose named `name` may be `image`'s: the same file name, or

@@ -149,6 +149,8 @@ pub fn read_interior(path: &Path, text: &str) -> Result<Imported> {
             };
             set.crs = Some(text);
             set.crs_from = Some(path.to_path_buf());
+        } else {
+            set.crs_of_image = true;
         }
         set.warnings.extend(legacy_settings_left(path, &map));
         vec![(named(camera), camera.clone())]
