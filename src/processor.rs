@@ -5,7 +5,7 @@
 //!
 //! `GCM_ORTHO_KERNELS` (`portable`, `ssse3` or `avx2`) holds the choice
 //! lower, to time one against another with one build: every choice gives
-//! the same bytes.
+//! the same bytes. The run's report names the kernels chosen.
 
 use std::sync::OnceLock;
 
@@ -49,19 +49,23 @@ pub fn best() -> Kernels {
 }
 
 /// The kernels a run uses: [`best`], or lower where `GCM_ORTHO_KERNELS`
-/// says so (a name it does not know is warned of and left aside).
+/// says so (a name it does not know is left aside: [`unknown_choice`]).
 pub fn chosen() -> Kernels {
     static CHOSEN: OnceLock<Kernels> = OnceLock::new();
-    *CHOSEN.get_or_init(|| {
-        let Ok(asked) = std::env::var("GCM_ORTHO_KERNELS") else { return best() };
-        match [Kernels::Portable, Kernels::Ssse3, Kernels::Avx2].into_iter().find(|k| k.name() == asked.trim()) {
-            Some(k) => k.min(best()),
-            None => {
-                eprintln!("warning: GCM_ORTHO_KERNELS={asked:?} is none of portable, ssse3, avx2: left aside");
-                best()
-            }
-        }
-    })
+    *CHOSEN.get_or_init(|| asked().and_then(|a| [Kernels::Portable, Kernels::Ssse3, Kernels::Avx2].into_iter().find(|k| k.name() == a.trim())).map_or(best(), |k| k.min(best())))
+}
+
+/// What `GCM_ORTHO_KERNELS` asks, if set.
+fn asked() -> Option<String> {
+    std::env::var("GCM_ORTHO_KERNELS").ok()
+}
+
+/// A warning for a run's report where `GCM_ORTHO_KERNELS` names no
+/// kernels (the library prints nothing itself).
+pub fn unknown_choice() -> Option<String> {
+    asked()
+        .filter(|a| ![Kernels::Portable, Kernels::Ssse3, Kernels::Avx2].iter().any(|k| k.name() == a.trim()))
+        .map(|a| format!("GCM_ORTHO_KERNELS={a:?} is none of portable, ssse3, avx2: left aside, the {} kernels run", best().name()))
 }
 
 /// A loop to compile for AVX2 too (see [`with_avx2`]): its `run` is

@@ -71,3 +71,35 @@ fn a_folding_fisheye_has_one_answer_at_any_threads() {
     // The answer: such terms are no lens's, said by name.
     assert!(seen.keys().any(|k| k.starts_with("exit Some(1)") && k.contains("fisheye.toml: distortion: ")), "{seen:#?}");
 }
+
+/// The same bytes whatever kernels the processor runs: an RGB drone frame
+/// (the kernels' three bands) with each kernel set `GCM_ORTHO_KERNELS`
+/// asks for, each capped at what this processor has and named in the
+/// report; a name it does not know is warned of and left aside.
+#[test]
+fn every_kernel_set_gives_the_same_bytes() {
+    use gcm_ortho::processor::{best, Kernels};
+    let dir = tempfile::tempdir().unwrap();
+    let sc = drone_scene(dir.path(), (640, 480), 12_000.0);
+    let rectify = |asked: &str| {
+        let (out, json) = (dir.path().join(format!("o_{asked}.tif")), dir.path().join(format!("o_{asked}.json")));
+        let r = std::process::Command::new(bin())
+            .env("GCM_ORTHO_KERNELS", asked)
+            .args(["rectify", "--image", s(&sc.scan), "--camera", s(&sc.camera), "--dem", s(&sc.dem), "--quiet", "-o", s(&out), "--json", s(&json)])
+            .output()
+            .unwrap();
+        assert!(r.status.success(), "{asked}: {}", String::from_utf8_lossy(&r.stderr));
+        let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        (std::fs::read(&out).unwrap(), report, String::from_utf8_lossy(&r.stderr).to_string())
+    };
+    let (want, _, _) = rectify("portable");
+    for (asked, kernels) in [("portable", Kernels::Portable), ("ssse3", Kernels::Ssse3), ("avx2", Kernels::Avx2)] {
+        let (bytes, report, _) = rectify(asked);
+        assert_eq!(report["kernels"], kernels.min(best()).name(), "{asked}");
+        assert!(bytes == want, "{asked}: the output differs from the portable kernels'");
+    }
+    let (bytes, report, said) = rectify("sse9");
+    assert_eq!(report["kernels"], best().name());
+    assert!(said.contains("GCM_ORTHO_KERNELS=\"sse9\"") && said.contains("left aside"), "{said}");
+    assert!(bytes == want);
+}

@@ -30,6 +30,9 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
     if let Some(w) = crate::io::tiff_out::named_as_other_format(&opts.file.path) {
         progress.warn(&w);
     }
+    if let Some(w) = crate::processor::unknown_choice() {
+        progress.warn(&w);
+    }
     opts.validate()?;
     opts.check_outputs(&[])?;
     // The output folder must take a file before any work starts.
@@ -152,6 +155,7 @@ pub fn rectify(opts: &RectifyOptions, progress: &dyn Progress, cancel: &Cancel) 
         input_mb_per_s: src.info.data_bytes() as f64 / 1e6 / wall_s,
         output_mpx_per_s: spec.width as f64 * spec.height as f64 / 1e6 / wall_s,
         peak_rss_mib: progress.peak_memory_mib(),
+        kernels: crate::processor::chosen().name(),
         gcm: gcm_stats,
         accuracy_estimate: estimate,
         error_bound,

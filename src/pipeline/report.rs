@@ -34,6 +34,9 @@ pub struct Report {
     pub input_mb_per_s: f64,
     pub output_mpx_per_s: f64,
     pub peak_rss_mib: Option<f64>,
+    /// The instruction set the run's kernels were chosen for (`avx2`,
+    /// `ssse3`, `portable`): a figure's machine, in its report.
+    pub kernels: &'static str,
     pub gcm: GcmStats,
     /// `|A + c − T|` on a sample of output pixels.
     pub accuracy_estimate: ErrorStats,
