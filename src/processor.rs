@@ -22,6 +22,14 @@ pub enum Kernels {
 }
 
 impl Kernels {
+    /// Every set, lowest first.
+    pub const ALL: [Kernels; 3] = [Kernels::Portable, Kernels::Ssse3, Kernels::Avx2];
+
+    /// The set called `name` (as `GCM_ORTHO_KERNELS` and the report say it).
+    pub fn by_name(name: &str) -> Option<Kernels> {
+        Self::ALL.into_iter().find(|k| k.name() == name.trim())
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Kernels::Portable => "portable",
@@ -52,7 +60,7 @@ pub fn best() -> Kernels {
 /// says so (a name it does not know is left aside: [`unknown_choice`]).
 pub fn chosen() -> Kernels {
     static CHOSEN: OnceLock<Kernels> = OnceLock::new();
-    *CHOSEN.get_or_init(|| asked().and_then(|a| [Kernels::Portable, Kernels::Ssse3, Kernels::Avx2].into_iter().find(|k| k.name() == a.trim())).map_or(best(), |k| k.min(best())))
+    *CHOSEN.get_or_init(|| asked().as_deref().and_then(Kernels::by_name).map_or(best(), |k| k.min(best())))
 }
 
 /// What `GCM_ORTHO_KERNELS` asks, if set.
@@ -63,9 +71,10 @@ fn asked() -> Option<String> {
 /// A warning for a run's report where `GCM_ORTHO_KERNELS` names no
 /// kernels (the library prints nothing itself).
 pub fn unknown_choice() -> Option<String> {
+    let names = Kernels::ALL.map(Kernels::name).join(", ");
     asked()
-        .filter(|a| ![Kernels::Portable, Kernels::Ssse3, Kernels::Avx2].iter().any(|k| k.name() == a.trim()))
-        .map(|a| format!("GCM_ORTHO_KERNELS={a:?} is none of portable, ssse3, avx2: left aside, the {} kernels run", best().name()))
+        .filter(|a| Kernels::by_name(a).is_none())
+        .map(|a| format!("GCM_ORTHO_KERNELS={a:?} is none of {names}: left aside, the {} kernels run", best().name()))
 }
 
 /// A loop to compile for AVX2 too (see [`with_avx2`]): its `run` is

@@ -91,6 +91,12 @@ fn yaml_nested_past_any_camera_file_is_refused_at_once() {
     refused(d, &["--camera", s(&cam)], &["cam.yaml", "as YAML", "nested more than"], &["as TOML"]);
     std::fs::write(&cam, "cam1:\n  type: pinhole\n  im_size: [100, 100\n").unwrap();
     refused(d, &["--camera", s(&cam)], &["cam.yaml", "as YAML"], &["as TOML"]);
+    // A valid simple-ortho config with 3·10⁶ numbers among its settings:
+    // parsed whole it peaked at 610 MiB; refused by its count first.
+    let numbers = vec!["1"; 3_000_000].join(",");
+    let config = format!("camera:\n  type: pinhole\n  im_size: [100, 100]\n  focal_len: 0.6\n  sensor_size: [1.0, 1.0]\northo:\n  junk: [{numbers}]\n");
+    std::fs::write(&cam, config).unwrap();
+    refused(d, &["--camera", s(&cam)], &["cam.yaml", "as YAML", "3000008 items"], &["as TOML"]);
 }
 
 #[test]

@@ -86,7 +86,7 @@ fn names(entry: &str, image: &Path) -> bool {
 }
 
 fn read_geojson(path: &Path, text: &str, image: &Path) -> Result<Vec<Gcp>> {
-    let v: serde_json::Value = serde_json::from_str(text).map_err(|e| Error::format(path, format!("JSON: {e}")))?;
+    let v = crate::camera::formats::json::parse(text).map_err(|e| Error::format(path, format!("JSON: {e}")))?;
     let features = v.get("features").and_then(|f| f.as_array()).ok_or_else(|| Error::config(path, "features", "missing: not a GCP FeatureCollection"))?;
     let mut out = Vec::new();
     for (k, f) in features.iter().enumerate() {

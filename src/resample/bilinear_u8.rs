@@ -230,7 +230,7 @@ mod tests {
             })
             .collect();
         let origin = (5i64, 3i64);
-        let kernels: Vec<Kernels> = [Kernels::Portable, Kernels::Ssse3, Kernels::Avx2].into_iter().filter(|&k| k <= processor::best()).collect();
+        let kernels: Vec<Kernels> = Kernels::ALL.into_iter().filter(|&k| k <= processor::best()).collect();
         if kernels.len() < 3 {
             eprintln!("this processor runs only {kernels:?}: the others not tried");
         }

@@ -21,6 +21,7 @@
 
 pub mod convert;
 pub mod exif;
+pub mod json;
 pub mod metashape;
 pub mod opensfm;
 pub mod orthority;
@@ -247,8 +248,10 @@ const FORMS: &str = "ours in TOML; Orthority's YAML, CSV or GeoJSON; OpenSfM's J
 pub fn detect(path: &Path, text: &str) -> Result<Kind> {
     let t = text.trim_start_matches('\u{feff}').trim_start();
     if t.starts_with('{') || t.starts_with("[\n") || t.starts_with("[ ") || t.starts_with("[{") || t.starts_with("[\r") {
-        if let Ok(v) = serde_json::from_str::<serde_json::Value>(t) {
-            return detect_json(path, &v);
+        match json::parse(t) {
+            Ok(v) => return detect_json(path, &v),
+            Err(json::Problem::TooLarge(m)) => return Err(Error::format(path, m)),
+            Err(json::Problem::Syntax(_)) => {}
         }
     }
     if metashape::looks_like(t) {
@@ -287,7 +290,7 @@ pub fn detect(path: &Path, text: &str) -> Result<Kind> {
         return Err(Error::format(path, format!("not a camera file of a form read here ({FORMS}): as YAML, {why}")));
     }
     if named(&["json", "geojson"]) {
-        if let Err(e) = serde_json::from_str::<serde_json::Value>(t) {
+        if let Err(e) = serde_json::from_str::<serde::de::IgnoredAny>(t) {
             return Err(Error::format(path, format!("not a camera file of a form read here ({FORMS}): as JSON, {e}")));
         }
     }

@@ -27,7 +27,7 @@ use std::path::Path;
 
 /// A `reconstruction.json` or a `cameras.json`.
 pub fn read(path: &Path, text: &str) -> Result<Imported> {
-    let v: Value = serde_json::from_str(text).map_err(|e| Error::format(path, format!("JSON: {e}")))?;
+    let v = super::json::parse(text).map_err(|e| Error::format(path, format!("JSON: {e}")))?;
     let mut set = Imported::default();
     match &v {
         Value::Array(recs) => {

@@ -37,9 +37,20 @@ use std::path::Path;
 /// `[` took minutes before failing.
 const MAX_YAML_DEPTH: usize = 64;
 
+/// How many items (commas and lines) a YAML text may hold: its tree and
+/// the parser's events take some 200 bytes an item (a 6 MB list of
+/// numbers peaked at 610 MiB). A camera file holds tens, an RPC file a
+/// hundred an image.
+const MAX_YAML_ITEMS: usize = 250_000;
+
 /// A YAML text as a tree, refused before parsing where its brackets or
-/// its indentation nest deeper than [`MAX_YAML_DEPTH`].
+/// its indentation nest deeper than [`MAX_YAML_DEPTH`] or it holds more
+/// than [`MAX_YAML_ITEMS`] items.
 pub fn parse_yaml(text: &str) -> std::result::Result<Value, String> {
+    let items = text.bytes().filter(|&b| b == b',' || b == b'\n').count();
+    if items > MAX_YAML_ITEMS {
+        return Err(format!("{items} items (commas and lines): more than the {MAX_YAML_ITEMS} a parameter file could hold"));
+    }
     let (mut depth, mut quote) = (0usize, None);
     for line in text.lines() {
         let indent = line.len() - line.trim_start_matches([' ', '-']).len();
@@ -79,12 +90,13 @@ pub fn looks_like_interior(text: &str) -> bool {
         return false;
     }
     let Ok(Value::Mapping(root)) = parse_yaml(text) else { return false };
-    // An Orthority camera: a `type` of its own or a `focal_len` (the reader
-    // then names what else is missing).
-    let is_camera = |v: &Value| {
-        v.get("focal_len").is_some() || v.get("type").and_then(Value::as_str).is_some_and(|t| ["pinhole", "brown", "fisheye", "opencv"].contains(&t))
-    };
     is_camera(&Value::Mapping(root.clone())) || root.get(LEGACY_CAMERA).is_some_and(is_camera) || (!root.is_empty() && root.values().all(is_camera))
+}
+
+/// An Orthority camera: a `type` of its own or a `focal_len` (the reader
+/// then names what else is missing).
+fn is_camera(v: &Value) -> bool {
+    v.get("focal_len").is_some() || v.get("type").and_then(Value::as_str).is_some_and(|t| ["pinhole", "brown", "fisheye", "opencv"].contains(&t))
 }
 
 /// The section of simple-ortho's `config.yaml` (Orthority's forerunner,
@@ -133,7 +145,7 @@ pub fn read_interior(path: &Path, text: &str) -> Result<Imported> {
     // The legacy forms: one camera's keys at the top, or under `camera`
     // beside simple-ortho's run settings (its id under `name`).
     let flat = map.values().next().is_some_and(|v| !v.is_mapping());
-    let legacy = map.get(LEGACY_CAMERA).filter(|c| c.get("type").is_some() || c.get("focal_len").is_some());
+    let legacy = map.get(LEGACY_CAMERA).filter(|c| is_camera(c));
     let named = |m: &Value| m.get("name").and_then(Value::as_str).unwrap_or("unknown").to_string();
     let cameras: Vec<(String, Value)> = if flat {
         vec![(named(&Value::Mapping(map.clone())), Value::Mapping(map.clone()))]
@@ -503,7 +515,7 @@ pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit, only: Option<&P
 
 /// Orthority's exterior GeoJSON.
 pub fn read_geojson(path: &Path, text: &str) -> Result<Imported> {
-    let v: serde_json::Value = serde_json::from_str(text).map_err(|e| Error::format(path, format!("JSON: {e}")))?;
+    let v = super::json::parse(text).map_err(|e| Error::format(path, format!("JSON: {e}")))?;
     let crs = v.get("world_crs").and_then(|c| c.as_str()).ok_or_else(|| Error::config(path, "world_crs", "missing"))?;
     let features = v.get("features").and_then(|f| f.as_array()).ok_or_else(|| Error::config(path, "features", "missing"))?;
     let mut set = Imported { crs: Some(crs.to_string()), ..Default::default() };
