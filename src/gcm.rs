@@ -136,6 +136,17 @@ pub struct BandGcm {
     pub seen: Option<std::sync::Arc<crate::transform::visibility::Seen>>,
 }
 
+impl BandGcm {
+    /// What the band holds on the heap (node rows, cells, refined cells),
+    /// bytes: the pipeline counts the bands in flight by it.
+    pub fn heap_bytes(&self) -> u64 {
+        let row = |r: &NodeRow| (r.dc.capacity() + r.dr.capacity() + r.z.capacity()) * 8 + (r.tz.capacity() + r.dp.capacity()) * 16;
+        let rows: usize = self.rows.iter().map(row).sum::<usize>() + self.rows.capacity() * std::mem::size_of::<NodeRow>();
+        let cells: usize = self.cells.iter().map(|c| c.capacity() * std::mem::size_of::<Option<u32>>()).sum();
+        (rows + cells + self.quads.capacity() * std::mem::size_of::<Node>()) as u64
+    }
+}
+
 /// The GCM for one output grid.
 pub struct Gcm<'a> {
     pub t: &'a Transform<'a>,

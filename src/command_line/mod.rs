@@ -17,18 +17,25 @@ use clap::Parser;
 /// core, and each keeps what is freed in it: a mosaic's image threads left
 /// some 100 MB freed but resident. Half as many arenas as cores (two at
 /// least) keep the peak near the live heap, at the same speed.
+///
+/// And glibc raises the size it maps a block of memory at on its own to
+/// the largest block freed (up to 32 MB): the buffers of bands and chunks
+/// then come from the arenas, whose holes between them stay resident (the
+/// 1 GB panoramic strip at --memory 128M: 153 MiB peak for 118 MB of
+/// heap). A fixed 1 MiB returns every large block when it is freed (129 MB).
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
-fn few_malloc_arenas() {
+fn tune_malloc() {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    // SAFETY: mallopt only sets one of the allocator's tuning parameters;
-    // it is called before any other thread starts.
+    // SAFETY: mallopt only sets the allocator's tuning parameters; it is
+    // called before any other thread starts.
     unsafe {
         libc::mallopt(libc::M_ARENA_MAX, (cores / 2).max(2) as libc::c_int);
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 1 << 20);
     }
 }
 
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-fn few_malloc_arenas() {}
+fn tune_malloc() {}
 
 /// A usage error in one line, as every other error (clap's own layout is
 /// five: the error, a tip, the usage, a pointer to --help); help and
@@ -75,7 +82,7 @@ fn usage_error(e: clap::Error) -> u8 {
 /// success, 1 bad input or failure, 2 usage, 3 a batch in which some jobs
 /// failed, 130 SIGINT, 143 SIGTERM.
 pub fn run(args: Vec<std::ffi::OsString>) -> u8 {
-    few_malloc_arenas();
+    tune_malloc();
     let cli = match cli::Cli::try_parse_from(&args) {
         Ok(cli) => cli,
         Err(e) => return usage_error(e),

@@ -15,7 +15,9 @@
 //! * the GCM's node rows of the bands in flight, up to three shares (an
 //!   eighth); a spacing the user gives, or the default's DEM-aligned one,
 //!   may take three more from the slack below ([`MemoryBudget::node_limit`]):
-//!   beyond, the default grows to 16 px and a given one is refused;
+//!   beyond, the default grows to 16 px and a given one is refused; the
+//!   bands in flight, node rows and refined cells, are held to five shares
+//!   by their bytes ([`MemoryBudget::bands_in_flight`]);
 //! * what is left (~45 %) covers the GCM rows, the threads, the program and
 //!   the allocator's per-thread arenas (20–30 MB on 1 GiB scans), so that
 //!   the peak resident size stays under the budget.
@@ -71,6 +73,15 @@ impl MemoryBudget {
         4 * rows * across * bytes_per_node
     }
 
+    /// The bands the GCM stage has made and the later stages still hold,
+    /// node rows and refined cells, are kept under this (the sixth share
+    /// of [`MemoryBudget::node_limit`] for the node heights handed on and
+    /// the rows two bands share): refined cells come on top of the node
+    /// rows, and a 1 GB panoramic strip's bands in flight held 50 MB.
+    pub fn bands_in_flight(&self) -> u64 {
+        5 * self.share()
+    }
+
     /// Scan pixels of `pixel_bytes` a chunk's window may hold.
     pub fn window_pixels(&self, pixel_bytes: usize) -> u64 {
         self.share() / pixel_bytes.max(1) as u64
@@ -110,7 +121,7 @@ mod tests {
         assert_eq!(b.chunk_tiles(256 * 256 * 3), 28);
         assert_eq!(b.chunk_tiles(8 << 20), 1);
         assert_eq!((b.in_place_rows(), b.mapped_rows()), (6 * 5_592_405, 8 * 5_592_405));
-        assert_eq!(b.node_limit(), 6 * 5_592_405);
+        assert_eq!((b.node_limit(), b.bands_in_flight()), (6 * 5_592_405, 5 * 5_592_405));
         // A 6743-px-wide output in 256-px bands at spacing 4: 4 bands of
         // 68 rows of 1688 nodes.
         assert_eq!(b.node_rows(4, 256, 6743, 60), 4 * 68 * 1688 * 60);

@@ -18,6 +18,7 @@
 //! The first error anywhere cancels every stage; the output is a temporary
 //! file that is removed unless the whole run succeeds.
 
+mod band_bytes;
 pub mod band_render;
 pub mod band_writer;
 mod budget;

@@ -2,6 +2,7 @@
 //! so that a few bands at most are in flight; resampling on the worker
 //! pool, two chunks at once.
 
+use super::band_bytes::BandBytes;
 use super::context::Run;
 use super::stages::dem::{node_heights, DemMsg};
 use super::stages::encode::{tiles, Tile};
@@ -52,12 +53,15 @@ pub fn run_threaded(run: &Run, out_file: std::fs::File, flush_file: std::fs::Fil
             let rx_dem = rx_dem;
             let mut busy = Duration::ZERO;
             let mut before = SharedRows::default();
+            let mut in_flight = BandBytes::new(run.budget.bands_in_flight());
             for msg in rx_dem.iter() {
                 if run.stop.now() {
                     return Err(Error::Cancelled);
                 }
-                let band = timed(&mut busy, || band_gcm(run, msg, &mut before))?;
-                if tx_gcm.send(Arc::new(band)).is_err() {
+                in_flight.wait_for_room(&run.stop)?;
+                let band = Arc::new(timed(&mut busy, || band_gcm(run, msg, &mut before))?);
+                in_flight.send(&band, band.heap_bytes());
+                if tx_gcm.send(band).is_err() {
                     return Err(Error::Cancelled);
                 }
             }

@@ -168,6 +168,9 @@ pub fn resample_chunk<T: Sample + Recycle>(
     let t = opts.tile as usize;
     let rows = (y1 - y0) as usize;
     let n_tiles = w.div_ceil(t);
+    // Exactly: grown by doubling, the buffers of chunks in flight held up
+    // to twice their share (the panoramic strip's peak 8 MB over).
+    out.reserve_exact((n_tiles * t * t * bo).saturating_sub(out.len()));
     out.resize(n_tiles * t * t * bo, T::default());
     // Made row by row across the whole chunk, so that the kernel walks the
     // scan's rows in long runs (~10 % faster than tile by tile on a 1 GiB
@@ -210,7 +213,9 @@ pub fn resample_chunk<T: Sample + Recycle>(
     // The mask's bytes, cut into the pixels' pieces (none without a mask).
     // (Every byte is written below, as every sample is.)
     let mut mask = if opts.mask { spare_mask.unwrap_or_default() } else { Vec::new() };
-    mask.resize(if opts.mask { n_tiles * t * t } else { 0 }, 0);
+    let mask_len = if opts.mask { n_tiles * t * t } else { 0 };
+    mask.reserve_exact(mask_len.saturating_sub(mask.len()));
+    mask.resize(mask_len, 0);
     let mut mask_pieces: Vec<Vec<&mut [u8]>> = (0..groups).map(|_| Vec::new()).collect();
     for (k, piece) in mask.chunks_exact_mut(piece_len / bo).enumerate() {
         mask_pieces[k % groups].push(piece);
