@@ -274,3 +274,33 @@ fn absurd_values_are_blamed_on_their_input_not_on_the_dem() {
         refused(d, &["--camera", s(&d.join(name))], &[name, "exterior.position", "1e3"], &["dem.tif"]);
     }
 }
+
+/// A CRS file is an input wherever it is named (`--crs`, a camera file's
+/// `crs`): no output is written over it (it was: `-o c.prj` made it a
+/// TIFF, exit 0).
+#[test]
+fn no_output_is_written_over_a_crs_file_the_run_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = mini(d);
+    let prj = d.join("c.prj");
+    std::fs::write(&prj, "EPSG:32631\n").unwrap();
+    let cam = d.join("cam.toml");
+    std::fs::write(&cam, std::fs::read_to_string(&camera).unwrap().replace("crs = \"EPSG:32631\"", "crs = \"c.prj\"")).unwrap();
+    let base = ["rectify", "--image", s(&scan), "--dem", s(&dem), "--quiet"];
+    for extra in [
+        vec!["--camera", s(&camera), "--crs", s(&prj), "-o", s(&prj)],
+        vec!["--camera", s(&camera), "--crs", s(&prj), "-o", "o.tif", "--json", s(&prj)],
+        vec!["--camera", s(&cam), "-o", s(&prj)],
+    ] {
+        let r = std::process::Command::new(bin()).current_dir(d).args(base).args(&extra).output().unwrap();
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{extra:?}: {err}");
+        assert!(err.contains("c.prj") && err.contains("refusing to write over an input"), "{extra:?}: {err}");
+        assert_eq!(std::fs::read_to_string(&prj).unwrap(), "EPSG:32631\n", "{extra:?}");
+        assert!(files_containing(d, "gcm-partial").is_empty() && !d.join("o.tif").exists(), "{extra:?}");
+    }
+    // The same run to another name works.
+    let r = std::process::Command::new(bin()).current_dir(d).args(base).args(["--camera", s(&cam), "-o", "o.tif"]).output().unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+}

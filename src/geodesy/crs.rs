@@ -111,6 +111,7 @@ impl Crs {
         if looks_like_file(t) {
             let path = dir.join(t);
             let inner = crate::io::bounded_read::read_text_bounded(&path, "CRS file", 1 << 20).map_err(|e| e.to_string())?;
+            crate::io::overwrite::note_read("CRS file", &path);
             return Crs::parse_text(inner.trim_start_matches('\u{feff}').trim(), false).map_err(|m| format!("{}: {m}", path.display()));
         }
         Crs::parse_text(t, true)

@@ -99,6 +99,39 @@ pub fn check_outputs(inputs: &[Role], outputs: &[Role]) -> Result<()> {
     Ok(())
 }
 
+/// Files read as a part of another input or of an option's value (a CRS
+/// file named by `--crs`, a camera file's `crs`, a batch job's): not named
+/// among a command's inputs, so checked where an output is made and
+/// published. Device and inode, and the path to say.
+static READ_WITHIN: std::sync::Mutex<Vec<(u64, u64, PathBuf, &'static str)>> = std::sync::Mutex::new(Vec::new());
+
+/// Notes `path`, `what` it is (`CRS file`), as read by this process (kept
+/// for the process's life: the last 4096).
+pub fn note_read(what: &'static str, path: &Path) {
+    let Ok(m) = std::fs::metadata(path) else { return };
+    let mut read = READ_WITHIN.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    if !read.iter().any(|(d, i, ..)| (*d, *i) == (m.dev(), m.ino())) {
+        if read.len() >= 4096 {
+            read.remove(0);
+        }
+        read.push((m.dev(), m.ino(), path.to_path_buf(), what));
+    }
+}
+
+/// Refuses an output `target` that is a file noted by [`note_read`].
+pub fn check_not_read(what: &str, target: &Path) -> Result<()> {
+    let Ok(m) = std::fs::metadata(target) else { return Ok(()) };
+    let read = READ_WITHIN.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    match read.iter().find(|(d, i, ..)| (*d, *i) == (m.dev(), m.ino())) {
+        Some((_, _, input, kind)) => Err(Error::Usage(format!(
+            "the {what} {} is the {kind} {} this run read: refusing to write over an input",
+            target.display(),
+            input.display()
+        ))),
+        None => Ok(()),
+    }
+}
+
 /// What an existing output path is, where it is not a plain file (a
 /// symbolic link followed): `/dev/null`, a named pipe.
 pub fn special_kind(path: &Path) -> Option<&'static str> {
@@ -144,6 +177,7 @@ pub fn check_writable(out: Role) -> Result<()> {
         }
         return Err(not_a_file(out, kind));
     }
+    check_not_read(out.what, out.path)?;
     let linked;
     let path = match std::fs::symlink_metadata(out.path) {
         Ok(m) if m.file_type().is_symlink() => match std::fs::canonicalize(out.path) {

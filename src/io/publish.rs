@@ -149,6 +149,7 @@ impl PendingFile {
         if let Some(kind) = crate::io::overwrite::special_kind(target) {
             return Err(crate::io::overwrite::not_a_file(crate::io::overwrite::Role::new("output", target), kind));
         }
+        crate::io::overwrite::check_not_read("output", target)?;
         // A symbolic link is written through: the file it names is the
         // one replaced, the link stays.
         let resolved = match std::fs::symlink_metadata(target) {
@@ -192,6 +193,8 @@ impl PendingFile {
             f.sync_all().map_err(|e| Error::io(&self.target, e))?;
         }
         let target = self.target.clone();
+        // Read since the file was made (a CRS file inside a camera file).
+        crate::io::overwrite::check_not_read("output", &target)?;
         let tmp = self.tmp.take().expect("not yet published");
         let tmp_path = tmp.path().to_path_buf();
         crate::io::mmap_guard::unregister_cleanup(&tmp_path);
