@@ -411,7 +411,7 @@ fn bad_points_are_refused_naming_the_file_and_leaving_no_dem() {
         ("nan.csv", "EPSG:32631", "line 3"),
         ("degrees.csv", "EPSG:32631", "look like longitudes and latitudes"),
         ("nocrs.csv", "", "give --crs"),
-        ("header.csv", "EPSG:32631", "names no x, y and z"),
+        ("header.csv", "EPSG:32631", "nor a header naming x, y and z columns"),
         ("far.csv", "EPSG:32631", "that is no grid"),
         ("high.csv", "EPSG:32631", "line 3: the height 1e300 is past any terrain"),
         ("huge.las", "EPSG:32631", "more than the file"),

@@ -261,7 +261,7 @@ fn files_that_are_not_images_we_read_are_refused_saying_what_they_are() {
     let sc = drone(&d.join("scene"), 3, 8);
     for (name, bytes, found) in [
         ("a.gif", b"GIF89a\x01\x00\x01\x00".to_vec(), "a GIF"),
-        ("a.vrt", b"<VRTDataset rasterXSize=\"10\">".to_vec(), "text beginning"),
+        ("a.vrt", b"<VRTDataset rasterXSize=\"10\">".to_vec(), "XML or HTML text"),
         ("empty.tif", Vec::new(), "an empty file"),
         ("noise.tif", vec![0x13, 0x37, 0, 1, 2, 3, 4, 5, 6, 7], "first bytes 13 37"),
     ] {

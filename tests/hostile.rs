@@ -304,3 +304,32 @@ fn no_output_is_written_over_a_crs_file_the_run_read() {
     let r = std::process::Command::new(bin()).current_dir(d).args(base).args(["--camera", s(&cam), "-o", "o.tif"]).output().unwrap();
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
 }
+
+/// A file given where points or an image go is read only as far as it
+/// shows itself one: a password file's lines are never quoted (grid
+/// quoted its first line, or its second with --columns; rectify the first
+/// 16 bytes).
+#[test]
+fn a_text_file_given_as_points_or_image_is_never_quoted() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (_, camera, dem) = mini(d);
+    let secret = secret(d);
+    let out = d.join("o.tif");
+    let runs: [Vec<&str>; 4] = [
+        vec!["grid", s(&secret), "--gsd", "10", "--crs", "EPSG:32631", "-o", s(&out)],
+        vec!["grid", s(&secret), "--gsd", "10", "--crs", "EPSG:32631", "--columns", "1,2,3", "-o", s(&out)],
+        vec!["rectify", "--image", s(&secret), "--camera", s(&camera), "--dem", s(&dem), "-o", s(&out)],
+        vec!["assemble", s(&secret), "-o", s(&out)],
+    ];
+    for args in runs {
+        let r = std::process::Command::new(bin()).args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(matches!(r.status.code(), Some(1 | 2)), "{args:?}: {err}");
+        assert!(err.contains("secret.txt"), "{args:?}: {err}");
+        for never in ["hunter2", "secret line", "second:x"] {
+            assert!(!err.contains(never), "{args:?} quoted the file: {err}");
+        }
+        assert!(!out.exists(), "{args:?}");
+    }
+}

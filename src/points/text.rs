@@ -48,7 +48,13 @@ fn resolve(path: &Path, header: Option<&[&str]>, columns: &Columns) -> Result<[u
                 (Some(x), Some(y), Some(z)) => Ok([x, y, z]),
                 _ => Err(Error::Format {
                     path: path.into(),
-                    msg: format!("the header ({}) names no x, y and z columns: name them (x/easting, y/northing, z/height) or give ‹columns›", h.join(", ")),
+                    // Not quoted: a file that is no list of points at all
+                    // (a password file given by mistake) is never shown.
+                    msg: format!(
+                        "its first line ({} field{}) is neither three numbers nor a header naming x, y and z columns: name them (x/easting, y/northing, z/height) or give ‹columns›",
+                        h.len(),
+                        if h.len() == 1 { "" } else { "s" }
+                    ),
                 }),
             },
         },
@@ -61,7 +67,7 @@ fn resolve(path: &Path, header: Option<&[&str]>, columns: &Columns) -> Result<[u
                     Err(_) => named(&[name.as_str()]).ok_or_else(|| Error::Format {
                         path: path.into(),
                         msg: match header {
-                            Some(h) => format!("no column '{name}' in the header ({})", h.join(", ")),
+                            Some(h) => format!("no column '{name}' among the header's {} fields", h.len()),
                             None => format!("no header to find column '{name}' in: give the columns by number"),
                         },
                     })?,
@@ -119,7 +125,12 @@ pub fn read(path: &Path, columns: &Columns, cancel: &Cancel, each: &mut dyn FnMu
         let mut v = [0.0; 3];
         for (k, &c) in cols.iter().enumerate() {
             let field = f.get(c).ok_or_else(|| bad(line_no, format!("{} fields, column {} asked for", f.len(), c + 1)))?;
-            v[k] = field.parse::<f64>().map_err(|_| bad(line_no, format!("'{}' is not a number", field.chars().take(40).collect::<String>())))?;
+            // Quoted once the file has shown itself a list of points.
+            let what = ["x", "y", "the height"][k];
+            v[k] = field.parse::<f64>().map_err(|_| match count {
+                0 => bad(line_no, format!("{what} (field {}) is not a number", c + 1)),
+                _ => bad(line_no, format!("{what} '{}' is not a number", field.chars().take(40).collect::<String>())),
+            })?;
             if !v[k].is_finite() {
                 return Err(bad(line_no, format!("{} is {}", ["x", "y", "the height"][k], field)));
             }

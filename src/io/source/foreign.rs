@@ -53,7 +53,8 @@ impl ImageFormat {
         } else if starts(b"EHFA_HEADER_TAG") {
             "an ERDAS Imagine file (convert it with gdal_translate -of GTiff)".into()
         } else if head.iter().all(|&b| b == b'\t' || b == b'\n' || b == b'\r' || (0x20..0x7F).contains(&b)) {
-            format!("text beginning {:?}", String::from_utf8_lossy(head))
+            // Never quoted: it may be any file at all (a password file).
+            if head.first() == Some(&b'<') { "XML or HTML text".to_string() } else { "text".to_string() }
         } else {
             format!("first bytes {}", head.iter().take(8).map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(" "))
         };
