@@ -333,3 +333,28 @@ fn a_text_file_given_as_points_or_image_is_never_quoted() {
         assert!(!out.exists(), "{args:?}");
     }
 }
+
+/// `nan` and `inf` are no values for a number: each refused naming its
+/// option (they became the default on their way to the run: `grid
+/// --power=nan` ran as power 2, `rectify --height nan` blamed the DEM).
+#[test]
+fn nan_and_inf_are_refused_by_the_option_that_took_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, _) = mini(d);
+    let out = d.join("o.tif");
+    let runs: [(Vec<&str>, &str); 4] = [
+        (vec!["grid", "p.csv", "--method", "idw", "--power=nan", "-o", s(&out)], "--power"),
+        (vec!["grid", "p.csv", "--max-edge=-inf", "-o", s(&out)], "--max-edge"),
+        (vec!["rectify", "--image", s(&scan), "--camera", s(&camera), "--height", "nan", "-o", s(&out)], "--height"),
+        (vec!["dem", "--left", "l.tif", "--right", "r.tif", "--min-correlation", "inf", "-o", s(&out)], "--min-correlation"),
+    ];
+    for (args, flag) in runs {
+        let r = std::process::Command::new(bin()).current_dir(d).args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(flag) && err.contains("not a finite number"), "{args:?}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(!out.exists());
+    }
+}

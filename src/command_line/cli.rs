@@ -42,6 +42,23 @@ pub fn keys_of(args: &impl serde::Serialize) -> Result<serde_json::Map<String, s
     }
 }
 
+/// A number that is one: clap takes `nan` and `inf` as numbers, which
+/// became null, the key's default, on their way through the keys
+/// (`grid --power=nan` ran as power 2).
+fn finite_f64(s: &str) -> std::result::Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(v) => Err(format!("{v} is not a finite number")),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// [`finite_f64`] for the settings kept as `f32`.
+fn finite_f32(s: &str) -> std::result::Result<f32, String> {
+    let v = finite_f64(s)?;
+    Some(v as f32).filter(|f| f.is_finite()).ok_or_else(|| format!("{v} is past the range of this setting"))
+}
+
 /// A choice said by its name, as its key takes it.
 fn by_name<T: Choice + PartialEq, S: serde::Serializer>(v: &T, s: S) -> std::result::Result<S::Ok, S::Error> {
     s.serialize_str(T::NAMES.iter().copied().find(|n| T::from_name(n).as_ref() == Some(v)).unwrap_or_default())
@@ -179,7 +196,7 @@ pub struct DemArgs {
     pub window: usize,
     /// Keep a match whose correlation reaches this (default: 0.5 for sgm;
     /// for ncc the window's threshold, 0.5 + 2.5/side)
-    #[arg(long)]
+    #[arg(value_parser = finite_f32, long)]
     pub min_correlation: Option<f32>,
     /// Also write the matched points (LAS) here
     #[arg(long)]
@@ -250,13 +267,13 @@ pub struct GridArgs {
     /// The longest triangle side gridded across (tin, natural): cells in
     /// larger gaps get no height (default: ten times the points' typical
     /// spacing, at least four cells)
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(value_parser = finite_f64, long, allow_negative_numbers = true)]
     pub max_edge: Option<f64>,
     /// Points within this distance count (idw, nearest; default: --max-edge's)
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(value_parser = finite_f64, long, allow_negative_numbers = true)]
     pub radius: Option<f64>,
     /// Inverse distance's power (idw)
-    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
+    #[arg(value_parser = finite_f64, long, default_value_t = 2.0, allow_negative_numbers = true)]
     pub power: f64,
     /// At most this many nearest points (idw; default: all within --radius)
     #[arg(long)]
@@ -328,7 +345,7 @@ pub struct FiducialsArgs {
     #[arg(long)]
     pub shape: Option<String>,
     /// The mark's overall size, mm (a cross's arm to arm, a ring's diameter).
-    #[arg(long)]
+    #[arg(value_parser = finite_f64, long)]
     pub size_mm: Option<f64>,
     /// The marks' tone on the film: light, dark, or auto (found).
     #[arg(long, value_parser = choice::<crate::fiducials::Polarity>())]
@@ -340,11 +357,11 @@ pub struct FiducialsArgs {
     pub turn: Option<String>,
     /// The scanner's pixel size, mm (default: the camera file's
     /// scan_pixel_mm, the scan's resolution tags, else found).
-    #[arg(long)]
+    #[arg(value_parser = finite_f64, long)]
     pub scan_pixel_mm: Option<f64>,
     /// The most a mark may sit off the fitted interior orientation, px
     /// (default: the camera file's max_fiducial_residual_px, else 1).
-    #[arg(long)]
+    #[arg(value_parser = finite_f64, long)]
     pub max_residual_px: Option<f64>,
     /// Write the camera file with the marks found (fiducials_px) here; the
     /// rest of it as it was.
@@ -441,7 +458,7 @@ pub struct RpcGridArgs {
     pub dem: Option<PathBuf>,
     /// A constant height instead of a DEM (metres; with --geoid above the
     /// geoid): the grid of an RPC without a DEM of its place.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(value_parser = finite_f64, long, allow_negative_numbers = true)]
     pub height: Option<f64>,
     /// Grid step, image pixels.
     #[arg(long, default_value_t = 8)]
@@ -682,7 +699,7 @@ pub struct MosaicArgs {
     pub seams: Option<String>,
     /// Width of the blend across a seam, pixels (0: a sharp cut; never
     /// across a height edge of the DSM)
-    #[arg(long, default_value_t = 8.0, allow_hyphen_values = true)]
+    #[arg(value_parser = finite_f64, long, default_value_t = 8.0, allow_hyphen_values = true)]
     pub blend: f64,
     /// Write the seamlines here as GeoJSON (one polygon per image)
     #[arg(long)]
@@ -737,10 +754,10 @@ pub struct SynthArgs {
     #[arg(long, default_value = "film", value_parser = choice::<CameraKind>())]
     pub camera: CameraKind,
     /// Off-nadir angle of an RPC (satellite) scene, degrees: 2 to 35.
-    #[arg(long, default_value_t = 25.0)]
+    #[arg(value_parser = finite_f64, long, default_value_t = 25.0)]
     pub off_nadir: f64,
     /// Swing of the camera, degrees.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(value_parser = finite_f64, long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub kappa: f64,
     /// The scan file's layout
     #[arg(long, default_value = "strips", value_parser = ["strips", "tiles"])]
@@ -749,16 +766,16 @@ pub struct SynthArgs {
     #[arg(long, default_value = "none", value_parser = PossibleValuesParser::new(["none", "deflate", "lzw"]).map(|s| Compression::from_name(&s).expect("a listed name")))]
     pub compress: Compression,
     /// DEM posting, metres.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(value_parser = finite_f64, long, default_value_t = 5.0)]
     pub dem_posting: f64,
     /// Photo scale denominator.
-    #[arg(long, default_value_t = 10000.0)]
+    #[arg(value_parser = finite_f64, long, default_value_t = 10000.0)]
     pub scale: f64,
     /// Fiducial marks on film: 4 (corners) or 8.
     #[arg(long, default_value_t = 4)]
     pub fiducials: u32,
     /// Film image frame, mm: 230 (23 × 23 cm) or 180 (18 × 18 cm).
-    #[arg(long, default_value_t = 230.0)]
+    #[arg(value_parser = finite_f64, long, default_value_t = 230.0)]
     pub frame: f64,
     /// Seed of the scene's texture and relief: the same seed, the same files
     #[arg(long, default_value_t = 1)]
@@ -780,7 +797,7 @@ pub struct SynthArgs {
     /// RPC views (--camera rpc: left.tif, right.tif, their _RPC.TXT) or a
     /// panoramic fore/aft pair (--camera panoramic: left/right .tif, .toml,
     /// .tsai), and the true heights (dem.tif)
-    #[arg(long, conflicts_with = "block")]
+    #[arg(value_parser = finite_f64, long, conflicts_with = "block")]
     pub stereo: Option<f64>,
     /// Only points for `grid`: this many at random on rolling hills with a
     /// town of boxes, written as --out/points.las (points.laz with --laz,
@@ -791,7 +808,7 @@ pub struct SynthArgs {
     #[arg(long, conflicts_with = "laz")]
     pub csv: bool,
     /// Points a square metre (with --points)
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(value_parser = finite_f64, long, default_value_t = 1.0)]
     pub points_density: f64,
     /// Write the points as LAZ (with --points)
     #[arg(long)]
@@ -803,7 +820,7 @@ pub struct SynthArgs {
     #[arg(long)]
     pub negative: bool,
     /// Film: its small turn on the scanner, degrees.
-    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
+    #[arg(value_parser = finite_f64, long, default_value_t = 0.3, allow_negative_numbers = true)]
     pub scan_turn: f64,
     /// Film: quarter turns counter-clockwise on the scanner (0–3).
     #[arg(long, default_value_t = 0)]
@@ -818,7 +835,7 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 0)]
     pub hide_mark: u32,
     /// Film: grain, the margin's random spread of tone (0 to 1).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(value_parser = finite_f64, long, default_value_t = 0.0)]
     pub grain: f64,
     /// Film: only the scan's marks and margin (a plain texture inside) and
     /// the camera file, no terrain: for trying `fiducials`.
@@ -905,7 +922,7 @@ pub struct RectifyArgs {
     pub gcp_refine: Option<BiasModel>,
     /// The most any GCP may sit off the refined model, image pixels: past
     /// it the fit is refused. [default: 2]
-    #[arg(long, requires = "gcps")]
+    #[arg(value_parser = finite_f64, long, requires = "gcps")]
     pub gcp_max_residual: Option<f64>,
     /// DEM: a GeoTIFF, an SRTM .hgt, a GDAL VRT, or a folder or list of
     /// tiles; in the orthophoto's CRS or any other (it is then reprojected
@@ -913,7 +930,7 @@ pub struct RectifyArgs {
     #[arg(long, conflicts_with = "height")]
     pub dem: Option<PathBuf>,
     /// A constant terrain height instead of a DEM, metres.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(value_parser = finite_f64, long, allow_negative_numbers = true)]
     pub height: Option<f64>,
     /// What to do in DEM holes: error, nodata, or a height.
     #[arg(long, default_value = "error", allow_negative_numbers = true)]
@@ -1064,13 +1081,13 @@ pub struct AccuracyArgs {
     #[arg(long, default_value = "1,2,4,8,16,32", value_delimiter = ',')]
     pub sparsity: Vec<u32>,
     /// Error bounds to tabulate (bilinear, at the largest sparsity).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(value_parser = finite_f64, long, value_delimiter = ',')]
     pub max_error: Vec<f64>,
     /// The terrain plane of the approximation A: the DEM's trend plane, or its mean height
     #[arg(long, default_value = "plane", value_parser = choice::<Trend>())]
     pub trend: Trend,
     /// Count only pixels where the terrain is at most this steep (degrees).
-    #[arg(long)]
+    #[arg(value_parser = finite_f64, long)]
     pub max_slope: Option<f64>,
     /// Evaluate every Nth row and column (1: all pixels).
     #[arg(long, default_value_t = 1)]
