@@ -97,6 +97,10 @@ fn yaml_nested_past_any_camera_file_is_refused_at_once() {
     let config = format!("camera:\n  type: pinhole\n  im_size: [100, 100]\n  focal_len: 0.6\n  sensor_size: [1.0, 1.0]\northo:\n  junk: [{numbers}]\n");
     std::fs::write(&cam, config).unwrap();
     refused(d, &["--camera", s(&cam)], &["cam.yaml", "as YAML", "3000008 items"], &["as TOML"]);
+    // One camera and 20,000 aliases of it: each a copy in the tree.
+    let aliases: String = (0..20_000).map(|i| format!("c{i}: *x\n")).collect();
+    std::fs::write(&cam, format!("x: &x {{type: pinhole, im_size: [640, 480], focal_len: 0.8}}\n{aliases}")).unwrap();
+    refused(d, &["--camera", s(&cam)], &["cam.yaml", "as YAML", "more than 1000 aliases"], &["as TOML"]);
 }
 
 #[test]

@@ -37,6 +37,11 @@ use std::path::Path;
 /// `[` took minutes before failing.
 const MAX_YAML_DEPTH: usize = 64;
 
+/// How many aliases (`*name`) a YAML text may hold: each is a copy of
+/// what its anchor names in the tree (200,000 aliases of one camera in a
+/// 2.3 MB file took 489 MB). A camera file needs a few at most.
+const MAX_YAML_ALIASES: usize = 1000;
+
 /// How many items (commas and lines) a YAML text may hold: its tree and
 /// the parser's events take some 200 bytes an item (a 6 MB list of
 /// numbers peaked at 610 MiB). A camera file holds tens, an RPC file a
@@ -51,7 +56,7 @@ pub fn parse_yaml(text: &str) -> std::result::Result<Value, String> {
     if items > MAX_YAML_ITEMS {
         return Err(format!("{items} items (commas and lines): more than the {MAX_YAML_ITEMS} a parameter file could hold"));
     }
-    let (mut depth, mut quote) = (0usize, None);
+    let (mut depth, mut quote, mut aliases) = (0usize, None, 0usize);
     for line in text.lines() {
         let indent = line.len() - line.trim_start_matches([' ', '-']).len();
         if indent / 2 > MAX_YAML_DEPTH * 2 {
@@ -69,6 +74,12 @@ pub fn parse_yaml(text: &str) -> std::result::Result<Value, String> {
                     }
                 }
                 (']' | '}', None) => depth = depth.saturating_sub(1),
+                ('*', None) => {
+                    aliases += 1;
+                    if aliases > MAX_YAML_ALIASES {
+                        return Err(format!("more than {MAX_YAML_ALIASES} aliases (*name): no camera or RPC file holds so many"));
+                    }
+                }
                 _ => {}
             }
         }
