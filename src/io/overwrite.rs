@@ -102,19 +102,27 @@ pub fn check_outputs(inputs: &[Role], outputs: &[Role]) -> Result<()> {
 /// Files read as a part of another input or of an option's value (a CRS
 /// file named by `--crs`, a camera file's `crs`, a batch job's): not named
 /// among a command's inputs, so checked where an output is made and
-/// published. Device and inode, and the path to say.
-static READ_WITHIN: std::sync::Mutex<Vec<(u64, u64, PathBuf, &'static str)>> = std::sync::Mutex::new(Vec::new());
+/// published. By device, inode and change time (an inode freed is given
+/// to the next file made: a test's temporary folder gone, another's
+/// output took its CRS file's number), with the path and kind to say.
+static READ_WITHIN: std::sync::Mutex<Vec<(ReadFile, PathBuf, &'static str)>> = std::sync::Mutex::new(Vec::new());
+
+type ReadFile = (u64, u64, i64, i64);
+
+fn read_file(m: &std::fs::Metadata) -> ReadFile {
+    (m.dev(), m.ino(), m.ctime(), m.ctime_nsec())
+}
 
 /// Notes `path`, `what` it is (`CRS file`), as read by this process (kept
 /// for the process's life: the last 4096).
 pub fn note_read(what: &'static str, path: &Path) {
     let Ok(m) = std::fs::metadata(path) else { return };
     let mut read = READ_WITHIN.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    if !read.iter().any(|(d, i, ..)| (*d, *i) == (m.dev(), m.ino())) {
+    if !read.iter().any(|(f, ..)| *f == read_file(&m)) {
         if read.len() >= 4096 {
             read.remove(0);
         }
-        read.push((m.dev(), m.ino(), path.to_path_buf(), what));
+        read.push((read_file(&m), path.to_path_buf(), what));
     }
 }
 
@@ -122,8 +130,8 @@ pub fn note_read(what: &'static str, path: &Path) {
 pub fn check_not_read(what: &str, target: &Path) -> Result<()> {
     let Ok(m) = std::fs::metadata(target) else { return Ok(()) };
     let read = READ_WITHIN.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    match read.iter().find(|(d, i, ..)| (*d, *i) == (m.dev(), m.ino())) {
-        Some((_, _, input, kind)) => Err(Error::Usage(format!(
+    match read.iter().find(|(f, ..)| *f == read_file(&m)) {
+        Some((_, input, kind)) => Err(Error::Usage(format!(
             "the {what} {} is the {kind} {} this run read: refusing to write over an input",
             target.display(),
             input.display()
