@@ -362,3 +362,31 @@ fn nan_and_inf_are_refused_by_the_option_that_took_them() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn synth_settings_past_any_scene_are_refused_by_name_and_leave_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir(d.join("mine")).unwrap();
+    std::fs::write(d.join("mine/notes.txt"), "kept").unwrap();
+    let runs: [(&[&str], &str); 6] = [
+        (&["--points", "99999999999999999"], "--points"),
+        (&["--size", "200x200", "--dem-posting", "1e-9"], "--dem-posting"),
+        (&["--dust", "999999999"], "--dust"),
+        (&["--size", "99999999x99999999"], "--size"),
+        (&["--scale", "1e12"], "--scale"),
+        // Low enough that the hills reach the camera: found once the relief is made.
+        (&["--size", "256x256", "--relief", "hilly", "--scale", "200"], "--scale"),
+    ];
+    for (args, flag) in runs {
+        for out in ["fresh/scene", "mine"] {
+            let r = std::process::Command::new(bin()).current_dir(d).args(["synth", "--out", out]).args(args).output().unwrap();
+            let err = String::from_utf8_lossy(&r.stderr);
+            assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+            assert!(err.starts_with(&format!("gcm-ortho: error: {flag}:")), "{args:?}: {err}");
+            assert!(!d.join("fresh").exists(), "{args:?}");
+            let left: Vec<_> = std::fs::read_dir(d.join("mine")).unwrap().map(|e| e.unwrap().file_name()).collect();
+            assert_eq!(left, ["notes.txt"], "{args:?}");
+        }
+    }
+}

@@ -505,6 +505,15 @@ fn usage(msg: String) -> anyhow::Error {
 }
 
 fn run_synth(a: &SynthArgs) -> Result<()> {
+    let before = crate::synth::leftovers::Leftovers::before(&a.out);
+    let made = make_synth(a);
+    if made.is_err() {
+        before.remove();
+    }
+    made
+}
+
+fn make_synth(a: &SynthArgs) -> Result<()> {
     let t = std::time::Instant::now();
     if let Some(n) = a.points {
         std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot make the folder", a.out.display()))?;

@@ -56,7 +56,7 @@ pub fn synth_block(o: &SynthOptions, cols: u32, rows: u32, progress: &dyn Progre
     let (mx, my) = (pos0[0] + (cols - 1) as f64 * step_x / 2.0, pos0[1] - (rows - 1) as f64 * step_y / 2.0);
     let half = ((cols - 1) as f64 * step_x + fw).max((rows - 1) as f64 * step_y + fh) / 2.0 + 0.5 * fw.max(fh) + 100.0;
     let flying = pos0[2] - BASE_HEIGHT;
-    let grid_dem = relief(o, mx, my, half, flying);
+    let grid_dem = relief(o, mx, my, half, flying)?;
     let dem_path = o.out.join("dem.tif");
     write_dem(&dem_path, &grid_dem)?;
     let dem = Dem::grid(grid_dem, &dem_path);

@@ -7,6 +7,7 @@
 
 pub mod block;
 pub mod film_marks;
+pub mod leftovers;
 pub mod noise;
 pub mod panoramic;
 pub mod points;
@@ -168,11 +169,25 @@ const BASE_HEIGHT: f64 = 300.0;
 const EPSG: u32 = 32631;
 const ORIGIN: (f64, f64) = (650_000.0, 4_890_000.0);
 
+/// The most samples a scene's DEM may have (held in memory as it is made:
+/// 12 bytes a sample).
+const MAX_DEM_SAMPLES: u128 = 200_000_000;
+
+/// The most pixels a scan may have, and the longest side.
+const MAX_SCAN_PIXELS: u64 = 20_000_000_000;
+const MAX_SCAN_SIDE: u32 = 1_000_000;
+
 /// Settings that make no scene, refused by their flag.
 pub fn check(o: &SynthOptions) -> Result<()> {
     let bad = |setting: &'static str, m: String| Err(Error::setting(setting, m));
     if o.width < 64 || o.height < 64 {
         return bad("size", format!("{}x{} is too small (64×64 at least)", o.width, o.height));
+    }
+    if o.width.max(o.height) > MAX_SCAN_SIDE || o.width as u64 * o.height as u64 > MAX_SCAN_PIXELS {
+        return bad("size", format!("{}x{} is past what a scene is made for ({MAX_SCAN_SIDE} px a side, {MAX_SCAN_PIXELS} px)", o.width, o.height));
+    }
+    if o.marks.dust > 100_000 {
+        return bad("dust", format!("{} specks: 100000 at most", o.marks.dust));
     }
     if !(1..=4).contains(&o.bands) {
         return bad("bands", format!("{} is not 1 to 4", o.bands));
@@ -182,6 +197,21 @@ pub fn check(o: &SynthOptions) -> Result<()> {
     }
     if !(o.dem_posting > 0.0) || !(o.scale > 0.0) {
         return bad(if o.dem_posting > 0.0 { "scale" } else { "dem_posting" }, "must be positive".into());
+    }
+    // Higher, no camera flies; lower, no DEM posting resolves the ground
+    // (the relief is checked against the camera once it is made).
+    let focal = match o.camera {
+        CameraKind::Film => Some(FILM_FOCAL),
+        CameraKind::Digital => Some(DIGITAL_FOCAL),
+        CameraKind::Drone => Some(DRONE_FOCAL),
+        CameraKind::Rpc | CameraKind::Panoramic => None,
+    };
+    if let Some(f) = focal {
+        let flying = f * o.scale / 1000.0;
+        if !(20.0..=100_000.0).contains(&flying) {
+            let height = if flying < 1e6 { format!("{flying:.1}") } else { format!("{flying:.2e}") };
+            return bad("scale", format!("1:{} flies a {f} mm camera {height} m above the ground: 20 m to 100 km", o.scale));
+        }
     }
     if o.frame_mm != 230.0 && o.frame_mm != 180.0 {
         return bad("frame", format!("{} mm is not 230 or 180", o.frame_mm));
@@ -307,7 +337,7 @@ fn camera_file(o: &SynthOptions, ground_h: f64) -> CameraFile {
 }
 
 /// The relief raster around (cx, cy), `half` metres each way.
-fn relief(o: &SynthOptions, cx: f64, cy: f64, half: f64, flying: f64) -> GridDem {
+fn relief(o: &SynthOptions, cx: f64, cy: f64, half: f64, flying: f64) -> Result<GridDem> {
     let p = o.dem_posting;
     let n = ((2.0 * half / p).ceil() as usize).max(4);
     let x0 = ((cx - half) / p).floor() * p;
@@ -327,7 +357,11 @@ fn relief_grid(
     posting_m: (f64, f64),
     mountain_range: f64,
     epsg: u32,
-) -> GridDem {
+) -> Result<GridDem> {
+    if nx as u128 * ny as u128 > MAX_DEM_SAMPLES {
+        let side = |n: usize| if n == usize::MAX { "more than 10^19".to_string() } else { n.to_string() };
+        return Err(Error::setting("dem_posting", format!("makes a DEM of {} × {} samples over the scene: more than {MAX_DEM_SAMPLES}", side(nx), side(ny))));
+    }
     let seed = o.seed ^ 0xde_0de;
     let raw: Vec<f64> = (0..nx * ny)
         .into_par_iter()
@@ -363,7 +397,7 @@ fn relief_grid(
             (ground + above) as f32
         })
         .collect();
-    GridDem::new(nx, ny, data, gt, None, Some(crate::geodesy::Crs::from_epsg(epsg).expect("synthetic scenes use known codes")))
+    Ok(GridDem::new(nx, ny, data, gt, None, Some(crate::geodesy::Crs::from_epsg(epsg).expect("synthetic scenes use known codes"))))
 }
 
 /// Height above the ground of the town at (x, y), metres: lots of 32 m
@@ -524,10 +558,13 @@ pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
     // Far enough to hold the footprint, an oblique one's far side too.
     let tilt = if o.camera == CameraKind::Drone { o.off_nadir_deg.to_radians() } else { 0.0 };
     let half = 1.8 * (tilt + (film_half / focal).atan()).min(1.3).tan() * flying + 200.0;
-    let grid_dem = relief(o, cam.centre.x, cam.centre.y, half, flying);
+    let grid_dem = relief(o, cam.centre.x, cam.centre.y, half, flying)?;
     let zs: Vec<f64> = grid_dem.samples(1).iter().map(|&v| v as f64).collect();
     let (zlo, zhi) = zs.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
     let slope = max_slope(&zs, (grid_dem.width, grid_dem.height), (o.dem_posting, o.dem_posting)).atan().to_degrees();
+    if zhi >= cam.centre.z {
+        return Err(Error::setting("scale", format!("1:{} puts the camera at {:.1} m, under the relief's top at {zhi:.1} m", o.scale, cam.centre.z)));
+    }
     write_dem(&dem_path, &grid_dem)?;
     let dem = Dem::grid(grid_dem, &dem_path);
     let mid_z = (zlo + zhi) / 2.0;

@@ -123,7 +123,7 @@ fn relief_under(o: &SynthOptions, bars: &[&OpticalBar], local: &Local) -> Result
     let nx = ((hi.0 + 2.0 * margin - x0) / p).ceil() as usize;
     let ny = ((y0 - lo.1 + margin) / p).ceil() as usize;
     let posting_m = (p * METRES_PER_DEGREE * local.cos0, posting);
-    let grid_dem = relief_grid(o, (nx, ny), [x0, p, 0.0, y0, 0.0, -p], &|x, y| local.metres(x, y), posting_m, MOUNTAIN_RANGE, 4326);
+    let grid_dem = relief_grid(o, (nx, ny), [x0, p, 0.0, y0, 0.0, -p], &|x, y| local.metres(x, y), posting_m, MOUNTAIN_RANGE, 4326)?;
     let zs: Vec<f64> = grid_dem.samples(1).iter().map(|&v| f64::from(v)).collect();
     let (zlo, zhi) = zs.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
     let slope = super::max_slope(&zs, (nx, ny), posting_m).atan().to_degrees();

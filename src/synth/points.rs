@@ -22,6 +22,10 @@ pub fn write_points(path: &Path, n: u64, density: f64, seed: u64, progress: &dyn
         return Err(Error::setting("points", "a number of points over 0 and a density over 0"));
     }
     let side = (n as f64 / density).sqrt();
+    // LAS holds coordinates as 32-bit integers, here of millimetres.
+    if side > 2.0e6 {
+        return Err(Error::setting("points", format!("{n} points at {density} a square metre cover {side:.3e} m a side: more than the 2000 km a file of them holds")));
+    }
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
     let mut next = move || {

@@ -90,7 +90,7 @@ impl Pushbroom {
 /// `dem_posting` metres in latitude, square in degrees like SRTM, covering
 /// every footprint at every height with room; its heights' range and
 /// steepest slope, degrees.
-fn relief_under(o: &SynthOptions, sensors: &[&Pushbroom], lat0: f64) -> (crate::dem::GridDem, (f64, f64), f64) {
+fn relief_under(o: &SynthOptions, sensors: &[&Pushbroom], lat0: f64) -> Result<(crate::dem::GridDem, (f64, f64), f64)> {
     let mountain_range = 2000.0;
     let (mut lo, mut hi) = ((f64::MAX, f64::MAX), (f64::MIN, f64::MIN));
     for sensor in sensors {
@@ -110,11 +110,11 @@ fn relief_under(o: &SynthOptions, sensors: &[&Pushbroom], lat0: f64) -> (crate::
     let ny = ((y0 - lo.1 + margin) / p).ceil() as usize;
     let posting_m = (p * METRES_PER_DEGREE * lat0.to_radians().cos(), o.dem_posting);
     let s0 = sensors[0];
-    let grid_dem = relief_grid(o, (nx, ny), [x0, p, 0.0, y0, 0.0, -p], &|x, y| s0.metres(x, y), posting_m, mountain_range, 4326);
+    let grid_dem = relief_grid(o, (nx, ny), [x0, p, 0.0, y0, 0.0, -p], &|x, y| s0.metres(x, y), posting_m, mountain_range, 4326)?;
     let zs: Vec<f64> = grid_dem.samples(1).iter().map(|&v| f64::from(v)).collect();
     let (zlo, zhi) = zs.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
     let slope = super::max_slope(&zs, (nx, ny), posting_m).atan().to_degrees();
-    (grid_dem, (zlo, zhi), slope)
+    Ok((grid_dem, (zlo, zhi), slope))
 }
 
 /// The RPC of `sensor`, fitted on a 21×21×7 grid over the heights
@@ -147,7 +147,7 @@ pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progre
     let (lon0, lat0) = utm.to_lonlat(centre.0, centre.1).ok_or_else(|| Error::Geometry("scene centre".into()))?;
     let sensor = Pushbroom::new(o, lon0, lat0);
 
-    let (grid_dem, (zlo, zhi), slope) = relief_under(o, &[&sensor], lat0);
+    let (grid_dem, (zlo, zhi), slope) = relief_under(o, &[&sensor], lat0)?;
     write_dem(&dem_path, &grid_dem)?;
     let rpc: Rpc = fitted_rpc(&sensor, zlo, zhi)?;
     std::fs::write(&rpc_path, rpc.to_gdal_text()).map_err(|e| Error::io(&rpc_path, e))?;
@@ -226,7 +226,7 @@ pub fn synth_rpc_pair(o: &SynthOptions, base_to_height: f64, progress: &dyn crat
     let pitch = (base_to_height / 2.0).atan().to_degrees();
     let sensors = [Pushbroom::pitched(o, lon0, lat0, pitch), Pushbroom::pitched(o, lon0, lat0, -pitch)];
     let s0 = &sensors[0];
-    let (grid_dem, (zlo, zhi), _) = relief_under(o, &[&sensors[0], &sensors[1]], lat0);
+    let (grid_dem, (zlo, zhi), _) = relief_under(o, &[&sensors[0], &sensors[1]], lat0)?;
     let dem_path = out("dem.tif");
     write_dem(&dem_path, &grid_dem)?;
     let dem_geo = Dem::grid(grid_dem, &dem_path);
