@@ -390,3 +390,22 @@ fn synth_settings_past_any_scene_are_refused_by_name_and_leave_nothing() {
         }
     }
 }
+
+#[test]
+fn a_fixed_length_array_given_longer_is_refused_not_cut() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (_, camera, _) = mini(d);
+    let text = std::fs::read_to_string(&camera).unwrap();
+    let cuts = [
+        ("radial_mm = [0.0, 0.00000015, -0.000000002]", "radial_mm = [0.0, 0.00000015, -0.000000002, 1e-12]", "distortion.radial_mm: 4 entries where 3"),
+        ("principal_point_mm = [0.004, -0.009]", "principal_point_mm = [0.004, -0.009, 0.0]", "interior.principal_point_mm: 3 entries where 2"),
+        ("[[-117.5, -117.5], [117.5, 117.5],", "[[-117.5, -117.5], [117.5, 117.5, 3.0],", "interior.fiducials_mm[2]: 3 entries where 2"),
+        ("position = [650534.0, 4890911.0, 1820.0]", "position = [650534.0, 4890911.0, 1820.0, 9.0]", "exterior.position: 4 entries where 3"),
+    ];
+    for (from, to, words) in cuts {
+        assert!(text.contains(from), "{from}");
+        std::fs::write(&camera, text.replace(from, to)).unwrap();
+        refused(d, &[], &["camera.toml", words], &[]);
+    }
+}

@@ -322,11 +322,15 @@ impl CameraFile {
     }
 
     pub fn parse(text: &str, path: &Path) -> Result<CameraFile> {
-        toml::from_str::<CameraFile>(text).map_err(|e| {
+        let file = toml::from_str::<CameraFile>(text).map_err(|e| {
             let line = e.span().map(|s| line_of(text, s.start));
             let msg = e.message().replace('\n', " ");
             Error::config(path, line.map(|l| format!("line {l}")).unwrap_or_else(|| "toml".into()), msg)
-        })
+        })?;
+        if let Some((key, given, read)) = crate::io::toml_lengths::first_cut_array(text, &file) {
+            return Err(Error::config(path, key, format!("{given} entries where {read} are read")));
+        }
+        Ok(file)
     }
 
     /// A film camera whose marks are calibrated but not measured in the

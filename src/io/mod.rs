@@ -16,3 +16,4 @@ pub mod read_raster;
 pub mod sidecars;
 pub mod source;
 pub mod tiff_out;
+pub mod toml_lengths;
