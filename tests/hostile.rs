@@ -409,3 +409,20 @@ fn a_fixed_length_array_given_longer_is_refused_not_cut() {
         refused(d, &[], &["camera.toml", words], &[]);
     }
 }
+
+#[test]
+fn a_report_that_cannot_be_written_takes_the_runs_outputs_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    mini(d);
+    let err = refused(d, &["--json", "/dev/full"], &["report", "/dev/full", "removed"], &[]);
+    assert!(err.contains("no space"), "{err}");
+    // Written where it can be, the same run leaves both.
+    let r = std::process::Command::new(bin())
+        .current_dir(d)
+        .args(["rectify", "--image", "scan.tif", "--camera", "camera.toml", "--dem", "dem.tif", "-o", "out.tif", "--json", "r.json", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(d.join("out.tif").exists() && d.join("r.json").exists());
+}

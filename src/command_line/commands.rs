@@ -212,12 +212,27 @@ fn run_reported<R: serde::Serialize>(
         warnings(&mut report).push(w);
     }
     if let Some(j) = json {
-        write_file(j, super::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
+        write_report(j, &serde_json::to_string_pretty(&report)?)?;
     }
     if !quiet {
         eprintln!("{}", summary(&report));
     }
     Ok(())
+}
+
+/// The run's JSON report, its last output: a report that cannot be written
+/// fails the run, and the run's other outputs are taken back with it
+/// (published before, as the report describes them).
+fn write_report(path: &Path, json: &str) -> Result<()> {
+    write_file(path, super::flag_names::with_flags(json).as_bytes()).map_err(|e| {
+        let kept = crate::io::publish::withdraw_publications();
+        match kept.is_empty() {
+            true => anyhow!("report: {e}; this run's outputs are removed"),
+            false => {
+                anyhow!("report: {e}; this run's outputs are removed but for {}", kept.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "))
+            }
+        }
+    })
 }
 
 fn run_fiducials(a: &super::cli::FiducialsArgs) -> Result<()> {
@@ -349,7 +364,7 @@ fn run_mosaic(a: &MosaicArgs, signals: &Signals) -> Result<()> {
             true => serde_json::to_string_pretty(&serde_json::json!({ "output": report.output, "skipped": true, "output_bytes": report.output_bytes }))?,
             false => serde_json::to_string_pretty(&report)?,
         };
-        write_file(j, super::flag_names::with_flags(&text).as_bytes())?;
+        write_report(j, &text)?;
     }
     if report.skipped {
         if !a.quiet {
@@ -716,7 +731,7 @@ fn run_rectify(a: &RectifyArgs, signals: &Signals) -> Result<()> {
         report.warnings.push(w);
     }
     if let Some(j) = &a.json {
-        write_file(j, super::flag_names::with_flags(&serde_json::to_string_pretty(&report)?).as_bytes())?;
+        write_report(j, &serde_json::to_string_pretty(&report)?)?;
     }
     if !a.quiet {
         print_report(&report);

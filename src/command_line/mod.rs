@@ -83,6 +83,7 @@ fn usage_error(e: clap::Error) -> u8 {
 /// failed, 130 SIGINT, 143 SIGTERM.
 pub fn run(args: Vec<std::ffi::OsString>) -> u8 {
     tune_malloc();
+    crate::io::publish::record_publications();
     let cli = match cli::Cli::try_parse_from(&args) {
         Ok(cli) => cli,
         Err(e) => return usage_error(e),

@@ -199,8 +199,28 @@ impl PendingFile {
         let tmp_path = tmp.path().to_path_buf();
         crate::io::mmap_guard::unregister_cleanup(&tmp_path);
         tmp.persist(&target).map_err(|e| Error::io(&target, e.error))?;
+        if let Some(ledger) = LEDGER.lock().unwrap_or_else(std::sync::PoisonError::into_inner).as_mut() {
+            ledger.push(target);
+        }
         Ok(())
     }
+}
+
+/// The files published since [`record_publications`], while it records.
+static LEDGER: std::sync::Mutex<Option<Vec<PathBuf>>> = std::sync::Mutex::new(None);
+
+/// From now on, every file this process publishes is noted, for
+/// [`withdraw_publications`]: a command whose last step (its report) fails
+/// takes back what it wrote before. Library callers that never ask keep no list.
+pub fn record_publications() {
+    *LEDGER.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(Vec::new());
+}
+
+/// Removes every file published since [`record_publications`]; the paths
+/// that could not be removed come back.
+pub fn withdraw_publications() -> Vec<PathBuf> {
+    let published = LEDGER.lock().unwrap_or_else(std::sync::PoisonError::into_inner).as_mut().map(std::mem::take).unwrap_or_default();
+    published.into_iter().filter(|p| std::fs::remove_file(p).is_err_and(|e| e.kind() != std::io::ErrorKind::NotFound)).collect()
 }
 
 /// Writes `bytes` to `path` as every output is written: a temporary file
