@@ -528,3 +528,36 @@ fn a_dem_gridded_from_points_of_a_scene_rectifies_its_scan_as_the_scene_dem_does
     eprintln!("orthophotos: {mean:.3} DN apart over {both} samples");
     assert!(both as usize > pa.len() / 2 && mean < 2.0, "{mean} DN apart over {both} samples");
 }
+
+#[test]
+fn cells_past_what_the_points_resolve_or_the_memory_holds_are_refused_by_gsd() {
+    let d = tempfile::tempdir().unwrap();
+    let pts = d.path().join("p.csv");
+    // 2,500 points on 50 m × 50 m: about 1 m apart.
+    write_csv(&pts, &random_points(2500, 50.0, 7, plane));
+    let args = |gsd: &'static str| vec![s(&pts), "--crs", "EPSG:32631", "--gsd", gsd, "--memory", "64M"];
+    // A thousandth of the spacing and finer (a slip of units): refused.
+    let (out, o) = grid(d.path(), "fine.tif", &args("0.0005"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("--gsd: 0.0005 is finer than a 1000th of the points' typical spacing (1.0"), "{err}");
+    assert!(!out.exists());
+    // Ten times finer: made, with a warning (said even with --quiet).
+    let (out, o) = grid(d.path(), "fine.tif", &args("0.05"));
+    ok(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--gsd 0.05 is more than ten times finer than the points' typical spacing"), "{err}");
+    assert!(out.exists());
+    // At the spacing: no word.
+    let (_, o) = grid(d.path(), "one.tif", &args("1"));
+    ok(&o);
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("finer"));
+    // 10^12 cells asked by their bounds: refused before a bin is made.
+    let mut wide = args("1");
+    wide.extend(["--bounds", "0,3500000,1000000,4500000"]);
+    let (out, o) = grid(d.path(), "wide.tif", &wide);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("--gsd: 1000000×1000000 cells need") && err.contains("--memory"), "{err}");
+    assert!(!out.exists());
+}

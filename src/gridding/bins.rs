@@ -93,6 +93,9 @@ impl Bins {
     /// Empty bins of `grid`, their file in `dir`, each bin's points
     /// gathered `chunk` at a time before they are written, `max_held` at
     /// most in all.
+    /// What a bin costs held, points apart: its chunks' list, count and pending list.
+    pub const BYTES_A_BIN: u64 = (2 * std::mem::size_of::<Vec<Stored>>() + std::mem::size_of::<u64>()) as u64;
+
     pub fn new(grid: BinGrid, dir: &Path, chunk: usize, max_held: usize) -> Result<Bins> {
         let file = tempfile::tempfile_in(dir).map_err(|e| Error::io(dir, crate::io::publish::without_path(&e)))?;
         let n = grid.cols as usize * grid.rows as usize;

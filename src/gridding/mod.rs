@@ -32,6 +32,9 @@ use std::path::PathBuf;
 /// Bytes a loaded point takes with its share of a triangulation.
 const BYTES_A_POINT: u64 = 200;
 
+/// Cells finer than this share of the points' typical spacing are refused.
+const FINEST_SHARE: f64 = 1000.0;
+
 /// The points of every file in the DEM's CRS, batch after batch.
 struct Reader<'a> {
     files: Vec<(PointFile, Option<Reprojection>)>,
@@ -112,8 +115,15 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     let (side_x, side_y) = (block as f64 * gx, block as f64 * gy);
     let ring_bins = (ring / side_x.min(side_y)).ceil() as u32 + 1;
     let (bc, br) = (w.div_ceil(block) + 2 * ring_bins, h.div_ceil(block) + 2 * ring_bins);
-    if bc as u64 * br as u64 > 1 << 26 {
-        return Err(Error::setting("gsd", format!("{w}×{h} cells are too many for the memory given: a coarser ‹gsd›, smaller ‹bounds› or more ‹memory›")));
+    // Each bin's lists, and each output tile's place in the file, are held
+    // for the whole run: a quarter of the memory at most.
+    let tiles = w.div_ceil(o.tile) as u64 * h.div_ceil(o.tile) as u64;
+    let held = bc as u64 * br as u64 * Bins::BYTES_A_BIN + tiles * 16;
+    if held > o.memory / 4 {
+        return Err(Error::setting(
+            "gsd",
+            format!("{w}×{h} cells need {} MiB for their bins and tiles alone, more than a quarter of the memory given: a coarser ‹gsd›, smaller ‹bounds› or more ‹memory›", held >> 20),
+        ));
     }
     let top = ring_bins as f64 * side_y;
     let bin_grid = BinGrid { x0: -(ring_bins as f64) * side_x, y0: top - br as f64 * side_y, side_x, side_y, cols: bc, rows: br };
@@ -160,6 +170,15 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
         return Err(Error::Named(format!("{files}: none of the points lies within the bounds asked for")));
     }
     let spacing = typical_spacing(&lattice, lw * lh / (lat * lat) as f64);
+    // Cells a thousand times finer than the points hold a million cells a
+    // point: the points say nothing at that scale (a slip of units?).
+    let finest = gx.max(gy);
+    if finest < spacing / FINEST_SHARE {
+        return Err(Error::setting("gsd", format!("{finest} is finer than a {FINEST_SHARE:.0}th of the points' typical spacing ({spacing:.4}): a cell size the points cannot resolve")));
+    }
+    if finest < spacing / 10.0 {
+        warnings.push(format!("‹gsd› {finest} is more than ten times finer than the points' typical spacing ({spacing:.4}): most cells are interpolated"));
+    }
     let max_edge = o.max_edge.unwrap_or_else(|| (10.0 * spacing).max(4.0 * gx.max(gy)));
     let radius = o.radius.unwrap_or(max_edge);
     let pool = rayon::ThreadPoolBuilder::new()
