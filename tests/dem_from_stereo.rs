@@ -232,6 +232,10 @@ fn bad_pairs_are_named() {
     };
     // Not overlapping: the right view placed 100 km along its scene.
     no_output(&dem_of_pair(dir.path(), &out, &["--gsd", "2", "--right-rpc-offset", "100000,0"]), "do not overlap");
+    // Cells no match resolves (a thousandth of the ground pixel and finer).
+    no_output(&dem_of_pair(dir.path(), &out, &["--gsd", "0.0001"]), "--gsd: 0.0001 is finer than a 1000th of the images' ground pixel");
+    // Cells the gridding's memory cannot hold (4.5e10 cells at --memory 64M).
+    no_output(&dem_of_pair(dir.path(), &out, &["--gsd", "0.001", "--memory", "64M"]), "more than a quarter of the memory given");
     // One image twice.
     let (l, lr) = (dir.path().join("left.tif"), dir.path().join("left_RPC.TXT"));
     no_output(&run(&["dem", "--left", s(&l), "--right", s(&l), "--left-rpc", s(&lr), "--right-rpc", s(&lr), "-o", s(&out), "--gsd", "2"]), "same image");

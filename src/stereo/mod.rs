@@ -186,6 +186,11 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
         )));
     }
     let pool = rayon::ThreadPoolBuilder::new().num_threads(o.threads.max(1)).build().map_err(|e| Error::Internal(format!("a thread pool: {e}")))?;
+    // Matches come a pixel or more apart: cells a thousand times finer
+    // (the rule `grid` applies to points) are refused before matching.
+    if o.gsd.x.max(o.gsd.y) < frame.pixel / 1000.0 {
+        return Err(Error::setting("gsd", format!("{} is finer than a 1000th of the images' ground pixel ({:.4}): a cell size no match resolves", o.gsd.x.max(o.gsd.y), frame.pixel)));
+    }
     // A DSM of the overlap at `--gsd` that no file could hold is refused
     // before any matching.
     let side = frame.pixel * f64::from(frame.width.max(frame.height)) * std::f64::consts::SQRT_2;
@@ -193,6 +198,16 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
         return Err(Error::setting(
             "gsd",
             format!("{} × {} over the pair's overlap of about {side:.0} ground units a side is past 10^11 cells", o.gsd.x, o.gsd.y),
+        ));
+    }
+    // Nor one whose tiles' table and bins (a bin a tile at the least) the
+    // gridding could not hold in its quarter of the memory.
+    let tile = f64::from(GridOptions::new(Vec::new(), std::path::PathBuf::new(), o.gsd).tile);
+    let held = (side / o.gsd.x / tile).ceil() * (side / o.gsd.y / tile).ceil() * (16 + crate::gridding::bins::Bins::BYTES_A_BIN) as f64;
+    if held > (o.memory / 4) as f64 {
+        return Err(Error::setting(
+            "gsd",
+            format!("{} × {} over the pair's overlap of about {side:.0} ground units a side needs {:.0} MiB for its bins and tiles alone, more than a quarter of the memory given: a coarser ‹gsd› or more ‹memory›", o.gsd.x, o.gsd.y, held / 1048576.0),
         ));
     }
     // The pair's relative pointing, and the disparities its points span.
