@@ -157,3 +157,31 @@ mod tests {
         assert!(other.starts_with("x: ") && !other.contains("os error"), "{other}");
     }
 }
+
+/// A number for a message: as written where it is of everyday size, in
+/// exponent form where `{}` would print hundreds of digits (1e-300).
+pub fn short_number(v: f64) -> String {
+    match v == 0.0 || !v.is_finite() || (1e-4..1e7).contains(&v.abs()) {
+        true => format!("{v}"),
+        false => {
+            // Five significant figures: a height read from Float32 has no more.
+            let text = format!("{v:.4e}");
+            let (mantissa, exponent) = text.split_once('e').expect("exponent form");
+            let mantissa = if mantissa.contains('.') { mantissa.trim_end_matches('0').trim_end_matches('.') } else { mantissa };
+            format!("{mantissa}e{exponent}")
+        }
+    }
+}
+
+#[cfg(test)]
+mod number_tests {
+    #[test]
+    fn numbers_in_messages_are_short() {
+        use super::short_number as n;
+        assert_eq!(n(152.0), "152");
+        assert_eq!(n(1e-300), "1e-300");
+        assert_eq!(n(f64::from(3.5e32f32)), "3.5e32");
+        assert_eq!(n(-35079270.8), "-3.5079e7");
+        assert_eq!(n(0.0), "0");
+    }
+}

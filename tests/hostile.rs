@@ -277,6 +277,21 @@ fn absurd_values_are_blamed_on_their_input_not_on_the_dem() {
         std::fs::write(d.join(name), text.replace(&line, &position)).unwrap();
         refused(d, &["--camera", s(&d.join(name))], &[name, "exterior.position", "1e3"], &["dem.tif"]);
     }
+    // A lens past any lens's lengths: blamed on its field, not on the
+    // distortion or the format it would otherwise make absurd.
+    for (name, from, to, field) in [
+        ("focal.toml", "focal_length_mm = 152.0", "focal_length_mm = 1e300", "camera.focal_length_mm: 1e300 mm is no lens's"),
+        ("pp.toml", "principal_point_mm = [0.004, -0.009]", "principal_point_mm = [1e300, 0.0]", "interior.principal_point_mm: 1e300 mm"),
+        ("tiny.toml", "focal_length_mm = 152.0", "focal_length_mm = 1e-300", "camera.focal_length_mm: 1e-300 mm across"),
+    ] {
+        assert!(text.contains(from));
+        std::fs::write(d.join(name), text.replace(from, to)).unwrap();
+        refused(d, &["--camera", s(&d.join(name))], &[name, field], &["dem.tif", "distortion", "format"]);
+    }
+    // Heights scaled past any terrain: the DEM is named, not the camera.
+    let scaled = d.join("scaled.tif");
+    f32_raster(&scaled, (300, 300), (650_000.0, 4_891_500.0, 5.0, 32631), |_, _| 3.5e32);
+    refused(d, &["--dem", s(&scaled)], &["scaled.tif", "3.5e32 m under the camera is past any terrain"], &["camera.toml"]);
 }
 
 /// A CRS file is an input wherever it is named (`--crs`, a camera file's

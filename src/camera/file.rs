@@ -364,6 +364,10 @@ impl CameraFile {
         }
         let f = self.camera.focal_length_mm.ok_or_else(|| err("camera.focal_length_mm", "missing".into()))?;
         finite_positive(f).map_err(|m| err("camera.focal_length_mm", m))?;
+        within_a_lens(f).map_err(|m| err("camera.focal_length_mm", m))?;
+        if let Some(pp) = self.interior.as_ref().and_then(|i| i.principal_point_mm) {
+            pp.iter().try_for_each(|&v| within_a_lens(v.abs())).map_err(|m| err("interior.principal_point_mm", m))?;
+        }
 
         let interior = self.interior.clone().ok_or_else(|| err("interior", "missing section".into()))?;
         let io = build_interior(&interior, f).map_err(|(field, m)| err(&field, m))?;
@@ -628,6 +632,16 @@ fn all_finite(v: &[f64]) -> std::result::Result<(), String> {
     match v.iter().find(|x| !x.is_finite()) {
         Some(x) => Err(format!("{x} is not a finite number")),
         None => Ok(()),
+    }
+}
+
+/// A length in a lens's interior orientation: within a kilometre (lenses
+/// in pixel units, whose "mm" are pixels, included). Past it, the value
+/// would pass for a wrong distortion or format, which are then blamed.
+fn within_a_lens(v: f64) -> std::result::Result<(), String> {
+    match v <= 1e6 {
+        true => Ok(()),
+        false => Err(format!("{v:e} mm is no lens's (1 km at most)")),
     }
 }
 

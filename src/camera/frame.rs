@@ -158,7 +158,7 @@ impl FrameCamera {
             return Err(Error::config(
                 path,
                 "camera.focal_length_mm",
-                format!("{} mm across the image's {diagonal:.1} mm diagonal is a field of view of {fov:.2}°: not this image's lens", self.focal_mm),
+                format!("{} mm across the image's {diagonal:.1} mm diagonal is a field of view of {fov:.2}°: not this image's lens", crate::error::short_number(self.focal_mm)),
             ));
         }
         let axis = self.r * Vector3::new(0.0, 0.0, -1.0);

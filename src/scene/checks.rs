@@ -109,6 +109,18 @@ pub fn camera_meets_scan(opts: &RectifyOptions, camera: &Camera, info: &SourceIn
             Some(crate::dem::Height::Value(z)) => z,
             _ => z_guess,
         };
+        // Past any terrain on Earth the heights are the DEM's fault (a
+        // unit or a scale slipped), not the camera's being under them.
+        if !(-12_000.0..=12_000.0).contains(&below) {
+            let source = match &opts.inputs.dem {
+                crate::options::DemSource::File(p) => p.display().to_string(),
+                _ => "‹height›".into(),
+            };
+            return Err(Error::Named(format!(
+                "{source}: a height of {} m under the camera is past any terrain on Earth (−12 to 12 km): heights in another unit, or scaled?",
+                crate::error::short_number(below)
+            )));
+        }
         f.check_sees_ground(sw, sh, below, &opts.inputs.camera)?;
         // A camera made for another image (another size, another scan)
         // puts its principal point far from this one's centre.
