@@ -405,6 +405,13 @@ fn bad_points_are_refused_naming_the_file_and_leaving_no_dem() {
         bytes[247..255].copy_from_slice(&1_000_000_000_000u64.to_le_bytes());
     }
     std::fs::write(&las_path, &bytes).unwrap();
+    // A header whose z scale is NaN, and one whose x offset is infinite.
+    for (name, at, value) in [("nanscale.las", 147, f64::NAN), ("infoffset.las", 155, f64::INFINITY)] {
+        write_las(&p(name), &random_points(3, 10.0, 1, plane), false);
+        let mut bytes = std::fs::read(p(name)).unwrap();
+        bytes[at..at + 8].copy_from_slice(&value.to_le_bytes());
+        std::fs::write(p(name), &bytes).unwrap();
+    }
     for (input, crs, said) in [
         ("empty.csv", "EPSG:32631", "no points"),
         ("line.csv", "EPSG:32631", "on one line"),
@@ -415,6 +422,8 @@ fn bad_points_are_refused_naming_the_file_and_leaving_no_dem() {
         ("far.csv", "EPSG:32631", "that is no grid"),
         ("high.csv", "EPSG:32631", "line 3: the height 1e300 is past any terrain"),
         ("huge.las", "EPSG:32631", "more than the file"),
+        ("nanscale.las", "EPSG:32631", "the header's z scale NaN"),
+        ("infoffset.las", "EPSG:32631", "the header's x scale 0.001 and offset inf make no coordinates"),
     ] {
         let out = p("dem.tif");
         let input_path = d.path().join(input);

@@ -22,6 +22,17 @@ fn open(path: &Path) -> Result<las::Reader> {
     let reader = las::Reader::from_path(path).map_err(|e| failed(path, e))?;
     let h = reader.header();
     let format = h.point_format();
+    // Every coordinate is an integer times the header's scale plus its
+    // offset: a scale or offset that is no number makes every point none.
+    let t = h.transforms();
+    for (axis, t) in [("x", t.x), ("y", t.y), ("z", t.z)] {
+        if !(t.scale.is_finite() && t.scale != 0.0 && t.offset.is_finite()) {
+            return Err(Error::Format {
+                path: path.into(),
+                msg: format!("the header's {axis} scale {} and offset {} make no coordinates (a finite, non-zero scale and a finite offset)", t.scale, t.offset),
+            });
+        }
+    }
     // An uncompressed file holds its points after the header: a count the
     // file cannot hold is refused before anything is read.
     if !format.is_compressed {
