@@ -1059,6 +1059,15 @@ fn slips_in_edited_seamlines_are_named() {
     assert!(code == Some(1) && err.contains("broken.geojson") && err.contains("features[0].geometry.coordinates") && err.contains("closed"), "{err}");
     let (code, err) = refused(&|doc| doc["features"][0]["properties"] = serde_json::json!({ "index": 99 }), &[]);
     assert!(code == Some(1) && err.contains("features[0].properties.index") && err.contains("99 is not an image of the manifest"), "{err}");
+    // Coordinates that are no array (a string, an object) at any level: refused, never quoted.
+    for (level, of) in [("", "polygons"), ("/0", "rings"), ("/0/0", "positions")] {
+        let (code, err) = refused(&|doc| *doc.pointer_mut(&format!("/features/0/geometry/coordinates{level}")).unwrap() = serde_json::json!("TOPSECRET"), &[]);
+        assert!(
+            code == Some(1) && err.contains("features[0].geometry.coordinates") && err.contains(&format!("expected an array of {of}, found a string")),
+            "{err}"
+        );
+        assert!(!err.contains("TOPSECRET"), "{err}");
+    }
     let (code, err) = refused(&|_| {}, &["--seams", "voronoi"]);
     assert!(code == Some(2) && err.contains("--seams") && err.contains("--seamlines"), "{err}");
 }

@@ -203,6 +203,20 @@ fn first_position(features: &[serde_json::Value]) -> Option<[f64; 2]> {
 /// latitude where the file's `crs` says EPSG:4326 or CRS84, or where it
 /// has no `crs` and its numbers are degrees), give their
 /// cells to the image its `image` (else `index`, 1-based) names.
+/// `v` as a GeoJSON array of `of`; anything else named by its kind (never
+/// quoted: a string there may be anything).
+fn array_of<'v>(v: &'v serde_json::Value, of: &str) -> std::result::Result<&'v Vec<serde_json::Value>, String> {
+    let kind = match v {
+        serde_json::Value::Array(a) => return Ok(a),
+        serde_json::Value::Null => "null",
+        serde_json::Value::Bool(_) => "true or false",
+        serde_json::Value::Number(_) => "a number",
+        serde_json::Value::String(_) => "a string",
+        serde_json::Value::Object(_) => "an object",
+    };
+    Err(format!("expected an array of {of}, found {kind}"))
+}
+
 pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
     let text = crate::io::bounded_read::read_text_bounded(path, "a seamlines file", crate::io::bounded_read::LIST)?;
     let doc: serde_json::Value = serde_json::from_str(&text).map_err(|e| Error::format(path, format!("JSON: {e}")))?;
@@ -260,9 +274,12 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
         // A feature whose parts were all deleted in a GIS gives nothing.
         let Some(geometry) = f.get("geometry").filter(|g| !g.is_null()) else { continue };
         let coords = geometry.get("coordinates").ok_or_else(|| Error::config(path, field("geometry.coordinates"), "missing"))?;
+        // Each level an array (RFC 7946 §3.1.6): anything else is refused,
+        // never read as no rings.
+        let at_coordinates = |m: String| Error::config(path, field("geometry.coordinates"), m);
         let polygons: Vec<&serde_json::Value> = match geometry.get("type").and_then(|t| t.as_str()) {
             Some("Polygon") => vec![coords],
-            Some("MultiPolygon") => coords.as_array().map(|a| a.iter().collect()).unwrap_or_default(),
+            Some("MultiPolygon") => array_of(coords, "polygons").map_err(at_coordinates)?.iter().collect(),
             Some(other) => return Err(Error::config(path, field("geometry.type"), format!("'{other}': expected Polygon or MultiPolygon"))),
             None => return Err(Error::config(path, field("geometry.type"), "missing: expected Polygon or MultiPolygon")),
         };
@@ -270,9 +287,9 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
         let mut parts = Vec::new();
         for poly in polygons {
             let mut rings = Vec::new();
-            for ring in poly.as_array().into_iter().flatten() {
+            for ring in array_of(poly, "rings").map_err(at_coordinates)? {
                 let mut pts = Vec::new();
-                for p in ring.as_array().into_iter().flatten() {
+                for p in array_of(ring, "positions").map_err(at_coordinates)? {
                     let (x, y) = match (p.get(0).and_then(|v| v.as_f64()), p.get(1).and_then(|v| v.as_f64())) {
                         (Some(x), Some(y)) if x.is_finite() && y.is_finite() => (x, y),
                         _ => return Err(Error::config(path, field("geometry.coordinates"), "expected [x, y] numbers")),
