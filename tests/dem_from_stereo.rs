@@ -236,6 +236,9 @@ fn bad_pairs_are_named() {
     no_output(&dem_of_pair(dir.path(), &out, &["--gsd", "0.0001"]), "--gsd: 0.0001 is finer than a 1000th of the images' ground pixel");
     // Cells the gridding's memory cannot hold (4.5e10 cells at --memory 64M).
     no_output(&dem_of_pair(dir.path(), &out, &["--gsd", "0.001", "--memory", "64M"]), "more than a quarter of the memory given");
+    // Settings refused before any reading: a DSM in degrees, no blunder sigma.
+    no_output(&dem_of_pair(dir.path(), &out, &["--gsd", "2", "--crs", "EPSG:4326"]), "--crs: EPSG:4326 is in degrees");
+    no_output(&dem_of_pair(dir.path(), &out, &["--gsd", "2", "--blunders", "0"]), "--blunders: must be a positive number");
     // One image twice.
     let (l, lr) = (dir.path().join("left.tif"), dir.path().join("left_RPC.TXT"));
     no_output(&run(&["dem", "--left", s(&l), "--right", s(&l), "--left-rpc", s(&lr), "--right-rpc", s(&lr), "-o", s(&out), "--gsd", "2"]), "same image");

@@ -160,6 +160,7 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
     warnings.iter().for_each(|w| progress.warn(w));
     check_files(o)?;
     check_shard(o)?;
+    check_settings(o)?;
     let (left_cam, right_cam, crs) = cameras(o)?;
     for w in left_cam.warnings.iter().chain(&right_cam.warnings) {
         progress.warn(w);
@@ -546,6 +547,22 @@ fn match_one(
 
 /// The files named exist, are not one image twice, and no output is an
 /// input.
+/// Settings refused before anything is read: those the gridding would
+/// refuse only after the matching, and an output CRS in degrees (the
+/// pair's base, heights and cells are measured in its units).
+fn check_settings(o: &StereoOptions) -> Result<()> {
+    if o.blunders.is_some_and(|k| !(k > 0.0 && k.is_finite())) {
+        return Err(Error::setting("blunders", "must be a positive number of sigmas, or none"));
+    }
+    if let Some(c) = o.crs.as_ref().filter(|c| c.is_geographic()) {
+        return Err(Error::setting(
+            "crs",
+            format!("{} is in degrees: a DSM is made in a projected CRS (metres), as UTM; warp it after (gdalwarp -t_srs) for one in degrees", crs_name(c)),
+        ));
+    }
+    Ok(())
+}
+
 fn check_files(o: &StereoOptions) -> Result<()> {
     use crate::io::overwrite::{check_outputs, Role};
     for (what, p) in [("left image", &o.left.image), ("right image", &o.right.image), ("left camera", &o.left.camera), ("right camera", &o.right.camera)] {
