@@ -441,3 +441,14 @@ fn a_report_that_cannot_be_written_takes_the_runs_outputs_with_it() {
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert!(d.join("out.tif").exists() && d.join("r.json").exists());
 }
+
+#[test]
+fn a_pose_file_s_short_row_is_named_by_its_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    mini(d);
+    let poses = d.join("poses.csv");
+    std::fs::write(&poses, "filename,x,y,z,omega,phi,kappa\nother.tif,650534.0,4890911.0,1820.0,0.1,0.2,0\n\nscan.tif,650534.0,4890911.0,1820.0,0.1,0.2\n")
+        .unwrap();
+    refused(d, &["--exterior", s(&poses)], &["poses.csv", "line 4: 6 fields where the first line has 7"], &["line 1"]);
+}

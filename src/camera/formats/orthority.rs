@@ -393,15 +393,27 @@ pub fn read_csv(path: &Path, text: &str, unit: super::AngleUnit, only: Option<&P
     let quote = if first.trim_start().starts_with('\'') { b'\'' } else { b'"' };
     let fields = |line: &str, d: u8| fields_quoted(line, d, quote);
     // The delimiter that gives the first line seven or more fields, and every line as many.
-    let delimiter = DELIMITERS
-        .into_iter()
-        .find(|&d| {
-            let head = fields(first, d);
-            let n = head.len();
-            // (A header short of a column: the columns' check names it.)
-            (n >= 7 || has_file_column(&head)) && lines().take(20).all(|(_, l)| fields(l, d).len() == n)
-        })
-        .ok_or_else(|| Error::format(path, "line 1: expected a header (filename, x, y, z, omega, phi, kappa, …) or seven fields, all lines alike"))?;
+    // (A header short of a column: the columns' check names it.)
+    let fits_first = |d: u8| {
+        let head = fields(first, d);
+        (head.len() >= 7 || has_file_column(&head)).then_some(head.len())
+    };
+    let delimiter = DELIMITERS.into_iter().find(|&d| fits_first(d).is_some_and(|n| lines().take(20).all(|(_, l)| fields(l, d).len() == n)));
+    let Some(delimiter) = delimiter else {
+        // A first line that is a table's, and a line after it that is not:
+        // that line is named, not the first.
+        let short = DELIMITERS.into_iter().find_map(|d| {
+            let n = fits_first(d)?;
+            lines().take(20).find(|(_, l)| fields(l, d).len() != n).map(|(i, l)| (i + 1, fields(l, d).len(), n))
+        });
+        return Err(Error::format(
+            path,
+            match short {
+                Some((line, got, n)) => format!("line {line}: {got} fields where the first line has {n}"),
+                None => "line 1: expected a header (filename, x, y, z, omega, phi, kappa, …) or seven fields, all lines alike".into(),
+            },
+        ));
+    };
     let head: Vec<String> = fields(first, delimiter).iter().map(|f| f.to_ascii_lowercase()).collect();
     // `name` (our block CSV) and `imagename` (Pix4D's calibrated external
     // camera parameters: the same columns and ω, φ, κ) name the file too.
