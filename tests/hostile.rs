@@ -452,3 +452,18 @@ fn a_pose_file_s_short_row_is_named_by_its_line() {
         .unwrap();
     refused(d, &["--exterior", s(&poses)], &["poses.csv", "line 4: 6 fields where the first line has 7"], &["line 1"]);
 }
+
+#[test]
+fn a_geotransform_beside_a_dem_that_places_no_pixel_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    mini(d);
+    // A DEM with no georeferencing of its own: GDAL's .aux.xml gives it.
+    let plain = d.join("plain.tif");
+    let spec = plain_spec((60, 60), 1, gcm_ortho::io::source::SampleType::F32, None);
+    gcm_ortho::io::tiff_out::write_raster(&plain, &spec, |_, _, buf| buf.chunks_exact_mut(4).for_each(|v| v.copy_from_slice(&350f32.to_ne_bytes()))).unwrap();
+    for (gt, said) in [("nan, 50, 0, 4893300, 0, -50", "GeoTransform: NaN is not a finite number"), ("648150, 0, 0, 4893300, 0, -50", "pixels of no area")] {
+        std::fs::write(d.join("plain.tif.aux.xml"), format!("<PAMDataset><SRS>EPSG:32631</SRS><GeoTransform>{gt}</GeoTransform></PAMDataset>")).unwrap();
+        refused(d, &["--dem", s(&plain)], &["plain.tif.aux.xml", said], &["camera.toml"]);
+    }
+}
