@@ -380,6 +380,18 @@ pub enum Height {
 }
 
 
+/// A GeoTransform that places pixels: six finite numbers whose pixel
+/// axes span an area (not NaN, nor a pixel of no size).
+fn check_transform(gt: &[f64; 6]) -> std::result::Result<(), String> {
+    if let Some(v) = gt.iter().find(|v| !v.is_finite()) {
+        return Err(format!("{v} is not a finite number"));
+    }
+    if gt[1] * gt[5] - gt[2] * gt[4] == 0.0 {
+        return Err(format!("pixels of no area ({}, {}, {}, {})", gt[1], gt[2], gt[4], gt[5]));
+    }
+    Ok(())
+}
+
 /// Refuses a DEM whose grid is not north-up (rows along the easting, the
 /// first row the northernmost): its tiles and lookups assume it.
 fn check_north_up(geo: &crate::io::geotiff::GeoRef, path: &std::path::Path) -> Result<()> {

@@ -393,7 +393,7 @@ fn vrt_size_and_transform(path: &Path, root: roxmltree::Node) -> Result<(usize, 
         .map(|t| t.split(',').filter_map(|v| v.trim().parse().ok()).collect())
         .ok_or_else(|| bad("no GeoTransform".into()))?;
     let transform: [f64; 6] = gt.try_into().map_err(|_| bad("a GeoTransform of other than six numbers".into()))?;
-    super::read::check_transform(&transform).map_err(|m| bad(format!("GeoTransform: {m}")))?;
+    super::check_transform(&transform).map_err(|m| bad(format!("GeoTransform: {m}")))?;
     Ok((width, height, transform))
 }
 

@@ -193,7 +193,7 @@ fn aux_xml_beside(path: &Path) -> Result<Option<(GeoRef, Option<Crs>)>> {
     let gt: Vec<f64> =
         gt.split(',').map(|v| v.trim().parse().map_err(|_| Error::format(&aux, format!("GeoTransform '{gt}' is not six numbers")))).collect::<Result<_>>()?;
     let transform: [f64; 6] = gt.try_into().map_err(|_| Error::format(&aux, "a GeoTransform of other than six numbers"))?;
-    check_transform(&transform).map_err(|m| Error::format(&aux, format!("GeoTransform: {m}")))?;
+    super::check_transform(&transform).map_err(|m| Error::format(&aux, format!("GeoTransform: {m}")))?;
     let crs = child(root, "SRS")
         .filter(|t| !t.is_empty())
         .map(|t| Crs::parse(t, path.parent().unwrap_or(Path::new("."))).map_err(|m| Error::format(&aux, format!("its SRS: {m}"))))
@@ -206,18 +206,6 @@ fn aux_xml_beside(path: &Path) -> Result<Option<(GeoRef, Option<Crs>)>> {
     };
     let geo = GeoRef { transform, keys: Default::default(), nodata: number("NoDataValue"), scale_offset, source: None };
     Ok(Some((geo, crs)))
-}
-
-/// A GeoTransform that places pixels: six finite numbers whose pixel
-/// axes span an area (not NaN, nor a pixel of no size).
-pub(crate) fn check_transform(gt: &[f64; 6]) -> std::result::Result<(), String> {
-    if let Some(v) = gt.iter().find(|v| !v.is_finite()) {
-        return Err(format!("{v} is not a finite number"));
-    }
-    if gt[1] * gt[5] - gt[2] * gt[4] == 0.0 {
-        return Err(format!("pixels of no area ({}, {}, {}, {})", gt[1], gt[2], gt[4], gt[5]));
-    }
-    Ok(())
 }
 
 /// The CRS of a `.prj` file beside a raster whose keys name none.
