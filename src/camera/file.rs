@@ -366,7 +366,7 @@ impl CameraFile {
         finite_positive(f).map_err(|m| err("camera.focal_length_mm", m))?;
         within_a_lens(f).map_err(|m| err("camera.focal_length_mm", m))?;
         if let Some(pp) = self.interior.as_ref().and_then(|i| i.principal_point_mm) {
-            pp.iter().try_for_each(|&v| within_a_lens(v.abs())).map_err(|m| err("interior.principal_point_mm", m))?;
+            pp.iter().try_for_each(|&v| within_a_lens(v)).map_err(|m| err("interior.principal_point_mm", m))?;
         }
 
         let interior = self.interior.clone().ok_or_else(|| err("interior", "missing section".into()))?;
@@ -638,8 +638,9 @@ fn all_finite(v: &[f64]) -> std::result::Result<(), String> {
 /// A length in a lens's interior orientation: within a kilometre (lenses
 /// in pixel units, whose "mm" are pixels, included). Past it, the value
 /// would pass for a wrong distortion or format, which are then blamed.
+/// (NaN passes: the finiteness check names it as such.)
 fn within_a_lens(v: f64) -> std::result::Result<(), String> {
-    match v <= 1e6 {
+    match !(v.abs() > 1e6) {
         true => Ok(()),
         false => Err(format!("{v:e} mm is no lens's (1 km at most)")),
     }
