@@ -23,7 +23,7 @@ if [ ! -f "$scene/scan.tif" ]; then
   "$bin" synth --out "$scene" --size "${size}x${size}" --bands 3 --relief hilly --quiet
 fi
 cat "$scene/scan.tif" > /dev/null
-IFS=';' read -r -a codecs <<< "${CODECS:-none;deflate 1;deflate 2;deflate 4;deflate 6;deflate 9;zstd 1;zstd 3;zstd 9;lzw;jpeg 75;jpeg 85;jpeg 95}"
+IFS=';' read -r -a codecs <<< "${CODECS:-none;deflate 0;deflate 1;deflate 2;deflate 4;deflate 6;deflate 9;zstd 1;zstd 3;zstd 9;lzw;jpeg 75;jpeg 85;jpeg 95}"
 for i in $(seq "$runs"); do
   for codec in "${codecs[@]}"; do
     set -- $codec

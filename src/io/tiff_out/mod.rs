@@ -48,7 +48,8 @@ impl Compression {
     /// Deflate's 1–12 are libdeflate's; its 0 is our own Huffman-only
     /// coder (a code fitted to each tile, runs of zeros its only matches),
     /// several times as fast as level 1 on predicted image rows for some
-    /// 13 % more bytes.
+    /// 12 % more bytes: the default where the rows are predicted
+    /// ([`OutputSpec::level_of`]), level 1 elsewhere (floats).
     pub fn levels(self) -> Option<(std::ops::RangeInclusive<u8>, u8)> {
         match self {
             Compression::Deflate => Some((0..=12, 1)),
@@ -166,17 +167,19 @@ impl OutputSpec {
     pub fn mask_tile(&self, k: usize) -> usize {
         self.chunk_index(0, k, true)
     }
-    /// The codec level of level `l`'s tiles (0: full resolution). Overview
-    /// tiles without a level asked for get the fastest coding (deflate's
-    /// 0) where it is made for the samples (integers, predicted), unless
-    /// the full level's was given; JPEG's overviews keep the full level's
-    /// quality (one set of tables).
+    /// The codec level of level `l`'s tiles (0: full resolution). Deflate
+    /// without a level asked for codes predicted integer samples with its
+    /// fastest coder (level 0, Huffman codes alone: a third of level 1's
+    /// CPU for some 12 % more bytes, docs/BENCHMARKS.md), other samples at
+    /// level 1; overview tiles take `--overview-level`, else the full
+    /// level's. JPEG's overviews keep the full level's quality (one set
+    /// of tables).
     pub fn level_of(&self, l: u32) -> u8 {
         let c = self.compression;
-        match (l, c) {
-            (0, _) | (_, Compression::Jpeg) => c.level_or_default(self.level),
-            (_, Compression::Deflate) if self.predictor() == 2 => self.overview_level.or(self.level).unwrap_or(0),
-            _ => c.level_or_default(self.overview_level.or(self.level)),
+        let asked = if l == 0 || c == Compression::Jpeg { self.level } else { self.overview_level.or(self.level) };
+        match (asked, c) {
+            (None, Compression::Deflate) if self.predictor() == 2 => 0,
+            _ => c.level_or_default(asked),
         }
     }
     /// Width and height of level `l` (0: full resolution; each level half
