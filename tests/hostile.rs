@@ -467,3 +467,31 @@ fn a_geotransform_beside_a_dem_that_places_no_pixel_is_refused() {
         refused(d, &["--dem", s(&plain)], &["plain.tif.aux.xml", said], &["camera.toml"]);
     }
 }
+
+/// A TIFF scan whose Orientation tag says its rows are shown turned (6)
+/// or holds a value no standard defines (9) is refused by the tag, as a
+/// JPEG's EXIF is: the camera model is of the rows as stored. 1 is read.
+#[test]
+fn a_tiff_scan_shown_turned_is_refused_by_its_orientation_tag() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, _, _) = mini(d);
+    let (pixels, info) = whole_image(&scan);
+    assert_eq!((info.width, info.height, info.bands), (200, 200, 1));
+    let with_orientation = |o: u16| {
+        let mut file = std::io::BufWriter::new(std::fs::File::create(&scan).unwrap());
+        let mut tiff = tiff::encoder::TiffEncoder::new(&mut file).unwrap();
+        let mut image = tiff.new_image::<tiff::encoder::colortype::Gray8>(200, 200).unwrap();
+        image.encoder().write_tag(tiff::tags::Tag::Orientation, o).unwrap();
+        image.write_data(&pixels).unwrap();
+    };
+    for o in [6u16, 9] {
+        with_orientation(o);
+        let err = refused(d, &[], &["scan.tif", &format!("TIFF Orientation tag is {o}")], &[]);
+        assert!(err.contains(if o == 6 { "turned 90° clockwise" } else { "do not define" }), "{err}");
+    }
+    with_orientation(1);
+    let out = d.join("upright.tif");
+    let r = run(&["rectify", "--image", s(&scan), "--camera", s(&d.join("camera.toml")), "--dem", s(&d.join("dem.tif")), "--quiet", "-o", s(&out)]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+}

@@ -87,6 +87,29 @@ fn tag_u64s(dec: &mut Decoder<BufReader<File>>, tag: Tag, path: &Path) -> Result
     dec.get_tag_u64_vec(tag).map_err(|e| Error::from_tiff(path, e))
 }
 
+/// A scan whose file says its rows are to be shown turned or mirrored
+/// (orientation `o` ≠ 1, by its `tag`) is refused: the camera's interior
+/// orientation is of the sensor's rows and columns as stored, and a
+/// camera file made for the rows as shown would put every pixel elsewhere.
+pub(super) fn orientation_refused(path: &Path, tag: &str, o: u32) -> Error {
+    let what = match o {
+        2 => "to be shown mirrored left to right",
+        3 => "to be shown turned 180°",
+        4 => "to be shown mirrored top to bottom",
+        5 => "to be shown mirrored and turned 90°",
+        6 => "to be shown turned 90° clockwise",
+        7 => "to be shown mirrored and turned 90° anticlockwise",
+        8 => "to be shown turned 90° anticlockwise",
+        _ => "a value TIFF and EXIF do not define",
+    };
+    Error::unsupported(
+        path,
+        format!(
+            "its {tag} is {o} ({what}): the camera model is of the rows as stored; clear the tag (exiftool -Orientation=1 -n) if the camera file was made for the stored rows"
+        ),
+    )
+}
+
 pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_len: u64) -> Result<SourceInfo> {
     let tf = |e| Error::from_tiff(path, e);
     let (width, height) = dec.dimensions().map_err(tf)?;
@@ -125,6 +148,9 @@ pub(super) fn read_info(dec: &mut Decoder<BufReader<File>>, path: &Path, file_le
         6 if dec.find_tag_unsigned::<u16>(Tag::Compression).map_err(tf)? == Some(7) => {}
         6 => return Err(Error::unsupported(path, "YCbCr images other than JPEG-compressed ones (convert to RGB first)")),
         p => return Err(Error::unsupported(path, format!("photometric interpretation {p}"))),
+    }
+    if let Some(o) = dec.find_tag_unsigned::<u32>(Tag::Orientation).map_err(tf)?.filter(|&o| o != 1) {
+        return Err(orientation_refused(path, "TIFF Orientation tag", o));
     }
     let extra = dec.find_tag_unsigned_vec::<u16>(Tag::ExtraSamples).map_err(tf)?.unwrap_or_default();
     let has_alpha = extra.iter().any(|&e| e == 1 || e == 2);

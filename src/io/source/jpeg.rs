@@ -25,6 +25,11 @@ struct Layout {
     height: u32,
     /// SOF2/6/10/14: decoded whole (libjpeg keeps the coefficients).
     progressive: bool,
+    /// SOF0/1: sequential, Huffman-coded, where every 8×8 block takes
+    /// two bits at the least (a DC code and an end-of-block or AC code).
+    sequential_huffman: bool,
+    /// Bytes of entropy-coded data in the scans (stuffed zeros not counted).
+    scan_bytes: u64,
     /// Each component's (horizontal, vertical) sampling factors.
     sampling: Vec<(u8, u8)>,
     /// The EXIF block of APP1 (after "Exif\0\0"), if any.
@@ -34,6 +39,8 @@ struct Layout {
 /// The bytes of a JPEG, read through a buffer.
 struct Bytes<R> {
     r: R,
+    /// Bytes passed over by [`Bytes::skip_to_marker`].
+    skipped: u64,
 }
 
 impl<R: BufRead> Bytes<R> {
@@ -58,11 +65,13 @@ impl<R: BufRead> Bytes<R> {
             match buf.iter().position(|&b| b == 0xff) {
                 Some(p) => {
                     self.r.consume(p);
+                    self.skipped += p as u64;
                     return Ok(());
                 }
                 None => {
                     let n = buf.len();
                     self.r.consume(n);
+                    self.skipped += n as u64;
                 }
             }
         }
@@ -71,7 +80,7 @@ impl<R: BufRead> Bytes<R> {
 
 /// Walks the markers of the JPEG in `r` to the end-of-image marker.
 fn layout(r: impl BufRead) -> std::result::Result<Layout, String> {
-    let mut bytes = Bytes { r };
+    let mut bytes = Bytes { r, skipped: 0 };
     if (bytes.next()?, bytes.next()?) != (0xff, 0xd8) {
         return Err("no start-of-image marker".into());
     }
@@ -93,7 +102,12 @@ fn layout(r: impl BufRead) -> std::result::Result<Layout, String> {
             marker = bytes.next()?;
         }
         match marker {
-            0x00 | 0xd0..=0xd7 if in_scan => continue,
+            // A stuffed zero stands for a data byte 0xFF.
+            0x00 if in_scan => {
+                bytes.skipped += 1;
+                continue;
+            }
+            0xd0..=0xd7 if in_scan => continue,
             0x01 | 0xd0..=0xd7 => continue,
             0xd9 => {
                 let mut f = frame.ok_or("no frame header")?;
@@ -101,6 +115,7 @@ fn layout(r: impl BufRead) -> std::result::Result<Layout, String> {
                     return Err("no scan".into());
                 }
                 f.exif = exif;
+                f.scan_bytes = bytes.skipped;
                 return Ok(f);
             }
             _ => {}
@@ -132,6 +147,8 @@ fn layout(r: impl BufRead) -> std::result::Result<Layout, String> {
                     height: u16::from_be_bytes([body[1], body[2]]) as u32,
                     width: u16::from_be_bytes([body[3], body[4]]) as u32,
                     progressive: matches!(marker, 0xc2 | 0xc6 | 0xca | 0xce),
+                    sequential_huffman: matches!(marker, 0xc0 | 0xc1),
+                    scan_bytes: 0,
                     sampling: (0..n).map(|i| (body[7 + 3 * i] >> 4, body[7 + 3 * i] & 15)).collect(),
                     exif: None,
                 });
@@ -153,6 +170,39 @@ fn coefficient_bytes(l: &Layout) -> u64 {
     l.sampling.iter().map(|&(h, v)| mcus_x * h as u64 * mcus_y * v as u64 * 128).sum()
 }
 
+/// 8×8 blocks of a frame's components, each component's own (as a scan
+/// of it alone codes them: no fewer than an interleaved scan's).
+fn blocks(l: &Layout) -> u64 {
+    let hmax = l.sampling.iter().map(|s| s.0).max().unwrap_or(1).max(1) as u64;
+    let vmax = l.sampling.iter().map(|s| s.1).max().unwrap_or(1).max(1) as u64;
+    l.sampling
+        .iter()
+        .map(|&(h, v)| {
+            let (cw, ch) = ((l.width as u64 * h as u64).div_ceil(hmax), (l.height as u64 * v as u64).div_ceil(vmax));
+            cw.div_ceil(8) * ch.div_ceil(8)
+        })
+        .sum()
+}
+
+/// A sequential Huffman-coded JPEG whose scans hold fewer bytes than its
+/// blocks need at the least (two bits a block) is refused before
+/// decoding: libjpeg would fill the missing rows with grey, warning only,
+/// and a header claiming 65500² px over a few bytes of data cost a
+/// minute and 12 GB of decoded grey.
+fn check_scan_bytes(path: &Path, l: &Layout) -> Result<()> {
+    let least = blocks(l).div_ceil(4);
+    if l.sequential_huffman && l.scan_bytes < least {
+        return Err(Error::format(
+            path,
+            format!(
+                "JPEG: its scans hold {} bytes, fewer than the {least} that {}×{} pixels need at the least (two bits an 8×8 block): truncated, or its frame's size is false",
+                l.scan_bytes, l.width, l.height
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Rows handed out by libjpeg at a time.
 const ROWS: usize = 16;
 
@@ -170,6 +220,7 @@ pub(super) fn decode_jpeg(path: &Path, memory: Option<u64>) -> Result<Decoded> {
         n => return Err(Error::unsupported(path, format!("a JPEG of {n} components (grey, YCbCr and RGB are read)"))),
     };
     check_size(path, l.width, l.height, bands)?;
+    check_scan_bytes(path, &l)?;
     let info = plain_info(l.width, l.height, bands, SampleType::U8, false);
     let Some(memory) = memory else { return Ok((info, None)) };
     if l.progressive {
@@ -227,22 +278,7 @@ fn check_orientation(path: &Path, exif: &[u8]) -> Result<()> {
     if o == 1 {
         return Ok(());
     }
-    let what = match o {
-        2 => "mirrored left to right",
-        3 => "turned 180°",
-        4 => "mirrored top to bottom",
-        5 => "mirrored and turned 90°",
-        6 => "turned 90° clockwise",
-        7 => "mirrored and turned 90° anticlockwise",
-        8 => "turned 90° anticlockwise",
-        _ => "of an unknown orientation",
-    };
-    Err(Error::unsupported(
-        path,
-        format!(
-            "its EXIF orientation is {o} (to be shown {what}): the camera model is of the rows as stored; clear the tag (exiftool -Orientation=1 -n) if the camera file was made for the stored rows"
-        ),
-    ))
+    Err(super::header::orientation_refused(path, "EXIF orientation", o))
 }
 
 #[cfg(test)]
@@ -271,5 +307,28 @@ mod tests {
         e.set_progressive(true);
         e.encode(&pixels, 40, 24, jpeg_encoder::ColorType::Rgb).unwrap();
         assert!(layout(&progressive[..]).unwrap().progressive);
+    }
+
+    /// A frame whose size the scans cannot hold is refused before any
+    /// decoding; the same data under its true size passes.
+    #[test]
+    fn a_frame_larger_than_its_data_is_refused_before_decoding() {
+        let pixels: Vec<u8> = (0..40 * 24 * 3).map(|i| (i % 251) as u8).collect();
+        let mut whole = Vec::new();
+        let mut e = jpeg_encoder::Encoder::new(&mut whole, 80);
+        e.set_sampling_factor(jpeg_encoder::SamplingFactor::R_4_2_0);
+        e.encode(&pixels, 40, 24, jpeg_encoder::ColorType::Rgb).unwrap();
+        let l = layout(&whole[..]).unwrap();
+        // Y 5×3 blocks, Cb and Cr 3×2 each.
+        assert_eq!(blocks(&l), 15 + 6 + 6);
+        assert!(l.sequential_huffman && l.scan_bytes > 7 && (l.scan_bytes as usize) < whole.len() - 300, "{} of {}", l.scan_bytes, whole.len());
+        check_scan_bytes(Path::new("a.jpg"), &l).unwrap();
+        // The frame header's height and width (after FF C0, length, precision).
+        let sof = whole.windows(2).position(|w| w == [0xff, 0xc0]).unwrap();
+        whole[sof + 5..sof + 9].copy_from_slice(&[0xff, 0xdc, 0xff, 0xdc]);
+        let big = layout(&whole[..]).unwrap();
+        assert_eq!((big.width, big.height), (65500, 65500));
+        let e = check_scan_bytes(Path::new("a.jpg"), &big).unwrap_err().to_string();
+        assert!(e.contains("a.jpg") && e.contains("65500×65500") && e.contains(&format!("hold {} bytes", l.scan_bytes)), "{e}");
     }
 }
