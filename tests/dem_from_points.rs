@@ -569,4 +569,12 @@ fn cells_past_what_the_points_resolve_or_the_memory_holds_are_refused_by_gsd() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("--gsd: 1000000×1000000 cells need") && err.contains("--memory"), "{err}");
     assert!(!out.exists());
+    // One cell of a thousand kilometres, its centre outside the points:
+    // a DEM without a height is refused, not published with a warning.
+    let (out, o) = grid(d.path(), "coarse.tif", &args("1e9"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("no cell of the 1×1 DEM has a height") && err.contains("--gsd 1e9"), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(!out.exists() && files_containing(d.path(), "coarse").is_empty());
 }

@@ -276,7 +276,9 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     });
     let unsettled = std::sync::atomic::AtomicU64::new(0);
     let (mut with, mut without) = (0u64, 0u64);
+    let last_band = (strips.len() - 1, spec.tiles_down() - 1);
     let written = crate::pipeline::band_writer::write_bands(&writing, pending, &strips, |s, b| {
+        let last = (s, b) == last_band;
         // The whole DEM's tile columns and band.
         let (c0, c1) = (strips[s].0 + tc0, strips[s].1 + tc0);
         let b = b + tr0;
@@ -306,6 +308,14 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
                 }
             }
         }
+        // A whole DEM without one height is refused before it is
+        // published (a piece of a sharded one may lie where no point is).
+        if last && with == 0 && !is_piece {
+            return Err(Error::Geometry(format!(
+                "no cell of the {w}×{h} DEM has a height: the points are farther apart than ‹max_edge› (or ‹radius›) everywhere, or no cell's centre falls among them (‹gsd› {})",
+                crate::error::short_number(gx)
+            )));
+        }
         Ok((Raw::F32(raw), None))
     });
     progress.finish();
@@ -315,7 +325,7 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     written?;
     let unsettled = unsettled.into_inner();
     if with == 0 {
-        warnings.push("no cell has a height: the points are farther apart than ‹max_edge› (or ‹radius›) everywhere".into());
+        warnings.push("no cell of this piece has a height: the points are farther apart than ‹max_edge› (or ‹radius›) everywhere here".into());
     }
     if blunders > 0 {
         warnings.push(format!("{blunders} points dropped as blunders (‹blunders› none keeps them)"));
