@@ -424,6 +424,7 @@ fn config(
             DemSource::File(p)
         }
         (None, Some(h)) if h.is_finite() => DemSource::Height(h),
+        (None, Some(h)) => return Err(format!("height: {h} is not a number of metres")),
         (Some(_), Some(_)) => return Err("give dem or height, not both".into()),
         _ => return Err("no dem and no height".into()),
     };
@@ -489,5 +490,12 @@ mod tests {
         .unwrap();
         let jobs = load(&m).unwrap_or_else(|e| panic!("{:?}", e.problems));
         assert!(jobs[0].problem.is_none(), "{:?}", jobs[0].problem);
+        // A height of nan or inf (TOML has both) is named as it is, not
+        // taken for a missing one.
+        for value in ["nan", "inf", "-inf"] {
+            std::fs::write(&m, format!("[[job]]\nimage = \"scan.tif\"\ncamera = \"camera.toml\"\nheight = {value}\n")).unwrap();
+            let problem = load(&m).map(|j| j[0].problem.clone().unwrap_or_default()).unwrap_or_else(|e| e.problems.join("; "));
+            assert!(problem.contains("height") && problem.contains("is not a number of metres") && !problem.contains("no dem"), "{value}: {problem}");
+        }
     }
 }
