@@ -222,7 +222,7 @@ impl ZoneGrid {
     #[inline]
     fn local(&self, k: usize) -> Option<usize> {
         let (x, y) = ((k % self.cw).wrapping_sub(self.x0), (k / self.cw).wrapping_sub(self.y0));
-        (x < self.w && y < self.h).then_some(y * self.w + x)
+        (x < self.w && y < self.h).then(|| y * self.w + x)
     }
 
     /// Is mosaic cell `k` in the zone?
