@@ -311,13 +311,26 @@ fn a_mark_cut_off_by_the_scans_edge_is_said_to_be() {
 /// quarter (the turn found, not given).
 #[test]
 fn real_notch_marks_pasted_into_a_scan_are_found_where_they_were_put() {
+    real_marks_pasted_into_a_scan_are_found("ee_notch", "tif", 110.0, 160);
+}
+
+/// Another style of real side marks (EarthExplorer's blocks, JPEG chips
+/// as cut), as the notches are.
+#[test]
+fn real_block_marks_pasted_into_a_scan_are_found_where_they_were_put() {
+    // (100 mm from the centre: the chips are 390 px across.)
+    real_marks_pasted_into_a_scan_are_found("ee_block", "jpg", 100.0, 160);
+}
+
+fn real_marks_pasted_into_a_scan_are_found(style: &str, ext: &str, reach_mm: f64, template_px: usize) {
     use gcm_ortho::camera::file::{MarkSetting, OneOrMany};
     use gcm_ortho::io::source::SampleType;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let chips = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/fiducial_chips/ee_notch");
+    let chips = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/fiducial_chips").join(style);
     let (n, pixel_mm) = (4800usize, 0.05);
-    let sides = [("L", [-110.0, 0.0]), ("T", [0.0, 110.0]), ("R", [110.0, 0.0]), ("B", [0.0, -110.0])];
+    let r = reach_mm;
+    let sides = [("L", [-r, 0.0]), ("T", [0.0, r]), ("R", [r, 0.0]), ("B", [0.0, -r])];
     let px_of = |mm: [f64; 2]| [n as f64 / 2.0 + mm[0] / pixel_mm, n as f64 / 2.0 - mm[1] / pixel_mm];
     // Texture and grain: a deterministic mix of waves and noise.
     let mut seed = 7u64;
@@ -329,15 +342,17 @@ fn real_notch_marks_pasted_into_a_scan_are_found_where_they_were_put() {
     let mut templates = Vec::new();
     let mut truth = Vec::new();
     for (k, (side, mm)) in sides.iter().enumerate() {
-        let (chip, info) = common::whole_image(&chips.join(format!("{side}.tif")));
+        let (chip, info) = common::whole_image(&chips.join(format!("{side}.{ext}")));
         let (w, h) = (info.width as usize, info.height as usize);
+        assert_eq!(info.bands, 1, "{style} {side}");
         let at = px_of(*mm);
         let (x0, y0) = (at[0] as usize - w / 2, at[1] as usize - h / 2);
         for y in 0..h {
             scan[(y0 + y) * n + x0..(y0 + y) * n + x0 + w].copy_from_slice(&chip[y * w..(y + 1) * w]);
         }
-        // The template: the chip's middle 160 × 160.
-        let t = 160;
+        // The template: the chip's middle square, `template_px` a side at
+        // most.
+        let t = template_px.min(w & !1).min(h & !1);
         let crop: Vec<u8> = (0..t).flat_map(|y| chip[(h / 2 - t / 2 + y) * w + w / 2 - t / 2..][..t].to_vec()).collect();
         let path = d.join(format!("template_{k}.tif"));
         gcm_ortho::io::tiff_out::write_raster(&path, &common::plain_spec((t as u32, t as u32), 1, SampleType::U8, None), |y0, y1, buf| {
@@ -375,13 +390,14 @@ fn real_notch_marks_pasted_into_a_scan_are_found_where_they_were_put() {
             buf.copy_from_slice(&pixels[y0 as usize * n..y1 as usize * n]);
         })
         .unwrap();
-        let det = detect(&path, &camera, &Overrides::default()).unwrap_or_else(|e| panic!("{name}: {e}"));
-        assert_eq!(det.marks.len(), 4, "{name}");
+        let det = detect(&path, &camera, &Overrides::default()).unwrap_or_else(|e| panic!("{style} {name}: {e}"));
+        assert_eq!(det.marks.len(), 4, "{style} {name}");
         for m in &det.marks {
-            let p = m.px.unwrap_or_else(|| panic!("{name}: mark {} not found: {:#?}", m.mark, det.marks));
+            let p = m.px.unwrap_or_else(|| panic!("{style} {name}: mark {} not found: {:#?}", m.mark, det.marks));
             let t = want[m.mark - 1];
             let off = (p[0] - t[0]).hypot(p[1] - t[1]);
-            assert!(m.used && off < 0.5, "{name}: mark {} found {off:.3} px from where it was put ({p:?} against {t:?})", m.mark);
+            eprintln!("{style} {name}: mark {} {off:.3} px", m.mark);
+            assert!(m.used && off < 0.5, "{style} {name}: mark {} found {off:.3} px from where it was put ({p:?} against {t:?})", m.mark);
         }
     }
 }
