@@ -495,3 +495,30 @@ fn a_tiff_scan_shown_turned_is_refused_by_its_orientation_tag() {
     let r = run(&["rectify", "--image", s(&scan), "--camera", s(&d.join("camera.toml")), "--dem", s(&d.join("dem.tif")), "--quiet", "-o", s(&out)]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
 }
+
+/// A path that is not UTF-8 is refused naming the option it was given to
+/// (it was "the arguments: path contains invalid UTF-8 characters").
+#[test]
+fn a_path_that_is_not_utf8_is_refused_by_its_option() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (scan, camera, dem) = mini(d);
+    let odd = d.join(std::ffi::OsStr::from_bytes(b"scan\xff.tif"));
+    std::fs::copy(&scan, &odd).unwrap();
+    let out = d.join("out.tif");
+    for (flag, image, output) in [("--image", &odd, &out), ("-o", &scan, &odd.with_file_name(std::ffi::OsStr::from_bytes(b"out\xff.tif")))] {
+        let r = std::process::Command::new(bin())
+            .args(["rectify", "--quiet", "--camera", s(&camera), "--dem", s(&dem), "--image"])
+            .arg(image)
+            .arg("-o")
+            .arg(output)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{flag}: {err}");
+        assert!(err.contains(&format!("{flag}: '")) && err.contains("is not UTF-8 text"), "{flag}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(!out.exists() && !output.exists());
+    }
+}

@@ -38,8 +38,28 @@ pub fn keys_of(args: &impl serde::Serialize) -> Result<serde_json::Map<String, s
         Ok(serde_json::Value::Object(keys)) => Ok(keys),
         Ok(_) => Err(crate::Error::Internal("the arguments are not an object of keys".into())),
         // (A path that is not UTF-8 has no key's text.)
-        Err(e) => Err(crate::Error::Usage(format!("the arguments: {e}"))),
+        Err(e) => Err(crate::Error::Usage(match NOT_UTF8.get() {
+            Some(which) => format!("{which} is not UTF-8 text, which a run's settings and report are kept in: rename it"),
+            None => format!("the arguments: {e}"),
+        })),
     }
+}
+
+/// The first argument that is not UTF-8, said with the option it was
+/// given to (`--image 'scan\u{fffd}.tif'`), for [`keys_of`]'s refusal.
+static NOT_UTF8: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+
+/// Notes the first argument of `args` (the program's name first) that is
+/// not UTF-8, and the option it was given to.
+pub fn note_not_utf8(args: &[std::ffi::OsString]) {
+    let Some(i) = args.iter().skip(1).position(|a| a.to_str().is_none()).map(|i| i + 1) else { return };
+    let lossy = args[i].to_string_lossy();
+    let which = match (lossy.split_once('='), args[i - 1].to_str()) {
+        (Some((flag, value)), _) if flag.starts_with('-') && !flag.contains('\u{fffd}') => format!("{flag}: '{value}'"),
+        (_, Some(flag)) if flag.starts_with('-') && !flag.contains('=') && i > 1 => format!("{flag}: '{lossy}'"),
+        _ => format!("the argument '{lossy}'"),
+    };
+    let _ = NOT_UTF8.set(which);
 }
 
 /// A number that is one: clap takes `nan` and `inf` as numbers, which

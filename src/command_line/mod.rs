@@ -91,6 +91,7 @@ pub fn run(args: Vec<std::ffi::OsString>) -> u8 {
     // Which subcommand ran, to name a setting by its flag where it has one.
     let command = args.get(1).map(|a| a.to_string_lossy().into_owned()).unwrap_or_default();
     flag_names::set_command(&command);
+    cli::note_not_utf8(&args);
     let polls = matches!(
         cli.command,
         cli::Command::Rectify(_) | cli::Command::Batch(_) | cli::Command::Demo(_) | cli::Command::Mosaic(_) | cli::Command::Grid(_) | cli::Command::Dem(_)
