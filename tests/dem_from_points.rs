@@ -412,7 +412,23 @@ fn bad_points_are_refused_naming_the_file_and_leaving_no_dem() {
         bytes[at..at + 8].copy_from_slice(&value.to_le_bytes());
         std::fs::write(p(name), &bytes).unwrap();
     }
+    // LAZ (chunks of 50,000 points: three for 120,000) whose header counts
+    // half or twice its points, and one whose chunk table counts 4·10⁹
+    // chunks (the decoder reserved them: an abort).
+    write_las(&p("good.laz"), &random_points(120_000, 300.0, 3, plane), true);
+    let good = std::fs::read(p("good.laz")).unwrap();
+    let data_start = u32::from_le_bytes(good[96..100].try_into().unwrap()) as usize;
+    let table = i64::from_le_bytes(good[data_start..data_start + 8].try_into().unwrap()) as usize;
+    assert_eq!(u32::from_le_bytes(good[table + 4..table + 8].try_into().unwrap()), 3, "chunks of the LAZ written");
+    for (name, at, value) in [("half.laz", 107, 60_000u32), ("twice.laz", 107, 240_000), ("chunks.laz", table + 4, 0xffff_fff0)] {
+        let mut bytes = good.clone();
+        bytes[at..at + 4].copy_from_slice(&value.to_le_bytes());
+        std::fs::write(p(name), &bytes).unwrap();
+    }
     for (input, crs, said) in [
+        ("half.laz", "EPSG:32631", "the header counts 60000 points, but its 3 compressed chunks hold 100001 to 150000"),
+        ("twice.laz", "EPSG:32631", "the header counts 240000 points"),
+        ("chunks.laz", "EPSG:32631", "its chunk table counts 4294967280 chunks, more than the"),
         ("empty.csv", "EPSG:32631", "no points"),
         ("line.csv", "EPSG:32631", "on one line"),
         ("nan.csv", "EPSG:32631", "line 3"),

@@ -19,6 +19,7 @@ fn failed(path: &Path, e: las::Error) -> Error {
 }
 
 fn open(path: &Path) -> Result<las::Reader> {
+    super::laz_chunks::check(path)?;
     let reader = las::Reader::from_path(path).map_err(|e| failed(path, e))?;
     let h = reader.header();
     let format = h.point_format();

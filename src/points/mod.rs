@@ -3,6 +3,7 @@
 //! point clouds). Each file is read as a stream of batches, never whole.
 
 pub mod las_file;
+mod laz_chunks;
 pub mod text;
 
 use crate::error::{Error, Result};
