@@ -285,15 +285,21 @@ fn check_orientation(path: &Path, exif: &[u8]) -> Result<()> {
 mod tests {
     use super::*;
 
-    /// A 40 × 24 RGB JPEG (4:2:0) made by jpeg-encoder: its layout, and
-    /// every cut of it short of its end refused as truncated.
-    #[test]
-    fn the_markers_give_the_frame_and_a_cut_file_is_refused() {
+    /// 40 × 24 RGB pixels, and their baseline JPEG (4:2:0) by jpeg-encoder.
+    fn sample_jpeg() -> (Vec<u8>, Vec<u8>) {
         let pixels: Vec<u8> = (0..40 * 24 * 3).map(|i| (i % 251) as u8).collect();
         let mut whole = Vec::new();
         let mut e = jpeg_encoder::Encoder::new(&mut whole, 80);
         e.set_sampling_factor(jpeg_encoder::SamplingFactor::R_4_2_0);
         e.encode(&pixels, 40, 24, jpeg_encoder::ColorType::Rgb).unwrap();
+        (pixels, whole)
+    }
+
+    /// A 40 × 24 RGB JPEG (4:2:0) made by jpeg-encoder: its layout, and
+    /// every cut of it short of its end refused as truncated.
+    #[test]
+    fn the_markers_give_the_frame_and_a_cut_file_is_refused() {
+        let (pixels, whole) = sample_jpeg();
         let l = layout(&whole[..]).unwrap();
         assert_eq!((l.width, l.height, l.progressive, l.sampling.clone()), (40, 24, false, vec![(2, 2), (1, 1), (1, 1)]));
         // Three MCUs across, two down; Y 2×2 blocks an MCU, Cb and Cr one.
@@ -313,11 +319,7 @@ mod tests {
     /// decoding; the same data under its true size passes.
     #[test]
     fn a_frame_larger_than_its_data_is_refused_before_decoding() {
-        let pixels: Vec<u8> = (0..40 * 24 * 3).map(|i| (i % 251) as u8).collect();
-        let mut whole = Vec::new();
-        let mut e = jpeg_encoder::Encoder::new(&mut whole, 80);
-        e.set_sampling_factor(jpeg_encoder::SamplingFactor::R_4_2_0);
-        e.encode(&pixels, 40, 24, jpeg_encoder::ColorType::Rgb).unwrap();
+        let (_, mut whole) = sample_jpeg();
         let l = layout(&whole[..]).unwrap();
         // Y 5×3 blocks, Cb and Cr 3×2 each.
         assert_eq!(blocks(&l), 15 + 6 + 6);
