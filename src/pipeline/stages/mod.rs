@@ -17,6 +17,7 @@ mod holes;
 pub mod read;
 pub mod resample;
 mod resample_row;
+mod task_block;
 mod transpose;
 pub mod write;
 

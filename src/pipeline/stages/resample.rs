@@ -260,8 +260,9 @@ pub fn resample_chunk<T: Sample + Recycle>(
             .enumerate()
             .map_init(
                 // The rows of a task, one after the other.
-                || (RowScratch::default(), vec![T::default(); group * stride * bands_in], vec![false; group * w]),
+                || (RowScratch::default(), super::task_block::TaskBlock::<T>::zeroed(group * stride * bands_in), vec![false; group * w]),
                 |(scratch, block, valid_block), (g, (row_pieces, mask_pieces))| {
+                    let block = block.as_mut_slice();
                     // (Rows of other strips are theirs; one a task then.)
                     if g * group < rows && !range.contains(&(g * group)) {
                         return None;
