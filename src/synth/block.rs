@@ -81,7 +81,7 @@ pub fn synth_block(o: &SynthOptions, cols: u32, rows: u32, progress: &dyn Progre
                 e.position = [cx + (u(1) - 0.5) * 0.02 * fw, cy + (u(2) - 0.5) * 0.02 * fh, pos0[2] + (u(3) - 0.5) * 0.02 * flying];
             }
             let cam_path = o.out.join(format!("scans/{name}.toml"));
-            std::fs::write(&cam_path, file.to_toml()).map_err(|e| Error::io(&cam_path, e))?;
+            crate::io::publish::write_file(&cam_path, file.to_toml().as_bytes())?;
             let camera = crate::camera::file::Camera::read(&cam_path)?;
             let cam = camera.frame(&cam_path)?;
             let ex = Exposure { gain: 0.8 + 0.4 * u(4) as f32, offset: (u(5) as f32 - 0.5) * 0.12, vignetting: 0.05 + 0.2 * u(6) as f32 };
@@ -110,9 +110,9 @@ pub fn synth_block(o: &SynthOptions, cols: u32, rows: u32, progress: &dyn Progre
     let truth = o.out.join("truth.tif");
     write_truth(o, &dem, &colour, &grid, &truth)?;
     let manifest_path = o.out.join("manifest.toml");
-    std::fs::write(&manifest_path, manifest).map_err(|e| Error::io(&manifest_path, e))?;
+    crate::io::publish::write_file(&manifest_path, manifest.as_bytes())?;
     let ex_path = o.out.join("exposures.csv");
-    std::fs::write(&ex_path, exposures).map_err(|e| Error::io(&ex_path, e))?;
+    crate::io::publish::write_file(&ex_path, exposures.as_bytes())?;
     Ok(BlockReport { manifest: manifest_path, dem: dem_path, truth, frames: (cols * rows) as usize, grid })
 }
 

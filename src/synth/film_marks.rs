@@ -193,7 +193,7 @@ pub fn marks_only(o: &SynthOptions) -> Result<(PathBuf, PathBuf)> {
     let cam_path = o.out.join("camera.toml");
     let scan_path = o.out.join("scan.tif");
     let file = camera_file(o, BASE_HEIGHT);
-    std::fs::write(&cam_path, file.to_toml()).map_err(|e| Error::io(&cam_path, e))?;
+    crate::io::publish::write_file(&cam_path, file.to_toml().as_bytes())?;
     let camera = crate::camera::file::Camera::read(&cam_path)?;
     let margin = Margin::new(o, &file, &camera.frame(&cam_path)?.interior)?;
     let half = o.frame_half();

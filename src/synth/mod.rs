@@ -28,7 +28,6 @@ use crate::progress::Progress;
 use crate::transform::footprint::{auto_grid, centre_gsd, footprint_gsd};
 use rayon::prelude::*;
 use render::render_scan;
-use std::io::Write;
 use std::path::PathBuf;
 use texture::Texture;
 
@@ -546,7 +545,7 @@ pub fn synth(o: &SynthOptions, progress: &dyn Progress) -> Result<SynthReport> {
     // generously covering its footprint.
     let file = camera_file(o, BASE_HEIGHT);
     let text = file.to_toml();
-    std::fs::write(&cam_path, &text).map_err(|e| Error::io(&cam_path, e))?;
+    crate::io::publish::write_file(&cam_path, text.as_bytes())?;
     let camera = crate::camera::file::Camera::read(&cam_path)?;
     let cam = camera.frame(&cam_path)?;
     let flying = file.exterior.as_ref().expect("synth writes exterior").position[2] - BASE_HEIGHT;
@@ -745,6 +744,5 @@ fn write_checkpoints(o: &SynthOptions, sc: &Scene<'_>, grid: &crate::geom::Outpu
         id += 1;
         csv.push_str(&format!("{id},{x:.4},{y:.4},{z:.4},{c:.4},{r:.4}\n"));
     }
-    let mut f = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-    f.write_all(csv.as_bytes()).map_err(|e| Error::io(path, e))
+    crate::io::publish::write_file(path, csv.as_bytes())
 }

@@ -164,9 +164,9 @@ pub(super) fn synth_panoramic(o: &SynthOptions, progress: &dyn crate::progress::
     let dem_path = out("dem.tif");
     write_dem(&dem_path, &grid_dem)?;
     let cam_path = out("camera.toml");
-    std::fs::write(&cam_path, CameraFile::panoramic(&bar, &format!("EPSG:{EPSG}")).to_toml()).map_err(|e| Error::io(&cam_path, e))?;
+    crate::io::publish::write_file(&cam_path, CameraFile::panoramic(&bar, &format!("EPSG:{EPSG}")).to_toml().as_bytes())?;
     let tsai = out("scan.tsai");
-    std::fs::write(&tsai, crate::camera::panoramic_file::asp_text(&bar)).map_err(|e| Error::io(&tsai, e))?;
+    crate::io::publish::write_file(&tsai, crate::camera::panoramic_file::asp_text(&bar).as_bytes())?;
     let dem_geo = Dem::grid(grid_dem, &dem_path);
     let mid_z = (zlo + zhi) / 2.0;
     if !o.no_scan {
@@ -218,9 +218,9 @@ pub fn synth_panoramic_pair(o: &SynthOptions, base_to_height: f64, progress: &dy
     let dem_geo = Dem::grid(grid_dem, &dem_path);
     for (bar, name) in bars.iter().zip(["left", "right"]) {
         let cam = out(&format!("{name}.toml"));
-        std::fs::write(&cam, CameraFile::panoramic(bar, &format!("EPSG:{EPSG}")).to_toml()).map_err(|e| Error::io(&cam, e))?;
+        crate::io::publish::write_file(&cam, CameraFile::panoramic(bar, &format!("EPSG:{EPSG}")).to_toml().as_bytes())?;
         let tsai = out(&format!("{name}.tsai"));
-        std::fs::write(&tsai, crate::camera::panoramic_file::asp_text(bar)).map_err(|e| Error::io(&tsai, e))?;
+        crate::io::publish::write_file(&tsai, crate::camera::panoramic_file::asp_text(bar).as_bytes())?;
         render(o, bar, &dem_geo, (zlo + zhi) / 2.0, &local, &out(&format!("{name}.tif")), progress)?;
     }
     Ok(super::satellite::PairReport {

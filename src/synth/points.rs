@@ -39,8 +39,9 @@ pub fn write_points(path: &Path, n: u64, density: f64, seed: u64, progress: &dyn
     progress.start(&Task { name: "points", units: n, lines: 0, line_name: "points", input_bytes: 0 });
     if ext == "csv" {
         use std::io::Write;
-        let f = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-        let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+        // Under a temporary name, published when whole.
+        let pending = crate::io::publish::PendingFile::create(path)?;
+        let mut w = std::io::BufWriter::with_capacity(1 << 20, pending.file()?);
         let io = |e| Error::io(path, e);
         writeln!(w, "x,y,z").map_err(io)?;
         for k in 0..n {
@@ -50,7 +51,8 @@ pub fn write_points(path: &Path, n: u64, density: f64, seed: u64, progress: &dyn
                 progress.advance(65536);
             }
         }
-        w.flush().map_err(io)?;
+        w.into_inner().map_err(|e| io(e.into_error()))?;
+        pending.publish()?;
         progress.finish();
         return Ok(side);
     }
@@ -66,7 +68,8 @@ pub fn write_points(path: &Path, n: u64, density: f64, seed: u64, progress: &dyn
     // No CRS record: `grid --crs EPSG:32631` says it.
     let header = b.into_header().map_err(|e| Error::Internal(format!("a LAS header: {e}")))?;
     let failed = |e: las::Error| Error::Format { path: path.into(), msg: format!("writing points: {e}") };
-    let mut w = las::Writer::from_path(path, header).map_err(failed)?;
+    let pending = crate::io::publish::PendingFile::create(path)?;
+    let mut w = las::Writer::new(std::io::BufWriter::new(pending.file()?), header).map_err(failed)?;
     for k in 0..n {
         let (u, v) = (mm(next() * side), mm(next() * side));
         w.write_point(las::Point { x: 500000.0 + u, y: 4000000.0 + v, z: height(u, v), ..Default::default() }).map_err(failed)?;
@@ -74,7 +77,9 @@ pub fn write_points(path: &Path, n: u64, density: f64, seed: u64, progress: &dyn
             progress.advance(65536);
         }
     }
-    w.close().map_err(failed)?;
+    // (The buffer flushed here: dropped, it would swallow a full disk.)
+    w.into_inner().map_err(failed)?.into_inner().map_err(|e| Error::io(path, e.into_error()))?;
+    pending.publish()?;
     progress.finish();
     Ok(side)
 }

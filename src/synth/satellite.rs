@@ -150,7 +150,7 @@ pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progre
     let (grid_dem, (zlo, zhi), slope) = relief_under(o, &[&sensor], lat0)?;
     write_dem(&dem_path, &grid_dem)?;
     let rpc: Rpc = fitted_rpc(&sensor, zlo, zhi)?;
-    std::fs::write(&rpc_path, rpc.to_gdal_text()).map_err(|e| Error::io(&rpc_path, e))?;
+    crate::io::publish::write_file(&rpc_path, rpc.to_gdal_text().as_bytes())?;
     let file = CameraFile {
         crs: format!("EPSG:{EPSG}"),
         camera: CameraSection { model: "rpc".into(), focal_length_mm: None },
@@ -161,7 +161,7 @@ pub(super) fn synth_rpc(o: &SynthOptions, progress: &dyn crate::progress::Progre
         rpc: Some(RpcSection { file: Some("scan_RPC.TXT".into()), offset_px: None, geoid: None, image: None, inline: Default::default() }),
         panoramic: None,
     };
-    std::fs::write(&cam_path, file.to_toml()).map_err(|e| Error::io(&cam_path, e))?;
+    crate::io::publish::write_file(&cam_path, file.to_toml().as_bytes())?;
 
     // Render through the RPC in the DEM's own CRS (no reprojection per pixel).
     let geo = RpcCamera::new(rpc.clone(), GroundCrs::from_epsg(4326).map_err(Error::Geometry)?, None);
@@ -245,14 +245,14 @@ pub fn synth_rpc_pair(o: &SynthOptions, base_to_height: f64, progress: &dyn crat
     let (lake_lon, lake_lat) = s0.lonlat(lake.0, lake.1);
     let (lx, ly) = utm.lonlat_to_ground(lake_lon, lake_lat).ok_or_else(|| Error::Geometry("the lake's centre".into()))?;
     let lake_path = out("lake.csv");
-    std::fs::write(&lake_path, format!("x,y,radius\n{lx:.3},{ly:.3},{:.3}\n", lake.2)).map_err(|e| Error::io(&lake_path, e))?;
+    crate::io::publish::write_file(&lake_path, format!("x,y,radius\n{lx:.3},{ly:.3},{:.3}\n", lake.2).as_bytes())?;
     let (w, h) = (o.width as f64, o.height as f64);
     let inside = |c: f64, r: f64| c >= 0.0 && r >= 0.0 && c < w && r < h;
     let spec = scan_spec(o);
     for (sensor, name) in sensors.iter().zip(["left", "right"]) {
         let rpc = fitted_rpc(sensor, zlo, zhi)?;
         let rpc_path = out(&format!("{name}_RPC.TXT"));
-        std::fs::write(&rpc_path, rpc.to_gdal_text()).map_err(|e| Error::io(&rpc_path, e))?;
+        crate::io::publish::write_file(&rpc_path, rpc.to_gdal_text().as_bytes())?;
         let geo = RpcCamera::new(rpc, GroundCrs::from_epsg(4326).map_err(Error::Geometry)?, None);
         let scene =
             Scene { model: &geo, dem: &dem_geo, colour: &colour_geo, inside: &inside, margin: &|_, _| [0.0; 3], shade: &|_, _, c| c, mid_z: (zlo + zhi) / 2.0 };
