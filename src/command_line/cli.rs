@@ -56,7 +56,7 @@ pub fn note_not_utf8(args: &[std::ffi::OsString]) {
     let lossy = args[i].to_string_lossy();
     let which = match (lossy.split_once('='), args[i - 1].to_str()) {
         (Some((flag, value)), _) if flag.starts_with('-') && !flag.contains('\u{fffd}') => format!("{flag}: '{value}'"),
-        (_, Some(flag)) if flag.starts_with('-') && !flag.contains('=') && i > 1 => format!("{flag}: '{lossy}'"),
+        (_, Some(flag)) if flag.starts_with('-') && !flag.contains('=') => format!("{flag}: '{lossy}'"),
         _ => format!("the argument '{lossy}'"),
     };
     let _ = NOT_UTF8.set(which);

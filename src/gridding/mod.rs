@@ -407,6 +407,14 @@ fn source_key(o: &GridOptions, crs: &Crs) -> String {
     crate::identity::content_key_of(&[settings.as_bytes()], &files)
 }
 
+/// The blunder threshold: a positive number of robust sigmas, or none.
+pub fn check_blunders(k: Option<f64>) -> Result<()> {
+    match k.is_some_and(|k| !(k > 0.0 && k.is_finite())) {
+        true => Err(Error::setting("blunders", "must be a positive number of sigmas, or none")),
+        false => Ok(()),
+    }
+}
+
 /// Settings that cannot make a DEM.
 fn check(o: &GridOptions) -> Result<()> {
     if o.inputs.is_empty() {
@@ -423,9 +431,7 @@ fn check(o: &GridOptions) -> Result<()> {
     if !(o.power > 0.0 && o.power <= 16.0) {
         return Err(Error::setting("power", "must be over 0 and at most 16"));
     }
-    if o.blunders.is_some_and(|k| !(k > 0.0 && k.is_finite())) {
-        return Err(Error::setting("blunders", "must be a positive number of sigmas, or none"));
-    }
+    check_blunders(o.blunders)?;
     if o.neighbours == Some(0) {
         return Err(Error::setting("neighbours", "must be 1 or more"));
     }

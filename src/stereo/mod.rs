@@ -545,15 +545,11 @@ fn match_one(
     Ok(out)
 }
 
-/// The files named exist, are not one image twice, and no output is an
-/// input.
 /// Settings refused before anything is read: those the gridding would
 /// refuse only after the matching, and an output CRS in degrees (the
 /// pair's base, heights and cells are measured in its units).
 fn check_settings(o: &StereoOptions) -> Result<()> {
-    if o.blunders.is_some_and(|k| !(k > 0.0 && k.is_finite())) {
-        return Err(Error::setting("blunders", "must be a positive number of sigmas, or none"));
-    }
+    crate::gridding::check_blunders(o.blunders)?;
     if let Some(c) = o.crs.as_ref().filter(|c| c.is_geographic()) {
         return Err(Error::setting(
             "crs",
@@ -563,6 +559,8 @@ fn check_settings(o: &StereoOptions) -> Result<()> {
     Ok(())
 }
 
+/// The files named exist, are not one image twice, and no output is an
+/// input.
 fn check_files(o: &StereoOptions) -> Result<()> {
     use crate::io::overwrite::{check_outputs, Role};
     for (what, p) in [("left image", &o.left.image), ("right image", &o.right.image), ("left camera", &o.left.camera), ("right camera", &o.right.camera)] {

@@ -160,12 +160,18 @@ fn layout(r: impl BufRead) -> std::result::Result<Layout, String> {
     }
 }
 
+/// The components' largest horizontal and vertical sampling factors (an
+/// MCU's size in 8×8 blocks).
+fn max_sampling(l: &Layout) -> (u64, u64) {
+    let most = |f: fn(&(u8, u8)) -> u8| l.sampling.iter().map(f).max().unwrap_or(1).max(1) as u64;
+    (most(|s| s.0), most(|s| s.1))
+}
+
 /// The bytes libjpeg keeps for a progressive image: every component's
 /// DCT coefficients (64 two-byte values a block), blocks padded to whole
 /// MCUs.
 fn coefficient_bytes(l: &Layout) -> u64 {
-    let hmax = l.sampling.iter().map(|s| s.0).max().unwrap_or(1).max(1) as u64;
-    let vmax = l.sampling.iter().map(|s| s.1).max().unwrap_or(1).max(1) as u64;
+    let (hmax, vmax) = max_sampling(l);
     let (mcus_x, mcus_y) = ((l.width as u64).div_ceil(8 * hmax), (l.height as u64).div_ceil(8 * vmax));
     l.sampling.iter().map(|&(h, v)| mcus_x * h as u64 * mcus_y * v as u64 * 128).sum()
 }
@@ -173,8 +179,7 @@ fn coefficient_bytes(l: &Layout) -> u64 {
 /// 8×8 blocks of a frame's components, each component's own (as a scan
 /// of it alone codes them: no fewer than an interleaved scan's).
 fn blocks(l: &Layout) -> u64 {
-    let hmax = l.sampling.iter().map(|s| s.0).max().unwrap_or(1).max(1) as u64;
-    let vmax = l.sampling.iter().map(|s| s.1).max().unwrap_or(1).max(1) as u64;
+    let (hmax, vmax) = max_sampling(l);
     l.sampling
         .iter()
         .map(|&(h, v)| {
