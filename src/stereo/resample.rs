@@ -41,18 +41,6 @@ impl Img {
         self.v[b as usize * self.w + a as usize]
     }
 
-    /// `len` values of row `y` from column `x` (grid pixels), None where
-    /// they are not all inside.
-    #[inline]
-    pub fn row(&self, y: i64, x: i64, len: usize) -> Option<&[f32]> {
-        let (a, b) = (x - self.x0, y - self.y0);
-        if a < 0 || b < 0 || a as usize + len > self.w || b >= self.h as i64 {
-            return None;
-        }
-        let start = b as usize * self.w + a as usize;
-        Some(&self.v[start..start + len])
-    }
-
     /// Half the size: each pixel the mean of the 2 × 2 it covers (those
     /// with a value); the origin halved (it is even).
     pub fn halved(&self) -> Img {

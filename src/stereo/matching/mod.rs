@@ -107,13 +107,9 @@ pub fn match_tile(left: &Img, right: &Img, dmin: f64, dmax: f64, p: &MatchParams
         if l > 0 {
             let filled = fill_holes(&disp, li.w, li.h, 0.5 * (lo[0] as f32 + (lo[0] + n as i32 - 1) as f32));
             let finer = &lp[l - 1];
-            lo = (0..finer.w * finer.h)
-                .map(|k| {
-                    let (x, y) = ((k % finer.w) / 2, (k / finer.w) / 2);
-                    let d = median3(&filled, li.w, li.h, x.min(li.w - 1), y.min(li.h - 1));
-                    (2.0 * d).round() as i32 - RADIUS
-                })
-                .collect();
+            // Each coarse pixel's median once, for the four finer ones it covers.
+            let start: Vec<i32> = (0..li.w * li.h).map(|k| (2.0 * median3(&filled, li.w, li.h, k % li.w, k / li.w)).round() as i32 - RADIUS).collect();
+            lo = (0..finer.w * finer.h).map(|k| start[((k / finer.w) / 2).min(li.h - 1) * li.w + ((k % finer.w) / 2).min(li.w - 1)]).collect();
             n = (2 * RADIUS + 1) as usize;
         }
     }
@@ -135,23 +131,28 @@ pub fn match_tile(left: &Img, right: &Img, dmin: f64, dmax: f64, p: &MatchParams
 /// a DSM's gridding would otherwise have to find among its points.
 fn drop_outliers(d: &mut [f32], corr: &mut [f32], w: usize, h: usize, [x0, y0, x1, y1]: [usize; 4]) {
     let src = d.to_vec();
-    let mut near = Vec::with_capacity(25);
     for y in y0..y1.min(h) {
         for x in x0..x1.min(w) {
             let p = y * w + x;
-            if src[p].is_nan() {
+            let v = src[p];
+            if v.is_nan() {
                 continue;
             }
-            near.clear();
+            // The median of the matches around (the m-th of n) lies within
+            // OUTLIER_PX of v unless at least m + 1 of them lie that far
+            // below, or n − m that far above: counted, not sorted.
+            let (mut n, mut below, mut above) = (0usize, 0usize, 0usize);
             for yy in y.saturating_sub(2)..(y + 3).min(h) {
-                near.extend(src[yy * w + x.saturating_sub(2)..yy * w + (x + 3).min(w)].iter().copied().filter(|v| !v.is_nan()));
+                for &e in &src[yy * w + x.saturating_sub(2)..yy * w + (x + 3).min(w)] {
+                    if !e.is_nan() {
+                        n += 1;
+                        below += usize::from(v - e > OUTLIER_PX);
+                        above += usize::from(v - e < -OUTLIER_PX);
+                    }
+                }
             }
-            let keep = near.len() > 6 && {
-                let m = near.len() / 2;
-                let (_, med, _) = near.select_nth_unstable_by(m, f32::total_cmp);
-                (src[p] - *med).abs() <= OUTLIER_PX
-            };
-            if !keep {
+            let m = n / 2;
+            if !(n > 6 && below <= m && above < n - m) {
                 d[p] = f32::NAN;
                 corr[p] = f32::NAN;
             }

@@ -27,7 +27,28 @@ pub fn disparities(left: &Img, right: &Img, lo: &[i32], n: usize) -> Vec<f32> {
     let (w, h) = (left.w, left.h);
     let cl = census::transform(left);
     let cr = census::transform(right);
-    let mut cost = vec![NO_IMAGE; w * h * n];
+    VOLUMES.with_borrow_mut(|(cost, sum)| {
+        cost.clear();
+        cost.resize(w * h * n, NO_IMAGE);
+        sum.clear();
+        sum.resize(w * h * n, 0);
+        search(left, right, lo, n, (&cl, &cr), cost, sum)
+    })
+}
+
+use std::cell::RefCell;
+
+thread_local! {
+    /// The cost and sum volumes of the thread's last search, kept for its
+    /// next: megabytes each, past glibc's mmap threshold, fresh ones were
+    /// new mappings faulted in a page at a time, and unmapping them
+    /// stopped the other threads to flush their address caches.
+    static VOLUMES: RefCell<(Vec<u8>, Vec<u16>)> = const { RefCell::new((Vec::new(), Vec::new())) };
+}
+
+/// The search on zeroed volumes of `w·h·n` (the costs all [`NO_IMAGE`]).
+fn search(left: &Img, right: &Img, lo: &[i32], n: usize, (cl, cr): (&[Option<u64>], &[Option<u64>]), cost: &mut [u8], sum: &mut [u16]) -> Vec<f32> {
+    let (w, h) = (left.w, left.h);
     for y in 0..h {
         let ry = y as i64 + left.y0 - right.y0;
         if ry < 0 || ry >= right.h as i64 {
@@ -46,16 +67,15 @@ pub fn disparities(left: &Img, right: &Img, lo: &[i32], n: usize) -> Vec<f32> {
             }
         }
     }
-    let mut sum = vec![0u16; w * h * n];
     for (dx, dy) in PATHS {
-        aggregate(&cost, lo, n, w, h, (dx, dy), &mut sum);
+        aggregate(cost, lo, n, w, h, (dx, dy), sum);
     }
     // A disparity is only chosen where the right image is there.
     let right_at = |p: usize, d: i32| {
         let (x, y) = ((p % w) as i64 + left.x0 - d as i64 - right.x0, (p / w) as i64 + left.y0 - right.y0);
         x >= 0 && y >= 0 && x < right.w as i64 && y < right.h as i64 && cr[y as usize * right.w + x as usize].is_some()
     };
-    choose(&sum, &cl, lo, n, w, h, &right_at)
+    choose(sum, cl, lo, n, w, h, &right_at)
 }
 
 /// One path's sums `L_r(p, d) = C(p, d) + min(L_r(q, d), L_r(q, d ± 1) + P1,
@@ -100,9 +120,12 @@ fn aggregate(cost: &[u8], lo: &[i32], n: usize, w: usize, h: usize, (dx, dy): (i
                 }
                 let jump = mq + P2;
                 let out = &mut cur[x * n..(x + 1) * n];
-                for ((o, &c), w) in out.iter_mut().zip(c).zip(near.windows(3)) {
-                    let v = u16::from(c) + w[1].min(w[0] + P1).min(w[2] + P1).min(jump) - mq;
-                    *o = v;
+                // Three shifted slices, not windows: a loop the compiler
+                // vectorises.
+                let (down, same, up) = (&near[..n], &near[1..=n], &near[2..n + 2]);
+                for k in 0..n {
+                    let v = u16::from(c[k]) + same[k].min(down[k] + P1).min(up[k] + P1).min(jump) - mq;
+                    out[k] = v;
                     best = best.min(v);
                 }
             }
