@@ -18,7 +18,10 @@ const P1: u16 = 8;
 const P2: u16 = 40;
 const FAR: u16 = u16::MAX / 4;
 
-const PATHS: [(i64, i64); 8] = [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, 1), (1, -1), (-1, -1)];
+/// The eight paths in two raster walks: each path's pixel before is one
+/// the walk has passed (the row before, or this row behind it).
+const FORWARD: [(i64, i64); 4] = [(1, 0), (0, 1), (1, 1), (-1, 1)];
+const BACKWARD: [(i64, i64); 4] = [(-1, 0), (0, -1), (-1, -1), (1, -1)];
 
 /// The disparity of each pixel of `left` (sub-pixel by a parabola through
 /// the sums), NaN where it has no image, where the least sum is at the
@@ -67,9 +70,8 @@ fn search(left: &Img, right: &Img, lo: &[i32], n: usize, (cl, cr): (&[Option<u64
             }
         }
     }
-    for (dx, dy) in PATHS {
-        aggregate(cost, lo, n, w, h, (dx, dy), sum);
-    }
+    aggregate(cost, lo, n, w, h, false, sum);
+    aggregate(cost, lo, n, w, h, true, sum);
     // A disparity is only chosen where the right image is there.
     let right_at = |p: usize, d: i32| {
         let (x, y) = ((p % w) as i64 + left.x0 - d as i64 - right.x0, (p / w) as i64 + left.y0 - right.y0);
@@ -79,63 +81,96 @@ fn search(left: &Img, right: &Img, lo: &[i32], n: usize, (cl, cr): (&[Option<u64
 }
 
 /// One path's sums `L_r(p, d) = C(p, d) + min(L_r(q, d), L_r(q, d ± 1) + P1,
-/// min L_r(q) + P2) − min L_r(q)`, `q` the pixel before `p` on the path,
-/// added into `sum`. Only the row before is kept (the pixel before, for a
-/// path along the rows).
-fn aggregate(cost: &[u8], lo: &[i32], n: usize, w: usize, h: usize, (dx, dy): (i64, i64), sum: &mut [u16]) {
-    let (mut prev, mut cur) = (vec![0u16; w * n], vec![0u16; w * n]);
-    let (mut prev_min, mut cur_min) = (vec![0u16; w], vec![0u16; w]);
-    // The pixel before's sums, aligned to this pixel's range and padded:
-    // `near[t] = L_r(q, lo[p] + t − 1)`.
-    let mut near = vec![FAR; n + 2];
-    for yi in 0..h {
-        let y = if dy < 0 { h - 1 - yi } else { yi };
-        for xi in 0..w {
-            let x = if dx < 0 { w - 1 - xi } else { xi };
-            let p = y * w + x;
-            let c = &cost[p * n..(p + 1) * n];
-            let qx = x as i64 - dx;
-            let before = qx >= 0 && qx < w as i64 && (dy == 0 || yi > 0);
-            let mut best = FAR;
-            if !before {
-                let out = &mut cur[x * n..(x + 1) * n];
-                for k in 0..n {
-                    out[k] = u16::from(c[k]);
-                    best = best.min(out[k]);
-                }
+/// min L_r(q) + P2) − min L_r(q)`, `q` the pixel before `p` on the path.
+/// Only the row before is kept (the pixel before, for a path along the
+/// rows).
+struct Path {
+    dx: i64,
+    dy: i64,
+    prev: Vec<u16>,
+    cur: Vec<u16>,
+    prev_min: Vec<u16>,
+    cur_min: Vec<u16>,
+    /// The pixel before's sums, aligned to this pixel's range and padded:
+    /// `near[t] = L_r(q, lo[p] + t − 1)`.
+    near: Vec<u16>,
+}
+
+impl Path {
+    fn new((dx, dy): (i64, i64), w: usize, n: usize) -> Path {
+        Path { dx, dy, prev: vec![0; w * n], cur: vec![0; w * n], prev_min: vec![0; w], cur_min: vec![0; w], near: vec![FAR; n + 2] }
+    }
+
+    /// This path's sums at `(x, y)`, the walk's `yi`-th row.
+    fn step(&mut self, c: &[u8], lo: &[i32], (n, w): (usize, usize), (x, y, yi): (usize, usize, usize)) -> &[u16] {
+        let p = y * w + x;
+        let qx = x as i64 - self.dx;
+        let before = qx >= 0 && qx < w as i64 && (self.dy == 0 || yi > 0);
+        let mut best = FAR;
+        if !before {
+            let out = &mut self.cur[x * n..(x + 1) * n];
+            for k in 0..n {
+                out[k] = u16::from(c[k]);
+                best = best.min(out[k]);
+            }
+        } else {
+            let qx = qx as usize;
+            let qy = (y as i64 - self.dy) as usize;
+            let (values, mq) = if self.dy == 0 { (&self.cur[qx * n..(qx + 1) * n], self.cur_min[qx]) } else { (&self.prev[qx * n..(qx + 1) * n], self.prev_min[qx]) };
+            let shift = (lo[p] - lo[qy * w + qx]) as i64;
+            let near = &mut self.near;
+            if shift == 0 {
+                near[1..=n].copy_from_slice(values);
+                near[0] = FAR;
+                near[n + 1] = FAR;
             } else {
-                let qx = qx as usize;
-                let qy = (y as i64 - dy) as usize;
-                let (values, mq) = if dy == 0 { (&cur[qx * n..(qx + 1) * n], cur_min[qx]) } else { (&prev[qx * n..(qx + 1) * n], prev_min[qx]) };
-                let shift = (lo[p] - lo[qy * w + qx]) as i64;
-                if shift == 0 {
-                    near[1..=n].copy_from_slice(values);
-                    near[0] = FAR;
-                    near[n + 1] = FAR;
-                } else {
-                    for (t, v) in near.iter_mut().enumerate() {
-                        let kq = t as i64 - 1 + shift;
-                        *v = if kq >= 0 && kq < n as i64 { values[kq as usize] } else { FAR };
-                    }
-                }
-                let jump = mq + P2;
-                let out = &mut cur[x * n..(x + 1) * n];
-                // Three shifted slices, not windows: a loop the compiler
-                // vectorises.
-                let (down, same, up) = (&near[..n], &near[1..=n], &near[2..n + 2]);
-                for k in 0..n {
-                    let v = u16::from(c[k]) + same[k].min(down[k] + P1).min(up[k] + P1).min(jump) - mq;
-                    out[k] = v;
-                    best = best.min(v);
+                for (t, v) in near.iter_mut().enumerate() {
+                    let kq = t as i64 - 1 + shift;
+                    *v = if kq >= 0 && kq < n as i64 { values[kq as usize] } else { FAR };
                 }
             }
-            cur_min[x] = best;
-            for (s, v) in sum[p * n..(p + 1) * n].iter_mut().zip(&cur[x * n..(x + 1) * n]) {
-                *s += v;
+            let jump = mq + P2;
+            // Three shifted slices, not windows: a loop the compiler
+            // vectorises.
+            let (down, same, up) = (&near[..n], &near[1..=n], &near[2..n + 2]);
+            let out = &mut self.cur[x * n..(x + 1) * n];
+            for k in 0..n {
+                let v = u16::from(c[k]) + same[k].min(down[k] + P1).min(up[k] + P1).min(jump) - mq;
+                out[k] = v;
+                best = best.min(v);
             }
         }
-        std::mem::swap(&mut prev, &mut cur);
-        std::mem::swap(&mut prev_min, &mut cur_min);
+        self.cur_min[x] = best;
+        &self.cur[x * n..(x + 1) * n]
+    }
+
+    fn next_row(&mut self) {
+        std::mem::swap(&mut self.prev, &mut self.cur);
+        std::mem::swap(&mut self.prev_min, &mut self.cur_min);
+    }
+}
+
+/// The sums of four paths, one raster walk (backward: from the last
+/// row's last pixel), added into `sum` (integers: the order of the paths
+/// changes nothing).
+fn aggregate(cost: &[u8], lo: &[i32], n: usize, w: usize, h: usize, backward: bool, sum: &mut [u16]) {
+    let mut paths = (if backward { BACKWARD } else { FORWARD }).map(|d| Path::new(d, w, n));
+    let mut total = vec![0u16; n];
+    for yi in 0..h {
+        let y = if backward { h - 1 - yi } else { yi };
+        for xi in 0..w {
+            let x = if backward { w - 1 - xi } else { xi };
+            let p = y * w + x;
+            let c = &cost[p * n..(p + 1) * n];
+            total.copy_from_slice(&sum[p * n..(p + 1) * n]);
+            for path in &mut paths {
+                for (t, v) in total.iter_mut().zip(path.step(c, lo, (n, w), (x, y, yi))) {
+                    *t += v;
+                }
+            }
+            sum[p * n..(p + 1) * n].copy_from_slice(&total);
+        }
+        paths.iter_mut().for_each(Path::next_row);
     }
 }
 
