@@ -14,9 +14,12 @@ use crate::stereo::resample::Img;
 /// The penalties for a step of one disparity and for more, in census bits
 /// (a cost is 0 to 48): the large one about a third of a cost that matches
 /// nothing alike, so surfaces may break at edges but not at noise.
-const P1: u16 = 8;
-const P2: u16 = 40;
-const FAR: u16 = u16::MAX / 4;
+const P1: i16 = 8;
+const P2: i16 = 40;
+/// Past any sum a path reaches (a cost and a jump at most, 88), with
+/// room for the penalties added to it. The paths' sums are signed: the
+/// baseline x86-64 has a signed 16-bit minimum in one instruction only.
+const FAR: i16 = i16::MAX / 4;
 
 /// The eight paths in two raster walks: each path's pixel before is one
 /// the walk has passed (the row before, or this row behind it).
@@ -87,13 +90,13 @@ fn search(left: &Img, right: &Img, lo: &[i32], n: usize, (cl, cr): (&[Option<u64
 struct Path {
     dx: i64,
     dy: i64,
-    prev: Vec<u16>,
-    cur: Vec<u16>,
-    prev_min: Vec<u16>,
-    cur_min: Vec<u16>,
+    prev: Vec<i16>,
+    cur: Vec<i16>,
+    prev_min: Vec<i16>,
+    cur_min: Vec<i16>,
     /// The pixel before's sums, aligned to this pixel's range and padded:
     /// `near[t] = L_r(q, lo[p] + t − 1)`.
-    near: Vec<u16>,
+    near: Vec<i16>,
 }
 
 impl Path {
@@ -102,7 +105,7 @@ impl Path {
     }
 
     /// This path's sums at `(x, y)`, the walk's `yi`-th row.
-    fn step(&mut self, c: &[u8], lo: &[i32], (n, w): (usize, usize), (x, y, yi): (usize, usize, usize)) -> &[u16] {
+    fn step(&mut self, c: &[u8], lo: &[i32], (n, w): (usize, usize), (x, y, yi): (usize, usize, usize)) -> &[i16] {
         let p = y * w + x;
         let qx = x as i64 - self.dx;
         let before = qx >= 0 && qx < w as i64 && (self.dy == 0 || yi > 0);
@@ -110,7 +113,7 @@ impl Path {
         if !before {
             let out = &mut self.cur[x * n..(x + 1) * n];
             for k in 0..n {
-                out[k] = u16::from(c[k]);
+                out[k] = i16::from(c[k]);
                 best = best.min(out[k]);
             }
         } else {
@@ -135,7 +138,7 @@ impl Path {
             let (down, same, up) = (&near[..n], &near[1..=n], &near[2..n + 2]);
             let out = &mut self.cur[x * n..(x + 1) * n];
             for k in 0..n {
-                let v = u16::from(c[k]) + same[k].min(down[k] + P1).min(up[k] + P1).min(jump) - mq;
+                let v = i16::from(c[k]) + same[k].min(down[k] + P1).min(up[k] + P1).min(jump) - mq;
                 out[k] = v;
                 best = best.min(v);
             }
@@ -164,8 +167,8 @@ fn aggregate(cost: &[u8], lo: &[i32], n: usize, w: usize, h: usize, backward: bo
             let c = &cost[p * n..(p + 1) * n];
             total.copy_from_slice(&sum[p * n..(p + 1) * n]);
             for path in &mut paths {
-                for (t, v) in total.iter_mut().zip(path.step(c, lo, (n, w), (x, y, yi))) {
-                    *t += v;
+                for (t, &v) in total.iter_mut().zip(path.step(c, lo, (n, w), (x, y, yi))) {
+                    *t += v as u16;
                 }
             }
             sum[p * n..(p + 1) * n].copy_from_slice(&total);
