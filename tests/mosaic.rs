@@ -1038,6 +1038,24 @@ fn slips_in_edited_seamlines_are_named() {
     assert!(said("holds no cell of the mosaic", n - 2), "{err}");
     let name = image2["image"].as_str().unwrap();
     assert!(said(&format!("index 1 is not image '{name}'"), n - 1) && said("file elsewhere.tif is not image", n - 1), "{err}");
+    // An image named again: by another shape, or by the same one pasted twice.
+    let name1 = image1["image"].as_str().unwrap();
+    assert!(said(&format!("names image '{name1}' as features[1] does"), n - 3), "{err}");
+    assert!(said(&format!("repeats features[{}] (image '{name}', the same geometry)", n - 2), n - 1), "{err}");
+    // A feature pasted forty times: twenty doubts said, the rest counted.
+    let copy = doc["features"][n - 2].clone();
+    doc["features"].as_array_mut().unwrap().extend(std::iter::repeat_n(copy, 40));
+    std::fs::write(d.join("pasted.geojson"), serde_json::to_string(&doc).unwrap()).unwrap();
+    let out = std::process::Command::new(bin())
+        .current_dir(d)
+        .args(["mosaic", "manifest.toml", "-o", "p.tif", "--seamlines", "pasted.geojson", "--quiet"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let doubts = err.lines().filter(|l| l.contains("pasted.geojson") && l.contains("features[")).count();
+    let more = err.lines().find_map(|l| l.split("and ").nth(1)?.strip_suffix(" more such doubts")?.parse::<usize>().ok());
+    assert!(doubts == 20 && more.is_some_and(|m| m >= 40), "{err}");
 
     // What cannot be honoured is refused, naming the feature: a ring cut
     // open by hand, an index past the manifest's images; and --seams,

@@ -248,6 +248,10 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
     // Each shape's feature, named as a warning names it.
     let mut feature_of: Vec<String> = Vec::new();
     let mut doubts = Vec::new();
+    // The first feature with a geometry to name each image, and the first
+    // feature of each image's each geometry (as text: linear in the file).
+    let mut first_naming: Vec<Option<usize>> = vec![None; plan.images.len()];
+    let mut shapes_seen: std::collections::HashMap<(usize, String), usize> = Default::default();
     for (k, f) in features.iter().enumerate() {
         let field = |n: &str| format!("features[{k}].{n}");
         let props = f.get("properties").cloned().unwrap_or_default();
@@ -273,6 +277,21 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
         }
         // A feature whose parts were all deleted in a GIS gives nothing.
         let Some(geometry) = f.get("geometry").filter(|g| !g.is_null()) else { continue };
+        // An image a feature before named too (a feature pasted twice, or
+        // an image's part drawn apart): honoured as the union, and said.
+        match (first_naming[image], shapes_seen.entry((image, geometry.to_string()))) {
+            (_, std::collections::hash_map::Entry::Occupied(j)) => {
+                doubts.push(format!("features[{k}] repeats features[{}] (image '{}', the same geometry): taken once", j.get(), taken.name));
+            }
+            (Some(j), std::collections::hash_map::Entry::Vacant(v)) => {
+                doubts.push(format!("features[{k}] names image '{}' as features[{j}] does: the cells of both given to it", taken.name));
+                v.insert(k);
+            }
+            (None, std::collections::hash_map::Entry::Vacant(v)) => {
+                first_naming[image] = Some(k);
+                v.insert(k);
+            }
+        }
         let coords = geometry.get("coordinates").ok_or_else(|| Error::config(path, field("geometry.coordinates"), "missing"))?;
         // Each level an array (RFC 7946 §3.1.6): anything else is refused,
         // never read as no rings.
@@ -419,9 +438,18 @@ pub fn read(plan: &mut Plan, path: &std::path::Path) -> Result<EditedSeams> {
     for (what, _) in feature_of.iter().zip(&filled).filter(|(_, &n)| n == 0) {
         doubts.push(format!("{what}: holds no cell of the mosaic (outside it, or too thin to hold a cell's centre)"));
     }
+    // A file of many slips: the first ones said, the rest counted.
+    if doubts.len() > MAX_DOUBTS {
+        let more = doubts.len() - MAX_DOUBTS;
+        doubts.truncate(MAX_DOUBTS);
+        doubts.push(format!("and {more} more such doubts"));
+    }
     report.doubts = doubts;
     Ok(report)
 }
+
+/// The doubts about an edited file said one by one.
+const MAX_DOUBTS: usize = 20;
 
 /// Does the closed ring `pts` (no point repeated at its end) cross itself:
 /// two edges that are not neighbours meet? `None` where it cannot be told
