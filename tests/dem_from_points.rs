@@ -425,10 +425,17 @@ fn bad_points_are_refused_naming_the_file_and_leaving_no_dem() {
         bytes[at..at + 4].copy_from_slice(&value.to_le_bytes());
         std::fs::write(p(name), &bytes).unwrap();
     }
+    // And one whose LASzip record lists no fields of a point (the decoder
+    // panicked): the item count, 32 bytes into the record's data.
+    let vlr = good.windows(14).position(|w| w == b"laszip encoded").unwrap() - 2;
+    let mut bytes = good.clone();
+    bytes[vlr + 54 + 32..vlr + 54 + 34].copy_from_slice(&0u16.to_le_bytes());
+    std::fs::write(p("noitems.laz"), &bytes).unwrap();
     for (input, crs, said) in [
         ("half.laz", "EPSG:32631", "the header counts 60000 points, but its 3 compressed chunks hold 100001 to 150000"),
         ("twice.laz", "EPSG:32631", "the header counts 240000 points"),
         ("chunks.laz", "EPSG:32631", "its chunk table counts 4294967280 chunks, more than the"),
+        ("noitems.laz", "EPSG:32631", "its LASzip record lists no fields of a point"),
         ("empty.csv", "EPSG:32631", "no points"),
         ("line.csv", "EPSG:32631", "on one line"),
         ("nan.csv", "EPSG:32631", "line 3"),

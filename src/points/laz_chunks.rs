@@ -66,11 +66,15 @@ pub fn check(path: &Path) -> Result<()> {
     let Some(h) = header(&mut f).map_err(io)? else { return Ok(()) };
     let Some(vlr_bytes) = h.laszip else { return Ok(()) };
     let Ok(vlr) = laz::LazVlr::from_buffer(&vlr_bytes) else { return Ok(()) };
+    let bad = |msg: String| Err(Error::Format { path: path.into(), msg });
+    // (The decoder takes the first item for granted: a panic without one.)
+    if vlr.items().is_empty() {
+        return bad("its LASzip record lists no fields of a point".into());
+    }
     // Compressor 1: one chunk of every point, no table.
     if u16::from_le_bytes([vlr_bytes[0], vlr_bytes[1]]) < 2 {
         return Ok(());
     }
-    let bad = |msg: String| Err(Error::Format { path: path.into(), msg });
     // The table's place: the first 8 bytes of the point data, or (where
     // the writer could not go back to them) the file's last 8.
     let mut word = [0u8; 8];
