@@ -36,7 +36,15 @@ fn header(f: &mut std::fs::File) -> std::io::Result<Option<Header>> {
     if format & 0x80 == 0 {
         return Ok(Some(Header { points, data_start, laszip: None }));
     }
-    let mut at = header_size;
+    // The records follow the header as the version sizes it, or the
+    // header's own size where that is larger (the `las` crate reads them
+    // there: a smaller size field must not send this scan elsewhere).
+    let version_size = match (h[24], h[25]) {
+        (1, 0..=2) | (0, _) => 227,
+        (1, 3) => 235,
+        _ => 375,
+    };
+    let mut at = header_size.max(version_size);
     let mut laszip = None;
     for _ in 0..vlrs.min(10_000) {
         let mut v = [0u8; 54];
