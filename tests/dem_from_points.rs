@@ -437,12 +437,17 @@ fn bad_points_are_refused_naming_the_file_and_leaving_no_dem() {
     bytes[table + 4..table + 8].copy_from_slice(&0x5480_0000u32.to_le_bytes());
     bytes[94..96].copy_from_slice(&21u16.to_le_bytes());
     std::fs::write(p("small.laz"), &bytes).unwrap();
+    // Records shorter than the compressed fields (the decoder panicked).
+    let mut bytes = good.clone();
+    bytes[105..107].copy_from_slice(&20u16.to_le_bytes());
+    std::fs::write(p("short.laz"), &bytes).unwrap();
     for (input, crs, said) in [
         ("half.laz", "EPSG:32631", "the header counts 60000 points, but its 3 compressed chunks hold 100001 to 150000"),
         ("twice.laz", "EPSG:32631", "the header counts 240000 points"),
         ("chunks.laz", "EPSG:32631", "its chunk table counts 4294967280 chunks, more than the"),
         ("noitems.laz", "EPSG:32631", "its LASzip record lists no fields of a point"),
         ("small.laz", "EPSG:32631", "its chunk table counts 1417674752 chunks, more than the"),
+        ("short.laz", "EPSG:32631", "bytes a point, its header's records 20"),
         ("empty.csv", "EPSG:32631", "no points"),
         ("line.csv", "EPSG:32631", "on one line"),
         ("nan.csv", "EPSG:32631", "line 3"),

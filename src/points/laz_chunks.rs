@@ -12,6 +12,8 @@ use std::path::Path;
 /// What the LAS header says of where and how many points there are.
 struct Header {
     points: u64,
+    /// Bytes a point record takes.
+    record: u16,
     data_start: u64,
     /// The laszip VLR's data, if the points are compressed.
     laszip: Option<Vec<u8>>,
@@ -26,7 +28,7 @@ fn header(f: &mut std::fs::File) -> std::io::Result<Option<Header>> {
     }
     let u16_at = |i: usize| u16::from_le_bytes([h[i], h[i + 1]]);
     let u32_at = |i: usize| u32::from_le_bytes(h[i..i + 4].try_into().expect("4 bytes"));
-    let (header_size, data_start, vlrs, format) = (u16_at(94) as u64, u32_at(96) as u64, u32_at(100), h[104]);
+    let (header_size, data_start, vlrs, format, record) = (u16_at(94) as u64, u32_at(96) as u64, u32_at(100), h[104], u16_at(105));
     let legacy = u32_at(107) as u64;
     let points = match h[25] >= 4 && n >= 255 {
         true => Some(u64::from_le_bytes(h[247..255].try_into().expect("8 bytes"))).filter(|&p| p != 0).unwrap_or(legacy),
@@ -34,7 +36,7 @@ fn header(f: &mut std::fs::File) -> std::io::Result<Option<Header>> {
     };
     // Bit 7 of the point format marks compressed points (LASzip).
     if format & 0x80 == 0 {
-        return Ok(Some(Header { points, data_start, laszip: None }));
+        return Ok(Some(Header { points, record, data_start, laszip: None }));
     }
     // The records follow the header as the version sizes it, or the
     // header's own size where that is larger (the `las` crate reads them
@@ -61,7 +63,7 @@ fn header(f: &mut std::fs::File) -> std::io::Result<Option<Header>> {
         }
         at += 54 + len;
     }
-    Ok(Some(Header { points, data_start, laszip }))
+    Ok(Some(Header { points, record, data_start, laszip }))
 }
 
 /// Refuses a LAZ file whose header counts other than the points its
@@ -78,6 +80,11 @@ pub fn check(path: &Path) -> Result<()> {
     // (The decoder takes the first item for granted: a panic without one.)
     if vlr.items().is_empty() {
         return bad("its LASzip record lists no fields of a point".into());
+    }
+    // (It decodes the fields into a record of the header's size: a panic
+    // where they take more.)
+    if vlr.items_size() != u64::from(h.record) {
+        return bad(format!("its LASzip record's fields take {} bytes a point, its header's records {}", vlr.items_size(), h.record));
     }
     // Compressor 1: one chunk of every point, no table.
     if u16::from_le_bytes([vlr_bytes[0], vlr_bytes[1]]) < 2 {
