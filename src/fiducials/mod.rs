@@ -158,22 +158,35 @@ pub fn detect(src: &SourceImage, req: &Request<'_>) -> Result<Detection> {
         ));
     }
     let sign = if coarse.polarity == Polarity::Dark { -1.0 } else { 1.0 };
-    let refined: Vec<Option<refine::Refined>> = (0..n)
-        .into_par_iter()
-        .map(|k| -> Result<Option<refine::Refined>> {
-            let mm = req.marks_mm[k];
-            let start = match &coarse.places[k] {
-                Some(c) => c.at,
-                None => {
-                    let p = coarse.centre + coarse.to_px * nalgebra::Vector2::from(mm);
-                    [p.x, p.y]
-                }
-            };
-            let shape = &req.shapes[k];
-            let to_px = coarse.to_px * search::own_turn(shape, mm);
-            refine::refine(src, shape, &to_px, start, coarse.factor, sign)
+    let starts: Vec<[f64; 2]> = (0..n)
+        .map(|k| match &coarse.places[k] {
+            Some(c) => c.at,
+            None => {
+                let p = coarse.centre + coarse.to_px * nalgebra::Vector2::from(req.marks_mm[k]);
+                [p.x, p.y]
+            }
         })
-        .collect::<Result<_>>()?;
+        .collect();
+    let mut refined = refine_marks(src, req, &coarse.to_px, &(0..n).collect::<Vec<_>>(), &starts, coarse.factor, sign)?;
+    // The coarse level's turn and scale are a few tenths of a degree and
+    // of a percent off; a template whose features lie far from its centre
+    // (a real mark cut with its surroundings) then peaks that much off.
+    // Once the marks are found, the templates are drawn again with the map
+    // they give, and the marks found looked for again at full resolution
+    // (a mark not found stays so: the scan's edge may cut it).
+    let good = |r: &Option<refine::Refined>| r.is_some_and(|r| r.score >= MIN_SCORE && r.centre_score >= MIN_SCORE);
+    let found: Vec<usize> = (0..n).filter(|&k| good(&refined[k])).collect();
+    let mm: Vec<[f64; 2]> = found.iter().map(|&k| req.marks_mm[k]).collect();
+    let px: Vec<[f64; 2]> = found.iter().filter_map(|&k| Some(refined[k]?.at)).collect();
+    if let Some(map) = (found.len() >= 3).then(|| crate::geom::Affine2::fit(&mm, &px)).flatten() {
+        let starts: Vec<[f64; 2]> = found.iter().map(|&k| refined[k].map_or([0.0; 2], |r| r.at)).collect();
+        let again = refine_marks(src, req, &map.m, &found, &starts, 2, sign)?;
+        for (&k, a) in found.iter().zip(again) {
+            if good(&a) {
+                refined[k] = a;
+            }
+        }
+    }
     let mut marks: Vec<FoundMark> = (0..n)
         .map(|k| {
             let r = refined[k];
@@ -285,6 +298,19 @@ pub fn detect(src: &SourceImage, req: &Request<'_>) -> Result<Detection> {
         coarse_level: coarse.factor,
         warnings,
     })
+}
+
+/// The marks `which` refined from their `starts` with templates drawn by
+/// `to_px` (photo mm → scan px, linear part), from the level below `factor`.
+fn refine_marks(src: &SourceImage, req: &Request<'_>, to_px: &nalgebra::Matrix2<f64>, which: &[usize], starts: &[[f64; 2]], factor: u32, sign: f32) -> Result<Vec<Option<refine::Refined>>> {
+    which
+        .par_iter()
+        .zip(starts)
+        .map(|(&k, &start)| {
+            let shape = &req.shapes[k];
+            refine::refine(src, shape, &(to_px * search::own_turn(shape, req.marks_mm[k])), start, factor, sign)
+        })
+        .collect()
 }
 
 fn describe_shapes(req: &Request<'_>) -> String {

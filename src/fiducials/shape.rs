@@ -73,22 +73,47 @@ pub struct Picture {
 }
 
 impl Picture {
-    /// Bilinear tone at (x, y) mm from the centre (y up); 0 outside.
+    /// Bilinear tone at (x, y) mm from the centre (y up).
     fn tone(&self, x: f64, y: f64) -> f32 {
         let u = x / self.pixel_mm + self.width as f64 / 2.0 - 0.5;
         let v = -y / self.pixel_mm + self.height as f64 / 2.0 - 0.5;
         let (u0, v0) = (u.floor(), v.floor());
         let (fu, fv) = ((u - u0) as f32, (v - v0) as f32);
+        // Past its edge the picture goes on as its edge pixels: a template
+        // turned a little, or a pixel larger than the picture, reaches
+        // there, and black would draw a frame the scan does not have.
         let at = |i: f64, j: f64| -> f32 {
-            if i < 0.0 || j < 0.0 || i >= self.width as f64 || j >= self.height as f64 {
-                0.0
-            } else {
-                self.tones[j as usize * self.width + i as usize]
-            }
+            let i = i.clamp(0.0, self.width as f64 - 1.0) as usize;
+            let j = j.clamp(0.0, self.height as f64 - 1.0) as usize;
+            self.tones[j * self.width + i]
         };
         let top = at(u0, v0) * (1.0 - fu) + at(u0 + 1.0, v0) * fu;
         let bottom = at(u0, v0 + 1.0) * (1.0 - fu) + at(u0 + 1.0, v0 + 1.0) * fu;
         top * (1.0 - fv) + bottom * fv
+    }
+}
+
+impl Picture {
+    /// The share of the template's half side the second template covers:
+    /// its middle half where that shows the mark (a cross's crossing, a
+    /// dot), more where the middle is one plain tone (a block's body, whose
+    /// edges lie farther out) — the least of ½, ¾, 1 whose spread of tones
+    /// is a quarter of the whole template's at least.
+    fn fine_share(&self, side: usize) -> f64 {
+        let spread = |half: usize| {
+            let (cx, cy) = (self.width / 2, self.height / 2);
+            let (mut n, mut s, mut ss) = (0.0f64, 0.0f64, 0.0f64);
+            for y in cy.saturating_sub(half)..(cy + half).min(self.height) {
+                for &t in &self.tones[y * self.width + cx.saturating_sub(half)..y * self.width + (cx + half).min(self.width)] {
+                    n += 1.0;
+                    s += t as f64;
+                    ss += (t * t) as f64;
+                }
+            }
+            (ss / n - (s / n).powi(2)).max(0.0).sqrt()
+        };
+        let whole = spread(side / 2);
+        [0.5, 0.75].into_iter().find(|&share| spread((side as f64 * share / 2.0) as usize) >= 0.25 * whole).unwrap_or(1.0)
     }
 }
 
@@ -221,13 +246,15 @@ impl Shape {
         }
         let tones = gray.data.iter().map(|v| (v - lo) / (hi - lo)).collect();
         let picture = Picture { width: w as usize, height: h as usize, tones, pixel_mm };
-        let radius = w.min(h) as f64 * pixel_mm / 2.0;
+        let side = w.min(h) as usize;
+        let radius = side as f64 * pixel_mm / 2.0;
+        let fine_radius_mm = radius * picture.fine_share(side);
         Ok(Shape {
             name: format!("template {}", path.display()),
             primitives: Vec::new(),
             picture: Some(picture),
             radius_mm: radius,
-            fine_radius_mm: radius * 0.5,
+            fine_radius_mm,
             turns_with_place: false,
         })
     }
