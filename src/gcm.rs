@@ -71,7 +71,8 @@ pub struct NodeRow {
 #[derive(Clone, Debug)]
 pub struct NodeHeights {
     pub heights: Vec<Height>,
-    pub lonlat: Option<Vec<Option<(f64, f64)>>>,
+    /// Each node's longitude and latitude (NaN where it has none).
+    pub lonlat: Option<Vec<(f64, f64)>>,
 }
 
 /// A piece of a cell being refined, with what the refinement weighs
@@ -126,7 +127,8 @@ pub struct BandGcm {
     rows: Vec<NodeRow>,
     /// `cells[n][i]`: the refinement of the cell between node rows n, n+1
     /// and node columns i, i+1 (index from the first node): its root in
-    /// `quads`.
+    /// `quads`; a row with no refined cell is empty (most are: a strip's
+    /// rows of entries held megabytes of None).
     cells: Vec<Vec<Option<u32>>>,
     quads: Vec<Node>,
     pub stats: GcmStats,
@@ -389,7 +391,8 @@ impl<'a> Gcm<'a> {
                 .iter()
                 .map(|&u| {
                     let (x, y) = ground(u);
-                    self.t.dem.height_and_lonlat(x, y)
+                    let (h, ll) = self.t.dem.height_and_lonlat(x, y);
+                    (h, ll.unwrap_or((f64::NAN, f64::NAN)))
                 })
                 .unzip();
             return NodeHeights { heights, lonlat: Some(lonlat) };
@@ -437,7 +440,7 @@ impl<'a> Gcm<'a> {
         match &nodes.lonlat {
             Some(lonlat) => {
                 // Where the conversion failed the camera's own fails too: NaN.
-                let (lon, lat): (Vec<f64>, Vec<f64>) = at.iter().map(|&i| lonlat[i].unwrap_or((f64::NAN, f64::NAN))).unzip();
+                let (lon, lat): (Vec<f64>, Vec<f64>) = at.iter().map(|&i| lonlat[i]).unzip();
                 self.t.model.project_many_lonlat(&lon, &lat, &gz, &mut col, &mut row);
             }
             None => self.t.model.project_many(&gx, &gy, &gz, &mut col, &mut row),
@@ -450,7 +453,7 @@ impl<'a> Gcm<'a> {
             let (mut c1, mut r1) = (vec![0.0; at.len()], vec![0.0; at.len()]);
             match &nodes.lonlat {
                 Some(lonlat) => {
-                    let (lon, lat): (Vec<f64>, Vec<f64>) = at.iter().map(|&i| lonlat[i].unwrap_or((f64::NAN, f64::NAN))).unzip();
+                    let (lon, lat): (Vec<f64>, Vec<f64>) = at.iter().map(|&i| lonlat[i]).unzip();
                     self.t.model.project_many_lonlat(&lon, &lat, &up, &mut c1, &mut r1);
                 }
                 None => self.t.model.project_many(&gx, &gy, &up, &mut c1, &mut r1),
@@ -480,7 +483,7 @@ impl<'a> Gcm<'a> {
             // its height (one transverse Mercator inverse a node, not two).
             (Some(lonlat), true) => lonlat
                 .iter()
-                .map(|ll| ll.and_then(|(lon, lat)| self.t.dem.sample_coords_of_grid_point(lon, lat)).map_or([f64::NAN; 2], |(c, r)| [c, r]))
+                .map(|&(lon, lat)| if lon.is_nan() { None } else { self.t.dem.sample_coords_of_grid_point(lon, lat) }.map_or([f64::NAN; 2], |(c, r)| [c, r]))
                 .collect(),
             (None, true) => self.xs.iter().map(|&u| self.dem_coords(u, v)).collect(),
         };
@@ -575,8 +578,8 @@ impl<'a> Gcm<'a> {
                             }
                         }
                     })
-                    .collect();
-                cells.push(row_cells);
+                    .collect::<Vec<_>>();
+                cells.push(if row_cells.iter().all(Option::is_none) { Vec::new() } else { row_cells });
             }
         }
         // Held while the band's rows are made: not twice what it needs.

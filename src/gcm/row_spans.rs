@@ -68,8 +68,8 @@ impl<'a> Gcm<'a> {
         let (xs, first_px) = (&self.xs[nodes.clone()], &self.first_px[nodes.clone()]);
         let (adc, adr, bdc, bdr) = (&a.dc[nodes.clone()], &a.dr[nodes.clone()], &b.dc[nodes.clone()], &b.dr[nodes]);
         let (inv_dx, anchor_off) = (&self.inv_dx[lo..hi], &self.anchor_off[lo..hi]);
-        // Refined cells (only with --max-error: then every gap has its entry).
-        let refined = band.cells.get((j0 - band.first_j) as usize).map(|c| &c[lo..hi]);
+        // Refined cells (only with --max-error, and only rows with one).
+        let refined = band.cells.get((j0 - band.first_j) as usize).filter(|c| !c.is_empty()).map(|c| &c[lo..hi]);
         let x_end = x0 as usize + len;
         let last_gap = self.nodes_x - 2;
         let mut x = x0 as usize;
@@ -266,7 +266,7 @@ impl<'a> Gcm<'a> {
             _ => fy,
         };
         let ra = self.a.row(v);
-        let cells = band.cells.get((j0 - band.first_j) as usize);
+        let cells = band.cells.get((j0 - band.first_j) as usize).filter(|c| !c.is_empty());
         // The correction along this row at the node columns this segment
         // uses (indices relative to `lo`).
         let n = self.nodes_x;

@@ -70,9 +70,10 @@ impl CachedRaster {
     /// `raster`'s samples through a cache of about `cache_bytes`, each
     /// chunk rescaled as it is decoded.
     pub fn new(raster: ChunkedRaster, cache_bytes: usize, rescale: Option<Rescale>) -> CachedRaster {
+        let least = least_chunks(&raster);
         CachedRaster {
             raster,
-            cache: std::sync::Mutex::new(ChunkCache::new(cache_bytes)),
+            cache: std::sync::Mutex::new(ChunkCache::new(cache_bytes).keeping(least)),
             bytes: Default::default(),
             rescale,
             id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
