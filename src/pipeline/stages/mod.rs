@@ -49,6 +49,10 @@ pub struct SharedRows<T> {
     rows: Vec<T>,
 }
 
+/// The rows a band keeps for the next: those at its lower edge (the next
+/// band's first rows, with the error bound's row of margin each side).
+const SHARED: usize = 4;
+
 impl<T> Default for SharedRows<T> {
     fn default() -> Self {
         SharedRows { first_j: 0, rows: Vec::new() }
@@ -69,8 +73,13 @@ impl<T: Clone> SharedRows<T> {
                 None => make(j),
             })
             .collect();
-        self.first_j = j0;
-        self.rows.clone_from(&rows);
+        // Only the last few: a whole band's copy held as much again as the
+        // band (its node heights and rows) for the two or three the next
+        // one shares.
+        let keep = rows.len().min(SHARED);
+        self.first_j = j0 + (rows.len() - keep) as i64;
+        self.rows.clear();
+        self.rows.extend_from_slice(&rows[rows.len() - keep..]);
         (rows, reused)
     }
 }
@@ -96,5 +105,9 @@ mod tests {
         assert_eq!(rows(9, 10, &mut made), (vec![90, 100], 0));
         assert_eq!(rows(10, 11, &mut made), (vec![100, 110], 1));
         assert_eq!(made, [-1, 0, 1, 2, 3, 4, 5, 6, 9, 10, 11]);
+        // A long band keeps its last rows only.
+        let (rows, _) = before.rows(20, 40, |j| j);
+        assert_eq!((rows.len(), before.first_j, before.rows.clone()), (21, 37, vec![37, 38, 39, 40]));
+        assert_eq!(before.rows(37, 45, |j| j).1, 4);
     }
 }
