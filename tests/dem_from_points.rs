@@ -315,6 +315,39 @@ fn a_lattice_of_points_grids_the_same_whatever_diagonals_the_triangulation_draws
 }
 
 #[test]
+fn a_blunder_hidden_by_two_others_beside_it_is_found_once_they_are_dropped() {
+    // A lattice (each point's ring its eight neighbours) with three spikes
+    // in a row: the two outer ones have one spike among their neighbours
+    // (left out as the highest), the middle one two, so it is within its
+    // ring's heights until they are dropped. Elsewhere a lone spike.
+    let d = tempfile::tempdir().unwrap();
+    let mut text = String::from("x y z\n");
+    for i in 0..60u32 {
+        for j in 0..60u32 {
+            let (u, v) = (f64::from(i) * 5.0, f64::from(j) * 5.0);
+            let spike = (j == 30 && (29..=31).contains(&i)) || (i, j) == (10, 45);
+            let z = bowl(u, v) + if spike { 25.0 } else { 0.0 };
+            text.push_str(&format!("{} {} {z:?}\n", 500000.0 + u, 4000000.0 + v));
+        }
+    }
+    let xyz = d.path().join("spikes.xyz");
+    std::fs::write(&xyz, text).unwrap();
+    let json = d.path().join("r.json");
+    let (dem, o) = grid(d.path(), "spikes.tif", &[s(&xyz), "--gsd", "1", "--crs", "EPSG:32631", "--json", s(&json)]);
+    ok(&o);
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(r["blunders"].as_u64().unwrap(), 4, "the three spikes in a row and the lone one");
+    // The middle spike's place has the bowl's height back (the TIN of a
+    // lattice is within a few centimetres of the bowl).
+    let (w, _, z) = cells(&dem);
+    let b: Vec<f64> = r["bounds"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let (i, j) = ((150.0 - (b[0] - 500000.0)).floor(), ((b[3] - 4000000.0) - 150.0).floor());
+    let (u, v) = (b[0] - 500000.0 + i + 0.5, b[3] - 4000000.0 - j - 0.5);
+    let got = f64::from(z[(j as u32 * w + i as u32) as usize]);
+    assert!((got - bowl(u, v)).abs() < 0.1, "the middle spike left: {got} against the bowl's {}", bowl(u, v));
+}
+
+#[test]
 fn pieces_made_apart_and_assembled_are_the_single_run_byte_for_byte() {
     let d = tempfile::tempdir().unwrap();
     let mut pts = random_points(20000, 600.0, 8, bowl);

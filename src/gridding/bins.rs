@@ -64,9 +64,6 @@ pub struct Rect {
 }
 
 impl Rect {
-    pub fn around(c: u32, r: u32, m: u32, grid: &BinGrid) -> Rect {
-        Rect { c0: c.saturating_sub(m), r0: r.saturating_sub(m), c1: (c + m).min(grid.cols - 1), r1: (r + m).min(grid.rows - 1) }
-    }
     pub fn bins(&self) -> u64 {
         (self.c1 - self.c0 + 1) as u64 * (self.r1 - self.r0 + 1) as u64
     }
@@ -171,12 +168,13 @@ impl Bins {
         self.counts.iter().sum()
     }
 
-    /// Points of the bins in `rect`, those dropped left out, appended to `out`.
-    pub fn read(&self, rect: Rect, out: &mut Vec<Stored>) -> Result<()> {
+    /// Points of the bins in `rect` that `keep` takes, those dropped left
+    /// out, appended to `out`.
+    pub fn read(&self, rect: Rect, keep: impl Fn(&Stored) -> bool, out: &mut Vec<Stored>) -> Result<()> {
         for r in rect.r0..=rect.r1 {
             for c in rect.c0..=rect.c1 {
                 self.read_bin(c, r, |p| {
-                    if !p[2].is_nan() {
+                    if !p[2].is_nan() && keep(p) {
                         out.push(*p)
                     }
                 })?;

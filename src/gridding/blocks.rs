@@ -4,7 +4,7 @@
 
 use super::bins::{Bins, Rect};
 use super::methods::{self, CellStat, Cells};
-use super::neighbourhood::{Buckets, Loaded, Settle};
+use super::neighbourhood::{Buckets, Loaded, Post, Settle};
 use super::{blunders, GridOptions, Method};
 use crate::error::{Error, Result};
 use crate::geom::OutputGrid;
@@ -44,12 +44,10 @@ impl Ctx<'_> {
         (rect.r0..=rect.r1).map(|r| (rect.c0..=rect.c1).map(|c| self.bins.count(c, r)).sum::<u64>()).sum()
     }
 
-    /// Runs `f` on the points within the longest side of bin `core`,
-    /// growing the ground read while a triangle it used may not be the
-    /// whole set's; returns `f`'s last result and the triangles left
-    /// unsettled.
-    fn settled<T>(&self, core: (u32, u32), cancel: &Cancel, mut f: impl FnMut(&Loaded, &mut Settle) -> T) -> Result<(T, u64)> {
-        let mut region = self.around(core, self.max_edge);
+    /// Runs `f` on the points over `region`, growing the ground read while
+    /// a triangle it used may not be the whole set's; returns `f`'s last
+    /// result and the triangles left unsettled.
+    fn settled<T>(&self, mut region: [f64; 4], cancel: &Cancel, mut f: impl FnMut(&Loaded, &mut Settle) -> T) -> Result<(T, u64)> {
         loop {
             if cancel.is_cancelled() {
                 return Err(Error::Cancelled);
@@ -82,7 +80,7 @@ impl Ctx<'_> {
         let o = self.o;
         let unsettled = match o.method {
             Method::Tin | Method::Natural => {
-                self.settled(core, cancel, |loaded, settle| {
+                self.settled(self.around(core, self.max_edge), cancel, |loaded, settle| {
                     out.fill(f32::NAN);
                     if let Some(tin) = loaded.tin() {
                         methods::by_tin(&tin, settle, &cells, self.max_edge, o.method == Method::Natural, &mut out);
@@ -117,34 +115,106 @@ impl Ctx<'_> {
     }
 }
 
-/// A bin and the places of its blunders.
-type BinBlunders = ((u32, u32), Vec<(f64, f64)>);
+/// Where blunders are looked for: the points of a bin that a test takes,
+/// with the triangles over the ground they lie in.
+struct Look<'a> {
+    bin: (u32, u32),
+    ground: [f64; 4],
+    judged: Box<dyn Fn(&Post) -> bool + Sync + 'a>,
+}
 
 /// Finds the blunders of the bins `held` from the points as read, then
-/// marks them dropped; returns how many, and the bins they were in.
-pub(super) fn drop_blunders(ctx: &Ctx, k: f64, held: &[(u32, u32)], progress: &dyn Progress, cancel: &Cancel) -> Result<(u64, Vec<(u32, u32)>)> {
+/// marks them dropped; returns how many points, and their places.
+pub(super) fn drop_blunders(ctx: &Ctx, k: f64, held: &[(u32, u32)], progress: &dyn Progress, cancel: &Cancel) -> Result<(u64, Vec<(f64, f64)>)> {
     let g = ctx.bins.grid;
-    progress.start(&Task { name: "blunders", units: held.len() as u64, lines: 0, line_name: "bins", input_bytes: 0 });
-    let found: Vec<Result<BinBlunders>> = held
+    let looks: Vec<Look> = held
+        .iter()
+        .map(|&(c, r)| Look {
+            bin: (c, r),
+            ground: g.ground_of(Rect { c0: c, r0: r, c1: c, r1: r }),
+            judged: Box::new(move |p: &Post| g.bin_of(p.x, p.y) == Some((c, r))),
+        })
+        .collect();
+    look_for_blunders(ctx, k, &looks, progress, cancel)
+}
+
+/// Finds the blunders that the points `dropped` hid, and marks them
+/// dropped; returns how many points. Only a point whose Delaunay
+/// neighbourhood lost one can be judged otherwise than before: a
+/// neighbour of a dropped point (which was judged, so its neighbours lie
+/// within the longest side of it), or a point of a triangle beside such
+/// a neighbourhood (within two longest sides). Those are judged again.
+pub(super) fn drop_hidden_blunders(ctx: &Ctx, k: f64, dropped: &[(f64, f64)], progress: &dyn Progress, cancel: &Cancel) -> Result<u64> {
+    let g = ctx.bins.grid;
+    let reach = 2.0 * ctx.max_edge;
+    // The dropped points by square of side `reach`.
+    let mut near: rustc_hash::FxHashMap<(i64, i64), Vec<(f64, f64)>> = rustc_hash::FxHashMap::default();
+    let square = |x: f64, y: f64| ((x / reach).floor() as i64, (y / reach).floor() as i64);
+    // Each bin's ground within reach of a dropped point.
+    let mut grounds: std::collections::BTreeMap<(u32, u32), [f64; 4]> = std::collections::BTreeMap::new();
+    for &(x, y) in dropped {
+        near.entry(square(x, y)).or_default().push((x, y));
+        let around = [x - reach, y - reach, x + reach, y + reach];
+        let Some(over) = g.bins_over(around[0], around[1], around[2], around[3]) else { continue };
+        for r in over.r0..=over.r1 {
+            for c in over.c0..=over.c1 {
+                if ctx.bins.count(c, r) == 0 {
+                    continue;
+                }
+                let bin = g.ground_of(Rect { c0: c, r0: r, c1: c, r1: r });
+                let part = [around[0].max(bin[0]), around[1].max(bin[1]), around[2].min(bin[2]), around[3].min(bin[3])];
+                grounds
+                    .entry((c, r))
+                    .and_modify(|e| *e = [e[0].min(part[0]), e[1].min(part[1]), e[2].max(part[2]), e[3].max(part[3])])
+                    .or_insert(part);
+            }
+        }
+    }
+    let near = &near;
+    let looks: Vec<Look> = grounds
+        .into_iter()
+        .map(|((c, r), ground)| Look {
+            bin: (c, r),
+            ground,
+            judged: Box::new(move |p: &Post| {
+                if g.bin_of(p.x, p.y) != Some((c, r)) {
+                    return false;
+                }
+                let (i, j) = square(p.x, p.y);
+                (i - 1..=i + 1).any(|i| {
+                    (j - 1..=j + 1).any(|j| near.get(&(i, j)).is_some_and(|d| d.iter().any(|&(x, y)| (p.x - x).abs() <= reach && (p.y - y).abs() <= reach)))
+                })
+            }),
+        })
+        .collect();
+    Ok(look_for_blunders(ctx, k, &looks, progress, cancel)?.0)
+}
+
+/// Judges the points of each look, marks the blunders dropped; returns
+/// how many points, and their places.
+fn look_for_blunders(ctx: &Ctx, k: f64, looks: &[Look], progress: &dyn Progress, cancel: &Cancel) -> Result<(u64, Vec<(f64, f64)>)> {
+    progress.start(&Task { name: "blunders", units: looks.len() as u64, lines: 0, line_name: "bins", input_bytes: 0 });
+    let found: Vec<Result<Vec<(f64, f64)>>> = looks
         .par_iter()
-        .map(|&(c, r)| {
-            let core = Rect { c0: c, r0: r, c1: c, r1: r };
-            let (places, _) = ctx.settled((c, r), cancel, |loaded, settle| match loaded.tin() {
-                Some(tin) => blunders::find(&tin, settle, &g, core, ctx.max_edge, k),
+        .map(|look| {
+            let m = ctx.max_edge;
+            let region = [look.ground[0] - m, look.ground[1] - m, look.ground[2] + m, look.ground[3] + m];
+            let (places, _) = ctx.settled(region, cancel, |loaded, settle| match loaded.tin() {
+                Some(tin) => blunders::find(&tin, settle, &*look.judged, m, k),
                 None => Vec::new(),
             })?;
             progress.advance(1);
-            Ok(((c, r), places))
+            Ok(places)
         })
         .collect();
     progress.finish();
-    let (mut dropped, mut touched) = (0, Vec::new());
-    for f in found {
-        let ((c, r), places) = f?;
+    let (mut dropped, mut all) = (0, Vec::new());
+    for (look, f) in looks.iter().zip(found) {
+        let places = f?;
         if places.is_empty() {
             continue;
         }
-        touched.push((c, r));
+        let (c, r) = look.bin;
         let set: rustc_hash::FxHashSet<(u64, u64)> = places.iter().map(|&(x, y)| (x.to_bits(), y.to_bits())).collect();
         let mut positions = Vec::new();
         let mut k = 0u64;
@@ -156,8 +226,9 @@ pub(super) fn drop_blunders(ctx: &Ctx, k: f64, held: &[(u32, u32)], progress: &d
         })?;
         dropped += positions.len() as u64;
         ctx.bins.drop_points(c, r, &positions)?;
+        all.extend(places);
     }
-    Ok((dropped, touched))
+    Ok((dropped, all))
 }
 
 /// Refuses points that make no surface (all on one line) for the methods

@@ -9,19 +9,24 @@
 //! on the roof, is never one; only a point with its ring all round it
 //! (not on the hull, not beside a gap) is judged.
 
-use super::bins::{BinGrid, Rect};
-use super::neighbourhood::{delaunay_cell, Post, Settle, Tin};
+use super::neighbourhood::{delaunay_cell, joined_faces, Post, Settle, Tin};
 use spade::Triangulation;
 
-/// The places `(x, y)` of the blunders among the points of bin `core`.
-pub fn find(tin: &Tin, settle: &mut Settle, grid: &BinGrid, core: Rect, max_edge: f64, k: f64) -> Vec<(f64, f64)> {
+/// The places `(x, y)` of the blunders among the points of `tin` that
+/// `judged` takes.
+pub fn find(tin: &Tin, settle: &mut Settle, judged: &dyn Fn(&Post) -> bool, max_edge: f64, k: f64) -> Vec<(f64, f64)> {
     let l2 = max_edge * max_edge;
     let mut found = Vec::new();
     let mut ring: Vec<(f64, f64, f64)> = Vec::new();
     let mut cell = Vec::with_capacity(8);
+    // Each face is met from each of its corners: what is known of it is
+    // found once (whether it shares its circle with a neighbour; whether
+    // it was checked settled).
+    let joined = joined_faces(tin);
+    let mut checked = vec![false; joined.len()];
     for v in tin.vertices() {
         let p: Post = *v.data();
-        if grid.bin_of(p.x, p.y) != Some((core.c0, core.r0)) {
+        if !judged(&p) {
             continue;
         }
         // A point beside a gap (a side over the longest gridded) is not
@@ -31,11 +36,20 @@ pub fn find(tin: &Tin, settle: &mut Settle, grid: &BinGrid, core: Rect, max_edge
         for e in v.out_edges() {
             match e.face().as_inner() {
                 Some(f) => {
-                    let [a, b, c] = f.vertices().map(|v| v.position());
-                    settle.check(a, b, c);
+                    let i = f.fix().index();
+                    if !checked[i] {
+                        let [a, b, c] = f.vertices().map(|v| v.position());
+                        settle.check(a, b, c);
+                        checked[i] = true;
+                    }
                     // The corners of its Delaunay cell: on a lattice, the
                     // same neighbours whichever diagonals were drawn.
-                    delaunay_cell(tin, f.fix(), &mut cell);
+                    if joined[i] {
+                        delaunay_cell(tin, f.fix(), &mut cell);
+                    } else {
+                        cell.clear();
+                        cell.extend(f.vertices().map(|v| *v.data()));
+                    }
                     for q in cell.iter().copied() {
                         let r = (q.x - p.x, q.y - p.y, q.z);
                         if (r.0, r.1) != (0.0, 0.0) && !ring.contains(&r) {

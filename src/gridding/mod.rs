@@ -24,7 +24,7 @@ use crate::pipeline::Raw;
 use crate::points::{Point, PointFile};
 use crate::progress::{Cancel, Progress, Task};
 use bins::{BinGrid, Bins, Rect};
-use blocks::{check_not_collinear, drop_blunders, Ctx};
+use blocks::{check_not_collinear, drop_blunders, drop_hidden_blunders, Ctx};
 use methods::Cells;
 use rayon::prelude::*;
 use std::path::PathBuf;
@@ -196,8 +196,8 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
     // Blunders, each bin's found from the points as read, then dropped;
     // once more among those left, for a blunder that another beside it
     // hid (two neighbours of a point with three or four).
-    // The second pass looks only where the first dropped some: elsewhere
-    // no point's neighbours changed.
+    // The second pass judges only the points near those the first dropped:
+    // elsewhere no point's neighbours changed.
     let mut blunders = 0;
     if let Some(k) = o.blunders {
         let g = bins.grid;
@@ -218,24 +218,10 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
                 })
             })
             .collect();
-        let (found, touched) = pool.install(|| drop_blunders(&ctx, k, &held, progress, cancel))?;
+        let (found, dropped) = pool.install(|| drop_blunders(&ctx, k, &held, progress, cancel))?;
         blunders += found;
-        if found > 0 {
-            let reach = (max_edge / g.side_x.min(g.side_y)).ceil() as u32;
-            let mut again = rustc_hash::FxHashSet::default();
-            for (c, r) in touched {
-                let near = Rect::around(c, r, reach, &g);
-                for rr in near.r0..=near.r1 {
-                    for cc in near.c0..=near.c1 {
-                        if bins.count(cc, rr) > 0 {
-                            again.insert((cc, rr));
-                        }
-                    }
-                }
-            }
-            let mut again: Vec<(u32, u32)> = again.into_iter().collect();
-            again.sort_unstable_by_key(|&(c, r)| (r, c));
-            blunders += pool.install(|| drop_blunders(&ctx, k, &again, progress, cancel))?.0;
+        if !dropped.is_empty() {
+                blunders += pool.install(|| drop_hidden_blunders(&ctx, k, &dropped, progress, cancel))?;
         }
     }
     check_not_collinear(&ctx, &files)?;
@@ -533,8 +519,15 @@ fn block_side(o: &GridOptions, density: f64) -> u32 {
         return b;
     }
     let share = (o.memory / 2 / o.threads as u64).max(16 << 20) as f64;
+    // A block loads its cells and the longest side around them (the
+    // points are filtered as read). The longest side is not known before
+    // the points are binned: the default's, from the mean spacing (which
+    // is no less than the median the run takes).
+    let cell = o.gsd.x.min(o.gsd.y);
+    let spacing = (o.gsd.x * o.gsd.y / density.max(1e-12)).sqrt();
+    let edge = o.max_edge.unwrap_or_else(|| (10.0 * spacing).max(4.0 * o.gsd.x.max(o.gsd.y))) / cell;
     let mut b = o.tile;
-    while b.is_multiple_of(2) && b > 16 && 9.0 * (b as f64).powi(2) * density * BYTES_A_POINT as f64 > share {
+    while b.is_multiple_of(2) && b > 16 && (b as f64 + 2.0 * edge).powi(2) * density * BYTES_A_POINT as f64 > share {
         b /= 2;
     }
     b

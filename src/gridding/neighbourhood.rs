@@ -43,9 +43,10 @@ impl Loaded {
     pub fn read(bins: &Bins, region: [f64; 4]) -> Result<Loaded> {
         let mut raw: Vec<Stored> = Vec::new();
         if let Some(rect) = bins.grid.bins_over(region[0], region[1], region[2], region[3]) {
-            bins.read(rect, &mut raw)?;
+            // Filtered as read: the bins around hold several times the
+            // points kept.
+            bins.read(rect, |p| holds(&region, p[0], p[1]), &mut raw)?;
         }
-        raw.retain(|p| holds(&region, p[0], p[1]));
         Ok(Loaded { posts: merged(raw) })
     }
 
@@ -248,6 +249,25 @@ fn cocircular(a: &Post, b: &Post, c: &Post, d: &Post) -> bool {
         return false;
     }
     robust::incircle(coord(a), coord(b), coord(c), coord(d)) == 0.0
+}
+
+/// For each face of `tin` (by index), whether a neighbour's far corner
+/// lies exactly on its circumcircle: its Delaunay cell is more than
+/// itself. One test an edge (four points on one circle are so whichever
+/// three make it).
+pub fn joined_faces(tin: &Tin) -> Vec<bool> {
+    let mut joined = vec![false; tin.num_all_faces()];
+    for e in tin.undirected_edges() {
+        let e = e.as_directed();
+        let (Some(f), Some(g)) = (e.face().as_inner(), e.rev().face().as_inner()) else { continue };
+        let [a, b, c] = f.vertices().map(|v| *v.data());
+        let Some(o) = e.rev().opposite_vertex() else { continue };
+        if cocircular(&a, &b, &c, o.data()) {
+            joined[f.fix().index()] = true;
+            joined[g.fix().index()] = true;
+        }
+    }
+    joined
 }
 
 /// The Delaunay cell holding face `f`: the faces whose corners lie exactly
