@@ -351,7 +351,7 @@ fn a_blunder_hidden_by_two_others_beside_it_is_found_once_they_are_dropped() {
     let b: Vec<f64> = r["bounds"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
     let (i, j) = ((150.0 - (b[0] - 500000.0)).floor(), ((b[3] - 4000000.0) - 150.0).floor());
     let (u, v) = (b[0] - 500000.0 + i + 0.5, b[3] - 4000000.0 - j - 0.5);
-    let got = f64::from(z[(j as u32 * w + i as u32) as usize]);
+    let got = z[(j as u32 * w + i as u32) as usize];
     assert!((got - bowl(u, v)).abs() < 0.1, "the middle spike left: {got} against the bowl's {}", bowl(u, v));
 }
 
