@@ -109,6 +109,21 @@ fn synthetic_rpc_pair_meets_half_the_theoretical_precision() {
     assert!(r["matched_share"].as_f64().unwrap() > 0.95, "matched {}", r["matched_share"]);
     assert!(r["intersection_check_m"].as_f64().unwrap() < 1e-4);
     assert!((r["epipolar"]["base_to_height"].as_f64().unwrap() - 0.5).abs() < 0.01);
+    // No geoid given: the RPCs' heights, above the WGS 84 ellipsoid, and
+    // the file says so as GDAL writes it (EPSG:4979 as the vertical key),
+    // which GDAL reads as ellipsoidal heights.
+    let keys = gcm_ortho::io::source::SourceImage::open(&out, 1 << 20).unwrap().info.georef.unwrap().keys;
+    let crs = gcm_ortho::geodesy::geokeys::crs_of(&keys).unwrap().unwrap();
+    assert!(crs.vertical().is_some_and(|v| v.is_ellipsoidal() && v.epsg == Some(4979)), "{crs}");
+    if let Some(python) = python_with("osgeo.gdal", "python3-gdal") {
+        let script = format!(
+            "from osgeo import gdal, osr\ns = gdal.Open({:?}).GetSpatialRef()\nprint(s.GetAxesCount(), s.GetAxisName(None, 2), s.GetUTMZone())",
+            out.display().to_string()
+        );
+        let o = std::process::Command::new(python).args(["-c", &script]).output().unwrap();
+        let said = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(said.trim(), "3 Ellipsoidal height 31", "GDAL reads the DSM's CRS as: {said} {}", String::from_utf8_lossy(&o.stderr));
+    }
     let cells = against(&out, &dir.path().join("dem.tif"), 1);
     assert!(cells.len() > 30_000, "{} cells", cells.len());
     let rmse = (cells.iter().map(|(a, b)| (a - b).powi(2)).sum::<f64>() / cells.len() as f64).sqrt();

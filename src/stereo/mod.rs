@@ -387,16 +387,22 @@ fn grid_dsm(o: &StereoOptions, crs: &Crs, points: &std::path::Path, progress: &d
     crate::gridding::grid(&g, progress, cancel)
 }
 
-/// The DSM's CRS with the height system of the geoid its heights are
-/// above (a geoid grid PROJ names, by its file's name), so that GDAL and
-/// the DSM's next user read what its heights are; as it is where the CRS
-/// says its heights already, or the grid is not one PROJ names.
+/// The DSM's CRS with the height system of its heights, so that GDAL and
+/// the DSM's next user read what they are: the geoid's given (a grid PROJ
+/// names, by its file's name), else an RPC's own, above the WGS 84
+/// ellipsoid (said as GeoTIFF 1.1 and GDAL say it, a geographic 3D CRS as
+/// the vertical key); as it is where the CRS says its heights already, or
+/// the grid is not one PROJ names, or the cameras' datum is unknown.
 fn with_heights_system(o: &StereoOptions, crs: Crs) -> Crs {
-    let geoid = match &o.left.model {
-        ModelSource::Rpc { geoid: Some(g), .. } if crs.vertical().is_none() => g,
-        _ => return crs,
+    if crs.vertical().is_some() {
+        return crs;
+    }
+    let vertical = match &o.left.model {
+        ModelSource::Rpc { geoid: Some(g), .. } => crate::geodesy::Vertical::of_grid_file(g),
+        ModelSource::Rpc { geoid: None, .. } => crate::geodesy::Vertical::from_epsg(4979).ok(),
+        _ => None,
     };
-    match crate::geodesy::Vertical::of_grid_file(geoid) {
+    match vertical {
         Some(v) => crs.with_vertical(Some(v)),
         None => crs,
     }
