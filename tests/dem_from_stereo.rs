@@ -352,36 +352,42 @@ fn shards_points_gridded_together_are_the_whole_runs_dsm() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     pair(d, 0.5, 1200);
-    let single = d.join("single.tif");
-    let o = dem_of_pair(d, &single, &["--gsd", "2"]);
+    let (single, single_q) = (d.join("single.tif"), d.join("single_q.tif"));
+    let o = dem_of_pair(d, &single, &["--gsd", "2", "--quality", s(&single_q)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let mut pieces = Vec::new();
+    let (mut pieces, mut qualities) = (Vec::new(), Vec::new());
     let mut then = String::new();
     for i in 1..=3 {
-        let piece = d.join(format!("piece_{i}.las"));
+        let (piece, quality) = (d.join(format!("piece_{i}.las")), d.join(format!("quality_{i}.las")));
         let json = d.join(format!("piece_{i}.json"));
-        let o = dem_of_pair(d, &piece, &["--gsd", "2", "--shard", &format!("{i}/3"), "--json", s(&json)]);
+        let o = dem_of_pair(d, &piece, &["--gsd", "2", "--shard", &format!("{i}/3"), "--quality", s(&quality), "--json", s(&json)]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let r = report(&json);
         assert!(r["dsm"].is_null() && r["points_written"].as_u64().unwrap() > 1000, "{r}");
         then = r["then"].as_str().unwrap().to_string();
         pieces.push(piece);
+        qualities.push(quality);
     }
-    // The command the report gives, with the pieces for PIECE_1 … PIECE_3.
-    assert!(then.starts_with("gcm-ortho grid PIECE_1 … PIECE_3 (in shard order) "), "{then}");
-    let (_, options) = then.split_once("(in shard order) ").unwrap();
-    let gridded = d.join("gridded.tif");
-    let mut args: Vec<String> = vec!["grid".into()];
-    args.extend(pieces.iter().map(|p| s(p).to_string()));
-    args.extend(options.split_whitespace().map(|w| w.trim_matches('\'').to_string()).filter(|w| w != "-o" && w != "DSM"));
-    args.extend(["-o".into(), s(&gridded).into(), "--quiet".into()]);
-    let o = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (a, b) = (read_f32(&single).3, read_f32(&gridded).3);
-    assert_eq!(a.len(), b.len());
-    assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()), "the pieces' DSM differs from the whole run's");
-    assert!(a.iter().filter(|v| **v != -9999.0).count() > 50_000);
-    for (extra, named) in [(&["--shard", "4/3"][..], "--shard"), (&["--shard", "1/3", "--quality", "q.tif"][..], "--quality")] {
+    // The commands the report gives, with the pieces for PIECE_1 … PIECE_3
+    // and QUALITY_1 … QUALITY_3: the whole run's DSM and quality raster.
+    let (dsm_command, quality_command) = then.split_once("; ").expect("two commands");
+    for (command, files, name, single) in [(dsm_command, &pieces, "DSM", &single), (quality_command, &qualities, "QUALITY", &single_q)] {
+        let prefix = if name == "DSM" { "PIECE" } else { "QUALITY" };
+        assert!(command.starts_with(&format!("gcm-ortho grid {prefix}_1 … {prefix}_3 (in shard order) ")), "{command}");
+        let (_, options) = command.split_once("(in shard order) ").unwrap();
+        let gridded = d.join(format!("gridded_{name}.tif"));
+        let mut args: Vec<String> = vec!["grid".into()];
+        args.extend(files.iter().map(|p| s(p).to_string()));
+        args.extend(options.split_whitespace().map(|w| w.trim_matches('\'').to_string()).filter(|w| w != "-o" && w != name));
+        args.extend(["-o".into(), s(&gridded).into(), "--quiet".into()]);
+        let o = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let (a, b) = (read_f32(single).3, read_f32(&gridded).3);
+        assert_eq!(a.len(), b.len(), "{name}");
+        assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()), "the pieces' {name} differs from the whole run's");
+        assert!(a.iter().filter(|v| **v != -9999.0).count() > 50_000, "{name}");
+    }
+    for (extra, named) in [(&["--shard", "4/3"][..], "--shard"), (&["--shard", "1/3", "--points", "p.las"][..], "--points")] {
         let out = d.join("refused.las");
         let mut e = vec!["--gsd", "2"];
         e.extend_from_slice(extra);

@@ -224,10 +224,11 @@ pub struct DemArgs {
     /// Match only this share of the pair, I/N (rows of epipolar tiles, for
     /// N machines): -o is then the piece's matched points (LAS), and
     /// `grid` makes the DSM of all the pieces' points (the report says how)
-    #[arg(long, conflicts_with_all = ["points", "quality", "cog"])]
+    #[arg(long, conflicts_with_all = ["points", "cog"])]
     pub shard: Option<String>,
     /// Also write each cell's mean residual parallax of its matches
-    /// (pixels; a GeoTIFF on the DSM's grid) here
+    /// (pixels; a GeoTIFF on the DSM's grid) here; with --shard, the
+    /// piece's matches' residual parallaxes (LAS), gridded like its points
     #[arg(long)]
     pub quality: Option<PathBuf>,
     /// Also drop points whose height lies outside their Delaunay

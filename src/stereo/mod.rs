@@ -260,7 +260,10 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
     let kept = if o.shard.is_some() { Some(&o.output) } else { o.points.as_ref() };
     let kept_points = kept.map(|p| crate::io::publish::PendingFile::create(p)).transpose()?;
     let points_path = kept_points.as_ref().map_or_else(|| pending.path().join("points.las"), |p| p.path().to_path_buf());
-    let quality_path = pending.path().join("quality.las");
+    // A shard's quality is its matches' residual parallaxes, a point file
+    // the pieces' quality raster is gridded from, like its DSM.
+    let kept_quality = o.quality.as_ref().filter(|_| o.shard.is_some()).map(|q| crate::io::publish::PendingFile::create(q)).transpose()?;
+    let quality_path = kept_quality.as_ref().map_or_else(|| pending.path().join("quality.las"), |q| q.path().to_path_buf());
     let mut pw = points_out::PointWriter::create(&points_path, frame.origin, frame.pixel)?;
     let mut qw = points_out::PointWriter::create(&quality_path, frame.origin, frame.pixel)?;
     progress.start(&Task { name: "matching", units: tiles.len() as u64, lines: 0, line_name: "", input_bytes: 0 });
@@ -316,12 +319,23 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
     let crs_text = dsm_crs.definition();
     // A shard: its points are its output.
     let then = o.shard.map(|(_, n)| {
-        format!(
+        let dsm = format!(
             "gcm-ortho grid PIECE_1 … PIECE_{n} (in shard order) --points-crs '{crs_text}' --crs '{crs_text}' --gsd {},{} --blunders {} -o DSM",
             o.gsd.x,
             o.gsd.y,
             o.blunders.map_or("none".to_string(), |b| b.to_string())
-        )
+        );
+        // The quality raster on the DSM's grid: the same points' places.
+        match o.quality {
+            Some(_) => {
+                let crs = crs.definition();
+                format!(
+                    "{dsm}; gcm-ortho grid QUALITY_1 … QUALITY_{n} (in shard order) --points-crs '{crs}' --crs '{crs}' --gsd {},{} --method mean --blunders none -o QUALITY",
+                    o.gsd.x, o.gsd.y
+                )
+            }
+            None => dsm,
+        }
     });
     let dsm = match o.shard {
         Some(_) => None,
@@ -340,6 +354,9 @@ pub fn dem(o: &StereoOptions, progress: &dyn Progress, cancel: &Cancel) -> Resul
     }
     if let Some(p) = kept_points {
         p.publish()?;
+    }
+    if let Some(q) = kept_quality {
+        q.publish()?;
     }
     let q = |v: &mut Vec<f32>, f: f64| -> f64 {
         if v.is_empty() {
@@ -601,7 +618,7 @@ fn check_files(o: &StereoOptions) -> Result<()> {
     }
     let mut outputs = vec![Role::new("output", &o.output)];
     if let Some(q) = &o.quality {
-        outputs.push(Role::new("quality raster", q));
+        outputs.push(Role::new(if o.shard.is_some() { "quality points" } else { "quality raster" }, q));
     }
     if let Some(p) = &o.points {
         outputs.push(Role::new("points file", p));
@@ -610,13 +627,13 @@ fn check_files(o: &StereoOptions) -> Result<()> {
 }
 
 /// A shard names one of its N shares, and asks nothing of the DSM it
-/// does not make.
+/// does not make (its quality is its matches' residuals, a point file).
 fn check_shard(o: &StereoOptions) -> Result<()> {
     let Some((i, n)) = o.shard else { return Ok(()) };
     if !(1..=n).contains(&i) {
         return Err(Error::setting("shard", format!("{i}/{n}: give I/N with 1 ≤ I ≤ N")));
     }
-    let with = [("points", o.points.is_some()), ("quality", o.quality.is_some()), ("cog", o.cog)];
+    let with = [("points", o.points.is_some()), ("cog", o.cog)];
     match with.iter().find(|w| w.1) {
         Some((name, _)) => Err(Error::setting(name, "goes with the DSM, which a shard does not make (its output is its matched points)")),
         None => Ok(()),
