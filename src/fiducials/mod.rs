@@ -179,8 +179,7 @@ pub fn detect(src: &SourceImage, req: &Request<'_>) -> Result<Detection> {
     let mm: Vec<[f64; 2]> = found.iter().map(|&k| req.marks_mm[k]).collect();
     let px: Vec<[f64; 2]> = found.iter().filter_map(|&k| Some(refined[k]?.at)).collect();
     if let Some(map) = (found.len() >= 3).then(|| crate::geom::Affine2::fit(&mm, &px)).flatten() {
-        let starts: Vec<[f64; 2]> = found.iter().map(|&k| refined[k].map_or([0.0; 2], |r| r.at)).collect();
-        let again = refine_marks(src, req, &map.m, &found, &starts, 2, sign)?;
+        let again = refine_marks(src, req, &map.m, &found, &px, 2, sign)?;
         for (&k, a) in found.iter().zip(again) {
             if good(&a) {
                 refined[k] = a;

@@ -91,9 +91,7 @@ impl Picture {
         let bottom = at(u0, v0 + 1.0) * (1.0 - fu) + at(u0 + 1.0, v0 + 1.0) * fu;
         top * (1.0 - fv) + bottom * fv
     }
-}
 
-impl Picture {
     /// The share of the template's half side the second template covers:
     /// its middle half where that shows the mark (a cross's crossing, a
     /// dot), more where the middle is one plain tone (a block's body, whose
