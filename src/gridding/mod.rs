@@ -221,7 +221,7 @@ pub fn grid(o: &GridOptions, progress: &dyn Progress, cancel: &Cancel) -> Result
         let (found, dropped) = pool.install(|| drop_blunders(&ctx, k, &held, progress, cancel))?;
         blunders += found;
         if !dropped.is_empty() {
-                blunders += pool.install(|| drop_hidden_blunders(&ctx, k, &dropped, progress, cancel))?;
+            blunders += pool.install(|| drop_hidden_blunders(&ctx, k, &dropped, progress, cancel))?;
         }
     }
     check_not_collinear(&ctx, &files)?;
